@@ -1,0 +1,157 @@
+"""Grid maps: an occupancy grid plus one probability grid per semantic class.
+
+This is the map a filter holds. It is plain data (numpy arrays + metadata) and
+knows nothing of the simulator, so maps from a real robot (ROS ``map_server``
+files, see :mod:`filters.map_io`) work the same as maps built in simulation.
+
+Conventions
+-----------
+* Cell ``(row, col)`` covers ``x in [ox + col*res, ox + (col+1)*res)`` and
+  ``y in [oy + row*res, oy + (row+1)*res)``: row 0 is the *bottom* row (smallest
+  y), as in ROS ``nav_msgs/OccupancyGrid``. Image files store the top row first;
+  :mod:`filters.map_io` flips on read and write.
+* ``occupancy`` holds the probability that a cell is occupied, in ``[0, 1]``;
+  ``0.5`` means unknown. A cell is *occupied* above ``occupied_thresh`` and
+  *free* below ``free_thresh`` (the map_server defaults 0.65 / 0.196).
+* ``semantic[k]`` holds the probability that an object of class
+  ``class_names[k]`` occupies the cell. In scans, label ``k + 1`` means
+  ``class_names[k]`` and label ``0`` means "no object" (see :data:`NO_CLASS`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+NO_CLASS = 0
+"""Label of a semantic beam that hit no object of a known class."""
+
+DEFAULT_CLASS_NAMES: tuple[str, ...] = ("door", "chair", "trash_bin", "cabinet")
+"""The object classes of paper 004, in label order (label = index + 1)."""
+
+
+@dataclass(frozen=True, eq=False)
+class GridMap:
+    """An occupancy grid and per-class semantic grids on the same raster.
+
+    Attributes:
+        occupancy: ``(H, W)`` float32, probability of occupied in ``[0, 1]``.
+        resolution_m: cell edge length in metres (> 0).
+        origin_xy_m: world ``(x, y)`` of the lower-left corner of cell ``(0, 0)``.
+        semantic: ``(C, H, W)`` float32 class-occupancy probabilities in ``[0, 1]``
+            (``C = len(class_names)``; may be ``C = 0``).
+        class_names: names of the semantic classes, label ``k + 1`` is ``class_names[k]``.
+        occupied_thresh: occupancy above this is an obstacle.
+        free_thresh: occupancy below this is free space.
+        semantic_thresh: class probability above this marks a cell as that class.
+    """
+
+    occupancy: np.ndarray
+    resolution_m: float
+    origin_xy_m: tuple[float, float] = (0.0, 0.0)
+    semantic: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0), np.float32))
+    class_names: tuple[str, ...] = ()
+    occupied_thresh: float = 0.65
+    free_thresh: float = 0.196
+    semantic_thresh: float = 0.5
+
+    def __post_init__(self) -> None:
+        occ = np.asarray(self.occupancy, dtype=np.float32)
+        if occ.ndim != 2 or occ.size == 0:
+            raise ValueError(f"occupancy must be a non-empty 2D array, got shape {occ.shape}")
+        if not np.all(np.isfinite(occ)) or occ.min() < 0.0 or occ.max() > 1.0:
+            raise ValueError("occupancy values must be finite probabilities in [0, 1]")
+        if not (np.isfinite(self.resolution_m) and self.resolution_m > 0):
+            raise ValueError(f"resolution_m must be a positive number, got {self.resolution_m!r}")
+        origin = tuple(float(v) for v in self.origin_xy_m)
+        if len(origin) != 2 or not all(np.isfinite(origin)):
+            raise ValueError(f"origin_xy_m must be two finite numbers, got {self.origin_xy_m!r}")
+        names = tuple(str(n) for n in self.class_names)
+        sem = np.asarray(self.semantic, dtype=np.float32)
+        if sem.size == 0:
+            sem = np.zeros((len(names),) + occ.shape, np.float32)
+        if sem.shape != (len(names),) + occ.shape:
+            raise ValueError(
+                f"semantic must have shape {(len(names),) + occ.shape} "
+                f"(classes x occupancy shape), got {sem.shape}"
+            )
+        if not np.all(np.isfinite(sem)) or (sem.size and (sem.min() < 0.0 or sem.max() > 1.0)):
+            raise ValueError("semantic values must be finite probabilities in [0, 1]")
+        if len(set(names)) != len(names):
+            raise ValueError(f"class_names must be unique, got {names}")
+        if not 0.0 <= self.free_thresh <= self.occupied_thresh <= 1.0:
+            raise ValueError("need 0 <= free_thresh <= occupied_thresh <= 1")
+        occ.setflags(write=False)
+        sem.setflags(write=False)
+        object.__setattr__(self, "occupancy", occ)
+        object.__setattr__(self, "semantic", sem)
+        object.__setattr__(self, "origin_xy_m", origin)
+        object.__setattr__(self, "class_names", names)
+        object.__setattr__(self, "resolution_m", float(self.resolution_m))
+
+    # ------------------------------------------------------------------ shape
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(H, W)``: rows, columns."""
+        return self.occupancy.shape  # type: ignore[return-value]
+
+    @property
+    def extent_m(self) -> tuple[float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max)`` of the grid in metres."""
+        h, w = self.shape
+        ox, oy = self.origin_xy_m
+        return ox, ox + w * self.resolution_m, oy, oy + h * self.resolution_m
+
+    # ------------------------------------------------------------------ masks
+    def occupied_mask(self) -> np.ndarray:
+        """``(H, W)`` bool: cells that are obstacles."""
+        return self.occupancy > self.occupied_thresh
+
+    def free_mask(self) -> np.ndarray:
+        """``(H, W)`` bool: cells that are known free space."""
+        return self.occupancy < self.free_thresh
+
+    def class_mask(self, k: int) -> np.ndarray:
+        """``(H, W)`` bool: cells labelled with class index ``k`` (label ``k + 1``)."""
+        return self.semantic[k] > self.semantic_thresh
+
+    def class_index(self, name: str) -> int:
+        """Index ``k`` of a class name (its scan label is ``k + 1``)."""
+        try:
+            return self.class_names.index(name)
+        except ValueError:
+            raise KeyError(f"unknown class {name!r}; map classes are {self.class_names}") from None
+
+    # ------------------------------------------------------------ conversions
+    def world_to_cell(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Map world points ``(..., 2)`` in metres to integer ``(row, col)`` arrays.
+
+        Points outside the grid give indices outside ``[0, H) x [0, W)``; check
+        with :meth:`in_bounds`.
+        """
+        xy = np.asarray(xy, dtype=np.float64)
+        ox, oy = self.origin_xy_m
+        col = np.floor((xy[..., 0] - ox) / self.resolution_m).astype(np.int64)
+        row = np.floor((xy[..., 1] - oy) / self.resolution_m).astype(np.int64)
+        return row, col
+
+    def in_bounds(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+        """Bool array: which ``(row, col)`` lie on the grid."""
+        h, w = self.shape
+        return (row >= 0) & (row < h) & (col >= 0) & (col < w)
+
+    def cell_centers(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+        """World ``(..., 2)`` centres of cells ``(row, col)`` in metres."""
+        ox, oy = self.origin_xy_m
+        x = ox + (np.asarray(col) + 0.5) * self.resolution_m
+        y = oy + (np.asarray(row) + 0.5) * self.resolution_m
+        return np.stack([x, y], axis=-1)
+
+    def is_free(self, xy: np.ndarray) -> np.ndarray:
+        """Bool array: which world points ``(..., 2)`` fall in known free cells."""
+        row, col = self.world_to_cell(xy)
+        ok = self.in_bounds(row, col)
+        out = np.zeros(ok.shape, dtype=bool)
+        out[ok] = self.free_mask()[row[ok], col[ok]]
+        return out

@@ -1,0 +1,37 @@
+"""Pose helpers shared by every filter: angle wrapping and frame composition.
+
+A pose is ``(x, y, theta)`` in metres and radians, theta wrapped to ``[-pi, pi)``.
+Arrays of poses have shape ``(N, 3)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def wrap_angle(a):
+    """Wrap angles (scalar or array, radians) to ``[-pi, pi)``."""
+    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def compose(pose: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Apply the robot-frame increment ``delta = (dx, dy, dtheta)`` to ``pose``.
+
+    Both may be ``(3,)`` or ``(N, 3)``; broadcasting applies. Returns wrapped poses.
+    """
+    pose = np.asarray(pose, dtype=np.float64)
+    delta = np.asarray(delta, dtype=np.float64)
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    x = pose[..., 0] + c * delta[..., 0] - s * delta[..., 1]
+    y = pose[..., 1] + s * delta[..., 0] + c * delta[..., 1]
+    th = wrap_angle(pose[..., 2] + delta[..., 2])
+    return np.stack([x, y, th], axis=-1)
+
+
+def relative(pose_from: np.ndarray, pose_to: np.ndarray) -> np.ndarray:
+    """The robot-frame increment that takes ``pose_from`` to ``pose_to`` (inverse of compose)."""
+    a = np.asarray(pose_from, dtype=np.float64)
+    b = np.asarray(pose_to, dtype=np.float64)
+    dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[..., 2] - a[..., 2])], axis=-1)
