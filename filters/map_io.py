@@ -1,0 +1,435 @@
+"""Read and write maps in the ROS ``map_server`` format, plus semreloc's semantic layers.
+
+A map on disk is
+
+* ``<name>.yaml`` + ``<name>.pgm``: the occupancy grid exactly as ROS
+  ``map_server`` / ``map_saver`` (ROS 1) and ``nav2_map_server`` (ROS 2) read and
+  write it, so maps built on a real robot load unchanged;
+* optionally ``<name>.semantic.yaml`` + one 8-bit PGM per class: the semantic
+  grids of :class:`filters.grid.GridMap` on the same raster.
+
+The full specification, with a worked example, is ``docs/maps.md``. In short:
+
+Occupancy YAML keys (all required except ``mode``):
+    ``image`` (path, relative to the YAML's folder unless absolute),
+    ``resolution`` (metres per cell, > 0), ``origin`` (``[x, y, yaw]``: world pose of
+    the lower-left pixel's lower-left corner; ``yaw`` must be 0 here),
+    ``negate`` (0/1), ``occupied_thresh``, ``free_thresh`` (in ``[0, 1]``),
+    ``mode`` (``trinary`` (default) or ``scale``; ``raw`` is rejected).
+
+Pixel to probability, as map_server does: ``p = (255 - v) / 255`` (``p = v / 255``
+when ``negate`` is 1). ``trinary``: ``p > occupied_thresh`` -> occupied (1.0),
+``p < free_thresh`` -> free (0.0), otherwise unknown (0.5). ``scale``: the cell keeps
+``p`` itself (its class under the same thresholds is what map_server reports).
+
+The image's first row is the *top* of the map (largest y); :class:`GridMap` row 0
+is the bottom, so rows are flipped on read and write.
+
+Images: binary ``P5`` and ASCII ``P2`` greymaps with ``maxval <= 255`` (values are
+rescaled to 0..255 when ``maxval < 255``). Anything wrong with the files raises
+:class:`MapFormatError`, naming the file and the problem.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from filters.grid import GridMap
+
+__all__ = ["MapFormatError", "save_map", "load_map", "read_pgm", "write_pgm", "semantic_yaml_path"]
+
+SEMANTIC_FORMAT = "semreloc-semantic/1"
+"""Value of the ``format`` key of a semantic YAML written by this version."""
+
+_OCC_PIXEL = 0  # map_saver's colours (trinary): occupied black, free near-white, unknown grey
+_FREE_PIXEL = 254
+_UNKNOWN_PIXEL = 205
+
+
+class MapFormatError(ValueError):
+    """A map file is malformed. ``path`` is the offending file, ``problem`` what is wrong with it."""
+
+    def __init__(self, path: str | os.PathLike, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+# ---------------------------------------------------------------------------------------------- PGM
+def write_pgm(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write an ``(H, W)`` uint8 image as a binary (``P5``) PGM, first array row = top row of the picture."""
+    img = np.asarray(image)
+    if img.ndim != 2 or img.size == 0:
+        raise ValueError(f"write_pgm: need a non-empty 2D image, got shape {img.shape}")
+    if img.dtype != np.uint8:
+        raise ValueError(f"write_pgm: need uint8 pixels, got {img.dtype}")
+    h, w = img.shape
+    with open(path, "wb") as f:
+        f.write(f"P5\n{w} {h}\n255\n".encode("ascii"))
+        f.write(np.ascontiguousarray(img).tobytes())
+
+
+def _pgm_tokens(data: bytes, count: int, start: int, path: Path) -> tuple[list[bytes], int]:
+    """Read ``count`` whitespace-separated header tokens from ``data[start:]``, skipping ``#`` comments.
+
+    Returns the tokens and the index just after the last token (which points at the single
+    whitespace byte that ends a P5 header).
+    """
+    tokens: list[bytes] = []
+    i, n = start, len(data)
+    while len(tokens) < count:
+        while i < n and data[i : i + 1].isspace():
+            i += 1
+        if i < n and data[i : i + 1] == b"#":
+            while i < n and data[i : i + 1] not in (b"\n", b"\r"):
+                i += 1
+            continue
+        if i >= n:
+            raise MapFormatError(path, "bad PGM header: file ends inside the header")
+        j = i
+        while j < n and not data[j : j + 1].isspace() and data[j : j + 1] != b"#":
+            j += 1
+        tokens.append(data[i:j])
+        i = j
+    return tokens, i
+
+
+def read_pgm(path: str | os.PathLike) -> np.ndarray:
+    """Read an 8-bit greymap (``P5`` binary or ``P2`` ASCII) as ``(H, W)`` uint8, first row = top of the picture.
+
+    ``maxval`` must be in ``1..255``; values are rescaled to ``0..255`` (``round(v * 255 / maxval)``).
+
+    Raises:
+        MapFormatError: the file is missing, is not a P5/P2 PGM, has a bad header, a 16-bit
+            ``maxval``, or holds more or fewer pixels than ``width * height``.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise MapFormatError(path, "image file not found") from None
+    except OSError as e:
+        raise MapFormatError(path, f"cannot read image file ({e.strerror})") from None
+    magic = data[:2]
+    if magic not in (b"P5", b"P2"):
+        raise MapFormatError(path, f"bad PGM header: magic number {magic!r}, expected b'P5' or b'P2'")
+    tokens, end = _pgm_tokens(data, 3, 2, path)
+    try:
+        w, h, maxval = (int(t) for t in tokens)
+    except ValueError:
+        raise MapFormatError(path, f"bad PGM header: width/height/maxval {tokens!r} are not integers") from None
+    if w <= 0 or h <= 0:
+        raise MapFormatError(path, f"bad PGM header: image size {w} x {h}")
+    if not 0 < maxval <= 255:
+        raise MapFormatError(
+            path, f"bad PGM header: maxval {maxval}; only 8-bit greymaps (maxval 1..255) are supported"
+        )
+    if magic == b"P5":
+        body = data[end + 1 :]  # exactly one whitespace byte separates header and raster
+        if len(body) != w * h:
+            raise MapFormatError(
+                path, f"wrong size: header says {w} x {h} = {w * h} pixels, file holds {len(body)} bytes"
+            )
+        img = np.frombuffer(body, dtype=np.uint8).reshape(h, w)
+    else:
+        words = data[end:].split()
+        if len(words) != w * h:
+            raise MapFormatError(path, f"wrong size: header says {w} x {h} = {w * h} pixels, file holds {len(words)}")
+        try:
+            vals = np.array([int(t) for t in words], dtype=np.int64)
+        except ValueError:
+            raise MapFormatError(path, "bad P2 raster: non-integer pixel value") from None
+        if vals.min() < 0 or vals.max() > maxval:
+            raise MapFormatError(path, f"bad P2 raster: pixel values outside 0..{maxval}")
+        img = vals.astype(np.uint8).reshape(h, w)
+    if maxval != 255:
+        img = np.round(img.astype(np.float64) * (255.0 / maxval)).astype(np.uint8)
+    return np.array(img, dtype=np.uint8)
+
+
+# --------------------------------------------------------------------------------------------- YAML
+def _read_yaml(path: Path) -> dict:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise MapFormatError(path, "not a UTF-8 text file") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise MapFormatError(path, f"not valid YAML ({e})") from None
+    if not isinstance(doc, dict):
+        raise MapFormatError(path, f"expected a YAML mapping of keys, got {type(doc).__name__}")
+    return doc
+
+
+def _require(doc: dict, key: str, path: Path):
+    if key not in doc:
+        raise MapFormatError(path, f"missing key {key!r}")
+    return doc[key]
+
+
+def _number(value, key: str, path: Path) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise MapFormatError(path, f"{key} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise MapFormatError(path, f"{key} must be finite, got {value!r}")
+    return v
+
+
+def _resolution(doc: dict, path: Path) -> float:
+    res = _number(_require(doc, "resolution", path), "resolution", path)
+    if res <= 0:
+        raise MapFormatError(path, f"resolution must be positive, got {res}")
+    return res
+
+
+def _origin(doc: dict, path: Path) -> tuple[float, float]:
+    origin = _require(doc, "origin", path)
+    if not isinstance(origin, (list, tuple)) or len(origin) != 3:
+        raise MapFormatError(path, f"origin must be a list [x, y, yaw], got {origin!r}")
+    x, y, yaw = (_number(v, f"origin[{i}]", path) for i, v in enumerate(origin))
+    if yaw != 0.0:
+        raise MapFormatError(path, f"origin yaw is {yaw}; rotated maps are not supported (yaw must be 0)")
+    return x, y
+
+
+def _image_path(doc: dict, yaml_path: Path, key: str = "image") -> Path:
+    image = _require(doc, key, yaml_path)
+    if not isinstance(image, str) or not image:
+        raise MapFormatError(yaml_path, f"{key} must be a file name, got {image!r}")
+    p = Path(image)
+    return p if p.is_absolute() else yaml_path.parent / p
+
+
+def semantic_yaml_path(path_yaml: str | os.PathLike) -> Path:
+    """The semantic sidecar of a map YAML: ``dir/name.yaml`` -> ``dir/name.semantic.yaml``."""
+    p = Path(path_yaml)
+    return p.with_name(p.stem + ".semantic.yaml")
+
+
+def _safe_name(name: str) -> str:
+    s = re.sub(r"[^A-Za-z0-9_-]+", "_", name).strip("_")
+    return s or "class"
+
+
+def _fmt(v: float) -> float:
+    """Shortest float that round-trips (keeps YAML readable: 0.05, not 0.05000000074505806)."""
+    return float(repr(float(v)))
+
+
+# --------------------------------------------------------------------------------------------- save
+def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary") -> Path:
+    """Write ``grid`` as a map_server map (+ semantic sidecar when the grid has classes).
+
+    Files written next to ``path_yaml`` (``dir/name.yaml``):
+
+    * ``name.yaml`` and ``name.pgm`` (binary P5, ``negate: 0``). ``mode="trinary"`` (default,
+      what ``map_saver`` writes): occupied cells -> 0, free -> 254, unknown -> 205 (or the pixel
+      of the mid-probability when the grid's thresholds would misread 205), which reloads to
+      the same occupied/free/unknown masks. ``mode="scale"``: pixel ``round(255 * (1 - p))``,
+      which reloads ``p`` to within ``1/255`` (cells that rounding would carry across a
+      threshold are moved one grey level back, so the masks are kept exactly here too).
+    * only if ``grid.class_names`` is non-empty: ``name.semantic.yaml`` and one
+      ``name.semantic.<class>.pgm`` per class, pixel ``round(255 * p)`` (see ``docs/maps.md``).
+      A stale sidecar from an earlier save is removed when the grid has no classes.
+
+    Returns:
+        The path of the occupancy YAML.
+    """
+    if mode not in ("trinary", "scale"):
+        raise ValueError(f"save_map: mode must be 'trinary' or 'scale', got {mode!r}")
+    path_yaml = Path(path_yaml)
+    if path_yaml.suffix not in (".yaml", ".yml"):
+        raise ValueError(f"save_map: the map path must end in .yaml or .yml, got {path_yaml}")
+    stem = path_yaml.stem
+    folder = path_yaml.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    occ = grid.occupancy.astype(np.float64)
+
+    if mode == "trinary":
+        img = np.full(grid.shape, _UNKNOWN_PIXEL, dtype=np.uint8)
+        unknown_p = (255 - _UNKNOWN_PIXEL) / 255.0
+        if not grid.free_thresh <= unknown_p <= grid.occupied_thresh:
+            mid = 0.5 * (grid.free_thresh + grid.occupied_thresh)
+            img[:] = np.uint8(round(255 * (1.0 - mid)))
+        # 254 reads back as p = 1/255; a (silly) free_thresh at or below that needs pure white
+        img[grid.free_mask()] = _FREE_PIXEL if grid.free_thresh > 1.0 / 255.0 else 255
+        img[grid.occupied_mask()] = _OCC_PIXEL
+    else:
+        v = np.round(255.0 * (1.0 - occ))
+        # nudge the few cells that quantisation would carry across a threshold by one grey level,
+        # so the occupied / free / unknown masks survive the round trip exactly
+        p = (255.0 - v) / 255.0
+        occupied, free = grid.occupied_mask(), grid.free_mask()
+        unknown = ~occupied & ~free
+        v[occupied & (p <= grid.occupied_thresh)] -= 1
+        v[free & (p >= grid.free_thresh)] += 1
+        v[unknown & (p > grid.occupied_thresh)] += 1
+        v[unknown & (p < grid.free_thresh)] -= 1
+        img = np.clip(v, 0, 255).astype(np.uint8)
+    image_name = stem + ".pgm"
+    write_pgm(folder / image_name, np.flipud(img))
+    doc = {
+        "image": image_name,
+        "mode": mode,
+        "resolution": _fmt(grid.resolution_m),
+        "origin": [_fmt(grid.origin_xy_m[0]), _fmt(grid.origin_xy_m[1]), 0.0],
+        "negate": 0,
+        "occupied_thresh": _fmt(grid.occupied_thresh),
+        "free_thresh": _fmt(grid.free_thresh),
+    }
+    path_yaml.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None), encoding="utf-8")
+
+    sem_path = semantic_yaml_path(path_yaml)
+    if not grid.class_names:
+        if sem_path.exists():
+            sem_path.unlink()
+        return path_yaml
+    h, w = grid.shape
+    classes = []
+    used: set[str] = set()
+    for k, name in enumerate(grid.class_names):
+        fname = f"{stem}.semantic.{_safe_name(name)}.pgm"
+        if fname in used:
+            fname = f"{stem}.semantic.{k}_{_safe_name(name)}.pgm"
+        used.add(fname)
+        layer = np.round(255.0 * grid.semantic[k].astype(np.float64)).astype(np.uint8)
+        write_pgm(folder / fname, np.flipud(layer))
+        classes.append({"name": name, "label": k + 1, "image": fname})
+    sem_doc = {
+        "format": SEMANTIC_FORMAT,
+        "map": path_yaml.name,
+        "resolution": _fmt(grid.resolution_m),
+        "origin": [_fmt(grid.origin_xy_m[0]), _fmt(grid.origin_xy_m[1]), 0.0],
+        "width": w,
+        "height": h,
+        "semantic_thresh": _fmt(grid.semantic_thresh),
+        "classes": classes,
+    }
+    sem_path.write_text(yaml.safe_dump(sem_doc, sort_keys=False, default_flow_style=None), encoding="utf-8")
+    return path_yaml
+
+
+# --------------------------------------------------------------------------------------------- load
+def _occupancy_from_pixels(img: np.ndarray, negate: bool, mode: str, occ_t: float, free_t: float) -> np.ndarray:
+    v = img.astype(np.float64)
+    p = v / 255.0 if negate else (255.0 - v) / 255.0
+    if mode == "scale":
+        return p
+    out = np.full(p.shape, 0.5)
+    out[p > occ_t] = 1.0
+    out[p < free_t] = 0.0
+    return out
+
+
+def _load_semantic(sem_path: Path, shape: tuple[int, int], res: float, origin: tuple[float, float]):
+    doc = _read_yaml(sem_path)
+    fmt = _require(doc, "format", sem_path)
+    if fmt != SEMANTIC_FORMAT:
+        raise MapFormatError(sem_path, f"format is {fmt!r}, expected {SEMANTIC_FORMAT!r}")
+    s_res = _resolution(doc, sem_path)
+    s_origin = _origin(doc, sem_path)
+    if not math.isclose(s_res, res, rel_tol=1e-9):
+        raise MapFormatError(sem_path, f"resolution {s_res} differs from the occupancy map's {res}")
+    if not all(math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-9) for a, b in zip(s_origin, origin, strict=True)):
+        raise MapFormatError(sem_path, f"origin {list(s_origin)} differs from the occupancy map's {list(origin)}")
+    h, w = shape
+    for key, want in (("width", w), ("height", h)):
+        got = _require(doc, key, sem_path)
+        if isinstance(got, bool) or not isinstance(got, int) or got != want:
+            raise MapFormatError(sem_path, f"{key} is {got!r}, the occupancy image has {want}")
+    thresh = _number(doc.get("semantic_thresh", 0.5), "semantic_thresh", sem_path)
+    if not 0.0 <= thresh <= 1.0:
+        raise MapFormatError(sem_path, f"semantic_thresh must be in [0, 1], got {thresh}")
+    classes = _require(doc, "classes", sem_path)
+    if not isinstance(classes, list):
+        raise MapFormatError(sem_path, f"classes must be a list, got {classes!r}")
+    names: list[str] = []
+    layers: list[np.ndarray] = []
+    for k, entry in enumerate(classes):
+        if not isinstance(entry, dict):
+            raise MapFormatError(sem_path, f"classes[{k}] must be a mapping with name and image, got {entry!r}")
+        name = _require(entry, "name", sem_path)
+        if not isinstance(name, str) or not name:
+            raise MapFormatError(sem_path, f"classes[{k}].name must be a non-empty string, got {name!r}")
+        if name in names:
+            raise MapFormatError(sem_path, f"class {name!r} is listed twice")
+        if "label" in entry and entry["label"] != k + 1:
+            raise MapFormatError(sem_path, f"classes[{k}] ({name}) has label {entry['label']!r}, expected {k + 1}")
+        img_path = _image_path(entry, sem_path)
+        img = read_pgm(img_path)
+        if img.shape != shape:
+            raise MapFormatError(
+                img_path, f"semantic raster for class {name!r} is {img.shape[1]} x {img.shape[0]}, expected {w} x {h}"
+            )
+        names.append(name)
+        layers.append(np.flipud(img).astype(np.float32) / np.float32(255.0))
+    sem = np.stack(layers) if layers else np.zeros((0,) + shape, np.float32)
+    return tuple(names), sem, thresh
+
+
+def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | None = None) -> GridMap:
+    """Load a map_server map (and its semantic sidecar, if any) as a :class:`GridMap`.
+
+    Args:
+        path_yaml: the occupancy YAML.
+        semantic_yaml: the semantic YAML; default ``<name>.semantic.yaml`` next to ``path_yaml``
+            (absent -> a map without classes; given explicitly but absent -> error).
+
+    Returns:
+        A ``GridMap`` with ``occupancy`` in ``{0, 0.5, 1}`` (``trinary``) or the pixel
+        probability (``scale``), thresholds from the YAML, row 0 = bottom of the map.
+
+    Raises:
+        FileNotFoundError: ``path_yaml`` (or an explicitly given ``semantic_yaml``) does not exist.
+        MapFormatError: any file is malformed (missing key, bad value, bad or missing image,
+            size mismatch, rotated origin...). The message names the file.
+    """
+    path_yaml = Path(path_yaml)
+    if not path_yaml.is_file():
+        raise FileNotFoundError(f"map YAML not found: {path_yaml}")
+    doc = _read_yaml(path_yaml)
+    img_path = _image_path(doc, path_yaml)
+    res = _resolution(doc, path_yaml)
+    origin = _origin(doc, path_yaml)
+    negate = _require(doc, "negate", path_yaml)
+    if negate not in (0, 1) or isinstance(negate, float):  # True/False count as 1/0, as YAML users expect
+        raise MapFormatError(path_yaml, f"negate must be 0 or 1, got {negate!r}")
+    occ_t = _number(_require(doc, "occupied_thresh", path_yaml), "occupied_thresh", path_yaml)
+    free_t = _number(_require(doc, "free_thresh", path_yaml), "free_thresh", path_yaml)
+    if not 0.0 <= free_t <= occ_t <= 1.0:
+        raise MapFormatError(path_yaml, f"need 0 <= free_thresh ({free_t}) <= occupied_thresh ({occ_t}) <= 1")
+    mode = doc.get("mode", "trinary")
+    if mode not in ("trinary", "scale"):
+        raise MapFormatError(path_yaml, f"mode {mode!r} is not supported (use 'trinary' or 'scale')")
+    img = read_pgm(img_path)
+    occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t))
+
+    names: tuple[str, ...] = ()
+    sem = np.zeros((0,) + img.shape, np.float32)
+    sem_thresh = 0.5
+    if semantic_yaml is not None:
+        sem_path = Path(semantic_yaml)
+        if not sem_path.is_file():
+            raise FileNotFoundError(f"semantic YAML not found: {sem_path}")
+    else:
+        sem_path = semantic_yaml_path(path_yaml)
+    if sem_path.is_file():
+        names, sem, sem_thresh = _load_semantic(sem_path, img.shape, res, origin)
+    return GridMap(
+        occupancy=np.ascontiguousarray(occ, dtype=np.float32),
+        resolution_m=res,
+        origin_xy_m=origin,
+        semantic=np.ascontiguousarray(sem),
+        class_names=names,
+        occupied_thresh=occ_t,
+        free_thresh=free_t,
+        semantic_thresh=sem_thresh,
+    )

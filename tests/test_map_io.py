@@ -1,0 +1,270 @@
+"""Map files: map_server YAML + PGM (P5 / P2) and semreloc's semantic sidecar."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from filters.grid import GridMap
+from filters.map_io import MapFormatError, load_map, read_pgm, save_map, semantic_yaml_path, write_pgm
+
+# A 4 x 3 map as map_saver would draw it; first row = TOP of the map.
+PIXELS_TOP_FIRST = np.array(
+    [
+        [0, 254, 205, 255],
+        [254, 254, 0, 100],
+        [0, 0, 0, 254],
+    ],
+    dtype=np.uint8,
+)
+
+MAP_YAML = """\
+image: {image}
+resolution: 0.1
+origin: [-1.0, 2.0, 0.0]
+negate: {negate}
+occupied_thresh: 0.65
+free_thresh: 0.196
+{mode}
+"""
+
+
+def _write_map(folder: Path, *, image="lab.pgm", negate=0, mode="", yaml_text=None, fmt="P5") -> Path:
+    if fmt == "P5":
+        write_pgm(folder / "lab.pgm", PIXELS_TOP_FIRST)
+    else:
+        body = "\n".join(" ".join(str(v) for v in row) for row in PIXELS_TOP_FIRST)
+        (folder / "lab.pgm").write_text(f"P2\n# written by hand\n4 3\n# maxval next\n255\n{body}\n")
+    path = folder / "lab.yaml"
+    path.write_text(yaml_text if yaml_text is not None else MAP_YAML.format(image=image, negate=negate, mode=mode))
+    return path
+
+
+# ------------------------------------------------------------------------------------------- hand-written files
+@pytest.mark.parametrize("fmt", ["P5", "P2"])
+def test_load_hand_written_map_server_map(tmp_path, fmt):
+    grid = load_map(_write_map(tmp_path, fmt=fmt))
+    assert grid.shape == (3, 4)
+    assert grid.resolution_m == pytest.approx(0.1)
+    assert grid.origin_xy_m == (-1.0, 2.0)
+    assert grid.occupied_thresh == pytest.approx(0.65) and grid.free_thresh == pytest.approx(0.196)
+    assert grid.class_names == () and grid.semantic.shape == (0, 3, 4)
+    # row 0 of the grid is the BOTTOM image row; trinary gives 1 / 0 / 0.5
+    expected_bottom_first = np.array(
+        [
+            [1.0, 1.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0, 0.5],  # 100 -> p = 155/255 = 0.61: unknown
+            [1.0, 0.0, 0.5, 0.0],  # 205 -> p = 0.19608 > 0.196: unknown (the map_saver grey)
+        ]
+    )
+    np.testing.assert_array_equal(grid.occupancy, expected_bottom_first)
+    # origin: lower-left corner of the bottom-left pixel
+    np.testing.assert_allclose(grid.cell_centers(np.array(0), np.array(0)), [-0.95, 2.05])
+    row, col = grid.world_to_cell(np.array([[-0.95, 2.25], [-0.75, 2.05], [-0.61, 2.11]]))
+    np.testing.assert_array_equal(row, [2, 0, 1])
+    np.testing.assert_array_equal(col, [0, 2, 3])
+    assert grid.occupied_mask()[2, 0] and grid.free_mask()[2, 1] and not grid.free_mask()[2, 2]
+
+
+def test_negate_and_scale_mode(tmp_path):
+    neg = load_map(_write_map(tmp_path, negate=1))
+    # negate: p = v / 255, so black is free and white is occupied
+    np.testing.assert_array_equal(neg.occupancy[2], [0.0, 1.0, 1.0, 1.0])
+    np.testing.assert_array_equal(neg.occupancy[1], [1.0, 1.0, 0.0, 0.5])  # 100 -> 0.39: unknown
+
+    scale = load_map(_write_map(tmp_path, mode="mode: scale"))
+    np.testing.assert_allclose(scale.occupancy, (255.0 - np.flipud(PIXELS_TOP_FIRST)) / 255.0, atol=1e-6)
+    # classification under the YAML thresholds is the same as trinary's
+    tri = load_map(_write_map(tmp_path, mode="mode: trinary"))
+    np.testing.assert_array_equal(scale.occupied_mask(), tri.occupied_mask())
+    np.testing.assert_array_equal(scale.free_mask(), tri.free_mask())
+
+
+def test_pgm_maxval_below_255_is_rescaled(tmp_path):
+    (tmp_path / "small.pgm").write_text("P2 2 1 100\n0 100\n")
+    np.testing.assert_array_equal(read_pgm(tmp_path / "small.pgm"), [[0, 255]])
+
+
+# ------------------------------------------------------------------------------------------------ round trip
+def _example_grid(rng: np.random.Generator) -> GridMap:
+    h, w = 23, 31
+    occ = rng.random((h, w)).astype(np.float32)
+    occ[:, 3] = 0.0
+    occ[5, :] = 1.0
+    occ[10:12, 10:20] = 0.5
+    sem = np.zeros((3, h, w), np.float32)
+    sem[0, 2:6, 4:9] = 0.9
+    sem[1] = rng.random((h, w))
+    sem[2, 20:, 25:] = 1.0
+    return GridMap(
+        occupancy=occ,
+        resolution_m=0.05,
+        origin_xy_m=(-3.25, 1.5),
+        semantic=sem,
+        class_names=("door", "trash bin", "cabinet"),
+        semantic_thresh=0.4,
+    )
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale"])
+def test_round_trip_occupancy_and_semantic(tmp_path, mode):
+    grid = _example_grid(np.random.default_rng(3))
+    path = save_map(grid, tmp_path / "maps" / "lab.yaml", mode=mode)
+    assert (tmp_path / "maps" / "lab.pgm").read_bytes()[:2] == b"P5"
+    # the image's first row is the top of the map
+    img = read_pgm(tmp_path / "maps" / "lab.pgm")
+    assert img.shape == grid.shape
+    assert np.all(img[-1 - 5] == 0)  # grid row 5 (all occupied) is image row H-1-5, black
+    back = load_map(path)
+    assert back.shape == grid.shape
+    assert back.resolution_m == grid.resolution_m and back.origin_xy_m == grid.origin_xy_m
+    assert back.class_names == grid.class_names and back.semantic_thresh == pytest.approx(0.4)
+    np.testing.assert_array_equal(back.occupied_mask(), grid.occupied_mask())
+    np.testing.assert_array_equal(back.free_mask(), grid.free_mask())
+    if mode == "scale":
+        np.testing.assert_allclose(back.occupancy, grid.occupancy, atol=1 / 255 + 1e-6)
+    else:
+        assert set(np.unique(back.occupancy).tolist()) <= {0.0, 0.5, 1.0}
+    np.testing.assert_allclose(back.semantic, grid.semantic, atol=1 / 510 + 1e-6)
+    for k in range(3):
+        np.testing.assert_array_equal(back.class_mask(k), grid.class_mask(k))
+
+
+def test_saving_a_map_without_classes_drops_a_stale_sidecar(tmp_path):
+    grid = _example_grid(np.random.default_rng(0))
+    save_map(grid, tmp_path / "m.yaml")
+    assert semantic_yaml_path(tmp_path / "m.yaml").exists()
+    plain = GridMap(occupancy=grid.occupancy, resolution_m=0.05)
+    save_map(plain, tmp_path / "m.yaml")
+    assert not semantic_yaml_path(tmp_path / "m.yaml").exists()
+    assert load_map(tmp_path / "m.yaml").class_names == ()
+
+
+def test_missing_yaml_is_file_not_found(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        load_map(tmp_path / "nope.yaml")
+
+
+# ------------------------------------------------------------------------------------------------- malformed
+GOOD_KEYS = {
+    "image": "image: lab.pgm",
+    "resolution": "resolution: 0.1",
+    "origin": "origin: [-1.0, 2.0, 0.0]",
+    "negate": "negate: 0",
+    "occupied_thresh": "occupied_thresh: 0.65",
+    "free_thresh": "free_thresh: 0.196",
+}
+
+
+def _yaml_with(**override: str | None) -> str:
+    lines = []
+    for key, line in GOOD_KEYS.items():
+        if key in override:
+            if override[key] is None:
+                continue
+            line = override[key]
+        lines.append(line)
+    return "\n".join(lines) + "\n" + override.get("extra", "") + "\n"
+
+
+YAML_CASES = {
+    **{f"missing {k}": (_yaml_with(**{k: None}), f"missing key '{k}'") for k in GOOD_KEYS},
+    "non-numeric resolution": (_yaml_with(resolution="resolution: fine"), "resolution must be a number"),
+    "negative resolution": (_yaml_with(resolution="resolution: -0.05"), "resolution must be positive"),
+    "nonzero yaw": (_yaml_with(origin="origin: [0.0, 0.0, 0.3]"), "rotated maps are not supported"),
+    "short origin": (_yaml_with(origin="origin: [0.0, 0.0]"), "origin must be a list"),
+    "bad negate": (_yaml_with(negate="negate: 2"), "negate must be 0 or 1"),
+    "thresholds swapped": (
+        _yaml_with(occupied_thresh="occupied_thresh: 0.1", free_thresh="free_thresh: 0.9"),
+        "free_thresh",
+    ),
+    "raw mode": (_yaml_with(extra="mode: raw"), "mode 'raw' is not supported"),
+    "not yaml": ("image: [unclosed\n", "not valid YAML"),
+    "not a mapping": ("- 1\n- 2\n", "expected a YAML mapping"),
+    "image file missing": (_yaml_with(image="image: elsewhere.pgm"), "image file not found"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(YAML_CASES))
+def test_malformed_yaml_raises_naming_the_file(tmp_path, case):
+    text, problem = YAML_CASES[case]
+    path = _write_map(tmp_path, yaml_text=text)
+    with pytest.raises(MapFormatError) as err:
+        load_map(path)
+    named = "elsewhere.pgm" if case == "image file missing" else "lab.yaml"
+    assert named in str(err.value) and err.value.path.endswith(named)
+    assert problem in str(err.value)
+    assert isinstance(err.value, ValueError)
+
+
+PGM_CASES = {
+    "bad magic": (b"P6\n4 3\n255\n" + bytes(36), "magic number"),
+    "not a pgm at all": (b"\x89PNG\r\n\x1a\n", "magic number"),
+    "non-integer size": (b"P5\nfour 3\n255\n" + bytes(12), "not integers"),
+    "truncated header": (b"P5\n4 3", "ends inside the header"),
+    "zero width": (b"P5\n0 3\n255\n", "image size"),
+    "16-bit": (b"P5\n4 3\n65535\n" + bytes(24), "maxval 65535"),
+    "too few pixels": (b"P5\n4 3\n255\n" + bytes(11), "wrong size"),
+    "too many pixels": (b"P5\n4 3\n255\n" + bytes(13), "wrong size"),
+    "P2 too few pixels": (b"P2\n4 3\n255\n" + b"0 " * 11, "wrong size"),
+    "P2 value above maxval": (b"P2\n2 1\n10\n3 11\n", "outside 0..10"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(PGM_CASES))
+def test_malformed_image_raises_naming_the_image(tmp_path, case):
+    data, problem = PGM_CASES[case]
+    path = _write_map(tmp_path)
+    (tmp_path / "lab.pgm").write_bytes(data)
+    with pytest.raises(MapFormatError) as err:
+        load_map(path)
+    assert "lab.pgm" in str(err.value) and problem in str(err.value)
+
+
+def _saved_with_semantic(tmp_path: Path) -> Path:
+    return save_map(_example_grid(np.random.default_rng(1)), tmp_path / "lab.yaml")
+
+
+def _edit_semantic(tmp_path: Path, old: str, new: str) -> Path:
+    sem = tmp_path / "lab.semantic.yaml"
+    text = sem.read_text()
+    assert old in text, text
+    sem.write_text(text.replace(old, new))
+    return sem
+
+
+SEMANTIC_CASES = {
+    "resolution differs": (("resolution: 0.05", "resolution: 0.1"), "lab.semantic.yaml", "resolution 0.1 differs"),
+    "origin differs": (("origin: [-3.25, 1.5, 0.0]", "origin: [0.0, 1.5, 0.0]"), "lab.semantic.yaml", "origin"),
+    "yaw": (("origin: [-3.25, 1.5, 0.0]", "origin: [-3.25, 1.5, 1.0]"), "lab.semantic.yaml", "rotated"),
+    "width differs": (("width: 31", "width: 30"), "lab.semantic.yaml", "width is 30"),
+    "no classes key": (("classes:", "klasses:"), "lab.semantic.yaml", "missing key 'classes'"),
+    "wrong format tag": (("semreloc-semantic/1", "something/9"), "lab.semantic.yaml", "format is"),
+    "class image missing": (("lab.semantic.door.pgm", "gone.pgm"), "gone.pgm", "image file not found"),
+    "bad threshold": (("semantic_thresh: 0.4", "semantic_thresh: high"), "lab.semantic.yaml", "must be a number"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SEMANTIC_CASES))
+def test_malformed_semantic_sidecar_raises_naming_the_file(tmp_path, case):
+    (old, new), named, problem = SEMANTIC_CASES[case]
+    path = _saved_with_semantic(tmp_path)
+    _edit_semantic(tmp_path, old, new)
+    with pytest.raises(MapFormatError) as err:
+        load_map(path)
+    assert named in str(err.value) and problem in str(err.value)
+
+
+def test_mismatched_semantic_raster_raises(tmp_path):
+    path = _saved_with_semantic(tmp_path)
+    write_pgm(tmp_path / "lab.semantic.cabinet.pgm", np.zeros((23, 30), np.uint8))
+    with pytest.raises(MapFormatError, match=r"lab\.semantic\.cabinet\.pgm: semantic raster .* expected 31 x 23"):
+        load_map(path)
+
+
+def test_explicit_semantic_yaml_must_exist(tmp_path):
+    path = _saved_with_semantic(tmp_path)
+    with pytest.raises(FileNotFoundError):
+        load_map(path, semantic_yaml=tmp_path / "other.semantic.yaml")
