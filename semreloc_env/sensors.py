@@ -1,0 +1,154 @@
+"""Simulated sensors, each a small class: ``reading = sensor.read(world, pose, rng)``.
+
+* :class:`Lidar` — ranges with Gaussian noise and dropouts, cast against the world's segments.
+* :class:`SemanticCamera` — the semantic pseudo-laser of paper 004 §2: per beam in
+  the camera's field of view, the range to the nearest surface and the class of
+  the object hit, through a detector with misses, wrong classes and false positives.
+* :class:`Odometry` — the true motion increment through the rot1-trans-rot2 noise model.
+
+All return :mod:`filters.scans` containers or plain arrays, so filters never see the simulator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from filters.grid import NO_CLASS
+from filters.pose import relative, wrap_angle
+from filters.scans import LaserScan, SemanticScan
+
+from .config import CameraParams, LidarParams, OdometryParams
+from .layouts import CLASS_NAMES
+from .world import World
+
+
+def beam_angles(n_beams: int, fov_rad: float) -> np.ndarray:
+    """Robot-frame angles of ``n_beams`` evenly spaced over ``fov_rad``, centred on the heading.
+
+    A full circle does not repeat its first beam.
+    """
+    if fov_rad >= 2 * np.pi - 1e-9:
+        return -np.pi + 2 * np.pi * np.arange(n_beams) / n_beams
+    if n_beams == 1:
+        return np.zeros(1)
+    return np.linspace(-fov_rad / 2, fov_rad / 2, n_beams)
+
+
+class Lidar:
+    """A planar lidar at the robot centre (see :class:`~semreloc_env.config.LidarParams`)."""
+
+    def __init__(self, params: LidarParams):
+        self.params = params
+        self.angles = beam_angles(int(params.n_beams), params.fov_rad)
+
+    def true_ranges(self, world: World, pose: np.ndarray) -> np.ndarray:
+        """Noise-free ranges ``(B,)`` from ``pose``; ``range_max_m`` where nothing is hit."""
+        ranges, _ = world.scene.cast(pose[:2], pose[2] + self.angles, self.params.range_max_m)
+        return ranges
+
+    def read(self, world: World, pose: np.ndarray, rng: np.random.Generator) -> LaserScan:
+        """One noisy scan. Draws: B normals (noise), then B uniforms (dropouts)."""
+        p = self.params
+        r = self.true_ranges(world, pose)
+        hit = r < p.range_max_m
+        noisy = r + p.noise_std_m * rng.standard_normal(r.shape)
+        dropped = rng.random(r.shape) < p.dropout_prob
+        noisy = np.where(hit & ~dropped, np.clip(noisy, 0.0, p.range_max_m), p.range_max_m)
+        return LaserScan(noisy, self.angles, p.range_max_m)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]`` of the contiguous True runs of a 1D bool array."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+class SemanticCamera:
+    """The semantic pseudo-laser (see :class:`~semreloc_env.config.CameraParams`).
+
+    Per frame: cast the beams; group beams by the object they hit first; each
+    object seen is detected with probability ``1 - miss_rate`` and then given a
+    wrong class with probability ``wrong_class_rate``. As in paper 004, only the
+    *nearest contiguous run* of beams on a detected object carries its class (an
+    object split by an occluder keeps one run). With probability
+    ``false_positive_rate`` a spurious detection labels a random run of 1-4 wall beams.
+    Beams outside ``[range_min_m, range_max_m)`` read ``range_max_m`` and carry no class.
+    """
+
+    def __init__(self, params: CameraParams):
+        self.params = params
+        self.angles = beam_angles(int(params.n_beams), params.fov_rad)
+
+    def true_hits(self, world: World, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Noise-free ranges ``(S,)`` and the object index hit per beam (``-1``: wall / nothing / out of range)."""
+        p = self.params
+        ranges, seg = world.scene.cast(pose[:2], pose[2] + self.angles, p.range_max_m)
+        in_range = (ranges >= p.range_min_m) & (ranges < p.range_max_m)
+        obj = np.where((seg >= 0) & in_range, world.scene.owner[np.maximum(seg, 0)], -1)
+        return np.where(in_range, ranges, p.range_max_m), obj
+
+    def read(self, world: World, pose: np.ndarray, rng: np.random.Generator) -> SemanticScan:
+        """One labelled scan. Draws, in order: S normals (noise); per visible object
+        (ascending index) one uniform for the miss and one for the wrong class, plus
+        one integer if the class is wrong; one uniform for a false positive (plus
+        three integers if one occurs)."""
+        p = self.params
+        ranges, obj = self.true_hits(world, pose)
+        hit = ranges < p.range_max_m
+        noisy = np.where(
+            hit, np.clip(ranges + p.noise_std_m * rng.standard_normal(ranges.shape), 0, p.range_max_m), p.range_max_m
+        )
+        labels = np.full(ranges.shape, NO_CLASS, dtype=np.int64)
+        n_classes = len(CLASS_NAMES)
+        for k in np.unique(obj[obj >= 0]):
+            detected = rng.random() >= p.miss_rate
+            wrong = rng.random() < p.wrong_class_rate
+            label = world.layout.objects[k].label
+            if wrong:
+                label = 1 + (label - 1 + int(rng.integers(1, n_classes))) % n_classes
+            if not detected:
+                continue
+            runs = _runs(obj == k)
+            nearest = min(runs, key=lambda r: ranges[r[0] : r[1]].min())
+            labels[nearest[0] : nearest[1]] = label
+        if rng.random() < p.false_positive_rate:
+            wall_runs = _runs(hit & (obj < 0))
+            start_run = int(rng.integers(0, max(len(wall_runs), 1)))
+            length = int(rng.integers(1, 5))
+            cls = int(rng.integers(1, n_classes + 1))
+            if wall_runs:
+                a, b = wall_runs[start_run]
+                labels[a : min(b, a + length)] = cls
+        return SemanticScan(noisy, self.angles, labels, p.range_max_m)
+
+
+def sample_odometry_noise(delta: np.ndarray, alphas, rng: np.random.Generator) -> np.ndarray:
+    """Corrupt robot-frame increments ``delta`` ``(..., 3)`` with the rot1-trans-rot2 model.
+
+    Returns noisy increments of the same shape (see :class:`~semreloc_env.config.OdometryParams`).
+    Draws three standard normals per increment (rot1, trans, rot2 order).
+    """
+    a1, a2, a3, a4 = alphas
+    d = np.asarray(delta, dtype=np.float64)
+    trans = np.hypot(d[..., 0], d[..., 1])
+    rot1 = np.where(trans > 1e-9, np.arctan2(d[..., 1], d[..., 0]), 0.0)
+    backward = np.abs(wrap_angle(rot1)) > np.pi / 2  # drive backwards: keep rot1 small, trans negative
+    rot1 = np.where(backward, wrap_angle(rot1 + np.pi), rot1)
+    trans = np.where(backward, -trans, trans)
+    rot2 = wrap_angle(d[..., 2] - rot1)
+    z = rng.standard_normal(d.shape[:-1] + (3,))
+    r1 = rot1 + z[..., 0] * np.sqrt(a1 * rot1**2 + a2 * trans**2)
+    tr = trans + z[..., 1] * np.sqrt(a3 * trans**2 + a4 * (rot1**2 + rot2**2))
+    r2 = rot2 + z[..., 2] * np.sqrt(a1 * rot2**2 + a2 * trans**2)
+    return np.stack([tr * np.cos(r1), tr * np.sin(r1), wrap_angle(r1 + r2)], axis=-1)
+
+
+class Odometry:
+    """Wheel odometry: the true increment between two poses, corrupted by the noise model."""
+
+    def __init__(self, params: OdometryParams):
+        self.params = params
+
+    def read(self, prev_pose: np.ndarray, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``."""
+        return sample_odometry_noise(relative(prev_pose, pose), self.params.alphas, rng)
