@@ -1,0 +1,533 @@
+"""Semantic Monte Carlo relocalizer (paper 004 §3, on top of AMCL-style MCL).
+
+Model and algorithm are separate (``nchopin/particles`` style):
+
+* motion model: :class:`filters.motion.OdometryMotionModel` (``sample(poses, delta, rng)``),
+* measurement model: :class:`filters.likelihood_field.LikelihoodFieldModel`
+  (``log_likelihood(poses, lidar, semantic) -> (N,)``; lidar field x per-class
+  semantic field, paper 004 Eq. 8),
+* the filter loop: :class:`MonteCarloLocalizer` below, which owns an ``(N, 3)``
+  pose array and ``(N,)`` log-weights (normalised with log-sum-exp).
+
+Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
+
+1. **Motion gate (AMCL).** :meth:`~MonteCarloLocalizer.predict` moves the particles
+   on every call and accumulates the odometry since the last measurement update.
+   The measurement update itself is *skipped* (returns diagnostics with
+   ``updated=False``) unless the robot moved more than ``update_min_d_m`` or turned
+   more than ``update_min_a_rad`` since the last update — exactly as AMCL skips the
+   filter update. The first update after an ``init_*`` always runs, as does
+   ``update(..., force=True)``. With both thresholds 0 every call updates. Repeated
+   scans from a standing robot would otherwise be multiplied in as if independent.
+2. **Weighting.** ``logw += likelihood_scale * (lidar_ll + semantic_ll)``; the
+   semantic factor is left out when ``use_semantic`` is False or no semantic scan
+   is given. Non-finite log-likelihoods (possible only with a custom measurement
+   model) count as ``-inf``.
+3. **Underflow recovery.** If no particle has a finite log-weight left, the
+   filter re-initialises globally (uniform over free space), sets
+   ``diagnostics.recovered = True`` and returns; weights never become NaN. (The
+   likelihood-field model itself is evaluated in log space with a finite floor,
+   so normal scans cannot trigger this however unlikely they are.)
+4. **Resampling**, with the scheme named ``resampler``, when ``ESS < resample_ess_frac * N``
+   and the semantic hold-off is over: with ``use_semantic`` and
+   ``holdoff_min_detections > 0``, no resampling until that many object detections
+   (runs of equally-labelled beams, :func:`filters.likelihood_field.count_detections`)
+   were seen since the last ``init_*`` (paper 004 §3: keep diversity until several
+   objects were seen). Since updates only run after enough motion, resampling also
+   only happens after motion (paper 004's threshold).
+5. **KLD-sampling** (Fox 2003), if ``kld``: instead of N draws with ``resampler``,
+   particles are drawn i.i.d. from the weights (multinomial, as in Fox's algorithm)
+   one by one until ``n >= n_chi(k)`` where ``k`` is the number of occupied
+   ``kld_bin_xy_m x kld_bin_xy_m x kld_bin_theta_rad`` bins so far and
+   ``n_chi(k) = (k - 1) / (2 eps) * (1 - 2/(9(k-1)) + sqrt(2/(9(k-1))) z)^3``,
+   clipped to ``[min_particles, max_particles]``. Vectorised: ``max_particles`` draws,
+   then the first prefix length that satisfies the bound.
+6. **Augmented MCL** (Thrun et al. Table 8.3), if ``augmented``: every update
+   computes ``w_avg = sum_i W_i * exp(ll_i / n_beams)`` (prior weights ``W``, the
+   per-beam geometric-mean likelihood, so it is scale-free in the beam count and
+   cannot underflow), then ``w_slow += alpha_slow (w_avg - w_slow)``,
+   ``w_fast += alpha_fast (w_avg - w_fast)``. At each resampling every new particle
+   is replaced, with probability ``max(0, 1 - w_fast / w_slow)``, by one drawn
+   uniformly from free space; after an injection both averages are reset to 0 (AMCL).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+from scipy.special import logsumexp
+
+from filters.belief import Belief, BeliefConfig, summarize
+from filters.grid import GridMap
+from filters.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
+from filters.motion import OdometryMotionConfig, OdometryMotionModel
+from filters.pose import compose, wrap_angle
+from filters.resampling import RESAMPLERS, get_resampler
+from filters.scans import LaserScan, SemanticScan
+
+_SUBCONFIGS = {
+    "lidar_field": LikelihoodFieldConfig,
+    "semantic_field": LikelihoodFieldConfig,
+    "motion": OdometryMotionConfig,
+    "belief": BeliefConfig,
+}
+
+
+@dataclass(frozen=True)
+class MCLConfig:
+    """Configuration of :class:`MonteCarloLocalizer` (units in the names).
+
+    Sub-configs may be given as dicts (e.g. from ``gym.make`` keyword arguments);
+    unknown keys raise ``TypeError`` there as here.
+
+    Attributes:
+        n_particles: particles drawn by ``init_global`` / ``init_around``.
+        lidar_field: lidar likelihood field.
+        semantic_field: per-class semantic likelihood fields.
+        motion: odometry motion noise.
+        belief: bins and thresholds of :meth:`MonteCarloLocalizer.belief`.
+        use_semantic: multiply in the semantic factor (False = lidar-only MCL).
+        likelihood_scale: exponent on the measurement likelihood (1 = plain Bayes;
+            < 1 tempers over-confident beams that are not really independent).
+        update_min_d_m, update_min_a_rad: motion gate of the measurement update (AMCL).
+        resampler: name in :data:`filters.resampling.RESAMPLERS`.
+        resample_ess_frac: resample when ESS < this fraction of N (1.0 = every update).
+        holdoff_min_detections: semantic hold-off (0 = off).
+        kld, kld_bin_xy_m, kld_bin_theta_rad, kld_epsilon, kld_z, min_particles,
+            max_particles: KLD-sampling (``kld_z`` is the upper standard normal quantile,
+            2.326 for 1 - delta = 0.99).
+        augmented, alpha_slow, alpha_fast: augmented MCL random-particle injection.
+        backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
+    """
+
+    n_particles: int = 2000
+    lidar_field: LikelihoodFieldConfig = LikelihoodFieldConfig()
+    semantic_field: LikelihoodFieldConfig = DEFAULT_SEMANTIC_FIELD
+    motion: OdometryMotionConfig = OdometryMotionConfig()
+    belief: BeliefConfig = BeliefConfig()
+    use_semantic: bool = True
+    likelihood_scale: float = 1.0
+    update_min_d_m: float = 0.1
+    update_min_a_rad: float = 0.15
+    resampler: str = "systematic"
+    resample_ess_frac: float = 0.5
+    holdoff_min_detections: int = 0
+    kld: bool = False
+    kld_bin_xy_m: float = 0.5
+    kld_bin_theta_rad: float = math.radians(10.0)
+    kld_epsilon: float = 0.05
+    kld_z: float = 2.326
+    min_particles: int = 200
+    max_particles: int = 5000
+    augmented: bool = False
+    alpha_slow: float = 0.001
+    alpha_fast: float = 0.1
+    backend: str = "numba"
+
+    def __post_init__(self) -> None:
+        for name, cls in _SUBCONFIGS.items():
+            v = getattr(self, name)
+            if isinstance(v, dict):
+                object.__setattr__(self, name, cls(**v))
+            elif not isinstance(v, cls):
+                raise TypeError(f"MCLConfig.{name} must be a {cls.__name__} or a dict, got {type(v).__name__}")
+        for name in ("n_particles", "min_particles", "max_particles"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
+                raise ValueError(f"MCLConfig.{name} must be an int >= 1, got {v!r}")
+        if self.min_particles > self.max_particles:
+            raise ValueError("MCLConfig: min_particles must be <= max_particles")
+        if not (isinstance(self.holdoff_min_detections, int) and self.holdoff_min_detections >= 0):
+            raise ValueError(
+                f"MCLConfig.holdoff_min_detections must be an int >= 0, got {self.holdoff_min_detections!r}"
+            )
+        for name in ("update_min_d_m", "update_min_a_rad"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"MCLConfig.{name} must be >= 0, got {v!r}")
+        for name in ("likelihood_scale", "kld_bin_xy_m", "kld_bin_theta_rad", "kld_epsilon", "kld_z"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"MCLConfig.{name} must be > 0, got {v!r}")
+        if not 0.0 <= self.resample_ess_frac <= 1.0:
+            raise ValueError(f"MCLConfig.resample_ess_frac must be in [0, 1], got {self.resample_ess_frac!r}")
+        for name in ("alpha_slow", "alpha_fast"):
+            v = getattr(self, name)
+            if not 0.0 < v <= 1.0:
+                raise ValueError(f"MCLConfig.{name} must be in (0, 1], got {v!r}")
+        if self.resampler not in RESAMPLERS:
+            get_resampler(self.resampler)  # raises with the list of names
+        if self.backend not in ("numba", "numpy"):
+            raise ValueError(f"MCLConfig.backend must be 'numba' or 'numpy', got {self.backend!r}")
+
+    def as_dict(self) -> dict:
+        """Nested plain dict (sub-configs as dicts); ``MCLConfig(**cfg.as_dict())`` round-trips."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = {g.name: getattr(v, g.name) for g in fields(v)} if f.name in _SUBCONFIGS else v
+        return out
+
+
+@dataclass(frozen=True)
+class UpdateDiagnostics:
+    """What one :meth:`MonteCarloLocalizer.update` did.
+
+    Attributes:
+        updated: the measurement update ran (False: skipped by the motion gate).
+        n_lidar_beams, n_semantic_beams: beams used (semantic: labelled beams only).
+        n_detections: objects in this semantic scan; ``detections_seen`` since the last init.
+        mean_lidar_beam_likelihood: ``mean_i exp(lidar_ll_i / n_lidar_beams)`` over the
+            particles *before* resampling — the per-beam "mean particle weight (lidar
+            factor)" that paper 004 plots against iteration (NaN if no lidar beam).
+        ess: effective sample size after weighting, before resampling.
+        resampled: particles were resampled.
+        holdoff_active: resampling was wanted (ESS low) but held off.
+        n_particles: particle count after this update (changes with KLD).
+        n_injected: random particles injected (augmented MCL).
+        recovered: all weights underflowed and the filter was re-initialised globally.
+        w_slow, w_fast: augmented-MCL averages after this update.
+    """
+
+    updated: bool = False
+    n_lidar_beams: int = 0
+    n_semantic_beams: int = 0
+    n_detections: int = 0
+    detections_seen: int = 0
+    mean_lidar_beam_likelihood: float = float("nan")
+    ess: float = float("nan")
+    resampled: bool = False
+    holdoff_active: bool = False
+    n_particles: int = 0
+    n_injected: int = 0
+    recovered: bool = False
+    w_slow: float = 0.0
+    w_fast: float = 0.0
+
+    def as_dict(self) -> dict:
+        """Plain Python values for a Gymnasium ``info``."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+class MonteCarloLocalizer:
+    """Monte Carlo localization with a lidar x semantic likelihood field (paper 004).
+
+    Args:
+        grid: the map (occupancy + semantic grids).
+        config: an :class:`MCLConfig` (or a dict of its fields); None = defaults.
+        rng: the ``numpy.random.Generator`` every random draw comes from.
+        measurement_model: optional object with ``log_likelihood_terms(poses, lidar, semantic)
+            -> (lidar_ll, semantic_ll, beams)`` replacing the likelihood-field model (for tests
+            and experiments); None = :class:`LikelihoodFieldModel` from the config.
+
+    The particle set is empty until :meth:`init_global` or :meth:`init_around`;
+    :meth:`predict` and :meth:`update` raise ``ValueError`` on an empty set.
+    """
+
+    def __init__(
+        self,
+        grid: GridMap,
+        config: MCLConfig | dict | None = None,
+        rng: np.random.Generator | None = None,
+        measurement_model=None,
+    ) -> None:
+        if not isinstance(grid, GridMap):
+            raise TypeError(f"grid must be a filters.grid.GridMap, got {type(grid).__name__}")
+        if isinstance(config, dict):
+            config = MCLConfig(**config)
+        self.config: MCLConfig = config if config is not None else MCLConfig()
+        if not isinstance(self.config, MCLConfig):
+            raise TypeError(f"config must be an MCLConfig or a dict, got {type(config).__name__}")
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError("rng must be a numpy.random.Generator (no hidden global randomness)")
+        self.grid = grid
+        self.rng = rng
+        c = self.config
+        self.motion_model = OdometryMotionModel(c.motion)
+        self.measurement_model = (
+            measurement_model
+            if measurement_model is not None
+            else LikelihoodFieldModel(grid, c.lidar_field, c.semantic_field, backend=c.backend)
+        )
+        self._resample = get_resampler(c.resampler)
+        self._free_cells: np.ndarray | None = None
+        self._poses = np.zeros((0, 3))
+        self._logw = np.zeros(0)
+        self._reset_state()
+        self.last_diagnostics = UpdateDiagnostics()
+
+    # ------------------------------------------------------------ state
+    def _reset_state(self) -> None:
+        self._since_update = np.zeros(3)
+        self._has_updated = False
+        self._detections_seen = 0
+        self._w_slow = 0.0
+        self._w_fast = 0.0
+        self.n_updates = 0
+        """Measurement updates that ran since the last init."""
+
+    @property
+    def poses(self) -> np.ndarray:
+        """``(N, 3)`` particle poses (read-only view), ``(x m, y m, theta rad)``."""
+        v = self._poses.view()
+        v.setflags(write=False)
+        return v
+
+    @property
+    def log_weights(self) -> np.ndarray:
+        """``(N,)`` normalised log-weights (log-sum-exp = 0), read-only view."""
+        v = self._logw.view()
+        v.setflags(write=False)
+        return v
+
+    @property
+    def weights(self) -> np.ndarray:
+        """``(N,)`` normalised weights (sum 1), a new array."""
+        return np.exp(self._logw)
+
+    @property
+    def n_particles(self) -> int:
+        return int(self._poses.shape[0])
+
+    # ------------------------------------------------------------ init
+    def _free_cell_index(self) -> np.ndarray:
+        if self._free_cells is None:
+            self._free_cells = np.flatnonzero(self.grid.free_mask())
+        if self._free_cells.size == 0:
+            raise ValueError("the map has no free cell (occupancy < free_thresh): cannot spread particles")
+        return self._free_cells
+
+    def sample_free(self, n: int) -> np.ndarray:
+        """``(n, 3)`` poses uniform over free space (uniform cell, uniform inside it) and heading."""
+        cells = self._free_cell_index()
+        k = cells[self.rng.integers(0, cells.size, size=n)]
+        row, col = np.divmod(k, self.grid.shape[1])
+        u = self.rng.random((n, 3))
+        ox, oy = self.grid.origin_xy_m
+        res = self.grid.resolution_m
+        out = np.empty((n, 3))
+        out[:, 0] = ox + (col + u[:, 0]) * res
+        out[:, 1] = oy + (row + u[:, 1]) * res
+        out[:, 2] = wrap_angle(-np.pi + 2.0 * np.pi * u[:, 2])
+        return out
+
+    @staticmethod
+    def _check_n(n: int) -> int:
+        if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool)):
+            raise TypeError(f"particle count must be an int, got {n!r}")
+        if n < 1:
+            raise ValueError(f"need at least one particle, got {n}")
+        return int(n)
+
+    def _set(self, poses: np.ndarray) -> None:
+        self._poses = np.ascontiguousarray(poses, dtype=np.float64)
+        self._logw = np.full(self._poses.shape[0], -math.log(self._poses.shape[0]))
+
+    def init_global(self, n: int | None = None) -> None:
+        """Spread ``n`` (default ``config.n_particles``) particles uniformly over free space.
+
+        Raises:
+            ValueError: ``n < 1`` or the map has no free cell.
+        """
+        n = self._check_n(self.config.n_particles if n is None else n)
+        self._set(self.sample_free(n))
+        self._reset_state()
+
+    def init_around(self, pose, std, n: int | None = None) -> None:
+        """Gaussian cloud of ``n`` particles around ``pose (x, y, theta)``.
+
+        Args:
+            pose: ``(3,)`` centre, metres / radians.
+            std: scalar or ``(3,)`` standard deviations ``(x m, y m, theta rad)``, >= 0.
+        """
+        n = self._check_n(self.config.n_particles if n is None else n)
+        p = np.asarray(pose, dtype=np.float64).reshape(-1)
+        s = np.broadcast_to(np.asarray(std, dtype=np.float64), (3,))
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"pose must be 3 finite numbers, got {pose!r}")
+        if not np.all(np.isfinite(s)) or np.any(s < 0):
+            raise ValueError(f"std must be finite and >= 0, got {std!r}")
+        poses = p + self.rng.standard_normal((n, 3)) * s
+        poses[:, 2] = wrap_angle(poses[:, 2])
+        self._set(poses)
+        self._reset_state()
+
+    def _require_particles(self) -> None:
+        if self._poses.shape[0] == 0:
+            raise ValueError("no particles: call init_global() or init_around() first")
+
+    # ------------------------------------------------------------ filter steps
+    def predict(self, delta) -> None:
+        """Move every particle by a noisy copy of the odometry increment ``delta = (dx, dy, dtheta)``
+        (metres / radians, previous robot frame, as :func:`filters.pose.relative` gives)."""
+        self._require_particles()
+        d = np.asarray(delta, dtype=np.float64).reshape(-1)
+        if d.shape != (3,) or not np.all(np.isfinite(d)):
+            raise ValueError(f"odometry delta must be 3 finite numbers, got {delta!r}")
+        self._poses = self.motion_model.sample(self._poses, d, self.rng)
+        self._since_update = compose(self._since_update, d)
+
+    def moved_enough(self) -> bool:
+        """Whether the motion since the last update passes the ``update_min_*`` gate."""
+        c = self.config
+        if c.update_min_d_m == 0 and c.update_min_a_rad == 0:
+            return True
+        d = math.hypot(self._since_update[0], self._since_update[1])
+        a = abs(float(self._since_update[2]))
+        return d > c.update_min_d_m or a > c.update_min_a_rad
+
+    def update(
+        self, lidar: LaserScan | None, semantic: SemanticScan | None = None, force: bool = False
+    ) -> UpdateDiagnostics:
+        """Weight by the scans, maybe resample; returns (and stores in ``last_diagnostics``) what it did.
+
+        Args:
+            lidar: the lidar scan (None: semantic factor only).
+            semantic: the semantic pseudo-laser scan, or None (ignored if ``use_semantic`` is False).
+            force: run even if the robot has not moved enough since the last update.
+        """
+        self._require_particles()
+        if lidar is not None and not isinstance(lidar, LaserScan):
+            raise TypeError(f"lidar must be a LaserScan, got {type(lidar).__name__}")
+        if semantic is not None and not isinstance(semantic, SemanticScan):
+            raise TypeError(f"semantic must be a SemanticScan, got {type(semantic).__name__}")
+        c = self.config
+        n = self.n_particles
+        if self._has_updated and not force and not self.moved_enough():
+            diag = UpdateDiagnostics(
+                updated=False,
+                detections_seen=self._detections_seen,
+                n_particles=n,
+                w_slow=self._w_slow,
+                w_fast=self._w_fast,
+            )
+            self.last_diagnostics = diag
+            return diag
+
+        sem = semantic if c.use_semantic else None
+        ll_l, ll_s, beams = self.measurement_model.log_likelihood_terms(self._poses, lidar, sem)
+        ll_l = np.asarray(ll_l, dtype=np.float64)
+        ll_s = np.asarray(ll_s, dtype=np.float64)
+        ll = ll_l + ll_s
+        ll = np.where(np.isfinite(ll), ll, -np.inf)
+        n_beams = beams.n_lidar + beams.n_semantic
+        if beams.n_lidar and np.all(np.isfinite(ll_l)):
+            mean_lidar = float(np.mean(np.exp(ll_l / beams.n_lidar)))
+        else:
+            mean_lidar = float("nan")
+
+        self._since_update = np.zeros(3)
+        self._has_updated = True
+        self.n_updates += 1
+        self._detections_seen += int(beams.n_detections)
+
+        logw = self._logw + c.likelihood_scale * ll
+        finite_any = bool(np.any(np.isfinite(logw)))
+        lse = float(logsumexp(logw)) if finite_any else -np.inf
+        if not math.isfinite(lse):
+            self.init_global(n)
+            diag = UpdateDiagnostics(
+                updated=True,
+                n_lidar_beams=beams.n_lidar,
+                n_semantic_beams=beams.n_semantic,
+                n_detections=beams.n_detections,
+                mean_lidar_beam_likelihood=mean_lidar,
+                n_particles=self.n_particles,
+                recovered=True,
+            )
+            self.last_diagnostics = diag
+            return diag
+
+        if c.augmented and n_beams:
+            per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
+            w_avg = float(np.exp(self._logw) @ per_beam)
+            self._w_slow += c.alpha_slow * (w_avg - self._w_slow)
+            self._w_fast += c.alpha_fast * (w_avg - self._w_fast)
+
+        self._logw = logw - lse
+        w = np.exp(self._logw)
+        ess = float(1.0 / np.sum(w * w))
+        want = ess < c.resample_ess_frac * n
+        held = c.use_semantic and c.holdoff_min_detections > 0 and self._detections_seen < c.holdoff_min_detections
+        n_inj = 0
+        resampled = False
+        if want and not held:
+            n_inj = self._resample_now(w)
+            resampled = True
+        diag = UpdateDiagnostics(
+            updated=True,
+            n_lidar_beams=beams.n_lidar,
+            n_semantic_beams=beams.n_semantic,
+            n_detections=beams.n_detections,
+            detections_seen=self._detections_seen,
+            mean_lidar_beam_likelihood=mean_lidar,
+            ess=ess,
+            resampled=resampled,
+            holdoff_active=bool(want and held),
+            n_particles=self.n_particles,
+            n_injected=n_inj,
+            recovered=False,
+            w_slow=self._w_slow,
+            w_fast=self._w_fast,
+        )
+        self.last_diagnostics = diag
+        return diag
+
+    # ------------------------------------------------------------ resampling
+    def kld_required(self, k: np.ndarray) -> np.ndarray:
+        """Fox's bound ``n_chi(k)`` (float array) for ``k`` occupied bins."""
+        c = self.config
+        k = np.asarray(k, dtype=np.float64)
+        km1 = np.maximum(k - 1.0, 1.0)
+        a = 2.0 / (9.0 * km1)
+        n = km1 / (2.0 * c.kld_epsilon) * (1.0 - a + np.sqrt(a) * c.kld_z) ** 3
+        return np.where(k > 1, n, 1.0)
+
+    def _kld_indices(self, w: np.ndarray) -> np.ndarray:
+        c = self.config
+        m = c.max_particles
+        cdf = np.cumsum(w)
+        cdf[-1] = 1.0
+        idx = np.minimum(np.searchsorted(cdf, self.rng.random(m), side="right"), w.size - 1)
+        p = self._poses[idx]
+        keys = np.stack(
+            [
+                np.floor(p[:, 0] / c.kld_bin_xy_m),
+                np.floor(p[:, 1] / c.kld_bin_xy_m),
+                np.floor((p[:, 2] + np.pi) / c.kld_bin_theta_rad),
+            ],
+            axis=1,
+        ).astype(np.int64)
+        _, first = np.unique(keys, axis=0, return_index=True)
+        new_bin = np.zeros(m, dtype=bool)
+        new_bin[first] = True
+        k = np.cumsum(new_bin)  # occupied bins after 1..m draws
+        count = np.arange(1, m + 1)
+        ok = (count >= self.kld_required(k)) & (count >= c.min_particles)
+        n_new = int(np.argmax(ok)) + 1 if ok.any() else m
+        return idx[:n_new]
+
+    def _resample_now(self, w: np.ndarray) -> int:
+        c = self.config
+        idx = self._kld_indices(w) if c.kld else self._resample(w, self.rng)
+        poses = self._poses[idx]
+        n_inj = 0
+        if c.augmented and self._w_slow > 0.0:
+            p_inj = max(0.0, 1.0 - self._w_fast / self._w_slow)
+            if p_inj > 0.0:
+                mask = self.rng.random(poses.shape[0]) < p_inj
+                n_inj = int(mask.sum())
+                if n_inj:
+                    poses[mask] = self.sample_free(n_inj)
+                self._w_slow = 0.0
+                self._w_fast = 0.0
+        self._set(poses)
+        return n_inj
+
+    # ------------------------------------------------------------ summary
+    def belief(self) -> Belief:
+        """Summary of the current particle set (see :mod:`filters.belief`)."""
+        self._require_particles()
+        return summarize(self._poses, np.exp(self._logw), self.config.belief)
