@@ -14,14 +14,18 @@ from typing import TypeVar
 T = TypeVar("T")
 
 
-def coerce_config(cls: type[T], value, what: str) -> T:
+def coerce_config(cls: type[T], value, what: str, default: T | None = None) -> T:
     """Build ``cls`` from ``None`` (defaults), a dict of overrides, or an instance.
+
+    Args:
+        default: the instance ``None`` stands for and a dict overrides (``cls()`` if not given).
 
     Raises:
         ValueError: unknown keys (the message lists the valid ones) or a wrong type.
     """
+    base = default if default is not None else cls()
     if value is None:
-        return cls()
+        return base
     if isinstance(value, cls):
         return value
     if isinstance(value, dict):
@@ -29,7 +33,10 @@ def coerce_config(cls: type[T], value, what: str) -> T:
         unknown = set(value) - names
         if unknown:
             raise ValueError(f"{what}: unknown keys {sorted(unknown)}; valid keys: {sorted(names)}")
-        return cls(**value)
+        try:
+            return dataclasses.replace(base, **value)
+        except TypeError as e:
+            raise ValueError(f"{what}: {e}") from None
     raise ValueError(f"{what}: expected a dict or {cls.__name__}, got {type(value).__name__}")
 
 
@@ -140,27 +147,8 @@ class CameraParams:
         _probability(self, "miss_rate", "wrong_class_rate", "false_positive_rate")
 
 
-@dataclass(frozen=True)
-class OdometryParams:
-    """The odometry noise model (Thrun et al., *Probabilistic Robotics* §5.4).
+def default_odometry_noise():
+    """The simulator's odometry noise: the filters' model with small alphas (a good wheel encoder)."""
+    from filters.motion import OdometryMotionConfig
 
-    The true increment is split into ``rot1, trans, rot2``; each is corrupted by
-    zero-mean Gaussian noise with variance
-    ``alpha1*rot1^2 + alpha2*trans^2`` (rot1), ``alpha3*trans^2 + alpha4*(rot1^2 + rot2^2)``
-    (trans) and ``alpha1*rot2^2 + alpha2*trans^2`` (rot2); rotations in rad, trans in m.
-    """
-
-    alpha1: float = 0.02
-    alpha2: float = 0.02
-    alpha3: float = 0.02
-    alpha4: float = 0.01
-
-    def __post_init__(self) -> None:
-        for n in ("alpha1", "alpha2", "alpha3", "alpha4"):
-            v = getattr(self, n)
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"OdometryParams.{n} must be >= 0, got {v!r}")
-
-    @property
-    def alphas(self) -> tuple[float, float, float, float]:
-        return (self.alpha1, self.alpha2, self.alpha3, self.alpha4)
+    return OdometryMotionConfig(alpha1=0.02, alpha2=0.02, alpha3=0.02, alpha4=0.01)

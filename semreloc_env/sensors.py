@@ -14,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 
 from filters.grid import NO_CLASS
-from filters.pose import relative, wrap_angle
+from filters.motion import OdometryMotionConfig, OdometryMotionModel
+from filters.pose import relative
 from filters.scans import LaserScan, SemanticScan
 
-from .config import CameraParams, LidarParams, OdometryParams
+from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES
 from .world import World
 
@@ -122,33 +123,19 @@ class SemanticCamera:
         return SemanticScan(noisy, self.angles, labels, p.range_max_m)
 
 
-def sample_odometry_noise(delta: np.ndarray, alphas, rng: np.random.Generator) -> np.ndarray:
-    """Corrupt robot-frame increments ``delta`` ``(..., 3)`` with the rot1-trans-rot2 model.
-
-    Returns noisy increments of the same shape (see :class:`~semreloc_env.config.OdometryParams`).
-    Draws three standard normals per increment (rot1, trans, rot2 order).
-    """
-    a1, a2, a3, a4 = alphas
-    d = np.asarray(delta, dtype=np.float64)
-    trans = np.hypot(d[..., 0], d[..., 1])
-    rot1 = np.where(trans > 1e-9, np.arctan2(d[..., 1], d[..., 0]), 0.0)
-    backward = np.abs(wrap_angle(rot1)) > np.pi / 2  # drive backwards: keep rot1 small, trans negative
-    rot1 = np.where(backward, wrap_angle(rot1 + np.pi), rot1)
-    trans = np.where(backward, -trans, trans)
-    rot2 = wrap_angle(d[..., 2] - rot1)
-    z = rng.standard_normal(d.shape[:-1] + (3,))
-    r1 = rot1 + z[..., 0] * np.sqrt(a1 * rot1**2 + a2 * trans**2)
-    tr = trans + z[..., 1] * np.sqrt(a3 * trans**2 + a4 * (rot1**2 + rot2**2))
-    r2 = rot2 + z[..., 2] * np.sqrt(a1 * rot2**2 + a2 * trans**2)
-    return np.stack([tr * np.cos(r1), tr * np.sin(r1), wrap_angle(r1 + r2)], axis=-1)
-
-
 class Odometry:
-    """Wheel odometry: the true increment between two poses, corrupted by the noise model."""
+    """Wheel odometry: the true increment between two poses, corrupted by the rot1-trans-rot2 model.
 
-    def __init__(self, params: OdometryParams):
+    The noise is drawn with the very model the filters assume
+    (:class:`filters.motion.OdometryMotionModel`), applied to one pose at the origin,
+    so simulator and filter cannot disagree on its form, only on its alphas.
+    """
+
+    def __init__(self, params: OdometryMotionConfig):
         self.params = params
+        self._model = OdometryMotionModel(params)
+        self._origin = np.zeros((1, 3))
 
     def read(self, prev_pose: np.ndarray, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``."""
-        return sample_odometry_noise(relative(prev_pose, pose), self.params.alphas, rng)
+        return self._model.sample(self._origin, relative(prev_pose, pose), rng)[0]

@@ -151,14 +151,14 @@ def _check_simple_polygon(p: np.ndarray, what: str) -> None:
     n = len(p)
     if n < 3:
         raise LayoutError(f"{what}: a polygon needs at least 3 distinct vertices, got {n}")
-    if abs(_signed_area(p)) < 1e-9:
-        raise LayoutError(f"{what}: polygon has zero area")
     for i in range(n):
         for j in range(i + 1, n):
             if j == i + 1 or (i == 0 and j == n - 1):
                 continue
             if _segments_cross(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n]):
                 raise LayoutError(f"{what}: polygon is self-intersecting (edges {i} and {j} cross)")
+    if abs(_signed_area(p)) < 1e-9:
+        raise LayoutError(f"{what}: polygon has zero area")
 
 
 def point_in_polygon(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:

@@ -1,0 +1,21 @@
+"""semreloc: Gymnasium environments for semantic, active relocalization of a 2D mobile robot.
+
+Importing the package registers the environments::
+
+    import gymnasium as gym
+    import semreloc_env  # noqa: F401
+
+    env = gym.make("SemReloc-v0", layout="twin_rooms")
+"""
+
+from gymnasium.envs.registration import register, registry
+
+from .layouts import CLASS_NAMES, Layout, LayoutError, get_layout, load_layout
+from .world import World, build_world
+
+__all__ = ["CLASS_NAMES", "ENV_IDS", "Layout", "LayoutError", "World", "build_world", "get_layout", "load_layout"]
+
+ENV_IDS = ("SemReloc-v0",)
+
+if "SemReloc-v0" not in registry:
+    register(id="SemReloc-v0", entry_point="semreloc_env.envs.semreloc:SemRelocEnv", max_episode_steps=400)

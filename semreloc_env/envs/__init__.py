@@ -1,0 +1,5 @@
+"""The semreloc Gymnasium environments."""
+
+from .semreloc import SemRelocEnv
+
+__all__ = ["SemRelocEnv"]

@@ -1,0 +1,170 @@
+"""What every semreloc env shares: layout, world, sensors, seeding, action checks, rendering hook.
+
+Subclasses add their estimator (``_reset_estimator`` / ``_step_estimator``), their
+``info`` entries and reward terms. The world is rebuilt on every reset.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from filters.motion import OdometryMotionConfig
+
+from ..config import CameraParams, LidarParams, PhysicsParams, RobotParams, coerce_config, default_odometry_noise
+from ..layouts import Layout, get_layout
+from ..sensors import Lidar, Odometry, SemanticCamera
+from ..world import World, build_world
+from .spaces import decode_action, make_action_space, make_observation, make_observation_space
+
+
+class SemRelocBase(gym.Env):
+    """Base class; see :class:`~semreloc_env.envs.semreloc.SemRelocEnv` for the spec."""
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
+    _reset_option_keys: frozenset[str] = frozenset({"pose"})
+
+    def __init__(
+        self,
+        layout: str | Path | dict | Layout = "lab",
+        layout_seed: int = 0,
+        action_type: str = "discrete",
+        robot: dict | RobotParams | None = None,
+        physics: dict | PhysicsParams | None = None,
+        lidar: dict | LidarParams | None = None,
+        camera: dict | CameraParams | None = None,
+        odometry: dict | OdometryMotionConfig | None = None,
+        render_mode: str | None = None,
+    ):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"unknown render_mode {render_mode!r}; choose one of {self.metadata['render_modes']}")
+        self.layout = get_layout(layout, seed=int(layout_seed))
+        self.robot_params = coerce_config(RobotParams, robot, "robot")
+        self.physics_params = coerce_config(PhysicsParams, physics, "physics")
+        self.lidar = Lidar(coerce_config(LidarParams, lidar, "lidar"))
+        self.camera = SemanticCamera(coerce_config(CameraParams, camera, "camera"))
+        self.odometry = Odometry(coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()))
+        self.action_type = action_type
+        self.action_space = make_action_space(action_type)
+        self.observation_space = make_observation_space(self.lidar.params, self.camera.params)
+        self.render_mode = render_mode
+        self.world: World | None = None
+        self._renderer = None
+        self._last: dict[str, Any] = {}
+
+    # ------------------------------------------------------------------ hooks
+    def _extra_obstacles(self) -> list:
+        """Polygons added to the world but not to the layout (none by default)."""
+        return []
+
+    def _validate_options(self, options: dict, world: World) -> None:
+        """Raise ValueError for bad reset options, before any state changes."""
+
+    def _reset_estimator(self, options: dict) -> None:  # pragma: no cover - overridden
+        pass
+
+    def _step_estimator(self, odom: np.ndarray, lidar_scan, semantic_scan) -> None:  # pragma: no cover
+        pass
+
+    def _info(self) -> dict[str, Any]:
+        return {"pose": self.world.pose.copy()}
+
+    def _reward_terms(self, collided: bool) -> dict[str, float]:
+        return {"collision": -1.0 if collided else 0.0}
+
+    def _terminated(self) -> bool:
+        return False
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        options = dict(options or {})
+        unknown = set(options) - self._reset_option_keys
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}; valid: {sorted(self._reset_option_keys)}")
+        world = build_world(self.layout, self.robot_params, self.physics_params, self._extra_obstacles())
+        if options.get("pose") is not None:
+            world.set_pose(options["pose"])  # raises before any state changes
+        self._validate_options(options, world)
+        super().reset(seed=seed)
+        # independent streams: world/start pose, sensors, odometry, estimator
+        self._start_rng, self._sensor_rng, self._odom_rng, self._estimator_rng = self.np_random.spawn(4)
+        if options.get("pose") is None:
+            world.set_pose(world.sample_free_pose(self._start_rng))
+        self.world = world
+        self._steps = 0
+        odom = np.zeros(3)
+        lidar_scan, semantic_scan = self._sense()
+        self._reset_estimator(options)
+        self._step_estimator(odom, lidar_scan, semantic_scan)
+        obs = make_observation(lidar_scan, semantic_scan, odom)
+        self._last = {"lidar": lidar_scan, "semantic": semantic_scan}
+        info = self._info()
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
+
+    def _sense(self):
+        pose = self.world.pose
+        return self.lidar.read(self.world, pose, self._sensor_rng), self.camera.read(self.world, pose, self._sensor_rng)
+
+    def _move(self, action) -> tuple[bool, np.ndarray]:
+        """Drive one control step; returns (collided, true previous pose). Hook for kidnapping."""
+        v, w = decode_action(action, self.action_type, self.action_space, self.robot_params)
+        prev = self.world.pose
+        return self.world.drive(v, w), prev
+
+    def step(self, action):
+        if self.world is None:
+            raise RuntimeError("call reset() before step()")
+        decode_action(action, self.action_type, self.action_space, self.robot_params)  # validate first
+        collided, prev = self._move(action)
+        self._steps += 1
+        odom = self.odometry.read(prev, self.world.pose, self._odom_rng)
+        lidar_scan, semantic_scan = self._sense()
+        self._step_estimator(odom, lidar_scan, semantic_scan)
+        self._last = {"lidar": lidar_scan, "semantic": semantic_scan}
+        terms = self._reward_terms(collided)
+        info = self._info()
+        info["rewards"] = terms
+        info["collided"] = collided
+        if self.render_mode == "human":
+            self.render()
+        return (
+            make_observation(lidar_scan, semantic_scan, odom),
+            float(sum(terms.values())),
+            self._terminated(),
+            False,
+            info,
+        )
+
+    # ------------------------------------------------------------------ render
+    def _render_state(self) -> dict[str, Any]:
+        """What the renderer draws; subclasses add their belief."""
+        return {
+            "layout": self.layout,
+            "pose": self.world.pose,
+            "lidar": self._last.get("lidar"),
+            "semantic": self._last.get("semantic"),
+            "extra_obstacles": self._extra_obstacles(),
+        }
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        if self.world is None:
+            raise RuntimeError("call reset() before render()")
+        from ..render import Renderer  # lazy: matplotlib only when drawing
+
+        if self._renderer is None:
+            self._renderer = Renderer(self.layout, human=self.render_mode == "human")
+        frame = self._renderer.draw(self._render_state())
+        return frame if self.render_mode == "rgb_array" else None
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

@@ -1,0 +1,44 @@
+"""Where an env's map comes from: a mapping run (default), the rasterised layout, or a file."""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+from filters.grid import GridMap
+from filters.map_io import load_map
+
+from .config import CameraParams, LidarParams
+from .layouts import CLASS_NAMES, Layout
+from .rasterize import rasterize
+
+MAP_SOURCES = ("mapping", "perfect")
+
+
+@functools.lru_cache(maxsize=16)
+def _mapped(layout: Layout, lidar: LidarParams, camera: CameraParams) -> GridMap:
+    from .mapping_run import build_maps
+
+    return build_maps(layout, lidar, camera)
+
+
+def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams) -> GridMap:
+    """The GridMap an env's filter uses.
+
+    Args:
+        source: ``"mapping"`` (a mapping run with these sensors, seed 0; cached per
+            layout and sensor settings within the process), ``"perfect"`` (the
+            rasterised layout), a ROS map ``.yaml`` path (:func:`filters.map_io.load_map`),
+            or a GridMap. A map's classes must be those of the layouts, in order.
+    """
+    if isinstance(source, GridMap):
+        grid = source
+    elif isinstance(source, str) and source == "perfect":
+        grid = rasterize(layout)
+    elif isinstance(source, str) and source == "mapping":
+        grid = _mapped(layout, lidar, camera)
+    else:
+        grid = load_map(Path(source))
+    if grid.class_names != CLASS_NAMES:
+        raise ValueError(f"map classes {grid.class_names} differ from the env's {CLASS_NAMES}")
+    return grid

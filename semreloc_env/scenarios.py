@@ -1,0 +1,34 @@
+"""Scenarios that change the world after mapping (paper 004's "environment changed" case)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .layouts import Layout
+from .world import build_world
+
+SCENARIOS = ("nominal", "changed")
+
+
+def changed_obstacles(layout: Layout, seed: int = 0, n: int = 6, size_m: tuple[float, float] = (0.4, 0.8)) -> list:
+    """``n`` box obstacles ``(4, 2)`` placed in free space, absent from any map of ``layout``.
+
+    Deterministic in ``seed``. Each box keeps 0.7 m clearance to walls and to the
+    other boxes, so the robot can still drive around it.
+    """
+    rng = np.random.default_rng([seed, 4004])
+    world = build_world(layout)
+    boxes: list[np.ndarray] = []
+    centres: list[np.ndarray] = []
+    for _ in range(2000):
+        if len(boxes) == n:
+            break
+        c = world.sample_free_pose(rng, margin_m=0.5)[:2]
+        if any(np.linalg.norm(c - o) < 1.5 for o in centres):
+            continue
+        w, h = rng.uniform(*size_m, size=2)
+        if world.clearance(c) < max(w, h) / 2 + 0.7:
+            continue
+        boxes.append(c + np.array([[-w, -h], [w, -h], [w, h], [-w, h]]) / 2)
+        centres.append(c)
+    return boxes

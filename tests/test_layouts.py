@@ -1,0 +1,136 @@
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from semreloc_env.layouts import (
+    CLASS_NAMES,
+    LayoutError,
+    ProceduralParams,
+    get_layout,
+    layout_from_dict,
+    load_layout,
+    procedural_layout,
+)
+
+SQUARE = [[0, 0], [4, 0], [4, 4], [0, 4]]
+
+
+@pytest.mark.parametrize("name", ["lab", "twin_rooms", "procedural", "procedural_sym"])
+def test_builtin_layouts_are_valid_and_have_every_class(name):
+    layout = get_layout(name)
+    assert layout.wall_segments().shape[1:] == (2, 2)
+    if name in ("lab", "twin_rooms"):
+        assert {o.cls for o in layout.objects} == set(CLASS_NAMES)
+
+
+def test_lab_size_and_counts():
+    lab = get_layout("lab")
+    assert lab.bounds() == (0.0, 15.0, 0.0, 10.0)
+    counts = {c: sum(o.cls == c for o in lab.objects) for c in CLASS_NAMES}
+    assert all(n >= 3 for n in counts.values()), counts
+
+
+def _half_turn_invariant(layout) -> bool:
+    x0, x1, y0, y1 = layout.bounds()
+    c = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
+
+    def canon(segs):
+        s = np.round(segs, 6)
+        keep = (s[:, 0, 0] < s[:, 1, 0]) | ((s[:, 0, 0] == s[:, 1, 0]) & (s[:, 0, 1] <= s[:, 1, 1]))
+        s = np.where(keep[:, None, None], s, s[:, ::-1])
+        return sorted(map(lambda a: tuple(a.ravel()), s))
+
+    walls = layout.wall_segments()
+    obj, _ = layout.object_segments()
+    segs = np.concatenate([walls, obj])
+    return canon(segs) == canon(2 * c - segs)
+
+
+def test_twin_rooms_geometry_is_symmetric_but_classes_differ():
+    twin = get_layout("twin_rooms")
+    assert _half_turn_invariant(twin)
+    west = sorted(
+        (round(o.centroid()[0], 3), round(o.centroid()[1], 3), o.cls) for o in twin.objects if o.centroid()[0] < 6
+    )
+    east = {
+        (round(12 - o.centroid()[0], 3), round(6 - o.centroid()[1], 3)): o.cls
+        for o in twin.objects
+        if o.centroid()[0] > 6
+    }
+    assert len(west) == len(east) == 4
+    for x, y, cls in west:
+        assert east[(x, y)] != cls  # same footprint at the twin place, another class
+
+
+def test_procedural_is_deterministic_and_symmetric_option_works():
+    a = procedural_layout(np.random.default_rng(7))
+    b = procedural_layout(np.random.default_rng(7))
+    assert a == b
+    assert procedural_layout(np.random.default_rng(8)) != a
+    for seed in range(5):
+        sym = layout_from_dict(procedural_layout(np.random.default_rng(seed), ProceduralParams(symmetric=True)))
+        assert _half_turn_invariant(sym)
+        plain = layout_from_dict(procedural_layout(np.random.default_rng(seed)))
+        assert len(plain.objects) >= 2
+
+
+def test_load_json_and_yaml_roundtrip(tmp_path):
+    lab = get_layout("lab")
+    (tmp_path / "lab.json").write_text(json.dumps(lab.to_dict()))
+    (tmp_path / "lab.yaml").write_text(yaml.safe_dump(lab.to_dict()))
+    for f in ("lab.json", "lab.yaml"):
+        loaded = load_layout(tmp_path / f)
+        assert loaded.to_dict() == lab.to_dict()
+    assert get_layout(str(tmp_path / "lab.json")).to_dict() == lab.to_dict()
+
+
+def _obj(cls="chair", poly=((1, 1), (2, 1), (2, 2), (1, 2)), **kw):
+    return {"class": cls, "polygon": [list(p) for p in poly], **kw}
+
+
+@pytest.mark.parametrize(
+    "data, match",
+    [
+        ({"outer": SQUARE, "objects": [_obj(cls="sofa")]}, r"objects\[0\].*unknown class 'sofa'"),
+        ({"outer": SQUARE, "objects": [_obj(poly=((1, 1), (2, 2), (2, 1), (1, 2)))]}, "self-intersecting"),
+        ({"outer": SQUARE, "objects": [_obj(poly=((1, 1), (2, 1)))]}, "at least 3"),
+        ({"outer": SQUARE, "objects": [_obj(poly=((1, 1), (2, 1), (3, 1)))]}, "zero area"),
+        (
+            {"outer": SQUARE, "objects": [_obj(poly=((3, 3), (5, 3), (5, 5), (3, 5)), name="bad_bin")]},
+            r"bad_bin.*outside",
+        ),
+        ({"outer": SQUARE, "objects": [_obj(poly=((1, 1), (math.nan, 1), (2, 2)))]}, "NaN"),
+        ({"outer": SQUARE, "walls": [[[1, 1], [9, 1]]]}, r"walls\[0\].*outside"),
+        ({"outer": SQUARE, "walls": [[[1, 1]]]}, r"walls\[0\].*at least 2"),
+        ({"outer": [[0, 0], [4, 4], [4, 0], [0, 4]]}, "outer.*self-intersecting"),
+        ({"outer": SQUARE, "furniture": []}, "unknown layout keys"),
+        ({"outer": SQUARE, "objects": [{**_obj(), "colour": "red"}]}, "unknown keys"),
+        ({"walls": []}, "no 'outer'"),
+        ({"outer": "square"}, "outer"),
+    ],
+)
+def test_malformed_layouts_name_the_entry(data, match):
+    with pytest.raises(LayoutError, match=match):
+        layout_from_dict(data)
+
+
+def test_malformed_files(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    with pytest.raises(LayoutError, match="bad.json.*not valid JSON"):
+        load_layout(bad)
+    bad_yaml = tmp_path / "bad.yaml"
+    bad_yaml.write_text("outer: [[0, 0], [1, 0]\n")
+    with pytest.raises(LayoutError, match="bad.yaml"):
+        load_layout(bad_yaml)
+    sofa = tmp_path / "sofa.yaml"
+    sofa.write_text(yaml.safe_dump({"outer": SQUARE, "objects": [_obj(cls="sofa")]}))
+    with pytest.raises(LayoutError, match="sofa.yaml.*unknown class"):
+        load_layout(sofa)
+    with pytest.raises(LayoutError, match="not found"):
+        load_layout(tmp_path / "missing.json")
+    with pytest.raises(LayoutError, match="unknown layout"):
+        get_layout("hall")
