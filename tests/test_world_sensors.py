@@ -1,0 +1,207 @@
+import math
+
+import numpy as np
+import pytest
+
+from filters.motion import OdometryMotionConfig
+from filters.pose import relative
+from semreloc_env.config import CameraParams, LidarParams, PhysicsParams, RobotParams
+from semreloc_env.layouts import layout_from_dict
+from semreloc_env.sensors import Lidar, Odometry, SemanticCamera
+from semreloc_env.world import build_world
+
+ROOM = {"name": "room", "outer": [[0, 0], [4, 0], [4, 4], [0, 4]]}
+
+
+def square_room(objects=()):
+    return build_world(layout_from_dict({**ROOM, "objects": list(objects)}))
+
+
+def test_lidar_ranges_match_hand_computed_distances_in_a_square_room():
+    world = square_room()
+    lidar = Lidar(LidarParams(n_beams=8, range_max_m=10.0, noise_std_m=0.0, dropout_prob=0.0))
+    pose = np.array([1.0, 1.5, 0.0])
+    scan = lidar.read(world, pose, np.random.default_rng(0))
+    # beams at -pi, -3pi/4, ..., 3pi/4 from heading 0
+    d_w, d_e, d_s, d_n = 1.0, 3.0, 1.5, 2.5
+    expected = {
+        -math.pi: d_w,
+        -math.pi / 2: d_s,
+        0.0: d_e,
+        math.pi / 2: d_n,
+        -3 * math.pi / 4: min(d_w, d_s) * math.sqrt(2),
+        -math.pi / 4: min(d_e, d_s) * math.sqrt(2),
+        math.pi / 4: min(d_e, d_n) * math.sqrt(2),
+        3 * math.pi / 4: min(d_w, d_n) * math.sqrt(2),
+    }
+    for a, r in zip(scan.angles, scan.ranges):
+        assert r == pytest.approx(expected[min(expected, key=lambda k: abs(k - a))], abs=1e-9)
+    # rotating the robot rotates the beams: heading pi/2, beam 0 points north
+    rot = lidar.read(world, np.array([1.0, 1.5, math.pi / 2]), np.random.default_rng(0))
+    assert rot.ranges[np.argmin(np.abs(rot.angles))] == pytest.approx(d_n)
+
+
+def test_lidar_noise_and_dropouts_and_max_range():
+    world = square_room()
+    lidar = Lidar(LidarParams(n_beams=360, range_max_m=2.4, noise_std_m=0.05, dropout_prob=0.2))
+    pose = np.array([2.0, 2.0, 0.0])
+    rng = np.random.default_rng(0)
+    r = np.stack([lidar.read(world, pose, rng).ranges for _ in range(20)])
+    assert np.all((r >= 0) & (r <= 2.4))
+    t = Lidar(LidarParams(n_beams=360, range_max_m=10.0, noise_std_m=0.0)).true_ranges(world, pose)
+    near = np.broadcast_to(t < 2.2, r.shape)
+    resid = (r - t[None, :])[near & (r < 2.4)]
+    assert abs(resid.mean()) < 0.01 and resid.std() == pytest.approx(0.05, rel=0.1)
+    assert np.mean(r[near] == 2.4) == pytest.approx(0.2, abs=0.03)  # dropout rate
+    assert np.all(r[:, t >= 2.4] == 2.4)  # beyond range: no return
+
+
+def _camera(**kw):
+    base = dict(n_beams=71, fov_rad=math.radians(70), noise_std_m=0.0, miss_rate=0.0, wrong_class_rate=0.0,
+                false_positive_rate=0.0)
+    return SemanticCamera(CameraParams(**{**base, **kw}))
+
+
+def test_semantic_camera_labels_the_object_hit():
+    cab = {"class": "cabinet", "center": [3.0, 2.0], "size": [0.4, 1.0]}
+    world = square_room([cab])
+    cam = _camera()
+    scan = cam.read(world, np.array([1.0, 2.0, 0.0]), np.random.default_rng(0))
+    labelled = scan.labels == 4
+    # the cabinet face x=2.8, y in [1.5, 2.5] subtends atan(0.5/1.8) each side
+    half = math.atan2(0.5, 1.8)
+    inside = np.abs(scan.angles) < half - 1e-6
+    assert np.all(labelled[inside]) and not np.any(labelled[np.abs(scan.angles) > half + 1e-6])
+    assert np.allclose(scan.ranges[inside], 1.8 / np.cos(scan.angles[inside]))
+    assert np.all(scan.labels[~labelled] == 0)
+
+
+def test_only_the_nearest_contiguous_run_carries_the_class():
+    # a long cabinet split into two visible runs by a chair in front of its middle
+    cab = {"class": "cabinet", "center": [3.5, 2.0], "size": [0.2, 3.0]}
+    chair = {"class": "chair", "center": [2.0, 2.0], "size": [0.3, 0.3]}
+    world = square_room([cab, chair])
+    scan = _camera().read(world, np.array([0.6, 2.0 - 0.3, 0.0]), np.random.default_rng(0))
+    cab_runs = np.flatnonzero(scan.labels == 4)
+    assert cab_runs.size > 0
+    assert np.all(np.diff(cab_runs) == 1), "one contiguous run only"
+    _, owner = _camera().true_hits(world, np.array([0.6, 1.7, 0.0]))
+    all_cab = np.flatnonzero(owner == 0)
+    assert all_cab.size > cab_runs.size  # the other run lost its label
+    # the labelled run is the nearer one
+    other = np.setdiff1d(all_cab, cab_runs)
+    assert scan.ranges[cab_runs].min() < scan.ranges[other].min()
+    assert np.any(scan.labels == 2)  # the chair
+
+
+def test_detector_miss_wrong_class_and_false_positive_rates():
+    cab = {"class": "cabinet", "center": [3.0, 2.0], "size": [0.4, 1.0]}
+    world = square_room([cab])
+    pose = np.array([1.0, 2.0, 0.0])
+    cam = _camera(miss_rate=0.3, wrong_class_rate=0.2, false_positive_rate=0.0)
+    rng = np.random.default_rng(3)
+    seen = np.array([np.unique(cam.read(world, pose, rng).labels[30:40]) for _ in range(2000)], dtype=object)
+    labels = np.array([s.max() for s in seen])
+    assert np.mean(labels == 0) == pytest.approx(0.3, abs=0.04)
+    detected = labels[labels > 0]
+    assert np.mean(detected != 4) == pytest.approx(0.2, abs=0.04)
+    fp = _camera(false_positive_rate=0.5)
+    empty = square_room()
+    n_fp = sum(np.any(fp.read(empty, pose, rng).labels > 0) for _ in range(1000))
+    assert n_fp / 1000 == pytest.approx(0.5, abs=0.05)
+
+
+def test_camera_range_limits():
+    world = square_room()
+    cam = _camera(range_min_m=0.5, range_max_m=1.0)
+    scan = cam.read(world, np.array([2.0, 2.0, 0.0]), np.random.default_rng(0))
+    assert np.all(scan.ranges == 1.0)  # the wall is 2 m away: beyond range, no return
+    near = cam.read(world, np.array([3.7, 2.0, 0.0]), np.random.default_rng(0))
+    assert np.all(near.ranges[np.abs(near.angles) < 0.1] == 1.0)  # 0.3 m: closer than range_min
+
+
+def test_odometry_noise_statistics_match_the_model():
+    cfg = OdometryMotionConfig(alpha1=0.05, alpha2=0.02, alpha3=0.04, alpha4=0.01)
+    odo = Odometry(cfg)
+    rng = np.random.default_rng(0)
+    start = np.array([1.0, 1.0, 0.3])
+    end = np.array([1.0 + 0.2 * math.cos(0.5), 1.0 + 0.2 * math.sin(0.5), 0.3 + 0.4])
+    true = relative(start, end)
+    samples = np.array([odo.read(start, end, rng) for _ in range(20000)])
+    rot1, trans = math.atan2(true[1], true[0]), math.hypot(true[0], true[1])
+    rot2 = true[2] - rot1
+    sd_trans = math.sqrt(cfg.alpha3 * trans**2 + cfg.alpha4 * (rot1**2 + rot2**2))
+    sd_rot1 = math.sqrt(cfg.alpha1 * rot1**2 + cfg.alpha2 * trans**2)
+    got_trans = np.hypot(samples[:, 0], samples[:, 1])
+    got_rot1 = np.arctan2(samples[:, 1], samples[:, 0])
+    # a noisy translation below zero flips the direction by pi: rare, left out of the spread
+    flipped = np.abs(got_rot1 - rot1) > 1.0
+    assert flipped.mean() < 1e-3
+    got_rot1 = got_rot1[~flipped]
+    assert got_trans.mean() == pytest.approx(trans, abs=3 * sd_trans / math.sqrt(20000) + 1e-4)
+    assert got_trans.std() == pytest.approx(sd_trans, rel=0.05)
+    assert got_rot1.std() == pytest.approx(sd_rot1, rel=0.05)
+    sd_dth = math.sqrt(sd_rot1**2 + (cfg.alpha1 * rot2**2 + cfg.alpha2 * trans**2))
+    assert samples[:, 2].mean() == pytest.approx(true[2], abs=0.005)
+    assert samples[:, 2].std() == pytest.approx(sd_dth, rel=0.05)
+
+
+def test_dead_reckoning_drifts():
+    odo = Odometry(OdometryMotionConfig(alpha1=0.02, alpha2=0.02, alpha3=0.02, alpha4=0.01))
+    rng = np.random.default_rng(1)
+    from filters.pose import compose
+
+    finals = []
+    for _ in range(50):
+        est = np.zeros(3)
+        truth = np.zeros(3)
+        for _ in range(100):
+            nxt = compose(truth, np.array([0.05, 0.0, 0.02]))
+            est = compose(est, odo.read(truth, nxt, rng))
+            truth = nxt
+        finals.append(np.hypot(*(est[:2] - truth[:2])))
+    assert np.median(finals) > 0.02  # drift is real ...
+    assert np.median(finals) < 1.0  # ... and modest for a good encoder
+
+
+def test_robot_never_enters_walls_or_objects():
+    from semreloc_env.layouts import get_layout
+
+    world = build_world(get_layout("lab"), RobotParams(radius_m=0.25, max_linear_mps=1.0), PhysicsParams(substeps=3))
+    rng = np.random.default_rng(0)
+    worst = np.inf
+    bumps = 0
+    for _ in range(10):
+        world.set_pose(world.sample_free_pose(rng))
+        for _ in range(300):
+            bumps += world.drive(rng.uniform(0.3, 1.0), rng.uniform(-0.5, 0.5))
+            worst = min(worst, world.clearance(world.pose[:2]))
+            assert world.is_free(world.pose[:2], margin_m=-1e-4)
+    assert bumps > 20  # the random drive did hit things ...
+    assert worst >= 0.25 - 1e-4  # ... and never went in (0.1 mm numerical tolerance)
+
+
+def test_set_pose_rejects_blocked_and_bad_poses_without_moving():
+    world = square_room([{"class": "chair", "center": [2.0, 2.0], "size": [0.5, 0.5]}])
+    world.set_pose([1.0, 1.0, 0.0])
+    for bad in ([2.0, 2.0, 0.0], [0.1, 2.0, 0.0], [9.0, 9.0, 0.0], [np.nan, 1.0, 0.0], [1.0, 1.0]):
+        with pytest.raises(ValueError):
+            world.set_pose(bad)
+        assert world.pose.tolist() == [1.0, 1.0, 0.0]
+
+
+def test_world_without_free_space():
+    tiny = layout_from_dict({"outer": [[0, 0], [0.3, 0], [0.3, 0.3], [0, 0.3]]})
+    with pytest.raises(ValueError, match="no free space"):
+        build_world(tiny).sample_free_pose(np.random.default_rng(0), max_tries=100)
+
+
+def test_config_validation():
+    with pytest.raises(ValueError):
+        LidarParams(n_beams=0)
+    with pytest.raises(ValueError):
+        CameraParams(range_min_m=5.0, range_max_m=4.0)
+    with pytest.raises(ValueError):
+        CameraParams(miss_rate=1.5)
+    with pytest.raises(ValueError):
+        RobotParams(radius_m=-1)
