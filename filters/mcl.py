@@ -89,8 +89,10 @@ class MCLConfig:
         motion: odometry motion noise.
         belief: bins and thresholds of :meth:`MonteCarloLocalizer.belief`.
         use_semantic: multiply in the semantic factor (False = lidar-only MCL).
-        likelihood_scale: exponent on the measurement likelihood (1 = plain Bayes;
-            < 1 tempers over-confident beams that are not really independent).
+        likelihood_scale: exponent on the measurement likelihood (1 = plain Bayes). The
+            default 0.1 tempers 60 beams that are far from independent (AMCL's ``p^3``
+            sum is another fix for the same problem): with plain Bayes one scan decides
+            between look-alike places before the semantic factor can, see docs/relocalizer.md.
         update_min_d_m, update_min_a_rad: motion gate of the measurement update (AMCL).
         resampler: name in :data:`filters.resampling.RESAMPLERS`.
         resample_ess_frac: resample when ESS < this fraction of N (1.0 = every update).
@@ -108,7 +110,7 @@ class MCLConfig:
     motion: OdometryMotionConfig = OdometryMotionConfig()
     belief: BeliefConfig = BeliefConfig()
     use_semantic: bool = True
-    likelihood_scale: float = 1.0
+    likelihood_scale: float = 0.1
     update_min_d_m: float = 0.1
     update_min_a_rad: float = 0.15
     resampler: str = "systematic"

@@ -1,0 +1,131 @@
+import math
+
+import numpy as np
+import pytest
+
+from filters.grid import GridMap
+from filters.likelihood_field import (
+    LikelihoodFieldConfig,
+    LikelihoodFieldModel,
+    count_detections,
+    distance_field,
+    select_beams,
+)
+from filters.scans import LaserScan, SemanticScan
+
+RES = 0.1
+CLASSES = ("door", "chair")
+
+
+def tiny_grid() -> GridMap:
+    """5x5 cells of 0.1 m, one occupied cell at (row 2, col 2); cell (0, 0) is a 'door' cell
+    (semantic only, not occupied); no 'chair' cell."""
+    occ = np.zeros((5, 5), np.float32)
+    occ[2, 2] = 1.0
+    sem = np.zeros((2, 5, 5), np.float32)
+    sem[0, 0, 0] = 1.0
+    return GridMap(occ, RES, (0.0, 0.0), sem, CLASSES)
+
+
+CFG = LikelihoodFieldConfig(sigma_hit_m=0.1, z_hit=0.9, z_rand=0.1, max_dist_m=0.25, max_beams=0)
+RMAX = 2.0
+
+
+def hand_log_p(d: float, cfg: LikelihoodFieldConfig = CFG, rmax: float = RMAX) -> float:
+    d = min(d, cfg.max_dist_m)
+    return math.log(cfg.z_hit * math.exp(-d * d / (2 * cfg.sigma_hit_m**2)) + cfg.z_rand / rmax)
+
+
+def test_distance_field_hand_values():
+    d = distance_field(tiny_grid().occupied_mask(), RES)
+    assert d[2, 2] == 0.0
+    assert d[2, 4] == pytest.approx(0.2)
+    assert d[0, 0] == pytest.approx(math.sqrt(8) * 0.1)
+    assert d[3, 3] == pytest.approx(math.sqrt(2) * 0.1)
+    assert np.all(np.isinf(distance_field(np.zeros((3, 3), bool), RES)))
+
+
+def test_log_tables_hand_values_and_per_class_fields():
+    m = LikelihoodFieldModel(tiny_grid(), CFG, CFG)
+    tables, floors = m.log_tables(RMAX, RMAX)
+    assert tables.shape == (3, 5, 5)
+    # lidar field: distance to the occupied cell, capped at 0.25 m
+    assert tables[0, 2, 2] == pytest.approx(math.log(0.9 + 0.1 / RMAX))
+    assert tables[0, 2, 4] == pytest.approx(hand_log_p(0.2))
+    assert tables[0, 0, 0] == pytest.approx(hand_log_p(0.25))  # sqrt(8)*0.1 = 0.283 > cap
+    # door field: distance to the door cell (0, 0), not to the occupied cell
+    assert tables[1, 0, 0] == pytest.approx(math.log(0.9 + 0.1 / RMAX))
+    assert tables[1, 0, 1] == pytest.approx(hand_log_p(0.1))
+    assert tables[1, 2, 2] == pytest.approx(hand_log_p(0.25))
+    # chair has no cell: the field is the floor everywhere (carries no information)
+    assert np.all(tables[2] == floors[2])
+    assert floors[0] == pytest.approx(hand_log_p(0.25))
+    assert floors[0] > math.log(0.1 / RMAX)
+    # with the defaults (max_dist 2 m, sigma 0.2 m) the floor is the random-measurement floor
+    d = LikelihoodFieldConfig()
+    _, f_def = LikelihoodFieldModel(tiny_grid(), d, d).log_tables(RMAX, RMAX)
+    assert f_def[0] == pytest.approx(math.log(d.z_rand / RMAX), abs=1e-9)
+
+
+def test_single_beam_log_likelihood_hand_values():
+    m = LikelihoodFieldModel(tiny_grid(), CFG, CFG)
+    pose = np.array([[0.05, 0.25, 0.0]])  # centre of cell (2, 0), facing +x
+    on_cell = LaserScan([0.2], [0.0], RMAX)  # ends in cell (2, 2)
+    assert m.log_likelihood(pose, on_cell)[0] == pytest.approx(math.log(0.9 + 0.1 / RMAX))
+    one_off = LaserScan([0.1], [0.0], RMAX)  # ends in cell (2, 1): 0.1 m from the obstacle
+    assert m.log_likelihood(pose, one_off)[0] == pytest.approx(hand_log_p(0.1))
+    up = LaserScan([0.2], [math.pi / 2], RMAX)  # ends at (0.05, 0.45): cell (4, 0)
+    assert m.log_likelihood(pose, up)[0] == pytest.approx(hand_log_p(0.25))
+    outside = LaserScan([1.0], [math.pi], RMAX)  # ends at x = -0.95: off the map
+    _, floors = m.log_tables(RMAX, RMAX)
+    assert m.log_likelihood(pose, outside)[0] == pytest.approx(floors[0])
+    # beams at max range are skipped; several beams add up
+    two = LaserScan([0.2, RMAX, 0.1], [0.0, 0.0, 0.0], RMAX)
+    assert m.log_likelihood(pose, two)[0] == pytest.approx(math.log(0.9 + 0.1 / RMAX) + hand_log_p(0.1))
+    assert m.log_likelihood(pose, LaserScan([RMAX, 5.0], [0.0, 1.0], RMAX))[0] == 0.0
+
+
+def test_semantic_beams_use_their_class_field_and_unlabelled_beams_add_nothing():
+    m = LikelihoodFieldModel(tiny_grid(), CFG, CFG)
+    pose = np.array([[0.25, 0.05, math.pi]])  # centre of cell (0, 2), facing -x
+    door = SemanticScan([0.2], [0.0], [1], RMAX)  # ends in the door cell (0, 0)
+    ll_l, ll_s, beams = m.log_likelihood_terms(pose, None, door)
+    assert ll_l[0] == 0.0 and beams.n_semantic == 1 and beams.n_lidar == 0
+    assert ll_s[0] == pytest.approx(math.log(0.9 + 0.1 / RMAX))
+    chair = SemanticScan([0.2], [0.0], [2], RMAX)  # same end point, but no chair anywhere
+    assert m.log_likelihood(pose, None, chair)[0] == pytest.approx(hand_log_p(1.0))
+    unlabelled = SemanticScan([0.2, 0.1], [0.0, 0.1], [0, 0], RMAX)
+    assert m.log_likelihood(pose, None, unlabelled)[0] == 0.0
+    with pytest.raises(ValueError, match="no class"):
+        m.log_likelihood(pose, None, SemanticScan([0.2], [0.0], [3], RMAX))
+
+
+def test_beam_selection_and_detection_count():
+    valid = np.ones(10, bool)
+    valid[3] = False
+    assert select_beams(valid, 2, 0).tolist() == [0, 2, 4, 6, 8]
+    assert select_beams(valid, 1, 3).tolist() == [0, 5, 9]
+    assert select_beams(valid, 1, 0).tolist() == [0, 1, 2, 4, 5, 6, 7, 8, 9]
+    s = SemanticScan(np.ones(9), np.zeros(9), [0, 1, 1, 2, 2, 0, 1, 0, 3], 5.0)
+    assert count_detections(s) == 4
+    s_far = SemanticScan([1.0, 9.0, 1.0], np.zeros(3), [1, 1, 1], 5.0)  # middle beam: no return
+    assert count_detections(s_far) == 2
+
+
+def test_config_validation_and_unknown_keys():
+    with pytest.raises(ValueError):
+        LikelihoodFieldConfig(sigma_hit_m=0.0)
+    with pytest.raises(ValueError):
+        LikelihoodFieldConfig(z_hit=0.0, z_rand=0.0)
+    with pytest.raises(ValueError):
+        LikelihoodFieldConfig(beam_stride=0)
+    with pytest.raises(TypeError):
+        LikelihoodFieldConfig(sigma=0.1)  # unknown key
+
+
+def test_zero_z_rand_and_tiny_sigma_stay_finite():
+    cfg = LikelihoodFieldConfig(sigma_hit_m=1e-3, z_hit=1.0, z_rand=0.0, max_dist_m=5.0)
+    m = LikelihoodFieldModel(tiny_grid(), cfg, cfg)
+    ll = m.log_likelihood(np.array([[0.05, 0.05, 0.0], [9.0, 9.0, 1.0]]), LaserScan([0.3, 0.3], [0.0, 1.0], RMAX))
+    assert np.all(np.isfinite(ll))
+    assert np.all(ll < -1e4)  # astronomically unlikely, but a number
