@@ -1,0 +1,88 @@
+"""Agreement between maps: intersection over union of boolean grids and of GridMap layers.
+
+Used to check a mapping run (:mod:`filters.mapping`) against the rasterised truth of a layout
+(or two maps of the same place against each other). Both maps must share one raster: same
+shape, resolution and origin, else ``ValueError`` — no resampling is done here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from filters.grid import GridMap
+
+__all__ = ["iou", "same_raster", "check_same_raster", "occupancy_iou", "free_iou", "class_iou"]
+
+
+def iou(a: np.ndarray, b: np.ndarray, where: np.ndarray | None = None) -> float:
+    """``|a & b| / |a | b|`` of two boolean grids of the same shape (cells counted, no units).
+
+    Args:
+        a, b: boolean arrays of one shape (anything else: ``ValueError``).
+        where: optional boolean mask of that shape; only cells where it is ``True`` count
+            (e.g. the cells a mapping run could observe).
+
+    Returns:
+        A float in ``[0, 1]``; ``1.0`` when both are empty (nothing to find, nothing found).
+    """
+    a = np.asarray(a)
+    b = np.asarray(b)
+    if a.shape != b.shape:
+        raise ValueError(f"iou: shapes differ, {a.shape} vs {b.shape}")
+    if a.dtype != np.bool_ or b.dtype != np.bool_:
+        raise ValueError(f"iou: need boolean grids, got {a.dtype} and {b.dtype}")
+    if where is not None:
+        where = np.asarray(where)
+        if where.shape != a.shape or where.dtype != np.bool_:
+            raise ValueError(f"iou: where must be a boolean array of shape {a.shape}")
+        a = a & where
+        b = b & where
+    union = int(np.count_nonzero(a | b))
+    if union == 0:
+        return 1.0
+    return int(np.count_nonzero(a & b)) / union
+
+
+def same_raster(a: GridMap, b: GridMap) -> bool:
+    """Whether two maps share shape, resolution and origin (exactly)."""
+    return a.shape == b.shape and a.resolution_m == b.resolution_m and a.origin_xy_m == b.origin_xy_m
+
+
+def check_same_raster(a: GridMap, b: GridMap) -> None:
+    """Raise ``ValueError`` describing the difference unless ``a`` and ``b`` share one raster."""
+    if not same_raster(a, b):
+        raise ValueError(
+            f"maps are on different rasters: {a.shape} @ {a.resolution_m} m from {a.origin_xy_m} vs "
+            f"{b.shape} @ {b.resolution_m} m from {b.origin_xy_m}"
+        )
+
+
+def occupancy_iou(pred: GridMap, truth: GridMap, where: np.ndarray | None = None) -> float:
+    """IoU of the occupied masks (each map's own ``occupied_thresh``); same raster required."""
+    check_same_raster(pred, truth)
+    return iou(pred.occupied_mask(), truth.occupied_mask(), where)
+
+
+def free_iou(pred: GridMap, truth: GridMap, where: np.ndarray | None = None) -> float:
+    """IoU of the free masks (each map's own ``free_thresh``); same raster required."""
+    check_same_raster(pred, truth)
+    return iou(pred.free_mask(), truth.free_mask(), where)
+
+
+def class_iou(
+    pred: GridMap, truth: GridMap, classes: tuple[str, ...] | None = None, where: np.ndarray | None = None
+) -> dict[str, float]:
+    """Per-class IoU of the class masks (each map's own ``semantic_thresh``), classes matched by *name*.
+
+    Args:
+        pred, truth: maps on the same raster (else ``ValueError``).
+        classes: names to compare; default all of ``truth.class_names``. A name missing from
+            either map raises ``KeyError``.
+        where: optional boolean mask restricting the cells that count.
+
+    Returns:
+        ``{name: iou}`` in the order of ``classes``.
+    """
+    check_same_raster(pred, truth)
+    names = truth.class_names if classes is None else tuple(classes)
+    return {n: iou(pred.class_mask(pred.class_index(n)), truth.class_mask(truth.class_index(n)), where) for n in names}

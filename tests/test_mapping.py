@@ -1,0 +1,322 @@
+"""Mapping-run grid builders (paper 004 §2) and map metrics, on exact scans of a known grid."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from filters.grid import GridMap
+from filters.map_metrics import check_same_raster, class_iou, free_iou, iou, occupancy_iou
+from filters.mapping import (
+    OccupancyMapper,
+    OccupancyParams,
+    SemanticMapper,
+    SemanticParams,
+    beam_cells,
+    build_grid_map,
+)
+from filters.raycast import simulate_lidar, simulate_semantic
+from filters.scans import LaserScan, SemanticScan
+
+RES = 0.05
+SHAPE = (70, 90)  # 3.5 m x 4.5 m
+CLASSES = ("cabinet", "chair")
+CABINET_A = (slice(18, 26), slice(18, 30))  # rows, cols: 0.4 m x 0.6 m
+CABINET_B = (slice(18, 26), slice(58, 70))
+CHAIR = (slice(44, 50), slice(60, 66))
+LIDAR_ANGLES = np.linspace(-np.pi, np.pi, 180, endpoint=False)
+CAMERA_ANGLES = np.linspace(-0.6, 0.6, 41)  # ~70 deg field of view
+LIDAR_MAX, CAMERA_MAX = 6.0, 4.0
+
+# ------------------------------------------------------------------------------------------------- truth + data
+
+
+def _truth(cabinet=CABINET_A) -> GridMap:
+    """A walled room (1-cell walls at rows 5/64, cols 5/84) with a cabinet and a chair; outside unknown."""
+    occ = np.full(SHAPE, 0.5, np.float32)
+    occ[5:65, 5:85] = 1.0
+    occ[6:64, 6:84] = 0.0
+    sem = np.zeros((2,) + SHAPE, np.float32)
+    for k, box in enumerate((cabinet, CHAIR)):
+        occ[box] = 1.0
+        sem[k][box] = 1.0
+    return GridMap(occ, RES, (0.0, 0.0), sem, CLASSES)
+
+
+def _poses() -> np.ndarray:
+    """A deterministic lattice of positions in free space, four headings each, clear of both cabinet sites."""
+    xs = np.linspace(0.55, 3.95, 6)
+    ys = np.linspace(0.5, 2.9, 6)
+    out = []
+    for i, x in enumerate(xs):
+        for j, y in enumerate(ys):
+            for q in range(4):
+                out.append((x, y, -np.pi + (q + 0.5 * ((i + j) % 2)) * np.pi / 2))
+    poses = np.array(out)
+    keep = np.ones(len(poses), bool)
+    for box in (CABINET_A, CABINET_B, CHAIR):
+        r, c = np.floor(poses[:, 1] / RES).astype(int), np.floor(poses[:, 0] / RES).astype(int)
+        near = (r >= box[0].start - 2) & (r < box[0].stop + 2) & (c >= box[1].start - 2) & (c < box[1].stop + 2)
+        keep &= ~near
+    return poses[keep]
+
+
+def _scans(truth: GridMap, poses: np.ndarray):
+    lidar = [simulate_lidar(truth, p, LIDAR_ANGLES, LIDAR_MAX) for p in poses]
+    camera = [simulate_semantic(truth, p, CAMERA_ANGLES, CAMERA_MAX) for p in poses]
+    return lidar, camera
+
+
+def _seen(mask: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Cells of ``mask`` that a beam from free space can hit: 4-adjacent to a free cell."""
+    return mask & ndimage.binary_dilation(free, structure=ndimage.generate_binary_structure(2, 1))
+
+
+def _run(truth: GridMap, poses: np.ndarray, occ=None, sem=None):
+    lidar, camera = _scans(truth, poses)
+    occ = occ or OccupancyMapper.like(truth)
+    sem = sem or SemanticMapper.like(truth)
+    occ.update_many(poses, lidar)
+    sem.update_many(poses, camera)
+    return occ, sem
+
+
+# --------------------------------------------------------------------------------------------- ray traversal
+def test_beam_cells_is_the_exact_supercover_of_the_segment():
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        p0, p1 = rng.uniform(-1.0, 1.0, 2), rng.uniform(-1.0, 1.0, 2)
+        rows, cols, t = beam_cells(p0, p1, 0.1, (-0.3, 0.2))
+        # starts in the start cell, ends in the end cell, unit 4-connected steps, no repeats
+        assert (rows[0], cols[0]) == (np.floor((p0[1] - 0.2) / 0.1), np.floor((p0[0] + 0.3) / 0.1))
+        assert (rows[-1], cols[-1]) == (np.floor((p1[1] - 0.2) / 0.1), np.floor((p1[0] + 0.3) / 0.1))
+        steps = np.abs(np.diff(rows)) + np.abs(np.diff(cols))
+        assert np.all(steps == 1)
+        assert len(set(zip(rows.tolist(), cols.tolist(), strict=True))) == rows.size
+        assert np.all(np.diff(t) >= 0) and t[0] == 0 and t[-1] <= np.hypot(*(p1 - p0)) + 1e-9
+        # every cell a dense sampling of the segment touches is listed
+        s = np.linspace(0.0, 1.0, 20001)[:, None]
+        pts = p0 + s * (p1 - p0)
+        sampled = set(zip(np.floor((pts[:, 1] - 0.2) / 0.1).astype(int).tolist(),
+                          np.floor((pts[:, 0] + 0.3) / 0.1).astype(int).tolist(), strict=True))  # fmt: skip
+        listed = set(zip(rows.tolist(), cols.tolist(), strict=True))
+        assert sampled <= listed
+        assert len(listed) <= len(sampled) + 1  # at most a corner-touching extra
+
+
+def test_range_ending_on_a_cell_face_marks_the_entered_cell():
+    rows, cols, _ = beam_cells((0.05, 0.05), (0.6, 0.05), 0.1)
+    np.testing.assert_array_equal(cols, np.arange(7))  # x = 0.6 is where cell 6 begins
+    np.testing.assert_array_equal(rows, 0)
+
+
+# ------------------------------------------------------------------------------------------ exact increments
+def test_occupancy_single_beam_increments_and_max_range_clearing():
+    p = OccupancyParams()
+    m = OccupancyMapper((3, 12), 0.1, (0.0, 0.0))
+    # beam along +x from the centre of cell (1, 0) ending on the face of cell 6; a second one gets no return
+    m.update(np.array([0.05, 0.15, 0.0]), LaserScan([0.55], [0.0], 2.0))
+    np.testing.assert_allclose(m.logodds[1, :6], p.l_free)
+    assert m.logodds[1, 6] == pytest.approx(p.l_occ)
+    assert np.all(m.logodds[1, 7:] == 0) and np.all(m.logodds[[0, 2]] == 0)
+    m2 = OccupancyMapper((3, 12), 0.1, (0.0, 0.0))
+    m2.update(np.array([0.05, 0.15, 0.0]), LaserScan([5.0], [0.0], 0.72))  # no return: clear to x = 0.77
+    np.testing.assert_allclose(m2.logodds[1, :8], p.l_free)
+    assert np.all(m2.logodds[1, 8:] == 0) and m2.logodds.max() <= 0
+    # clamping
+    for _ in range(20):
+        m.update(np.array([0.05, 0.15, 0.0]), LaserScan([0.55], [0.0], 2.0))
+    assert m.logodds[1, 6] == pytest.approx(p.l_max) and m.logodds[1, 0] == pytest.approx(p.l_min)
+    assert m.to_grid().occupied_mask()[1, 6] and m.to_grid().free_mask()[1, 0]
+
+
+def test_occupancy_max_range_param_cuts_long_returns():
+    m = OccupancyMapper((1, 40), 0.1, params=OccupancyParams(max_range_m=1.0))
+    m.update(np.array([0.05, 0.05, 0.0]), LaserScan([2.5], [0.0], 10.0))
+    assert m.logodds.max() <= 0  # the 2.5 m return is beyond 1.0 m: nothing is marked
+    assert np.all(m.logodds[0, :10] < 0) and np.all(m.logodds[0, 11:] == 0)
+
+
+def test_semantic_increments_dark_grey_lowers_more_than_light_grey():
+    p = SemanticParams()
+    m = SemanticMapper((4, 12), 0.1, (0.0, 0.0), CLASSES)
+    pose = np.array([0.05, 0.15, 0.0])
+    # one labelled beam (chair = label 2) along row 1, one unlabelled beam along row 2 (angle to reach it)
+    m.update(pose, SemanticScan([0.55], [0.0], [2], 3.0))
+    L = m.logodds
+    np.testing.assert_allclose(L[:, 1, :6], p.l_free_inside)  # light grey, all classes
+    assert L[1, 1, 6] == pytest.approx(p.l_hit) and L[0, 1, 6] == pytest.approx(p.l_other_hit)
+    m2 = SemanticMapper((4, 12), 0.1, (0.0, 0.0), CLASSES)
+    m2.update(pose, SemanticScan([0.55], [0.0], [0], 3.0))
+    np.testing.assert_allclose(m2.logodds[:, 1, :6], p.l_free_outside)  # dark grey
+    np.testing.assert_allclose(m2.logodds[:, 1, 6], p.l_unlabelled_end)
+    assert p.l_free_outside < p.l_free_inside < 0
+    assert np.all(m2.logodds[:, 1, :6] < m.logodds[:, 1, :6])
+    # a hit of another class lowers this one
+    for _ in range(3):
+        m.update(pose, SemanticScan([0.55], [0.0], [2], 3.0))
+    before = m.logodds[1, 1, 6]
+    m.update(pose, SemanticScan([0.55], [0.0], [1], 3.0))
+    assert m.logodds[1, 1, 6] == pytest.approx(before + p.l_other_hit)
+    assert m.to_grid().class_mask(1)[1, 6] and not m.to_grid().class_mask(0)[1, 6]
+
+
+def test_semantic_no_return_beams_clear_and_mark_nothing():
+    m = SemanticMapper((1, 30), 0.1, (0.0, 0.0), CLASSES)
+    m.update(np.array([0.05, 0.05, 0.0]), SemanticScan([9.0, 9.0], [0.0, 0.0], [0, 1], 1.02))
+    assert m.logodds.max() <= 0
+    np.testing.assert_allclose(m.logodds[:, 0, :11], SemanticParams().l_free_outside + SemanticParams().l_free_inside)
+    assert np.all(m.logodds[:, 0, 11:] == 0)
+
+
+def test_bad_parameters_and_inputs_raise():
+    with pytest.raises(ValueError, match="l_free_outside < l_free_inside"):
+        SemanticParams(l_free_inside=-0.6, l_free_outside=-0.2)
+    with pytest.raises(ValueError, match="l_occ"):
+        OccupancyParams(l_occ=-1.0)
+    with pytest.raises(ValueError, match="l_min < 0 < l_max"):
+        OccupancyParams(l_min=1.0)
+    m = SemanticMapper((4, 4), 0.1, class_names=CLASSES)
+    with pytest.raises(ValueError, match="label 3"):
+        m.update(np.zeros(3), SemanticScan([0.1], [0.0], [3], 1.0))
+    with pytest.raises(TypeError):
+        m.update(np.zeros(3), LaserScan([0.1], [0.0], 1.0))
+    with pytest.raises(ValueError, match="poses"):
+        OccupancyMapper((4, 4), 0.1).update_many(np.zeros((2, 3)), [LaserScan([0.1], [0.0], 1.0)])
+    with pytest.raises(ValueError, match="differs from the semantic raster"):
+        m.to_grid(OccupancyMapper((4, 5), 0.1))
+
+
+# ------------------------------------------------------------------------------------------- room end to end
+def test_square_room_walls_free_space_and_objects_are_recovered():
+    truth = _truth()
+    poses = _poses()
+    assert 60 <= len(poses) <= 144
+    occ, sem = _run(truth, poses)
+    grid = occ.to_grid(sem)
+    check_same_raster(grid, truth)
+    free_truth = truth.free_mask()
+    seen_occupied = _seen(truth.occupied_mask(), free_truth)
+    # walls and object faces seen from the room: recovered with IoU > 0.9 (corner cells cannot be hit)
+    assert iou(grid.occupied_mask(), seen_occupied) > 0.9
+    # nothing outside the room is marked, and the free interior is free
+    assert not np.any(grid.occupied_mask() & (truth.occupancy == 0.5))
+    assert np.count_nonzero(grid.occupied_mask() & free_truth) <= 0.002 * free_truth.sum()
+    assert np.mean(grid.free_mask()[free_truth]) > 0.97
+    assert free_iou(grid, truth) > 0.95
+    # semantic: the faces of the cabinet and of the chair, IoU > 0.8 each, nothing elsewhere
+    seen_truth = GridMap(
+        truth.occupancy, RES, (0.0, 0.0), np.stack([_seen(truth.class_mask(k), free_truth) for k in range(2)]), CLASSES
+    )
+    scores = class_iou(grid, seen_truth)
+    assert set(scores) == set(CLASSES)
+    assert scores["cabinet"] > 0.8 and scores["chair"] > 0.8, scores
+    for k in range(2):
+        assert not np.any(grid.class_mask(k) & ~ndimage.binary_dilation(truth.class_mask(k), iterations=1))
+    # a poorer map scores lower: the metric can fail
+    assert occupancy_iou(OccupancyMapper.like(truth).to_grid(), truth) == 0.0
+
+
+def test_noisy_ranges_give_surfaces_within_one_cell():
+    """2 cm range noise (0.4 cell) on surfaces that lie exactly on cell faces: about half the returns
+    land in the cell in front, so compare within one cell (8-neighbourhood) instead of exactly."""
+    rng = np.random.default_rng(1)
+    truth = _truth()
+    poses = _poses()
+    lidar = [simulate_lidar(truth, p, LIDAR_ANGLES, LIDAR_MAX, 0.02, rng) for p in poses]
+    camera = [simulate_semantic(truth, p, CAMERA_ANGLES, CAMERA_MAX, 0.02, rng) for p in poses]
+    grid = build_grid_map(SHAPE, RES, (0.0, 0.0), poses, lidar, semantic_scans=camera, class_names=CLASSES)
+
+    def near(m):
+        return ndimage.binary_dilation(m, structure=ndimage.generate_binary_structure(2, 2))
+
+    free_truth = truth.free_mask()
+    seen = _seen(truth.occupied_mask(), free_truth)
+    mapped = grid.occupied_mask()
+    assert np.mean(near(seen)[mapped]) > 0.98  # precision within one cell
+    assert np.mean(near(mapped)[seen]) > 0.98  # recall within one cell
+    assert np.mean(grid.free_mask()[free_truth & ~near(seen)]) > 0.98
+    assert iou(mapped, seen) < 0.95  # the noise does show: the exact IoU is not perfect here
+    for k in range(2):
+        seen_k, mapped_k = _seen(truth.class_mask(k), free_truth), grid.class_mask(k)
+        assert np.mean(near(seen_k)[mapped_k]) > 0.95 and np.mean(near(mapped_k)[seen_k]) > 0.95
+
+
+def test_moved_object_is_erased_where_beams_now_pass_and_mapped_where_it_went():
+    before, after = _truth(CABINET_A), _truth(CABINET_B)
+    poses = _poses()
+    occ, sem = _run(before, poses)
+    was = before.class_mask(0)
+    assert np.count_nonzero(sem.to_grid().class_mask(0) & was) >= 20  # the cabinet at A is on the map
+    occ, sem = _run(after, poses, occ, sem)  # the cabinet moved from A to B; map again from the same poses
+    grid = occ.to_grid(sem)
+    assert np.count_nonzero(grid.class_mask(0) & was) == 0  # erased by the beams that now pass through A
+    assert np.count_nonzero(grid.occupied_mask() & was) <= 2
+    seen_b = _seen(after.class_mask(0), after.free_mask())
+    assert iou(grid.class_mask(0), seen_b) > 0.8
+    assert iou(grid.class_mask(1), _seen(after.class_mask(1), after.free_mask())) > 0.8  # the chair stays
+
+
+def test_mapping_is_deterministic_and_batch_equals_one_by_one():
+    truth = _truth()
+    poses = _poses()[:30]
+    lidar, camera = _scans(truth, poses)
+    g1 = build_grid_map(SHAPE, RES, (0.0, 0.0), poses, lidar, semantic_scans=camera, class_names=CLASSES)
+    g2 = build_grid_map(SHAPE, RES, (0.0, 0.0), poses, lidar, semantic_scans=camera, class_names=CLASSES)
+    np.testing.assert_array_equal(g1.occupancy, g2.occupancy)
+    np.testing.assert_array_equal(g1.semantic, g2.semantic)
+    occ, sem = OccupancyMapper.like(truth), SemanticMapper.like(truth)
+    for p, ls, cs in zip(poses, lidar, camera, strict=True):
+        occ.update(p, ls)
+        sem.update(p, cs)
+    np.testing.assert_array_equal(occ.to_grid(sem).occupancy, g1.occupancy)
+    np.testing.assert_array_equal(sem.to_grid().semantic, g1.semantic)
+    assert g1.class_names == CLASSES and np.any(g1.class_mask(0))
+
+
+def test_lab_sized_run_is_fast():
+    """15 m x 10 m at 0.05 m, 1000 poses x 60 beams (~10 m returns): well under the few-second budget."""
+    rng = np.random.default_rng(0)
+    n, b = 1000, 60
+    poses = np.column_stack([rng.uniform(0.5, 14.5, n), rng.uniform(0.5, 9.5, n), rng.uniform(-np.pi, np.pi, n)])
+    angles = np.linspace(-np.pi, np.pi, b, endpoint=False)
+    lidar = [LaserScan(rng.uniform(0.2, 12.0, b), angles, 10.0) for _ in range(n)]
+    camera = [SemanticScan(rng.uniform(0.2, 5.0, b), angles, rng.integers(0, 5, b), 4.0) for _ in range(n)]
+    occ, sem = OccupancyMapper((200, 300), 0.05), SemanticMapper((200, 300), 0.05)
+    occ.update(poses[0], lidar[0])  # compile / load the numba cache outside the timing
+    sem.update(poses[0], camera[0])
+    t0 = time.perf_counter()
+    for p, s in zip(poses, lidar, strict=True):
+        occ.update(p, s)
+    sem.update_many(poses, camera)
+    grid = occ.to_grid(sem)
+    elapsed = time.perf_counter() - t0
+    assert elapsed < 3.0, f"mapping 1000 x 60 beams took {elapsed:.2f} s"
+    assert grid.shape == (200, 300) and np.any(grid.free_mask())
+
+
+# ------------------------------------------------------------------------------------------------- metrics
+def test_iou_values_and_raster_checks():
+    a = np.zeros((4, 4), bool)
+    b = np.zeros((4, 4), bool)
+    assert iou(a, b) == 1.0  # both empty
+    a[0, :2] = True
+    b[0, 1:3] = True
+    assert iou(a, b) == pytest.approx(1 / 3)
+    where = np.zeros((4, 4), bool)
+    where[0, :2] = True
+    assert iou(a, b, where) == pytest.approx(1 / 2)
+    with pytest.raises(ValueError, match="shapes differ"):
+        iou(a, b[:3])
+    with pytest.raises(ValueError, match="boolean"):
+        iou(a.astype(int), b)
+    g = _truth()
+    shifted = GridMap(g.occupancy, RES, (0.05, 0.0), g.semantic, CLASSES)
+    with pytest.raises(ValueError, match="different rasters"):
+        class_iou(g, shifted)
+    assert class_iou(g, g) == {"cabinet": 1.0, "chair": 1.0}
+    with pytest.raises(KeyError):
+        class_iou(g, g, classes=("door",))
