@@ -1,0 +1,84 @@
+import json
+import math
+
+import numpy as np
+import pytest
+
+from filters.belief import BeliefConfig, summarize
+
+
+def blob(rng, centre, n, std_xy=0.05, std_th=0.02):
+    c = np.asarray(centre, dtype=float)
+    p = c + rng.normal(0.0, 1.0, (n, 3)) * [std_xy, std_xy, std_th]
+    p[:, 2] = (p[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return p
+
+
+def test_circular_mean_across_the_pi_seam():
+    poses = np.array([[0.0, 0.0, np.pi - 0.1], [0.0, 0.0, -np.pi + 0.1]])
+    b = summarize(poses, np.ones(2))
+    assert abs(abs(b.mean[2]) - np.pi) < 1e-9  # not 0, as a naive mean would say
+    assert -np.pi <= b.mean[2] < np.pi
+    assert b.theta_std_rad == pytest.approx(0.1)  # wrapped residuals: +-0.1
+    # weighted: the heavier particle pulls the mean towards itself
+    b2 = summarize(poses, np.array([3.0, 1.0]))
+    assert 0 < b2.mean[2] < np.pi and b2.mean[2] > np.pi - 0.1
+
+
+def test_mean_and_covariance_of_weighted_particles():
+    poses = np.array([[1.0, 2.0, 0.0], [3.0, 2.0, 0.0]])
+    b = summarize(poses, np.array([1.0, 3.0]))
+    np.testing.assert_allclose(b.mean, [2.5, 2.0, 0.0])
+    assert b.cov[0, 0] == pytest.approx(0.25 * 1.5**2 + 0.75 * 0.5**2)
+    assert b.cov[1, 1] == 0.0 and b.cov.shape == (3, 3)
+    assert b.ess == pytest.approx(1 / (0.25**2 + 0.75**2))
+    assert b.n_particles == 2
+
+
+def test_converged_flag_follows_the_thresholds():
+    rng = np.random.default_rng(0)
+    tight = blob(rng, [1.0, 1.0, 3.1], 500)  # straddles the seam in heading
+    b = summarize(tight, np.ones(500))
+    assert b.converged and b.pos_std_m < 0.1 and b.theta_std_rad < 0.05
+    wide = blob(rng, [1.0, 1.0, 0.0], 500, std_xy=0.5)
+    assert not summarize(wide, np.ones(500)).converged
+    turned = blob(rng, [1.0, 1.0, 0.0], 500, std_th=0.5)
+    assert not summarize(turned, np.ones(500)).converged
+    strict = BeliefConfig(converged_pos_std_m=0.01)
+    assert not summarize(tight, np.ones(500), strict).converged
+
+
+def test_cluster_count_and_entropy():
+    rng = np.random.default_rng(1)
+    one = blob(rng, [1.0, 1.0, 0.0], 400)
+    two = np.vstack([one, blob(rng, [6.0, 3.0, 0.0], 400)])
+    b1 = summarize(one, np.ones(400))
+    b2 = summarize(two, np.ones(800))
+    assert b1.n_clusters == 1
+    assert b2.n_clusters == 2
+    assert b2.entropy_nats > b1.entropy_nats + 0.5  # two equal blobs: about log 2 more
+    # a few stray particles with negligible weight are not a hypothesis
+    stray = np.vstack([two, [[9.0, 9.0, 0.0], [-5.0, 4.0, 1.0]]])
+    w = np.concatenate([np.ones(800), [1e-3, 1e-3]])
+    assert summarize(stray, w).n_clusters == 2
+    # the second blob carries no weight: one cluster
+    assert summarize(two, np.concatenate([np.ones(400), np.zeros(400)])).n_clusters == 1
+    # every particle in one bin: zero entropy
+    assert summarize(np.tile([[0.1, 0.1, 0.1]], (5, 1)), np.ones(5)).entropy_nats == 0.0
+
+
+def test_as_dict_is_plain_python_and_bad_input_raises():
+    rng = np.random.default_rng(2)
+    b = summarize(blob(rng, [0.0, 0.0, 0.0], 50), rng.random(50))
+    d = b.as_dict()
+    json.dumps(d)  # plain floats, ints, bools, lists
+    assert isinstance(d["converged"], bool) and isinstance(d["n_clusters"], int)
+    assert len(d["cov"]) == 3 and all(isinstance(v, float) for v in d["mean"])
+    with pytest.raises(ValueError):
+        summarize(np.zeros((0, 3)), np.zeros(0))
+    with pytest.raises(ValueError):
+        summarize(np.zeros((2, 3)), np.zeros(2))
+    with pytest.raises(ValueError):
+        summarize(np.zeros((2, 3)), np.array([1.0, math.nan]))
+    with pytest.raises(TypeError):
+        BeliefConfig(bin_m=0.5)
