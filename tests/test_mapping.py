@@ -9,7 +9,15 @@ import pytest
 from scipy import ndimage
 
 from filters.grid import GridMap
-from filters.map_metrics import check_same_raster, class_iou, free_iou, iou, occupancy_iou
+from filters.map_metrics import (
+    check_same_raster,
+    class_iou,
+    free_iou,
+    iou,
+    occupancy_iou,
+    surface_mask,
+    tolerant_precision_recall,
+)
 from filters.mapping import (
     OccupancyMapper,
     OccupancyParams,
@@ -320,3 +328,18 @@ def test_iou_values_and_raster_checks():
     assert class_iou(g, g) == {"cabinet": 1.0, "chair": 1.0}
     with pytest.raises(KeyError):
         class_iou(g, g, classes=("door",))
+
+
+def test_surface_mask_and_tolerant_precision_recall():
+    g = _truth()
+    seen = surface_mask(g.class_mask(0), g.free_mask())
+    assert seen.sum() == 2 * (8 + 12) - 4  # the ring of the 8 x 12 cabinet
+    assert not seen[20, 20] and seen[18, 20]
+    shifted = np.roll(seen, 1, axis=1)
+    p0, r0 = tolerant_precision_recall(shifted, seen, 0)
+    assert p0 < 0.9 and r0 < 0.9
+    assert tolerant_precision_recall(shifted, seen, 1) == (1.0, 1.0)
+    p, r = tolerant_precision_recall(seen, np.zeros_like(seen), 1)
+    assert p == 0.0 and r == 1.0
+    with pytest.raises(ValueError):
+        tolerant_precision_recall(seen, seen[:-1])
