@@ -112,6 +112,15 @@ def _bin_keys(values: np.ndarray, size: float) -> np.ndarray:
     return np.floor(values / size).astype(np.int64)
 
 
+def linear_bin_keys(*keys: np.ndarray) -> np.ndarray:
+    """One int64 key per particle from several integer bin indices (offset to start at 0)."""
+    out = np.zeros(keys[0].shape, dtype=np.int64)
+    for k in keys:
+        k0 = k - k.min()
+        out = out * (int(k0.max()) + 1) + k0
+    return out
+
+
 def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | None = None) -> Belief:
     """Summarise ``poses (N, 3)`` with non-negative ``weights (N,)`` (normalised here).
 
@@ -135,15 +144,12 @@ def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | Non
     ess = float(1.0 / np.sum(w * w))
 
     # entropy of the coarse (x, y, theta) histogram
-    keys = np.stack(
-        [
-            _bin_keys(p[:, 0], cfg.entropy_bin_xy_m),
-            _bin_keys(p[:, 1], cfg.entropy_bin_xy_m),
-            _bin_keys(wrap_angle(p[:, 2]) + math.pi, cfg.entropy_bin_theta_rad),
-        ],
-        axis=1,
+    keys = linear_bin_keys(
+        _bin_keys(p[:, 0], cfg.entropy_bin_xy_m),
+        _bin_keys(p[:, 1], cfg.entropy_bin_xy_m),
+        _bin_keys(wrap_angle(p[:, 2]) + math.pi, cfg.entropy_bin_theta_rad),
     )
-    _, inv = np.unique(keys, axis=0, return_inverse=True)
+    _, inv = np.unique(keys, return_inverse=True)
     mass = np.bincount(inv.reshape(-1), weights=w)
     mass = mass[mass > 0]
     entropy = float(-(mass * np.log(mass)).sum())
@@ -177,8 +183,7 @@ def _count_clusters(xy: np.ndarray, w: np.ndarray, bin_m: float, min_weight: flo
     shape = (int(iy.max()) + 1, int(ix.max()) + 1)
     if shape[0] * shape[1] > 4_000_000:  # absurdly spread cloud: fall back to a coarser raster
         return _count_clusters(xy, w, bin_m * 4.0, min_weight)
-    mass = np.zeros(shape)
-    np.add.at(mass, (iy, ix), w)
+    mass = np.bincount(iy * shape[1] + ix, weights=w, minlength=shape[0] * shape[1]).reshape(shape)
     occupied = np.zeros(shape, dtype=bool)
     occupied[iy, ix] = True
     labels, n_comp = ndimage.label(occupied, structure=np.ones((3, 3), dtype=bool))

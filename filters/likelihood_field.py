@@ -175,21 +175,25 @@ def log_likelihood_kernel(x, y, cos_t, sin_t, lx, ly, table, n_lidar, tables, fl
         c = cos_t[i]
         s = sin_t[i]
         acc_l = 0.0
-        acc_s = 0.0
-        for j in range(nb):
+        for j in range(n_lidar):
             ex = px + c * lx[j] - s * ly[j]
             ey = py + s * lx[j] + c * ly[j]
             fx = (ex - ox) * inv_res
             fy = (ey - oy) * inv_res
-            t = table[j]
             if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
-                v = tables[t, int(fy), int(fx)]
+                acc_l += tables[table[j], int(fy), int(fx)]
             else:
-                v = floors[t]
-            if j < n_lidar:
-                acc_l += v
+                acc_l += floors[table[j]]
+        acc_s = 0.0
+        for j in range(n_lidar, nb):
+            ex = px + c * lx[j] - s * ly[j]
+            ey = py + s * lx[j] + c * ly[j]
+            fx = (ex - ox) * inv_res
+            fy = (ey - oy) * inv_res
+            if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
+                acc_s += tables[table[j], int(fy), int(fx)]
             else:
-                acc_s += v
+                acc_s += floors[table[j]]
         out_l[i] = acc_l
         out_s[i] = acc_s
 

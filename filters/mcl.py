@@ -59,7 +59,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import logsumexp
 
-from filters.belief import Belief, BeliefConfig, summarize
+from filters.belief import Belief, BeliefConfig, linear_bin_keys, summarize
 from filters.grid import GridMap
 from filters.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
 from filters.motion import OdometryMotionConfig, OdometryMotionModel
@@ -494,15 +494,12 @@ class MonteCarloLocalizer:
         cdf[-1] = 1.0
         idx = np.minimum(np.searchsorted(cdf, self.rng.random(m), side="right"), w.size - 1)
         p = self._poses[idx]
-        keys = np.stack(
-            [
-                np.floor(p[:, 0] / c.kld_bin_xy_m),
-                np.floor(p[:, 1] / c.kld_bin_xy_m),
-                np.floor((p[:, 2] + np.pi) / c.kld_bin_theta_rad),
-            ],
-            axis=1,
-        ).astype(np.int64)
-        _, first = np.unique(keys, axis=0, return_index=True)
+        keys = linear_bin_keys(
+            np.floor(p[:, 0] / c.kld_bin_xy_m).astype(np.int64),
+            np.floor(p[:, 1] / c.kld_bin_xy_m).astype(np.int64),
+            np.floor((p[:, 2] + np.pi) / c.kld_bin_theta_rad).astype(np.int64),
+        )
+        _, first = np.unique(keys, return_index=True)
         new_bin = np.zeros(m, dtype=bool)
         new_bin[first] = True
         k = np.cumsum(new_bin)  # occupied bins after 1..m draws

@@ -1,0 +1,200 @@
+"""Benchmarks of the relocalizer: measurement kernel (numba vs NumPy reference) and a full MCL step.
+
+Usage::
+
+    python scripts/bench.py                    # defaults: N=2000 particles, B=60 beams
+    python scripts/bench.py --particles 5000 --beams 120 --repeats 50
+
+Each benchmark is a function ``bench_*(args) -> list[Row]``; :func:`main` runs them
+all and prints one table. Add a benchmark by writing a function and listing it in
+:data:`BENCHMARKS`. Single-threaded numba kernels; numba compile time is excluded
+(one warm-up call before timing). Times are the median over ``--repeats`` runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+try:
+    import filters  # noqa: F401
+except ImportError:  # running from a checkout without `pip install -e .`
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from filters.grid import DEFAULT_CLASS_NAMES, GridMap
+from filters.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
+from filters.likelihood_reference import log_likelihood_reference
+from filters.mcl import MCLConfig, MonteCarloLocalizer
+from filters.raycast import simulate_lidar, simulate_semantic
+
+
+@dataclass(frozen=True)
+class Args:
+    """Benchmark options (each one is a ``--flag``)."""
+
+    particles: int = 2000
+    """N: particles."""
+    beams: int = 60
+    """B: lidar beams per scan (all within range)."""
+    semantic_beams: int = 0
+    """labelled semantic beams added to each scan for the likelihood benchmark (0 = lidar only)."""
+    map_size_m: float = 20.0
+    """edge of the square synthetic map, metres (0.05 m cells)."""
+    repeats: int = 30
+    """timed repetitions (median reported)."""
+    seed: int = 0
+    """seed of the synthetic map, poses and scans."""
+
+
+@dataclass(frozen=True)
+class Row:
+    name: str
+    value: float
+    unit: str
+    note: str = ""
+
+
+def synthetic_map(size_m: float, seed: int) -> GridMap:
+    """A square room with random boxes, some of them labelled with a class."""
+    res = 0.05
+    n = int(round(size_m / res))
+    rng = np.random.default_rng(seed)
+    occ = np.zeros((n, n), np.float32)
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = 1.0
+    sem = np.zeros((len(DEFAULT_CLASS_NAMES), n, n), np.float32)
+    for k in range(int(size_m * size_m / 8)):
+        r, c = rng.integers(10, n - 30, 2)
+        h, w = rng.integers(4, 20, 2)
+        occ[r : r + h, c : c + w] = 1.0
+        if k % 3 == 0:
+            sem[k % len(DEFAULT_CLASS_NAMES), r : r + h, c : c + w] = 1.0
+    return GridMap(occ, res, (0.0, 0.0), sem, DEFAULT_CLASS_NAMES)
+
+
+def _scene(args: Args):
+    grid = synthetic_map(args.map_size_m, args.seed)
+    rng = np.random.default_rng(args.seed)
+    free = np.argwhere(grid.free_mask())
+    cell = free[rng.integers(len(free))]
+    pose = np.array([(cell[1] + 0.5) * grid.resolution_m, (cell[0] + 0.5) * grid.resolution_m, 0.3])
+    angles = np.linspace(-np.pi, np.pi, args.beams, endpoint=False)
+    lidar = simulate_lidar(grid, pose, angles, 1e3)  # huge range: every beam returns
+    lidar = type(lidar)(np.minimum(lidar.ranges, 29.0), lidar.angles, 30.0)
+    semantic = None
+    if args.semantic_beams:
+        sa = np.linspace(-0.5, 0.5, args.semantic_beams)
+        semantic = simulate_semantic(grid, pose, sa, 30.0)
+        labels = np.where(semantic.labels > 0, semantic.labels, 1 + np.arange(sa.size) % len(DEFAULT_CLASS_NAMES))
+        semantic = type(semantic)(np.minimum(semantic.ranges, 29.0), sa, labels, 30.0)
+    xy = free[rng.integers(len(free), size=args.particles)]
+    poses = np.column_stack(
+        [
+            (xy[:, 1] + rng.random(args.particles)) * grid.resolution_m,
+            (xy[:, 0] + rng.random(args.particles)) * grid.resolution_m,
+            rng.uniform(-np.pi, np.pi, args.particles),
+        ]
+    )
+    return grid, pose, poses, lidar, semantic
+
+
+def _median_time(fn: Callable[[], object], repeats: int) -> float:
+    fn()  # warm-up (numba compile, table cache)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def bench_likelihood(args: Args) -> list[Row]:
+    """Measurement model: particle-beams per second, numba kernel vs NumPy reference."""
+    grid, _, poses, lidar, semantic = _scene(args)
+    model = LikelihoodFieldModel(grid)
+    beams = model.beams(lidar, semantic)
+    nb = beams.n_lidar + beams.n_semantic
+    work = args.particles * nb
+    t_numba = _median_time(lambda: model.log_likelihood(poses, lidar, semantic), args.repeats)
+    t_numpy = _median_time(lambda: log_likelihood_reference(model, poses, lidar, semantic), max(3, args.repeats // 5))
+    tables, floors = model.log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
+    x, y = poses[:, 0].copy(), poses[:, 1].copy()
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    out_l, out_s = np.zeros(args.particles), np.zeros(args.particles)
+    ox, oy = grid.origin_xy_m
+    kernel_args = (x, y, c, s, beams.lx, beams.ly, beams.table, beams.n_lidar, tables, floors, ox, oy,
+                   1.0 / grid.resolution_m, out_l, out_s)
+    t_kernel = _median_time(lambda: log_likelihood_kernel(*kernel_args), args.repeats)
+    a = model.log_likelihood(poses, lidar, semantic)
+    b = log_likelihood_reference(model, poses, lidar, semantic)
+    shape = f"N={args.particles}, B={nb}"
+    unit = "M particle-beams/s"
+    return [
+        Row("likelihood numba", work / t_numba / 1e6, unit, f"{shape}, {t_numba * 1e3:.3f} ms/update"),
+        Row("  of which kernel", work / t_kernel / 1e6, unit, f"{t_kernel * 1e3:.3f} ms (no beam prep)"),
+        Row("likelihood numpy ref", work / t_numpy / 1e6, unit, f"{shape}, {t_numpy * 1e3:.3f} ms/update"),
+        Row("speed-up numba/numpy", t_numpy / t_numba, "x", f"max |diff| = {np.max(np.abs(a - b)):.1e}"),
+    ]
+
+
+def bench_mcl_step(args: Args) -> list[Row]:
+    """A full filter step: predict + update (forced) + resample (every step), steps per second."""
+    grid, pose, _, lidar, semantic = _scene(args)
+    rows = []
+    for sem_on in (False, True) if semantic is not None else (False,):
+        cfg = MCLConfig(n_particles=args.particles, resample_ess_frac=1.0, use_semantic=sem_on)
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(args.seed))
+        mcl.init_global()
+
+        def step(mcl=mcl, delta=ODOM_STEP):
+            mcl.predict(delta)
+            d = mcl.update(lidar, semantic, force=True)
+            assert d.resampled
+
+        t = _median_time(step, args.repeats)
+        label = "+semantic" if sem_on else ""
+        rows.append(Row(f"MCL step{label}", 1.0 / t, "steps/s", f"N={args.particles}, {t * 1e3:.3f} ms/step"))
+        t_b = _median_time(mcl.belief, args.repeats)
+        if not sem_on:
+            rows.append(Row("belief summary", 1.0 / t_b, "calls/s", f"{t_b * 1e3:.3f} ms/call"))
+    return rows
+
+
+ODOM_STEP = (0.05, 0.0, 0.02)
+"""Odometry increment of one benchmarked MCL step (dx m, dy m, dtheta rad)."""
+
+BENCHMARKS: list[Callable[[Args], list[Row]]] = [bench_likelihood, bench_mcl_step]
+
+
+def parse_args(argv: list[str] | None = None) -> Args:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    for f in fields(Args):
+        parser.add_argument(f"--{f.name.replace('_', '-')}", type=type(f.default), default=f.default)
+    return Args(**vars(parser.parse_args(argv)))
+
+
+def print_table(rows: list[Row]) -> None:
+    w = max(len(r.name) for r in rows)
+    for r in rows:
+        print(f"{r.name:<{w}}  {r.value:>12.2f}  {r.unit:<20} {r.note}")
+
+
+def main(argv: list[str] | None = None) -> list[Row]:
+    args = parse_args(argv)
+    print(f"# semreloc bench: {args}")
+    rows: list[Row] = []
+    for bench in BENCHMARKS:
+        print(f"... {bench.__name__}", file=sys.stderr, flush=True)
+        rows.extend(bench(args))
+    print_table(rows)
+    return rows
+
+
+if __name__ == "__main__":
+    main()
