@@ -225,6 +225,21 @@ def _fmt(v: float) -> float:
 
 
 # --------------------------------------------------------------------------------------------- save
+def _semantic_pixels(prob: np.ndarray, thresh: float) -> np.ndarray:
+    """``round(255 * p)``, moved one grey level back where rounding would carry ``p`` across ``thresh``.
+
+    So ``p > thresh`` (the class mask) survives the round trip exactly; e.g. an unobserved cell
+    at ``p = 0.5`` with threshold 0.5 is written 127, not 128 (which would read back as 0.502).
+    """
+    prob = np.asarray(prob, dtype=np.float32)
+    v = np.round(255.0 * prob.astype(np.float64))
+    back = v.astype(np.float32) / np.float32(255.0)  # exactly what load_map computes
+    is_class = prob > thresh  # exactly what GridMap.class_mask computes
+    v[is_class & (back <= thresh)] += 1
+    v[~is_class & (back > thresh)] -= 1
+    return np.clip(v, 0, 255).astype(np.uint8)
+
+
 def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary") -> Path:
     """Write ``grid`` as a map_server map (+ semantic sidecar when the grid has classes).
 
@@ -237,7 +252,9 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
       which reloads ``p`` to within ``1/255`` (cells that rounding would carry across a
       threshold are moved one grey level back, so the masks are kept exactly here too).
     * only if ``grid.class_names`` is non-empty: ``name.semantic.yaml`` and one
-      ``name.semantic.<class>.pgm`` per class, pixel ``round(255 * p)`` (see ``docs/maps.md``).
+      ``name.semantic.<class>.pgm`` per class, pixel ``round(255 * p)`` (one grey level less or more
+      where rounding would move ``p`` across ``semantic_thresh``, so class masks survive; see
+      ``docs/maps.md``).
       A stale sidecar from an earlier save is removed when the grid has no classes.
 
     Returns:
@@ -266,7 +283,7 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
         v = np.round(255.0 * (1.0 - occ))
         # nudge the few cells that quantisation would carry across a threshold by one grey level,
         # so the occupied / free / unknown masks survive the round trip exactly
-        p = (255.0 - v) / 255.0
+        p = ((255.0 - v) / 255.0).astype(np.float32)  # what load_map hands to GridMap
         occupied, free = grid.occupied_mask(), grid.free_mask()
         unknown = ~occupied & ~free
         v[occupied & (p <= grid.occupied_thresh)] -= 1
@@ -300,7 +317,7 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
         if fname in used:
             fname = f"{stem}.semantic.{k}_{_safe_name(name)}.pgm"
         used.add(fname)
-        layer = np.round(255.0 * grid.semantic[k].astype(np.float64)).astype(np.uint8)
+        layer = _semantic_pixels(grid.semantic[k], grid.semantic_thresh)
         write_pgm(folder / fname, np.flipud(layer))
         classes.append({"name": name, "label": k + 1, "image": fname})
     sem_doc = {

@@ -98,6 +98,8 @@ def _example_grid(rng: np.random.Generator) -> GridMap:
     sem[0, 2:6, 4:9] = 0.9
     sem[1] = rng.random((h, w))
     sem[2, 20:, 25:] = 1.0
+    sem[2, :4, :4] = 0.5  # unobserved: exactly at the class threshold of the mapper's default 0.5 ...
+    sem[0, :3, 20:] = 0.4  # ... and at this grid's threshold (0.4): neither is that class
     return GridMap(
         occupancy=occ,
         resolution_m=0.05,
@@ -127,9 +129,20 @@ def test_round_trip_occupancy_and_semantic(tmp_path, mode):
         np.testing.assert_allclose(back.occupancy, grid.occupancy, atol=1 / 255 + 1e-6)
     else:
         assert set(np.unique(back.occupancy).tolist()) <= {0.0, 0.5, 1.0}
-    np.testing.assert_allclose(back.semantic, grid.semantic, atol=1 / 510 + 1e-6)
+    np.testing.assert_allclose(back.semantic, grid.semantic, atol=1 / 255 + 1e-6)
     for k in range(3):
         np.testing.assert_array_equal(back.class_mask(k), grid.class_mask(k))
+    assert not back.class_mask(0)[:3, 20:].any()
+
+
+def test_unobserved_semantic_cells_stay_below_the_default_threshold(tmp_path):
+    occ = np.full((5, 6), 0.5, np.float32)
+    sem = np.full((1, 5, 6), 0.5, np.float32)  # what a mapper reports for never-observed cells
+    sem[0, 2, 3] = 0.7
+    grid = GridMap(occ, 0.1, (0.0, 0.0), sem, ("door",))
+    back = load_map(save_map(grid, tmp_path / "u.yaml"))
+    assert back.class_mask(0).sum() == 1 and back.class_mask(0)[2, 3]
+    np.testing.assert_allclose(back.semantic, grid.semantic, atol=1 / 255 + 1e-6)
 
 
 def test_saving_a_map_without_classes_drops_a_stale_sidecar(tmp_path):
