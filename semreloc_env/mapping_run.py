@@ -39,30 +39,33 @@ def mapping_path(layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, tu
     x0, x1, y0, y1 = layout.bounds()
     xs = np.arange(x0 + spacing_m / 2, x1, spacing_m)
     ys = np.arange(y0 + spacing_m / 2, y1, spacing_m)
+    gx, gy = np.meshgrid(xs, ys)
+    free = world.free_points(np.stack([gx.ravel(), gy.ravel()], 1), margin_m=0.1).reshape(gy.shape)
     nodes, index = [], {}
-    for j, y in enumerate(ys):
+    for j in range(len(ys)):
         order = range(len(xs)) if j % 2 == 0 else range(len(xs) - 1, -1, -1)
         for i in order:
-            if world.is_free((xs[i], y), margin_m=0.1):
+            if free[j, i]:
                 index[(i, j)] = len(nodes)
                 nodes.append((i, j))
     if not nodes:
         raise ValueError(f"layout {layout.name!r} has no free space for a mapping run")
     pts = np.array([(xs[i], ys[j]) for i, j in nodes])
 
-    def free_between(a, b) -> bool:
-        n = max(2, int(np.linalg.norm(b - a) / 0.05))
-        return all(world.is_free(a + t * (b - a)) for t in np.linspace(0, 1, n))
-
-    rows, cols, dists = [], [], []
-    for (i, j), k in index.items():
-        for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
-            m = index.get((i + di, j + dj))
-            if m is not None and free_between(pts[k], pts[m]):
-                d = float(np.linalg.norm(pts[k] - pts[m]))
-                rows += [k, m]
-                cols += [m, k]
-                dists += [d, d]
+    # candidate edges to the 8-neighbours; keep those whose straight hop stays free
+    pairs = [
+        (k, index[(i + di, j + dj)])
+        for (i, j), k in index.items()
+        for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1))
+        if (i + di, j + dj) in index
+    ]
+    a, b = (np.array(v, dtype=np.int64) for v in zip(*pairs)) if pairs else (np.zeros(0, int), np.zeros(0, int))
+    t = np.linspace(0.0, 1.0, 9)
+    samples = pts[a][:, None, :] + t[None, :, None] * (pts[b] - pts[a])[:, None, :]
+    ok = world.free_points(samples.reshape(-1, 2)).reshape(len(a), len(t)).all(axis=1)
+    a, b = a[ok], b[ok]
+    d = np.linalg.norm(pts[a] - pts[b], axis=1)
+    rows, cols, dists = np.concatenate([a, b]), np.concatenate([b, a]), np.concatenate([d, d])
     graph = csr_matrix((dists, (rows, cols)), shape=(len(nodes), len(nodes)))
     _, pred = shortest_path(graph, directed=False, return_predecessors=True)
 
@@ -110,14 +113,11 @@ def build_maps(
     template = rasterize(layout, resolution_m)
     occ = OccupancyMapper.like(template)
     sem = SemanticMapper.like(template, CLASS_NAMES)
-    for pose in mapping_path(layout):
-        occ.update(pose, lidar_s.read(world, pose, rng))
-        sem.update(pose, camera_s.read(world, pose, rng))
-    occ_grid = occ.to_grid()
-    return GridMap(
-        occ_grid.occupancy,
-        occ_grid.resolution_m,
-        occ_grid.origin_xy_m,
-        sem.to_grid().semantic,
-        CLASS_NAMES,
-    )
+    poses = mapping_path(layout)
+    lidar_scans, camera_scans = [], []
+    for pose in poses:
+        lidar_scans.append(lidar_s.read(world, pose, rng))
+        camera_scans.append(camera_s.read(world, pose, rng))
+    occ.update_many(poses, lidar_scans)
+    sem.update_many(poses, camera_scans)
+    return occ.to_grid(sem)

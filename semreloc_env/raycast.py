@@ -56,7 +56,11 @@ class SegmentScene:
 
     def distance_to(self, point: np.ndarray) -> np.ndarray:
         """``(M,)`` Euclidean distances from ``point`` ``(2,)`` to every segment."""
-        p = np.asarray(point, dtype=np.float64)
+        return self.distances(np.asarray(point, dtype=np.float64)[None])[0]
+
+    def distances(self, points: np.ndarray) -> np.ndarray:
+        """``(P, M)`` Euclidean distances from ``points`` ``(P, 2)`` to every segment."""
+        p = np.asarray(points, dtype=np.float64)[:, None, :]
         ee = np.maximum(np.sum(self._e * self._e, axis=1), 1e-18)
-        t = np.clip(np.sum((p - self._a) * self._e, axis=1) / ee, 0.0, 1.0)
-        return np.linalg.norm(self._a + t[:, None] * self._e - p, axis=1)
+        t = np.clip(np.sum((p - self._a) * self._e, axis=-1) / ee, 0.0, 1.0)
+        return np.linalg.norm(self._a + t[..., None] * self._e - p, axis=-1)

@@ -80,12 +80,16 @@ class World:
 
     def is_free(self, xy: np.ndarray, margin_m: float = 0.0) -> bool:
         """True if the robot disc at ``xy`` fits inside the outer wall, outside every obstacle."""
-        xy = np.asarray(xy, dtype=np.float64)
-        if not point_in_polygon(xy[None], np.asarray(self.layout.outer))[0]:
-            return False
-        if any(point_in_polygon(xy[None], poly)[0] for poly in self._obstacles):
-            return False
-        return self.clearance(xy) >= self.robot_params.radius_m + margin_m
+        return bool(self.free_points(np.asarray(xy, dtype=np.float64)[None], margin_m)[0])
+
+    def free_points(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
+        """Vectorised :meth:`is_free`: bool ``(P,)`` for points ``(P, 2)``."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        ok = point_in_polygon(xy, np.asarray(self.layout.outer))
+        for poly in self._obstacles:
+            ok &= ~point_in_polygon(xy, poly)
+        ok[ok] &= self.scene.distances(xy[ok]).min(axis=1) >= self.robot_params.radius_m + margin_m
+        return ok
 
     def set_pose(self, pose) -> None:
         """Teleport the robot. Raises ValueError (state unchanged) for a non-finite or blocked pose."""

@@ -56,7 +56,7 @@ class SemRelocEnv(SemRelocBase):
     | key | shape | range | meaning |
     |---|---|---|---|
     | ``lidar`` | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
-    | ``semantic`` | ``(2, camera.n_beams)`` | row 0 ``[0, range_max_m]`` m, row 1 ``{0..4}`` | pseudo-laser ranges and class labels (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
+    | ``semantic`` | ``(2 * camera.n_beams,)`` | first half ``[0, range_max_m]`` m, second half ``{0..4}`` | pseudo-laser ranges, then the class label per beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
     | ``odometry`` | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame |
 
     Belief features for a policy: wrap with :class:`semreloc_env.wrappers.BeliefObservation`.
@@ -80,7 +80,8 @@ class SemRelocEnv(SemRelocBase):
     ## Info
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
     (:meth:`filters.belief.Belief.as_dict`); ``pose_error`` ``{"position": m, "heading": rad}``
-    of the belief mean; ``mcl`` the last update's diagnostics; ``rewards``;
+    of the belief mean; ``mcl`` the last update's diagnostics (:class:`filters.mcl.UpdateDiagnostics`,
+    None for values not computed in this step); ``rewards``;
     ``collided``; ``kidnapped`` (True from the kidnap step on).
 
     ## Arguments
@@ -224,7 +225,11 @@ class SemRelocEnv(SemRelocBase):
         info = super()._info()
         info["belief"] = self._belief.as_dict()
         info["pose_error"] = self.pose_error()
-        info["mcl"] = self.mcl.last_diagnostics.as_dict()
+        # NaN marks "not computed this step" in the diagnostics; None compares equal to itself
+        info["mcl"] = {
+            k: None if isinstance(v, float) and math.isnan(v) else v
+            for k, v in self.mcl.last_diagnostics.as_dict().items()
+        }
         info["kidnapped"] = self._kidnapped
         return info
 

@@ -44,8 +44,8 @@ def decode_action(action, action_type: str, space: spaces.Space, robot: RobotPar
 def make_observation_space(lidar: LidarParams, camera: CameraParams) -> spaces.Dict:
     """The Dict of float32 boxes every semreloc env observes (see the env docstrings)."""
     n_sem = int(camera.n_beams)
-    sem_low = np.zeros((2, n_sem), np.float32)
-    sem_high = np.stack([np.full(n_sem, camera.range_max_m), np.full(n_sem, len(CLASS_NAMES))]).astype(np.float32)
+    sem_low = np.zeros(2 * n_sem, np.float32)
+    sem_high = np.concatenate([np.full(n_sem, camera.range_max_m), np.full(n_sem, len(CLASS_NAMES))]).astype(np.float32)
     return spaces.Dict(
         {
             "lidar": spaces.Box(0.0, lidar.range_max_m, shape=(int(lidar.n_beams),), dtype=np.float32),
@@ -58,6 +58,6 @@ def make_observation_space(lidar: LidarParams, camera: CameraParams) -> spaces.D
 def make_observation(lidar_scan, semantic_scan, odom: np.ndarray) -> dict[str, np.ndarray]:
     return {
         "lidar": lidar_scan.ranges.astype(np.float32),
-        "semantic": np.stack([semantic_scan.ranges, semantic_scan.labels]).astype(np.float32),
+        "semantic": np.concatenate([semantic_scan.ranges, semantic_scan.labels]).astype(np.float32),
         "odometry": np.clip(odom, -ODOMETRY_BOUND, ODOMETRY_BOUND).astype(np.float32),
     }

@@ -1,0 +1,159 @@
+import json
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import semreloc_env
+from semreloc_env.layouts import get_layout
+
+FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
+
+
+def make(**kw):
+    return gym.make("SemReloc-v0", **{**FAST, **kw})
+
+
+@pytest.mark.parametrize("env_id", semreloc_env.ENV_IDS)
+def test_check_env_gymnasium_and_sb3_without_warnings(env_id):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env = gym.make(env_id, **FAST)
+        gym_check_env(env.unwrapped, skip_render_check=True)
+        sb3_check_env(env.unwrapped, warn=True)
+        env.close()
+        cont = gym.make(env_id, action_type="continuous", **FAST)
+        gym_check_env(cont.unwrapped, skip_render_check=True)
+        sb3_check_env(cont.unwrapped, warn=True)
+
+
+def _rollout(env, seed, n=200):
+    obs, info = env.reset(seed=seed)
+    rng = np.random.default_rng(123)
+    out = [(obs, info)]
+    for _ in range(n):
+        obs, r, term, trunc, info = env.step(int(rng.integers(0, 4)))
+        out.append((obs, r, term, info))
+        if term or trunc:
+            obs, info = env.reset()
+    return out
+
+
+def _same(a, b):
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for k in a:
+            _same(a[k], b[k])
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            _same(x, y)
+    elif isinstance(a, np.ndarray):
+        np.testing.assert_array_equal(a, b)
+    else:
+        assert a == b
+
+
+def test_two_envs_same_seed_same_actions_are_identical_for_200_steps():
+    a = _rollout(make(), seed=7)
+    b = _rollout(make(), seed=7)
+    _same(a, b)
+    c = _rollout(make(), seed=8, n=5)
+    assert not np.array_equal(a[0][0]["lidar"], c[0][0]["lidar"])
+
+
+@pytest.mark.parametrize("layout", ["lab", "twin_rooms", "procedural", "procedural_sym"])
+def test_each_builtin_layout_runs(layout):
+    env = make(layout=layout)
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    for a in (0, 1, 0, 2, 3):
+        obs, r, term, trunc, info = env.step(a)
+    assert env.observation_space.contains(obs)
+    assert set(info["rewards"]) == {"time", "collision", "entropy", "success"}
+    assert r == pytest.approx(sum(info["rewards"].values()))
+    assert np.isfinite(info["pose_error"]["position"])
+
+
+def test_layout_from_file_and_default_mapping_maps(tmp_path):
+    path = tmp_path / "twin.json"
+    path.write_text(json.dumps(get_layout("twin_rooms").to_dict()))
+    env = gym.make("SemReloc-v0", layout=str(path), relocalizer={"n_particles": 200})
+    obs, info = env.reset(seed=1)
+    assert env.unwrapped.layout.name == "twin_rooms"
+    # default maps come from a mapping run: they differ from the rasterised layout
+    from semreloc_env.rasterize import rasterize
+
+    grid = env.unwrapped.grid
+    assert grid.shape == rasterize(env.unwrapped.layout).shape
+    assert not np.array_equal(grid.occupancy, rasterize(env.unwrapped.layout).occupancy)
+
+
+def test_reset_pose_option_and_info_pose():
+    env = make()
+    obs, info = env.reset(seed=0, options={"pose": [2.5, 5.0, 0.5]})
+    np.testing.assert_allclose(info["pose"], [2.5, 5.0, 0.5])
+    obs, *_, info = env.step(0)
+    assert info["pose"][0] > 2.5  # drove forward along heading 0.5
+
+
+def test_invalid_actions_raise_and_change_nothing():
+    env = make()
+    env.reset(seed=0)
+    pose = env.unwrapped.world.pose.copy()
+    particles = env.unwrapped.mcl.poses.copy()
+    for bad in (4, -1, 1.5, "forward", np.array([0, 1]), None):
+        with pytest.raises(ValueError, match="invalid action"):
+            env.step(bad)
+    cont = make(action_type="continuous")
+    cont.reset(seed=0)
+    for bad in ([np.nan, 0.0], [2.0, 0.0], [0.5], "go"):
+        with pytest.raises(ValueError, match="invalid action"):
+            cont.step(bad)
+    np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
+    np.testing.assert_array_equal(env.unwrapped.mcl.poses, particles)
+    env.step(np.int64(0))  # numpy integers are fine
+
+
+def test_bad_reset_options_raise_and_keep_the_episode():
+    env = make()
+    env.reset(seed=0)
+    env.step(0)
+    pose = env.unwrapped.world.pose.copy()
+    for options, match in [
+        ({"pose": [-5.0, 1.0, 0.0]}, "not free"),
+        ({"pose": [0.3, 2.0, 0.0]}, "not free"),  # inside the SW cabinet
+        ({"pose": [np.nan, 1.0, 0.0]}, "finite"),
+        ({"teleport": True}, "unknown reset options"),
+        ({"kidnap_at_step": 0}, "kidnap_at_step"),
+        ({"kidnap_pose": [0.3, 2.0, 0.0]}, "not free"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            env.reset(options=options)
+        np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
+    env.step(0)  # the episode goes on
+
+
+def test_unknown_constructor_arguments_are_errors():
+    with pytest.raises(TypeError):
+        gym.make("SemReloc-v0", map_source="perfect", lidar_beams=30)
+    with pytest.raises(ValueError, match="unknown keys"):
+        make(lidar={"beams": 30})
+    with pytest.raises(ValueError, match="unknown keys"):
+        make(relocalizer={"particles": 30})
+    with pytest.raises(ValueError, match="action_type"):
+        make(action_type="joystick")
+    with pytest.raises(ValueError, match="scenario"):
+        make(scenario="flooded")
+    with pytest.raises(ValueError, match="map_source"):
+        make(map_source="napkin")
+    with pytest.raises(ValueError, match="render_mode"), pytest.warns(UserWarning, match="render_mode"):
+        make(render_mode="ascii")
+
+
+def test_step_before_reset_is_an_error():
+    with pytest.raises(RuntimeError, match="reset"):
+        make().unwrapped.step(0)
