@@ -1,0 +1,62 @@
+"""Hand-written policies: a fixed, documented exploration motion and a random walk.
+
+Both act on the env's observation dict (``lidar`` ranges in the env's beam order,
+beams evenly spaced from ``-pi`` when the lidar sees all around).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FORWARD, TURN_LEFT, TURN_RIGHT, STOP = 0, 1, 2, 3
+
+
+class WallFollowExplorer:
+    """Drive forward; when the front sector is blocked, turn toward the freer side.
+
+    The exploration motion of the relocalization experiments: deterministic
+    given the observations, so every filter variant sees the same drive.
+
+    Args:
+        front_half_angle_rad: half-width of the sector that must be clear to go forward.
+        clearance_m: the front sector counts as blocked below this range.
+        beam_angles: robot-frame angle of every lidar beam (default: 360 deg, from -pi).
+    """
+
+    def __init__(self, front_half_angle_rad: float = 0.5, clearance_m: float = 0.7, beam_angles=None):
+        self.front = front_half_angle_rad
+        self.clearance = clearance_m
+        self.beam_angles = beam_angles
+        self._turning = 0
+
+    def reset(self) -> None:
+        self._turning = 0
+
+    def __call__(self, obs: dict) -> int:
+        ranges = np.asarray(obs["lidar"], dtype=np.float64)
+        angles = self.beam_angles
+        if angles is None:
+            angles = -np.pi + 2 * np.pi * np.arange(ranges.size) / ranges.size
+        front = np.abs(angles) <= self.front
+        if ranges[front].min() >= self.clearance:
+            self._turning = 0
+            return FORWARD
+        if self._turning == 0:  # pick a side once and keep it until clear (no dithering)
+            left = ranges[(angles > 0) & (angles < np.pi / 2 + 0.3)].mean()
+            right = ranges[(angles < 0) & (angles > -np.pi / 2 - 0.3)].mean()
+            self._turning = TURN_LEFT if left >= right else TURN_RIGHT
+        return self._turning
+
+
+class RandomWalk:
+    """Uniformly random discrete actions from the generator passed in."""
+
+    def __init__(self, rng: np.random.Generator, n_actions: int = 4):
+        self.rng = rng
+        self.n = n_actions
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs: dict) -> int:
+        return int(self.rng.integers(0, self.n))
