@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from dataclasses import dataclass, field, fields, replace
@@ -255,7 +256,7 @@ def main(argv: list[str] | None = None) -> None:
     ax.set_title("Course and final maps, run 0, low observation noise")
     ax.legend(fontsize=8, loc="center")
     fig.tight_layout()
-    fig.savefig(figdir / "paper000_course.png", dpi=110)
+    fig.savefig(figdir / f"{out.stem}_course.png", dpi=110)
     plt.close(fig)
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -268,7 +269,7 @@ def main(argv: list[str] | None = None) -> None:
         ax.set_ylabel(f"position error (m), mean of {args.runs} runs")
         ax.legend()
     fig.tight_layout()
-    fig.savefig(figdir / "paper000_pose_error.png", dpi=110)
+    fig.savefig(figdir / f"{out.stem}_pose_error.png", dpi=110)
     plt.close(fig)
 
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
@@ -283,7 +284,7 @@ def main(argv: list[str] | None = None) -> None:
         ax.legend()
     fig.suptitle("Table 1 (mean ± 95 % CI)")
     fig.tight_layout()
-    fig.savefig(figdir / "paper000_table1.png", dpi=110)
+    fig.savefig(figdir / f"{out.stem}_table1.png", dpi=110)
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -299,7 +300,7 @@ def main(argv: list[str] | None = None) -> None:
     ax.set_title(f"K sweep, N={args.particles}, low observation noise")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(figdir / "paper000_k_sweep.png", dpi=110)
+    fig.savefig(figdir / f"{out.stem}_k_sweep.png", dpi=110)
     plt.close(fig)
 
     # Report ----------------------------------------------------------------
@@ -315,6 +316,7 @@ def paired(a: list[dict], b: list[dict], key: str) -> str:
 def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None:
     cmd = "python scripts/repro_paper000.py " + " ".join(sys.argv[1:] if argv is None else argv)
     run0 = drive(args, LOW, 0, 0)
+    fig_rel = Path(os.path.relpath(ROOT / args.figures, out.parent)).as_posix()
     L: list[str] = []
     w = L.append
     w("# Paper 000 reproduction: Monocular SLAM_WOCPF (FastSLAM + weight-optimisation combination)\n")
@@ -377,8 +379,8 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
     nl = {name: np.mean([x["n_landmarks"] for x in t2[(0, name)]]) for name in ("EKF-SLAM", "FastSLAM", "WOCPF")}
     w("Mean number of landmarks in the final map (low noise; true: 31): "
       + ", ".join(f"{k} {v:.1f}" for k, v in nl.items()) + ".\n")
-    w("![pose error over time](figures/paper000_pose_error.png)\n")
-    w("![course and maps](figures/paper000_course.png)\n")
+    w(f"![pose error over time]({fig_rel}/{out.stem}_pose_error.png)\n")
+    w(f"![course and maps]({fig_rel}/{out.stem}_course.png)\n")
 
     w("## Table 1: RMSE and run time vs particle count (low observation noise)\n")
     w("The paper's Table 1 labels its first block 'EKF_SLAM' although it varies a particle count; as the project "
@@ -402,7 +404,7 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
         a, b = t1[(n, "FastSLAM")], t1[(n, "WOCPF")]
         w(f"| {n} | {paired(a, b, 'path_rmse')} | {paired(a, b, 'map_rmse')} |")
     w("")
-    w("![table 1](figures/paper000_table1.png)\n")
+    w(f"![table 1]({fig_rel}/{out.stem}_table1.png)\n")
 
     w(f"## Sweep over K (N = {args.particles}, low observation noise)\n")
     w("| K | mean pose error (m) | mean landmark error (m) | path RMSE (m) | map RMSE (m) |")
@@ -412,7 +414,7 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
         w(f"| {k:g} | {fmt([x['pose_err'] for x in res])} | {fmt([x['lm_err'] for x in res])} | "
           f"{fmt([x['path_rmse'] for x in res])} | {fmt([x['map_rmse'] for x in res])} |")
     w("")
-    w("![K sweep](figures/paper000_k_sweep.png)\n")
+    w(f"![K sweep]({fig_rel}/{out.stem}_k_sweep.png)\n")
 
     w("## Do the paper's claims reproduce?\n")
     w(verdict(args, settings, t2, t1, tk, n1, ks))
