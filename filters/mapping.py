@@ -80,6 +80,9 @@ class OccupancyParams:
         max_range_m: beams are used up to this length, metres; a longer return is treated
             as no return (clears up to ``max_range_m``, marks nothing). Default ``inf``: the
             scan's own ``range_max_m``.
+        clear_no_return: beams without a return clear their cells (default True). Set False
+            for a lidar whose dropouts read as no return although a surface is in range: a
+            dropout would otherwise clear the wall it missed and the space behind it.
     """
 
     l_occ: float = 0.85
@@ -87,6 +90,7 @@ class OccupancyParams:
     l_min: float = -2.0
     l_max: float = 3.5
     max_range_m: float = math.inf
+    clear_no_return: bool = True
 
     def __post_init__(self) -> None:
         for name in ("l_occ", "l_free", "l_min", "l_max"):
@@ -401,6 +405,10 @@ class OccupancyMapper(_RasterMapper):
             return
         u0, v0, du, dv, t_end, returned = beams
         p = self.params
+        if not p.clear_no_return:
+            u0, v0, du, dv, t_end, returned = (a[returned] for a in beams)
+            if t_end.size == 0:
+                return
         _occupancy_kernel(self._L, u0, v0, du, dv, t_end, returned, p.l_free, p.l_occ, p.l_min, p.l_max,
                           *_buffers(float(t_end.max())))  # fmt: skip
 

@@ -169,7 +169,47 @@ def bench_mcl_step(args: Args) -> list[Row]:
 ODOM_STEP = (0.05, 0.0, 0.02)
 """Odometry increment of one benchmarked MCL step (dx m, dy m, dtheta rad)."""
 
-BENCHMARKS: list[Callable[[Args], list[Row]]] = [bench_likelihood, bench_mcl_step]
+def bench_env(args: Args) -> list[Row]:
+    """``SemReloc-v0`` steps per second (N particles, B lidar beams, semantic camera), against
+    the same world + sensors without any filter, measured in the same run."""
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.baselines import WallFollowExplorer
+
+    kwargs = dict(map_source="perfect", lidar={"n_beams": args.beams}, relocalizer={"n_particles": args.particles})
+    env = gym.make("SemReloc-v0", **kwargs).unwrapped
+    n_steps = 20 * args.repeats
+
+    def episode(step_fn) -> float:
+        policy = WallFollowExplorer()
+        obs, _ = env.reset(seed=args.seed)
+        for _ in range(10):  # warm-up: numba, caches
+            obs = step_fn(policy(obs))
+        t0 = time.perf_counter()
+        for _ in range(n_steps):
+            obs = step_fn(policy(obs))
+        return n_steps / (time.perf_counter() - t0)
+
+    full = episode(lambda a: env.step(a)[0])
+
+    def world_only(a):
+        env._move(a)
+        lidar, semantic = env._sense()
+        from semreloc_env.envs.spaces import make_observation
+
+        return make_observation(lidar, semantic, np.zeros(3))
+
+    bare = episode(world_only)
+    note = f"N={args.particles}, {args.beams} lidar + {env.camera.params.n_beams} semantic beams"
+    return [
+        Row("SemReloc-v0 step", full, "steps/s", note),
+        Row("  world + sensors only", bare, "steps/s", "pymunk + ray casting, no filter"),
+        Row("  filter share of a step", 1.0 - full / bare, "fraction", ""),
+    ]
+
+
+BENCHMARKS: list[Callable[[Args], list[Row]]] = [bench_likelihood, bench_mcl_step, bench_env]
 
 
 def parse_args(argv: list[str] | None = None) -> Args:

@@ -17,7 +17,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from filters.grid import GridMap
-from filters.mapping import OccupancyMapper, SemanticMapper
+from filters.mapping import OccupancyMapper, OccupancyParams, SemanticMapper
 
 from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES, Layout
@@ -111,7 +111,8 @@ def build_maps(
     camera_s = SemanticCamera(camera or CameraParams())
     world = build_world(layout)
     template = rasterize(layout, resolution_m)
-    occ = OccupancyMapper.like(template)
+    # the simulated lidar's dropouts read as "no return" in front of real walls: they must not clear
+    occ = OccupancyMapper.like(template, OccupancyParams(clear_no_return=False))
     sem = SemanticMapper.like(template, CLASS_NAMES)
     poses = mapping_path(layout)
     lidar_scans, camera_scans = [], []
