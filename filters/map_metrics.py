@@ -139,3 +139,22 @@ def tolerant_precision_recall(pred: np.ndarray, truth: np.ndarray, tolerance_cel
     precision = float(near(truth)[pred].mean()) if pred.any() else 1.0
     recall = float(near(pred)[truth].mean()) if truth.any() else 1.0
     return precision, recall
+
+
+def semantic_surface_quality(mapped: GridMap, truth: GridMap, tolerance_cells: int = 1) -> dict[str, dict[str, float]]:
+    """How well a mapping run's class grids match the true objects' *visible* surfaces.
+
+    A mapping run only sees object surfaces, so the truth per class is
+    ``surface_mask(truth.class_mask(k), truth.free_mask())``. Per class name:
+    ``iou`` (plain IoU with that surface), ``precision`` and ``recall`` (with a
+    tolerance of ``tolerance_cells``, :func:`tolerant_precision_recall`).
+    """
+    check_same_raster(mapped, truth)
+    free = truth.free_mask()
+    out = {}
+    for k, name in enumerate(truth.class_names):
+        surface = surface_mask(truth.class_mask(k), free)
+        pred = mapped.class_mask(mapped.class_index(name))
+        prec, rec = tolerant_precision_recall(pred, surface, tolerance_cells)
+        out[name] = {"iou": iou(pred, surface), "precision": prec, "recall": rec}
+    return out

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from filters.map_io import save_map
-from filters.map_metrics import iou, surface_mask, tolerant_precision_recall
+from filters.map_metrics import semantic_surface_quality
 from semreloc_env.layouts import get_layout
 from semreloc_env.mapping_run import build_maps, mapping_path
 from semreloc_env.rasterize import rasterize
@@ -53,22 +53,6 @@ def parse_args(argv=None) -> Args:
     return Args(**vars(p.parse_args(argv)))
 
 
-def semantic_map_quality(grid, truth) -> dict[str, tuple[float, float, float]]:
-    """Per class: IoU of the mapped class cells with the visible surface cells of the
-    rasterised objects, and precision / recall with a one-cell tolerance.
-
-    A mapping run only sees object surfaces, so object interiors are left out of the truth.
-    """
-    free = truth.free_mask()
-    out = {}
-    for k, name in enumerate(grid.class_names):
-        surface = surface_mask(truth.class_mask(k), free)
-        pred = grid.class_mask(k)
-        prec, rec = tolerant_precision_recall(pred, surface, tolerance_cells=1)
-        out[name] = (iou(pred, surface), prec, rec)
-    return out
-
-
 def main(argv=None) -> Path:
     args = parse_args(argv)
     layout = get_layout(args.layout, seed=args.layout_seed)
@@ -79,8 +63,11 @@ def main(argv=None) -> Path:
     path = save_map(grid, out / f"{layout.name}.yaml")
     truth = rasterize(layout, args.resolution)
     print(f"{layout.name}: {len(mapping_path(layout))} poses mapped in {time.perf_counter() - t0:.1f} s -> {path}")
-    for name, (iou, prec, rec) in semantic_map_quality(grid, truth).items():
-        print(f"  {name:10s} IoU vs visible surface {iou:.2f}, precision {prec:.2f}, recall {rec:.2f} (1-cell tolerance)")
+    for name, q in semantic_surface_quality(grid, truth).items():
+        print(
+            f"  {name:10s} IoU vs visible surface {q['iou']:.2f}, precision {q['precision']:.2f}, "
+            f"recall {q['recall']:.2f} (1-cell tolerance)"
+        )
     if args.perfect:
         save_map(truth, out / f"{layout.name}.perfect.yaml")
     return path
