@@ -66,7 +66,8 @@ class SemRelocEnv(SemRelocBase):
     (:class:`RewardWeights`); the reward is their sum:
     ``time`` (constant per step), ``collision`` (robot touched an obstacle),
     ``entropy`` (drop of the belief's pose-histogram entropy, nats),
-    ``success`` (once, when the belief converges within 0.5 m and 15 deg of the truth).
+    ``success`` (once, when the belief converges within 0.5 m and 15 deg of the truth;
+    in a tracking episode only after a kidnap).
 
     ## Starting State
     A uniformly random free pose, or ``options={"pose": (x, y, theta)}``. The
@@ -74,8 +75,8 @@ class SemRelocEnv(SemRelocBase):
     concentrated around the true pose (tracking).
 
     ## Episode End
-    Terminated on success (see Rewards). Truncated by the time limit
-    (``max_episode_steps``, 400 at registration).
+    Terminated on success (see Rewards) in a global relocalization, or in a tracking
+    episode after the kidnap. Truncated by the time limit (``max_episode_steps``, 400 at registration).
 
     ## Info
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
@@ -172,6 +173,7 @@ class SemRelocEnv(SemRelocBase):
         self._kidnap_at = options.get("kidnap_at_step")
         self._kidnap_pose = options.get("kidnap_pose")
         self._kidnapped = False
+        self._tracking = bool(options.get("tracking"))
         self._succeeded = False
         self._belief = None
         self._prev_entropy = None
@@ -201,6 +203,9 @@ class SemRelocEnv(SemRelocBase):
         }
 
     def _is_success(self) -> bool:
+        """Relocalized: the belief converged at the truth, in a global or post-kidnap episode."""
+        if self._tracking and not self._kidnapped:
+            return False
         err = self.pose_error()
         return bool(
             self._belief.converged and err["position"] < SUCCESS_POSITION_M and err["heading"] < SUCCESS_HEADING_RAD

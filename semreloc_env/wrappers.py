@@ -1,0 +1,161 @@
+"""Observation variants of the semreloc envs, as wrappers (Minigrid ``FlatObsWrapper`` style).
+
+* :class:`BeliefObservation` adds a ``belief`` key: a few numbers summarising what the
+  relocalizer *believes* (spread, entropy, hypotheses, degeneracy, converged), read from
+  ``info["belief"]`` (:meth:`filters.belief.Belief.as_dict`). It never exposes the true pose
+  nor the pose error: a policy that sees them would be cheating.
+* :class:`FlatObservation` concatenates every key of a Dict observation into one float32 Box,
+  for algorithms and networks that want a flat vector.
+
+Typical use::
+
+    env = FlatObservation(BeliefObservation(gym.make("SemReloc-v0")))
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+BELIEF_FEATURES = ("pos_std_m", "theta_std_rad", "entropy_nats", "n_clusters", "ess_frac", "converged")
+"""Order of the entries of the ``belief`` observation (see :class:`BeliefObservation`)."""
+
+
+class BeliefObservation(gym.Wrapper):
+    """Add the filter's belief summary to the Dict observation under the key ``belief``.
+
+    ``obs["belief"]`` is a float32 vector of ``len(BELIEF_FEATURES)`` = 6 entries, each
+    taken from the ``info["belief"]`` of the same ``reset`` / ``step`` and clipped to its bounds:
+
+    | index | name | unit | bounds | from ``info["belief"]`` |
+    |---|---|---|---|---|
+    | 0 | ``pos_std_m`` | m | ``[0, pos_std_max_m]`` | ``pos_std_m`` (``sqrt(var_x + var_y)``) |
+    | 1 | ``theta_std_rad`` | rad | ``[0, pi]`` | ``theta_std_rad`` (wrapped residuals, so <= pi) |
+    | 2 | ``entropy_nats`` | nats | ``[0, entropy_max_nats]`` | ``entropy_nats`` (coarse pose histogram) |
+    | 3 | ``n_clusters`` | count | ``[0, max_clusters]`` | ``n_clusters`` (position hypotheses) |
+    | 4 | ``ess_frac`` | 1 | ``[0, 1]`` | ``ess / n_particles`` (1 = no degeneracy) |
+    | 5 | ``converged`` | 0/1 | ``[0, 1]`` | ``converged`` |
+
+    Clipping only bites beyond the bounds, which the defaults make rare: the entropy of a
+    histogram of N particles is at most ``log N``, and the default ``entropy_max_nats`` is the
+    log of the largest particle count the env's relocalizer may hold.
+
+    The wrapped env must put ``belief`` in ``info`` at every reset and step (``SemReloc-v0``
+    does); a missing key raises ``KeyError``. Rewards, termination and ``info`` pass through
+    unchanged.
+
+    Args:
+        env: an env with a ``Dict`` observation space and ``info["belief"]``.
+        pos_std_max_m: upper bound of ``pos_std_m`` (default 20 m, beyond the half-diagonal of
+            the built-in layouts).
+        entropy_max_nats: upper bound of ``entropy_nats``; default ``log`` of the relocalizer's
+            largest particle count (``max_particles`` with KLD sampling, else ``n_particles``),
+            read from ``env.unwrapped.mcl_config``, or ``log(10_000)`` if the env has none.
+        max_clusters: upper bound of ``n_clusters`` (default 20).
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        pos_std_max_m: float = 20.0,
+        entropy_max_nats: float | None = None,
+        max_clusters: int = 20,
+    ):
+        super().__init__(env)
+        if not isinstance(env.observation_space, spaces.Dict):
+            raise TypeError(f"BeliefObservation needs a Dict observation space, got {env.observation_space}")
+        if "belief" in env.observation_space.spaces:
+            raise ValueError("the observation already has a 'belief' key")
+        if entropy_max_nats is None:
+            cfg = getattr(env.unwrapped, "mcl_config", None)
+            n_max = 10_000
+            if cfg is not None:
+                n_max = int(cfg.max_particles) if getattr(cfg, "kld", False) else int(cfg.n_particles)
+            entropy_max_nats = math.log(max(n_max, 2))
+        for name, v in (
+            ("pos_std_max_m", pos_std_max_m),
+            ("entropy_max_nats", entropy_max_nats),
+            ("max_clusters", max_clusters),
+        ):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        self.belief_low = np.zeros(len(BELIEF_FEATURES), dtype=np.float32)
+        self.belief_high = np.array(
+            [pos_std_max_m, math.pi, entropy_max_nats, max_clusters, 1.0, 1.0], dtype=np.float32
+        )
+        self.observation_space = spaces.Dict(
+            {
+                **env.observation_space.spaces,
+                "belief": spaces.Box(self.belief_low, self.belief_high, dtype=np.float32),
+            }
+        )
+
+    def belief_features(self, belief: dict) -> np.ndarray:
+        """The ``(6,)`` float32 feature vector of an ``info["belief"]`` dict (order: :data:`BELIEF_FEATURES`)."""
+        n = max(int(belief["n_particles"]), 1)
+        raw = np.array(
+            [
+                belief["pos_std_m"],
+                belief["theta_std_rad"],
+                belief["entropy_nats"],
+                belief["n_clusters"],
+                belief["ess"] / n,
+                1.0 if belief["converged"] else 0.0,
+            ],
+            dtype=np.float32,
+        )
+        return np.clip(raw, self.belief_low, self.belief_high)
+
+    def _augment(self, obs: dict, info: dict) -> dict:
+        out = dict(obs)
+        out["belief"] = self.belief_features(info["belief"])
+        return out
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self._augment(obs, info), info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._augment(obs, info), reward, terminated, truncated, info
+
+
+class FlatObservation(gym.ObservationWrapper):
+    """Concatenate the Box entries of a Dict observation into one float32 Box.
+
+    The flat vector holds the keys in ``keys`` order (default: the Dict's own key order), each
+    flattened C-order; ``low`` / ``high`` are the concatenated bounds, so units and ranges are
+    those of the Dict entries (see the env docstring and :class:`BeliefObservation`).
+    ``self.slices[key]`` is where a key sits in the vector.
+
+    Args:
+        env: an env with a ``Dict`` observation space of ``Box`` entries.
+        keys: which keys to keep, in order (default: all).
+    """
+
+    def __init__(self, env: gym.Env, keys: Sequence[str] | None = None):
+        super().__init__(env)
+        space = env.observation_space
+        if not isinstance(space, spaces.Dict):
+            raise TypeError(f"FlatObservation needs a Dict observation space, got {space}")
+        self.keys = tuple(space.spaces) if keys is None else tuple(keys)
+        unknown = [k for k in self.keys if k not in space.spaces]
+        if unknown:
+            raise KeyError(f"keys {unknown} not in the observation; it has {list(space.spaces)}")
+        lows, highs, self.slices, start = [], [], {}, 0
+        for k in self.keys:
+            box = space.spaces[k]
+            if not isinstance(box, spaces.Box):
+                raise TypeError(f"observation entry {k!r} is {box}, not a Box")
+            lows.append(np.asarray(box.low, dtype=np.float32).ravel())
+            highs.append(np.asarray(box.high, dtype=np.float32).ravel())
+            self.slices[k] = slice(start, start + lows[-1].size)
+            start += lows[-1].size
+        self.observation_space = spaces.Box(np.concatenate(lows), np.concatenate(highs), dtype=np.float32)
+
+    def observation(self, observation: dict) -> np.ndarray:
+        return np.concatenate([np.asarray(observation[k], dtype=np.float32).ravel() for k in self.keys])
