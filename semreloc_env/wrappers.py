@@ -127,7 +127,8 @@ class BeliefObservation(gym.Wrapper):
 class FlatObservation(gym.ObservationWrapper):
     """Concatenate the Box entries of a Dict observation into one float32 Box.
 
-    The flat vector holds the keys in ``keys`` order (default: the Dict's own key order), each
+    The flat vector holds the keys in ``keys`` order (default: the Dict's own key order, which
+    gymnasium sorts: ``belief, lidar, odometry, semantic`` for the wrapped env), each
     flattened C-order; ``low`` / ``high`` are the concatenated bounds, so units and ranges are
     those of the Dict entries (see the env docstring and :class:`BeliefObservation`).
     ``self.slices[key]`` is where a key sits in the vector.

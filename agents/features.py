@@ -1,0 +1,121 @@
+"""A stable-baselines3 features extractor for the semreloc Dict observation.
+
+:class:`SemRelocExtractor` turns ``{"lidar", "semantic", "odometry", "belief", ...}`` into one
+feature vector:
+
+* every Box entry is first scaled to ``[0, 1]`` by its own space bounds (``(x - low) / (high - low)``),
+  so metres, radians and counts reach the network on one scale without ``VecNormalize``;
+* ``lidar``: a 1D convolution with *circular* padding over the beams (a 360 deg scan has no
+  edges), then a linear layer;
+* ``semantic``: the first half (ranges) and a one-hot of the second half (class labels
+  ``0..n_classes-1``) per beam, stacked as channels, through a 1D convolution (zero padding:
+  the camera's field of view has edges), then a linear layer;
+* any other key (``odometry``, ``belief``, ...): a small MLP.
+
+The per-key outputs are concatenated and passed through a final linear layer + ReLU to
+``features_dim`` features. Use it with ``policy_kwargs={"features_extractor_class":
+SemRelocExtractor, "features_extractor_kwargs": {...}}`` and ``"MultiInputPolicy"``.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import torch
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from torch import nn
+
+from semreloc_env.layouts import CLASS_NAMES
+
+
+class _Scale(nn.Module):
+    """``(x - low) / (high - low)`` for a Box with finite bounds (identity where unbounded)."""
+
+    def __init__(self, box: gym.spaces.Box):
+        super().__init__()
+        low = np.asarray(box.low, dtype=np.float64).ravel()
+        high = np.asarray(box.high, dtype=np.float64).ravel()
+        finite = np.isfinite(low) & np.isfinite(high) & (high > low)
+        offset = np.where(finite, low, 0.0)
+        scale = np.where(finite, 1.0 / np.where(finite, high - low, 1.0), 1.0)
+        self.register_buffer("offset", torch.as_tensor(offset, dtype=torch.float32))
+        self.register_buffer("scale", torch.as_tensor(scale, dtype=torch.float32))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return (x.flatten(1) - self.offset) * self.scale
+
+
+class SemRelocExtractor(BaseFeaturesExtractor):
+    """Per-key encoders for the semreloc Dict observation, concatenated (see the module docstring).
+
+    Args:
+        observation_space: a ``Dict`` of ``Box`` entries; ``lidar`` and ``semantic`` get
+            convolutions when present, every other key an MLP.
+        features_dim: size of the output feature vector.
+        conv_channels: channels of each 1D convolution layer (two layers, kernel 5, stride 2).
+        key_dim: output size of each per-key encoder.
+        n_classes: number of semantic labels including 0 = none (default ``len(CLASS_NAMES) + 1``).
+    """
+
+    def __init__(
+        self,
+        observation_space: gym.spaces.Dict,
+        features_dim: int = 128,
+        conv_channels: int = 16,
+        key_dim: int = 64,
+        n_classes: int = len(CLASS_NAMES) + 1,
+    ):
+        super().__init__(observation_space, features_dim)
+        if not isinstance(observation_space, gym.spaces.Dict):
+            raise TypeError(f"SemRelocExtractor needs a Dict observation space, got {observation_space}")
+        self.n_classes = int(n_classes)
+        self.keys = tuple(observation_space.spaces)
+        self.scalers = nn.ModuleDict()
+        self.encoders = nn.ModuleDict()
+        total = 0
+        for key in self.keys:
+            box = observation_space.spaces[key]
+            if not isinstance(box, gym.spaces.Box):
+                raise TypeError(f"observation entry {key!r} is {box}, not a Box")
+            n = int(np.prod(box.shape))
+            self.scalers[key] = _Scale(box)
+            if key == "lidar":
+                enc = self._conv(1, n, conv_channels, key_dim, padding_mode="circular")
+            elif key == "semantic":
+                if n % 2:
+                    raise ValueError(f"'semantic' must hold ranges then labels (even length), got {n}")
+                enc = self._conv(1 + self.n_classes, n // 2, conv_channels, key_dim, padding_mode="zeros")
+            else:
+                enc = nn.Sequential(nn.Linear(n, key_dim), nn.ReLU(), nn.Linear(key_dim, key_dim), nn.ReLU())
+            self.encoders[key] = enc
+            total += key_dim
+        self.head = nn.Sequential(nn.Linear(total, features_dim), nn.ReLU())
+
+    @staticmethod
+    def _conv(in_ch: int, length: int, ch: int, out_dim: int, padding_mode: str) -> nn.Sequential:
+        conv = nn.Sequential(
+            nn.Conv1d(in_ch, ch, kernel_size=5, stride=2, padding=2, padding_mode=padding_mode),
+            nn.ReLU(),
+            nn.Conv1d(ch, ch, kernel_size=5, stride=2, padding=2, padding_mode=padding_mode),
+            nn.ReLU(),
+            nn.Flatten(),
+        )
+        with torch.no_grad():
+            n_flat = conv(torch.zeros(1, in_ch, length)).shape[1]
+        return nn.Sequential(conv, nn.Linear(n_flat, out_dim), nn.ReLU())
+
+    def _channels(self, key: str, obs: torch.Tensor) -> torch.Tensor:
+        if key == "lidar":
+            return self.scalers[key](obs).unsqueeze(1)
+        if key == "semantic":
+            flat = obs.flatten(1)
+            half = flat.shape[1] // 2
+            ranges = self.scalers[key](flat)[:, :half]
+            labels = flat[:, half:].round().long().clamp(0, self.n_classes - 1)
+            onehot = nn.functional.one_hot(labels, self.n_classes).float().transpose(1, 2)
+            return torch.cat([ranges.unsqueeze(1), onehot], dim=1)
+        return self.scalers[key](obs)
+
+    def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
+        parts = [self.encoders[k](self._channels(k, observations[k])) for k in self.keys]
+        return self.head(torch.cat(parts, dim=1))

@@ -1,0 +1,137 @@
+import csv
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+
+from agents.baselines import RandomWalk, WallFollowExplorer
+from agents.callbacks import METRIC_KEYS, RelocalizationMetricsCallback
+from agents.features import SemRelocExtractor
+from agents.metrics import EpisodeTracker, summarize_episodes
+from agents.train import TrainConfig, evaluate, make_env, train
+
+FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}, "max_episode_steps": 30}
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory):
+    log_dir = tmp_path_factory.mktemp("ppo")
+    cb = RelocalizationMetricsCallback(window=50)
+    config = TrainConfig(
+        env_kwargs=FAST, n_envs=1, total_timesteps=256, n_steps=64, batch_size=64, n_epochs=1,
+        log_dir=str(log_dir), progress_every_s=None, seed=1,
+    )
+    model = train(config, callbacks=[cb])
+    yield model, cb, log_dir
+    model.get_env().close()
+
+
+def test_ppo_smoke_run_trains_and_predicts_valid_actions(smoke):
+    model, _, _ = smoke
+    assert model.num_timesteps >= 256
+    env = make_env(FAST)
+    obs, _ = env.reset(seed=0)
+    for _ in range(10):
+        action, _ = model.predict(obs, deterministic=False)
+        assert env.action_space.contains(int(action))
+        obs, *_ = env.step(int(action))
+    assert "belief" in model.observation_space.spaces
+
+
+def test_callback_scores_episodes_and_logs_metric_keys(smoke):
+    _, cb, log_dir = smoke
+    # 256 steps with a 30-step limit: at least 8 episodes end
+    assert len(cb.results) >= 8
+    assert all(r.length <= 30 for r in cb.results)
+    with open(log_dir / "progress.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and set(METRIC_KEYS) <= set(rows[0])
+    last = rows[-1]
+    assert 0.0 <= float(last["reloc/success_rate"]) <= 1.0
+    assert 0.0 <= float(last["reloc/wrong_convergence_rate"]) <= 1.0
+    assert int(float(last["reloc/episodes"])) >= 8
+    assert float(last["reloc/final_position_error_m"]) >= 0.0
+
+
+def test_evaluate_baseline_rates_are_rates():
+    r = evaluate(RandomWalk(np.random.default_rng(0)), FAST, n_episodes=4, seed=0, return_episodes=True)
+    assert r["episodes"] == 4 and len(r["per_episode"]) == 4
+    rates = ("success_rate", "wrong_convergence_rate", "unconverged_rate", "first_convergence_wrong_rate")
+    for k in rates:
+        assert 0.0 <= r[k] <= 1.0
+    assert r["success_rate"] + r["wrong_convergence_rate"] + r["unconverged_rate"] == pytest.approx(1.0)
+    successes = [e for e in r["per_episode"] if e["outcome"] == "success"]
+    assert r["success_rate"] == len(successes) / 4
+    for e in successes:  # success = the env's criterion on the final belief
+        assert e["final_position_error_m"] < 0.5 and e["final_heading_error_rad"] < math.radians(15)
+        assert e["steps_to_converge"] == e["length"]
+
+
+def test_evaluate_is_deterministic_for_the_same_seed():
+    a = evaluate(WallFollowExplorer(), FAST, n_episodes=3, seed=11, return_episodes=True)
+    b = evaluate(WallFollowExplorer(), FAST, n_episodes=3, seed=11, return_episodes=True)
+    assert a == b
+    c = evaluate(WallFollowExplorer(), FAST, n_episodes=3, seed=12, return_episodes=True)
+    assert c["per_episode"] != a["per_episode"]
+
+
+def test_evaluate_model_is_deterministic_and_checks_spaces(smoke):
+    model, _, _ = smoke
+    a = evaluate(model, FAST, n_episodes=2, seed=5)
+    assert a == evaluate(model, FAST, n_episodes=2, seed=5)
+    with pytest.raises(ValueError, match="observes"):
+        evaluate(model, {**FAST, "lidar": {"n_beams": 30}}, n_episodes=1)
+    with pytest.raises(TypeError):
+        evaluate(object(), FAST, n_episodes=1)
+
+
+def test_features_extractor_shapes_scaling_and_label_sensitivity():
+    space = make_env(FAST).observation_space
+    torch.manual_seed(0)
+    ext = SemRelocExtractor(space, features_dim=32)
+    for i, s in enumerate(space.spaces.values()):
+        s.seed(i)
+    batch = {k: torch.as_tensor(np.stack([s.sample() for _ in range(5)])) for k, s in space.spaces.items()}
+    out = ext(batch)
+    assert out.shape == (5, 32) and torch.all(torch.isfinite(out))
+    # lidar is scaled by its bounds: range_max maps to 1
+    scaled = ext.scalers["lidar"](torch.full((1, 60), 8.0))
+    assert torch.allclose(scaled, torch.ones(1, 60))
+    # changing only the semantic class labels changes the features
+    b2 = {k: v.clone() for k, v in batch.items()}
+    half = b2["semantic"].shape[1] // 2
+    b2["semantic"][:, half:] = (b2["semantic"][:, half:] + 1) % 5
+    assert not torch.allclose(ext(b2), out)
+
+
+def _info(converged, pos, head=0.0):
+    return {"belief": {"converged": converged}, "pose_error": {"position": pos, "heading": head}}
+
+
+def test_episode_tracker_outcomes():
+    t = EpisodeTracker()
+    t.observe(_info(True, 3.0), 0.1)  # converged at a wrong place first
+    t.observe(_info(True, 0.2), 1.0)
+    ok = t.finish()
+    assert (ok.outcome, ok.length, ok.steps_to_converge, ok.first_convergence_wrong) == ("success", 2, 2, True)
+    assert ok.episode_return == pytest.approx(1.1)
+    t.observe(_info(True, 0.2, head=0.5))  # heading off by 29 deg: wrong
+    wrong = t.finish()
+    t.observe(_info(False, 0.1))
+    unconv = t.finish()
+    assert (wrong.outcome, unconv.outcome) == ("wrong", "unconverged")
+    s = summarize_episodes([wrong, unconv])
+    assert s["success_rate"] == 0.0 and s["median_steps_to_converge"] is None
+    assert summarize_episodes([ok, wrong])["median_steps_to_converge"] == 2.0
+    with pytest.raises(RuntimeError):
+        t.finish()
+
+
+def test_train_config_rejects_bad_values():
+    with pytest.raises(ValueError):
+        TrainConfig(vec_env="threads")
+    with pytest.raises(ValueError):
+        TrainConfig(n_envs=0)
+    assert gym.spaces.Discrete(4).contains(int(WallFollowExplorer()({"lidar": np.full(60, 8.0)})))

@@ -1,0 +1,132 @@
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import semreloc_env  # noqa: F401
+from semreloc_env.envs.semreloc import SemRelocEnv
+from semreloc_env.wrappers import BELIEF_FEATURES, BeliefObservation, FlatObservation
+
+FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
+
+
+def _expected(belief: dict) -> np.ndarray:
+    return np.array(
+        [
+            belief["pos_std_m"],
+            belief["theta_std_rad"],
+            belief["entropy_nats"],
+            belief["n_clusters"],
+            belief["ess"] / belief["n_particles"],
+            float(belief["converged"]),
+        ],
+        dtype=np.float32,
+    )
+
+
+def _rollout(env, seed=3, n=40):
+    rng = np.random.default_rng(5)
+    obs, info = env.reset(seed=seed)
+    out = [(obs, info)]
+    for _ in range(n):
+        obs, _, term, trunc, info = env.step(int(rng.integers(0, 4)))
+        out.append((obs, info))
+        if term or trunc:
+            obs, info = env.reset()
+            out.append((obs, info))
+    return out
+
+
+def test_belief_observation_space_and_features_equal_info():
+    env = BeliefObservation(gym.make("SemReloc-v0", **FAST))
+    space = env.observation_space
+    assert set(space.spaces) == {"lidar", "semantic", "odometry", "belief"}
+    assert space["belief"].shape == (len(BELIEF_FEATURES),)
+    assert space["belief"].dtype == np.float32
+    # documented bounds; entropy bound = log(n_particles)
+    np.testing.assert_allclose(space["belief"].high, [20.0, math.pi, math.log(300), 20, 1, 1], rtol=1e-6)
+    np.testing.assert_array_equal(space["belief"].low, np.zeros(6, np.float32))
+    seen_converged = set()
+    for obs, info in _rollout(env):
+        assert space.contains(obs)
+        np.testing.assert_allclose(obs["belief"], _expected(info["belief"]), rtol=1e-6)
+        seen_converged.add(bool(obs["belief"][5]))
+    # the belief moves during the rollout: features are not constant
+    beliefs = np.array([o["belief"] for o, _ in _rollout(env)])
+    assert np.ptp(beliefs[:, 0]) > 0.1 and np.ptp(beliefs[:, 2]) > 0.1
+
+
+def test_belief_observation_does_not_change_the_rest_of_the_step():
+    plain = gym.make("SemReloc-v0", **FAST)
+    wrapped = BeliefObservation(gym.make("SemReloc-v0", **FAST))
+    for (o1, i1), (o2, i2) in zip(_rollout(plain, n=15), _rollout(wrapped, n=15)):
+        for k in o1:
+            np.testing.assert_array_equal(o1[k], o2[k])
+        assert i1["belief"] == i2["belief"]
+    # the true pose is not in the observation: no observation entry equals it
+    obs, info = wrapped.reset(seed=1)
+    assert not any(np.allclose(v[:3], info["pose"], atol=1e-3) for v in obs.values() if v.size >= 3)
+
+
+def test_belief_observation_clips_to_bounds():
+    env = BeliefObservation(gym.make("SemReloc-v0", **FAST), pos_std_max_m=1.0, max_clusters=2)
+    obs, info = env.reset(seed=0)
+    assert info["belief"]["pos_std_m"] > 1.0  # global start: spread over the lab
+    assert obs["belief"][0] == np.float32(1.0)
+    assert env.observation_space.contains(obs)
+    f = env.belief_features({**info["belief"], "n_clusters": 7, "entropy_nats": 1e9})
+    assert f[3] == 2.0 and f[2] == np.float32(math.log(300))
+
+
+def test_belief_observation_rejects_bad_envs_and_bounds():
+    with pytest.raises(ValueError):
+        BeliefObservation(BeliefObservation(gym.make("SemReloc-v0", **FAST)))
+    with pytest.raises(TypeError):
+        BeliefObservation(gym.make("CartPole-v1"))
+    with pytest.raises(ValueError):
+        BeliefObservation(gym.make("SemReloc-v0", **FAST), pos_std_max_m=0.0)
+
+
+def _check(env):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        # the one warning gymnasium's checker gives for any wrapper, by design of this test
+        warnings.filterwarnings("ignore", message=".*different from the unwrapped version.*")
+        gym_check_env(env, skip_render_check=True)
+        sb3_check_env(env, warn=True)
+
+
+def test_check_env_passes_on_wrapped_envs_with_warnings_as_errors():
+    _check(BeliefObservation(SemRelocEnv(**FAST)))
+    _check(FlatObservation(BeliefObservation(SemRelocEnv(**FAST))))
+    _check(BeliefObservation(SemRelocEnv(action_type="continuous", **FAST)))
+
+
+def test_flat_observation_concatenates_in_key_order():
+    inner = BeliefObservation(gym.make("SemReloc-v0", **FAST))
+    flat = FlatObservation(inner)
+    n = sum(int(np.prod(s.shape)) for s in inner.observation_space.spaces.values())
+    assert flat.observation_space.shape == (n,)
+    assert flat.keys == ("belief", "lidar", "odometry", "semantic")  # gymnasium's Dict sorts its keys
+    for (o_dict, _), (o_flat, _) in zip(_rollout(inner, n=10), _rollout(flat, n=10)):
+        assert flat.observation_space.contains(o_flat)
+        for k in flat.keys:
+            np.testing.assert_array_equal(o_flat[flat.slices[k]], o_dict[k].ravel())
+    for k in flat.keys:
+        np.testing.assert_array_equal(flat.observation_space.low[flat.slices[k]], inner.observation_space[k].low)
+        np.testing.assert_array_equal(flat.observation_space.high[flat.slices[k]], inner.observation_space[k].high)
+
+
+def test_flat_observation_key_subset_and_errors():
+    flat = FlatObservation(gym.make("SemReloc-v0", **FAST), keys=["odometry", "lidar"])
+    obs, _ = flat.reset(seed=0)
+    assert obs.shape == (3 + 60,)
+    assert flat.slices["odometry"] == slice(0, 3)
+    with pytest.raises(KeyError):
+        FlatObservation(gym.make("SemReloc-v0", **FAST), keys=["belief"])
+    with pytest.raises(TypeError):
+        FlatObservation(gym.make("CartPole-v1"))
