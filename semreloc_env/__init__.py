@@ -15,7 +15,9 @@ from .world import World, build_world
 
 __all__ = ["CLASS_NAMES", "ENV_IDS", "Layout", "LayoutError", "World", "build_world", "get_layout", "load_layout"]
 
-ENV_IDS = ("SemReloc-v0",)
+ENV_IDS = ("SemReloc-v0", "SemSlam-v0")
 
 if "SemReloc-v0" not in registry:
     register(id="SemReloc-v0", entry_point="semreloc_env.envs.semreloc:SemRelocEnv", max_episode_steps=400)
+if "SemSlam-v0" not in registry:
+    register(id="SemSlam-v0", entry_point="semreloc_env.envs.semslam:SemSlamEnv", max_episode_steps=400)

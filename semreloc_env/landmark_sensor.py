@@ -17,8 +17,11 @@ How a run becomes a point (:class:`LandmarkSensorParams`):
    0 to observe the surface point itself.
 
 The detector's noise, misses, wrong classes and false positives come from the camera; this module
-adds nothing random. Runs with fewer than ``min_beams`` beams are dropped; ``skip_fov_edges`` drops
-runs touching the first or last beam (objects cut by the image border give biased points).
+adds nothing random. Runs with fewer than ``min_beams`` beams are dropped (most false positives are
+1-4 beams); ``skip_fov_edges`` drops runs touching the first or last beam (objects cut by the image
+border give biased points). The defaults were chosen on measurements (docs/semslam.md): on the lab,
+the observations' residuals against the true object centroids seen from the true pose have range
+std 0.09 m and bearing std 0.03 rad; keeping border runs raises the bearing std to 0.2 rad.
 """
 
 from __future__ import annotations

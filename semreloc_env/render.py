@@ -88,13 +88,17 @@ class Renderer:
             self.fig.show()
 
     def draw(self, state: dict[str, Any]) -> np.ndarray:
-        """Draw one state: layout, particles, scans, true pose (black), estimate (magenta)."""
+        """Draw one state: layout, particles, scans, landmarks (crosses), true pose (black), estimate (magenta)."""
         ax = self.ax
         ax.clear()
         draw_layout(ax, state["layout"], state.get("extra_obstacles", ()))
         if state.get("particles") is not None:
             draw_particles(ax, state["particles"])
         draw_scans(ax, state["pose"], state.get("lidar"), state.get("semantic"))
+        if state.get("landmarks") is not None:  # {"means": (M, 2), "classes": (M,) labels}: crosses in class colours
+            lm = state["landmarks"]
+            for (x, y), k in zip(np.asarray(lm["means"]).reshape(-1, 2), lm["classes"]):
+                ax.plot(x, y, "x", color=class_color(int(k)), ms=8, mew=2)
         draw_pose(ax, state["pose"], "k", label="true pose")
         if state.get("estimate") is not None:
             draw_pose(ax, np.asarray(state["estimate"]), "#aa00aa", label="estimate")

@@ -11,6 +11,7 @@ import semreloc_env
 from semreloc_env.layouts import get_layout
 
 FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
+FAST_BY_ID = {"SemReloc-v0": FAST, "SemSlam-v0": {"slam": {"n_particles": 20}}}  # fast kwargs per registered id
 
 
 def make(**kw):
@@ -21,11 +22,11 @@ def make(**kw):
 def test_check_env_gymnasium_and_sb3_without_warnings(env_id):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        env = gym.make(env_id, **FAST)
+        env = gym.make(env_id, **FAST_BY_ID.get(env_id, {}))
         gym_check_env(env.unwrapped, skip_render_check=True)
         sb3_check_env(env.unwrapped, warn=True)
         env.close()
-        cont = gym.make(env_id, action_type="continuous", **FAST)
+        cont = gym.make(env_id, action_type="continuous", **FAST_BY_ID.get(env_id, {}))
         gym_check_env(cont.unwrapped, skip_render_check=True)
         sb3_check_env(cont.unwrapped, warn=True)
 

@@ -1,0 +1,293 @@
+"""``SemSlam-v0``: landmark SLAM (FastSLAM + WOC, paper 000) on the semantic camera's object detections."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from filters.motion import OdometryMotionConfig
+from filters.pose import wrap_angle
+from filters.slam.association import AssociationConfig
+from filters.slam.class_votes import ClassVotingFastSLAM
+from filters.slam.fastslam import FastSLAMConfig, SLAMEstimate
+from filters.slam.landmarks import RangeBearingNoise
+from filters.slam.odometry_motion import OdometryIncrementModel
+from filters.slam.weight_transforms import WOC
+
+from ..config import coerce_config
+from ..landmark_sensor import LandmarkSensor, LandmarkSensorParams
+from ..layouts import CLASS_NAMES
+from .base import SemRelocBase
+
+DEFAULT_OBS_NOISE = RangeBearingNoise(sigma_r_m=0.15, sigma_b_rad=0.05)
+"""The filter's range-bearing noise: about 1.5x the spread of the default landmark sensor's
+observations around the true object centres on the lab (0.09 m, 0.03 rad; see docs/semslam.md)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SlamParams:
+    """Settings of the WOCPF SLAM filter (FastSLAM + WOC weight step, paper 000).
+
+    Attributes:
+        n_particles: particles ``N >= 1``.
+        version: FastSLAM 1 or 2 (2: Gaussian proposal refined by the observations, the paper's step 4).
+        woc_k: WOC scaling factor ``K`` of paper 000 Eq. 7, ``1 <= K <= inf`` (``inf``: plain FastSLAM).
+            The paper does not state its K; 2.0 is this env's choice.
+        known_association: True: observations carry the true object index (landmark id = object index;
+            detections on no object, i.e. false positives, are then dropped). False (default): maximum
+            likelihood association with the NIS gates below.
+        gate_associate, gate_new: NIS gates of :class:`filters.slam.association.AssociationConfig`.
+        resampler: resampling scheme name (:func:`filters.resampling.get_resampler`).
+        resample_ess_fraction: resample when the ESS of the WOC weights falls below this fraction of N
+            (1.0: after every update with observations, as the paper does).
+        motion_noise: dict of :class:`filters.motion.OdometryMotionConfig` overrides for the filter's
+            odometry noise; ``None`` (default) uses the simulator's ``odometry`` noise (a matched model).
+    """
+
+    n_particles: int = 100
+    version: int = 2
+    woc_k: float = 2.0
+    known_association: bool = False
+    gate_associate: float = 9.21
+    gate_new: float = 25.0
+    resampler: str = "systematic"
+    resample_ess_fraction: float = 1.0
+    motion_noise: dict | OdometryMotionConfig | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.known_association, bool):
+            raise ValueError(f"slam.known_association must be a bool, got {self.known_association!r}")
+        if not (isinstance(self.woc_k, (int, float)) and float(self.woc_k) >= 1.0):
+            raise ValueError(f"slam.woc_k must be a number with 1 <= K <= inf, got {self.woc_k!r}")
+
+    def fastslam_config(self) -> FastSLAMConfig:
+        """The :class:`~filters.slam.fastslam.FastSLAMConfig` these settings stand for (ValueError if invalid)."""
+        assoc = AssociationConfig(
+            mode="known" if self.known_association else "ml",
+            gate_associate=float(self.gate_associate),
+            gate_new=float(self.gate_new),
+        )
+        return FastSLAMConfig(
+            n_particles=self.n_particles,
+            version=self.version,
+            association=assoc,
+            resampler=self.resampler,
+            resample_ess_fraction=self.resample_ess_fraction,
+            weight_transform=WOC(float(self.woc_k)),
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class SlamRewardWeights:
+    """Weights of the reward terms (see the env docstring)."""
+
+    time: float = -0.01
+    collision: float = -0.5
+    pose_error: float = -0.1
+    discovery: float = 0.1
+
+
+class SemSlamEnv(SemRelocBase):
+    """Landmark SLAM of a differential-drive robot from semantic object detections.
+
+    ## Description
+    The world, robot and sensors of ``SemReloc-v0`` (a pymunk world built from a *layout*, a 360 deg
+    lidar, a forward semantic camera, wheel odometry). Inside the env runs **WOCPF SLAM** (paper 000):
+    FastSLAM (:class:`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
+    through the WOC step ``psi = (K-1)/K w + mean(w)/K`` before resampling. Its controls are the noisy
+    odometry increments (:class:`filters.slam.odometry_motion.OdometryIncrementModel`); its observations
+    are range-bearing *landmarks*: each object the semantic camera labels is one observation to a point
+    near the object's centre (:mod:`semreloc_env.landmark_sensor`). Landmarks also collect class votes
+    (:class:`filters.slam.class_votes.ClassVotingFastSLAM`), so the map is semantic. No map is given:
+    the policy should drive so that the robot sees many objects and its pose stays well estimated.
+
+    ## Action Space
+    ``action_type="discrete"`` (default): ``Discrete(4)`` -- 0 forward at ``robot.max_linear_mps``,
+    1 turn left, 2 turn right (at ``robot.max_angular_rps``), 3 stop.
+    ``action_type="continuous"``: ``Box(-1, 1, (2,))`` -- ``(v, omega)`` scaled by the same maxima.
+    Anything outside the space, or NaN, raises ``ValueError`` and changes nothing.
+
+    ## Observation Space
+    Identical to ``SemReloc-v0``: a ``Dict`` of float32 boxes.
+
+    | key | shape | range | meaning |
+    |---|---|---|---|
+    | ``lidar`` | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
+    | ``semantic`` | ``(2 * camera.n_beams,)`` | first half ``[0, range_max_m]`` m, second half ``{0..4}`` | pseudo-laser ranges, then the class label per beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
+    | ``odometry`` | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame |
+
+    ## Rewards
+    A dict of named terms in ``info["rewards"]``, weighted by ``reward_weights``
+    (:class:`SlamRewardWeights`); the reward is their sum: ``time`` (constant per step),
+    ``collision`` (robot touched an obstacle), ``pose_error`` (weight times the SLAM position error in m,
+    so negative by default), ``discovery`` (weight times the number of objects observed for the first time
+    in this step).
+
+    ## Starting State
+    A uniformly random free pose, or ``options={"pose": (x, y, theta)}``. The filter starts with every
+    particle at the true start pose, zero uncertainty and an empty map: SLAM's own frame has its origin at
+    the true start pose, and its estimates are reported in world coordinates (that frame placed at the
+    true start pose), so they compare directly with the truth. The reset step already observes.
+
+    ## Episode End
+    Never terminated by the env. Truncated by the time limit (``max_episode_steps``, 400 at registration).
+
+    ## Info
+    * ``pose``: true pose ``[x m, y m, theta rad]`` (ndarray).
+    * ``slam``: the filter's estimate, plain Python lists: ``pose`` ``[x, y, theta]`` (weighted mean,
+      circular mean for theta), ``pose_cov`` 3x3, ``landmarks`` ``M x [x, y]`` m and ``landmark_covs``
+      ``M x 2 x 2`` m^2 (the highest-weight particle's map), ``landmark_ids`` (object index under known
+      association, slot index otherwise), ``landmark_classes`` (most voted label 1..4), ``n_landmarks`` M,
+      ``n_observations`` K of this step, ``ess`` of the last update's weights.
+    * ``slam_error``: ``position`` m and ``heading`` rad of ``slam.pose``; ``landmark`` m: mean over the
+      true objects observed so far of the distance from the object's centroid to its estimated landmark
+      (known association: the landmark with the object's id; ML association: the nearest estimated
+      landmark), ``None`` while no object has been observed; ``n_seen`` objects observed so far.
+    * ``rewards``; ``collided`` (step only).
+
+    ## Arguments
+    * ``layout``, ``layout_seed``, ``action_type``, ``robot``, ``physics``, ``lidar``, ``camera``,
+      ``odometry``, ``render_mode``: as in ``SemReloc-v0``.
+    * ``slam``: dict of overrides of :class:`SlamParams` (``n_particles`` 100, ``version`` 2, ``woc_k`` 2.0,
+      ``known_association`` False, gates, resampler, ``motion_noise``).
+    * ``obs_noise``: dict of overrides of the filter's :class:`filters.slam.landmarks.RangeBearingNoise`
+      (``sigma_r_m`` 0.15, ``sigma_b_rad`` 0.05).
+    * ``landmark_sensor``: dict of overrides of :class:`semreloc_env.landmark_sensor.LandmarkSensorParams`.
+    * ``reward_weights``: dict of overrides of :class:`SlamRewardWeights`.
+    Unknown arguments or keys raise ``TypeError`` / ``ValueError``.
+
+    ## Reset options
+    ``pose`` only; anything else raises ``ValueError`` and leaves the episode as it was.
+
+    ## Version History
+    * v0: initial release.
+    """
+
+    _reset_option_keys = frozenset({"pose"})
+
+    def __init__(
+        self,
+        layout="lab",
+        layout_seed: int = 0,
+        action_type: str = "discrete",
+        robot=None,
+        physics=None,
+        lidar=None,
+        camera=None,
+        odometry=None,
+        slam: dict | SlamParams | None = None,
+        obs_noise: dict | RangeBearingNoise | None = None,
+        landmark_sensor: dict | LandmarkSensorParams | None = None,
+        reward_weights: dict | SlamRewardWeights | None = None,
+        render_mode: str | None = None,
+    ):
+        super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
+        self.slam_params = coerce_config(SlamParams, slam, "slam")
+        self.fastslam_config = self.slam_params.fastslam_config()
+        motion = self.slam_params.motion_noise
+        if not isinstance(motion, OdometryMotionConfig):
+            motion = coerce_config(OdometryMotionConfig, motion, "slam.motion_noise", self.odometry.params)
+        self.motion_model = OdometryIncrementModel(motion)
+        self.obs_noise = coerce_config(RangeBearingNoise, obs_noise, "obs_noise", DEFAULT_OBS_NOISE)
+        self.landmark_sensor = LandmarkSensor(
+            self.camera, coerce_config(LandmarkSensorParams, landmark_sensor, "landmark_sensor")
+        )
+        self.reward_weights = coerce_config(SlamRewardWeights, reward_weights, "reward_weights")
+        self.centroids = np.array([o.centroid() for o in self.layout.objects]).reshape(-1, 2)
+        self.slam: ClassVotingFastSLAM | None = None
+
+    # ------------------------------------------------------------------ hooks
+    def _reset_estimator(self, options: dict) -> None:
+        self.slam = ClassVotingFastSLAM(
+            self.motion_model,
+            self.obs_noise,
+            self.fastslam_config,
+            self._estimator_rng,
+            initial_pose=self.world.pose,
+            n_classes=len(CLASS_NAMES),
+        )
+        self._seen = np.zeros(len(self.layout.objects), dtype=bool)
+        self._n_new_seen = 0
+        self._n_obs = 0
+        self._estimate: SLAMEstimate | None = None
+
+    def _step_estimator(self, odom, lidar_scan, semantic_scan) -> None:
+        self.slam.predict(odom, self.physics_params.dt_s)
+        z, classes, true_ids = self.landmark_sensor.read(self.world, self.world.pose, semantic_scan)
+        if self.slam_params.known_association:
+            keep = true_ids >= 0  # false positives have no id to give
+            z, classes, true_ids = z[keep], classes[keep], true_ids[keep]
+        self.slam.update(z, true_ids if self.slam_params.known_association else None, classes)
+        seen = true_ids[true_ids >= 0]
+        self._n_new_seen = int(np.count_nonzero(~self._seen[np.unique(seen)]))
+        self._seen[seen] = True
+        self._n_obs = int(z.shape[0])
+        self._estimate = self.slam.estimate()
+
+    def slam_error(self) -> dict[str, Any]:
+        """Pose error (m, rad) of the estimate and the mean landmark error (m) over the objects seen so far."""
+        est, truth = self._estimate, self.world.pose
+        seen = np.flatnonzero(self._seen)
+        lm_err = None
+        if seen.size:
+            if est.count == 0:
+                lm_err = math.inf
+            elif self.slam_params.known_association:
+                by_id = dict(zip(est.landmark_ids.tolist(), est.landmarks))
+                d = [np.hypot(*(by_id[i] - self.centroids[i])) if i in by_id else math.inf for i in seen]
+                lm_err = float(np.mean(d))
+            else:
+                diff = self.centroids[seen][:, None, :] - est.landmarks[None, :, :]
+                lm_err = float(np.hypot(diff[..., 0], diff[..., 1]).min(axis=1).mean())
+        return {
+            "position": float(np.hypot(*(est.pose[:2] - truth[:2]))),
+            "heading": float(abs(wrap_angle(est.pose[2] - truth[2]))),
+            "landmark": lm_err,
+            "n_seen": int(seen.size),
+        }
+
+    def _reward_terms(self, collided: bool) -> dict[str, float]:
+        w = self.reward_weights
+        return {
+            "time": w.time,
+            "collision": w.collision if collided else 0.0,
+            "pose_error": w.pose_error * self.slam_error()["position"],
+            "discovery": w.discovery * self._n_new_seen,
+        }
+
+    def _landmark_classes(self) -> np.ndarray:
+        return self.slam.landmark_classes(self._estimate.landmark_ids)
+
+    def _info(self) -> dict[str, Any]:
+        info = super()._info()
+        est = self._estimate
+        info["slam"] = {
+            "pose": [float(v) for v in est.pose],
+            "pose_cov": est.pose_cov.astype(float).tolist(),
+            "landmarks": est.landmarks.astype(float).tolist(),
+            "landmark_covs": est.landmark_covs.astype(float).tolist(),
+            "landmark_ids": [int(i) for i in est.landmark_ids],
+            "landmark_classes": [int(c) for c in self._landmark_classes()],
+            "n_landmarks": est.count,
+            "n_observations": self._n_obs,
+            "ess": float(1.0 / np.sum(self.slam.last_weights**2)),
+        }
+        info["slam_error"] = self.slam_error()
+        return info
+
+    def _render_state(self) -> dict[str, Any]:
+        state = super()._render_state()
+        est = self._estimate
+        state["particles"] = self.slam.poses
+        state["estimate"] = est.pose
+        state["landmarks"] = {"means": est.landmarks, "classes": self._landmark_classes()}
+        err = self.slam_error()
+        lm = "-" if err["landmark"] is None else f"{err['landmark']:.2f} m"
+        state["title"] = (
+            f"{self.layout.name}  step {self._steps}  pose error {err['position']:.2f} m / "
+            f"{math.degrees(err['heading']):.0f} deg  landmarks {est.count} (seen {err['n_seen']}, error {lm})"
+        )
+        return state
