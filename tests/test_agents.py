@@ -135,3 +135,30 @@ def test_train_config_rejects_bad_values():
     with pytest.raises(ValueError):
         TrainConfig(n_envs=0)
     assert gym.spaces.Discrete(4).contains(int(WallFollowExplorer()({"lidar": np.full(60, 8.0)})))
+
+
+def _load_script():
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "train_ppo.py"
+    spec = importlib.util.spec_from_file_location("train_ppo", path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["train_ppo"] = mod  # dataclasses look their module up there
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_train_ppo_cli_documents_every_option_and_formats_missing_values():
+    mod = _load_script()
+    docs = mod._field_docs()
+    assert set(docs) == {f.name for f in mod.fields(mod.Args)} and all(docs.values())
+    args = mod.parse_args(["--layout", "twin_rooms", "--lidar-only", "--total-timesteps", "1000"])
+    assert (args.layout, args.lidar_only, args.total_timesteps) == ("twin_rooms", True, 1000)
+    kw = mod.env_kwargs_of(args)
+    assert kw["semantic"] is False and kw["max_episode_steps"] == args.max_episode_steps
+    row = {"success_rate": 0.25, "wrong_convergence_rate": 0.5, "unconverged_rate": 0.25,
+           "median_steps_to_converge": None, "median_final_position_error_m": 1.234, "mean_return": -0.5}
+    line = mod.results_table({"p": row}).splitlines()[-1]
+    assert line == "| p | 25 % | 50 % | 25 % | - | 1.23 | -0.50 |"
