@@ -14,8 +14,9 @@ paper 000 Eq. 9-11). State arrays, ``N`` particles, capacity ``C`` landmark slot
 ``log_weights``    ``(N,)``          normalised log weights (log-sum-exp = 0)
 =================  ================  =================================================
 
-With known association slot ``j`` is landmark id ``j``; with ML association each
-particle fills its slots in the order it creates landmarks. Capacity grows as needed.
+With known association slot ``j`` is landmark id ``j`` (so ids should be small integers: the
+arrays get ``max id + 1`` slots); with ML association each particle fills its slots in the
+order it creates landmarks. Capacity grows as needed.
 
 The weight step can be transformed before resampling (:mod:`filters.slam.weight_transforms`;
 paper 000's WOC is ``weight_transform=WOC(K)``).
