@@ -12,7 +12,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import semreloc_env  # noqa: F401  (registers the ids)
 from agents.baselines import WallFollowExplorer
 from filters.motion import OdometryMotionConfig
-from filters.pose import compose
+from filters.pose import compose, wrap_angle
 from filters.scans import SemanticScan
 from filters.slam.class_votes import ClassVotingFastSLAM
 from filters.slam.fastslam import FastSLAMConfig
@@ -339,3 +339,22 @@ def test_unknown_or_bad_constructor_arguments_are_errors():
 def test_step_before_reset_is_an_error():
     with pytest.raises(RuntimeError, match="reset"):
         make().unwrapped.step(0)
+
+
+def test_slam_beats_dead_reckoning_when_it_keeps_seeing_the_same_objects():
+    """Noisy odometry (alphas 0.1); the robot looks around one room, so landmarks bound the drift."""
+    slam_err, dr_err, lm_err = [], [], []
+    for seed in range(3):
+        noisy = {"alpha1": 0.1, "alpha2": 0.1, "alpha3": 0.1, "alpha4": 0.05}
+        env = make(layout="twin_rooms", odometry=noisy, slam={"n_particles": 100})
+        obs, info = env.reset(seed=seed, options={"pose": [2.5, 3.0, 0.0]})
+        dr = info["pose"].copy()
+        for t in range(300):  # 60 steps turning left, then 10 forward + 50 turning right, and so on
+            obs, _, _, _, info = env.step(1 if (t // 60) % 2 == 0 else (0 if t % 60 < 10 else 2))
+            dr = compose(dr, obs["odometry"].astype(np.float64))
+        slam_err.append([info["slam_error"]["position"], info["slam_error"]["heading"]])
+        dr_err.append([np.hypot(*(dr[:2] - info["pose"][:2])), abs(float(wrap_angle(dr[2] - info["pose"][2])))])
+        lm_err.append(info["slam_error"]["landmark"])
+    slam_err, dr_err = np.mean(slam_err, axis=0), np.mean(dr_err, axis=0)
+    assert slam_err[0] < dr_err[0] and slam_err[1] < 0.5 * dr_err[1], (slam_err, dr_err)
+    assert np.mean(lm_err) < 0.5

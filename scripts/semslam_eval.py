@@ -1,0 +1,156 @@
+"""Measure SemSlam-v0: SLAM pose and landmark error over seeds with the wall-following explorer.
+
+For every seed one episode is driven by :class:`agents.baselines.WallFollowExplorer` (deterministic
+given the observations); every filter variant runs on its own env with the same seed. Because the
+filter draws from its own generator, the drive (world, sensors, odometry) is identical across
+variants as long as the policy only reads the observations -- so differences are paired.
+
+Variants: WOCPF (FastSLAM 2.0 + WOC, K = ``--woc-k``, ML association), plain FastSLAM 2.0 (K = inf),
+WOCPF with known association, and dead reckoning (the odometry increments composed, no SLAM).
+
+Prints a markdown table: mean over seeds +- half-width of a 95 % normal interval. Run
+``python scripts/semslam_eval.py --help`` for options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import semreloc_env  # noqa: F401  (registers the envs)
+from agents.baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
+from filters.pose import compose, wrap_angle
+
+
+@dataclass(frozen=True)
+class Args:
+    layout: str = "lab"
+    """layout name or file"""
+    seeds: int = 10
+    """episodes (seeds 0..seeds-1)"""
+    steps: int = 300
+    """control steps per episode (10 Hz)"""
+    particles: int = 100
+    """SLAM particles"""
+    woc_k: float = 2.0
+    """WOC scaling factor K of the WOCPF rows"""
+    policy: str = "wallfollow"
+    """"wallfollow" (WallFollowExplorer) or "look_around" (60 steps turning left, then repeatedly 10 forward
+    and 50 turning right / left: keeps re-observing the same objects)"""
+    odometry_alpha: float = -1.0
+    """if >= 0: the simulator's odometry noise alpha1 = alpha2 = alpha3 = this, alpha4 = half (default: env's)"""
+    figure: str = ""
+    """if set, save the last frame of seed 0 (default variant) to this PNG path"""
+
+
+def parse_args() -> Args:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    for name, field in Args.__dataclass_fields__.items():
+        p.add_argument("--" + name.replace("_", "-"), type=type(field.default), default=field.default,
+                       help=f"default: {field.default!r}")
+    return Args(**vars(p.parse_args()))
+
+
+class LookAround:
+    """Turn left for 60 steps, then alternate 10 steps forward with 50 steps turning right / left."""
+
+    def __init__(self) -> None:
+        self.t = 0
+
+    def __call__(self, obs: dict) -> int:
+        t, self.t = self.t, self.t + 1
+        if t < 60:
+            return TURN_LEFT
+        phase = (t - 60) % 120
+        return FORWARD if phase % 60 < 10 else (TURN_RIGHT if phase < 60 else TURN_LEFT)
+
+
+def run(args: Args, seed: int, slam: dict, figure: str = "") -> dict[str, float]:
+    """One episode; returns the metrics of the SLAM estimate and of dead reckoning."""
+    kw = {}
+    if args.odometry_alpha >= 0:
+        a = args.odometry_alpha
+        kw["odometry"] = {"alpha1": a, "alpha2": a, "alpha3": a, "alpha4": a / 2}
+    env = gym.make("SemSlam-v0", layout=args.layout, slam=slam, render_mode="rgb_array" if figure else None, **kw)
+    obs, info = env.reset(seed=seed)
+    policy = {"wallfollow": WallFollowExplorer, "look_around": LookAround}[args.policy]()
+    dr = np.asarray(info["pose"], dtype=np.float64)  # dead reckoning from the true start pose
+    pos, dr_pos = [], []
+    for _ in range(args.steps):
+        obs, _, _, trunc, info = env.step(policy(obs))
+        dr = compose(dr, obs["odometry"].astype(np.float64))
+        pos.append(info["slam_error"]["position"])
+        dr_pos.append(float(np.hypot(*(dr[:2] - info["pose"][:2]))))
+        if trunc:
+            break
+    if figure:
+        from PIL import Image
+
+        Path(figure).parent.mkdir(parents=True, exist_ok=True)
+        Image.fromarray(env.render()).save(figure)
+    e = info["slam_error"]
+    out = {
+        "mean position error (m)": float(np.mean(pos)),
+        "final position error (m)": e["position"],
+        "final heading error (deg)": math.degrees(e["heading"]),
+        "landmark error (m)": math.nan if e["landmark"] is None else e["landmark"],
+        "objects seen": e["n_seen"],
+        "landmarks": info["slam"]["n_landmarks"],
+        "dr mean": float(np.mean(dr_pos)),
+        "dr final": dr_pos[-1],
+        "dr heading": math.degrees(abs(float(wrap_angle(dr[2] - info["pose"][2])))),
+    }
+    env.close()
+    return out
+
+
+def _fmt(values) -> str:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return "-"
+    half = 1.96 * v.std(ddof=1) / math.sqrt(v.size) if v.size > 1 else 0.0
+    return f"{v.mean():.3f} ± {half:.3f}"
+
+
+def main() -> None:
+    args = parse_args()
+    if args.policy not in ("wallfollow", "look_around"):
+        raise SystemExit(f"unknown --policy {args.policy!r}; choose wallfollow or look_around")
+    variants = {
+        f"WOCPF (K={args.woc_k:g}), ML association": {"n_particles": args.particles, "woc_k": args.woc_k},
+        "FastSLAM 2.0 (K=inf), ML association": {"n_particles": args.particles, "woc_k": math.inf},
+        f"WOCPF (K={args.woc_k:g}), known association": {
+            "n_particles": args.particles, "woc_k": args.woc_k, "known_association": True},
+    }
+    t0 = time.perf_counter()
+    results = {name: [] for name in variants}
+    for seed in range(args.seeds):
+        for i, (name, slam) in enumerate(variants.items()):
+            fig = args.figure if (seed == 0 and i == 0) else ""
+            results[name].append(run(args, seed, slam, fig))
+        print(f"seed {seed} done ({time.perf_counter() - t0:.0f} s)", flush=True)
+    cols = ["mean position error (m)", "final position error (m)", "final heading error (deg)",
+            "landmark error (m)", "objects seen", "landmarks"]
+    print(f"\n{args.layout}, {args.policy}, odometry alpha {args.odometry_alpha:g} (<0: default), {args.seeds} seeds "
+          f"x {args.steps} steps, {args.particles} particles, {time.perf_counter() - t0:.0f} s\n")
+    print("| variant | " + " | ".join(cols) + " |")
+    print("|---" * (len(cols) + 1) + "|")
+    for name, rows in results.items():
+        print(f"| {name} | " + " | ".join(_fmt([r[c] for r in rows]) for c in cols) + " |")
+    rows = next(iter(results.values()))
+    dr = [_fmt([r[k] for r in rows]) for k in ("dr mean", "dr final", "dr heading")]
+    print("| dead reckoning (odometry only) | " + " | ".join(dr) + " | - | - | - |")
+    n_undef = sum(math.isnan(r["landmark error (m)"]) for r in rows)
+    if n_undef:
+        print(f"\n(landmark error undefined in {n_undef} episode(s) of the first row: no object observed)")
+
+
+if __name__ == "__main__":
+    main()
