@@ -17,6 +17,11 @@ from ..maps import MAP_SOURCES, maps_for
 from ..scenarios import SCENARIOS, changed_obstacles
 from .base import SemRelocBase
 
+DEFAULT_RELOCALIZER = MCLConfig(likelihood_scale=0.03)
+"""The env's relocalizer: :class:`filters.mcl.MCLConfig` defaults, but a stronger tempering of
+the likelihood (0.03 instead of 0.1), which halved wrong convergences in global relocalization
+(docs/paper004.md, "Choosing the defaults")."""
+
 SUCCESS_POSITION_M = 0.5
 SUCCESS_HEADING_RAD = math.radians(15.0)
 
@@ -92,7 +97,8 @@ class SemRelocEnv(SemRelocBase):
     * ``robot``, ``physics``, ``lidar``, ``camera``, ``odometry``: dicts of overrides of
       :class:`~semreloc_env.config.RobotParams`, ``PhysicsParams``, ``LidarParams``,
       ``CameraParams`` and :class:`filters.motion.OdometryMotionConfig` (the simulator's noise).
-    * ``relocalizer``: dict of overrides of :class:`filters.mcl.MCLConfig` (e.g. ``n_particles``).
+    * ``relocalizer``: dict of overrides of :data:`DEFAULT_RELOCALIZER`, a :class:`filters.mcl.MCLConfig`
+      (e.g. ``n_particles``); an MCLConfig instance replaces it whole.
     * ``semantic``: False runs the relocalizer lidar-only (the comparison of paper 004).
     * ``map_source``: ``"mapping"`` (default; maps built by a simulated mapping run, so map and
       world disagree as on a robot), ``"perfect"`` (rasterised layout), a ROS map ``.yaml`` path, or a GridMap.
@@ -139,7 +145,7 @@ class SemRelocEnv(SemRelocBase):
         super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
         from ..config import coerce_config
 
-        cfg = coerce_config(MCLConfig, relocalizer, "relocalizer")
+        cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", DEFAULT_RELOCALIZER)
         self.mcl_config = dataclasses.replace(cfg, use_semantic=bool(semantic))
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
