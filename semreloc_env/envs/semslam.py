@@ -58,7 +58,7 @@ class SlamParams:
     motion_noise: dict | OdometryMotionConfig | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.known_association, bool):
+        if not isinstance(self.known_association, (bool, np.bool_)):
             raise ValueError(f"slam.known_association must be a bool, got {self.known_association!r}")
         if not (isinstance(self.woc_k, (int, float)) and float(self.woc_k) >= 1.0):
             raise ValueError(f"slam.woc_k must be a number with 1 <= K <= inf, got {self.woc_k!r}")
