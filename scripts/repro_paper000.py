@@ -385,6 +385,8 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
     w("## Table 1: RMSE and run time vs particle count (low observation noise)\n")
     w("The paper's Table 1 labels its first block 'EKF_SLAM' although it varies a particle count; as the project "
       "digest advises we compare plain FastSLAM and WOCPF at equal N and put the paper's two blocks beside them.\n")
+    w("Run times are wall-clock seconds per run of our vectorised numpy filters (machine shared with other jobs); "
+      "compare them between rows, not with the paper's MATLAB times.\n")
     w("| N | algorithm | run time per run (s) | path RMSE (m) | map RMSE (m) | paper time (s) | paper path RMSE |"
       " paper map RMSE |")
     w("|---|---|---|---|---|---|---|---|")
