@@ -29,9 +29,10 @@ from agents.baselines import WallFollowExplorer
 class Args:
     layout: str = "lab"
     """layout name or file"""
-    seed: int = 3
-    """episode seed (start pose, sensor noise, filter draws)"""
-    steps: int = 150
+    seed: int = 2
+    """episode seed (start pose, sensor noise, filter draws); 2 shows a typical success,
+    other seeds fail now and then (rates over many seeds: docs/paper004.md)"""
+    steps: int = 400
     """maximum control steps (10 Hz)"""
     lidar_only: bool = False
     """run the relocalizer without the semantic factor"""
