@@ -5,6 +5,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from helpers import assert_identical, random_rollout
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import semreloc_env
@@ -31,38 +32,11 @@ def test_check_env_gymnasium_and_sb3_without_warnings(env_id):
         sb3_check_env(cont.unwrapped, warn=True)
 
 
-def _rollout(env, seed, n=200):
-    obs, info = env.reset(seed=seed)
-    rng = np.random.default_rng(123)
-    out = [(obs, info)]
-    for _ in range(n):
-        obs, r, term, trunc, info = env.step(int(rng.integers(0, 4)))
-        out.append((obs, r, term, info))
-        if term or trunc:
-            obs, info = env.reset()
-    return out
-
-
-def _same(a, b):
-    if isinstance(a, dict):
-        assert a.keys() == b.keys()
-        for k in a:
-            _same(a[k], b[k])
-    elif isinstance(a, (list, tuple)):
-        assert len(a) == len(b)
-        for x, y in zip(a, b):
-            _same(x, y)
-    elif isinstance(a, np.ndarray):
-        np.testing.assert_array_equal(a, b)
-    else:
-        assert a == b
-
-
 def test_two_envs_same_seed_same_actions_are_identical_for_200_steps():
-    a = _rollout(make(), seed=7)
-    b = _rollout(make(), seed=7)
-    _same(a, b)
-    c = _rollout(make(), seed=8, n=5)
+    a = random_rollout(make(), seed=7)
+    b = random_rollout(make(), seed=7)
+    assert_identical(a, b)
+    c = random_rollout(make(), seed=8, n=5)
     assert not np.array_equal(a[0][0]["lidar"], c[0][0]["lidar"])
 
 

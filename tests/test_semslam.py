@@ -7,6 +7,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from helpers import assert_identical, random_rollout
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import semreloc_env  # noqa: F401  (registers the ids)
@@ -63,38 +64,13 @@ def test_check_env_gymnasium_and_sb3_without_warnings():
             env.close()
 
 
-def _rollout(env, seed, n=200):
-    obs, info = env.reset(seed=seed)
-    rng = np.random.default_rng(5)
-    out = [(obs, info)]
-    for _ in range(n):
-        obs, r, term, trunc, info = env.step(int(rng.integers(0, 4)))
-        out.append((obs, r, term, trunc, info))
-    return out
-
-
-def _same(a, b):
-    if isinstance(a, dict):
-        assert a.keys() == b.keys()
-        for k in a:
-            _same(a[k], b[k])
-    elif isinstance(a, (list, tuple)):
-        assert len(a) == len(b)
-        for x, y in zip(a, b):
-            _same(x, y)
-    elif isinstance(a, np.ndarray):
-        np.testing.assert_array_equal(a, b)
-    else:
-        assert a == b
-
-
 def test_two_envs_same_seed_same_actions_are_identical_for_200_steps():
     kw = {"layout": "twin_rooms", "slam": {"n_particles": 30}}
-    a = _rollout(make(**kw), seed=3)
-    b = _rollout(make(**kw), seed=3)
-    _same(a, b)
+    a = random_rollout(make(**kw), seed=3)
+    b = random_rollout(make(**kw), seed=3)
+    assert_identical(a, b)
     assert max(step[-1]["slam"]["n_landmarks"] for step in a[1:]) > 0  # the filter did map something
-    c = _rollout(make(**kw), seed=4, n=3)
+    c = random_rollout(make(**kw), seed=4, n=3)
     assert not np.array_equal(a[0][0]["lidar"], c[0][0]["lidar"])
 
 
