@@ -32,6 +32,7 @@ import numpy as np
 from scipy import ndimage
 
 from filters.pose import wrap_angle
+from filters.resampling import normalise_weights
 
 
 @dataclass(frozen=True)
@@ -100,12 +101,7 @@ def _normalised(weights: np.ndarray, n: int) -> np.ndarray:
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
     if w.shape != (n,):
         raise ValueError(f"weights must have shape ({n},), got {w.shape}")
-    if not np.all(np.isfinite(w)) or np.any(w < 0):
-        raise ValueError("weights must be finite and non-negative")
-    total = w.sum()
-    if not total > 0:
-        raise ValueError("weights sum to zero")
-    return w / total
+    return normalise_weights(w)
 
 
 def _bin_keys(values: np.ndarray, size: float) -> np.ndarray:

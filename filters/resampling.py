@@ -14,7 +14,8 @@ from collections.abc import Callable
 import numpy as np
 
 
-def _check(weights: np.ndarray) -> np.ndarray:
+def normalise_weights(weights: np.ndarray) -> np.ndarray:
+    """Weights ``(N,)`` divided by their sum; ValueError if empty, not 1D, negative, non-finite or all zero."""
     w = np.asarray(weights, dtype=np.float64)
     if w.ndim != 1 or w.size == 0:
         raise ValueError(f"weights must be a non-empty 1D array, got shape {w.shape}")
@@ -34,27 +35,27 @@ def _search(w: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 def multinomial(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Independent draws from the categorical distribution (the "roulette wheel")."""
-    w = _check(weights)
+    w = normalise_weights(weights)
     return _search(w, np.sort(rng.random(w.size)))
 
 
 def stratified(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One uniform draw in each of N equal strata of [0, 1)."""
-    w = _check(weights)
+    w = normalise_weights(weights)
     n = w.size
     return _search(w, (np.arange(n) + rng.random(n)) / n)
 
 
 def systematic(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One uniform offset shared by N evenly spaced pointers."""
-    w = _check(weights)
+    w = normalise_weights(weights)
     n = w.size
     return _search(w, (np.arange(n) + rng.random()) / n)
 
 
 def residual(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Deterministic floor(N*w) copies, the remainder by multinomial draws on the residuals."""
-    w = _check(weights)
+    w = normalise_weights(weights)
     n = w.size
     counts = np.floor(n * w).astype(np.int64)
     rest = n - counts.sum()
@@ -84,5 +85,5 @@ def get_resampler(name: str) -> Callable[[np.ndarray, np.random.Generator], np.n
 
 def effective_sample_size(weights: np.ndarray) -> float:
     """Kish's ESS ``1 / sum(w^2)`` of normalised weights (between 1 and N)."""
-    w = _check(weights)
+    w = normalise_weights(weights)
     return float(1.0 / np.sum(w * w))

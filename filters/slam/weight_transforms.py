@@ -21,22 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def _normalised(weights) -> np.ndarray:
-    w = np.asarray(weights, dtype=np.float64)
-    if w.ndim != 1 or w.size == 0:
-        raise ValueError(f"weights must be a non-empty 1D array, got shape {w.shape}")
-    if not np.all(np.isfinite(w)) or np.any(w < 0):
-        raise ValueError("weights must be finite and non-negative")
-    total = w.sum()
-    if not total > 0:
-        raise ValueError("weights sum to zero")
-    return w / total
+from filters.resampling import normalise_weights
 
 
 def identity(weights) -> np.ndarray:
     """The weights, normalised to sum to 1."""
-    return _normalised(weights)
+    return normalise_weights(weights)
 
 
 def woc(weights, K: float) -> np.ndarray:
@@ -47,7 +37,7 @@ def woc(weights, K: float) -> np.ndarray:
     K = float(K)
     if not K >= 1.0:
         raise ValueError(f"WOC scaling factor K must satisfy 1 <= K <= inf, got {K}")
-    w = _normalised(weights)
+    w = normalise_weights(weights)
     if np.isinf(K):
         return w
     psi = (K - 1.0) / K * w + w.mean() / K
