@@ -48,7 +48,7 @@ def test_each_builtin_layout_runs(layout):
     for a in (0, 1, 0, 2, 3):
         obs, r, term, trunc, info = env.step(a)
     assert env.observation_space.contains(obs)
-    assert set(info["rewards"]) == {"time", "collision", "entropy", "success"}
+    assert set(info["rewards"]) == {"time", "collision", "entropy", "success", "wrong_convergence"}
     assert r == pytest.approx(sum(info["rewards"].values()))
     assert np.isfinite(info["pose_error"]["position"])
 

@@ -76,6 +76,8 @@ def test_kidnap_teleports_without_telling_the_filter():
     np.testing.assert_allclose(info["pose"], target, atol=1e-9)
     assert np.hypot(*(before[:2] - info["pose"][:2])) > 5
     assert info["pose_error"]["position"] > 3  # the belief did not follow the jump
+    assert info["belief"]["converged"]
+    assert info["rewards"]["wrong_convergence"] < 0  # converged, but in the wrong place
 
 
 def test_changed_scenario_adds_obstacles_the_map_lacks():

@@ -34,6 +34,7 @@ class RewardWeights:
     collision: float = -0.5
     entropy: float = 0.05
     success: float = 1.0
+    wrong_convergence: float = -0.05
 
 
 class SemRelocEnv(SemRelocBase):
@@ -72,7 +73,9 @@ class SemRelocEnv(SemRelocBase):
     ``time`` (constant per step), ``collision`` (robot touched an obstacle),
     ``entropy`` (drop of the belief's pose-histogram entropy, nats),
     ``success`` (once, when the belief converges within 0.5 m and 15 deg of the truth;
-    in a tracking episode only after a kidnap).
+    in a tracking episode only after a kidnap), ``wrong_convergence`` (every step the
+    belief is converged but farther than that from the truth: the entropy term alone
+    would pay for collapsing onto a look-alike place).
 
     ## Starting State
     A uniformly random free pose, or ``options={"pose": (x, y, theta)}``. The
@@ -222,11 +225,16 @@ class SemRelocEnv(SemRelocBase):
         drop = 0.0 if self._prev_entropy is None else self._prev_entropy - self._belief.entropy_nats
         success = self._is_success() and not self._succeeded
         self._succeeded |= success
+        err = self.pose_error()
+        wrong = self._belief.converged and (
+            err["position"] >= SUCCESS_POSITION_M or err["heading"] >= SUCCESS_HEADING_RAD
+        )
         return {
             "time": w.time,
             "collision": w.collision if collided else 0.0,
             "entropy": w.entropy * drop,
             "success": w.success if success else 0.0,
+            "wrong_convergence": w.wrong_convergence if wrong else 0.0,
         }
 
     def _terminated(self) -> bool:
