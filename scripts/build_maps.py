@@ -60,7 +60,8 @@ def main(argv=None) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     grid = build_maps(layout, rng=np.random.default_rng(args.seed), resolution_m=args.resolution)
-    path = save_map(grid, out / f"{layout.name}.yaml")
+    name = layout.name if not layout.name.startswith("procedural") else f"{layout.name}_{args.layout_seed}"
+    path = save_map(grid, out / f"{name}.yaml")
     truth = rasterize(layout, args.resolution)
     print(f"{layout.name}: {len(mapping_path(layout))} poses mapped in {time.perf_counter() - t0:.1f} s -> {path}")
     for name, q in semantic_surface_quality(grid, truth).items():
@@ -69,7 +70,7 @@ def main(argv=None) -> Path:
             f"recall {q['recall']:.2f} (1-cell tolerance)"
         )
     if args.perfect:
-        save_map(truth, out / f"{layout.name}.perfect.yaml")
+        save_map(truth, out / f"{name}.perfect.yaml")
     return path
 
 

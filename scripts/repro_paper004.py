@@ -268,7 +268,7 @@ def _write_markdown(table, args: Args, cmd: str, elapsed: float, path: Path) -> 
         [
             marker_start,
             f"Made by `{cmd}` ({args.seeds} seeds per row, {args.particles} particles, "
-            f"time limit {args.max_steps} steps, {elapsed / 60:.1f} min on 2 cores).",
+            f"time limit {args.max_steps} steps, {elapsed / 60:.1f} min with {args.workers} worker processes).",
             "",
             *lines,
             "",

@@ -32,8 +32,10 @@ def mapping_path(layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, tu
     Waypoints: a ``spacing_m`` lattice of poses with at least robot-radius + 0.1 m
     clearance, visited in boustrophedon order; between waypoints the path follows
     the shortest lattice route (straight 8-neighbour hops that stay free), sampled
-    every ``step_m`` with the heading along the path; at each waypoint the robot
-    turns through ``turns`` headings.
+    every ``step_m`` with the heading along the path; at each waypoint's first visit
+    the robot turns through ``turns`` headings. A waypoint the lattice cannot reach
+    from the current one starts a new leg (the poses are known, so the drive may jump):
+    every free waypoint is visited.
     """
     world = build_world(layout)
     x0, x1, y0, y1 = layout.bounds()
@@ -69,26 +71,39 @@ def mapping_path(layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, tu
     graph = csr_matrix((dists, (rows, cols)), shape=(len(nodes), len(nodes)))
     _, pred = shortest_path(graph, directed=False, return_predecessors=True)
 
-    poses: list[np.ndarray] = []
-    heading = 0.0
-    route = [0]
+    # the route: (node, reached by driving) pairs; a node the lattice cannot reach from the
+    # current one (a doorway no straight hop crosses) starts a new leg: the poses are known,
+    # so the drive need not be continuous, and every free waypoint gets visited
+    route: list[tuple[int, bool]] = [(0, False)]
+    visited = {0}
     for k in range(1, len(nodes)):
+        if k in visited:
+            continue
+        cur = route[-1][0]
         hop, back = [], k
-        while back != route[-1] and back >= 0:
+        while back != cur and back >= 0:
             hop.append(back)
-            back = pred[route[-1], back]
-        if back < 0:
-            continue  # unreachable from here (a closed-off pocket): skip it
-        route += hop[::-1]
-    seen = {route[0]}
-    for a, b in zip(route[:-1], route[1:]):
+            back = pred[cur, back]
+        steps = [(h, True) for h in hop[::-1]] if back >= 0 else [(k, False)]
+        route += steps
+        visited.update(h for h, _ in steps)
+
+    def look_around(p, heading):
+        return [np.array([p[0], p[1], heading + 2 * math.pi * q / turns]) for q in range(turns)]
+
+    poses: list[np.ndarray] = look_around(pts[0], 0.0)
+    seen = {0}
+    for (a, _), (b, driven) in zip(route[:-1], route[1:]):
         pa, pb = pts[a], pts[b]
-        heading = math.atan2(pb[1] - pa[1], pb[0] - pa[0])
-        n = max(1, int(np.ceil(np.linalg.norm(pb - pa) / step_m)))
-        poses += [np.array([*(pa + t * (pb - pa)), heading]) for t in np.arange(n) / n]
+        heading = math.atan2(pb[1] - pa[1], pb[0] - pa[0]) if driven else 0.0
+        if driven:
+            n = max(1, int(np.ceil(np.linalg.norm(pb - pa) / step_m)))
+            poses += [np.array([*(pa + t * (pb - pa)), heading]) for t in np.arange(1, n) / n]
         if b not in seen:  # first visit: look around
             seen.add(b)
-            poses += [np.array([pb[0], pb[1], heading + 2 * math.pi * q / turns]) for q in range(1, turns + 1)]
+            poses += look_around(pb, heading)
+        else:
+            poses.append(np.array([pb[0], pb[1], heading]))
     out = np.array(poses)
     out[:, 2] = (out[:, 2] + math.pi) % (2 * math.pi) - math.pi
     return out

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import matplotlib.pyplot as plt  # falls back to Agg by itself where there is no display
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 
 from .layouts import CLASS_NAMES, Layout
@@ -82,10 +83,17 @@ class Renderer:
         self.human = human
         x0, x1, y0, y1 = layout.bounds()
         scale = 8.0 / max(x1 - x0, y1 - y0)
-        self.fig, self.ax = plt.subplots(figsize=((x1 - x0) * scale + 0.4, (y1 - y0) * scale + 0.4), dpi=dpi)
-        if human:
+        size = ((x1 - x0) * scale + 0.4, (y1 - y0) * scale + 0.4)
+        if human:  # a window: pyplot manages it
+            import matplotlib.pyplot as plt
+
             plt.ion()
+            self.fig, self.ax = plt.subplots(figsize=size, dpi=dpi)
             self.fig.show()
+        else:  # off-screen: a figure pyplot does not track, freed with the renderer
+            self.fig = Figure(figsize=size, dpi=dpi)
+            FigureCanvasAgg(self.fig)
+            self.ax = self.fig.add_subplot()
 
     def draw(self, state: dict[str, Any]) -> np.ndarray:
         """Draw one state: layout, particles, scans, landmarks (crosses), true pose (black), estimate (magenta)."""
@@ -110,8 +118,13 @@ class Renderer:
         self.fig.canvas.draw()
         frame = np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
         if self.human:
+            import matplotlib.pyplot as plt
+
             plt.pause(0.001)
         return frame
 
     def close(self) -> None:
-        plt.close(self.fig)
+        if self.human:
+            import matplotlib.pyplot as plt
+
+            plt.close(self.fig)

@@ -13,8 +13,9 @@ SCENARIOS = ("nominal", "changed")
 def changed_obstacles(layout: Layout, seed: int = 0, n: int = 6, size_m: tuple[float, float] = (0.4, 0.8)) -> list:
     """``n`` box obstacles ``(4, 2)`` placed in free space, absent from any map of ``layout``.
 
-    Deterministic in ``seed``. Each box keeps 0.7 m clearance to walls and to the
-    other boxes, so the robot can still drive around it.
+    Deterministic in ``seed``. A box's centre is at least half its longer side + 0.7 m
+    from every wall and object edge, and 1.5 m from the other boxes' centres, so the
+    robot can usually drive around it (a corner may come to about 0.5 m of a wall).
     """
     rng = np.random.default_rng([seed, 4004])
     world = build_world(layout)

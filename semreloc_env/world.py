@@ -22,6 +22,12 @@ from .raycast import SegmentScene
 _ROBOT_TYPE = 1
 
 
+def _counter_clockwise(poly: np.ndarray) -> np.ndarray:
+    x, y = poly[:, 0], poly[:, 1]
+    area = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    return poly if area > 0 else poly[::-1].copy()
+
+
 def _convex_parts(poly: np.ndarray) -> list[list[tuple[float, float]]]:
     """Convex pieces of a simple polygon (pymunk polygons must be convex)."""
     pts = [tuple(map(float, p)) for p in poly]
@@ -51,8 +57,14 @@ class World:
             self.space.add(pymunk.Segment(static, tuple(a), tuple(b), 0.0))
             segments.append((a, b))
             owners.append(-1)
+        max_step = robot.max_linear_mps * physics.dt_s / physics.substeps
+        if max_step >= robot.radius_m:
+            raise ValueError(
+                f"the robot would move {max_step:.3f} m per physics substep, not less than its radius "
+                f"{robot.radius_m} m: it could pass through thin walls; raise physics.substeps or control_hz"
+            )
         polygons = [np.asarray(o.polygon) for o in layout.objects]
-        self._obstacles = polygons + [np.asarray(p, dtype=np.float64) for p in extra_obstacles]
+        self._obstacles = polygons + [_counter_clockwise(np.asarray(p, dtype=np.float64)) for p in extra_obstacles]
         for i, poly in enumerate(self._obstacles):
             for part in _convex_parts(poly):
                 self.space.add(pymunk.Poly(static, part))

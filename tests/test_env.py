@@ -83,13 +83,16 @@ def test_invalid_actions_raise_and_change_nothing():
     for bad in (4, -1, 1.5, "forward", np.array([0, 1]), None):
         with pytest.raises(ValueError, match="invalid action"):
             env.step(bad)
+    np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
+    np.testing.assert_array_equal(env.unwrapped.mcl.poses, particles)
     cont = make(action_type="continuous")
     cont.reset(seed=0)
+    pose, particles = cont.unwrapped.world.pose.copy(), cont.unwrapped.mcl.poses.copy()
     for bad in ([np.nan, 0.0], [2.0, 0.0], [0.5], "go"):
         with pytest.raises(ValueError, match="invalid action"):
             cont.step(bad)
-    np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
-    np.testing.assert_array_equal(env.unwrapped.mcl.poses, particles)
+    np.testing.assert_array_equal(cont.unwrapped.world.pose, pose)
+    np.testing.assert_array_equal(cont.unwrapped.mcl.poses, particles)
     env.step(np.int64(0))  # numpy integers are fine
 
 
@@ -104,7 +107,7 @@ def test_bad_reset_options_raise_and_keep_the_episode():
         ({"pose": [np.nan, 1.0, 0.0]}, "finite"),
         ({"teleport": True}, "unknown reset options"),
         ({"kidnap_at_step": 0}, "kidnap_at_step"),
-        ({"kidnap_pose": [0.3, 2.0, 0.0]}, "not free"),
+        ({"kidnap_at_step": 5, "kidnap_pose": [0.3, 2.0, 0.0]}, "not free"),
     ]:
         with pytest.raises(ValueError, match=match):
             env.reset(options=options)

@@ -59,20 +59,24 @@ def test_lidar_only_switch_changes_the_weights():
     ia, ib = drive(a, 30, seed=2, options=facing_cabinet), drive(b, 30, seed=2, options=facing_cabinet)
     assert any(x["mcl"]["n_semantic_beams"] > 0 for x in ia)
     assert all(x["mcl"]["n_semantic_beams"] == 0 for x in ib)
+    # same start, same first scans: the beliefs part once the semantic factor weighs in
+    assert any(x["belief"]["mean"] != y["belief"]["mean"] for x, y in zip(ia, ib))
+    assert ia[0]["pose"].tolist() == ib[0]["pose"].tolist()
 
 
 def test_kidnap_teleports_without_telling_the_filter():
     env = gym.make("SemReloc-v0", map_source="perfect", relocalizer={"n_particles": 500})
     target = [12.0, 8.0, 1.0]
     obs, info = env.reset(seed=0, options={"tracking": True, "kidnap_at_step": 3, "kidnap_pose": target})
-    before = None
-    for step in range(1, 5):
+    poses, flags = [], []
+    for _ in range(4):
         obs, _, _, _, info = env.step(3)  # stop: odometry should read ~0 throughout
         assert np.all(np.abs(obs["odometry"]) < 0.05)
-        if step == 2:
-            before = info["pose"].copy()
-            assert not info["kidnapped"]
-    assert info["kidnapped"]
+        poses.append(info["pose"].copy())
+        flags.append(info["kidnapped"])
+    assert flags == [False, False, True, True]  # teleported at step 3 exactly
+    np.testing.assert_array_equal(poses[0], poses[1])
+    before = poses[1]
     np.testing.assert_allclose(info["pose"], target, atol=1e-9)
     assert np.hypot(*(before[:2] - info["pose"][:2])) > 5
     assert info["pose_error"]["position"] > 3  # the belief did not follow the jump
@@ -109,6 +113,50 @@ def test_mapping_run_semantic_map_matches_the_visible_object_surfaces():
     outside = truth.occupancy == 0.5
     assert not np.any(mapped.free_mask() & outside)
     assert np.mean(mapped.free_mask()[truth.free_mask()]) > 0.9
+
+
+@pytest.mark.parametrize("name, seed", [("procedural", 1), ("procedural", 13), ("procedural_sym", 2)])
+def test_mapping_run_covers_the_free_space_of_procedural_layouts(name, seed):
+    layout = get_layout(name, seed=seed)
+    mapped, truth = build_maps(layout), rasterize(layout)
+    covered = np.mean(mapped.free_mask()[truth.free_mask()])
+    assert covered > 0.9, covered
+
+
+def test_semantic_switch_and_relocalizer_setting_agree():
+    env = gym.make("SemReloc-v0", map_source="perfect", relocalizer={"use_semantic": False, "n_particles": 100})
+    assert env.unwrapped.mcl_config.use_semantic is False
+    with pytest.raises(ValueError, match="contradicts"):
+        gym.make("SemReloc-v0", map_source="perfect", semantic=True, relocalizer={"use_semantic": False})
+
+
+def test_a_failed_reset_keeps_the_running_episode():
+    env = gym.make("SemReloc-v0", map_source="perfect", relocalizer={"n_particles": 200}).unwrapped
+    env.reset(seed=0)
+    env.step(0)
+    pose, particles = env.world.pose.copy(), env.mcl.poses.copy()
+    empty = GridMap(
+        np.ones_like(env.grid.occupancy), env.grid.resolution_m, env.grid.origin_xy_m, class_names=env.grid.class_names
+    )
+    good_grid, env.grid = env.grid, empty
+    with pytest.raises(ValueError, match="free"):
+        env.reset(seed=1)
+    env.grid = good_grid
+    np.testing.assert_array_equal(env.world.pose, pose)
+    np.testing.assert_array_equal(env.mcl.poses, particles)
+    env.step(0)  # the old episode goes on
+
+
+def test_bad_kidnap_options():
+    env = gym.make("SemReloc-v0", map_source="perfect", relocalizer={"n_particles": 100})
+    for options, match in [
+        ({"kidnap_pose": [2.5, 5.0, 0.0]}, "needs kidnap_at_step"),
+        ({"kidnap_at_step": True}, "kidnap_at_step"),
+        ({"kidnap_at_step": 2, "kidnap_pose": {"x": 1}}, "three finite numbers"),
+        ({"kidnap_at_step": 2, "kidnap_pose": [2.5, 5.0]}, "three finite numbers"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            env.reset(seed=0, options=options)
 
 
 def test_map_file_source_round_trips(tmp_path):

@@ -57,8 +57,14 @@ def test_lidar_noise_and_dropouts_and_max_range():
 
 
 def _camera(**kw):
-    base = dict(n_beams=71, fov_rad=math.radians(70), noise_std_m=0.0, miss_rate=0.0, wrong_class_rate=0.0,
-                false_positive_rate=0.0)
+    base = dict(
+        n_beams=71,
+        fov_rad=math.radians(70),
+        noise_std_m=0.0,
+        miss_rate=0.0,
+        wrong_class_rate=0.0,
+        false_positive_rate=0.0,
+    )
     return SemanticCamera(CameraParams(**{**base, **kw}))
 
 
@@ -188,6 +194,17 @@ def test_set_pose_rejects_blocked_and_bad_poses_without_moving():
         with pytest.raises(ValueError):
             world.set_pose(bad)
         assert world.pose.tolist() == [1.0, 1.0, 0.0]
+
+
+def test_speeds_that_could_tunnel_through_walls_are_rejected():
+    with pytest.raises(ValueError, match="substep"):
+        build_world(layout_from_dict(ROOM), RobotParams(max_linear_mps=20.0), PhysicsParams(substeps=2))
+
+
+def test_extra_obstacles_of_either_winding():
+    concave_cw = [[1.0, 1.0], [1.0, 3.0], [2.0, 2.0], [3.0, 3.0], [3.0, 1.0]]  # clockwise, concave
+    world = build_world(layout_from_dict(ROOM), extra_obstacles=[np.array(concave_cw)])
+    assert not world.is_free([2.0, 1.5])
 
 
 def test_world_without_free_space():

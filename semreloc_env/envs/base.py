@@ -88,17 +88,23 @@ class SemRelocBase(gym.Env):
         if options.get("pose") is not None:
             world.set_pose(options["pose"])  # raises before any state changes
         self._validate_options(options, world)
-        super().reset(seed=seed)
-        # independent streams: world/start pose, sensors, odometry, estimator
-        self._start_rng, self._sensor_rng, self._odom_rng, self._estimator_rng = self.np_random.spawn(4)
-        if options.get("pose") is None:
-            world.set_pose(world.sample_free_pose(self._start_rng))
-        self.world = world
-        self._steps = 0
-        odom = np.zeros(3)
-        lidar_scan, semantic_scan = self._sense()
-        self._reset_estimator(options)
-        self._step_estimator(odom, lidar_scan, semantic_scan)
+        saved = dict(self.__dict__)  # a reset that fails below must leave the old episode intact
+        try:
+            super().reset(seed=seed)
+            # independent streams: world/start pose, sensors, odometry, estimator
+            self._start_rng, self._sensor_rng, self._odom_rng, self._estimator_rng = self.np_random.spawn(4)
+            if options.get("pose") is None:
+                world.set_pose(world.sample_free_pose(self._start_rng))
+            self.world = world
+            self._steps = 0
+            odom = np.zeros(3)
+            lidar_scan, semantic_scan = self._sense()
+            self._reset_estimator(options)
+            self._step_estimator(odom, lidar_scan, semantic_scan)
+        except Exception:
+            self.__dict__.clear()
+            self.__dict__.update(saved)
+            raise
         obs = make_observation(lidar_scan, semantic_scan, odom)
         self._last = {"lidar": lidar_scan, "semantic": semantic_scan}
         info = self._info()

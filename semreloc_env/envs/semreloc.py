@@ -102,7 +102,8 @@ class SemRelocEnv(SemRelocBase):
       ``CameraParams`` and :class:`filters.motion.OdometryMotionConfig` (the simulator's noise).
     * ``relocalizer``: dict of overrides of :data:`DEFAULT_RELOCALIZER`, a :class:`filters.mcl.MCLConfig`
       (e.g. ``n_particles``); an MCLConfig instance replaces it whole.
-    * ``semantic``: False runs the relocalizer lidar-only (the comparison of paper 004).
+    * ``semantic``: False runs the relocalizer lidar-only (the comparison of paper 004); None
+      (default) keeps the relocalizer's ``use_semantic`` (True unless overridden there).
     * ``map_source``: ``"mapping"`` (default; maps built by a simulated mapping run, so map and
       world disagree as on a robot), ``"perfect"`` (rasterised layout), a ROS map ``.yaml`` path, or a GridMap.
     * ``scenario``: ``"nominal"`` or ``"changed"`` (obstacles in the world that the map lacks, paper 004).
@@ -131,7 +132,7 @@ class SemRelocEnv(SemRelocBase):
         camera=None,
         odometry=None,
         relocalizer: dict | MCLConfig | None = None,
-        semantic: bool = True,
+        semantic: bool | None = None,
         map_source: str | Path | GridMap = "mapping",
         scenario: str = "nominal",
         reward_weights: dict | RewardWeights | None = None,
@@ -149,7 +150,12 @@ class SemRelocEnv(SemRelocBase):
         from ..config import coerce_config
 
         cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", DEFAULT_RELOCALIZER)
-        self.mcl_config = dataclasses.replace(cfg, use_semantic=bool(semantic))
+        if semantic is not None:
+            if isinstance(relocalizer, MCLConfig) or (isinstance(relocalizer, dict) and "use_semantic" in relocalizer):
+                if bool(semantic) != cfg.use_semantic:
+                    raise ValueError(f"semantic={semantic} contradicts relocalizer use_semantic={cfg.use_semantic}")
+            cfg = dataclasses.replace(cfg, use_semantic=bool(semantic))
+        self.mcl_config = cfg
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
         self.layout_seed = int(layout_seed)
@@ -163,15 +169,22 @@ class SemRelocEnv(SemRelocBase):
 
     def _validate_options(self, options: dict, world) -> None:
         k = options.get("kidnap_at_step")
-        if k is not None and not (isinstance(k, (int, np.integer)) and k >= 1):
+        if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1):
             raise ValueError(f"kidnap_at_step must be an integer >= 1, got {k!r}")
         kp = options.get("kidnap_pose")
         if kp is not None:
-            kp = np.asarray(kp, dtype=np.float64)
+            if k is None:
+                raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
+            try:
+                kp = np.asarray(kp, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}") from None
             if kp.shape != (3,) or not np.all(np.isfinite(kp)):
                 raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}")
             if not world.is_free(kp[:2]):
                 raise ValueError(f"kidnap_pose {kp.tolist()} is not free: it overlaps a wall or object")
+        if not self.grid.free_mask().any():
+            raise ValueError("the relocalizer's map has no free cell: nowhere to put particles")
 
     def _reset_estimator(self, options: dict) -> None:
         self.mcl = MonteCarloLocalizer(self.grid, self.mcl_config, self._estimator_rng)

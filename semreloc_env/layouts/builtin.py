@@ -12,7 +12,7 @@ def _box(cls: str, cx: float, cy: float, w: float, h: float, name: str = "") -> 
 
 
 def lab() -> dict:
-    """An indoor lab in the spirit of paper 004: 15 m x 10 m, six rooms on a corridor.
+    """An indoor lab in the spirit of paper 004: 15 m x 10 m, five rooms on a corridor.
 
     A 2 m corridor runs east-west at ``y in [4, 6]``. Below it three identical
     5 m x 4 m rooms, above it two 7.5 m x 4 m rooms: the look-alike rooms make

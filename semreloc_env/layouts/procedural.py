@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,6 +63,17 @@ def _room_furniture(rng: np.random.Generator, x0: float, x1: float, depth: float
     return out
 
 
+def _widths_summing_to(rng: np.random.Generator, length: float, width_range: tuple[float, float]) -> np.ndarray:
+    """Room widths within ``width_range`` that add up to ``length`` (as many rooms as fit)."""
+    lo, hi = width_range
+    n = int(rng.integers(math.ceil(length / hi - 1e-9), math.floor(length / lo + 1e-9) + 1))
+    w = rng.uniform(lo, hi, size=n)
+    w *= length / w.sum()
+    if w.min() < lo or w.max() > hi:  # the rescaling pushed one out of range: equal widths fit
+        w = np.full(n, length / n)
+    return w
+
+
 def procedural_layout(rng: np.random.Generator, params: ProceduralParams | None = None) -> dict:
     """Generate a furnished corridor-and-rooms layout (dict form) from ``rng``.
 
@@ -79,8 +91,8 @@ def procedural_layout(rng: np.random.Generator, params: ProceduralParams | None 
     if p.symmetric:
         north_x = length - south_x[::-1]
     else:
-        north_w = rng.uniform(*p.room_width_m, size=int(rng.integers(p.rooms_per_side[0], p.rooms_per_side[1] + 1)))
-        north_x = np.concatenate([[0.0], np.cumsum(north_w)]) * length / north_w.sum()
+        north_x = np.concatenate([[0.0], np.cumsum(_widths_summing_to(rng, length, p.room_width_m))])
+        north_x[-1] = length
     half = p.doorway_m / 2
 
     def doors(xs):
