@@ -128,8 +128,23 @@ def bench_likelihood(args: Args) -> list[Row]:
     c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
     out_l, out_s = np.zeros(args.particles), np.zeros(args.particles)
     ox, oy = grid.origin_xy_m
-    kernel_args = (x, y, c, s, beams.lx, beams.ly, beams.table, beams.n_lidar, tables, floors, ox, oy,
-                   1.0 / grid.resolution_m, out_l, out_s)
+    kernel_args = (
+        x,
+        y,
+        c,
+        s,
+        beams.lx,
+        beams.ly,
+        beams.table,
+        beams.n_lidar,
+        tables,
+        floors,
+        ox,
+        oy,
+        1.0 / grid.resolution_m,
+        out_l,
+        out_s,
+    )
     t_kernel = _median_time(lambda: log_likelihood_kernel(*kernel_args), args.repeats)
     a = model.log_likelihood(poses, lidar, semantic)
     b = log_likelihood_reference(model, poses, lidar, semantic)
@@ -168,6 +183,7 @@ def bench_mcl_step(args: Args) -> list[Row]:
 
 ODOM_STEP = (0.05, 0.0, 0.02)
 """Odometry increment of one benchmarked MCL step (dx m, dy m, dtheta rad)."""
+
 
 def bench_env(args: Args) -> list[Row]:
     """``SemReloc-v0`` steps per second (N particles, B lidar beams, semantic camera), against

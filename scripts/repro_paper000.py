@@ -153,8 +153,13 @@ HIGH = Setting(0.4, math.radians(4.0))
 
 
 def drive(args: Args, setting: Setting, setting_idx: int, r: int) -> CarSimRun:
-    cfg = CarSimConfig(sigma_v_mps=setting.sigma_v_mps, sigma_g_rad=setting.sigma_g_rad, sigma_r_m=setting.sigma_r_m,
-                       sigma_b_rad=setting.sigma_b_rad, n_loops=args.loops)
+    cfg = CarSimConfig(
+        sigma_v_mps=setting.sigma_v_mps,
+        sigma_g_rad=setting.sigma_g_rad,
+        sigma_r_m=setting.sigma_r_m,
+        sigma_b_rad=setting.sigma_b_rad,
+        n_loops=args.loops,
+    )
     return simulate(cfg, default_course(), np.random.default_rng([args.seed, setting_idx, r]))
 
 
@@ -211,8 +216,9 @@ def main(argv: list[str] | None = None) -> None:
     for si, st in enumerate(settings):
         for r in range(args.runs):
             run = drive(args, st, si, r)
-            for tag, (name, kind, k) in enumerate([("EKF-SLAM", "ekf", math.inf), ("FastSLAM", "fs", math.inf),
-                                                   ("WOCPF", "fs", args.woc_k)]):
+            for tag, (name, kind, k) in enumerate(
+                [("EKF-SLAM", "ekf", math.inf), ("FastSLAM", "fs", math.inf), ("WOCPF", "fs", args.woc_k)]
+            ):
                 f = make_filter(kind, args, st, filter_rng(args, si, r, tag), args.particles, k)
                 res = run_filter(f, run)
                 t2.setdefault((si, name), []).append(res)
@@ -276,8 +282,9 @@ def main(argv: list[str] | None = None) -> None:
     for name, off in (("FastSLAM", -0.6), ("WOCPF", 0.6)):
         for ax, key in zip(axes, ("path_rmse", "map_rmse", "time_s"), strict=True):
             m = [ci95([res[key] for res in t1[(n, name)]]) for n in n1]
-            ax.errorbar(np.array(n1) + off, [a for a, _ in m], yerr=[b for _, b in m], marker="o", capsize=3,
-                        label=name)
+            ax.errorbar(
+                np.array(n1) + off, [a for a, _ in m], yerr=[b for _, b in m], marker="o", capsize=3, label=name
+            )
     for ax, lab in zip(axes, ("path RMSE (m)", "map RMSE (m)", "run time per run (s)"), strict=True):
         ax.set_xlabel("particles N")
         ax.set_ylabel(lab)
@@ -324,31 +331,47 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
     w(f"```\n{cmd.strip()}\n```\n")
     w(f"Total wall time {total_s:.0f} s on one core.\n")
     w("## Setup\n")
-    w("* Simulator: Bailey's car-like SLAM simulator (`filters/benchmarks/car_sim.py`), our built-in course "
-      "(100 m x 80 m, 15 waypoints, 31 landmarks, clockwise from (0, 0)), 3 m/s, wheelbase 4 m, max steer 30 deg, "
-      "steer rate 20 deg/s, controls every 0.025 s, scans every 0.2 s, range 30 m, forward half-plane.")
-    w(f"* Run length: {args.loops} lap(s) of the course = {run0.n_steps} control steps "
-      f"({run0.n_steps * run0.dt_control_s:.0f} s simulated), {len(run0.observations)} scans; "
-      f"{np.mean([len(z) for z in run0.observations]):.1f} landmarks visible per scan on average.")
-    w("* Control noise sigma_v = 0.2 m/s, sigma_G = 4 deg (added to the controls the filters see, per control "
-      "step); the filters use the true noise values.")
-    w(f"* {args.runs} Monte Carlo runs per setting. Each run simulates one drive (seeded) and every filter runs on "
-      "that same drive, so differences between filters are paired.")
-    w(f"* FastSLAM = FastSLAM {args.version}.0 (`filters/slam/fastslam.py`), systematic resampling after every "
-      f"update; WOCPF = the same filter with the WOC weight transform of Eq. 7, K = {args.woc_k:g} (the paper "
-      "does not state K; we fixed this value before running and show a sweep below). "
-      f"N = {args.particles} particles in Table 2 and the sweep (the paper does not state N for Table 2).")
-    w(f"* Data association: `{args.association}` for all three filters "
-      + ("(maximum likelihood, NIS gates 9.21 / 25)." if args.association == "ml" else "(simulator ids).")
-      + " EKF-SLAM: `filters/slam/ekf_slam.py`.")
-    w("* Metrics: *mean pose error* = mean over scans of the position error of the filter's estimate after the "
-      "update; *path RMSE* = root mean square of the same; *mean landmark error* / *map RMSE* = mean / RMS "
-      "distance of each landmark of the final map (best particle's map for FastSLAM) to its true landmark "
-      "(nearest true landmark under ML association). Spread: mean ± half-width of a 95 % normal CI over runs.\n")
+    w(
+        "* Simulator: Bailey's car-like SLAM simulator (`filters/benchmarks/car_sim.py`), our built-in course "
+        "(100 m x 80 m, 15 waypoints, 31 landmarks, clockwise from (0, 0)), 3 m/s, wheelbase 4 m, max steer 30 deg, "
+        "steer rate 20 deg/s, controls every 0.025 s, scans every 0.2 s, range 30 m, forward half-plane."
+    )
+    w(
+        f"* Run length: {args.loops} lap(s) of the course = {run0.n_steps} control steps "
+        f"({run0.n_steps * run0.dt_control_s:.0f} s simulated), {len(run0.observations)} scans; "
+        f"{np.mean([len(z) for z in run0.observations]):.1f} landmarks visible per scan on average."
+    )
+    w(
+        "* Control noise sigma_v = 0.2 m/s, sigma_G = 4 deg (added to the controls the filters see, per control "
+        "step); the filters use the true noise values."
+    )
+    w(
+        f"* {args.runs} Monte Carlo runs per setting. Each run simulates one drive (seeded) and every filter runs on "
+        "that same drive, so differences between filters are paired."
+    )
+    w(
+        f"* FastSLAM = FastSLAM {args.version}.0 (`filters/slam/fastslam.py`), systematic resampling after every "
+        f"update; WOCPF = the same filter with the WOC weight transform of Eq. 7, K = {args.woc_k:g} (the paper "
+        "does not state K; we fixed this value before running and show a sweep below). "
+        f"N = {args.particles} particles in Table 2 and the sweep (the paper does not state N for Table 2)."
+    )
+    w(
+        f"* Data association: `{args.association}` for all three filters "
+        + ("(maximum likelihood, NIS gates 9.21 / 25)." if args.association == "ml" else "(simulator ids).")
+        + " EKF-SLAM: `filters/slam/ekf_slam.py`."
+    )
+    w(
+        "* Metrics: *mean pose error* = mean over scans of the position error of the filter's estimate after the "
+        "update; *path RMSE* = root mean square of the same; *mean landmark error* / *map RMSE* = mean / RMS "
+        "distance of each landmark of the final map (best particle's map for FastSLAM) to its true landmark "
+        "(nearest true landmark under ML association). Spread: mean ± half-width of a 95 % normal CI over runs.\n"
+    )
 
     w("## Table 2: accuracy in two observation-noise settings\n")
-    w("| algorithm | pose err (m), low noise | landmark err (m), low | pose err (m), high | landmark err (m), high |"
-      " paper (low pose / lm, high pose / lm) |")
+    w(
+        "| algorithm | pose err (m), low noise | landmark err (m), low | pose err (m), high | landmark err (m), high |"
+        " paper (low pose / lm, high pose / lm) |"
+    )
     w("|---|---|---|---|---|---|")
     for name in ("EKF-SLAM", "FastSLAM", "WOCPF"):
         cells = []
@@ -377,18 +400,27 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
         w(f"| {st.label()} | {paired(a, b, 'pose_err')} | {paired(a, b, 'lm_err')} |")
     w("")
     nl = {name: np.mean([x["n_landmarks"] for x in t2[(0, name)]]) for name in ("EKF-SLAM", "FastSLAM", "WOCPF")}
-    w("Mean number of landmarks in the final map (low noise; true: 31): "
-      + ", ".join(f"{k} {v:.1f}" for k, v in nl.items()) + ".\n")
+    w(
+        "Mean number of landmarks in the final map (low noise; true: 31): "
+        + ", ".join(f"{k} {v:.1f}" for k, v in nl.items())
+        + ".\n"
+    )
     w(f"![pose error over time]({fig_rel}/{out.stem}_pose_error.png)\n")
     w(f"![course and maps]({fig_rel}/{out.stem}_course.png)\n")
 
     w("## Table 1: RMSE and run time vs particle count (low observation noise)\n")
-    w("The paper's Table 1 labels its first block 'EKF_SLAM' although it varies a particle count; as the project "
-      "digest advises we compare plain FastSLAM and WOCPF at equal N and put the paper's two blocks beside them.\n")
-    w("Run times are wall-clock seconds per run of our vectorised numpy filters (machine shared with other jobs); "
-      "compare them between rows, not with the paper's MATLAB times.\n")
-    w("| N | algorithm | run time per run (s) | path RMSE (m) | map RMSE (m) | paper time (s) | paper path RMSE |"
-      " paper map RMSE |")
+    w(
+        "The paper's Table 1 labels its first block 'EKF_SLAM' although it varies a particle count; as the project "
+        "digest advises we compare plain FastSLAM and WOCPF at equal N and put the paper's two blocks beside them.\n"
+    )
+    w(
+        "Run times are wall-clock seconds per run of our vectorised numpy filters (machine shared with other jobs); "
+        "compare them between rows, not with the paper's MATLAB times.\n"
+    )
+    w(
+        "| N | algorithm | run time per run (s) | path RMSE (m) | map RMSE (m) | paper time (s) | paper path RMSE |"
+        " paper map RMSE |"
+    )
     w("|---|---|---|---|---|---|---|---|")
     for n in n1:
         for j, name in enumerate(("FastSLAM", "WOCPF")):
@@ -396,8 +428,10 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
             pap = PAPER_TABLE1.get(n)
             ps = " | ".join(f"{v:g}" for v in pap[j]) if pap else "— | — | —"
             plab = " ('EKF_SLAM' row)" if j == 0 else ""
-            w(f"| {n} | {name} | {fmt([x['time_s'] for x in res])} | {fmt([x['path_rmse'] for x in res])} | "
-              f"{fmt([x['map_rmse'] for x in res])} | {ps}{plab} |")
+            w(
+                f"| {n} | {name} | {fmt([x['time_s'] for x in res])} | {fmt([x['path_rmse'] for x in res])} | "
+                f"{fmt([x['map_rmse'] for x in res])} | {ps}{plab} |"
+            )
     w("")
     w("Paired differences WOCPF − FastSLAM at equal N (negative = WOC better):\n")
     w("| N | path RMSE diff (m) | map RMSE diff (m) |")
@@ -413,8 +447,10 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
     w("|---|---|---|---|---|")
     for k in ks:
         res = tk[k]
-        w(f"| {k:g} | {fmt([x['pose_err'] for x in res])} | {fmt([x['lm_err'] for x in res])} | "
-          f"{fmt([x['path_rmse'] for x in res])} | {fmt([x['map_rmse'] for x in res])} |")
+        w(
+            f"| {k:g} | {fmt([x['pose_err'] for x in res])} | {fmt([x['lm_err'] for x in res])} | "
+            f"{fmt([x['path_rmse'] for x in res])} | {fmt([x['map_rmse'] for x in res])} |"
+        )
     w("")
     w(f"![K sweep]({fig_rel}/{out.stem}_k_sweep.png)\n")
 
@@ -440,8 +476,10 @@ def verdict(args, settings, t2, t1, tk, n1, ks) -> str:
         for key, lab in (("pose_err", "pose error"), ("lm_err", "landmark error")):
             s_fs = _sig(t2[(si, "FastSLAM")], t2[(si, "WOCPF")], key)
             s_ekf = _sig(t2[(si, "EKF-SLAM")], t2[(si, "WOCPF")], key)
-            lines.append(f"* {st.label()}: WOCPF {lab} is {word[s_fs]} than FastSLAM's and {word[s_ekf]} than "
-                         f"EKF-SLAM's (paired 95 % CI).")
+            lines.append(
+                f"* {st.label()}: WOCPF {lab} is {word[s_fs]} than FastSLAM's and {word[s_ekf]} than "
+                f"EKF-SLAM's (paired 95 % CI)."
+            )
     for n in n1:
         s = _sig(t1[(n, "FastSLAM")], t1[(n, "WOCPF")], "path_rmse")
         lines.append(f"* Table 1, N = {n}: WOCPF path RMSE is {word[s]} than FastSLAM's.")
@@ -449,13 +487,19 @@ def verdict(args, settings, t2, t1, tk, n1, ks) -> str:
     claim_fs = all(_sig(t2[(si, "FastSLAM")], t2[(si, "WOCPF")], "pose_err") < 0 for si in range(2))
     best_k = min(ks, key=lambda k: np.mean([x["pose_err"] for x in tk[k]]))
     lines.append("")
-    lines.append(f"**Claim 'WOCPF has the best pose accuracy, better than EKF-SLAM' (Table 2):** "
-                 f"{'reproduces' if claim_ekf else 'does not reproduce'} in our setup.")
-    lines.append(f"**Claim 'WOC improves on the plain particle filter at equal N' (Tables 1, 2):** "
-                 f"{'reproduces' if claim_fs else 'does not reproduce'} for Table 2's pose error.")
-    lines.append(f"In the K sweep the lowest mean pose error is at K = {best_k:g}. Absolute errors are not "
-                 "comparable to the paper's: its course, landmark layout, run length, particle count and K are "
-                 "not given, so our numbers are measurements on our course, not a match attempt.")
+    lines.append(
+        f"**Claim 'WOCPF has the best pose accuracy, better than EKF-SLAM' (Table 2):** "
+        f"{'reproduces' if claim_ekf else 'does not reproduce'} in our setup."
+    )
+    lines.append(
+        f"**Claim 'WOC improves on the plain particle filter at equal N' (Tables 1, 2):** "
+        f"{'reproduces' if claim_fs else 'does not reproduce'} for Table 2's pose error."
+    )
+    lines.append(
+        f"In the K sweep the lowest mean pose error is at K = {best_k:g}. Absolute errors are not "
+        "comparable to the paper's: its course, landmark layout, run length, particle count and K are "
+        "not given, so our numbers are measurements on our course, not a match attempt."
+    )
     return "\n".join(lines) + "\n"
 
 

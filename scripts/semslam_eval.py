@@ -52,8 +52,12 @@ class Args:
 def parse_args() -> Args:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     for name, field in Args.__dataclass_fields__.items():
-        p.add_argument("--" + name.replace("_", "-"), type=type(field.default), default=field.default,
-                       help=f"default: {field.default!r}")
+        p.add_argument(
+            "--" + name.replace("_", "-"),
+            type=type(field.default),
+            default=field.default,
+            help=f"default: {field.default!r}",
+        )
     return Args(**vars(p.parse_args()))
 
 
@@ -127,7 +131,10 @@ def main() -> None:
         f"WOCPF (K={args.woc_k:g}), ML association": {"n_particles": args.particles, "woc_k": args.woc_k},
         "FastSLAM 2.0 (K=inf), ML association": {"n_particles": args.particles, "woc_k": math.inf},
         f"WOCPF (K={args.woc_k:g}), known association": {
-            "n_particles": args.particles, "woc_k": args.woc_k, "known_association": True},
+            "n_particles": args.particles,
+            "woc_k": args.woc_k,
+            "known_association": True,
+        },
     }
     t0 = time.perf_counter()
     results = {name: [] for name in variants}
@@ -136,10 +143,18 @@ def main() -> None:
             fig = args.figure if (seed == 0 and i == 0) else ""
             results[name].append(run(args, seed, slam, fig))
         print(f"seed {seed} done ({time.perf_counter() - t0:.0f} s)", flush=True)
-    cols = ["mean position error (m)", "final position error (m)", "final heading error (deg)",
-            "landmark error (m)", "objects seen", "landmarks"]
-    print(f"\n{args.layout}, {args.policy}, odometry alpha {args.odometry_alpha:g} (<0: default), {args.seeds} seeds "
-          f"x {args.steps} steps, {args.particles} particles, {time.perf_counter() - t0:.0f} s\n")
+    cols = [
+        "mean position error (m)",
+        "final position error (m)",
+        "final heading error (deg)",
+        "landmark error (m)",
+        "objects seen",
+        "landmarks",
+    ]
+    print(
+        f"\n{args.layout}, {args.policy}, odometry alpha {args.odometry_alpha:g} (<0: default), {args.seeds} seeds "
+        f"x {args.steps} steps, {args.particles} particles, {time.perf_counter() - t0:.0f} s\n"
+    )
     print("| variant | " + " | ".join(cols) + " |")
     print("|---" * (len(cols) + 1) + "|")
     for name, rows in results.items():

@@ -81,8 +81,9 @@ def parse_args(argv: list[str] | None = None) -> Args:
         if f.type in ("bool", bool):
             p.add_argument(flag, action="store_true", help=docs.get(f.name, ""))
         else:
-            p.add_argument(flag, type=type(f.default), default=f.default,
-                           help=f"{docs.get(f.name, '')} (default: {f.default})")
+            p.add_argument(
+                flag, type=type(f.default), default=f.default, help=f"{docs.get(f.name, '')} (default: {f.default})"
+            )
     return Args(**vars(p.parse_args(argv)))
 
 
@@ -118,8 +119,10 @@ def _fmt(v, pct: bool = False, digits: int = 2) -> str:
 
 def results_table(rows: dict[str, dict]) -> str:
     """Markdown table of :func:`agents.train.evaluate` summaries, one row per policy."""
-    head = ("| policy | success | wrong convergence | unconverged | median steps to converge "
-            "| median final error (m) | mean return |\n|---|---|---|---|---|---|---|\n")
+    head = (
+        "| policy | success | wrong convergence | unconverged | median steps to converge "
+        "| median final error (m) | mean return |\n|---|---|---|---|---|---|---|\n"
+    )
     body = "".join(
         f"| {name} | {_fmt(r['success_rate'], True)} | {_fmt(r['wrong_convergence_rate'], True)} "
         f"| {_fmt(r['unconverged_rate'], True)} | {_fmt(r['median_steps_to_converge'], digits=0)} "
@@ -158,8 +161,7 @@ def main(argv: list[str] | None = None) -> dict:
         model, train_s = PPO.load(args.load, device="cpu"), 0.0
         print(f"[train_ppo] loaded {args.load}", file=sys.stderr, flush=True)
     else:
-        print(f"[train_ppo] training PPO for {args.total_timesteps} steps on {env_kwargs}", file=sys.stderr,
-              flush=True)
+        print(f"[train_ppo] training PPO for {args.total_timesteps} steps on {env_kwargs}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         model = train(config)
         train_s = time.perf_counter() - t0
@@ -183,8 +185,13 @@ def main(argv: list[str] | None = None) -> dict:
     print(table)
     cli = sys.argv[1:] if argv is None else argv
     command = "python scripts/train_ppo.py " + " ".join(shlex.quote(a) for a in cli)
-    record = {"args": asdict(args), "command": command, "train_seconds": train_s, "eval_seconds": eval_s,
-              "results": rows}
+    record = {
+        "args": asdict(args),
+        "command": command,
+        "train_seconds": train_s,
+        "eval_seconds": eval_s,
+        "results": rows,
+    }
     (out / ("results_reeval.json" if args.load else "results.json")).write_text(json.dumps(record, indent=2))
     if args.doc and args.load:
         _append_reevaluation(Path(args.doc), args, command, table)

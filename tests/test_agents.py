@@ -20,8 +20,15 @@ def smoke(tmp_path_factory):
     log_dir = tmp_path_factory.mktemp("ppo")
     cb = RelocalizationMetricsCallback(window=50)
     config = TrainConfig(
-        env_kwargs=FAST, n_envs=1, total_timesteps=256, n_steps=64, batch_size=64, n_epochs=1,
-        log_dir=str(log_dir), progress_every_s=None, seed=1,
+        env_kwargs=FAST,
+        n_envs=1,
+        total_timesteps=256,
+        n_steps=64,
+        batch_size=64,
+        n_epochs=1,
+        log_dir=str(log_dir),
+        progress_every_s=None,
+        seed=1,
     )
     model = train(config, callbacks=[cb])
     yield model, cb, log_dir
@@ -158,7 +165,13 @@ def test_train_ppo_cli_documents_every_option_and_formats_missing_values():
     assert (args.layout, args.lidar_only, args.total_timesteps) == ("twin_rooms", True, 1000)
     kw = mod.env_kwargs_of(args)
     assert kw["semantic"] is False and kw["max_episode_steps"] == args.max_episode_steps
-    row = {"success_rate": 0.25, "wrong_convergence_rate": 0.5, "unconverged_rate": 0.25,
-           "median_steps_to_converge": None, "median_final_position_error_m": 1.234, "mean_return": -0.5}
+    row = {
+        "success_rate": 0.25,
+        "wrong_convergence_rate": 0.5,
+        "unconverged_rate": 0.25,
+        "median_steps_to_converge": None,
+        "median_final_position_error_m": 1.234,
+        "mean_return": -0.5,
+    }
     line = mod.results_table({"p": row}).splitlines()[-1]
     assert line == "| p | 25 % | 50 % | 25 % | - | 1.23 | -0.50 |"

@@ -116,8 +116,9 @@ def test_bad_inputs_raise():
         FastSLAMConfig(weight_transform=WOC(0.5))
     with pytest.raises(ValueError):
         FastSLAMConfig(resampler="nope")
-    known = FastSLAM(UnicycleModel(), TINY_NOISE, FastSLAMConfig(association=AssociationConfig("known")),
-                     np.random.default_rng(0))
+    known = FastSLAM(
+        UnicycleModel(), TINY_NOISE, FastSLAMConfig(association=AssociationConfig("known")), np.random.default_rng(0)
+    )
     with pytest.raises(ValueError):
         known.update([[5.0, 0.1]])  # known association without ids
     with pytest.raises(ValueError):
