@@ -308,6 +308,17 @@ class _RasterMapper:
         """World ``(x, y)`` of the lower-left corner of cell ``(0, 0)``, metres."""
         return self._origin
 
+    @property
+    def logodds(self) -> np.ndarray:
+        """Log-odds, read-only view (0 = unknown): ``(H, W)`` occupancy or ``(C, H, W)`` per class."""
+        v = self._L.view()
+        v.setflags(write=False)
+        return v
+
+    def probabilities(self) -> np.ndarray:
+        """``1 / (1 + exp(-logodds))``: probability of occupied (``(H, W)``) or of each class (``(C, H, W)``)."""
+        return expit(self._L)
+
     def _same_raster(self, other: _RasterMapper | GridMap) -> bool:
         return (
             tuple(other.shape) == self._shape
@@ -379,17 +390,6 @@ class OccupancyMapper(_RasterMapper):
     def like(cls, grid: GridMap, params: OccupancyParams | None = None) -> OccupancyMapper:
         """An empty mapper on the raster of ``grid``."""
         return cls(grid.shape, grid.resolution_m, grid.origin_xy_m, params)
-
-    @property
-    def logodds(self) -> np.ndarray:
-        """``(H, W)`` float64 log-odds of occupancy (read-only view; 0 = unknown)."""
-        v = self._L.view()
-        v.setflags(write=False)
-        return v
-
-    def probabilities(self) -> np.ndarray:
-        """``(H, W)`` float64 probability of occupied, ``1 / (1 + exp(-l))``."""
-        return expit(self._L)
 
     def update(self, pose: np.ndarray, scan: LaserScan) -> None:
         """Integrate one lidar scan taken at ``pose`` ``(x, y, theta)`` (metres, radians)."""
@@ -472,17 +472,6 @@ class SemanticMapper(_RasterMapper):
         """An empty mapper on the raster of ``grid`` (classes: ``class_names`` or the grid's, else the default)."""
         names = class_names if class_names is not None else (grid.class_names or DEFAULT_CLASS_NAMES)
         return cls(grid.shape, grid.resolution_m, grid.origin_xy_m, names, params)
-
-    @property
-    def logodds(self) -> np.ndarray:
-        """``(C, H, W)`` float64 per-class log-odds (read-only view; 0 = unknown)."""
-        v = self._L.view()
-        v.setflags(write=False)
-        return v
-
-    def probabilities(self) -> np.ndarray:
-        """``(C, H, W)`` float64 probability that an object of each class occupies the cell."""
-        return expit(self._L)
 
     def update(self, pose: np.ndarray, scan: SemanticScan) -> None:
         """Integrate one semantic scan taken at ``pose`` ``(x, y, theta)`` (metres, radians)."""

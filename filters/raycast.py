@@ -91,6 +91,16 @@ def cast_rays(grid: GridMap, pose, angles: np.ndarray, range_max_m: float) -> tu
     return r, row, col
 
 
+def _add_noise(r: np.ndarray, range_max_m: float, noise_std_m: float, rng) -> np.ndarray:
+    """Gaussian noise on the beams that hit (kept below ``range_max_m``); no-returns unchanged."""
+    if noise_std_m <= 0:
+        return r
+    hit = r < range_max_m
+    r = r.copy()
+    r[hit] = np.clip(r[hit] + rng.normal(0.0, noise_std_m, int(hit.sum())), 0.0, range_max_m * (1 - 1e-9))
+    return r
+
+
 def simulate_lidar(
     grid: GridMap,
     pose,
@@ -101,10 +111,7 @@ def simulate_lidar(
 ) -> LaserScan:
     """A :class:`LaserScan` from ``pose``; Gaussian range noise (``rng`` required if > 0)."""
     r, _, _ = cast_rays(grid, pose, angles, range_max_m)
-    if noise_std_m > 0:
-        hit = r < range_max_m
-        r = r.copy()
-        r[hit] = np.clip(r[hit] + rng.normal(0.0, noise_std_m, int(hit.sum())), 0.0, range_max_m * (1 - 1e-9))
+    r = _add_noise(r, range_max_m, noise_std_m, rng)
     return LaserScan(r, np.asarray(angles, dtype=np.float64), range_max_m)
 
 
@@ -123,8 +130,5 @@ def simulate_semantic(
     for k in range(len(grid.class_names) - 1, -1, -1):
         m = grid.class_mask(k)
         labels[hit] = np.where(m[row[hit], col[hit]], k + 1, labels[hit])
-    if noise_std_m > 0:
-        ok = r < range_max_m
-        r = r.copy()
-        r[ok] = np.clip(r[ok] + rng.normal(0.0, noise_std_m, int(ok.sum())), 0.0, range_max_m * (1 - 1e-9))
+    r = _add_noise(r, range_max_m, noise_std_m, rng)
     return SemanticScan(r, np.asarray(angles, dtype=np.float64), labels, range_max_m)
