@@ -211,15 +211,10 @@ def _plot_weights(results, cases, path):
 
 
 def _ffill(mat: np.ndarray) -> np.ndarray:
-    out = mat.copy()
-    for i in range(out.shape[0]):
-        last = np.nan
-        for j in range(out.shape[1]):
-            if np.isnan(out[i, j]):
-                out[i, j] = last
-            else:
-                last = out[i, j]
-    return out
+    """Each NaN takes the last non-NaN value to its left in its row (leading NaNs stay NaN)."""
+    idx = np.where(np.isnan(mat), 0, np.arange(mat.shape[1]))
+    np.maximum.accumulate(idx, axis=1, out=idx)
+    return mat[np.arange(mat.shape[0])[:, None], idx]
 
 
 def _plot_snapshots(results, case, path):

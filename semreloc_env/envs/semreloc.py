@@ -215,33 +215,32 @@ class SemRelocEnv(SemRelocBase):
         self.mcl.update(lidar_scan, semantic_scan if self.mcl_config.use_semantic else None, force=self._steps == 0)
         self._prev_entropy = None if self._belief is None else self._belief.entropy_nats
         self._belief = self.mcl.belief()
-
-    def pose_error(self) -> dict[str, float]:
-        """Position (m) and heading (rad) error of the belief mean against the true pose."""
         mean, truth = self._belief.mean, self.world.pose
-        return {
+        self._error = {
             "position": float(np.hypot(*(mean[:2] - truth[:2]))),
             "heading": float(abs(wrap_angle(mean[2] - truth[2]))),
         }
+
+    def pose_error(self) -> dict[str, float]:
+        """Position (m) and heading (rad) error of the belief mean against the true pose (this step)."""
+        return dict(self._error)
+
+    def _near_truth(self) -> bool:
+        """The belief mean is within 0.5 m and 15 deg of the true pose."""
+        return self._error["position"] < SUCCESS_POSITION_M and self._error["heading"] < SUCCESS_HEADING_RAD
 
     def _is_success(self) -> bool:
         """Relocalized: the belief converged at the truth, in a global or post-kidnap episode."""
         if self._tracking and not self._kidnapped:
             return False
-        err = self.pose_error()
-        return bool(
-            self._belief.converged and err["position"] < SUCCESS_POSITION_M and err["heading"] < SUCCESS_HEADING_RAD
-        )
+        return bool(self._belief.converged and self._near_truth())
 
     def _reward_terms(self, collided: bool) -> dict[str, float]:
         w = self.reward_weights
         drop = 0.0 if self._prev_entropy is None else self._prev_entropy - self._belief.entropy_nats
         success = self._is_success() and not self._succeeded
         self._succeeded |= success
-        err = self.pose_error()
-        wrong = self._belief.converged and (
-            err["position"] >= SUCCESS_POSITION_M or err["heading"] >= SUCCESS_HEADING_RAD
-        )
+        wrong = self._belief.converged and not self._near_truth()
         return {
             "time": w.time,
             "collision": w.collision if collided else 0.0,
