@@ -32,9 +32,7 @@ def belief_correct(info: dict) -> bool:
     """Whether the belief of one step's ``info`` is converged at the true pose (the success test)."""
     err = info["pose_error"]
     return bool(
-        info["belief"]["converged"]
-        and err["position"] < SUCCESS_POSITION_M
-        and err["heading"] < SUCCESS_HEADING_RAD
+        info["belief"]["converged"] and err["position"] < SUCCESS_POSITION_M and err["heading"] < SUCCESS_HEADING_RAD
     )
 
 

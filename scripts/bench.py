@@ -28,11 +28,11 @@ try:
 except ImportError:  # running from a checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from filters.grid import DEFAULT_CLASS_NAMES, GridMap
-from filters.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
-from filters.likelihood_reference import log_likelihood_reference
-from filters.mcl import MCLConfig, MonteCarloLocalizer
-from filters.raycast import simulate_lidar, simulate_semantic
+from filters.localization.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
+from filters.localization.likelihood_reference import log_likelihood_reference
+from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
+from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
+from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
 
 
 @dataclass(frozen=True)

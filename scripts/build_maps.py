@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from filters.map_io import save_map
-from filters.map_metrics import semantic_surface_quality
+from filters.mapping.metrics import semantic_surface_quality
+from filters.mapping.ros_map import save_map
 from semreloc_env.layouts import get_layout
 from semreloc_env.mapping_run import build_maps, mapping_path
 from semreloc_env.rasterize import rasterize

@@ -1,6 +1,6 @@
 """Reproduce paper 000 (Wang & Wang 2022, Monocular SLAM_WOCPF): Tables 1 and 2 plus a sweep over K.
 
-Everything runs on Bailey's car-like SLAM simulator (:mod:`filters.benchmarks.car_sim`) over our
+Everything runs on Bailey's car-like SLAM simulator (:mod:`filters.simulators.car_sim`) over our
 built-in 100 m x 80 m course (31 landmarks, 15 waypoints, clockwise). One Monte Carlo run simulates
 one drive (seeded) and runs every compared filter on the *same* drive (paired comparison).
 
@@ -34,12 +34,12 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from filters.benchmarks.car_sim import CarSimConfig, CarSimRun, default_course, simulate  # noqa: E402
+from filters.motion.velocity import BicycleModel  # noqa: E402
+from filters.simulators.car_sim import CarSimConfig, CarSimRun, default_course, simulate  # noqa: E402
 from filters.slam.association import AssociationConfig  # noqa: E402
 from filters.slam.ekf_slam import EKFSLAM, EKFSLAMConfig  # noqa: E402
 from filters.slam.fastslam import FastSLAM, FastSLAMConfig  # noqa: E402
 from filters.slam.landmarks import RangeBearingNoise  # noqa: E402
-from filters.slam.motion import BicycleModel  # noqa: E402
 from filters.slam.weight_transforms import WOC  # noqa: E402
 
 PAPER_TABLE2 = {  # algorithm -> (pose low, landmark low, pose high, landmark high), metres
@@ -332,7 +332,7 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
     w(f"Total wall time {total_s:.0f} s on one core.\n")
     w("## Setup\n")
     w(
-        "* Simulator: Bailey's car-like SLAM simulator (`filters/benchmarks/car_sim.py`), our built-in course "
+        "* Simulator: Bailey's car-like SLAM simulator (`filters/simulators/car_sim.py`), our built-in course "
         "(100 m x 80 m, 15 waypoints, 31 landmarks, clockwise from (0, 0)), 3 m/s, wheelbase 4 m, max steer 30 deg, "
         "steer rate 20 deg/s, controls every 0.025 s, scans every 0.2 s, range 30 m, forward half-plane."
     )

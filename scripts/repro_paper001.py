@@ -4,7 +4,7 @@ Table 1: RMSE and run time of PF, FA-PF and IFA-PF on the univariate nonstationa
 model (Q = R = 1, x_0 = 0, 100 steps) for N = 50 / 100 / 150 particles over many seeded runs,
 with 95 % confidence intervals and a few ablations of the IFA-PF pieces.
 Table 3: FastSLAM vs FA-FastSLAM vs IFA-FastSLAM on the 100 m x 80 m car-like course
-(:mod:`filters.benchmarks.car_sim`), RMSE mean and variance over runs, and run time.
+(:mod:`filters.simulators.car_sim`), RMSE mean and variance over runs, and run time.
 
 Writes a Markdown report (our figures beside the paper's, the command, a plain verdict on
 the paper's claims) and PNG figures. Every number comes from a seeded run; rerunning the
@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from filters.firefly import (  # noqa: E402
+from filters.smc.firefly import (  # noqa: E402
     FAPF,
     IFAPF,
     FireflyPF,
@@ -47,9 +47,9 @@ from filters.firefly import (  # noqa: E402
     ifa_config,
     observation_log_brightness,
 )
-from filters.models import GrowthModel  # noqa: E402
-from filters.pf import BootstrapPF, PFConfig, rmse  # noqa: E402
-from filters.resampling import systematic  # noqa: E402
+from filters.smc.models import GrowthModel  # noqa: E402
+from filters.smc.pf import BootstrapPF, PFConfig, rmse  # noqa: E402
+from filters.smc.resampling import systematic  # noqa: E402
 
 # The paper's figures (Table 1 and 3 as quoted in its text; the tables themselves are images).
 PAPER_T1_RMSE = {("PF", 100): 3.0043, ("PF", 150): 2.4415, ("IFA-PF", 100): 1.8843, ("IFA-PF", 150): 1.2885}
@@ -253,11 +253,11 @@ def make_slam_filters(n_particles: int, version: int, sim_config) -> dict:
 
     The filters use the simulator's true noise levels (control and observation).
     """
+    from filters.motion.velocity import BicycleModel
     from filters.slam.association import AssociationConfig
     from filters.slam.fastslam import FastSLAM, FastSLAMConfig
     from filters.slam.ifa_fastslam import FAFastSLAM, IFAFastSLAM
     from filters.slam.landmarks import RangeBearingNoise
-    from filters.slam.motion import BicycleModel
 
     c = sim_config
     motion = BicycleModel(wheelbase_m=c.wheelbase_m, sigma_v_mps=c.sigma_v_mps, sigma_g_rad=c.sigma_g_rad)
@@ -271,7 +271,7 @@ def make_slam_filters(n_particles: int, version: int, sim_config) -> dict:
 
 
 def run_slam(slam, sim) -> np.ndarray:
-    """Drive ``slam`` through a :class:`filters.benchmarks.car_sim.CarSimRun`; position error (m) at each scan.
+    """Drive ``slam`` through a :class:`filters.simulators.car_sim.CarSimRun`; position error (m) at each scan.
 
     The error is that of the weighted-mean pose (``slam.estimate().pose``) right after each update.
     """
@@ -289,7 +289,7 @@ def run_slam(slam, sim) -> np.ndarray:
 
 def run_table3(args: Args) -> dict | None:
     try:
-        from filters.benchmarks.car_sim import CarSimConfig, default_course, simulate
+        from filters.simulators.car_sim import CarSimConfig, default_course, simulate
         from filters.slam.ifa_fastslam import IFAFastSLAM  # noqa: F401  (availability check)
     except ImportError as e:  # colleague's modules not there
         print(f"Table 3 skipped: {e}", file=sys.stderr)
@@ -415,10 +415,10 @@ def write_report(args: Args, argv: list[str], t1: dict, t3: dict | None, figs: l
     L.append(f"Command (took {wall_s / 60:.1f} min on this machine):\n\n```\n{cmd.strip()}\n```\n")
     L.append("## What is implemented\n")
     L.append(
-        "* `filters/models/growth.py` — the growth model of Eq. 9 (standard form; the equation is an image lost "
+        "* `filters/smc/models/growth.py` — the growth model of Eq. 9 (standard form; the equation is an image lost "
         "from the text). Filters start from the prior x_0 ~ N(0, 1); the truth starts at x_0 = 0.\n"
-        "* `filters/pf.py` — bootstrap SIR filter, systematic resampling at every step.\n"
-        "* `filters/firefly.py` — FA-PF (observation brightness `exp(-(z_pred - y)^2 / 2R)`, fixed step "
+        "* `filters/smc/pf.py` — bootstrap SIR filter, systematic resampling at every step.\n"
+        "* `filters/smc/firefly.py` — FA-PF (observation brightness `exp(-(z_pred - y)^2 / 2R)`, fixed step "
         f"alpha = {args.alpha0}, systematic resampling) and IFA-PF: **reconstructed** Eq. 2 brightness "
         "`exp(-(|z_pred - y|^2/2R + |x_pred - x_new|^2/2Q))` with x_new = the filter's own previous estimate "
         "pushed through the noise-free transition (never the true state), **reconstructed** Eq. 3 step "
@@ -617,7 +617,7 @@ def t3_section(args: Args, t3: dict) -> str:
     names = t3["names"]
     n_main = args.slam_particles[0]
     L = [
-        f"{args.slam_runs} seeded runs on the 100 m x 80 m course of `filters/benchmarks/car_sim.py` (15 waypoints, "
+        f"{args.slam_runs} seeded runs on the 100 m x 80 m course of `filters/simulators/car_sim.py` (15 waypoints, "
         f"31 landmarks, 3 m/s, {args.slam_steps} control steps of 25 ms, a scan every 0.2 s, Bailey's noise "
         f"levels), FastSLAM {args.slam_version}.0 with known data association. RMSE of a run: root mean square of "
         "the position error (m) of the filter's weighted-mean pose after every scan; mean and variance over runs. "

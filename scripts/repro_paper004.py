@@ -53,7 +53,7 @@ class Args:
     cases: str = "twin_rooms,lab,lab_changed"
     """comma-separated subset of: twin_rooms, lab, lab_changed"""
     mcl: str = "{}"
-    """JSON dict of filters.mcl.MCLConfig overrides applied to both variants, e.g. '{"likelihood_scale": 0.05}'"""
+    """JSON dict of MCLConfig overrides (filters.localization.mcl), both variants, e.g. '{"likelihood_scale": 0.05}'"""
     workers: int = 2
     """worker processes"""
     out: str = "docs"

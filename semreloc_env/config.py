@@ -149,6 +149,6 @@ class CameraParams:
 
 def default_odometry_noise():
     """The simulator's odometry noise: the filters' model with small alphas (a good wheel encoder)."""
-    from filters.motion import OdometryMotionConfig
+    from filters.motion.odometry import OdometryMotionConfig
 
     return OdometryMotionConfig(alpha1=0.02, alpha2=0.02, alpha3=0.02, alpha4=0.01)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from filters.pose import wrap_angle
-from filters.scans import SemanticScan
+from filters.robot_data.scans import SemanticScan
 
 from .layouts import CLASS_NAMES
 from .sensors import SemanticCamera

@@ -4,7 +4,7 @@ The robot visits a lattice of free waypoints in boustrophedon order (shortest
 lattice paths around walls), turning on the spot at each waypoint so the forward
 camera sees every direction. At every pose the simulated lidar and semantic
 camera (with their noise, misses and false detections) feed the log-odds
-occupancy and Bayesian semantic mappers of :mod:`filters.mapping`. The result
+occupancy and Bayesian semantic mappers of :mod:`filters.mapping.occupancy`. The result
 disagrees with the layout as a map built on a robot does.
 """
 
@@ -16,8 +16,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from filters.grid import GridMap
-from filters.mapping import OccupancyMapper, OccupancyParams, SemanticMapper
+from filters.mapping.grid import GridMap
+from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper
 
 from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES, Layout

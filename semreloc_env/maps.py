@@ -5,8 +5,8 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from filters.grid import GridMap
-from filters.map_io import load_map
+from filters.mapping.grid import GridMap
+from filters.mapping.ros_map import load_map
 
 from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES, Layout
@@ -28,7 +28,7 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams) -
     Args:
         source: ``"mapping"`` (a mapping run with these sensors, seed 0; cached per
             layout and sensor settings within the process), ``"perfect"`` (the
-            rasterised layout), a ROS map ``.yaml`` path (:func:`filters.map_io.load_map`),
+            rasterised layout), a ROS map ``.yaml`` path (:func:`filters.mapping.ros_map.load_map`),
             or a GridMap. A map's classes must be those of the layouts, in order.
     """
     if isinstance(source, GridMap):

@@ -1,10 +1,10 @@
-"""Rasterise a layout into the grids a perfect map would hold (:class:`filters.grid.GridMap`)."""
+"""Rasterise a layout into the grids a perfect map would hold (:class:`filters.mapping.grid.GridMap`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from filters.grid import GridMap
+from filters.mapping.grid import GridMap
 
 from .layouts import CLASS_NAMES, Layout, point_in_polygon
 

@@ -6,17 +6,17 @@
   the object hit, through a detector with misses, wrong classes and false positives.
 * :class:`Odometry` — the true motion increment through the rot1-trans-rot2 noise model.
 
-All return :mod:`filters.scans` containers or plain arrays, so filters never see the simulator.
+All return :mod:`filters.robot_data.scans` containers or plain arrays, so filters never see the simulator.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from filters.grid import NO_CLASS
-from filters.motion import OdometryMotionConfig, OdometryMotionModel
+from filters.mapping.grid import NO_CLASS
+from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import relative
-from filters.scans import LaserScan, SemanticScan
+from filters.robot_data.scans import LaserScan, SemanticScan
 
 from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES
@@ -127,7 +127,7 @@ class Odometry:
     """Wheel odometry: the true increment between two poses, corrupted by the rot1-trans-rot2 model.
 
     The noise is drawn with the very model the filters assume
-    (:class:`filters.motion.OdometryMotionModel`), applied to one pose at the origin,
+    (:class:`filters.motion.odometry.OdometryMotionModel`), applied to one pose at the origin,
     so simulator and filter cannot disagree on its form, only on its alphas.
     """
 

@@ -2,7 +2,7 @@
 
 * :class:`BeliefObservation` adds a ``belief`` key: a few numbers summarising what the
   relocalizer *believes* (spread, entropy, hypotheses, degeneracy, converged), read from
-  ``info["belief"]`` (:meth:`filters.belief.Belief.as_dict`). It never exposes the true pose
+  ``info["belief"]`` (:meth:`filters.localization.belief.Belief.as_dict`). It never exposes the true pose
   nor the pose error: a policy that sees them would be cheating.
 * :class:`FlatObservation` concatenates every key of a Dict observation into one float32 Box,
   for algorithms and networks that want a flat vector.

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from filters.belief import BeliefConfig, summarize
+from filters.localization.belief import BeliefConfig, summarize
 
 
 def blob(rng, centre, n, std_xy=0.05, std_th=0.02):

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from filters.benchmarks.car_sim import CarSimConfig, default_course, observe, simulate, small_course
+from filters.simulators.car_sim import CarSimConfig, default_course, observe, simulate, small_course
 
 
 def _signed_area(poly: np.ndarray) -> float:

@@ -8,9 +8,9 @@ import pytest
 
 import semreloc_env  # noqa: F401
 from agents.baselines import WallFollowExplorer
-from filters.grid import GridMap
-from filters.map_io import save_map
-from filters.map_metrics import semantic_surface_quality
+from filters.mapping.grid import GridMap
+from filters.mapping.metrics import semantic_surface_quality
+from filters.mapping.ros_map import save_map
 from semreloc_env.layouts import get_layout
 from semreloc_env.mapping_run import build_maps
 from semreloc_env.rasterize import rasterize

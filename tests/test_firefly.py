@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from filters.firefly import (
+from filters.smc.firefly import (
     FAPF,
     IFAPF,
     adaptive_step,
@@ -15,8 +15,8 @@ from filters.firefly import (
     ifa_config,
     observation_log_brightness,
 )
-from filters.models import GrowthModel
-from filters.pf import rmse
+from filters.smc.models import GrowthModel
+from filters.smc.pf import rmse
 
 
 # ---- EWA step-wise resampling --------------------------------------------------------------

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from filters.models import GrowthModel, GrowthModelParams, StateSpaceModel
-from filters.pf import BootstrapPF, PFConfig, check_observations, normalise_log_weights, rmse
+from filters.smc.models import GrowthModel, GrowthModelParams, StateSpaceModel
+from filters.smc.pf import BootstrapPF, PFConfig, check_observations, normalise_log_weights, rmse
 
 
 def test_growth_model_is_a_state_space_model_with_right_shapes():

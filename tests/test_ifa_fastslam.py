@@ -1,14 +1,14 @@
 import numpy as np
 import pytest
 
-from filters.benchmarks.car_sim import CarSimConfig, simulate, small_course
-from filters.firefly import ewa_resample
+from filters.motion.velocity import BicycleModel
 from filters.pose import wrap_angle
+from filters.simulators.car_sim import CarSimConfig, simulate, small_course
 from filters.slam.association import AssociationConfig
 from filters.slam.fastslam import FastSLAM, FastSLAMConfig
 from filters.slam.ifa_fastslam import FAFastSLAM, FireflySLAMConfig, IFAFastSLAM
 from filters.slam.landmarks import RangeBearingNoise, predict_observation
-from filters.slam.motion import BicycleModel
+from filters.smc.firefly import ewa_resample
 
 MOTION = BicycleModel()
 NOISE = RangeBearingNoise(sigma_r_m=0.1, sigma_b_rad=np.deg2rad(1.0))

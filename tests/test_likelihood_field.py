@@ -3,15 +3,15 @@ import math
 import numpy as np
 import pytest
 
-from filters.grid import GridMap
-from filters.likelihood_field import (
+from filters.localization.likelihood_field import (
     LikelihoodFieldConfig,
     LikelihoodFieldModel,
     count_detections,
     distance_field,
     select_beams,
 )
-from filters.scans import LaserScan, SemanticScan
+from filters.mapping.grid import GridMap
+from filters.robot_data.scans import LaserScan, SemanticScan
 
 RES = 0.1
 CLASSES = ("door", "chair")

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from filters.grid import GridMap
-from filters.map_io import MapFormatError, load_map, read_pgm, save_map, semantic_yaml_path, write_pgm
+from filters.mapping.grid import GridMap
+from filters.mapping.ros_map import MapFormatError, load_map, read_pgm, save_map, semantic_yaml_path, write_pgm
 
 # A 4 x 3 map as map_saver would draw it; first row = TOP of the map.
 PIXELS_TOP_FIRST = np.array(

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from filters.grid import GridMap
-from filters.map_metrics import (
+from filters.mapping.grid import GridMap
+from filters.mapping.metrics import (
     check_same_raster,
     class_iou,
     free_iou,
@@ -18,7 +18,7 @@ from filters.map_metrics import (
     surface_mask,
     tolerant_precision_recall,
 )
-from filters.mapping import (
+from filters.mapping.occupancy import (
     OccupancyMapper,
     OccupancyParams,
     SemanticMapper,
@@ -26,8 +26,8 @@ from filters.mapping import (
     beam_cells,
     build_grid_map,
 )
-from filters.raycast import simulate_lidar, simulate_semantic
-from filters.scans import LaserScan, SemanticScan
+from filters.robot_data.scans import LaserScan, SemanticScan
+from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
 
 RES = 0.05
 SHAPE = (70, 90)  # 3.5 m x 4.5 m

@@ -3,14 +3,14 @@ import math
 import numpy as np
 import pytest
 
-from filters.grid import DEFAULT_CLASS_NAMES, GridMap
-from filters.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
-from filters.likelihood_reference import log_likelihood_reference
-from filters.mcl import MCLConfig, MonteCarloLocalizer
-from filters.motion import OdometryMotionConfig, OdometryMotionModel, decompose
+from filters.localization.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
+from filters.localization.likelihood_reference import log_likelihood_reference
+from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
+from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
+from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel, decompose
 from filters.pose import compose, relative, wrap_angle
-from filters.raycast import cast_rays, simulate_lidar, simulate_semantic
-from filters.scans import LaserScan, SemanticScan
+from filters.robot_data.scans import LaserScan, SemanticScan
+from filters.simulators.grid_raycast import cast_rays, simulate_lidar, simulate_semantic
 
 RES = 0.05
 CABINET = DEFAULT_CLASS_NAMES.index("cabinet")

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from filters.resampling import RESAMPLERS, effective_sample_size, get_resampler
+from filters.smc.resampling import RESAMPLERS, effective_sample_size, get_resampler
 
 
 @pytest.mark.parametrize("name", sorted(RESAMPLERS))

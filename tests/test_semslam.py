@@ -12,14 +12,14 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import semreloc_env  # noqa: F401  (registers the ids)
 from agents.baselines import WallFollowExplorer
-from filters.motion import OdometryMotionConfig
+from filters.motion.odometry import OdometryMotionConfig
+from filters.motion.odometry_slam import OdometryIncrementModel
+from filters.motion.velocity import MotionModel
 from filters.pose import compose, wrap_angle
-from filters.scans import SemanticScan
+from filters.robot_data.scans import SemanticScan
 from filters.slam.class_votes import ClassVotingFastSLAM
 from filters.slam.fastslam import FastSLAMConfig
 from filters.slam.landmarks import RangeBearingNoise
-from filters.slam.motion import MotionModel
-from filters.slam.odometry_motion import OdometryIncrementModel
 from semreloc_env.config import CameraParams
 from semreloc_env.landmark_sensor import LandmarkSensor, LandmarkSensorParams, extract_landmarks
 from semreloc_env.sensors import SemanticCamera

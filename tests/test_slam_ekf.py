@@ -3,7 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from filters.benchmarks.car_sim import CarSimConfig, simulate, small_course
+from filters.motion.velocity import BicycleModel, UnicycleModel
+from filters.simulators.car_sim import CarSimConfig, simulate, small_course
 from filters.slam.association import AssociationConfig
 from filters.slam.ekf_slam import EKFSLAM, EKFSLAMConfig
 from filters.slam.landmarks import (
@@ -13,7 +14,6 @@ from filters.slam.landmarks import (
     predict_observation,
     validate_observations,
 )
-from filters.slam.motion import BicycleModel, UnicycleModel
 
 NOISE = RangeBearingNoise(0.1, math.radians(1.0))
 

@@ -3,11 +3,11 @@ import math
 import numpy as np
 import pytest
 
-from filters.benchmarks.car_sim import CarSimConfig, simulate, small_course
+from filters.motion.velocity import BicycleModel, UnicycleModel
+from filters.simulators.car_sim import CarSimConfig, simulate, small_course
 from filters.slam.association import AssociationConfig
 from filters.slam.fastslam import FastSLAM, FastSLAMConfig
 from filters.slam.landmarks import RangeBearingNoise
-from filters.slam.motion import BicycleModel, UnicycleModel
 from filters.slam.weight_transforms import WOC, get_weight_transform, identity, woc
 
 TINY_NOISE = RangeBearingNoise(1e-4, 1e-5)

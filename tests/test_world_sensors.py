@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from filters.motion import OdometryMotionConfig
+from filters.motion.odometry import OdometryMotionConfig
 from filters.pose import relative
 from semreloc_env.config import CameraParams, LidarParams, PhysicsParams, RobotParams
 from semreloc_env.layouts import layout_from_dict

@@ -1,9 +1,8 @@
 """Landmark SLAM: range-bearing point landmarks, FastSLAM 1.0/2.0 (+ WOC weight step), EKF-SLAM.
 
-numpy + scipy only. Modules:
+numpy + scipy only. The motion models live in :mod:`filters.motion`. Modules:
 
 * :mod:`filters.slam.landmarks` -- range-bearing observation model, Jacobians, inverse model, input checks.
-* :mod:`filters.slam.motion` -- pluggable motion models (car-like bicycle, unicycle) with Jacobians.
 * :mod:`filters.slam.weight_transforms` -- weight transforms applied before resampling (identity, WOC).
 * :mod:`filters.slam.association` -- gate settings shared by the filters.
 * :mod:`filters.slam.fastslam` -- FastSLAM 1.0 / 2.0, vectorised over particles, with subclass hooks.

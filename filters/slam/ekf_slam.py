@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from filters.motion.velocity import MotionModel
 from filters.pose import wrap_angle
 from filters.slam.association import AssociationConfig, innovation, inv2, nis_and_logdet
 from filters.slam.fastslam import SLAMEstimate
@@ -22,7 +23,6 @@ from filters.slam.landmarks import (
     observation_jacobians,
     validate_observations,
 )
-from filters.slam.motion import MotionModel
 
 
 @dataclass(frozen=True)
@@ -117,8 +117,9 @@ class EKFSLAM:
         covs[:, 0, 1] = self.P[idx, idx + 1]
         covs[:, 1, 0] = self.P[idx + 1, idx]
         covs[:, 1, 1] = self.P[idx + 1, idx + 1]
-        return SLAMEstimate(self.x[:3].copy(), self.P[:3, :3].copy(), self.x[3:].reshape(m, 2).copy(), covs,
-                            self.ids.copy())
+        return SLAMEstimate(
+            self.x[:3].copy(), self.P[:3, :3].copy(), self.x[3:].reshape(m, 2).copy(), covs, self.ids.copy()
+        )
 
     # ------------------------------------------------------------------ internals
     def _innovation_covs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import logsumexp
 
+from filters.motion.velocity import MotionModel
 from filters.pose import wrap_angle
-from filters.resampling import get_resampler
 from filters.slam.association import AssociationConfig, gauss_logpdf, innovation, inv2, nis_and_logdet
 from filters.slam.landmarks import (
     RangeBearingNoise,
@@ -39,8 +39,8 @@ from filters.slam.landmarks import (
     observation_jacobians,
     validate_observations,
 )
-from filters.slam.motion import MotionModel
 from filters.slam.weight_transforms import identity
+from filters.smc.resampling import get_resampler
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ class FastSLAMConfig:
     version: 1 (sample the motion model; weight = observation likelihood) or 2 (Gaussian proposal
         refined by the observations, weight = marginal likelihood; Montemerlo 2003).
     association: :class:`AssociationConfig` (ML with gates, or known ids).
-    resampler: name for :func:`filters.resampling.get_resampler` (default systematic).
+    resampler: name for :func:`filters.smc.resampling.get_resampler` (default systematic).
     resample_ess_fraction: resample when ESS of the transformed weights ``< fraction * N``;
         ``1.0`` (default) resamples after every update with observations, as both papers do.
     weight_transform: callable ``weights -> weights`` applied before resampling

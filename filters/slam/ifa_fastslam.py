@@ -3,11 +3,11 @@
 Both subclass :class:`filters.slam.fastslam.FastSLAM` and use its hooks:
 
 * ``_move_particles(z, assoc)`` (after pose sampling, before weighting): one firefly generation on
-  the poses ``(N, 3)`` (:func:`filters.firefly.firefly_move`). In FastSLAM 1.0 (the setting of the
+  the poses ``(N, 3)`` (:func:`filters.smc.firefly.firefly_move`). In FastSLAM 1.0 (the setting of the
   reproduction) the moved poses are the ones weighted and used for the landmark EKF updates; in
   FastSLAM 2.0 a move changes the pose but not the weight (see the FastSLAM docstring).
 * ``_resample(psi)`` / ``_mutate(mask)``: IFA-FastSLAM replaces systematic resampling by the
-  step-wise EWA scheme (:func:`filters.firefly.ewa_resample`) and mutates the filler copies'
+  step-wise EWA scheme (:func:`filters.smc.firefly.ewa_resample`) and mutates the filler copies'
   poses with ``x' = x + x * mu * N(0, 1)`` (Eq. 8; relative to the coordinates, so origin-dependent,
   as the paper writes it), heading re-wrapped.
 
@@ -37,7 +37,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from filters.firefly import (
+from filters.motion.velocity import MotionModel
+from filters.pose import wrap_angle
+from filters.slam.association import innovation
+from filters.slam.fastslam import Association, FastSLAM, FastSLAMConfig
+from filters.slam.landmarks import RangeBearingNoise, predict_observation
+from filters.smc.firefly import (
     MOVE_MODES,
     LogBrightnessFn,
     StepFactorFn,
@@ -49,11 +54,6 @@ from filters.firefly import (
     gaussian_log_brightness,
     observation_log_brightness,
 )
-from filters.pose import wrap_angle
-from filters.slam.association import innovation
-from filters.slam.fastslam import Association, FastSLAM, FastSLAMConfig
-from filters.slam.landmarks import RangeBearingNoise, predict_observation
-from filters.slam.motion import MotionModel
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class FireflySLAMConfig:
 
     alpha0: random step in units of the observation noise, ``alpha0 * (sigma_r, sigma_r, sigma_b)``.
     beta0, gamma: attraction at zero distance and absorption (1/m^2; paper 1, 1).
-    move_mode, pairwise_max_n: see :func:`filters.firefly.firefly_move`.
+    move_mode, pairwise_max_n: see :func:`filters.smc.firefly.firefly_move`.
     use_ewa: EWA step-wise resampling + pose mutation instead of ``FastSLAMConfig.resampler``.
     ewa_beta, mutation_mu: paper 0.8 and 0.01.
     """
@@ -89,8 +89,8 @@ class FireflyFastSLAM(FastSLAM):
     """FastSLAM with a firefly pose move before weighting (see the module docstring).
 
     Same usage as :class:`FastSLAM` (``predict``, ``update``, ``estimate``); extra arguments:
-    ``firefly`` settings, ``log_brightness`` (:data:`filters.firefly.LogBrightnessFn`, called with
-    noise-normalised distances and unit variances) and ``step_factor`` (:data:`filters.firefly.StepFactorFn`).
+    ``firefly`` settings, ``log_brightness`` (:data:`filters.smc.firefly.LogBrightnessFn`, called with
+    noise-normalised distances and unit variances) and ``step_factor`` (:data:`filters.smc.firefly.StepFactorFn`).
     """
 
     def __init__(
@@ -162,8 +162,15 @@ class FireflyFastSLAM(FastSLAM):
         poses[:, 2] = th0 + wrap_angle(poses[:, 2] - th0)
         alpha0 = cfg.alpha0 * np.array([self.obs_noise.sigma_r_m, self.obs_noise.sigma_r_m, self.obs_noise.sigma_b_rad])
         moved = firefly_move(
-            poses, log_i, alpha0, self.rng, step_factor=self.step_factor, beta0=cfg.beta0, gamma=cfg.gamma,
-            mode=cfg.move_mode, pairwise_max_n=cfg.pairwise_max_n,
+            poses,
+            log_i,
+            alpha0,
+            self.rng,
+            step_factor=self.step_factor,
+            beta0=cfg.beta0,
+            gamma=cfg.gamma,
+            mode=cfg.move_mode,
+            pairwise_max_n=cfg.pairwise_max_n,
         )
         moved[:, 2] = wrap_angle(moved[:, 2])
         self.poses = moved
@@ -184,19 +191,52 @@ class FireflyFastSLAM(FastSLAM):
 class FAFastSLAM(FireflyFastSLAM):
     """FA-FastSLAM: observation brightness, fixed step, the configured standard resampler."""
 
-    def __init__(self, motion, obs_noise, config, rng, initial_pose=(0.0, 0.0, 0.0), initial_pose_cov=None,
-                 firefly: FireflySLAMConfig | None = None) -> None:
-        super().__init__(motion, obs_noise, config, rng, initial_pose, initial_pose_cov,
-                         firefly if firefly is not None else FireflySLAMConfig(use_ewa=False),
-                         observation_log_brightness, fixed_step)
+    def __init__(
+        self,
+        motion,
+        obs_noise,
+        config,
+        rng,
+        initial_pose=(0.0, 0.0, 0.0),
+        initial_pose_cov=None,
+        firefly: FireflySLAMConfig | None = None,
+    ) -> None:
+        super().__init__(
+            motion,
+            obs_noise,
+            config,
+            rng,
+            initial_pose,
+            initial_pose_cov,
+            firefly if firefly is not None else FireflySLAMConfig(use_ewa=False),
+            observation_log_brightness,
+            fixed_step,
+        )
 
 
 class IFAFastSLAM(FireflyFastSLAM):
     """IFA-FastSLAM (paper 001): reconstructed Eq. 2 brightness with the state term, adaptive step, EWA resampling."""
 
-    def __init__(self, motion, obs_noise, config, rng, initial_pose=(0.0, 0.0, 0.0), initial_pose_cov=None,
-                 firefly: FireflySLAMConfig | None = None, log_brightness: LogBrightnessFn = gaussian_log_brightness,
-                 step_factor: StepFactorFn = adaptive_step) -> None:
-        super().__init__(motion, obs_noise, config, rng, initial_pose, initial_pose_cov,
-                         firefly if firefly is not None else FireflySLAMConfig(use_ewa=True),
-                         log_brightness, step_factor)
+    def __init__(
+        self,
+        motion,
+        obs_noise,
+        config,
+        rng,
+        initial_pose=(0.0, 0.0, 0.0),
+        initial_pose_cov=None,
+        firefly: FireflySLAMConfig | None = None,
+        log_brightness: LogBrightnessFn = gaussian_log_brightness,
+        step_factor: StepFactorFn = adaptive_step,
+    ) -> None:
+        super().__init__(
+            motion,
+            obs_noise,
+            config,
+            rng,
+            initial_pose,
+            initial_pose_cov,
+            firefly if firefly is not None else FireflySLAMConfig(use_ewa=True),
+            log_brightness,
+            step_factor,
+        )

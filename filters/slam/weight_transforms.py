@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from filters.resampling import normalise_weights
+from filters.smc.resampling import normalise_weights
 
 
 def identity(weights) -> np.ndarray:

@@ -12,7 +12,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from filters.motion import OdometryMotionConfig
+from filters.motion.odometry import OdometryMotionConfig
 
 from ..config import CameraParams, LidarParams, PhysicsParams, RobotParams, coerce_config, default_odometry_noise
 from ..layouts import Layout, get_layout

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from filters.grid import GridMap
-from filters.mcl import MCLConfig, MonteCarloLocalizer
+from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
+from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
 from ..maps import MAP_SOURCES, maps_for
@@ -18,7 +18,7 @@ from ..scenarios import SCENARIOS, changed_obstacles
 from .base import SemRelocBase
 
 DEFAULT_RELOCALIZER = MCLConfig(likelihood_scale=0.03)
-"""The env's relocalizer: :class:`filters.mcl.MCLConfig` defaults, but a stronger tempering of
+"""The env's relocalizer: :class:`filters.localization.mcl.MCLConfig` defaults, but a stronger tempering of
 the likelihood (0.03 instead of 0.1), which halved wrong convergences in global relocalization
 (docs/paper004.md, "Choosing the defaults")."""
 
@@ -44,7 +44,7 @@ class SemRelocEnv(SemRelocBase):
     A pymunk world built from a *layout* (walls, doors, chairs, trash bins,
     cabinets) holds a disc robot with a 360 deg lidar, a forward semantic camera
     (paper 004's semantic pseudo-laser) and wheel odometry. Inside the env runs a
-    Monte Carlo relocalizer (:class:`filters.mcl.MonteCarloLocalizer`) whose
+    Monte Carlo relocalizer (:class:`filters.localization.mcl.MonteCarloLocalizer`) whose
     weights multiply a lidar likelihood field with a per-class semantic
     likelihood field. By default every episode is a *global* relocalization:
     the belief starts uniform over the map's free space, and the policy should
@@ -88,8 +88,8 @@ class SemRelocEnv(SemRelocBase):
 
     ## Info
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
-    (:meth:`filters.belief.Belief.as_dict`); ``pose_error`` ``{"position": m, "heading": rad}``
-    of the belief mean; ``mcl`` the last update's diagnostics (:class:`filters.mcl.UpdateDiagnostics`,
+    (:meth:`filters.localization.belief.Belief.as_dict`); ``pose_error`` ``{"position": m, "heading": rad}``
+    of the belief mean; ``mcl`` the last update's diagnostics (:class:`filters.localization.mcl.UpdateDiagnostics`,
     None for values not computed in this step); ``rewards``;
     ``collided``; ``kidnapped`` (True from the kidnap step on).
 
@@ -99,8 +99,8 @@ class SemRelocEnv(SemRelocBase):
     * ``action_type``: ``"discrete"`` or ``"continuous"``.
     * ``robot``, ``physics``, ``lidar``, ``camera``, ``odometry``: dicts of overrides of
       :class:`~semreloc_env.config.RobotParams`, ``PhysicsParams``, ``LidarParams``,
-      ``CameraParams`` and :class:`filters.motion.OdometryMotionConfig` (the simulator's noise).
-    * ``relocalizer``: dict of overrides of :data:`DEFAULT_RELOCALIZER`, a :class:`filters.mcl.MCLConfig`
+      ``CameraParams`` and :class:`filters.motion.odometry.OdometryMotionConfig` (the simulator's noise).
+    * ``relocalizer``: dict of overrides of :data:`DEFAULT_RELOCALIZER`, a :class:`filters.localization.mcl.MCLConfig`
       (e.g. ``n_particles``); an MCLConfig instance replaces it whole.
     * ``semantic``: False runs the relocalizer lidar-only (the comparison of paper 004); None
       (default) keeps the relocalizer's ``use_semantic`` (True unless overridden there).

@@ -8,13 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from filters.motion import OdometryMotionConfig
+from filters.motion.odometry import OdometryMotionConfig
+from filters.motion.odometry_slam import OdometryIncrementModel
 from filters.pose import wrap_angle
 from filters.slam.association import AssociationConfig
 from filters.slam.class_votes import ClassVotingFastSLAM
 from filters.slam.fastslam import FastSLAMConfig, SLAMEstimate
 from filters.slam.landmarks import RangeBearingNoise
-from filters.slam.odometry_motion import OdometryIncrementModel
 from filters.slam.weight_transforms import WOC
 
 from ..config import coerce_config
@@ -40,10 +40,10 @@ class SlamParams:
             detections on no object, i.e. false positives, are then dropped). False (default): maximum
             likelihood association with the NIS gates below.
         gate_associate, gate_new: NIS gates of :class:`filters.slam.association.AssociationConfig`.
-        resampler: resampling scheme name (:func:`filters.resampling.get_resampler`).
+        resampler: resampling scheme name (:func:`filters.smc.resampling.get_resampler`).
         resample_ess_fraction: resample when the ESS of the WOC weights falls below this fraction of N
             (1.0: after every update with observations, as the paper does).
-        motion_noise: dict of :class:`filters.motion.OdometryMotionConfig` overrides for the filter's
+        motion_noise: dict of :class:`filters.motion.odometry.OdometryMotionConfig` overrides for the filter's
             odometry noise; ``None`` (default) uses the simulator's ``odometry`` noise (a matched model).
     """
 
@@ -98,7 +98,7 @@ class SemSlamEnv(SemRelocBase):
     lidar, a forward semantic camera, wheel odometry). Inside the env runs **WOCPF SLAM** (paper 000):
     FastSLAM (:class:`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
     through the WOC step ``psi = (K-1)/K w + mean(w)/K`` before resampling. Its controls are the noisy
-    odometry increments (:class:`filters.slam.odometry_motion.OdometryIncrementModel`); its observations
+    odometry increments (:class:`filters.motion.odometry_slam.OdometryIncrementModel`); its observations
     are range-bearing *landmarks*: each object the semantic camera labels is one observation to a point
     near the object's centre (:mod:`semreloc_env.landmark_sensor`). Landmarks also collect class votes
     (:class:`filters.slam.class_votes.ClassVotingFastSLAM`), so the map is semantic. No map is given:

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from filters.grid import DEFAULT_CLASS_NAMES
+from filters.mapping.grid import DEFAULT_CLASS_NAMES
 
 CLASS_NAMES: tuple[str, ...] = DEFAULT_CLASS_NAMES
 """Object classes a layout may use; scan label ``k + 1`` is ``CLASS_NAMES[k]``."""

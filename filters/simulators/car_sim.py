@@ -51,8 +51,16 @@ class CarSimConfig:
     sensor_noise: bool = True
 
     def __post_init__(self) -> None:
-        positive = [self.speed_mps, self.wheelbase_m, self.max_steer_rad, self.max_steer_rate_radps,
-                    self.dt_control_s, self.dt_observe_s, self.max_range_m, self.at_waypoint_m]
+        positive = [
+            self.speed_mps,
+            self.wheelbase_m,
+            self.max_steer_rad,
+            self.max_steer_rate_radps,
+            self.dt_control_s,
+            self.dt_observe_s,
+            self.max_range_m,
+            self.at_waypoint_m,
+        ]
         if not all(p > 0 for p in positive):
             raise ValueError(f"simulator lengths, rates and times must be positive: {self}")
         if min(self.sigma_v_mps, self.sigma_g_rad, self.sigma_r_m, self.sigma_b_rad) < 0:
@@ -94,12 +102,25 @@ def _landmarks_along(waypoints: np.ndarray, start: np.ndarray, n: int, offsets_m
 
 def default_course() -> Course:
     """100 m x 80 m area (x in [-10, 90], y in [-70, 10]), 15 waypoints, 31 landmarks, clockwise from (0, 0)."""
-    waypoints = np.array([
-        [20.0, 2.0], [40.0, -2.0], [60.0, 2.0], [78.0, -4.0],          # east along the top
-        [83.0, -20.0], [78.0, -38.0], [83.0, -55.0],                    # south down the right side
-        [66.0, -62.0], [46.0, -57.0], [26.0, -63.0], [6.0, -58.0],     # west along the bottom
-        [-3.0, -44.0], [2.0, -28.0], [-3.0, -12.0], [0.0, 0.0],        # north back to the start
-    ])
+    waypoints = np.array(
+        [
+            [20.0, 2.0],
+            [40.0, -2.0],
+            [60.0, 2.0],
+            [78.0, -4.0],  # east along the top
+            [83.0, -20.0],
+            [78.0, -38.0],
+            [83.0, -55.0],  # south down the right side
+            [66.0, -62.0],
+            [46.0, -57.0],
+            [26.0, -63.0],
+            [6.0, -58.0],  # west along the bottom
+            [-3.0, -44.0],
+            [2.0, -28.0],
+            [-3.0, -12.0],
+            [0.0, 0.0],  # north back to the start
+        ]
+    )
     start = np.array([0.0, 0.0, 0.0])
     offsets = [7.0, -9.0, 11.0, -6.0, 9.0, -12.0, 6.0, -8.0, 12.0, -7.0]
     lms = _landmarks_along(waypoints, start, 31, offsets)
@@ -144,8 +165,7 @@ class CarSimRun:
 
     def scans_by_step(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """``{control step t: (z, ids)}``."""
-        return {int(t): (z, i) for t, z, i in zip(self.obs_steps, self.observations, self.observation_ids,
-                                                   strict=True)}
+        return {int(t): (z, i) for t, z, i in zip(self.obs_steps, self.observations, self.observation_ids, strict=True)}
 
 
 def observe(pose: np.ndarray, landmarks: np.ndarray, max_range_m: float) -> tuple[np.ndarray, np.ndarray]:

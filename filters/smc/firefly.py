@@ -1,7 +1,7 @@
 """Firefly-improved particle filters: FA-PF and IFA-PF (paper 001, Cui et al. 2021).
 
 Both insert a firefly-algorithm move between prediction and weighting of the
-bootstrap filter (:class:`filters.pf.BootstrapPF`): each predicted particle is a
+bootstrap filter (:class:`filters.smc.pf.BootstrapPF`): each predicted particle is a
 firefly whose *brightness* says how well it explains the newest data, and dim
 fireflies move toward brighter ones::
 
@@ -55,8 +55,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from filters.models.base import StateSpaceModel
-from filters.pf import BootstrapPF, PFConfig, normalise_log_weights
+from filters.smc.models.base import StateSpaceModel
+from filters.smc.pf import BootstrapPF, PFConfig, normalise_log_weights
 
 LogBrightnessFn = Callable[[np.ndarray, np.ndarray, float, float], np.ndarray]
 """``(obs_dist (N,), state_dist (N,), r_var, q_var) -> log I (N,)``; must decrease in both distances."""
@@ -81,9 +81,7 @@ def gaussian_log_brightness(obs_dist: np.ndarray, state_dist: np.ndarray, r_var:
     return -(o * o / (2.0 * r_var) + s * s / (2.0 * q_var))
 
 
-def observation_log_brightness(
-    obs_dist: np.ndarray, state_dist: np.ndarray, r_var: float, q_var: float
-) -> np.ndarray:
+def observation_log_brightness(obs_dist: np.ndarray, state_dist: np.ndarray, r_var: float, q_var: float) -> np.ndarray:
     """Standard FA-PF brightness (Tian et al. 2016): ``log I = -d_z^2 / (2R)``; ignores ``state_dist``."""
     o = np.asarray(obs_dist, dtype=np.float64)
     return -(o * o) / (2.0 * r_var)
@@ -233,7 +231,7 @@ def apply_mutation(
 # ---- the filters ----------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FireflyConfig(PFConfig):
-    """Configuration of :class:`FireflyPF` (adds to :class:`filters.pf.PFConfig`).
+    """Configuration of :class:`FireflyPF` (adds to :class:`filters.smc.pf.PFConfig`).
 
     alpha0: random-step scale (state units); IFA-PF multiplies it by ``sqrt(R)`` when
         ``scale_alpha_by_obs_noise`` is set.
@@ -285,7 +283,7 @@ class FireflyPF(BootstrapPF):
     """Bootstrap PF with a firefly move before weighting; brightness and step rule are parameters.
 
     ``log_brightness``: a :data:`LogBrightnessFn`; ``step_factor``: a :data:`StepFactorFn`.
-    ``run(model, ys, rng)`` returns filtered means ``(T, d)`` (see :class:`filters.pf.BootstrapPF`).
+    ``run(model, ys, rng)`` returns filtered means ``(T, d)`` (see :class:`filters.smc.pf.BootstrapPF`).
     """
 
     name = "FireflyPF"
@@ -321,8 +319,15 @@ class FireflyPF(BootstrapPF):
             state_dist = np.linalg.norm(x - x_new[None, :], axis=1)
             log_i = self.log_brightness(obs_dist, state_dist, r_var, q_var)
             x = firefly_move(
-                x, log_i, alpha0, rng, step_factor=self.step_factor, beta0=cfg.beta0, gamma=cfg.gamma,
-                mode=cfg.move_mode, pairwise_max_n=cfg.pairwise_max_n,
+                x,
+                log_i,
+                alpha0,
+                rng,
+                step_factor=self.step_factor,
+                beta0=cfg.beta0,
+                gamma=cfg.gamma,
+                mode=cfg.move_mode,
+                pairwise_max_n=cfg.pairwise_max_n,
             )
         return x
 

@@ -1,17 +1,17 @@
-"""Odometry-driven motion model for the SLAM filters: :class:`filters.motion.OdometryMotionModel` behind
-the :class:`filters.slam.motion.MotionModel` protocol.
+"""Odometry-driven motion model for the SLAM filters: :class:`filters.motion.odometry.OdometryMotionModel` behind
+the :class:`filters.motion.velocity.MotionModel` protocol.
 
 The control is the odometry increment ``u = (dx m, dy m, dtheta rad)`` in the frame of the *previous*
 robot pose (``filters.pose.relative(prev, now)``), as wheel odometry reports it; ``dt`` is accepted for
 the protocol and ignored (the increment already covers one step). The increment is decomposed into
-``(rot1, trans, rot2)`` exactly as :func:`filters.motion.decompose` does::
+``(rot1, trans, rot2)`` exactly as :func:`filters.motion.odometry.decompose` does::
 
     heading = theta + rot1
     x' = x + trans cos(heading);  y' = y + trans sin(heading);  theta' = wrap(heading + rot2)
 
 Noise (Thrun et al., Table 5.6): ``rot1, trans, rot2`` are perturbed by independent zero-mean Gaussians
 whose standard deviations ``(s_r1, s_t, s_r2)`` depend on the increment itself
-(:meth:`filters.motion.OdometryMotionModel.stds`). The protocol's ``control_cov`` is a constant, so the
+(:meth:`filters.motion.odometry.OdometryMotionModel.stds`). The protocol's ``control_cov`` is a constant, so the
 noise is written in *standardised* form: ``(rot1, trans, rot2) + diag(s_r1, s_t, s_r2) @ eps`` with
 ``eps ~ N(0, I_3)``. Hence
 
@@ -20,11 +20,11 @@ noise is written in *standardised* form: ``(rot1, trans, rot2) + diag(s_r1, s_t,
   ``d mean / d(rot1, trans, rot2) @ diag(s_r1, s_t, s_r2)``, so ``F_u control_cov F_u^T`` is the
   first-order pose covariance of one odometry step -- what FastSLAM 2.0's predict needs.
 
-Shapes differ from the car-like models of :mod:`filters.slam.motion` (their controls and ``control_cov``
+Shapes differ from the car-like models of :mod:`filters.motion.velocity` (their controls and ``control_cov``
 are 2D): here ``u`` is ``(3,)``, ``F_u`` is ``(N, 3, 3)`` and ``control_cov`` ``(3, 3)``. FastSLAM only
 forms ``F_u Q F_u^T`` and passes ``u`` through, so it works unchanged.
 
-:meth:`sample` delegates to :meth:`filters.motion.OdometryMotionModel.sample` (FastSLAM 1.0's predict),
+:meth:`sample` delegates to :meth:`filters.motion.odometry.OdometryMotionModel.sample` (FastSLAM 1.0's predict),
 so a particle filter and the simulator's odometry share one noise model.
 """
 
@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.motion import OdometryMotionConfig, OdometryMotionModel, decompose
+from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel, decompose
 from filters.pose import wrap_angle
 
 
@@ -56,7 +56,7 @@ class OdometryIncrementModel:
     """Odometry increments as SLAM controls (see the module docstring for the contract).
 
     Args:
-        config: noise alphas of the rot1-trans-rot2 model (:class:`filters.motion.OdometryMotionConfig`);
+        config: noise alphas of the rot1-trans-rot2 model (:class:`filters.motion.odometry.OdometryMotionConfig`);
             default the model's defaults. ``min_trans_m`` decides when ``rot1`` is taken as 0.
 
     Stateless apart from the config; randomness only in :meth:`sample`, from the ``rng`` passed in.

@@ -1,6 +1,6 @@
 """Pure-NumPy reference of the likelihood-field measurement model.
 
-The same model as :mod:`filters.likelihood_field` (read its docstring for the
+The same model as :mod:`filters.localization.likelihood_field` (read its docstring for the
 maths), written as plain array code and computed from the *distance fields*
 rather than from the precomputed ``log p`` tables, so it checks the tables as
 well as the numba kernel. It is slow (it builds ``(N, B)`` temporaries and
@@ -12,10 +12,13 @@ it is part of the model's definition, not of the hot loop.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from filters.likelihood_field import BeamSet, LikelihoodFieldModel
-from filters.scans import LaserScan, SemanticScan
+if TYPE_CHECKING:  # annotations only: likelihood_field imports this module for its numpy backend
+    from filters.localization.likelihood_field import BeamSet, LikelihoodFieldModel
+    from filters.robot_data.scans import LaserScan, SemanticScan
 
 
 def log_likelihood_terms_reference(

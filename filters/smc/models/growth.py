@@ -37,7 +37,7 @@ class GrowthModelParams:
 
 
 class GrowthModel:
-    """The UNGM as a :class:`filters.models.base.StateSpaceModel` (``d = m = 1``)."""
+    """The UNGM as a :class:`filters.smc.models.base.StateSpaceModel` (``d = m = 1``)."""
 
     state_dim = 1
     obs_dim = 1

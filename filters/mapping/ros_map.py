@@ -6,7 +6,7 @@ A map on disk is
   ``map_server`` / ``map_saver`` (ROS 1) and ``nav2_map_server`` (ROS 2) read and
   write it, so maps built on a real robot load unchanged;
 * optionally ``<name>.semantic.yaml`` + one 8-bit PGM per class: the semantic
-  grids of :class:`filters.grid.GridMap` on the same raster.
+  grids of :class:`filters.mapping.grid.GridMap` on the same raster.
 
 The full specification, with a worked example, is ``docs/maps.md``. In short:
 
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from filters.grid import GridMap
+from filters.mapping.grid import GridMap
 
 __all__ = ["MapFormatError", "save_map", "load_map", "read_pgm", "write_pgm", "semantic_yaml_path"]
 

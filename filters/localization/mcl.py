@@ -2,8 +2,8 @@
 
 Model and algorithm are separate (``nchopin/particles`` style):
 
-* motion model: :class:`filters.motion.OdometryMotionModel` (``sample(poses, delta, rng)``),
-* measurement model: :class:`filters.likelihood_field.LikelihoodFieldModel`
+* motion model: :class:`filters.motion.odometry.OdometryMotionModel` (``sample(poses, delta, rng)``),
+* measurement model: :class:`filters.localization.likelihood_field.LikelihoodFieldModel`
   (``log_likelihood(poses, lidar, semantic) -> (N,)``; lidar field x per-class
   semantic field, paper 004 Eq. 8),
 * the filter loop: :class:`MonteCarloLocalizer` below, which owns an ``(N, 3)``
@@ -31,7 +31,7 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
 4. **Resampling**, with the scheme named ``resampler``, when ``ESS < resample_ess_frac * N``
    and the semantic hold-off is over: with ``use_semantic`` and
    ``holdoff_min_detections > 0``, no resampling until that many object detections
-   (runs of equally-labelled beams, :func:`filters.likelihood_field.count_detections`)
+   (runs of equally-labelled beams, :func:`filters.localization.likelihood_field.count_detections`)
    were seen since the last ``init_*`` (paper 004 §3: keep diversity until several
    objects were seen). Since updates only run after enough motion, resampling also
    only happens after motion (paper 004's threshold).
@@ -59,13 +59,13 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import logsumexp
 
-from filters.belief import Belief, BeliefConfig, linear_bin_keys, summarize
-from filters.grid import GridMap
-from filters.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
-from filters.motion import OdometryMotionConfig, OdometryMotionModel
+from filters.localization.belief import Belief, BeliefConfig, linear_bin_keys, summarize
+from filters.localization.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
+from filters.mapping.grid import GridMap
+from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import compose, wrap_angle
-from filters.resampling import RESAMPLERS, get_resampler
-from filters.scans import LaserScan, SemanticScan
+from filters.robot_data.scans import LaserScan, SemanticScan
+from filters.smc.resampling import RESAMPLERS, get_resampler
 
 _SUBCONFIGS = {
     "lidar_field": LikelihoodFieldConfig,
@@ -94,7 +94,7 @@ class MCLConfig:
             sum is another fix for the same problem): with plain Bayes one scan decides
             between look-alike places before the semantic factor can, see docs/relocalizer.md.
         update_min_d_m, update_min_a_rad: motion gate of the measurement update (AMCL).
-        resampler: name in :data:`filters.resampling.RESAMPLERS`.
+        resampler: name in :data:`filters.smc.resampling.RESAMPLERS`.
         resample_ess_frac: resample when ESS < this fraction of N (1.0 = every update).
         holdoff_min_detections: semantic hold-off (0 = off).
         kld, kld_bin_xy_m, kld_bin_theta_rad, kld_epsilon, kld_z, min_particles,
@@ -236,7 +236,7 @@ class MonteCarloLocalizer:
         measurement_model=None,
     ) -> None:
         if not isinstance(grid, GridMap):
-            raise TypeError(f"grid must be a filters.grid.GridMap, got {type(grid).__name__}")
+            raise TypeError(f"grid must be a filters.mapping.grid.GridMap, got {type(grid).__name__}")
         if isinstance(config, dict):
             config = MCLConfig(**config)
         self.config: MCLConfig = config if config is not None else MCLConfig()
@@ -527,6 +527,6 @@ class MonteCarloLocalizer:
 
     # ------------------------------------------------------------ summary
     def belief(self) -> Belief:
-        """Summary of the current particle set (see :mod:`filters.belief`)."""
+        """Summary of the current particle set (see :mod:`filters.localization.belief`)."""
         self._require_particles()
         return summarize(self._poses, np.exp(self._logw), self.config.belief)

@@ -2,14 +2,14 @@
 
 This is the map a filter holds. It is plain data (numpy arrays + metadata) and
 knows nothing of the simulator, so maps from a real robot (ROS ``map_server``
-files, see :mod:`filters.map_io`) work the same as maps built in simulation.
+files, see :mod:`filters.mapping.ros_map`) work the same as maps built in simulation.
 
 Conventions
 -----------
 * Cell ``(row, col)`` covers ``x in [ox + col*res, ox + (col+1)*res)`` and
   ``y in [oy + row*res, oy + (row+1)*res)``: row 0 is the *bottom* row (smallest
   y), as in ROS ``nav_msgs/OccupancyGrid``. Image files store the top row first;
-  :mod:`filters.map_io` flips on read and write.
+  :mod:`filters.mapping.ros_map` flips on read and write.
 * ``occupancy`` holds the probability that a cell is occupied, in ``[0, 1]``;
   ``0.5`` means unknown. A cell is *occupied* above ``occupied_thresh`` and
   *free* below ``free_thresh`` (the map_server defaults 0.65 / 0.196).
@@ -73,8 +73,7 @@ class GridMap:
             sem = np.zeros((len(names),) + occ.shape, np.float32)
         if sem.shape != (len(names),) + occ.shape:
             raise ValueError(
-                f"semantic must have shape {(len(names),) + occ.shape} "
-                f"(classes x occupancy shape), got {sem.shape}"
+                f"semantic must have shape {(len(names),) + occ.shape} (classes x occupancy shape), got {sem.shape}"
             )
         if not np.all(np.isfinite(sem)) or (sem.size and (sem.min() < 0.0 or sem.max() > 1.0)):
             raise ValueError("semantic values must be finite probabilities in [0, 1]")

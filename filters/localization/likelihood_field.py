@@ -29,7 +29,7 @@ occupied / class masks, ``scipy.ndimage.distance_transform_edt``), in metres.
 Speed: per ``(lidar range_max, semantic range_max)`` pair the model precomputes
 one table of ``log p`` per cell for the occupancy field and every class field, so
 an update is one table look-up per particle and beam, done by the numba kernel
-:func:`log_likelihood_kernel`. :mod:`filters.likelihood_reference` holds a pure
+:func:`log_likelihood_kernel`. :mod:`filters.localization.likelihood_reference` holds a pure
 NumPy implementation of the same model, computed from the distance fields
 without the tables, used to test the kernel.
 """
@@ -43,8 +43,9 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from filters.grid import GridMap
-from filters.scans import LaserScan, SemanticScan
+from filters.localization.likelihood_reference import log_likelihood_terms_reference
+from filters.mapping.grid import GridMap
+from filters.robot_data.scans import LaserScan, SemanticScan
 
 
 @dataclass(frozen=True)
@@ -210,7 +211,7 @@ class LikelihoodFieldModel:
         lidar: parameters of the lidar field.
         semantic: parameters of the semantic fields (shared by all classes).
         backend: ``"numba"`` (the fast kernel) or ``"numpy"`` (the reference in
-            :mod:`filters.likelihood_reference`; same numbers, slower).
+            :mod:`filters.localization.likelihood_reference`; same numbers, slower).
     """
 
     def __init__(
@@ -221,7 +222,7 @@ class LikelihoodFieldModel:
         backend: str = "numba",
     ) -> None:
         if not isinstance(grid, GridMap):
-            raise TypeError(f"grid must be a filters.grid.GridMap, got {type(grid).__name__}")
+            raise TypeError(f"grid must be a filters.mapping.grid.GridMap, got {type(grid).__name__}")
         if backend not in ("numba", "numpy"):
             raise ValueError(f"backend must be 'numba' or 'numpy', got {backend!r}")
         self.grid = grid
@@ -333,8 +334,6 @@ class LikelihoodFieldModel:
             raise ValueError("poses contain NaN or inf")
         beams = self.beams(lidar, semantic)
         if self.backend == "numpy":
-            from filters.likelihood_reference import log_likelihood_terms_reference
-
             ll_l, ll_s = log_likelihood_terms_reference(self, p, beams)
             return ll_l, ll_s, beams
         tables, floors = self.log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)

@@ -32,7 +32,7 @@ import numpy as np
 from scipy import ndimage
 
 from filters.pose import wrap_angle
-from filters.resampling import normalise_weights
+from filters.smc.resampling import normalise_weights
 
 
 @dataclass(frozen=True)
@@ -47,8 +47,13 @@ class BeliefConfig:
     converged_theta_std_rad: float = 0.2
 
     def __post_init__(self) -> None:
-        for name in ("entropy_bin_xy_m", "entropy_bin_theta_rad", "cluster_bin_m", "converged_pos_std_m",
-                     "converged_theta_std_rad"):
+        for name in (
+            "entropy_bin_xy_m",
+            "entropy_bin_theta_rad",
+            "cluster_bin_m",
+            "converged_pos_std_m",
+            "converged_theta_std_rad",
+        ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"BeliefConfig.{name} must be a positive number, got {v!r}")

@@ -1,6 +1,6 @@
 """Agreement between maps: intersection over union of boolean grids and of GridMap layers.
 
-Used to check a mapping run (:mod:`filters.mapping`) against the rasterised truth of a layout
+Used to check a mapping run (:mod:`filters.mapping.occupancy`) against the rasterised truth of a layout
 (or two maps of the same place against each other). Both maps must share one raster: same
 shape, resolution and origin, else ``ValueError`` — no resampling is done here.
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from filters.grid import GridMap
+from filters.mapping.grid import GridMap
 
 __all__ = [
     "iou",

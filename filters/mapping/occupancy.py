@@ -6,11 +6,11 @@ per-cell log-odds (paper 004 Eq. 5: the map posterior factorises over cells; Eq.
 cell's Bayes update, which in log-odds form is a sum of per-frame increments
 ``l <- clip(l + delta, l_min, l_max)``, prior ``l = 0``, i.e. ``p = 0.5``).
 
-* :class:`OccupancyMapper` (lidar, :class:`~filters.scans.LaserScan`): every cell a beam
+* :class:`OccupancyMapper` (lidar, :class:`~filters.robot_data.scans.LaserScan`): every cell a beam
   passes through gets ``l_free``, the cell its return lies in gets ``l_occ``. A beam
   without a return (``range >= range_max_m``) clears cells up to ``range_max_m`` and marks
   nothing.
-* :class:`SemanticMapper` (semantic pseudo-laser, :class:`~filters.scans.SemanticScan`), one
+* :class:`SemanticMapper` (semantic pseudo-laser, :class:`~filters.robot_data.scans.SemanticScan`), one
   log-odds grid per class. A beam labelled ``k + 1`` ("inside a detection") raises class
   ``k`` at its end cell by ``l_hit`` and lowers every other class there by ``l_other_hit``;
   the cells on its way get the small decrement ``l_free_inside`` (paper 004 Fig. 4,
@@ -25,11 +25,11 @@ runs from ``(x, y)`` at world angle ``th + angles[i]``. Its cells are the exact
 :func:`beam_cells`); a cell is listed once per beam, so a beam updates a cell at most once.
 Several beams of one scan do update a cell several times. A range that ends exactly on
 a cell face counts the cell being entered (tolerance ``1e-6`` cell), so ranges reported
-as "distance to the boundary of the hit cell" (e.g. :mod:`filters.raycast`) mark that cell.
+as "distance to the boundary of the hit cell" (e.g. :mod:`filters.simulators.grid_raycast`) mark that cell.
 Beams and cells outside the raster are skipped.
 
 The mappers own a raster fixed up front (shape, resolution, origin, as in
-:class:`~filters.grid.GridMap`); :meth:`to_grid` turns the log-odds into a ``GridMap``.
+:class:`~filters.mapping.grid.GridMap`); :meth:`to_grid` turns the log-odds into a ``GridMap``.
 No randomness anywhere.
 """
 
@@ -43,8 +43,8 @@ import numba
 import numpy as np
 from scipy.special import expit
 
-from filters.grid import DEFAULT_CLASS_NAMES, GridMap
-from filters.scans import LaserScan, SemanticScan
+from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
+from filters.robot_data.scans import LaserScan, SemanticScan
 
 __all__ = [
     "OccupancyParams",

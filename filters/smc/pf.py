@@ -1,12 +1,12 @@
-"""Generic bootstrap (SIR) particle filter over any :class:`filters.models.base.StateSpaceModel`.
+"""Generic bootstrap (SIR) particle filter over any :class:`filters.smc.models.base.StateSpaceModel`.
 
 One step for ``t = 1..T`` (Gordon, Salmond & Smith 1993)::
 
     x_t^i ~ p(x_t | x_{t-1}^i)                     predict (model.sample_transition)
-    x_t^i <- move(x_t^i)                           hook; identity here, firefly moves in filters.firefly
+    x_t^i <- move(x_t^i)                           hook; identity here, firefly moves in filters.smc.firefly
     log w^i += log p(y_t | x_t^i)                  weight, normalised by log-sum-exp
     xhat_t = sum_i w^i x_t^i                       filtered mean (the returned estimate)
-    resample when ESS < resample_threshold * N     hook; a scheme from filters.resampling by name
+    resample when ESS < resample_threshold * N     hook; a scheme from filters.smc.resampling by name
 
 All particle arithmetic is array code over ``(N, d)``; the only Python loop is over time.
 """
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
-from filters.models.base import StateSpaceModel
-from filters.resampling import effective_sample_size, get_resampler
+from filters.smc.models.base import StateSpaceModel
+from filters.smc.resampling import effective_sample_size, get_resampler
 
 
 @dataclass(frozen=True)
@@ -27,7 +27,7 @@ class PFConfig:
     """Configuration of :class:`BootstrapPF`.
 
     n_particles: ``N >= 1``.
-    resampler: a name in :data:`filters.resampling.RESAMPLERS`.
+    resampler: a name in :data:`filters.smc.resampling.RESAMPLERS`.
     resample_threshold: resample when ``ESS < resample_threshold * N``; any value ``>= 1``
         resamples at every step (plain SIR, the paper-001 setting).
     """

@@ -17,8 +17,8 @@ import math
 import numba
 import numpy as np
 
-from filters.grid import GridMap
-from filters.scans import LaserScan, SemanticScan
+from filters.mapping.grid import GridMap
+from filters.robot_data.scans import LaserScan, SemanticScan
 
 
 @numba.njit(cache=True)
@@ -86,8 +86,7 @@ def cast_rays(grid: GridMap, pose, angles: np.ndarray, range_max_m: float) -> tu
     row = np.empty(a.size, np.int64)
     col = np.empty(a.size, np.int64)
     ox, oy = grid.origin_xy_m
-    _cast(grid.occupied_mask(), float(ox), float(oy), grid.resolution_m, p[0], p[1], a, float(range_max_m), r, row,
-          col)
+    _cast(grid.occupied_mask(), float(ox), float(oy), grid.resolution_m, p[0], p[1], a, float(range_max_m), r, row, col)
     return r, row, col
 
 

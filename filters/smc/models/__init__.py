@@ -1,0 +1,6 @@
+"""State-space models for the generic particle filters (:mod:`filters.smc.pf`, :mod:`filters.smc.firefly`)."""
+
+from filters.smc.models.base import StateSpaceModel
+from filters.smc.models.growth import GrowthModel, GrowthModelParams
+
+__all__ = ["GrowthModel", "GrowthModelParams", "StateSpaceModel"]
