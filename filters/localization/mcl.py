@@ -493,10 +493,7 @@ class MonteCarloLocalizer:
         sem = semantic if c.use_semantic else None
         moved_m = math.hypot(self._since_update[0], self._since_update[1])
         use_lidar = lidar is not None and (
-            c.lidar_on_rotation
-            or not self._has_updated
-            or force
-            or self._since_lidar_m + moved_m > c.update_min_d_m
+            c.lidar_on_rotation or not self._has_updated or force or self._since_lidar_m + moved_m > c.update_min_d_m
         )
         lid = lidar if use_lidar else None
         ll_l, ll_s, beams = self.measurement_model.log_likelihood_terms(self._poses, lid, sem)
