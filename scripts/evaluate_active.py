@@ -18,7 +18,7 @@ Per policy (overall, per layout kind, and on the uninformative starts): success 
 step limit (the env's own test, :mod:`agents.metrics`), wrong convergence (converged, wrong
 place, at the end), unconverged, each with a Wilson 95 % interval
 (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the successes,
-mean collisions per episode. Into ``--out``: ``episodes.json`` (one row per episode),
+mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode),
 ``summary.json``, ``table.md`` and ``success.png`` (bar plot with the intervals).
 
 The same arguments give the same numbers whatever ``--workers``: every episode is seeded on its
@@ -267,7 +267,7 @@ def table(summary: dict, policies: list[str]) -> str:
         lines += [
             f"### {group} ({n} episodes per policy)",
             "",
-            "| policy | success | wrong | unconverged | median steps | collisions / episode |",
+            "| policy | success | wrong | unconverged | median steps | steps in collision / episode |",
             "|---|---|---|---|---|---|",
         ]
         for p in policies:
