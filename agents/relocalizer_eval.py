@@ -13,6 +13,7 @@ stopping at success, so the belief is watched after it claims convergence. Per e
 * **calibration counts**: ``converged_steps`` and ``converged_correct_steps`` over all steps
   (post-kidnap steps only, in a kidnap episode): calibration = correct / converged.
 * **cpu_s_per_step**: process CPU time per env step (the machine may be shared).
+* **median_error_m**: median position error of the estimate over the scored steps.
 
 :func:`run_grid` runs many episodes in a process pool, deterministically: each episode's
 result depends only on its :class:`EpisodeSpec`.
@@ -35,7 +36,9 @@ POLICIES = ("random", "spin", "wall_follow")
 @dataclass(frozen=True)
 class EpisodeSpec:
     """One evaluation episode. ``mcl`` holds ``MCLConfig`` overrides (applied to the env's
-    default relocalizer); ``kidnap_at_step`` > 0 makes it a tracking-then-kidnap episode."""
+    default relocalizer); ``kidnap_at_step`` > 0 makes it a tracking-then-kidnap episode, and
+    ``tracking`` a tracking episode (the belief starts at the true pose; only the error and the
+    step time are of interest)."""
 
     layout: str
     seed: int
@@ -44,6 +47,7 @@ class EpisodeSpec:
     scenario: str = "nominal"
     n_steps: int = 400
     kidnap_at_step: int = 0
+    tracking: bool = False
     mcl: dict = field(default_factory=dict)
     env_kwargs: dict = field(default_factory=dict)
     label: str = ""
@@ -54,7 +58,7 @@ class EpisodeSpec:
         name = self.layout if self.layout not in ("procedural", "procedural_sym") else f"{self.layout}"
         if self.scenario != "nominal":
             name += f"_{self.scenario}"
-        return name + ("_kidnap" if self.kidnap_at_step else "")
+        return name + ("_kidnap" if self.kidnap_at_step else "_tracking" if self.tracking else "")
 
 
 def make_policy(name: str, seed: int):
@@ -81,7 +85,10 @@ def run_episode(spec: EpisodeSpec) -> dict:
         relocalizer=dict(spec.mcl) or None,
         **spec.env_kwargs,
     )
-    options = {"tracking": True, "kidnap_at_step": spec.kidnap_at_step} if spec.kidnap_at_step else None
+    if spec.kidnap_at_step:
+        options = {"tracking": True, "kidnap_at_step": spec.kidnap_at_step}
+    else:
+        options = {"tracking": True} if spec.tracking else None
     obs, info = env.reset(seed=spec.seed, options=options)
     policy = make_policy(spec.policy, spec.seed)
     first_success = None
@@ -89,7 +96,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
     conv = conv_ok = 0
     collisions = 0
     cpu = 0.0
-    n_particles = []
+    n_particles, errors = [], []
     for t in range(1, spec.n_steps + 1):
         c0 = time.process_time()
         obs, _, _, _, info = env.step(policy(obs))
@@ -99,6 +106,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
         if spec.kidnap_at_step and t < spec.kidnap_at_step:
             continue
         err = info["pose_error"]
+        errors.append(err["position"])
         near = err["position"] < 0.5 and err["heading"] < math.radians(15.0)
         converged = info["belief"]["converged"]
         conv += converged
@@ -127,6 +135,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
         cpu_s_per_step=cpu / spec.n_steps,
         mean_particles=float(np.mean(n_particles)),
         final_particles=int(n_particles[-1]),
+        median_error_m=float(np.median(errors)) if errors else math.nan,
     )
     return out
 
@@ -174,6 +183,7 @@ def summarize(results: list[dict]) -> dict:
     out["converged_steps"] = conv
     out["cpu_ms_per_step"] = 1e3 * float(np.mean([r["cpu_s_per_step"] for r in results])) if n else math.nan
     out["mean_particles"] = float(np.mean([r["mean_particles"] for r in results])) if n else math.nan
+    out["median_error_m"] = float(np.median([r["median_error_m"] for r in results])) if n else math.nan
     return out
 
 

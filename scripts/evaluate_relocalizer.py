@@ -4,8 +4,8 @@ Each *variant* is a dict of ``MCLConfig`` overrides applied to ``SemReloc``'s de
 (``{}`` = the env's defaults). Every variant runs the same episodes: per row, ``--episodes``
 episodes pooled over the baseline policies (random walk, spin in place, wall following), each
 episode ``i`` with seed ``--seed-base + i``. Rows: the built-in layouts, the changed lab,
-``procedural_sym`` over ``--sym-seeds``, and kidnap rows (tracking, then a teleport at step 30,
-200 steps after it).
+``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30,
+200 steps after it), and a tracking row (300 steps from the true pose: error and step time).
 
 Tuning and reporting use disjoint seeds: defaults were chosen with ``--seed-base 5000
 --sym-seeds 100,101,102,103,104``; the report in docs/relocalizer_eval.md uses the defaults below.
@@ -29,11 +29,13 @@ VARIANTS = {"before": LEGACY_RELOCALIZER_OVERRIDES, "after": {}}
 
 GLOBAL_ROWS = ("twin_rooms", "lab", "lab_changed", "procedural_sym", "three_rooms", "open_hall")
 KIDNAP_ROWS = ("lab_kidnap", "three_rooms_kidnap")
+TRACKING_ROWS = ("lab_tracking",)
 
 
 def specs_for(row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict, label: str) -> list[EpisodeSpec]:
     kidnap = row.endswith("_kidnap")
-    base = row.removesuffix("_kidnap")
+    tracking = row.endswith("_tracking")
+    base = row.removesuffix("_kidnap").removesuffix("_tracking")
     scenario = "changed" if base == "lab_changed" else "nominal"
     layout = "lab" if base == "lab_changed" else base
     out = []
@@ -45,8 +47,9 @@ def specs_for(row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict,
                 policy=POLICIES[i % len(POLICIES)],
                 layout_seed=sym_seeds[i % len(sym_seeds)] if layout.startswith("procedural") else 0,
                 scenario=scenario,
-                n_steps=230 if kidnap else 400,
+                n_steps=230 if kidnap else 300 if tracking else 400,
                 kidnap_at_step=30 if kidnap else 0,
+                tracking=tracking,
                 mcl=mcl,
                 label=label,
             )
@@ -57,7 +60,7 @@ def specs_for(row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict,
 def table(results: list[dict], variants: list[str], rows: list[str]) -> str:
     head = (
         "| row | variant | episodes | success | wrong | unconverged | ever wrong | median steps "
-        "| calibration | CPU ms/step | mean particles |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "| calibration | median error m | CPU ms/step | mean particles |\n" + "|---" * 12 + "|\n"
     )
     lines = []
     for row in rows:
@@ -69,7 +72,7 @@ def table(results: list[dict], variants: list[str], rows: list[str]) -> str:
             lines.append(
                 f"| {row} | {v} | {s['episodes']} | {pct(s['success'])} | {pct(s['wrong'])} | {pct(s['unconverged'])} "
                 f"| {pct(s['ever_wrong'])} | {s['median_steps']:.0f} | {pct(s['calibration'])} "
-                f"| {s['cpu_ms_per_step']:.2f} | {s['mean_particles']:.0f} |"
+                f"| {s['median_error_m']:.3f} | {s['cpu_ms_per_step']:.2f} | {s['mean_particles']:.0f} |"
             )
     return head + "\n".join(lines) + "\n"
 
@@ -78,7 +81,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", default="before,after", help="comma-separated names of VARIANTS")
     ap.add_argument("--extra", default="{}", help='JSON {"name": {MCLConfig overrides}} of more variants')
-    ap.add_argument("--rows", default=",".join(GLOBAL_ROWS + KIDNAP_ROWS), help="comma-separated rows")
+    ap.add_argument("--rows", default=",".join(GLOBAL_ROWS + KIDNAP_ROWS + TRACKING_ROWS), help="comma-separated rows")
     ap.add_argument("--episodes", type=int, default=200, help="episodes per row and variant")
     ap.add_argument("--seed-base", type=int, default=0, help="seed of episode 0")
     ap.add_argument("--sym-seeds", default="0,1,2,3,4,5,6,7,8,9", help="procedural_sym layout seeds")

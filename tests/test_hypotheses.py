@@ -147,19 +147,26 @@ def test_augmented_injection_rises_right_after_a_kidnap():
 
 def test_global_particle_count_follows_the_free_area_and_kld_bounds_hold():
     grid = symmetric_room()  # about 49 m^2 free
-    mcl = MonteCarloLocalizer(
-        grid, MCLConfig(global_particles_per_m2=100, max_particles=20000), np.random.default_rng(0)
-    )
+    by_map = {"n_particles": None, "global_particles_per_m2": 100, "min_particles": 400, "max_particles": 20000}
+    mcl = MonteCarloLocalizer(grid, MCLConfig(**by_map), np.random.default_rng(0))
     assert 45 < mcl.free_area_m2 < 50
     assert mcl.global_particle_count() == round(100 * mcl.free_area_m2)
     mcl.init_global()
     assert mcl.n_particles == mcl.global_particle_count()
+    mcl.init_around([4.0, 1.5, 0.0], 0.1)
+    assert mcl.n_particles == 400  # a tight cloud starts at the KLD floor
     capped = MonteCarloLocalizer(
-        grid, MCLConfig(global_particles_per_m2=1000, max_particles=8000), np.random.default_rng(0)
+        grid, MCLConfig(**{**by_map, "global_particles_per_m2": 1000, "max_particles": 8000}), np.random.default_rng(0)
     )
     assert capped.global_particle_count() == 8000
-    floor = MonteCarloLocalizer(grid, MCLConfig(n_particles=3000, global_particles_per_m2=1), np.random.default_rng(0))
-    assert floor.global_particle_count() == 3000
+    floor = MonteCarloLocalizer(grid, MCLConfig(**{**by_map, "global_particles_per_m2": 1}), np.random.default_rng(0))
+    assert floor.global_particle_count() == 400
+    fixed = MonteCarloLocalizer(
+        grid, MCLConfig(n_particles=3000, global_particles_per_m2=100), np.random.default_rng(0)
+    )
+    assert fixed.global_particle_count() == 3000  # an explicit count wins
+    with pytest.raises(ValueError, match="global_particles_per_m2"):
+        MCLConfig(n_particles=None)
     cfg = MCLConfig(kld=True, min_particles=300, max_particles=6000, resample_mode="clustered", resample_ess_frac=1.0)
     k = MonteCarloLocalizer(grid, cfg, np.random.default_rng(1))
     rng = np.random.default_rng(2)

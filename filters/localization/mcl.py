@@ -69,10 +69,12 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
    its correlated errors would be multiplied in again and again); the semantic factor
    (a narrow camera, which does see new things when turning) is always used.
 
-Particle counts: ``init_global`` draws ``n_particles``, or, with
-``global_particles_per_m2 > 0``, that density times the map's free area, clipped to
-``[n_particles, max_particles]``, so a larger map gets more particles; KLD sampling then
-shrinks the set as the belief concentrates.
+Particle counts: ``init_global`` and ``init_around`` draw ``n_particles``. With
+``n_particles=None`` the count follows the map: ``init_global`` draws
+``global_particles_per_m2`` times the map's free area, clipped to ``[min_particles,
+max_particles]``, so a larger map gets more particles, and ``init_around`` draws
+``min_particles`` (a tight cloud needs no more); KLD sampling then adapts the count as the
+belief concentrates or spreads.
 """
 
 from __future__ import annotations
@@ -108,7 +110,8 @@ class MCLConfig:
     unknown keys raise ``TypeError`` there as here.
 
     Attributes:
-        n_particles: particles drawn by ``init_global`` / ``init_around``.
+        n_particles: particles drawn by ``init_global`` / ``init_around``; None = sized by the map
+            (module docstring).
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
         motion: odometry motion noise.
@@ -125,8 +128,8 @@ class MCLConfig:
         kld, kld_bin_xy_m, kld_bin_theta_rad, kld_epsilon, kld_z, min_particles,
             max_particles: KLD-sampling (``kld_z`` is the upper standard normal quantile,
             2.326 for 1 - delta = 0.99).
-        global_particles_per_m2: particles per m^2 of free space for ``init_global`` (0 = use
-            ``n_particles``); the count is clipped to ``[n_particles, max_particles]``.
+        global_particles_per_m2: particles per m^2 of free space for ``init_global`` when
+            ``n_particles`` is None (> 0 then).
         resample_mode: ``"global"`` (one draw over all particles) or ``"clustered"``.
         cluster_keep_weight, cluster_min_particles: clustered resampling (module docstring).
         augmented, alpha_slow, alpha_fast: augmented MCL random-particle injection.
@@ -140,7 +143,7 @@ class MCLConfig:
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
     """
 
-    n_particles: int = 2000
+    n_particles: int | None = 2000
     lidar_field: LikelihoodFieldConfig = LikelihoodFieldConfig()
     semantic_field: LikelihoodFieldConfig = DEFAULT_SEMANTIC_FIELD
     motion: OdometryMotionConfig = OdometryMotionConfig()
@@ -183,6 +186,10 @@ class MCLConfig:
                 raise TypeError(f"MCLConfig.{name} must be a {cls.__name__} or a dict, got {type(v).__name__}")
         for name in ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates"):
             v = getattr(self, name)
+            if name == "n_particles" and v is None:
+                if not self.global_particles_per_m2 > 0:
+                    raise ValueError("MCLConfig: n_particles=None needs global_particles_per_m2 > 0")
+                continue
             if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
                 raise ValueError(f"MCLConfig.{name} must be an int >= 1, got {v!r}")
         if self.min_particles > self.max_particles:
@@ -404,10 +411,10 @@ class MonteCarloLocalizer:
     def global_particle_count(self) -> int:
         """The particle count ``init_global`` draws by default (see the module docstring)."""
         c = self.config
-        if c.global_particles_per_m2 <= 0:
+        if c.n_particles is not None:
             return c.n_particles
         n = round(c.global_particles_per_m2 * self.free_area_m2)
-        return int(min(max(n, c.n_particles), max(c.max_particles, c.n_particles)))
+        return int(min(max(n, c.min_particles), c.max_particles))
 
     def init_global(self, n: int | None = None) -> None:
         """Spread ``n`` particles uniformly over free space (default :meth:`global_particle_count`).
@@ -420,13 +427,15 @@ class MonteCarloLocalizer:
         self._reset_state()
 
     def init_around(self, pose, std, n: int | None = None) -> None:
-        """Gaussian cloud of ``n`` particles around ``pose (x, y, theta)``.
+        """Gaussian cloud of ``n`` particles around ``pose (x, y, theta)`` (default: module docstring).
 
         Args:
             pose: ``(3,)`` centre, metres / radians.
             std: scalar or ``(3,)`` standard deviations ``(x m, y m, theta rad)``, >= 0.
         """
-        n = self._check_n(self.config.n_particles if n is None else n)
+        if n is None:
+            n = self.config.n_particles if self.config.n_particles is not None else self.config.min_particles
+        n = self._check_n(n)
         p = np.asarray(pose, dtype=np.float64).reshape(-1)
         s = np.broadcast_to(np.asarray(std, dtype=np.float64), (3,))
         if p.shape != (3,) or not np.all(np.isfinite(p)):

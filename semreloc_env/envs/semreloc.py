@@ -138,6 +138,8 @@ class SemRelocEnv(SemRelocBase):
     """
 
     _reset_option_keys = frozenset({"pose", "tracking", "kidnap_at_step", "kidnap_pose"})
+    default_relocalizer: MCLConfig = DEFAULT_RELOCALIZER
+    """What ``relocalizer=None`` stands for and a dict of overrides applies to."""
 
     def __init__(
         self,
@@ -167,7 +169,7 @@ class SemRelocEnv(SemRelocBase):
         super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
         from ..config import coerce_config
 
-        cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", DEFAULT_RELOCALIZER)
+        cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", self.default_relocalizer)
         if semantic is not None:
             if isinstance(relocalizer, MCLConfig) or (isinstance(relocalizer, dict) and "use_semantic" in relocalizer):
                 if bool(semantic) != cfg.use_semantic:
@@ -312,6 +314,7 @@ class SemRelocEnv(SemRelocBase):
             for k, v in self.mcl.last_diagnostics.as_dict().items()
         }
         info["kidnapped"] = self._kidnapped
+        info["is_success"] = self._succeeded
         return info
 
     def _render_state(self) -> dict[str, Any]:
@@ -324,3 +327,15 @@ class SemRelocEnv(SemRelocBase):
             f"  spread {self._belief.pos_std_m:.2f} m  {'converged' if self._belief.converged else ''}"
         )
         return state
+
+
+class SemRelocEnvV0(SemRelocEnv):
+    """``SemReloc-v0``: :class:`SemRelocEnv` with the first release's relocalizer (2000 particles,
+    global resampling, no recovery, ``converged`` = small spread; :data:`LEGACY_RELOCALIZER_OVERRIDES`).
+    Kept so that results made with v0 can be reproduced; use ``SemReloc-v1``."""
+
+    default_relocalizer = dataclasses.replace(
+        DEFAULT_RELOCALIZER,
+        **{k: v for k, v in LEGACY_RELOCALIZER_OVERRIDES.items() if k != "belief"},
+        belief=dataclasses.replace(DEFAULT_RELOCALIZER.belief, **LEGACY_RELOCALIZER_OVERRIDES["belief"]),
+    )
