@@ -8,7 +8,7 @@ Importing the package registers the environments::
     env = gym.make("SemReloc-v0", layout="twin_rooms")
 """
 
-from gymnasium.envs.registration import register, registry
+from gymnasium.envs.registration import WrapperSpec, register, registry
 
 from .layouts import CLASS_NAMES, Layout, LayoutError, get_layout, load_layout
 from .world import World, build_world
@@ -17,7 +17,20 @@ __all__ = ["CLASS_NAMES", "ENV_IDS", "Layout", "LayoutError", "World", "build_wo
 
 ENV_IDS = ("SemReloc-v0", "SemSlam-v0")
 
+# outermost: reset arguments are checked before TimeLimit zeroes its counter (wrappers.CheckedReset)
+_CHECKED_RESET = (WrapperSpec("CheckedReset", "semreloc_env.wrappers:CheckedReset", {}),)
+
 if "SemReloc-v0" not in registry:
-    register(id="SemReloc-v0", entry_point="semreloc_env.envs.semreloc:SemRelocEnv", max_episode_steps=400)
+    register(
+        id="SemReloc-v0",
+        entry_point="semreloc_env.envs.semreloc:SemRelocEnv",
+        max_episode_steps=400,
+        additional_wrappers=_CHECKED_RESET,
+    )
 if "SemSlam-v0" not in registry:
-    register(id="SemSlam-v0", entry_point="semreloc_env.envs.semslam:SemSlamEnv", max_episode_steps=400)
+    register(
+        id="SemSlam-v0",
+        entry_point="semreloc_env.envs.semslam:SemSlamEnv",
+        max_episode_steps=400,
+        additional_wrappers=_CHECKED_RESET,
+    )

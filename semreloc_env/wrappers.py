@@ -6,6 +6,8 @@
   nor the pose error: a policy that sees them would be cheating.
 * :class:`FlatObservation` concatenates every key of a Dict observation into one float32 Box,
   for algorithms and networks that want a flat vector.
+* :class:`CheckedReset` is the outermost wrapper of the registered envs: it checks the reset
+  arguments before Gymnasium's ``TimeLimit`` (which zeroes its step counter first) sees them.
 
 Typical use::
 
@@ -160,3 +162,23 @@ class FlatObservation(gym.ObservationWrapper):
 
     def observation(self, observation: dict) -> np.ndarray:
         return np.concatenate([np.asarray(observation[k], dtype=np.float32).ravel() for k in self.keys])
+
+
+class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Check ``reset(seed=..., options=...)`` before the wrappers inside see the call.
+
+    Gymnasium's ``TimeLimit.reset`` zeroes its step counter *before* it calls the env, so a
+    reset the env rejects (a bad ``options`` entry) would otherwise leave the old episode
+    running with a fresh time limit. ``gym.make`` puts this wrapper outside ``TimeLimit``
+    for every registered semreloc env (``additional_wrappers`` at registration); wrap your
+    own stacks with it outermost if they hold counters that ``reset`` clears first.
+    A rejected reset raises ``ValueError`` and changes nothing in any wrapper.
+    """
+
+    def __init__(self, env: gym.Env):
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.Wrapper.__init__(self, env)
+
+    def reset(self, *, seed=None, options=None):
+        self.env.unwrapped.check_reset(seed=seed, options=options)
+        return self.env.reset(seed=seed, options=options)

@@ -15,6 +15,7 @@ from filters.pose import wrap_angle
 
 from ..maps import MAP_SOURCES, maps_for
 from ..scenarios import SCENARIOS, changed_obstacles
+from ..world import as_pose
 from .base import SemRelocBase
 
 DEFAULT_RELOCALIZER = MCLConfig(likelihood_scale=0.03)
@@ -150,6 +151,8 @@ class SemRelocEnv(SemRelocBase):
         from ..config import coerce_config
 
         cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", DEFAULT_RELOCALIZER)
+        if semantic is not None and not isinstance(semantic, (bool, np.bool_)):
+            raise ValueError(f"semantic must be True, False or None, got {type(semantic).__name__} {semantic!r:.60}")
         if semantic is not None:
             if isinstance(relocalizer, MCLConfig) or (isinstance(relocalizer, dict) and "use_semantic" in relocalizer):
                 if bool(semantic) != cfg.use_semantic:
@@ -158,7 +161,6 @@ class SemRelocEnv(SemRelocBase):
         self.mcl_config = cfg
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
-        self.layout_seed = int(layout_seed)
         self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
@@ -168,6 +170,9 @@ class SemRelocEnv(SemRelocBase):
         return self._obstacles
 
     def _validate_options(self, options: dict, world) -> None:
+        tr = options.get("tracking")
+        if tr is not None and not isinstance(tr, (bool, np.bool_)):
+            raise ValueError(f"reset option tracking must be True, False or None, got {tr!r:.60}")
         k = options.get("kidnap_at_step")
         if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1):
             raise ValueError(f"kidnap_at_step must be an integer >= 1, got {k!r}")
@@ -175,12 +180,7 @@ class SemRelocEnv(SemRelocBase):
         if kp is not None:
             if k is None:
                 raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
-            try:
-                kp = np.asarray(kp, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}") from None
-            if kp.shape != (3,) or not np.all(np.isfinite(kp)):
-                raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}")
+            kp = as_pose(kp, "kidnap_pose")
             if not world.is_free(kp[:2]):
                 raise ValueError(f"kidnap_pose {kp.tolist()} is not free: it overlaps a wall or object")
         if not self.grid.free_mask().any():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -56,6 +56,7 @@ class SlamParams:
     resampler: str = "systematic"
     resample_ess_fraction: float = 1.0
     motion_noise: dict | OdometryMotionConfig | None = None
+    _allow_inf: ClassVar[frozenset] = frozenset({"woc_k"})  # K = inf is plain FastSLAM
 
     def __post_init__(self) -> None:
         if not isinstance(self.known_association, (bool, np.bool_)):
