@@ -55,6 +55,11 @@ def test_belief_observation_space_and_features_equal_info():
         assert space.contains(obs)
         np.testing.assert_allclose(obs["belief"], _expected(info["belief"]), rtol=1e-6)
         seen_converged.add(bool(obs["belief"][5]))
+    # a tracking start is converged at once: the feature must then read 1 (and 0 in the global rollout)
+    obs, info = env.reset(seed=3, options={"tracking": True})
+    np.testing.assert_allclose(obs["belief"], _expected(info["belief"]), rtol=1e-6)
+    seen_converged.add(bool(obs["belief"][5]))
+    assert seen_converged == {False, True}
     # the belief moves during the rollout: features are not constant
     beliefs = np.array([o["belief"] for o, _ in _rollout(env)])
     assert np.ptp(beliefs[:, 0]) > 0.1 and np.ptp(beliefs[:, 2]) > 0.1
