@@ -2,7 +2,9 @@
 
 Build a fresh world on every reset with :func:`build_world` (leftover bodies make
 pymunk runs nondeterministic). Sensors cast rays against :attr:`World.scene`, the
-segments read back from the very pymunk shapes the robot collides with.
+segments of the very shapes in the pymunk space; the robot's motion (:meth:`World.drive`)
+is resolved against the same segments by projection, so its state is its pose alone:
+no solver cache, copies that never diverge, and a clearance never below the radius.
 """
 
 from __future__ import annotations

@@ -115,6 +115,9 @@ class SemRelocEnv(SemRelocBase):
     ## Reset options
     ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1: at that step the robot is
     teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
+    A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
+    checks them in its outermost wrapper (:class:`semreloc_env.wrappers.CheckedReset`), so the
+    time limit keeps counting the old episode.
 
     ## Version History
     * v0: initial release.

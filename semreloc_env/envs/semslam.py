@@ -161,7 +161,8 @@ class SemSlamEnv(SemRelocBase):
     Unknown arguments or keys raise ``TypeError`` / ``ValueError``.
 
     ## Reset options
-    ``pose`` only; anything else raises ``ValueError`` and leaves the episode as it was.
+    ``pose`` only; anything else raises ``ValueError`` and leaves the episode as it was
+    (checked outside the time limit, see :class:`semreloc_env.wrappers.CheckedReset`).
 
     ## Version History
     * v0: initial release.
