@@ -67,6 +67,8 @@ def test_2_touching_is_allowed():
         }
     )
     assert len(lay.objects) == 3  # against the wall, against each other, against the outer wall
+    # the example wall only touches the notch's corner (4, 4): it stays inside, and is accepted
+    assert len(layout_from_dict({"outer": L_SHAPE, "walls": [[[2, 6], [6, 2]]]}).walls) == 1
 
 
 # ---------------------------------------------------------------- 3. clear errors
