@@ -42,6 +42,15 @@ def _hints(cls: type) -> dict:
         return {}
 
 
+@functools.cache
+def _inf_ok(cls: type, name: str) -> bool:
+    """Infinity is a valid value of field ``name``: listed in ``cls._allow_inf``, or its default is infinite."""
+    if name in getattr(cls, "_allow_inf", ()):
+        return True
+    default = next((f.default for f in dataclasses.fields(cls) if f.name == name), None)
+    return isinstance(default, float) and math.isinf(default)
+
+
 def _type_name(v) -> str:
     return f"{type(v).__name__} {v!r:.60}"
 
@@ -50,7 +59,7 @@ def _check_value(cls: type, name: str, v, ann, what: str):
     """``v`` checked against annotation ``ann`` (and converted: numpy scalars to Python ones).
 
     A bool is not an int, an int or float is not a bool, a string is not a number; floats must be
-    finite unless ``name`` is in ``cls._allow_inf``; NaN never passes.
+    finite unless ``name`` is in ``cls._allow_inf`` or its default is infinite; NaN never passes.
     """
     where = f"{what}.{name}"
     origin = typing.get_origin(ann)
@@ -79,7 +88,7 @@ def _check_value(cls: type, name: str, v, ann, what: str):
         if not (isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))):
             raise ValueError(f"{where} must be a number, got {_type_name(v)}")
         f = float(v)
-        if math.isnan(f) or (math.isinf(f) and name not in getattr(cls, "_allow_inf", ())):
+        if math.isnan(f) or (math.isinf(f) and not _inf_ok(cls, name)):
             raise ValueError(f"{where} must be a finite number, got {f!r}")
         return f
     if ann is str:
@@ -127,7 +136,8 @@ def coerce_config(cls: type[T], value, what: str, default: T | None = None) -> T
     value in ``default`` (``{"semantic_field": {"sigma_hit_m": 0.4}}`` keeps the semantic
     field's other defaults). Types follow the annotations: a bool is not an int, a float
     (even ``2.0``) is not an int, a string is not a bool or a number, NaN and infinite
-    floats are rejected (unless the class lists the field in ``_allow_inf``). Instances
+    floats are rejected (infinity is kept where the field's default is infinite or the
+    class lists the field in ``_allow_inf``). Instances
     are checked the same way.
 
     Args:

@@ -13,15 +13,33 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
+from ..layouts import CLASS_NAMES, get_layout
 from ..maps import MAP_SOURCES, maps_for
 from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
-from .base import SemRelocBase
+from .base import SemRelocBase, check_layout_seed
 
 DEFAULT_RELOCALIZER = MCLConfig(likelihood_scale=0.03)
 """The env's relocalizer: :class:`filters.localization.mcl.MCLConfig` defaults, but a stronger tempering of
 the likelihood (0.03 instead of 0.1), which halved wrong convergences in global relocalization
 (docs/paper004.md, "Choosing the defaults")."""
+
+LEGACY_RELOCALIZER_OVERRIDES = {
+    "n_particles": 2000,
+    "likelihood_scale": 0.03,
+    "kld": False,
+    "min_particles": 200,
+    "max_particles": 5000,
+    "global_particles_per_m2": 0.0,
+    "resample_mode": "global",
+    "augmented": False,
+    "injection": "uniform",
+    "max_update_log_ratio": math.inf,
+    "lidar_on_rotation": True,
+    "belief": {"converged_rule": "spread"},
+}
+"""``relocalizer=`` overrides that give back SemReloc-v0's relocalizer (2000 particles, no
+recovery, "converged" = small spread), for before/after comparisons."""
 
 SUCCESS_POSITION_M = 0.5
 SUCCESS_HEADING_RAD = math.radians(15.0)
@@ -164,9 +182,41 @@ class SemRelocEnv(SemRelocBase):
         self.mcl_config = cfg
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
+        self.map_source = map_source
         self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
+
+    def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None) -> None:
+        """Use another layout from the next :meth:`reset` on (the running episode keeps its world).
+
+        Args:
+            layout: anything ``get_layout`` takes (name, path, dict, Layout).
+            layout_seed: seeds procedural layouts and the ``"changed"`` scenario's obstacles.
+            grid: the filter's map for it; None builds it from the env's ``map_source`` with
+                :func:`semreloc_env.maps.maps_for` (cached there).
+
+        Raises:
+            ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
+                to one layout), or the grid's classes differ; nothing changes then.
+        """
+        layout_seed = check_layout_seed(layout_seed)
+        new_layout = get_layout(layout, seed=layout_seed)
+        if grid is None:
+            if not (isinstance(self.map_source, str) and self.map_source in MAP_SOURCES):
+                raise ValueError(
+                    f"set_layout needs a grid: the env's map_source {self.map_source!r} is fixed to one layout"
+                )
+            grid = maps_for(new_layout, self.map_source, self.lidar.params, self.camera.params)
+        elif not isinstance(grid, GridMap):
+            raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
+        elif grid.class_names != CLASS_NAMES:
+            raise ValueError(f"grid classes {grid.class_names} differ from the env's {CLASS_NAMES}")
+        obstacles = changed_obstacles(new_layout, layout_seed) if self.scenario == "changed" else []
+        self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, layout_seed, grid, obstacles
+        if self._renderer is not None:  # drawn for the old layout
+            self._renderer.close()
+            self._renderer = None
 
     # ------------------------------------------------------------------ hooks
     def _extra_obstacles(self) -> list:
@@ -218,18 +268,19 @@ class SemRelocEnv(SemRelocBase):
         self.mcl.update(lidar_scan, semantic_scan if self.mcl_config.use_semantic else None, force=self._steps == 0)
         self._prev_entropy = None if self._belief is None else self._belief.entropy_nats
         self._belief = self.mcl.belief()
-        mean, truth = self._belief.mean, self.world.pose
+        mean, truth = self._belief.estimate, self.world.pose
         self._error = {
             "position": float(np.hypot(*(mean[:2] - truth[:2]))),
             "heading": float(abs(wrap_angle(mean[2] - truth[2]))),
         }
 
     def pose_error(self) -> dict[str, float]:
-        """Position (m) and heading (rad) error of the belief mean against the true pose (this step)."""
+        """Position (m) and heading (rad) error of the belief's estimate (its heaviest hypothesis)
+        against the true pose (this step)."""
         return dict(self._error)
 
     def _near_truth(self) -> bool:
-        """The belief mean is within 0.5 m and 15 deg of the true pose."""
+        """The belief's estimate is within 0.5 m and 15 deg of the true pose."""
         return self._error["position"] < SUCCESS_POSITION_M and self._error["heading"] < SUCCESS_HEADING_RAD
 
     def _is_success(self) -> bool:
@@ -270,7 +321,7 @@ class SemRelocEnv(SemRelocBase):
     def _render_state(self) -> dict[str, Any]:
         state = super()._render_state()
         state["particles"] = self.mcl.poses
-        state["estimate"] = self._belief.mean
+        state["estimate"] = self._belief.estimate
         err = self.pose_error()
         state["title"] = (
             f"{self.layout.name}  step {self._steps}  error {err['position']:.2f} m / {math.degrees(err['heading']):.0f} deg"
