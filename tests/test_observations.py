@@ -9,7 +9,6 @@ from semreloc_env.observations import (
     BELIEF_SUMMARY,
     HYPOTHESIS_FEATURES,
     ActiveObservation,
-    cluster_hypotheses,
     hypotheses_of,
 )
 from semreloc_env.observations.rasters import MapRasters, egocentric_raster
@@ -147,32 +146,12 @@ def test_keys_select_entries_and_bad_arguments_raise():
     assert len(BELIEF_SUMMARY) == 7
 
 
-def test_cluster_hypotheses_finds_separate_clouds():
-    rng = np.random.default_rng(0)
-    a = np.c_[rng.normal(1.0, 0.05, (300, 2)), rng.normal(0.5, 0.02, 300)]
-    b = np.c_[rng.normal(8.0, 0.05, (100, 2)), rng.normal(-3.1, 0.02, 100)]
-    stray = np.array([[20.0, 20.0, 0.0]])
-    poses = np.vstack([a, b, stray])
-    w = np.r_[np.full(300, 1.0), np.full(100, 2.0), 0.1]
-    h = cluster_hypotheses(poses, w)
-    assert [x["n_particles"] for x in h] == [300, 100]  # stray dropped (weight < 0.02)
-    assert h[0]["weight"] == pytest.approx(300 / 500.1) and h[1]["weight"] == pytest.approx(200 / 500.1)
-    np.testing.assert_allclose(h[0]["mean"][:2], [1.0, 1.0], atol=0.02)
-    assert abs(abs(h[1]["mean"][2]) - 3.1) < 0.02
-    assert np.asarray(h[0]["cov"]).shape == (3, 3)
-    for bad in (np.zeros((0, 3)), np.zeros((3, 2))):
-        with pytest.raises(ValueError, match="poses"):
-            cluster_hypotheses(bad, np.ones(len(bad)))
-    with pytest.raises(ValueError, match="weights"):
-        cluster_hypotheses(poses, -w)
-
-
 def test_hypotheses_of_prefers_the_filters_list():
     env = _env("twin_rooms", 100)
     _, info = env.reset(seed=0)
     mine = hypotheses_of(env, info)
     mcl = env.unwrapped.mcl
-    assert mine == cluster_hypotheses(mcl.poses, mcl.weights)
+    assert mine == info["belief"]["hypotheses"] == mcl.belief().as_dict()["hypotheses"]
     assert sum(h["weight"] for h in mine) <= 1.0 + 1e-9 and sum(h["n_particles"] for h in mine) <= 100
     published = [{"weight": 1.0, "mean": [1.0, 2.0, 0.0], "cov": np.eye(3).tolist(), "n_particles": 100}]
     assert hypotheses_of(env, {"belief": {"hypotheses": published}}) == published

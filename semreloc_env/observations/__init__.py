@@ -7,13 +7,12 @@
 """
 
 from .active import BELIEF_SUMMARY, HYPOTHESIS_FEATURES, OBSERVATION_KEYS, ActiveObservation
-from .hypotheses import cluster_hypotheses, hypotheses_of
+from .hypotheses import hypotheses_of
 
 __all__ = [
     "BELIEF_SUMMARY",
     "HYPOTHESIS_FEATURES",
     "OBSERVATION_KEYS",
     "ActiveObservation",
-    "cluster_hypotheses",
     "hypotheses_of",
 ]
