@@ -186,7 +186,7 @@ ODOM_STEP = (0.05, 0.0, 0.02)
 
 
 def bench_env(args: Args) -> list[Row]:
-    """``SemReloc-v0`` steps per second (N particles, B lidar beams, semantic camera), against
+    """``SemReloc-v1`` steps per second (N particles, B lidar beams, semantic camera), against
     the same world + sensors without any filter, measured in the same run."""
     import gymnasium as gym
 
@@ -194,7 +194,7 @@ def bench_env(args: Args) -> list[Row]:
     from agents.baselines import WallFollowExplorer
 
     kwargs = dict(map_source="perfect", lidar={"n_beams": args.beams}, relocalizer={"n_particles": args.particles})
-    env = gym.make("SemReloc-v0", **kwargs).unwrapped
+    env = gym.make("SemReloc-v1", **kwargs).unwrapped
     n_steps = 20 * args.repeats
 
     def episode(step_fn) -> float:
@@ -219,13 +219,36 @@ def bench_env(args: Args) -> list[Row]:
     bare = episode(world_only)
     note = f"N={args.particles}, {args.beams} lidar + {env.camera.params.n_beams} semantic beams"
     return [
-        Row("SemReloc-v0 step", full, "steps/s", note),
+        Row("SemReloc-v1 step", full, "steps/s", note),
         Row("  world + sensors only", bare, "steps/s", "pymunk + ray casting, no filter"),
         Row("  filter share of a step", 1.0 - full / bare, "fraction", ""),
     ]
 
 
-BENCHMARKS: list[Callable[[Args], list[Row]]] = [bench_likelihood, bench_mcl_step, bench_env]
+def bench_mapping(args: Args) -> list[Row]:
+    """Occupancy + semantic mapping of a lab-sized run: 1000 poses x 60 beams into a 15 m x 10 m grid."""
+    from filters.mapping.occupancy import OccupancyMapper, SemanticMapper
+    from filters.robot_data.scans import LaserScan, SemanticScan
+
+    rng = np.random.default_rng(args.seed)
+    n, b = 1000, 60
+    poses = np.column_stack([rng.uniform(0.5, 14.5, n), rng.uniform(0.5, 9.5, n), rng.uniform(-np.pi, np.pi, n)])
+    angles = np.linspace(-np.pi, np.pi, b, endpoint=False)
+    lidar = [LaserScan(rng.uniform(0.2, 12.0, b), angles, 10.0) for _ in range(n)]
+    camera = [SemanticScan(rng.uniform(0.2, 5.0, b), angles, rng.integers(0, 5, b), 4.0) for _ in range(n)]
+
+    def run():
+        occ, sem = OccupancyMapper((200, 300), 0.05), SemanticMapper((200, 300), 0.05)
+        for p, s in zip(poses, lidar, strict=True):
+            occ.update(p, s)
+        sem.update_many(poses, camera)
+        return occ.to_grid(sem)
+
+    t = _median_time(run, max(1, min(args.repeats, 5)))
+    return [Row("mapping_lab_run", t, "s", "1000 poses x 60 beams, 200 x 300 cells (was a < 3 s test)")]
+
+
+BENCHMARKS: list[Callable[[Args], list[Row]]] = [bench_likelihood, bench_mcl_step, bench_env, bench_mapping]
 
 
 def parse_args(argv: list[str] | None = None) -> Args:

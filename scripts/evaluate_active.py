@@ -185,7 +185,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
     rows = []
     for name in policies:
         env = gym.make(
-            "SemReloc-v0",
+            "SemReloc-v1",
             layout=case["layout"],
             layout_seed=case["layout_seed"],
             scenario=case["scenario"],

@@ -25,7 +25,7 @@ from agents.relocalizer_eval import POLICIES, EpisodeSpec, pct, run_grid, save_j
 from semreloc_env.envs.semreloc import LEGACY_RELOCALIZER_OVERRIDES
 
 VARIANTS = {"before": LEGACY_RELOCALIZER_OVERRIDES, "after": {}}
-"""``before``: the relocalizer of SemReloc-v0 (today's defaults before this change); ``after``: the env's defaults."""
+"""``before``: the relocalizer of SemReloc-v0 (the first release's defaults); ``after``: the env's defaults."""
 
 GLOBAL_ROWS = ("twin_rooms", "lab", "lab_changed", "procedural_sym", "three_rooms", "open_hall")
 KIDNAP_ROWS = ("lab_kidnap", "three_rooms_kidnap")

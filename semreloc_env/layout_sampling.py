@@ -148,7 +148,7 @@ class RandomLayout(gym.Wrapper):
     :meth:`LayoutDraw.as_dict` of the episode's layout.
 
     Args:
-        env: a ``SemReloc-v0`` env.
+        env: a ``SemReloc-v1`` env.
         sampler: the layouts to draw (default :class:`LayoutSampler` with its defaults).
         seed: seed of the layout stream until a reset passes one.
         cache_size: maps kept in memory.

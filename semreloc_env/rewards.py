@@ -1,4 +1,4 @@
-"""Extra reward terms for ``SemReloc-v0``, kept out of the env (its reward logic is fixed there).
+"""Extra reward terms for ``SemReloc-v1``, kept out of the env (its reward logic is fixed there).
 
 * :func:`belief_mass_near` — the share of the belief within ``radius_m`` of a pose: Active
   Neural Localization's reward (Chaplot et al., ICLR 2018: the belief's probability at the
@@ -65,7 +65,7 @@ class BeliefMassReward(gym.Wrapper):
     reward; everything else passes through.
 
     Args:
-        env: a ``SemReloc-v0`` env (``unwrapped.mcl`` and ``unwrapped.world``).
+        env: a ``SemReloc-v1`` env (``unwrapped.mcl`` and ``unwrapped.world``).
         weight: scale of the term (reward units per unit of mass).
         radius_m, heading_tol_rad: see :func:`belief_mass_near`.
         mode: ``"level"`` or ``"gain"``.

@@ -1,4 +1,4 @@
-"""``SemReloc-v0``: active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v1`` (and ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -16,7 +16,8 @@ from filters.pose import wrap_angle
 from ..layouts import CLASS_NAMES, get_layout
 from ..maps import MAP_SOURCES, maps_for
 from ..scenarios import SCENARIOS, changed_obstacles
-from .base import SemRelocBase
+from ..world import as_pose
+from .base import SemRelocBase, check_layout_seed
 
 DEFAULT_RELOCALIZER = MCLConfig(likelihood_scale=0.03)
 """The env's relocalizer: :class:`filters.localization.mcl.MCLConfig` defaults, but a stronger tempering of
@@ -132,6 +133,9 @@ class SemRelocEnv(SemRelocBase):
     ## Reset options
     ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1: at that step the robot is
     teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
+    A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
+    checks them in its outermost wrapper (:class:`semreloc_env.wrappers.CheckedReset`), so the
+    time limit keeps counting the old episode.
 
     ## Version History
     * v0: initial release.
@@ -170,6 +174,8 @@ class SemRelocEnv(SemRelocBase):
         from ..config import coerce_config
 
         cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", self.default_relocalizer)
+        if semantic is not None and not isinstance(semantic, (bool, np.bool_)):
+            raise ValueError(f"semantic must be True, False or None, got {type(semantic).__name__} {semantic!r:.60}")
         if semantic is not None:
             if isinstance(relocalizer, MCLConfig) or (isinstance(relocalizer, dict) and "use_semantic" in relocalizer):
                 if bool(semantic) != cfg.use_semantic:
@@ -178,7 +184,6 @@ class SemRelocEnv(SemRelocBase):
         self.mcl_config = cfg
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
-        self.layout_seed = int(layout_seed)
         self.map_source = map_source
         self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
@@ -197,7 +202,8 @@ class SemRelocEnv(SemRelocBase):
             ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
                 to one layout), or the grid's classes differ; nothing changes then.
         """
-        new_layout = get_layout(layout, seed=int(layout_seed))
+        layout_seed = check_layout_seed(layout_seed)
+        new_layout = get_layout(layout, seed=layout_seed)
         if grid is None:
             if not (isinstance(self.map_source, str) and self.map_source in MAP_SOURCES):
                 raise ValueError(
@@ -208,8 +214,8 @@ class SemRelocEnv(SemRelocBase):
             raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
         elif grid.class_names != CLASS_NAMES:
             raise ValueError(f"grid classes {grid.class_names} differ from the env's {CLASS_NAMES}")
-        obstacles = changed_obstacles(new_layout, int(layout_seed)) if self.scenario == "changed" else []
-        self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, int(layout_seed), grid, obstacles
+        obstacles = changed_obstacles(new_layout, layout_seed) if self.scenario == "changed" else []
+        self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, layout_seed, grid, obstacles
         if self._renderer is not None:  # drawn for the old layout
             self._renderer.close()
             self._renderer = None
@@ -219,6 +225,9 @@ class SemRelocEnv(SemRelocBase):
         return self._obstacles
 
     def _validate_options(self, options: dict, world) -> None:
+        tr = options.get("tracking")
+        if tr is not None and not isinstance(tr, (bool, np.bool_)):
+            raise ValueError(f"reset option tracking must be True, False or None, got {tr!r:.60}")
         k = options.get("kidnap_at_step")
         if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1):
             raise ValueError(f"kidnap_at_step must be an integer >= 1, got {k!r}")
@@ -226,12 +235,7 @@ class SemRelocEnv(SemRelocBase):
         if kp is not None:
             if k is None:
                 raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
-            try:
-                kp = np.asarray(kp, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}") from None
-            if kp.shape != (3,) or not np.all(np.isfinite(kp)):
-                raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}")
+            kp = as_pose(kp, "kidnap_pose")
             if not world.is_free(kp[:2]):
                 raise ValueError(f"kidnap_pose {kp.tolist()} is not free: it overlaps a wall or object")
         if not self.grid.free_mask().any():

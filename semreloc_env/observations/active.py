@@ -95,7 +95,7 @@ class ActiveObservation(gym.Wrapper):
       the action of the last step (zeros after a reset).
 
     Args:
-        env: a ``SemReloc-v0`` env (anything with ``unwrapped.mcl``, ``unwrapped.grid``,
+        env: a ``SemReloc-v1`` env (anything with ``unwrapped.mcl``, ``unwrapped.grid``,
             ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
         keys: which keys to keep, in order (default :data:`OBSERVATION_KEYS`, all of them).
         ego_size, ego_cell_m: side of the ego crop in cells, and its cell size in metres
