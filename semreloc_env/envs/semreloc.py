@@ -141,10 +141,12 @@ class SemRelocEnv(SemRelocBase):
         if scenario not in SCENARIOS:
             raise ValueError(f"unknown scenario {scenario!r}; choose one of {list(SCENARIOS)}")
         if not (
-            isinstance(map_source, (GridMap, Path)) or map_source in MAP_SOURCES or str(map_source).endswith(".yaml")
+            isinstance(map_source, (GridMap, Path))
+            or map_source in MAP_SOURCES
+            or str(map_source).endswith((".yaml", ".yml"))
         ):
             raise ValueError(
-                f"map_source must be one of {list(MAP_SOURCES)}, a map .yaml path or a GridMap, got {map_source!r}"
+                f"map_source must be one of {list(MAP_SOURCES)}, a map .yaml/.yml path or a GridMap, got {map_source!r}"
             )
         super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
         from ..config import coerce_config
@@ -159,7 +161,7 @@ class SemRelocEnv(SemRelocBase):
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
         self.layout_seed = int(layout_seed)
-        self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params)
+        self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
 
