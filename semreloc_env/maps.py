@@ -11,7 +11,7 @@ from filters.mapping.grid import GridMap
 from filters.mapping.ros_map import load_map
 
 from .config import CameraParams, LidarParams
-from .layouts import CLASS_NAMES, LAYOUT_NAMES, Layout, get_layout
+from .layouts import CLASS_NAMES, LAYOUT_NAMES, Layout, find_layout_file, get_layout
 from .rasterize import rasterize
 
 MAP_SOURCES = ("mapping", "perfect")
@@ -39,12 +39,15 @@ def is_ros_map_file(path) -> bool:
 
 
 def names_a_layout(source) -> bool:
-    """True if ``source`` names a layout (built-in / procedural name, ``.json`` file, or a layout YAML)."""
-    if isinstance(source, str) and source in LAYOUT_NAMES:
+    """True if ``source`` names a layout: a built-in / procedural name, a name on ``$SEMRELOC_LAYOUT_PATH``,
+    a ``.json`` file, or an existing YAML file that is not a ROS map."""
+    if isinstance(source, str) and (source in LAYOUT_NAMES or find_layout_file(source) is not None):
         return True
     if isinstance(source, (str, Path)):
         p = Path(source)
-        return p.suffix.lower() == ".json" or (p.suffix.lower() in (".yaml", ".yml") and not is_ros_map_file(p))
+        if p.suffix.lower() == ".json":
+            return True
+        return p.suffix.lower() in (".yaml", ".yml") and p.is_file() and not is_ros_map_file(p)
     return False
 
 

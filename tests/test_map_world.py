@@ -158,3 +158,25 @@ def test_map_of_one_layout_world_of_another():
     assert base.layout.name == "lab_moved"
     env.step(0)
     env.close()
+
+
+def test_layouts_by_name_on_the_search_path(tmp_path, monkeypatch):
+    import json
+
+    from semreloc_env.layouts import LayoutError, find_layout_file
+
+    moved = lab()
+    moved["name"] = "lab_moved"
+    (tmp_path / "lab_moved.json").write_text(json.dumps(moved))
+    with pytest.raises(LayoutError, match="SEMRELOC_LAYOUT_PATH"):
+        get_layout("lab_moved")
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path))
+    assert find_layout_file("lab_moved") == tmp_path / "lab_moved.json"
+    assert get_layout("lab_moved").name == "lab_moved"
+    env = gym.make("SemReloc-v0", layout="lab", map_source="lab_moved", relocalizer={"n_particles": 100})
+    assert env.unwrapped.layout.name == "lab"
+
+
+def test_missing_map_file_is_still_file_not_found(tmp_path):
+    with pytest.raises(FileNotFoundError, match="map YAML not found"):
+        gym.make("SemReloc-v0", layout="lab", map_source=str(tmp_path / "nope.yaml"))

@@ -14,7 +14,7 @@ from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
 from ..layouts import LAYOUT_NAMES
-from ..maps import MAP_SOURCES, is_ros_map_file, maps_for
+from ..maps import MAP_SOURCES, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
 from .base import SemRelocBase
 
@@ -148,12 +148,12 @@ class SemRelocEnv(SemRelocBase):
         if not (
             isinstance(map_source, (GridMap, Path))
             or map_source in MAP_SOURCES
-            or map_source in LAYOUT_NAMES
+            or names_a_layout(map_source)
             or str(map_source).endswith((".yaml", ".yml", ".json"))
         ):
             raise ValueError(
                 f"map_source must be one of {list(MAP_SOURCES)}, a map .yaml/.yml path, a GridMap, or a layout "
-                f"(one of {list(LAYOUT_NAMES)} or a layout file), got {map_source!r}"
+                f"(one of {list(LAYOUT_NAMES)}, a name on $SEMRELOC_LAYOUT_PATH or a layout file), got {map_source!r}"
             )
         if layout is None:  # unset: the world the map shows, or the lab
             layout = map_source if isinstance(map_source, GridMap) or is_ros_map_file(map_source) else "lab"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -14,6 +15,8 @@ from .procedural import ProceduralParams, procedural_layout
 __all__ = [
     "CLASS_NAMES",
     "LAYOUT_NAMES",
+    "LAYOUT_PATH_ENV",
+    "find_layout_file",
     "Layout",
     "LayoutError",
     "ProceduralParams",
@@ -26,6 +29,23 @@ __all__ = [
 ]
 
 LAYOUT_NAMES = (*BUILTIN_LAYOUTS, "procedural", "procedural_sym")
+
+
+LAYOUT_PATH_ENV = "SEMRELOC_LAYOUT_PATH"
+"""Environment variable: folders (``os.pathsep``-separated) searched for layouts given by name."""
+
+
+def find_layout_file(name: str) -> Path | None:
+    """The first ``<folder>/<name>.yaml``, ``.yml`` or ``.json`` over the folders of ``$SEMRELOC_LAYOUT_PATH``
+    (``os.pathsep``-separated, searched in order), or None. Names with a path separator are not searched."""
+    if not name or "/" in name or os.sep in name:
+        return None
+    for folder in filter(None, os.environ.get(LAYOUT_PATH_ENV, "").split(os.pathsep)):
+        for ext in (".yaml", ".yml", ".json"):
+            p = Path(folder) / f"{name}{ext}"
+            if p.is_file():
+                return p
+    return None
 
 
 def _is_ros_map(spec) -> bool:
@@ -41,7 +61,8 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
 
     Args:
         spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"`` or
-            ``"procedural_sym"`` (generated from ``seed``), a path to a ``.json`` /
+            ``"procedural_sym"`` (generated from ``seed``), the name of a layout file on the search
+            path ``$SEMRELOC_LAYOUT_PATH`` (:func:`find_layout_file`), a path to a ``.json`` /
             ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a map: a
             ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
             :class:`~filters.mapping.grid.GridMap`, whose world is traced from its occupied
@@ -71,5 +92,11 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
         path = Path(spec)
         if path.suffix.lower() in (".json", ".yaml", ".yml") or path.exists():
             return load_layout(path)
-        raise LayoutError(f"unknown layout {str(spec)!r}: not one of {list(LAYOUT_NAMES)} and not a layout file path")
+        found = find_layout_file(str(spec))
+        if found is not None:
+            return load_layout(found)
+        raise LayoutError(
+            f"unknown layout {str(spec)!r}: not one of {list(LAYOUT_NAMES)}, not a layout file path, and no "
+            f"<name>.yaml/.yml/.json in ${LAYOUT_PATH_ENV} ({os.environ.get(LAYOUT_PATH_ENV, 'unset')})"
+        )
     raise LayoutError(f"a layout must be a name, a file path, a dict or a Layout, got {type(spec).__name__}")
