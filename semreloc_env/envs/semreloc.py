@@ -23,6 +23,23 @@ DEFAULT_RELOCALIZER = MCLConfig(likelihood_scale=0.03)
 the likelihood (0.03 instead of 0.1), which halved wrong convergences in global relocalization
 (docs/paper004.md, "Choosing the defaults")."""
 
+LEGACY_RELOCALIZER_OVERRIDES = {
+    "n_particles": 2000,
+    "likelihood_scale": 0.03,
+    "kld": False,
+    "min_particles": 200,
+    "max_particles": 5000,
+    "global_particles_per_m2": 0.0,
+    "resample_mode": "global",
+    "augmented": False,
+    "injection": "uniform",
+    "max_update_log_ratio": math.inf,
+    "lidar_on_rotation": True,
+    "belief": {"converged_rule": "spread"},
+}
+"""``relocalizer=`` overrides that give back SemReloc-v0's relocalizer (2000 particles, no
+recovery, "converged" = small spread), for before/after comparisons."""
+
 SUCCESS_POSITION_M = 0.5
 SUCCESS_HEADING_RAD = math.radians(15.0)
 
@@ -226,18 +243,19 @@ class SemRelocEnv(SemRelocBase):
         self.mcl.update(lidar_scan, semantic_scan if self.mcl_config.use_semantic else None, force=self._steps == 0)
         self._prev_entropy = None if self._belief is None else self._belief.entropy_nats
         self._belief = self.mcl.belief()
-        mean, truth = self._belief.mean, self.world.pose
+        mean, truth = self._belief.estimate, self.world.pose
         self._error = {
             "position": float(np.hypot(*(mean[:2] - truth[:2]))),
             "heading": float(abs(wrap_angle(mean[2] - truth[2]))),
         }
 
     def pose_error(self) -> dict[str, float]:
-        """Position (m) and heading (rad) error of the belief mean against the true pose (this step)."""
+        """Position (m) and heading (rad) error of the belief's estimate (its heaviest hypothesis)
+        against the true pose (this step)."""
         return dict(self._error)
 
     def _near_truth(self) -> bool:
-        """The belief mean is within 0.5 m and 15 deg of the true pose."""
+        """The belief's estimate is within 0.5 m and 15 deg of the true pose."""
         return self._error["position"] < SUCCESS_POSITION_M and self._error["heading"] < SUCCESS_HEADING_RAD
 
     def _is_success(self) -> bool:
@@ -278,7 +296,7 @@ class SemRelocEnv(SemRelocBase):
     def _render_state(self) -> dict[str, Any]:
         state = super()._render_state()
         state["particles"] = self.mcl.poses
-        state["estimate"] = self._belief.mean
+        state["estimate"] = self._belief.estimate
         err = self.pose_error()
         state["title"] = (
             f"{self.layout.name}  step {self._steps}  error {err['position']:.2f} m / {math.degrees(err['heading']):.0f} deg"
