@@ -67,7 +67,7 @@ def _plot(tr: Track, path: Path, title: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 3.2), dpi=100)
-    ax.plot(tr.scan_index, np.maximum(tr.pos_error_m, 1e-3), label="position error of the mean (m)")
+    ax.plot(tr.scan_index, np.maximum(tr.pos_error_m, 1e-3), label="position error of the estimate (m)")
     ax.plot(tr.scan_index, np.maximum(tr.pos_std_m, 1e-3), label="particle spread (m)", alpha=0.8)
     ax.set_yscale("log")
     ax.set_xlabel("scan")
@@ -108,7 +108,7 @@ def _gif(tr: Track, log, grid: GridMap, path: Path, every: int, px: int) -> None
         sel = parts[:: max(1, parts.shape[0] // 3000)]
         for x, y in to_px(sel[:, :2]):
             d.rectangle((x - 1, y - 1, x, y), fill=(30, 90, 255))
-        for pose, colour in ((log.poses[tr.scan_index[i]], (0, 170, 0)), (tr.mean[i], (220, 0, 200))):
+        for pose, colour in ((log.poses[tr.scan_index[i]], (0, 170, 0)), (tr.estimate[i], (220, 0, 200))):
             (x, y), r = to_px(pose[:2])[0], 4
             d.ellipse((x - r, y - r, x + r, y + r), outline=colour, width=2)
             d.line((x, y, x + 10 * math.cos(pose[2]), y - 10 * math.sin(pose[2])), fill=colour, width=2)

@@ -6,14 +6,15 @@ scan-matched poses of a corrected CARMEN log), ``odometry (K, 3)`` (raw incremen
 :class:`filters.robot_data.carmen.CarmenLog` is one.
 
 Step ``k`` of a replay: ``predict(odometry[k])`` (not for the first scan of a run), then
-``update(scan(k))`` (the localizer's motion gate applies), then the belief is compared with
-``poses[k]``: position error ``|mean_xy - pose_xy|`` (m) and heading error
-``|wrap(mean_theta - pose_theta)|`` (rad).
+``update(scan(k))`` (the localizer's motion gate applies), then the belief's *estimate*
+(:attr:`~filters.localization.belief.Belief.estimate`: the mean of its heaviest hypothesis,
+what the env scores) is compared with ``poses[k]``: position error ``|est_xy - pose_xy|`` (m)
+and heading error ``|wrap(est_theta - pose_theta)|`` (rad).
 
 * :func:`track`: tracking from a Gaussian cloud around the first reference pose.
 * :func:`global_localization_trials`: global localization (uniform over free space) from
   several start scans. A trial's outcome is decided at the first step whose belief is
-  ``converged`` (:meth:`MonteCarloLocalizer.belief`): ``"correct"`` if then the mean is
+  ``converged`` (:meth:`MonteCarloLocalizer.belief`): ``"correct"`` if then the estimate is
   within ``pos_tol_m`` and ``theta_tol_rad`` of the reference pose, else ``"wrong"``;
   ``"unconverged"`` if no step within ``n_steps`` converges.
 """
@@ -40,7 +41,7 @@ class Track:
 
     Attributes:
         scan_index: ``(n,)`` scan of each step.
-        mean: ``(n, 3)`` belief means.
+        estimate: ``(n, 3)`` belief estimates (heaviest hypothesis' mean).
         pos_error_m, theta_error_rad: ``(n,)`` errors against the reference poses.
         pos_std_m: ``(n,)`` belief position std.
         converged: ``(n,)`` bool, ``belief().converged``.
@@ -48,7 +49,7 @@ class Track:
     """
 
     scan_index: np.ndarray
-    mean: np.ndarray
+    estimate: np.ndarray
     pos_error_m: np.ndarray
     theta_error_rad: np.ndarray
     pos_std_m: np.ndarray
@@ -108,8 +109,8 @@ def _config(mcl_config) -> MCLConfig:
     return mcl_config
 
 
-def _errors(mean: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
-    return float(math.hypot(mean[0] - ref[0], mean[1] - ref[1])), float(abs(wrap_angle(mean[2] - ref[2])))
+def _errors(est: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    return float(math.hypot(est[0] - ref[0], est[1] - ref[1])), float(abs(wrap_angle(est[2] - ref[2])))
 
 
 def track(
@@ -145,7 +146,7 @@ def track(
     else:
         mcl.init_around(log.poses[start], init_std)
     steps = stop - start
-    mean = np.empty((steps, 3))
+    est = np.empty((steps, 3))
     pe, te, ps = np.empty(steps), np.empty(steps), np.empty(steps)
     conv = np.zeros(steps, dtype=bool)
     parts: list = []
@@ -154,13 +155,13 @@ def track(
             mcl.predict(log.odometry[k])
         mcl.update(log.scan(k))
         b = mcl.belief()
-        mean[i] = b.mean
-        pe[i], te[i] = _errors(b.mean, log.poses[k])
+        est[i] = b.estimate
+        pe[i], te[i] = _errors(b.estimate, log.poses[k])
         ps[i] = b.pos_std_m
         conv[i] = b.converged
         if record_particles:
             parts.append(np.array(mcl.poses))
-    return Track(np.arange(start, stop), mean, pe, te, ps, conv, parts)
+    return Track(np.arange(start, stop), est, pe, te, ps, conv, parts)
 
 
 def global_localization_trials(
@@ -202,7 +203,7 @@ def global_localization_trials(
             mcl.update(log.scan(k))
             b = mcl.belief()
             steps = j + 1
-            pe, te = _errors(b.mean, log.poses[k])
+            pe, te = _errors(b.estimate, log.poses[k])
             if b.converged:
                 outcome = "correct" if (pe <= pos_tol_m and te <= theta_tol_rad) else "wrong"
                 break
