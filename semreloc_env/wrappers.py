@@ -4,6 +4,10 @@
   relocalizer *believes* (spread, entropy, hypotheses, degeneracy, converged), read from
   ``info["belief"]`` (:meth:`filters.localization.belief.Belief.as_dict`). It never exposes the true pose
   nor the pose error: a policy that sees them would be cheating.
+* :class:`ActiveObservation` (from :mod:`semreloc_env.observations`) replaces the observation
+  by what an active-relocalization policy needs: egocentric and whole-map images of the belief,
+  the map and its classes, the hypothesis list, normalised scans and the last action, with
+  bounds independent of the particle count and the layout size.
 * :class:`FlatObservation` concatenates every key of a Dict observation into one float32 Box,
   for algorithms and networks that want a flat vector.
 
@@ -160,3 +164,8 @@ class FlatObservation(gym.ObservationWrapper):
 
     def observation(self, observation: dict) -> np.ndarray:
         return np.concatenate([np.asarray(observation[k], dtype=np.float32).ravel() for k in self.keys])
+
+
+from .observations import ActiveObservation  # noqa: E402  (the spatial observation for active relocalization)
+
+__all__ = ["BELIEF_FEATURES", "ActiveObservation", "BeliefObservation", "FlatObservation"]

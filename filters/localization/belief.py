@@ -19,8 +19,9 @@ Definitions (all weights normalised to sum 1):
 * **hypotheses**: the particles are binned on a ``cluster_bin_m`` x ``cluster_bin_m`` x
   ``cluster_bin_theta_rad`` raster (defaults 0.5 m x 0.5 m x 45 deg, heading
   wrapping around); a *cluster* is a connected component of the bins holding at least
-  ``cluster_min_bin_weight`` (default 1e-4) of the weight (26-neighbourhood, across the
-  ``±pi`` seam too); particles in lighter bins belong to no hypothesis. Each cluster whose total weight is
+  ``cluster_min_bin_frac`` (default 0.05) times the mean weight of the bins that hold
+  particles (26-neighbourhood, across the ``±pi`` seam too); particles in lighter bins
+  belong to no hypothesis. Each cluster whose total weight is
   at least ``cluster_min_weight`` (default 0.02, so stray particles are no
   hypothesis) is a :class:`Hypothesis` — weight, mean, covariance, particle count —
   and ``hypotheses`` lists them by weight, heaviest first. ``n_clusters`` is their number.
@@ -60,7 +61,7 @@ class BeliefConfig:
     cluster_bin_m: float = 0.5
     cluster_bin_theta_rad: float = math.pi / 4
     cluster_min_weight: float = 0.02
-    cluster_min_bin_weight: float = 1e-4
+    cluster_min_bin_frac: float = 0.05
     converged_min_weight: float = 0.95
     converged_pos_std_m: float = 0.3
     converged_theta_std_rad: float = 0.2
@@ -82,7 +83,7 @@ class BeliefConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"BeliefConfig.{name} must be a positive number, got {v!r}")
-        for name in ("cluster_min_weight", "cluster_min_bin_weight", "converged_min_weight"):
+        for name in ("cluster_min_weight", "cluster_min_bin_frac", "converged_min_weight"):
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0 <= v <= 1):
                 raise ValueError(f"BeliefConfig.{name} must be in [0, 1], got {v!r}")
@@ -227,15 +228,16 @@ def cluster_labels(
     bin_m: float,
     bin_theta_rad: float,
     weights: np.ndarray | None = None,
-    min_bin_weight: float = 0.0,
+    min_bin_frac: float = 0.0,
 ) -> tuple[np.ndarray, int]:
     """``(labels (N,), n)``: the connected cluster (``0 .. n-1``) of every particle, or -1.
 
     Clusters are connected components of the occupied cells of a ``bin_m`` x ``bin_m`` x
     ``bin_theta_rad`` raster (26-neighbourhood, heading wrapping around ``±pi``). A cell is
-    occupied when its particles' normalised ``weights`` sum to at least ``min_bin_weight``
-    (any particle, when 0 or no weights); particles in other cells get label -1, so a thin
-    haze of unlikely particles does not join two hypotheses.
+    occupied when its particles' normalised ``weights`` sum to at least ``min_bin_frac`` times
+    the mean weight of the cells that hold particles (any particle, when 0 or no weights);
+    particles in other cells get label -1, so a thin haze of unlikely particles does not join
+    two hypotheses, while a uniform cloud stays one cluster on a map of any size.
     """
     p = np.asarray(poses, dtype=np.float64)
     ix = _bin_keys(p[:, 0], bin_m)
@@ -245,10 +247,12 @@ def cluster_labels(
     nx, ny = int(ix.max()) + 1, int(iy.max()) + 1
     it, nt = _heading_bins(p[:, 2], bin_theta_rad)
     if nx * ny * nt > _MAX_RASTER_CELLS:  # absurdly spread cloud: coarser raster
-        return cluster_labels(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_weight)
-    if weights is not None and min_bin_weight > 0:
+        return cluster_labels(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
+    if weights is not None and min_bin_frac > 0:
         mass = np.bincount((iy * nx + ix) * nt + it, weights=weights, minlength=nx * ny * nt)
-        occupied = (mass >= min_bin_weight).reshape(ny, nx, nt)
+        held = np.bincount((iy * nx + ix) * nt + it, minlength=nx * ny * nt) > 0
+        occupied = (mass >= min_bin_frac * mass.sum() / held.sum()) & held
+        occupied = occupied.reshape(ny, nx, nt)
     else:
         occupied = np.zeros((ny, nx, nt), dtype=bool)
         occupied[iy, ix, it] = True
@@ -333,7 +337,7 @@ def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | Non
     ess = float(1.0 / np.sum(w * w))
     entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad)
 
-    labels, n_lab = cluster_labels(p, cfg.cluster_bin_m, cfg.cluster_bin_theta_rad, w, cfg.cluster_min_bin_weight)
+    labels, n_lab = cluster_labels(p, cfg.cluster_bin_m, cfg.cluster_bin_theta_rad, w, cfg.cluster_min_bin_frac)
     cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n_lab)
     keep = np.flatnonzero(cw >= cfg.cluster_min_weight - 1e-12)
     keep = keep[np.argsort(-cw[keep], kind="stable")]

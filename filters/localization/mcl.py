@@ -625,9 +625,7 @@ class MonteCarloLocalizer:
         """Within-cluster resampling to about ``n_new`` particles; cluster weights are kept."""
         c = self.config
         b = c.belief
-        labels, n_lab = cluster_labels(
-            self._poses, b.cluster_bin_m, b.cluster_bin_theta_rad, w, b.cluster_min_bin_weight
-        )
+        labels, n_lab = cluster_labels(self._poses, b.cluster_bin_m, b.cluster_bin_theta_rad, w, b.cluster_min_bin_frac)
         labels = np.where(labels < 0, n_lab, labels)  # the haze outside every cluster is one more group
         n_lab += 1
         cw = np.bincount(labels, weights=w, minlength=n_lab)

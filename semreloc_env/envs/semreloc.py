@@ -13,7 +13,7 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
-from ..layouts import LAYOUT_NAMES
+from ..layouts import CLASS_NAMES, LAYOUT_NAMES, get_layout
 from ..maps import MAP_SOURCES, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
 from .base import SemRelocBase
@@ -187,9 +187,40 @@ class SemRelocEnv(SemRelocBase):
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
         self.layout_seed = int(layout_seed)
+        self.map_source = map_source
         self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
+
+    def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None) -> None:
+        """Use another layout from the next :meth:`reset` on (the running episode keeps its world).
+
+        Args:
+            layout: anything ``get_layout`` takes (name, path, dict, Layout).
+            layout_seed: seeds procedural layouts and the ``"changed"`` scenario's obstacles.
+            grid: the filter's map for it; None builds it from the env's ``map_source`` with
+                :func:`semreloc_env.maps.maps_for` (cached there).
+
+        Raises:
+            ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
+                to one layout), or the grid's classes differ; nothing changes then.
+        """
+        new_layout = get_layout(layout, seed=int(layout_seed))
+        if grid is None:
+            if not (isinstance(self.map_source, str) and self.map_source in MAP_SOURCES):
+                raise ValueError(
+                    f"set_layout needs a grid: the env's map_source {self.map_source!r} is fixed to one layout"
+                )
+            grid = maps_for(new_layout, self.map_source, self.lidar.params, self.camera.params)
+        elif not isinstance(grid, GridMap):
+            raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
+        elif grid.class_names != CLASS_NAMES:
+            raise ValueError(f"grid classes {grid.class_names} differ from the env's {CLASS_NAMES}")
+        obstacles = changed_obstacles(new_layout, int(layout_seed)) if self.scenario == "changed" else []
+        self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, int(layout_seed), grid, obstacles
+        if self._renderer is not None:  # drawn for the old layout
+            self._renderer.close()
+            self._renderer = None
 
     # ------------------------------------------------------------------ hooks
     def _extra_obstacles(self) -> list:

@@ -10,7 +10,7 @@ import numpy as np
 
 from .builtin import BUILTIN_LAYOUTS
 from .layout import CLASS_NAMES, Layout, LayoutError, SemanticObject, layout_from_dict, load_layout, point_in_polygon
-from .procedural import ProceduralParams, procedural_layout
+from .procedural import ProceduralParams, lookalike_layout, procedural_layout
 
 __all__ = [
     "CLASS_NAMES",
@@ -24,11 +24,14 @@ __all__ = [
     "get_layout",
     "layout_from_dict",
     "load_layout",
+    "lookalike_layout",
     "point_in_polygon",
     "procedural_layout",
 ]
 
-LAYOUT_NAMES = (*BUILTIN_LAYOUTS, "procedural", "procedural_sym")
+BUILTIN_LAYOUTS_NAMES = tuple(BUILTIN_LAYOUTS)
+PROCEDURAL_LAYOUTS = ("procedural", "procedural_sym", "procedural_lookalike")
+LAYOUT_NAMES = (*BUILTIN_LAYOUTS, *PROCEDURAL_LAYOUTS)
 
 
 LAYOUT_PATH_ENV = "SEMRELOC_LAYOUT_PATH"
@@ -60,11 +63,11 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
     """Resolve a layout spec to a validated :class:`Layout`.
 
     Args:
-        spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"`` or
-            ``"procedural_sym"`` (generated from ``seed``), the name of a layout file on the search
-            path ``$SEMRELOC_LAYOUT_PATH`` (:func:`find_layout_file`), a path to a ``.json`` /
-            ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a map: a
-            ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
+        spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"``,
+            ``"procedural_sym"`` or ``"procedural_lookalike"`` (generated from ``seed``), the name of a
+            layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (:func:`find_layout_file`), a path
+            to a ``.json`` / ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a
+            map: a ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
             :class:`~filters.mapping.grid.GridMap`, whose world is traced from its occupied
             cells (:func:`semreloc_env.map_world.layout_from_map`).
         seed: seed of the procedural generator (ignored otherwise).
@@ -85,8 +88,8 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
         return layout_from_dict(spec)
     if isinstance(spec, str) and spec in BUILTIN_LAYOUTS:
         return layout_from_dict(BUILTIN_LAYOUTS[spec]())
-    if isinstance(spec, str) and spec in ("procedural", "procedural_sym"):
-        params = ProceduralParams(symmetric=spec == "procedural_sym")
+    if isinstance(spec, str) and spec in PROCEDURAL_LAYOUTS:
+        params = ProceduralParams(symmetric=spec == "procedural_sym", lookalike=spec == "procedural_lookalike")
         return layout_from_dict(procedural_layout(np.random.default_rng(seed), params))
     if isinstance(spec, (str, Path)):
         path = Path(spec)
