@@ -133,6 +133,9 @@ class World:
         """Vectorised :meth:`is_free`: bool ``(P,)`` for points ``(P, 2)``."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         ok = point_in_polygon(xy, np.asarray(self.layout.outer))
+        solid_at = getattr(self.layout, "solid_at", None)  # worlds built from maps: occupied cells are solid
+        if solid_at is not None:
+            ok[ok] &= ~solid_at(xy[ok])
         for poly in self._obstacles:
             ok &= ~point_in_polygon(xy, poly)
         ok[ok] &= self.scene.distances(xy[ok]).min(axis=1) >= self.robot_params.radius_m + margin_m
