@@ -121,6 +121,7 @@ def main(argv=None) -> None:
     ap.add_argument("--extra", default="{}", help='JSON {"name": {MCLConfig overrides}} of more variants')
     ap.add_argument("--rows", default=",".join(GLOBAL_ROWS + KIDNAP_ROWS + TRACKING_ROWS), help="comma-separated rows")
     ap.add_argument("--episodes", type=int, default=200, help="episodes per row and variant")
+    ap.add_argument("--before-episodes", type=int, default=0, help="episodes per row of 'before' (0 = --episodes)")
     ap.add_argument("--seed-base", type=int, default=0, help="seed of episode 0")
     ap.add_argument("--sym-seeds", default="0,1,2,3,4,5,6,7,8,9", help="procedural_sym layout seeds")
     ap.add_argument("--workers", type=int, default=2, help="worker processes")
@@ -140,7 +141,10 @@ def main(argv=None) -> None:
     specs = []
     for row in rows:  # grouped by row, so a worker meets few layouts (maps are cached per process)
         for v in names:
-            specs += specs_for(row, args.episodes, args.seed_base, sym, variants[v], v)
+            n = args.before_episodes if v == "before" and args.before_episodes > 0 else args.episodes
+            if row.endswith("_tracking"):
+                n = min(n, 30)  # tracking rows measure error and step time only
+            specs += specs_for(row, n, args.seed_base, sym, variants[v], v)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()

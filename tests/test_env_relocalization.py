@@ -198,3 +198,35 @@ def test_maps_without_free_space_and_zero_particles_are_errors():
     wrong_classes = GridMap(np.zeros(shape, np.float32), 0.05, class_names=("sofa",))
     with pytest.raises(ValueError, match="classes"):
         gym.make("SemReloc-v1", layout="twin_rooms", map_source=wrong_classes)
+
+
+def test_v1_info_carries_hypotheses_and_is_success_agrees_with_termination():
+    env = gym.make("SemReloc-v1", layout="lab", map_source="perfect")
+    policy = WallFollowExplorer()
+    obs, info = env.reset(seed=3)
+    assert info["is_success"] is False
+    hyps = info["belief"]["hypotheses"]
+    assert sum(h["weight"] for h in hyps) <= 1.0 + 1e-9
+    assert info["belief"]["n_particles"] > 2000  # sized by the lab's free area, not a fixed 2000
+    for _ in range(400):
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        assert info["is_success"] == terminated
+        if info["belief"]["converged"]:
+            best = info["belief"]["hypotheses"][0]
+            assert best["weight"] >= 0.95 and info["belief"]["estimate"] == best["mean"]
+        if terminated or truncated:
+            break
+    assert terminated and info["pose_error"]["position"] < 0.5
+    assert info["belief"]["n_particles"] < 2000  # KLD shrank the set once it converged
+
+
+def test_v0_keeps_the_first_release_relocalizer():
+    with pytest.warns(DeprecationWarning, match="out of date"):
+        env = gym.make("SemReloc-v0", layout="twin_rooms", map_source="perfect")
+    cfg = env.unwrapped.mcl_config
+    assert cfg.n_particles == 2000 and not cfg.kld and not cfg.augmented and cfg.resample_mode == "global"
+    assert cfg.belief.converged_rule == "spread" and cfg.likelihood_scale == 0.03
+    _, info = env.reset(seed=0)
+    assert info["belief"]["n_particles"] == 2000
+    v1 = gym.make("SemReloc-v1", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
+    assert v1.unwrapped.mcl_config.n_particles == 300 and v1.unwrapped.mcl_config.kld

@@ -107,8 +107,10 @@ class SemRelocEnv(SemRelocBase):
 
     ## Info
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
-    (:meth:`filters.localization.belief.Belief.as_dict`); ``pose_error`` ``{"position": m, "heading": rad}``
-    of the belief mean; ``mcl`` the last update's diagnostics (:class:`filters.localization.mcl.UpdateDiagnostics`,
+    (:meth:`filters.localization.belief.Belief.as_dict`: ``converged`` — one tight hypothesis
+    holds >= 95 % of the mass —, ``hypotheses`` by weight, ``estimate``, spread, entropy, ESS);
+    ``pose_error`` ``{"position": m, "heading": rad}`` of the belief's estimate (its heaviest
+    hypothesis); ``is_success`` (the success test below has been met in this episode); ``mcl`` the last update's diagnostics (:class:`filters.localization.mcl.UpdateDiagnostics`,
     None for values not computed in this step); ``rewards``;
     ``collided``; ``kidnapped`` (True from the kidnap step on).
 
@@ -142,7 +144,16 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
-    * v0: initial release.
+    * v1: the relocalizer of the relocalizer issue (:data:`DEFAULT_RELOCALIZER`): particle count
+      sized by the map's free area with KLD sampling, clustered resampling, scan-based
+      (semantic) proposals with Mixture-MCL and augmented-MCL injection; ``converged`` needs
+      one tight hypothesis with >= 95 % of the mass; ``pose_error`` is that of the heaviest
+      hypothesis; ``info`` gains ``belief.hypotheses``, ``belief.estimate``, ``is_success`` and
+      ``mcl.p_inject`` / ``mcl.lidar_used``; strict argument types and a ``CheckedReset``
+      wrapper (see CHANGELOG.md). Layouts ``three_rooms`` and ``open_hall``.
+    * v0: initial release (still registered, with the first release's relocalizer:
+      :class:`SemRelocEnvV0`). Over the first release it changed too: mapping-run map, reward
+      term ``wrong_convergence``, tempering 0.03 (docs/paper004.md) — all before v1 existed.
     """
 
     _reset_option_keys = frozenset({"pose", "tracking", "kidnap_at_step", "kidnap_pose"})
