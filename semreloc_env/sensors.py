@@ -11,11 +11,12 @@ All return :mod:`filters.robot_data.scans` containers or plain arrays, so filter
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from filters.mapping.grid import NO_CLASS
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
-from filters.pose import relative
 from filters.robot_data.scans import LaserScan, SemanticScan
 
 from .config import CameraParams, LidarParams
@@ -101,7 +102,16 @@ class SemanticCamera:
         )
         labels = np.full(ranges.shape, NO_CLASS, dtype=np.int64)
         n_classes = len(CLASS_NAMES)
-        for k in np.unique(obj[obj >= 0]):
+        obj_l = obj.tolist()  # a few dozen beams: plain Python beats array calls here
+        visible = sorted(set(obj_l) - {-1})
+        runs_of: dict[int, list[tuple[int, int]]] = {}  # object -> its contiguous runs of beams
+        start = 0
+        for i in range(1, len(obj_l) + 1):
+            if i == len(obj_l) or obj_l[i] != obj_l[start]:
+                runs_of.setdefault(obj_l[start], []).append((start, i))
+                start = i
+        r_l = ranges.tolist()
+        for k in visible:
             detected = rng.random() >= p.miss_rate
             wrong = rng.random() < p.wrong_class_rate
             label = world.layout.objects[k].label
@@ -109,9 +119,8 @@ class SemanticCamera:
                 label = 1 + (label - 1 + int(rng.integers(1, n_classes))) % n_classes
             if not detected:
                 continue
-            runs = _runs(obj == k)
-            nearest = min(runs, key=lambda r: ranges[r[0] : r[1]].min())
-            labels[nearest[0] : nearest[1]] = label
+            a, b = min(runs_of[k], key=lambda run: min(r_l[run[0] : run[1]]))
+            labels[a:b] = label
         if rng.random() < p.false_positive_rate:
             wall_runs = _runs(hit & (obj < 0))
             start_run = int(rng.integers(0, max(len(wall_runs), 1)))
@@ -134,8 +143,20 @@ class Odometry:
     def __init__(self, params: OdometryMotionConfig):
         self.params = params
         self._model = OdometryMotionModel(params)
-        self._origin = np.zeros((1, 3))
+        self._origin = np.zeros(3)
 
     def read(self, prev_pose: np.ndarray, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``."""
-        return self._model.sample(self._origin, relative(prev_pose, pose), rng)[0]
+        """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``.
+
+        Draws 3 normals (:meth:`~filters.motion.odometry.OdometryMotionModel.sample_pose`).
+        """
+        return self._model.sample_pose(self._origin, _relative(prev_pose, pose), rng)
+
+
+def _relative(pose_from: np.ndarray, pose_to: np.ndarray) -> tuple[float, float, float]:
+    """:func:`filters.pose.relative` of two ``(3,)`` poses in scalar arithmetic (the same numbers)."""
+    ax, ay, ath = (float(v) for v in pose_from)
+    bx, by, bth = (float(v) for v in pose_to)
+    dx, dy = bx - ax, by - ay
+    c, s = math.cos(ath), math.sin(ath)
+    return (c * dx + s * dy, -s * dx + c * dy, (bth - ath + math.pi) % (2.0 * math.pi) - math.pi)
