@@ -8,7 +8,10 @@ segments read back from the very pymunk shapes the robot collides with.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
+from dataclasses import dataclass
 
+import numba
 import numpy as np
 import pymunk
 from pymunk.autogeometry import convex_decomposition
@@ -38,41 +41,134 @@ def _convex_parts(poly: np.ndarray) -> list[list[tuple[float, float]]]:
     return [list(part) for part in convex_decomposition(pts + [pts[0]], 1e-9)]
 
 
+@dataclass(frozen=True, eq=False)
+class StaticGeometry:
+    """What a world's static part is built from, computed once per (layout, extra obstacles).
+
+    Attributes:
+        walls: ``(K, 2, 2)`` wall segments.
+        obstacles: obstacle polygons (layout objects first, then the extra obstacles, counter-clockwise).
+        convex_parts: per obstacle, its convex pieces (pymunk polygons must be convex).
+        scene: the segments every sensor casts against.
+        ring_edges: ``(E, 4)`` edges ``(x0, y0, x1, y1)`` of the outer wall (ring 0) and the obstacles.
+        ring_id: ``(E,)`` ring of each edge (0 outer, ``k + 1`` obstacle ``k``).
+    """
+
+    walls: np.ndarray
+    obstacles: tuple[np.ndarray, ...]
+    convex_parts: tuple[list[list[tuple[float, float]]], ...]
+    scene: SegmentScene
+    ring_edges: np.ndarray
+    ring_id: np.ndarray
+
+
+def _polygon_key(polys) -> tuple:
+    return tuple((np.asarray(p, dtype=np.float64).shape, np.asarray(p, dtype=np.float64).tobytes()) for p in polys)
+
+
+_geometry_cache: OrderedDict[tuple, StaticGeometry] = OrderedDict()
+
+
+def static_geometry(layout: Layout, extra_obstacles=()) -> StaticGeometry:
+    """The :class:`StaticGeometry` of ``layout`` plus ``extra_obstacles`` (cached, 32 entries)."""
+    key = (layout, _polygon_key(extra_obstacles))
+    hit = _geometry_cache.get(key)
+    if hit is not None:
+        _geometry_cache.move_to_end(key)
+        return hit
+    walls = np.asarray(layout.wall_segments(), dtype=np.float64).reshape(-1, 2, 2)
+    polygons = [np.asarray(o.polygon, dtype=np.float64) for o in layout.objects]
+    obstacles = polygons + [_counter_clockwise(np.asarray(p, dtype=np.float64)) for p in extra_obstacles]
+    segments, owners = [*walls], [-1] * len(walls)
+    for i, poly in enumerate(obstacles):
+        owner = i if i < len(polygons) else -1  # extra obstacles carry no class
+        for a, b in zip(poly, np.roll(poly, -1, axis=0)):
+            segments.append((a, b))
+            owners.append(owner)
+    rings = [np.asarray(layout.outer, dtype=np.float64)] + obstacles
+    edges = np.concatenate([np.hstack([r, np.roll(r, -1, axis=0)]) for r in rings])
+    ring_id = np.concatenate([np.full(len(r), k, np.int64) for k, r in enumerate(rings)])
+    geo = StaticGeometry(
+        walls=walls,
+        obstacles=tuple(obstacles),
+        convex_parts=tuple(_convex_parts(p) for p in obstacles),
+        scene=SegmentScene(np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2), np.asarray(owners, np.int64)),
+        ring_edges=np.ascontiguousarray(edges),
+        ring_id=ring_id,
+    )
+    _geometry_cache[key] = geo
+    while len(_geometry_cache) > 32:
+        _geometry_cache.popitem(last=False)
+    return geo
+
+
+@numba.njit(cache=True, nogil=True)
+def _free_kernel(xy, edges, ring_id, n_rings, a, e, clearance, out):  # pragma: no cover - compiled
+    """``out[p]``: point ``p`` inside ring 0, outside rings ``1..``, at least ``clearance`` from every segment.
+
+    The even-odd and distance formulas of :func:`~semreloc_env.layouts.point_in_polygon` and
+    :meth:`SegmentScene.distances`, in one pass.
+    """
+    parity = np.zeros(n_rings, np.int64)
+    for p in range(xy.shape[0]):
+        x = xy[p, 0]
+        y = xy[p, 1]
+        parity[:] = 0
+        for k in range(edges.shape[0]):
+            x0 = edges[k, 0]
+            y0 = edges[k, 1]
+            x1 = edges[k, 2]
+            y1 = edges[k, 3]
+            if (y0 > y) != (y1 > y):
+                if x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+                    parity[ring_id[k]] ^= 1
+        ok = parity[0] == 1
+        for k in range(1, n_rings):
+            if parity[k] == 1:
+                ok = False
+        if ok:
+            for i in range(a.shape[0]):
+                ex = e[i, 0]
+                ey = e[i, 1]
+                ee = max(ex * ex + ey * ey, 1e-18)
+                t = ((x - a[i, 0]) * ex + (y - a[i, 1]) * ey) / ee
+                t = min(max(t, 0.0), 1.0)
+                dx = a[i, 0] + t * ex - x
+                dy = a[i, 1] + t * ey - y
+                if math.sqrt(dx * dx + dy * dy) < clearance:
+                    ok = False
+                    break
+        out[p] = ok
+
+
 class World:
     """A layout in pymunk plus the robot. Poses are ``(x, y, theta)``, metres and radians.
 
-    Use :func:`build_world`; then :meth:`set_pose` and :meth:`drive`.
+    Use :func:`build_world`; then :meth:`set_pose` and :meth:`drive`. The static geometry
+    (segments, convex pieces) comes from :func:`static_geometry`, the pymunk space is new.
     """
 
     def __init__(self, layout: Layout, robot: RobotParams, physics: PhysicsParams, extra_obstacles=()):
         self.layout = layout
         self.robot_params = robot
         self.physics = physics
-        self.space = pymunk.Space()
-        self.space.collision_slop = 0.002
-        self.space.iterations = 20
-        static = self.space.static_body
-        segments, owners = [], []
-        for a, b in layout.wall_segments():
-            self.space.add(pymunk.Segment(static, tuple(a), tuple(b), 0.0))
-            segments.append((a, b))
-            owners.append(-1)
         max_step = robot.max_linear_mps * physics.dt_s / physics.substeps
         if max_step >= robot.radius_m:
             raise ValueError(
                 f"the robot would move {max_step:.3f} m per physics substep, not less than its radius "
                 f"{robot.radius_m} m: it could pass through thin walls; raise physics.substeps or control_hz"
             )
-        polygons = [np.asarray(o.polygon) for o in layout.objects]
-        self._obstacles = polygons + [_counter_clockwise(np.asarray(p, dtype=np.float64)) for p in extra_obstacles]
-        for i, poly in enumerate(self._obstacles):
-            for part in _convex_parts(poly):
-                self.space.add(pymunk.Poly(static, part))
-            owner = i if i < len(polygons) else -1  # extra obstacles carry no class
-            for a, b in zip(poly, np.roll(poly, -1, axis=0)):
-                segments.append((a, b))
-                owners.append(owner)
-        self.scene = SegmentScene(np.asarray(segments, dtype=np.float64), np.asarray(owners, dtype=np.int64))
+        geo = static_geometry(layout, extra_obstacles)
+        self.geometry = geo
+        self.space = pymunk.Space()
+        self.space.collision_slop = 0.002
+        self.space.iterations = 20
+        static = self.space.static_body
+        shapes = [pymunk.Segment(static, tuple(a), tuple(b), 0.0) for a, b in geo.walls]
+        shapes += [pymunk.Poly(static, part) for parts in geo.convex_parts for part in parts]
+        self.space.add(*shapes)
+        self._obstacles = list(geo.obstacles)
+        self.scene = geo.scene
         self.body = pymunk.Body(1.0, math.inf)
         self.shape = pymunk.Circle(self.body, robot.radius_m)
         self.shape.collision_type = _ROBOT_TYPE
@@ -95,7 +191,16 @@ class World:
         return bool(self.free_points(np.asarray(xy, dtype=np.float64)[None], margin_m)[0])
 
     def free_points(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
-        """Vectorised :meth:`is_free`: bool ``(P,)`` for points ``(P, 2)``."""
+        """Vectorised :meth:`is_free`: bool ``(P,)`` for points ``(P, 2)``; compiled (:meth:`free_points_reference`)."""
+        xy = np.ascontiguousarray(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
+        g = self.geometry
+        out = np.empty(xy.shape[0], dtype=np.bool_)
+        clearance = float(self.robot_params.radius_m + margin_m)
+        _free_kernel(xy, g.ring_edges, g.ring_id, len(g.obstacles) + 1, g.scene._a, g.scene._e, clearance, out)
+        return out
+
+    def free_points_reference(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
+        """:meth:`free_points` in plain NumPy (the reference the compiled test is checked against)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         ok = point_in_polygon(xy, np.asarray(self.layout.outer))
         for poly in self._obstacles:

@@ -143,3 +143,28 @@ def test_cast_agrees_with_pymunk_segment_queries_on_the_collision_shapes():
             end = (pose[0] + 8.0 * np.cos(a), pose[1] + 8.0 * np.sin(a))
             q = world.space.segment_query_first(tuple(pose[:2]), end, 0.0, not_robot)
             assert (8.0 if q is None else q.alpha * 8.0) == pytest.approx(r, abs=1e-9)
+
+
+@pytest.mark.parametrize("layout", ["lab", "procedural_sym"])
+def test_compiled_free_space_test_equals_the_numpy_reference(layout):
+    from semreloc_env.scenarios import changed_obstacles
+
+    lay = get_layout(layout, seed=2)
+    for extra in ([], changed_obstacles(lay, 1)):
+        world = build_world(lay, extra_obstacles=extra)
+        x0, x1, y0, y1 = lay.bounds()
+        pts = np.random.default_rng(5).uniform((x0 - 1, y0 - 1), (x1 + 1, y1 + 1), (5000, 2))
+        for margin in (0.0, 0.1):
+            free = world.free_points(pts, margin)
+            assert np.array_equal(free, world.free_points_reference(pts, margin))
+            assert 0.3 < free.mean() < 0.7
+
+
+def test_worlds_share_cached_static_geometry_but_not_their_pymunk_space():
+    lay = get_layout("lab")
+    a, b = build_world(lay), build_world(lay)
+    assert a.geometry is b.geometry and a.scene is b.scene
+    assert a.space is not b.space
+    before = b.pose
+    a.set_pose([2.0, 2.0, 0.5])
+    assert np.array_equal(b.pose, before) and np.allclose(a.pose, [2.0, 2.0, 0.5])
