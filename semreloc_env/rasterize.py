@@ -20,6 +20,17 @@ def _mark_segments(mask: np.ndarray, segments: np.ndarray, res: float, origin: t
         mask[row[ok], col[ok]] = True
 
 
+def raster_geometry(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5):
+    """``((H, W), origin_xy_m)`` of the raster :func:`rasterize` uses for ``layout``."""
+    if not (np.isfinite(resolution_m) and resolution_m > 0):
+        raise ValueError(f"resolution_m must be positive, got {resolution_m!r}")
+    x0, x1, y0, y1 = layout.bounds()
+    origin = (x0 - margin_m, y0 - margin_m)
+    w = int(np.ceil((x1 - x0 + 2 * margin_m) / resolution_m))
+    h = int(np.ceil((y1 - y0 + 2 * margin_m) / resolution_m))
+    return (h, w), origin
+
+
 def rasterize(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5) -> GridMap:
     """The perfect occupancy and semantic grids of ``layout``.
 
@@ -28,12 +39,7 @@ def rasterize(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5)
     space inside the outer wall is 0.0; outside it the map is unknown (0.5).
     The grid covers the outer wall's bounds plus ``margin_m`` on each side.
     """
-    if not (np.isfinite(resolution_m) and resolution_m > 0):
-        raise ValueError(f"resolution_m must be positive, got {resolution_m!r}")
-    x0, x1, y0, y1 = layout.bounds()
-    origin = (x0 - margin_m, y0 - margin_m)
-    w = int(np.ceil((x1 - x0 + 2 * margin_m) / resolution_m))
-    h = int(np.ceil((y1 - y0 + 2 * margin_m) / resolution_m))
+    (h, w), origin = raster_geometry(layout, resolution_m, margin_m)
     cols, rows = np.meshgrid(np.arange(w), np.arange(h))
     centers = np.stack([origin[0] + (cols + 0.5) * resolution_m, origin[1] + (rows + 0.5) * resolution_m], -1)
     flat = centers.reshape(-1, 2)

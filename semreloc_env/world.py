@@ -51,7 +51,10 @@ class StaticGeometry:
         convex_parts: per obstacle, its convex pieces (pymunk polygons must be convex).
         scene: the segments every sensor casts against.
         ring_edges: ``(E, 4)`` edges ``(x0, y0, x1, y1)`` of the outer wall (ring 0) and the obstacles.
-        ring_id: ``(E,)`` ring of each edge (0 outer, ``k + 1`` obstacle ``k``).
+        ring_start: ``(n_obstacles + 2,)``: ring ``k``'s edges are ``ring_edges[ring_start[k]:ring_start[k + 1]]``.
+        ring_bbox: ``(n_obstacles + 1, 4)`` ``(x0, y0, x1, y1)`` of each ring.
+        obstacle_buckets: CSR ``(start, items)`` of the obstacles whose bounding box overlaps each
+            cell of the scene's bucket grid (items are ring indices ``k + 1``).
     """
 
     walls: np.ndarray
@@ -59,7 +62,9 @@ class StaticGeometry:
     convex_parts: tuple[list[list[tuple[float, float]]], ...]
     scene: SegmentScene
     ring_edges: np.ndarray
-    ring_id: np.ndarray
+    ring_start: np.ndarray
+    ring_bbox: np.ndarray
+    obstacle_buckets: tuple[np.ndarray, np.ndarray]
 
 
 def _polygon_key(polys) -> tuple:
@@ -87,14 +92,29 @@ def static_geometry(layout: Layout, extra_obstacles=()) -> StaticGeometry:
             owners.append(owner)
     rings = [np.asarray(layout.outer, dtype=np.float64)] + obstacles
     edges = np.concatenate([np.hstack([r, np.roll(r, -1, axis=0)]) for r in rings])
-    ring_id = np.concatenate([np.full(len(r), k, np.int64) for k, r in enumerate(rings)])
+    ring_start = np.concatenate([[0], np.cumsum([len(r) for r in rings])]).astype(np.int64)
+    ring_bbox = np.array([[*r.min(axis=0), *r.max(axis=0)] for r in rings], dtype=np.float64)
+    scene = SegmentScene(np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2), np.asarray(owners, np.int64))
+    _, _, gx0, gy0, cell, nx, ny = scene.bucket_grid
+    lists: list[list[int]] = [[] for _ in range(nx * ny)]
+    for k in range(1, len(rings)):
+        c0, r0 = (max(0, int(np.floor((v - g) / cell))) for v, g in zip(ring_bbox[k, :2], (gx0, gy0)))
+        c1 = min(nx - 1, int(np.floor((ring_bbox[k, 2] - gx0) / cell)))
+        r1 = min(ny - 1, int(np.floor((ring_bbox[k, 3] - gy0) / cell)))
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                lists[r * nx + c].append(k)
+    ob_start = np.concatenate([[0], np.cumsum([len(v) for v in lists])]).astype(np.int64)
+    ob_items = np.array([k for v in lists for k in v], dtype=np.int64)
     geo = StaticGeometry(
         walls=walls,
         obstacles=tuple(obstacles),
         convex_parts=tuple(_convex_parts(p) for p in obstacles),
-        scene=SegmentScene(np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2), np.asarray(owners, np.int64)),
+        scene=scene,
         ring_edges=np.ascontiguousarray(edges),
-        ring_id=ring_id,
+        ring_start=ring_start,
+        ring_bbox=ring_bbox,
+        obstacle_buckets=(ob_start, ob_items),
     )
     _geometry_cache[key] = geo
     while len(_geometry_cache) > 32:
@@ -102,42 +122,84 @@ def static_geometry(layout: Layout, extra_obstacles=()) -> StaticGeometry:
     return geo
 
 
-@numba.njit(cache=True, nogil=True)
-def _free_kernel(xy, edges, ring_id, n_rings, a, e, clearance, out):  # pragma: no cover - compiled
-    """``out[p]``: point ``p`` inside ring 0, outside rings ``1..``, at least ``clearance`` from every segment.
+@numba.njit(cache=True, nogil=True, inline="always")
+def _inside_ring(x, y, edges, lo, hi):  # pragma: no cover - compiled
+    """Even-odd test of ``(x, y)`` against the edges ``lo:hi`` (the formula of ``point_in_polygon``)."""
+    inside = False
+    for k in range(lo, hi):
+        x0 = edges[k, 0]
+        y0 = edges[k, 1]
+        x1 = edges[k, 2]
+        y1 = edges[k, 3]
+        if (y0 > y) != (y1 > y):
+            if x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+                inside = not inside
+    return inside
 
-    The even-odd and distance formulas of :func:`~semreloc_env.layouts.point_in_polygon` and
-    :meth:`SegmentScene.distances`, in one pass.
-    """
-    parity = np.zeros(n_rings, np.int64)
+
+@numba.njit(cache=True, nogil=True)
+def _free_kernel(
+    xy,
+    edges,
+    ring_start,
+    ring_bbox,
+    ob_start,
+    ob_items,
+    a,
+    e,
+    seg_start,
+    seg_items,
+    gx0,
+    gy0,
+    cell,
+    nx,
+    ny,
+    clearance,
+    out,
+):  # pragma: no cover - compiled
+    """``out[p]``: point ``p`` inside ring 0, outside every obstacle ring, at least ``clearance``
+    from every segment. The even-odd and distance formulas of
+    :func:`~semreloc_env.layouts.point_in_polygon` and :meth:`SegmentScene.distances`; only the
+    obstacles and segments listed in the bucket cells near ``p`` are tested."""
     for p in range(xy.shape[0]):
         x = xy[p, 0]
         y = xy[p, 1]
-        parity[:] = 0
-        for k in range(edges.shape[0]):
-            x0 = edges[k, 0]
-            y0 = edges[k, 1]
-            x1 = edges[k, 2]
-            y1 = edges[k, 3]
-            if (y0 > y) != (y1 > y):
-                if x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
-                    parity[ring_id[k]] ^= 1
-        ok = parity[0] == 1
-        for k in range(1, n_rings):
-            if parity[k] == 1:
-                ok = False
+        ok = _inside_ring(x, y, edges, ring_start[0], ring_start[1])
+        cx = int(math.floor((x - gx0) / cell))
+        cy = int(math.floor((y - gy0) / cell))
+        if ok and 0 <= cx < nx and 0 <= cy < ny:
+            c = cy * nx + cx
+            for q in range(ob_start[c], ob_start[c + 1]):
+                k = ob_items[q]
+                bb = ring_bbox[k]
+                if bb[0] <= x <= bb[2] and bb[1] <= y <= bb[3]:
+                    if _inside_ring(x, y, edges, ring_start[k], ring_start[k + 1]):
+                        ok = False
+                        break
         if ok:
-            for i in range(a.shape[0]):
-                ex = e[i, 0]
-                ey = e[i, 1]
-                ee = max(ex * ex + ey * ey, 1e-18)
-                t = ((x - a[i, 0]) * ex + (y - a[i, 1]) * ey) / ee
-                t = min(max(t, 0.0), 1.0)
-                dx = a[i, 0] + t * ex - x
-                dy = a[i, 1] + t * ey - y
-                if math.sqrt(dx * dx + dy * dy) < clearance:
-                    ok = False
+            c0 = max(0, int(math.floor((x - clearance - gx0) / cell)))
+            c1 = min(nx - 1, int(math.floor((x + clearance - gx0) / cell)))
+            r0 = max(0, int(math.floor((y - clearance - gy0) / cell)))
+            r1 = min(ny - 1, int(math.floor((y + clearance - gy0) / cell)))
+            for r in range(r0, r1 + 1):
+                if not ok:
                     break
+                for c in range(c0, c1 + 1):
+                    if not ok:
+                        break
+                    k = r * nx + c
+                    for q in range(seg_start[k], seg_start[k + 1]):
+                        i = seg_items[q]
+                        ex = e[i, 0]
+                        ey = e[i, 1]
+                        ee = max(ex * ex + ey * ey, 1e-18)
+                        t = ((x - a[i, 0]) * ex + (y - a[i, 1]) * ey) / ee
+                        t = min(max(t, 0.0), 1.0)
+                        dx = a[i, 0] + t * ex - x
+                        dy = a[i, 1] + t * ey - y
+                        if math.sqrt(dx * dx + dy * dy) < clearance:
+                            ok = False
+                            break
         out[p] = ok
 
 
@@ -196,7 +258,12 @@ class World:
         g = self.geometry
         out = np.empty(xy.shape[0], dtype=np.bool_)
         clearance = float(self.robot_params.radius_m + margin_m)
-        _free_kernel(xy, g.ring_edges, g.ring_id, len(g.obstacles) + 1, g.scene._a, g.scene._e, clearance, out)
+        ob_start, ob_items = g.obstacle_buckets
+        seg_start, seg_items, gx0, gy0, cell, nx, ny = g.scene.bucket_grid
+        _free_kernel(
+            xy, g.ring_edges, g.ring_start, g.ring_bbox, ob_start, ob_items, g.scene._a, g.scene._e,
+            seg_start, seg_items, gx0, gy0, cell, nx, ny, clearance, out,
+        )  # fmt: skip
         return out
 
     def free_points_reference(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:

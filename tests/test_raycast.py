@@ -168,3 +168,24 @@ def test_worlds_share_cached_static_geometry_but_not_their_pymunk_space():
     before = b.pose
     a.set_pose([2.0, 2.0, 0.5])
     assert np.array_equal(b.pose, before) and np.allclose(a.pose, [2.0, 2.0, 0.5])
+
+
+@pytest.mark.parametrize("cell_m", [0.25, 1.0, 7.0])
+def test_bucket_grid_caster_equals_brute_force_on_random_segment_soups(cell_m):
+    rng = np.random.default_rng(6)
+    a = rng.uniform(0, 10, (300, 2))
+    b = a + rng.normal(0, 1.5, (300, 2))
+    b[:40, 1] = a[:40, 1]  # horizontal and vertical segments
+    b[40:80, 0] = a[40:80, 0]
+    scene = SegmentScene(np.stack([a, b], axis=1), np.full(300, -1))
+    scene = SegmentScene(scene.segments, scene.owner, cell_m=cell_m)
+    angles = np.concatenate([[0.0, np.pi / 2, np.pi, -np.pi / 2], rng.uniform(-np.pi, np.pi, 60)])
+    origins = np.concatenate([rng.uniform(-3, 13, (150, 2)), a[:20], np.round(rng.uniform(0, 10, (20, 2)))])
+    for o in origins:
+        for max_range in (2.0, 50.0):
+            r, hit = scene.cast(o, angles, max_range)
+            r_ref, hit_ref = scene.cast_reference(o, angles, max_range)
+            assert np.max(np.abs(r - r_ref)) <= 1e-9
+            assert np.array_equal(hit, hit_ref)
+    with pytest.raises(ValueError, match="cell_m"):
+        SegmentScene(scene.segments, scene.owner, cell_m=0.0)
