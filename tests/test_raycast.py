@@ -189,3 +189,16 @@ def test_bucket_grid_caster_equals_brute_force_on_random_segment_soups(cell_m):
             assert np.array_equal(hit, hit_ref)
     with pytest.raises(ValueError, match="cell_m"):
         SegmentScene(scene.segments, scene.owner, cell_m=0.0)
+
+
+def test_compiled_motion_sample_equals_the_numpy_reference():
+    model = OdometryMotionModel(OdometryMotionConfig(0.1, 0.05, 0.2, 0.01))
+    rng = np.random.default_rng(8)
+    poses = np.column_stack([rng.uniform(-5, 5, (3000, 2)), rng.uniform(-np.pi, np.pi, 3000)])
+    for _ in range(20):
+        delta = rng.normal(0, 0.1, 3)
+        seed = int(rng.integers(1 << 31))
+        a = model.sample(poses, delta, np.random.default_rng(seed))
+        b = model.sample_reference(poses, delta, np.random.default_rng(seed))
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+        assert np.all((a[:, 2] >= -np.pi) & (a[:, 2] < np.pi))

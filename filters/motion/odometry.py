@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from filters.pose import wrap_angle
@@ -83,6 +84,18 @@ def _fold(rot: float) -> float:
     return min(a, abs(np.pi - a))
 
 
+@numba.njit(cache=True, nogil=True)
+def _sample_kernel(p, rot1, trans, rot2, s_r1, s_t, s_r2, noise, out):  # pragma: no cover - compiled
+    """``out[i]`` = ``p[i]`` moved by ``(rot1, trans, rot2)`` perturbed by ``noise[:, i]`` (see ``sample``)."""
+    two_pi = 2.0 * math.pi
+    for i in range(p.shape[0]):
+        heading = p[i, 2] + (rot1 - s_r1 * noise[0, i])
+        t = trans - s_t * noise[1, i]
+        out[i, 0] = p[i, 0] + t * math.cos(heading)
+        out[i, 1] = p[i, 1] + t * math.sin(heading)
+        out[i, 2] = (heading + (rot2 - s_r2 * noise[2, i]) + math.pi) % two_pi - math.pi
+
+
 class OdometryMotionModel:
     """``sample(poses, delta, rng)``: draw new poses given an odometry increment.
 
@@ -119,6 +132,16 @@ class OdometryMotionModel:
         p = np.asarray(poses, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
+        rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
+        s_r1, s_t, s_r2 = self.stds(delta)
+        noise = rng.standard_normal((3, p.shape[0]))
+        out = np.empty_like(p)
+        _sample_kernel(np.ascontiguousarray(p), rot1, trans, rot2, s_r1, s_t, s_r2, noise, out)
+        return out
+
+    def sample_reference(self, poses: np.ndarray, delta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`sample` as plain NumPy array code (the reference the compiled kernel is tested against)."""
+        p = np.asarray(poses, dtype=np.float64)
         rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
         s_r1, s_t, s_r2 = self.stds(delta)
         n = p.shape[0]
