@@ -1,8 +1,8 @@
-"""Train PPO on ``SemReloc-v0`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
+"""Train PPO on ``SemReloc-v1`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
 
 * :class:`TrainConfig` — every knob of a training run (env keyword arguments, vectorisation,
   PPO hyper-parameters, network sizes, seed).
-* :func:`make_env` — ``gym.make("SemReloc-v0", **env_kwargs)`` wrapped in
+* :func:`make_env` — ``gym.make("SemReloc-v1", **env_kwargs)`` wrapped in
   :class:`~semreloc_env.wrappers.BeliefObservation` (the policy sees the belief summary, not the pose).
 * :func:`train` — builds the vectorised envs and PPO (``MultiInputPolicy`` with
   :class:`~agents.features.SemRelocExtractor`), learns, returns the model.
@@ -39,13 +39,13 @@ from .callbacks import ProgressCallback, RelocalizationMetricsCallback
 from .features import SemRelocExtractor
 from .metrics import EpisodeTracker, summarize_episodes
 
-ENV_ID = "SemReloc-v0"
+ENV_ID = "SemReloc-v1"
 VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv}
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """One PPO training run on ``SemReloc-v0``.
+    """One PPO training run on ``SemReloc-v1``.
 
     Attributes:
         env_kwargs: ``gym.make`` keyword arguments (e.g. ``layout``, ``semantic``, ``relocalizer``,
@@ -104,7 +104,7 @@ class TrainConfig:
 
 
 def make_env(env_kwargs: dict[str, Any] | None = None, belief: bool = True) -> gym.Env:
-    """``SemReloc-v0`` with ``env_kwargs``, wrapped in :class:`BeliefObservation` when ``belief``."""
+    """``SemReloc-v1`` with ``env_kwargs``, wrapped in :class:`BeliefObservation` when ``belief``."""
     env = gym.make(ENV_ID, **dict(env_kwargs or {}))
     return BeliefObservation(env) if belief else env
 
@@ -185,7 +185,7 @@ def evaluate(
             ``obs dict -> action`` such as :class:`agents.baselines.WallFollowExplorer` (its ``reset()``
             is called at every episode start, if it has one). Callables see the same observation
             as models, including the ``belief`` key.
-        env_kwargs: ``gym.make("SemReloc-v0", ...)`` keyword arguments (``max_episode_steps`` too).
+        env_kwargs: ``gym.make("SemReloc-v1", ...)`` keyword arguments (``max_episode_steps`` too).
         n_episodes: episodes; episode ``i`` starts with ``reset(seed=seed + i)``.
         seed: first episode seed.
         deterministic: SB3 models act greedily (ignored for callables).

@@ -1,4 +1,4 @@
-"""Where the time of a default ``SemReloc-v0`` step goes: CPU time per stage (cProfile).
+"""Where the time of a default ``SemReloc-v1`` step goes: CPU time per stage (cProfile).
 
 Usage::
 
@@ -128,7 +128,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     from agents.baselines import WallFollowExplorer
 
     env = gym.make(
-        "SemReloc-v0", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer={"n_particles": args.particles}
+        "SemReloc-v1", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer={"n_particles": args.particles}
     ).unwrapped
     policy = WallFollowExplorer()
     # unprofiled CPU time per step, for scale

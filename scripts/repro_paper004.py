@@ -78,7 +78,7 @@ def run_episode(job: tuple) -> dict:
 
     case, semantic, seed, max_steps, particles, mcl, snapshot = job
     env = gym.make(
-        "SemReloc-v0",
+        "SemReloc-v1",
         **CASES[case],
         semantic=semantic,
         relocalizer={"n_particles": particles, **mcl},

@@ -1,4 +1,4 @@
-"""Train PPO for active relocalization on ``SemReloc-v0`` and compare it with the hand-written explorers.
+"""Train PPO for active relocalization on ``SemReloc-v1`` and compare it with the hand-written explorers.
 
 Trains a ``MultiInputPolicy`` PPO (:func:`agents.train.train`; observation = lidar, semantic
 pseudo-laser, odometry and the filter's belief summary, never the true pose), saves it, then

@@ -1,57 +1,217 @@
 """Frozen, typed configuration of the simulated robot and its sensors (units in names).
 
 Each reaches an env as a ``gym.make`` keyword argument, as a dict or an instance:
-``gym.make("SemReloc-v0", lidar={"n_beams": 90})``. Unknown keys are an error.
+``gym.make("SemReloc-v1", lidar={"n_beams": 90})``. Unknown keys are an error, and types
+are strict (:func:`coerce_config`): ``True`` is not an int, ``1.5`` or ``2.0`` is not an int,
+``"no"`` is not a bool, NaN and infinite floats are rejected.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import numbers
+import types
+import typing
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TypeVar
 
+import numpy as np
+
 T = TypeVar("T")
+
+MAX_SUBSTEPS = 1000
+"""Most pymunk substeps per control step (each costs a collision query)."""
+
+MAX_BEAMS = 10_000
+"""Most beams of a lidar or a camera."""
+
+
+def _key_list(keys) -> list:
+    """Keys sorted for a message even when they are of mixed types (``{"a", 7}``)."""
+    return sorted(keys, key=repr)
+
+
+@functools.cache
+def _hints(cls: type) -> dict:
+    try:
+        return typing.get_type_hints(cls)
+    except Exception:  # an annotation that cannot be resolved is not checked
+        return {}
+
+
+@functools.cache
+def _inf_ok(cls: type, name: str) -> bool:
+    """Infinity is a valid value of field ``name``: listed in ``cls._allow_inf``, or its default is infinite."""
+    if name in getattr(cls, "_allow_inf", ()):
+        return True
+    default = next((f.default for f in dataclasses.fields(cls) if f.name == name), None)
+    return isinstance(default, float) and math.isinf(default)
+
+
+def _type_name(v) -> str:
+    return f"{type(v).__name__} {v!r:.60}"
+
+
+def _check_value(cls: type, name: str, v, ann, what: str):
+    """``v`` checked against annotation ``ann`` (and converted: numpy scalars to Python ones).
+
+    A bool is not an int, an int or float is not a bool, a string is not a number; floats must be
+    finite unless ``name`` is in ``cls._allow_inf`` or its default is infinite; NaN never passes.
+    """
+    where = f"{what}.{name}"
+    origin = typing.get_origin(ann)
+    if origin in (typing.Union, types.UnionType):
+        members = typing.get_args(ann)
+        if v is None and type(None) in members:
+            return None
+        errors = []
+        for m in members:
+            if m is type(None):
+                continue
+            try:
+                return _check_value(cls, name, v, m, what)
+            except ValueError as e:
+                errors.append(str(e))
+        raise ValueError(f"{where} must be one of {ann}, got {_type_name(v)}")
+    if ann is bool:
+        if isinstance(v, (bool, np.bool_)):
+            return bool(v)
+        raise ValueError(f"{where} must be a bool (True or False), got {_type_name(v)}")
+    if ann is int:
+        if isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)):
+            return int(v)
+        raise ValueError(f"{where} must be an integer, got {_type_name(v)}")
+    if ann is float:
+        if not (isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))):
+            raise ValueError(f"{where} must be a number, got {_type_name(v)}")
+        f = float(v)
+        if math.isnan(f) or (math.isinf(f) and not _inf_ok(cls, name)):
+            raise ValueError(f"{where} must be a finite number, got {f!r}")
+        return f
+    if ann is str:
+        if isinstance(v, str):
+            return v
+        raise ValueError(f"{where} must be a string, got {_type_name(v)}")
+    if ann is dict:
+        if isinstance(v, Mapping):
+            return v
+        raise ValueError(f"{where} must be a dict, got {_type_name(v)}")
+    if origin is tuple:
+        if not isinstance(v, (tuple, list)):
+            raise ValueError(f"{where} must be a tuple, got {_type_name(v)}")
+        args = typing.get_args(ann)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_check_value(cls, f"{name}[{i}]", x, args[0], what) for i, x in enumerate(v))
+        return tuple(v)
+    if isinstance(ann, type) and dataclasses.is_dataclass(ann):
+        if isinstance(v, ann):
+            check_config(v, where)
+            return v
+        raise ValueError(f"{where} must be a {ann.__name__} or a dict of its fields, got {_type_name(v)}")
+    return v  # annotations this checker does not know are left to the class
+
+
+def check_config(obj, what: str | None = None) -> None:
+    """Check every field of a config dataclass instance against its annotation (see :func:`coerce_config`).
+
+    Raises:
+        ValueError: naming the field, for a value of the wrong type or a NaN / infinite float.
+    """
+    cls = type(obj)
+    what = what or cls.__name__
+    hints = _hints(cls)
+    for f in dataclasses.fields(obj):
+        if f.name in hints:
+            _check_value(cls, f.name, getattr(obj, f.name), hints[f.name], what)
 
 
 def coerce_config(cls: type[T], value, what: str, default: T | None = None) -> T:
-    """Build ``cls`` from ``None`` (defaults), a dict of overrides, or an instance.
+    """Build ``cls`` from ``None`` (defaults), a dict of overrides, or an instance, with strict types.
+
+    A dict overrides the fields it names and keeps the others from ``default``; a dict given
+    for a field that is itself a config dataclass is merged the same way into that field's
+    value in ``default`` (``{"semantic_field": {"sigma_hit_m": 0.4}}`` keeps the semantic
+    field's other defaults). Types follow the annotations: a bool is not an int, a float
+    (even ``2.0``) is not an int, a string is not a bool or a number, NaN and infinite
+    floats are rejected (infinity is kept where the field's default is infinite or the
+    class lists the field in ``_allow_inf``). Instances
+    are checked the same way.
 
     Args:
         default: the instance ``None`` stands for and a dict overrides (``cls()`` if not given).
 
     Raises:
-        ValueError: unknown keys (the message lists the valid ones) or a wrong type.
+        ValueError: unknown keys (the message lists the valid ones), a wrong type or an
+            invalid value; the message names the argument and the field.
     """
-    base = default if default is not None else cls()
     if value is None:
-        return base
-    if isinstance(value, cls):
-        return value
-    if isinstance(value, dict):
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(value) - names
-        if unknown:
-            raise ValueError(f"{what}: unknown keys {sorted(unknown)}; valid keys: {sorted(names)}")
-        try:
-            return dataclasses.replace(base, **value)
-        except TypeError as e:
-            raise ValueError(f"{what}: {e}") from None
-    raise ValueError(f"{what}: expected a dict or {cls.__name__}, got {type(value).__name__}")
+        out = default if default is not None else cls()
+    elif isinstance(value, cls):
+        out = value
+    elif isinstance(value, Mapping):
+        out = _merge(cls, default if default is not None else cls(), value, what)
+    else:
+        raise ValueError(f"{what}: expected a dict or {cls.__name__}, got {type(value).__name__}")
+    check_config(out, what)
+    return out
+
+
+def _merge(cls: type[T], base: T, value: Mapping, what: str) -> T:
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = set(value) - names
+    if unknown:
+        raise ValueError(f"{what}: unknown keys {_key_list(unknown)}; valid keys: {sorted(names)}")
+    hints = _hints(cls)
+    changes = {}
+    for k, v in value.items():
+        ann = hints.get(k)
+        if isinstance(ann, type) and dataclasses.is_dataclass(ann) and isinstance(v, Mapping):
+            current = getattr(base, k)
+            changes[k] = coerce_config(ann, v, f"{what}.{k}", current if isinstance(current, ann) else None)
+        elif ann is not None:
+            changes[k] = _check_value(cls, k, v, ann, what)
+        else:
+            changes[k] = v
+    try:
+        return dataclasses.replace(base, **changes)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{what}: {e}") from None
 
 
 def _positive(obj, *names: str) -> None:
     for n in names:
         v = getattr(obj, n)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0):
             raise ValueError(f"{type(obj).__name__}.{n} must be a positive finite number, got {v!r}")
+
+
+def _non_negative(obj, *names: str) -> None:
+    for n in names:
+        v = getattr(obj, n)
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"{type(obj).__name__}.{n} must be a finite number >= 0, got {v!r}")
 
 
 def _probability(obj, *names: str) -> None:
     for n in names:
         v = getattr(obj, n)
-        if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v <= 1.0):
             raise ValueError(f"{type(obj).__name__}.{n} must be a probability in [0, 1], got {v!r}")
+
+
+def _int_range(obj, name: str, lo: int, hi: int) -> None:
+    v = getattr(obj, name)
+    if not (isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) and lo <= v <= hi):
+        raise ValueError(f"{type(obj).__name__}.{name} must be an integer in [{lo}, {hi}], got {v!r}")
+
+
+def _fov(obj) -> None:
+    _positive(obj, "fov_rad")
+    if obj.fov_rad > 2 * math.pi + 1e-9:
+        raise ValueError(f"{type(obj).__name__}.fov_rad must be in (0, 2*pi], got {obj.fov_rad!r}")
 
 
 @dataclass(frozen=True)
@@ -69,20 +229,21 @@ class RobotParams:
     max_angular_rps: float = 1.0
 
     def __post_init__(self) -> None:
+        check_config(self)
         _positive(self, "radius_m", "max_linear_mps", "max_angular_rps")
 
 
 @dataclass(frozen=True)
 class PhysicsParams:
-    """Control rate and pymunk substeps per control step."""
+    """Control rate (Hz) and pymunk substeps per control step (an integer in ``[1, MAX_SUBSTEPS]``)."""
 
     control_hz: float = 10.0
     substeps: int = 5
 
     def __post_init__(self) -> None:
-        _positive(self, "control_hz", "substeps")
-        if int(self.substeps) != self.substeps:
-            raise ValueError("PhysicsParams.substeps must be an integer")
+        check_config(self)
+        _positive(self, "control_hz")
+        _int_range(self, "substeps", 1, MAX_SUBSTEPS)
 
     @property
     def dt_s(self) -> float:
@@ -95,8 +256,8 @@ class LidarParams:
     """A planar lidar at the robot centre.
 
     Attributes:
-        n_beams: beams, evenly spaced over the field of view.
-        fov_rad: field of view, centred on the heading (``2*pi``: all around).
+        n_beams: beams, evenly spaced over the field of view (an integer in ``[1, MAX_BEAMS]``).
+        fov_rad: field of view, centred on the heading, in ``(0, 2*pi]`` (``2*pi``: all around).
         range_max_m: maximum range; no return reads as this value.
         noise_std_m: Gaussian range noise.
         dropout_prob: chance that a beam returns nothing (reads ``range_max_m``).
@@ -109,9 +270,11 @@ class LidarParams:
     dropout_prob: float = 0.01
 
     def __post_init__(self) -> None:
-        _positive(self, "n_beams", "fov_rad", "range_max_m")
-        if self.noise_std_m < 0:
-            raise ValueError("LidarParams.noise_std_m must be >= 0")
+        check_config(self)
+        _int_range(self, "n_beams", 1, MAX_BEAMS)
+        _fov(self)
+        _positive(self, "range_max_m")
+        _non_negative(self, "noise_std_m")
         _probability(self, "dropout_prob")
 
 
@@ -120,8 +283,8 @@ class CameraParams:
     """The semantic pseudo-laser (paper 004 §2): a depth camera plus an object detector.
 
     Attributes:
-        n_beams: image columns kept as beams, evenly spaced over the field of view.
-        fov_rad: horizontal field of view (default 70 deg), centred on the heading.
+        n_beams: image columns kept as beams, evenly spaced over the field of view (``[1, MAX_BEAMS]``).
+        fov_rad: horizontal field of view (default 70 deg), centred on the heading, in ``(0, 2*pi]``.
         range_min_m, range_max_m: depth range; beams outside read ``range_max_m`` (no return).
         noise_std_m: Gaussian depth noise.
         miss_rate: chance that a visible object is not detected in a frame.
@@ -139,11 +302,13 @@ class CameraParams:
     false_positive_rate: float = 0.02
 
     def __post_init__(self) -> None:
-        _positive(self, "n_beams", "fov_rad", "range_max_m")
-        if not 0 <= self.range_min_m < self.range_max_m:
+        check_config(self)
+        _int_range(self, "n_beams", 1, MAX_BEAMS)
+        _fov(self)
+        _positive(self, "range_max_m")
+        _non_negative(self, "range_min_m", "noise_std_m")
+        if not self.range_min_m < self.range_max_m:
             raise ValueError("CameraParams needs 0 <= range_min_m < range_max_m")
-        if self.noise_std_m < 0:
-            raise ValueError("CameraParams.noise_std_m must be >= 0")
         _probability(self, "miss_rate", "wrong_class_rate", "false_positive_rate")
 
 

@@ -250,6 +250,20 @@ class SegmentScene:
         ranges = np.where(none, max_range, ranges)
         return ranges, np.where(none, -1, hit).astype(np.int64)
 
+    @property
+    def a(self) -> np.ndarray:
+        """``(M, 2)`` first end point of every segment."""
+        return self._a
+
+    @property
+    def e(self) -> np.ndarray:
+        """``(M, 2)`` vector from the first to the second end point."""
+        return self._e
+
+    def near(self, point: np.ndarray, reach_m: float) -> np.ndarray:
+        """Indices of the segments within ``reach_m`` of ``point`` ``(2,)``, ascending."""
+        return np.flatnonzero(self.distance_to(point) <= reach_m)
+
     def distance_to(self, point: np.ndarray) -> np.ndarray:
         """``(M,)`` Euclidean distances from ``point`` ``(2,)`` to every segment."""
         return self.distances(np.asarray(point, dtype=np.float64)[None])[0]

@@ -2,12 +2,15 @@
 
 Build a fresh world on every reset with :func:`build_world` (leftover bodies make
 pymunk runs nondeterministic). Sensors cast rays against :attr:`World.scene`, the
-segments read back from the very pymunk shapes the robot collides with.
+segments of the very shapes in the pymunk space; the robot's motion (:meth:`World.drive`)
+is resolved against the same segments by projection, so its state is its pose alone:
+no solver cache, copies that never diverge, and a clearance never below the radius.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -23,6 +26,20 @@ from .layouts import Layout, point_in_polygon
 from .raycast import SegmentScene
 
 _ROBOT_TYPE = 1
+_RESOLVE_ITERS = 16
+"""Projections tried per substep before a blocked move is undone."""
+
+
+def _crosses(p: np.ndarray, q: np.ndarray, a: np.ndarray, e: np.ndarray) -> bool:
+    """True if the move ``p -> q`` properly crosses any segment ``a + s * e``, ``s in [0, 1]``."""
+    d = q - p
+
+    def cross(u, v):
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    s1, s2 = cross(d, a - p), cross(d, a + e - p)
+    s3, s4 = cross(e, p - a), cross(e, q - a)
+    return bool(np.any((s1 * s2 < 0) & (s3 * s4 < 0)))
 
 
 def _counter_clockwise(poly: np.ndarray) -> np.ndarray:
@@ -203,6 +220,22 @@ def _free_kernel(
         out[p] = ok
 
 
+def as_pose(value, what: str = "pose") -> np.ndarray:
+    """``value`` as a ``(3,)`` float64 pose; ValueError naming ``what`` unless it is three finite real numbers."""
+    a = None if isinstance(value, (str, bytes, dict)) else np.asarray(value) if _array_like(value) else None
+    if a is None or a.shape != (3,) or a.dtype.kind not in "iuf" or not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} must be three finite numbers (x m, y m, theta rad), got {value!r:.80}")
+    return a.astype(np.float64)
+
+
+def _array_like(value) -> bool:
+    if isinstance(value, np.ndarray):
+        return True
+    if not isinstance(value, (list, tuple)):
+        return False
+    return all(isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) for v in value)
+
+
 class World:
     """A layout in pymunk plus the robot. Poses are ``(x, y, theta)``, metres and radians.
 
@@ -231,6 +264,8 @@ class World:
         self.space.add(*shapes)
         self._obstacles = list(geo.obstacles)
         self.scene = geo.scene
+        # pushed-out robots stop this far beyond their radius: a few ulps of the coordinates, at least 1 nm
+        self._skin = 1e-9 + 8 * float(np.spacing(np.abs(self.scene.segments).max(initial=1.0)))
         self.body = pymunk.Body(1.0, math.inf)
         self.shape = pymunk.Circle(self.body, robot.radius_m)
         self.shape.collision_type = _ROBOT_TYPE
@@ -277,9 +312,7 @@ class World:
 
     def set_pose(self, pose) -> None:
         """Teleport the robot. Raises ValueError (state unchanged) for a non-finite or blocked pose."""
-        p = np.asarray(pose, dtype=np.float64).reshape(-1)
-        if p.shape != (3,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"a pose must be three finite numbers (x, y, theta), got {pose!r}")
+        p = as_pose(pose, "pose")
         if not self.is_free(p[:2]):
             raise ValueError(
                 f"pose {p.tolist()} is not free: the robot (radius {self.robot_params.radius_m} m) "
@@ -304,43 +337,65 @@ class World:
     def drive(self, v_mps: float, omega_rps: float) -> bool:
         """Drive with body-frame speed ``v`` and turn rate ``omega`` for one control step.
 
-        The command is applied at every physics substep; pymunk stops the robot
-        against obstacles. Returns True if the robot touched an obstacle.
+        Per physics substep the robot moves ``v * dt`` along its heading at the substep's
+        start and turns ``omega * dt`` (the integration pymunk does for a free body); a
+        disc that would then overlap a wall or obstacle is projected back out along the
+        contact normals (frictionless sliding). If that does not free it within
+        ``_RESOLVE_ITERS`` projections, or the projection would cross a wall, as in a gap
+        narrower than the robot, the substep's translation is undone. So the robot's
+        clearance never drops below its radius (to ``_SKIN_M``), and the outcome is a
+        function of the pose alone: copies (``copy.deepcopy``, pickle) of a world in
+        contact evolve identically. Returns True if the robot touched an obstacle.
         """
-        dt = self.physics.dt_s / self.physics.substeps
+        phys = self.physics
+        dt = phys.dt_s / phys.substeps
+        r = self.robot_params.radius_m
+        x, y = self.body.position
+        th = float(self.body.angle)
+        reach = r + abs(v_mps) * phys.dt_s + 2 * self._skin
+        near = self.scene.near(np.array([x, y]), reach)
         collided = False
-        for _ in range(int(self.physics.substeps)):
-            th = self.body.angle
-            self.body.velocity = (v_mps * math.cos(th), v_mps * math.sin(th))
-            self.body.angular_velocity = omega_rps
-            self.space.step(dt)
-            collided |= self._push_out()
+        for _ in range(int(phys.substeps)):
+            nx = x + v_mps * math.cos(th) * dt
+            ny = y + v_mps * math.sin(th) * dt
+            th = th + omega_rps * dt
+            if len(near):
+                (nx, ny), hit = self._resolve(np.array([x, y]), np.array([nx, ny]), near)
+                collided |= hit
+            x, y = float(nx), float(ny)
+        self.body.position = (x, y)
+        self.body.angle = th
         self.body.velocity = (0.0, 0.0)
         self.body.angular_velocity = 0.0
+        self.space.reindex_shapes_for_body(self.body)
         return collided
 
-    def _push_out(self, max_iters: int = 4) -> bool:
-        """Move the robot out of any obstacle it overlaps; True if it did.
-
-        Driving by velocity override leaves pymunk's soft contacts a little
-        penetration each substep that accumulates; resolving the overlap by
-        position keeps the disc out of walls to within floating-point error.
-        """
-        pushed = False
-        for _ in range(max_iters):
-            moved = False
-            for info in self.space.shape_query(self.shape):
-                cps = info.contact_point_set
-                depth = min((pt.distance for pt in cps.points), default=0.0)
-                if depth < 0:
-                    self.body.position = self.body.position + cps.normal * depth
-                    moved = True
-            if not moved:
+    def _resolve(self, prev: np.ndarray, p: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, bool]:
+        """``(position, touched)``: ``p`` pushed out of the segments ``near`` (indices), or ``prev``."""
+        r = self.robot_params.radius_m
+        a, e = self.scene.a[near], self.scene.e[near]
+        ee = np.maximum(np.sum(e * e, axis=1), 1e-300)
+        touched = False
+        for _ in range(_RESOLVE_ITERS):
+            t = np.clip(np.sum((p - a) * e, axis=1) / ee, 0.0, 1.0)
+            closest = a + t[:, None] * e
+            off = p - closest
+            d = np.hypot(off[:, 0], off[:, 1])
+            k = int(np.argmin(d))
+            if d[k] >= r:
                 break
-            pushed = True
-        if pushed:
-            self.space.reindex_shapes_for_body(self.body)
-        return pushed
+            touched = True
+            if d[k] > 1e-12:
+                n = off[k] / d[k]
+            else:  # on the segment: push back towards where the robot came from
+                n = np.array([-e[k, 1], e[k, 0]]) / math.sqrt(ee[k])
+                n = n if np.dot(prev - closest[k], n) >= 0 else -n
+            p = closest[k] + n * (r + self._skin)
+        else:
+            return prev, True
+        if touched and _crosses(prev, p, a, e):
+            return prev, True
+        return p, touched
 
 
 def build_world(

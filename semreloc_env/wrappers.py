@@ -4,12 +4,18 @@
   relocalizer *believes* (spread, entropy, hypotheses, degeneracy, converged), read from
   ``info["belief"]`` (:meth:`filters.localization.belief.Belief.as_dict`). It never exposes the true pose
   nor the pose error: a policy that sees them would be cheating.
+* :class:`ActiveObservation` (from :mod:`semreloc_env.observations`) replaces the observation
+  by what an active-relocalization policy needs: egocentric and whole-map images of the belief,
+  the map and its classes, the hypothesis list, normalised scans and the last action, with
+  bounds independent of the particle count and the layout size.
 * :class:`FlatObservation` concatenates every key of a Dict observation into one float32 Box,
   for algorithms and networks that want a flat vector.
+* :class:`CheckedReset` is the outermost wrapper of the registered envs: it checks the reset
+  arguments before Gymnasium's ``TimeLimit`` (which zeroes its step counter first) sees them.
 
 Typical use::
 
-    env = FlatObservation(BeliefObservation(gym.make("SemReloc-v0")))
+    env = FlatObservation(BeliefObservation(gym.make("SemReloc-v1")))
 """
 
 from __future__ import annotations
@@ -44,7 +50,7 @@ class BeliefObservation(gym.Wrapper):
     histogram of N particles is at most ``log N``, and the default ``entropy_max_nats`` is the
     log of the largest particle count the env's relocalizer may hold.
 
-    The wrapped env must put ``belief`` in ``info`` at every reset and step (``SemReloc-v0``
+    The wrapped env must put ``belief`` in ``info`` at every reset and step (``SemReloc-v1``
     does); a missing key raises ``KeyError``. Rewards, termination and ``info`` pass through
     unchanged.
 
@@ -160,3 +166,28 @@ class FlatObservation(gym.ObservationWrapper):
 
     def observation(self, observation: dict) -> np.ndarray:
         return np.concatenate([np.asarray(observation[k], dtype=np.float32).ravel() for k in self.keys])
+
+
+class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Check ``reset(seed=..., options=...)`` before the wrappers inside see the call.
+
+    Gymnasium's ``TimeLimit.reset`` zeroes its step counter *before* it calls the env, so a
+    reset the env rejects (a bad ``options`` entry) would otherwise leave the old episode
+    running with a fresh time limit. ``gym.make`` puts this wrapper outside ``TimeLimit``
+    for every registered semreloc env (``additional_wrappers`` at registration); wrap your
+    own stacks with it outermost if they hold counters that ``reset`` clears first.
+    A rejected reset raises ``ValueError`` and changes nothing in any wrapper.
+    """
+
+    def __init__(self, env: gym.Env):
+        gym.utils.RecordConstructorArgs.__init__(self)
+        gym.Wrapper.__init__(self, env)
+
+    def reset(self, *, seed=None, options=None):
+        self.env.unwrapped.check_reset(seed=seed, options=options)
+        return self.env.reset(seed=seed, options=options)
+
+
+from .observations import ActiveObservation  # noqa: E402  (the spatial observation for active relocalization)
+
+__all__ = ["BELIEF_FEATURES", "ActiveObservation", "BeliefObservation", "CheckedReset", "FlatObservation"]

@@ -172,8 +172,32 @@ def test_firefly_filters_run_finite_and_deterministic(growth_run, make):
     assert a.shape == (100, 1) and np.all(np.isfinite(a))
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
-    # sanity, not a claim of accuracy: better than guessing x = 0 every step
-    assert rmse(a, xs) < rmse(np.zeros_like(xs), xs)
+    assert np.all(np.abs(a - xs) < 60.0)  # never far off the growth model's range
+
+
+# Mean RMSE over seeds 0..4 (T = 100) of each firefly filter, as a ratio to a plain PF with the same
+# particle count on the same data. Measured: 1.23, 1.77, 1.81, 1.22, 0.97. The bounds are 1.3x those, so
+# a 2x accuracy regression fails here (the docs report IFA-PF at about 1.8-2x the PF's error).
+FIREFLY_RATIO_BOUNDS = [
+    (lambda: FAPF(fa_config(60)), 60, 1.6),
+    (lambda: IFAPF(ifa_config(60)), 60, 2.3),
+    (lambda: IFAPF(ifa_config(60, state_reference="posterior")), 60, 2.35),
+    (lambda: IFAPF(ifa_config(300)), 60, 1.6),
+    (lambda: FAPF(fa_config(60, move_mode="brightest", n_moves=2)), 60, 1.26),
+]
+
+
+@pytest.mark.parametrize("make, n_pf, bound", FIREFLY_RATIO_BOUNDS)
+def test_firefly_filters_accuracy_against_a_plain_pf(make, n_pf, bound):
+    from filters.smc.pf import BootstrapPF, PFConfig
+
+    m = GrowthModel()
+    ff, pf = [], []
+    for seed in range(5):
+        xs, ys = m.simulate(100, np.random.default_rng(seed))
+        ff.append(rmse(make().run(m, ys, np.random.default_rng(7 + seed)), xs))
+        pf.append(rmse(BootstrapPF(PFConfig(n_particles=n_pf)).run(m, ys, np.random.default_rng(7 + seed)), xs))
+    assert np.mean(ff) < bound * np.mean(pf)
 
 
 def test_ifa_state_reference_is_the_filters_own_estimate(growth_run):

@@ -82,13 +82,20 @@ def test_pf_same_seed_bit_identical_and_different_seed_differs():
 
 @pytest.mark.parametrize("resampler", ["multinomial", "residual", "stratified"])
 def test_pf_other_resamplers_and_ess_triggered_resampling(resampler):
+    """Mean RMSE over seeds 0..4 within 1.3x of the systematic resampler's on the same data
+    (measured ratios 1.10 multinomial, 1.16 residual, 1.10 stratified): a 2x regression fails."""
     m = GrowthModel()
-    xs, ys = m.simulate(40, np.random.default_rng(0))
-    est = BootstrapPF(PFConfig(n_particles=80, resampler=resampler, resample_threshold=0.5)).run(
-        m, ys, np.random.default_rng(1)
-    )
-    assert est.shape == (40, 1) and np.all(np.isfinite(est))
-    assert rmse(est, xs) < rmse(np.zeros_like(xs), xs)
+    other, base = [], []
+    for seed in range(5):
+        xs, ys = m.simulate(100, np.random.default_rng(seed))
+        est = BootstrapPF(PFConfig(n_particles=80, resampler=resampler, resample_threshold=0.5)).run(
+            m, ys, np.random.default_rng(10 + seed)
+        )
+        assert est.shape == (100, 1) and np.all(np.isfinite(est))
+        other.append(rmse(est, xs))
+        ref = BootstrapPF(PFConfig(n_particles=80, resampler="systematic", resample_threshold=0.5))
+        base.append(rmse(ref.run(m, ys, np.random.default_rng(10 + seed)), xs))
+    assert np.mean(other) < 1.3 * np.mean(base)
 
 
 def test_bad_input_raises():

@@ -42,7 +42,7 @@ def _rollout(env, seed=3, n=40):
 
 
 def test_belief_observation_space_and_features_equal_info():
-    env = BeliefObservation(gym.make("SemReloc-v0", **FAST))
+    env = BeliefObservation(gym.make("SemReloc-v1", **FAST))
     space = env.observation_space
     assert set(space.spaces) == {"lidar", "semantic", "odometry", "belief"}
     assert space["belief"].shape == (len(BELIEF_FEATURES),)
@@ -55,14 +55,19 @@ def test_belief_observation_space_and_features_equal_info():
         assert space.contains(obs)
         np.testing.assert_allclose(obs["belief"], _expected(info["belief"]), rtol=1e-6)
         seen_converged.add(bool(obs["belief"][5]))
+    # a tracking start is converged at once: the feature must then read 1 (and 0 in the global rollout)
+    obs, info = env.reset(seed=3, options={"tracking": True})
+    np.testing.assert_allclose(obs["belief"], _expected(info["belief"]), rtol=1e-6)
+    seen_converged.add(bool(obs["belief"][5]))
+    assert seen_converged == {False, True}
     # the belief moves during the rollout: features are not constant
     beliefs = np.array([o["belief"] for o, _ in _rollout(env)])
     assert np.ptp(beliefs[:, 0]) > 0.1 and np.ptp(beliefs[:, 2]) > 0.1
 
 
 def test_belief_observation_does_not_change_the_rest_of_the_step():
-    plain = gym.make("SemReloc-v0", **FAST)
-    wrapped = BeliefObservation(gym.make("SemReloc-v0", **FAST))
+    plain = gym.make("SemReloc-v1", **FAST)
+    wrapped = BeliefObservation(gym.make("SemReloc-v1", **FAST))
     for (o1, i1), (o2, i2) in zip(_rollout(plain, n=15), _rollout(wrapped, n=15)):
         for k in o1:
             np.testing.assert_array_equal(o1[k], o2[k])
@@ -73,7 +78,7 @@ def test_belief_observation_does_not_change_the_rest_of_the_step():
 
 
 def test_belief_observation_clips_to_bounds():
-    env = BeliefObservation(gym.make("SemReloc-v0", **FAST), pos_std_max_m=1.0, max_clusters=2)
+    env = BeliefObservation(gym.make("SemReloc-v1", **FAST), pos_std_max_m=1.0, max_clusters=2)
     obs, info = env.reset(seed=0)
     assert info["belief"]["pos_std_m"] > 1.0  # global start: spread over the lab
     assert obs["belief"][0] == np.float32(1.0)
@@ -84,11 +89,11 @@ def test_belief_observation_clips_to_bounds():
 
 def test_belief_observation_rejects_bad_envs_and_bounds():
     with pytest.raises(ValueError):
-        BeliefObservation(BeliefObservation(gym.make("SemReloc-v0", **FAST)))
+        BeliefObservation(BeliefObservation(gym.make("SemReloc-v1", **FAST)))
     with pytest.raises(TypeError):
         BeliefObservation(gym.make("CartPole-v1"))
     with pytest.raises(ValueError):
-        BeliefObservation(gym.make("SemReloc-v0", **FAST), pos_std_max_m=0.0)
+        BeliefObservation(gym.make("SemReloc-v1", **FAST), pos_std_max_m=0.0)
 
 
 def _check(env):
@@ -107,7 +112,7 @@ def test_check_env_passes_on_wrapped_envs_with_warnings_as_errors():
 
 
 def test_flat_observation_concatenates_in_key_order():
-    inner = BeliefObservation(gym.make("SemReloc-v0", **FAST))
+    inner = BeliefObservation(gym.make("SemReloc-v1", **FAST))
     flat = FlatObservation(inner)
     n = sum(int(np.prod(s.shape)) for s in inner.observation_space.spaces.values())
     assert flat.observation_space.shape == (n,)
@@ -122,11 +127,11 @@ def test_flat_observation_concatenates_in_key_order():
 
 
 def test_flat_observation_key_subset_and_errors():
-    flat = FlatObservation(gym.make("SemReloc-v0", **FAST), keys=["odometry", "lidar"])
+    flat = FlatObservation(gym.make("SemReloc-v1", **FAST), keys=["odometry", "lidar"])
     obs, _ = flat.reset(seed=0)
     assert obs.shape == (3 + 60,)
     assert flat.slices["odometry"] == slice(0, 3)
     with pytest.raises(KeyError):
-        FlatObservation(gym.make("SemReloc-v0", **FAST), keys=["belief"])
+        FlatObservation(gym.make("SemReloc-v1", **FAST), keys=["belief"])
     with pytest.raises(TypeError):
         FlatObservation(gym.make("CartPole-v1"))

@@ -1,8 +1,9 @@
-"""Belief summary of a weighted particle set: what a filter currently holds, in a few numbers.
+"""Belief summary of a weighted particle set: what a filter currently holds, honestly.
 
 :func:`summarize` turns ``(N, 3)`` poses and ``(N,)`` weights into a frozen
 :class:`Belief` whose :meth:`Belief.as_dict` is plain Python (floats, ints,
-lists), ready for a Gymnasium ``info`` dict.
+lists), ready for a Gymnasium ``info`` dict. :func:`cluster_labels` is the
+clustering it uses, shared with the filter's clustered resampling.
 
 Definitions (all weights normalised to sum 1):
 
@@ -15,12 +16,24 @@ Definitions (all weights normalised to sum 1):
   coarse pose bins of ``entropy_bin_xy_m`` x ``entropy_bin_xy_m`` x
   ``entropy_bin_theta_rad`` (defaults 0.5 m x 0.5 m x pi/8 rad = 22.5 deg). A single
   bin gives 0; a spread-out belief gives up to ``log(#bins)``.
-* ``n_clusters``: connected components (8-neighbourhood) of the coarse ``(x, y)``
-  bins (``cluster_bin_m``, default 0.5 m) that hold at least one particle, counting
-  only components whose total weight is at least ``cluster_min_weight``
-  (default 0.02), so stray particles do not count as hypotheses.
-* ``converged``: position std ``sqrt(var_x + var_y) < converged_pos_std_m`` and
-  heading std ``sqrt(var_theta) < converged_theta_std_rad``.
+* **hypotheses**: the particles are binned on a ``cluster_bin_m`` x ``cluster_bin_m`` x
+  ``cluster_bin_theta_rad`` raster (defaults 0.5 m x 0.5 m x 45 deg, heading
+  wrapping around); a *cluster* is a connected component of the bins holding at least
+  ``cluster_min_bin_frac`` (default 0.05) times the mean weight of the bins that hold
+  particles (26-neighbourhood, across the ``±pi`` seam too); particles in lighter bins
+  belong to no hypothesis. Each cluster whose total weight is
+  at least ``cluster_min_weight`` (default 0.02, so stray particles are no
+  hypothesis) is a :class:`Hypothesis` — weight, mean, covariance, particle count —
+  and ``hypotheses`` lists them by weight, heaviest first. ``n_clusters`` is their number.
+* ``converged``: *one hypothesis holds nearly all the mass and is tight*: the heaviest
+  hypothesis has weight ``>= converged_min_weight`` (default 0.95), position std
+  ``sqrt(var_x + var_y) < converged_pos_std_m`` (0.3 m) and heading std
+  ``< converged_theta_std_rad`` (0.2 rad). A cloud split over two look-alike places
+  is never converged, however tight each part is. (``converged_rule="spread"`` restores
+  the rule of the first release, kept for comparisons: the *whole* set's stds below the
+  same thresholds, whatever its hypotheses.)
+
+Cost: O(N) plus the raster (the particles' bounding box), every step.
 """
 
 from __future__ import annotations
@@ -30,9 +43,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from filters.pose import wrap_angle
 from filters.smc.resampling import normalise_weights
+
+_MAX_RASTER_CELLS = 4_000_000
 
 
 @dataclass(frozen=True)
@@ -42,23 +59,67 @@ class BeliefConfig:
     entropy_bin_xy_m: float = 0.5
     entropy_bin_theta_rad: float = math.pi / 8
     cluster_bin_m: float = 0.5
+    cluster_bin_theta_rad: float = math.pi / 4
     cluster_min_weight: float = 0.02
+    cluster_min_bin_frac: float = 0.05
+    converged_min_weight: float = 0.95
     converged_pos_std_m: float = 0.3
     converged_theta_std_rad: float = 0.2
+    converged_rule: str = "hypothesis"
 
     def __post_init__(self) -> None:
+        if self.converged_rule not in ("hypothesis", "spread"):
+            raise ValueError(
+                f"BeliefConfig.converged_rule must be 'hypothesis' or 'spread', got {self.converged_rule!r}"
+            )
         for name in (
             "entropy_bin_xy_m",
             "entropy_bin_theta_rad",
             "cluster_bin_m",
+            "cluster_bin_theta_rad",
             "converged_pos_std_m",
             "converged_theta_std_rad",
         ):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"BeliefConfig.{name} must be a positive number, got {v!r}")
-        if not (isinstance(self.cluster_min_weight, (int, float)) and 0 <= self.cluster_min_weight <= 1):
-            raise ValueError(f"BeliefConfig.cluster_min_weight must be in [0, 1], got {self.cluster_min_weight!r}")
+        for name in ("cluster_min_weight", "cluster_min_bin_frac", "converged_min_weight"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0 <= v <= 1):
+                raise ValueError(f"BeliefConfig.{name} must be in [0, 1], got {v!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Hypothesis:
+    """One cluster of the particle set (units: metres, radians).
+
+    Attributes:
+        weight: total normalised weight of its particles, in ``(0, 1]``.
+        mean: ``(3,)`` weighted mean pose (circular mean of theta).
+        cov: ``(3, 3)`` weighted covariance about ``mean`` (wrapped heading residuals).
+        n_particles: particles in the cluster.
+    """
+
+    weight: float
+    mean: np.ndarray
+    cov: np.ndarray
+    n_particles: int
+
+    @property
+    def pos_std_m(self) -> float:
+        return math.sqrt(max(self.cov[0, 0] + self.cov[1, 1], 0.0))
+
+    @property
+    def theta_std_rad(self) -> float:
+        return math.sqrt(max(self.cov[2, 2], 0.0))
+
+    def as_dict(self) -> dict:
+        return {
+            "weight": float(self.weight),
+            "mean": [float(v) for v in self.mean],
+            "cov": [[float(v) for v in row] for row in self.cov],
+            "n_particles": int(self.n_particles),
+        }
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,15 +127,18 @@ class Belief:
     """Summary of a weighted particle set (units: metres, radians, nats).
 
     Attributes:
-        mean: ``(3,)`` mean pose ``(x, y, theta)``.
+        mean: ``(3,)`` mean pose ``(x, y, theta)`` of the whole set.
         cov: ``(3, 3)`` covariance of ``(x, y, theta)`` with wrapped heading residuals.
         ess: effective sample size, in ``[1, N]``.
         n_particles: N.
         entropy_nats: entropy of the coarse pose histogram.
-        n_clusters: number of position hypotheses (see module docstring).
-        pos_std_m: ``sqrt(cov_xx + cov_yy)``.
-        theta_std_rad: ``sqrt(cov_thth)``.
-        converged: both stds below the config thresholds.
+        n_clusters: number of hypotheses (``len(hypotheses)``).
+        pos_std_m: ``sqrt(cov_xx + cov_yy)`` of the whole set.
+        theta_std_rad: ``sqrt(cov_thth)`` of the whole set.
+        converged: one tight hypothesis holds nearly all the mass (module docstring).
+        hypotheses: the clusters by weight, heaviest first (module docstring).
+        estimate: ``(3,)`` the pose estimate: the heaviest hypothesis's mean (as AMCL reports
+            its heaviest cluster), or ``mean`` when no cluster reaches ``cluster_min_weight``.
     """
 
     mean: np.ndarray
@@ -86,12 +150,25 @@ class Belief:
     pos_std_m: float
     theta_std_rad: float
     converged: bool
+    hypotheses: tuple[Hypothesis, ...] = ()
+    estimate: np.ndarray | None = None
 
-    def as_dict(self) -> dict:
-        """Plain Python values (floats, ints, bools, nested lists) for a Gymnasium ``info``."""
+    def __post_init__(self) -> None:
+        if self.estimate is None:
+            object.__setattr__(self, "estimate", self.mean)
+
+    @property
+    def best(self) -> Hypothesis | None:
+        """The heaviest hypothesis (None if no cluster reaches ``cluster_min_weight``)."""
+        return self.hypotheses[0] if self.hypotheses else None
+
+    def as_dict(self, max_hypotheses: int = 8) -> dict:
+        """Plain Python values (floats, ints, bools, nested lists) for a Gymnasium ``info``;
+        at most ``max_hypotheses`` hypotheses are listed (``n_clusters`` counts them all)."""
         return {
             "mean": [float(v) for v in self.mean],
             "cov": [[float(v) for v in row] for row in self.cov],
+            "estimate": [float(v) for v in self.estimate],
             "ess": float(self.ess),
             "n_particles": int(self.n_particles),
             "entropy_nats": float(self.entropy_nats),
@@ -99,6 +176,7 @@ class Belief:
             "pos_std_m": float(self.pos_std_m),
             "theta_std_rad": float(self.theta_std_rad),
             "converged": bool(self.converged),
+            "hypotheses": [h.as_dict() for h in self.hypotheses[:max_hypotheses]],
         }
 
 
@@ -122,6 +200,118 @@ def linear_bin_keys(*keys: np.ndarray) -> np.ndarray:
     return out
 
 
+def _heading_bins(theta: np.ndarray, bin_rad: float) -> tuple[np.ndarray, int]:
+    n = max(1, round(2.0 * math.pi / bin_rad))
+    k = np.floor((wrap_angle(theta) + math.pi) * (n / (2.0 * math.pi))).astype(np.int64)
+    return np.minimum(k, n - 1), n
+
+
+def histogram_entropy(poses: np.ndarray, w: np.ndarray, bin_xy_m: float, bin_theta_rad: float) -> float:
+    """Shannon entropy (nats) of normalised weights ``w`` over the coarse pose bins."""
+    ix = _bin_keys(poses[:, 0], bin_xy_m)
+    iy = _bin_keys(poses[:, 1], bin_xy_m)
+    it, nt = _heading_bins(poses[:, 2], bin_theta_rad)
+    ix -= ix.min()
+    iy -= iy.min()
+    nx, ny = int(ix.max()) + 1, int(iy.max()) + 1
+    if nx * ny * nt <= _MAX_RASTER_CELLS:
+        mass = np.bincount((iy * nx + ix) * nt + it, weights=w, minlength=nx * ny * nt)
+    else:  # absurdly spread cloud: sort instead of a dense raster
+        _, inv = np.unique(linear_bin_keys(ix, iy, it), return_inverse=True)
+        mass = np.bincount(inv.reshape(-1), weights=w)
+    mass = mass[mass > 0]
+    return max(float(-(mass * np.log(mass)).sum()), 0.0)
+
+
+def cluster_labels(
+    poses: np.ndarray,
+    bin_m: float,
+    bin_theta_rad: float,
+    weights: np.ndarray | None = None,
+    min_bin_frac: float = 0.0,
+) -> tuple[np.ndarray, int]:
+    """``(labels (N,), n)``: the connected cluster (``0 .. n-1``) of every particle, or -1.
+
+    Clusters are connected components of the occupied cells of a ``bin_m`` x ``bin_m`` x
+    ``bin_theta_rad`` raster (26-neighbourhood, heading wrapping around ``±pi``). A cell is
+    occupied when its particles' normalised ``weights`` sum to at least ``min_bin_frac`` times
+    the mean weight of the cells that hold particles (any particle, when 0 or no weights);
+    particles in other cells get label -1, so a thin haze of unlikely particles does not join
+    two hypotheses, while a uniform cloud stays one cluster on a map of any size.
+    """
+    p = np.asarray(poses, dtype=np.float64)
+    ix = _bin_keys(p[:, 0], bin_m)
+    iy = _bin_keys(p[:, 1], bin_m)
+    ix -= ix.min()
+    iy -= iy.min()
+    nx, ny = int(ix.max()) + 1, int(iy.max()) + 1
+    it, nt = _heading_bins(p[:, 2], bin_theta_rad)
+    if nx * ny * nt > _MAX_RASTER_CELLS:  # absurdly spread cloud: coarser raster
+        return cluster_labels(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
+    if weights is not None and min_bin_frac > 0:
+        mass = np.bincount((iy * nx + ix) * nt + it, weights=weights, minlength=nx * ny * nt)
+        held = np.bincount((iy * nx + ix) * nt + it, minlength=nx * ny * nt) > 0
+        occupied = (mass >= min_bin_frac * mass.sum() / held.sum()) & held
+        occupied = occupied.reshape(ny, nx, nt)
+    else:
+        occupied = np.zeros((ny, nx, nt), dtype=bool)
+        occupied[iy, ix, it] = True
+    lab, n = ndimage.label(occupied, structure=np.ones((3, 3, 3), dtype=bool))
+    if nt > 2 and n > 1:  # join components that touch across the heading seam
+        first = np.pad(lab[:, :, 0], 1)
+        last = lab[:, :, -1]
+        src, dst = [], []
+        for dy in (0, 1, 2):
+            for dx in (0, 1, 2):
+                a = first[dy : dy + ny, dx : dx + nx]
+                both = (a > 0) & (last > 0)
+                src.append(a[both])
+                dst.append(last[both])
+        src = np.concatenate(src)
+        if src.size:
+            dst = np.concatenate(dst)
+            graph = coo_matrix((np.ones(src.size), (src, dst)), shape=(n + 1, n + 1))
+            _, comp = connected_components(graph, directed=False)
+            used = np.unique(comp[1:])
+            remap = np.searchsorted(used, comp)
+            lab = remap[lab] + 1
+            lab[~occupied] = 0
+            n = used.size
+    return lab[iy, ix, it].astype(np.int64) - 1, int(n)
+
+
+def cluster_stats(
+    poses: np.ndarray, w: np.ndarray, labels: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-cluster ``(weight (n,), mean (n, 3), cov (n, 3, 3), count (n,))`` of normalised weights ``w``.
+
+    Particles labelled -1 belong to no cluster. A cluster with zero weight gets its particles'
+    unweighted mean and covariance.
+    """
+    inside = labels >= 0
+    if not inside.all():
+        poses, w, labels = poses[inside], w[inside], labels[inside]
+    count = np.bincount(labels, minlength=n)
+    weight = np.bincount(labels, weights=w, minlength=n)
+    ww = np.where((weight > 0)[labels], w, 1.0 / np.maximum(count[labels], 1))
+    wsum = np.where(weight > 0, weight, 1.0)
+    mean = np.empty((n, 3))
+    mean[:, 0] = np.bincount(labels, weights=ww * poses[:, 0], minlength=n) / wsum
+    mean[:, 1] = np.bincount(labels, weights=ww * poses[:, 1], minlength=n) / wsum
+    s = np.bincount(labels, weights=ww * np.sin(poses[:, 2]), minlength=n)
+    c = np.bincount(labels, weights=ww * np.cos(poses[:, 2]), minlength=n)
+    mean[:, 2] = wrap_angle(np.arctan2(s, c))
+    r = poses - mean[labels]
+    r[:, 2] = wrap_angle(r[:, 2])
+    cov = np.empty((n, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            v = np.bincount(labels, weights=ww * r[:, a] * r[:, b], minlength=n) / wsum
+            cov[:, a, b] = v
+            cov[:, b, a] = v
+    return weight, mean, cov, count
+
+
 def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | None = None) -> Belief:
     """Summarise ``poses (N, 3)`` with non-negative ``weights (N,)`` (normalised here).
 
@@ -135,6 +325,8 @@ def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | Non
     n = p.shape[0]
     if n == 0:
         raise ValueError("no particles to summarise")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("poses contain NaN or inf")
     w = _normalised(weights, n)
 
     mx, my = float(w @ p[:, 0]), float(w @ p[:, 1])
@@ -143,22 +335,31 @@ def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | Non
     cov = (res * w[:, None]).T @ res
     cov = 0.5 * (cov + cov.T)
     ess = float(1.0 / np.sum(w * w))
+    entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad)
 
-    # entropy of the coarse (x, y, theta) histogram
-    keys = linear_bin_keys(
-        _bin_keys(p[:, 0], cfg.entropy_bin_xy_m),
-        _bin_keys(p[:, 1], cfg.entropy_bin_xy_m),
-        _bin_keys(wrap_angle(p[:, 2]) + math.pi, cfg.entropy_bin_theta_rad),
-    )
-    _, inv = np.unique(keys, return_inverse=True)
-    mass = np.bincount(inv.reshape(-1), weights=w)
-    mass = mass[mass > 0]
-    entropy = float(-(mass * np.log(mass)).sum())
-
-    n_clusters = _count_clusters(p[:, :2], w, cfg.cluster_bin_m, cfg.cluster_min_weight)
-
+    labels, n_lab = cluster_labels(p, cfg.cluster_bin_m, cfg.cluster_bin_theta_rad, w, cfg.cluster_min_bin_frac)
+    cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n_lab)
+    keep = np.flatnonzero(cw >= cfg.cluster_min_weight - 1e-12)
+    keep = keep[np.argsort(-cw[keep], kind="stable")]
+    hyps = []
+    for k in keep:
+        m, c = cmean[k], ccov[k]
+        m.setflags(write=False)
+        c.setflags(write=False)
+        hyps.append(Hypothesis(weight=float(cw[k]), mean=m, cov=c, n_particles=int(ccount[k])))
+    best = hyps[0] if hyps else None
     pos_std = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
     th_std = math.sqrt(max(cov[2, 2], 0.0))
+    if cfg.converged_rule == "spread":
+        converged = bool(pos_std < cfg.converged_pos_std_m and th_std < cfg.converged_theta_std_rad)
+    else:
+        converged = bool(
+            best is not None
+            and best.weight >= cfg.converged_min_weight
+            and best.pos_std_m < cfg.converged_pos_std_m
+            and best.theta_std_rad < cfg.converged_theta_std_rad
+        )
+
     mean = np.array([mx, my, mth])
     mean.setflags(write=False)
     cov.setflags(write=False)
@@ -167,28 +368,11 @@ def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | Non
         cov=cov,
         ess=ess,
         n_particles=n,
-        entropy_nats=max(entropy, 0.0),
-        n_clusters=n_clusters,
+        entropy_nats=entropy,
+        n_clusters=len(hyps),
         pos_std_m=pos_std,
         theta_std_rad=th_std,
-        converged=bool(pos_std < cfg.converged_pos_std_m and th_std < cfg.converged_theta_std_rad),
+        converged=converged,
+        hypotheses=tuple(hyps),
+        estimate=mean if best is None or cfg.converged_rule == "spread" else best.mean,
     )
-
-
-def _count_clusters(xy: np.ndarray, w: np.ndarray, bin_m: float, min_weight: float) -> int:
-    """Connected components (8-neighbourhood) of occupied coarse (x, y) bins with weight >= min_weight."""
-    ix = _bin_keys(xy[:, 0], bin_m)
-    iy = _bin_keys(xy[:, 1], bin_m)
-    ix -= ix.min()
-    iy -= iy.min()
-    shape = (int(iy.max()) + 1, int(ix.max()) + 1)
-    if shape[0] * shape[1] > 4_000_000:  # absurdly spread cloud: fall back to a coarser raster
-        return _count_clusters(xy, w, bin_m * 4.0, min_weight)
-    mass = np.bincount(iy * shape[1] + ix, weights=w, minlength=shape[0] * shape[1]).reshape(shape)
-    occupied = np.zeros(shape, dtype=bool)
-    occupied[iy, ix] = True
-    labels, n_comp = ndimage.label(occupied, structure=np.ones((3, 3), dtype=bool))
-    if n_comp == 0:
-        return 0
-    comp_mass = ndimage.sum_labels(mass, labels, index=np.arange(1, n_comp + 1))
-    return int(np.sum(comp_mass >= min_weight - 1e-12))

@@ -42,13 +42,39 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
    ``n_chi(k) = (k - 1) / (2 eps) * (1 - 2/(9(k-1)) + sqrt(2/(9(k-1))) z)^3``,
    clipped to ``[min_particles, max_particles]``. Vectorised: ``max_particles`` draws,
    then the first prefix length that satisfies the bound.
-6. **Augmented MCL** (Thrun et al. Table 8.3), if ``augmented``: every update
-   computes ``w_avg = sum_i W_i * exp(ll_i / n_beams)`` (prior weights ``W``, the
-   per-beam geometric-mean likelihood, so it is scale-free in the beam count and
-   cannot underflow), then ``w_slow += alpha_slow (w_avg - w_slow)``,
-   ``w_fast += alpha_fast (w_avg - w_fast)``. At each resampling every new particle
-   is replaced, with probability ``max(0, 1 - w_fast / w_slow)``, by one drawn
-   uniformly from free space; after an injection both averages are reset to 0 (AMCL).
+6. **Clustered resampling** (after the clustered particle filter of Milstein et al. 2002),
+   if ``resample_mode == "clustered"``: the particles are split into the clusters of
+   :func:`filters.localization.belief.cluster_labels`; every cluster whose weight is at least
+   ``cluster_keep_weight`` keeps its weight and gets
+   ``max(cluster_min_particles, round(n_new * weight))`` particles, drawn from its own
+   particles with ``resampler``; lighter clusters are dropped. A hypothesis that the
+   sensors still support is never lost to resampling noise; ``n_new`` is N (or the KLD count).
+7. **Augmented MCL** (Thrun et al. Table 8.3, with AMCL ``pf.c``'s semantics), if
+   ``augmented``: every update computes ``w_avg = sum_i W_i * exp(ll_i / n_beams)`` (prior
+   weights ``W``, the per-beam geometric-mean likelihood, so it is scale-free in the beam
+   count and cannot underflow), then ``w_slow += alpha_slow (w_avg - w_slow)``,
+   ``w_fast += alpha_fast (w_avg - w_fast)``, each average *starting at the first* ``w_avg``
+   (after every init and every injection, as ``pf.c``). Every update then replaces each
+   particle, with probability ``max(0, 1 - w_fast / w_slow)``, by an injected one (weight
+   ``1 / N`` before renormalising), and resets both averages after an injection.
+   Injected particles come from ``injection``: ``"uniform"`` (free space) or ``"scan"``
+   (:mod:`filters.localization.proposals`: ``proposal_candidates`` candidates, about
+   ``proposal_semantic_frac`` of them from the current semantic detections, the rest
+   uniform, drawn in proportion to their tempered likelihood of the current scans).
+8. **Evidence limits.** ``max_update_log_ratio`` caps how far below the best particle one
+   update can push any particle (tempered log-likelihoods are clipped to
+   ``max - max_update_log_ratio``), so no single scan settles a case by itself; with
+   ``lidar_on_rotation=False`` the lidar factor is left out of updates triggered by
+   rotation alone (a 360 deg lidar sees the same scene when the robot turns in place, so
+   its correlated errors would be multiplied in again and again); the semantic factor
+   (a narrow camera, which does see new things when turning) is always used.
+
+Particle counts: ``init_global`` and ``init_around`` draw ``n_particles``. With
+``n_particles=None`` the count follows the map: ``init_global`` draws
+``global_particles_per_m2`` times the map's free area, clipped to ``[min_particles,
+max_particles]``, so a larger map gets more particles, and ``init_around`` draws
+``min_particles`` (a tight cloud needs no more); KLD sampling then adapts the count as the
+belief concentrates or spreads.
 """
 
 from __future__ import annotations
@@ -59,8 +85,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import logsumexp
 
-from filters.localization.belief import Belief, BeliefConfig, linear_bin_keys, summarize
+from filters.localization.belief import Belief, BeliefConfig, cluster_labels, linear_bin_keys, summarize
 from filters.localization.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
+from filters.localization.proposals import ScanProposal
 from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import compose, wrap_angle
@@ -83,7 +110,8 @@ class MCLConfig:
     unknown keys raise ``TypeError`` there as here.
 
     Attributes:
-        n_particles: particles drawn by ``init_global`` / ``init_around``.
+        n_particles: particles drawn by ``init_global`` / ``init_around``; None = sized by the map
+            (module docstring).
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
         motion: odometry motion noise.
@@ -100,11 +128,22 @@ class MCLConfig:
         kld, kld_bin_xy_m, kld_bin_theta_rad, kld_epsilon, kld_z, min_particles,
             max_particles: KLD-sampling (``kld_z`` is the upper standard normal quantile,
             2.326 for 1 - delta = 0.99).
+        global_particles_per_m2: particles per m^2 of free space for ``init_global`` when
+            ``n_particles`` is None (> 0 then).
+        resample_mode: ``"global"`` (one draw over all particles) or ``"clustered"``.
+        cluster_keep_weight, cluster_min_particles: clustered resampling (module docstring).
         augmented, alpha_slow, alpha_fast: augmented MCL random-particle injection.
+        injection: ``"uniform"`` or ``"scan"``: where injected particles come from.
+        proposal_candidates, proposal_semantic_frac: the scan proposal's candidate count and
+            the fraction drawn from semantic detections.
+        proposal_frac: at least this fraction of the particles is replaced by injected ones at
+            every update (Mixture MCL; 0 = only augmented MCL injects).
+        max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
+        lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
     """
 
-    n_particles: int = 2000
+    n_particles: int | None = 2000
     lidar_field: LikelihoodFieldConfig = LikelihoodFieldConfig()
     semantic_field: LikelihoodFieldConfig = DEFAULT_SEMANTIC_FIELD
     motion: OdometryMotionConfig = OdometryMotionConfig()
@@ -123,9 +162,19 @@ class MCLConfig:
     kld_z: float = 2.326
     min_particles: int = 200
     max_particles: int = 5000
+    global_particles_per_m2: float = 0.0
+    resample_mode: str = "global"
+    cluster_keep_weight: float = 1e-3
+    cluster_min_particles: int = 50
     augmented: bool = False
     alpha_slow: float = 0.001
     alpha_fast: float = 0.1
+    injection: str = "uniform"
+    proposal_candidates: int = 2000
+    proposal_semantic_frac: float = 0.5
+    proposal_frac: float = 0.0
+    max_update_log_ratio: float = math.inf
+    lidar_on_rotation: bool = True
     backend: str = "numba"
 
     def __post_init__(self) -> None:
@@ -135,8 +184,12 @@ class MCLConfig:
                 object.__setattr__(self, name, cls(**v))
             elif not isinstance(v, cls):
                 raise TypeError(f"MCLConfig.{name} must be a {cls.__name__} or a dict, got {type(v).__name__}")
-        for name in ("n_particles", "min_particles", "max_particles"):
+        for name in ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates"):
             v = getattr(self, name)
+            if name == "n_particles" and v is None:
+                if not self.global_particles_per_m2 > 0:
+                    raise ValueError("MCLConfig: n_particles=None needs global_particles_per_m2 > 0")
+                continue
             if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
                 raise ValueError(f"MCLConfig.{name} must be an int >= 1, got {v!r}")
         if self.min_particles > self.max_particles:
@@ -161,6 +214,23 @@ class MCLConfig:
                 raise ValueError(f"MCLConfig.{name} must be in (0, 1], got {v!r}")
         if self.resampler not in RESAMPLERS:
             get_resampler(self.resampler)  # raises with the list of names
+        if self.resample_mode not in ("global", "clustered"):
+            raise ValueError(f"MCLConfig.resample_mode must be 'global' or 'clustered', got {self.resample_mode!r}")
+        if self.injection not in ("uniform", "scan"):
+            raise ValueError(f"MCLConfig.injection must be 'uniform' or 'scan', got {self.injection!r}")
+        for name in ("cluster_keep_weight", "proposal_semantic_frac", "proposal_frac"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
+                raise ValueError(f"MCLConfig.{name} must be in [0, 1], got {v!r}")
+        v = self.global_particles_per_m2
+        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"MCLConfig.global_particles_per_m2 must be a finite number >= 0, got {v!r}")
+        v = self.max_update_log_ratio
+        if isinstance(v, bool) or not (isinstance(v, (int, float)) and v > 0 and not math.isnan(v)):
+            raise ValueError(f"MCLConfig.max_update_log_ratio must be > 0 (inf = no cap), got {v!r}")
+        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
             raise ValueError(f"MCLConfig.backend must be 'numba' or 'numpy', got {self.backend!r}")
 
@@ -191,6 +261,8 @@ class UpdateDiagnostics:
         n_injected: random particles injected (augmented MCL).
         recovered: all weights underflowed and the filter was re-initialised globally.
         w_slow, w_fast: augmented-MCL averages after this update.
+        p_inject: the injection probability ``max(0, 1 - w_fast / w_slow)`` of this update.
+        lidar_used: the lidar factor was part of this update.
     """
 
     updated: bool = False
@@ -207,6 +279,8 @@ class UpdateDiagnostics:
     recovered: bool = False
     w_slow: float = 0.0
     w_fast: float = 0.0
+    p_inject: float = 0.0
+    lidar_used: bool = False
 
     def as_dict(self) -> dict:
         """Plain Python values for a Gymnasium ``info``."""
@@ -255,6 +329,7 @@ class MonteCarloLocalizer:
         )
         self._resample = get_resampler(c.resampler)
         self._free_cells: np.ndarray | None = None
+        self._proposal: ScanProposal | None = None
         self._poses = np.zeros((0, 3))
         self._logw = np.zeros(0)
         self._reset_state()
@@ -263,6 +338,7 @@ class MonteCarloLocalizer:
     # ------------------------------------------------------------ state
     def _reset_state(self) -> None:
         self._since_update = np.zeros(3)
+        self._since_lidar_m = 0.0
         self._has_updated = False
         self._detections_seen = 0
         self._w_slow = 0.0
@@ -327,24 +403,39 @@ class MonteCarloLocalizer:
         self._poses = np.ascontiguousarray(poses, dtype=np.float64)
         self._logw = np.full(self._poses.shape[0], -math.log(self._poses.shape[0]))
 
+    @property
+    def free_area_m2(self) -> float:
+        """Free area of the map, m^2 (cells below the free threshold)."""
+        return float(self._free_cell_index().size * self.grid.resolution_m**2)
+
+    def global_particle_count(self) -> int:
+        """The particle count ``init_global`` draws by default (see the module docstring)."""
+        c = self.config
+        if c.n_particles is not None:
+            return c.n_particles
+        n = round(c.global_particles_per_m2 * self.free_area_m2)
+        return int(min(max(n, c.min_particles), c.max_particles))
+
     def init_global(self, n: int | None = None) -> None:
-        """Spread ``n`` (default ``config.n_particles``) particles uniformly over free space.
+        """Spread ``n`` particles uniformly over free space (default :meth:`global_particle_count`).
 
         Raises:
             ValueError: ``n < 1`` or the map has no free cell.
         """
-        n = self._check_n(self.config.n_particles if n is None else n)
+        n = self._check_n(self.global_particle_count() if n is None else n)
         self._set(self.sample_free(n))
         self._reset_state()
 
     def init_around(self, pose, std, n: int | None = None) -> None:
-        """Gaussian cloud of ``n`` particles around ``pose (x, y, theta)``.
+        """Gaussian cloud of ``n`` particles around ``pose (x, y, theta)`` (default: module docstring).
 
         Args:
             pose: ``(3,)`` centre, metres / radians.
             std: scalar or ``(3,)`` standard deviations ``(x m, y m, theta rad)``, >= 0.
         """
-        n = self._check_n(self.config.n_particles if n is None else n)
+        if n is None:
+            n = self.config.n_particles if self.config.n_particles is not None else self.config.min_particles
+        n = self._check_n(n)
         p = np.asarray(pose, dtype=np.float64).reshape(-1)
         s = np.broadcast_to(np.asarray(std, dtype=np.float64), (3,))
         if p.shape != (3,) or not np.all(np.isfinite(p)):
@@ -409,7 +500,12 @@ class MonteCarloLocalizer:
             return diag
 
         sem = semantic if c.use_semantic else None
-        ll_l, ll_s, beams = self.measurement_model.log_likelihood_terms(self._poses, lidar, sem)
+        moved_m = math.hypot(self._since_update[0], self._since_update[1])
+        use_lidar = lidar is not None and (
+            c.lidar_on_rotation or not self._has_updated or force or self._since_lidar_m + moved_m > c.update_min_d_m
+        )
+        lid = lidar if use_lidar else None
+        ll_l, ll_s, beams = self.measurement_model.log_likelihood_terms(self._poses, lid, sem)
         ll_l = np.asarray(ll_l, dtype=np.float64)
         ll_s = np.asarray(ll_s, dtype=np.float64)
         ll = ll_l + ll_s
@@ -421,11 +517,15 @@ class MonteCarloLocalizer:
             mean_lidar = float("nan")
 
         self._since_update = np.zeros(3)
+        self._since_lidar_m = 0.0 if use_lidar else self._since_lidar_m + moved_m
         self._has_updated = True
         self.n_updates += 1
         self._detections_seen += int(beams.n_detections)
 
-        logw = self._logw + c.likelihood_scale * ll
+        tempered = c.likelihood_scale * ll
+        if math.isfinite(c.max_update_log_ratio) and np.isfinite(tempered).any():
+            tempered = np.maximum(tempered, np.max(tempered) - c.max_update_log_ratio)
+        logw = self._logw + tempered
         finite_any = bool(np.any(np.isfinite(logw)))
         lse = float(logsumexp(logw)) if finite_any else -np.inf
         if not math.isfinite(lse):
@@ -438,26 +538,35 @@ class MonteCarloLocalizer:
                 mean_lidar_beam_likelihood=mean_lidar,
                 n_particles=self.n_particles,
                 recovered=True,
+                lidar_used=use_lidar,
             )
             self.last_diagnostics = diag
             return diag
 
+        p_inj = 0.0
         if c.augmented and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
             w_avg = float(np.exp(self._logw) @ per_beam)
-            self._w_slow += c.alpha_slow * (w_avg - self._w_slow)
-            self._w_fast += c.alpha_fast * (w_avg - self._w_fast)
+            if self._w_slow == 0.0:  # pf.c: the averages start at the first average
+                self._w_slow = self._w_fast = w_avg
+            else:
+                self._w_slow += c.alpha_slow * (w_avg - self._w_slow)
+                self._w_fast += c.alpha_fast * (w_avg - self._w_fast)
+            if self._w_slow > 0.0:
+                p_inj = max(0.0, 1.0 - self._w_fast / self._w_slow)
 
         self._logw = logw - lse
         w = np.exp(self._logw)
         ess = float(1.0 / np.sum(w * w))
         want = ess < c.resample_ess_frac * n
         held = c.use_semantic and c.holdoff_min_detections > 0 and self._detections_seen < c.holdoff_min_detections
-        n_inj = 0
         resampled = False
         if want and not held:
-            n_inj = self._resample_now(w)
+            self._resample_now(w)
             resampled = True
+        n_inj = self._inject(max(p_inj, c.proposal_frac), lid, sem) if max(p_inj, c.proposal_frac) > 0.0 else 0
+        if p_inj > 0.0 and n_inj:
+            self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
         diag = UpdateDiagnostics(
             updated=True,
             n_lidar_beams=beams.n_lidar,
@@ -473,6 +582,8 @@ class MonteCarloLocalizer:
             recovered=False,
             w_slow=self._w_slow,
             w_fast=self._w_fast,
+            p_inject=p_inj,
+            lidar_used=use_lidar,
         )
         self.last_diagnostics = diag
         return diag
@@ -508,22 +619,72 @@ class MonteCarloLocalizer:
         n_new = int(np.argmax(ok)) + 1 if ok.any() else m
         return idx[:n_new]
 
-    def _resample_now(self, w: np.ndarray) -> int:
+    def _resample_now(self, w: np.ndarray) -> None:
         c = self.config
+        if c.resample_mode == "clustered":
+            n_new = self._kld_indices(w).size if c.kld else self.n_particles
+            poses, logw = self._clustered(w, n_new)
+            self._poses = poses
+            self._logw = logw
+            return
         idx = self._kld_indices(w) if c.kld else self._resample(w, self.rng)
-        poses = self._poses[idx]
-        n_inj = 0
-        if c.augmented and self._w_slow > 0.0:
-            p_inj = max(0.0, 1.0 - self._w_fast / self._w_slow)
-            if p_inj > 0.0:
-                mask = self.rng.random(poses.shape[0]) < p_inj
-                n_inj = int(mask.sum())
-                if n_inj:
-                    poses[mask] = self.sample_free(n_inj)
-                self._w_slow = 0.0
-                self._w_fast = 0.0
-        self._set(poses)
-        return n_inj
+        self._set(self._poses[idx])
+
+    def _clustered(self, w: np.ndarray, n_new: int) -> tuple[np.ndarray, np.ndarray]:
+        """Within-cluster resampling to about ``n_new`` particles; cluster weights are kept."""
+        c = self.config
+        b = c.belief
+        labels, n_lab = cluster_labels(self._poses, b.cluster_bin_m, b.cluster_bin_theta_rad, w, b.cluster_min_bin_frac)
+        labels = np.where(labels < 0, n_lab, labels)  # the haze outside every cluster is one more group
+        n_lab += 1
+        cw = np.bincount(labels, weights=w, minlength=n_lab)
+        keep = np.flatnonzero(cw >= c.cluster_keep_weight)
+        if keep.size == 0:
+            keep = np.array([int(np.argmax(cw))])
+        order = np.argsort(labels, kind="stable")
+        starts = np.searchsorted(labels[order], np.arange(n_lab + 1))
+        total = cw[keep].sum()
+        poses, logw = [], []
+        for k in keep:
+            members = order[starts[k] : starts[k + 1]]
+            m = max(c.cluster_min_particles, round(n_new * cw[k] / total))
+            idx = members[self._resample_n(w[members] / cw[k], m)]
+            poses.append(self._poses[idx])
+            logw.append(np.full(m, math.log(cw[k] / total / m)))
+        logw = np.concatenate(logw)
+        return np.ascontiguousarray(np.vstack(poses)), logw - logsumexp(logw)
+
+    def _resample_n(self, w: np.ndarray, m: int) -> np.ndarray:
+        """``m`` indices into ``w`` (normalised) with the configured scheme."""
+        if m == w.size:
+            return self._resample(w, self.rng)
+        u = (self.rng.random() + np.arange(m)) / m  # systematic with m draws
+        cdf = np.cumsum(w)
+        cdf[-1] = 1.0
+        return np.minimum(np.searchsorted(cdf, u, side="right"), w.size - 1)
+
+    def _inject(self, p_inj: float, lidar: LaserScan | None, semantic: SemanticScan | None) -> int:
+        """Replace each particle with probability ``p_inj`` by an injected one; returns how many."""
+        c = self.config
+        mask = self.rng.random(self.n_particles) < p_inj
+        m = int(mask.sum())
+        if m == 0:
+            return 0
+        if c.injection == "scan":
+            if self._proposal is None:
+                self._proposal = ScanProposal(self.grid, self.sample_free)
+            k = max(c.proposal_candidates, m)
+            cand = self._proposal.candidates(k, semantic, c.proposal_semantic_frac, self.rng)
+            ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
+            new = self._proposal.draw(m, cand, c.likelihood_scale * (np.asarray(ll_l) + np.asarray(ll_s)), self.rng)
+        else:
+            new = self.sample_free(m)
+        self._poses = self._poses.copy()
+        self._poses[mask] = new
+        logw = self._logw.copy()
+        logw[mask] = -math.log(self.n_particles)
+        self._logw = logw - logsumexp(logw)
+        return m
 
     # ------------------------------------------------------------ summary
     def belief(self) -> Belief:

@@ -6,6 +6,7 @@ Subclasses add their estimator (``_reset_estimator`` / ``_step_estimator``), the
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,13 @@ from ..layouts import Layout, get_layout
 from ..sensors import Lidar, Odometry, SemanticCamera
 from ..world import World, build_world
 from .spaces import decode_action, make_action_space, make_observation, make_observation_space
+
+
+def check_layout_seed(value) -> int:
+    """``layout_seed`` as an int; ValueError unless it is an integer >= 0 (not a bool, float or string)."""
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0:
+        return int(value)
+    raise ValueError(f"layout_seed must be an integer >= 0, got {type(value).__name__} {value!r:.60}")
 
 
 class SemRelocBase(gym.Env):
@@ -39,16 +47,19 @@ class SemRelocBase(gym.Env):
         odometry: dict | OdometryMotionConfig | None = None,
         render_mode: str | None = None,
     ):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+        if render_mode is not None and not (
+            isinstance(render_mode, str) and render_mode in self.metadata["render_modes"]
+        ):
             raise ValueError(f"unknown render_mode {render_mode!r}; choose one of {self.metadata['render_modes']}")
-        self.layout = get_layout(layout, seed=int(layout_seed))
+        self.layout_seed = check_layout_seed(layout_seed)
+        self.layout = get_layout(layout, seed=self.layout_seed)
         self.robot_params = coerce_config(RobotParams, robot, "robot")
         self.physics_params = coerce_config(PhysicsParams, physics, "physics")
         self.lidar = Lidar(coerce_config(LidarParams, lidar, "lidar"))
         self.camera = SemanticCamera(coerce_config(CameraParams, camera, "camera"))
         self.odometry = Odometry(coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()))
-        self.action_type = action_type
         self.action_space = make_action_space(action_type)
+        self.action_type = action_type
         self.observation_space = make_observation_space(self.lidar.params, self.camera.params)
         self.render_mode = render_mode
         self.world: World | None = None
@@ -79,15 +90,40 @@ class SemRelocBase(gym.Env):
         return False
 
     # ------------------------------------------------------------------ API
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        options = dict(options or {})
+    def check_reset(self, *, seed: int | None = None, options: dict | None = None) -> None:
+        """Raise ValueError if ``reset(seed=seed, options=options)`` would reject its arguments.
+
+        Changes nothing. The registered envs run it in their outermost wrapper
+        (:class:`semreloc_env.wrappers.CheckedReset`) so that a rejected reset never reaches
+        Gymnasium's ``TimeLimit``, which zeroes its step counter before passing ``reset`` on.
+        """
+        self._prepare_reset(seed, options)
+
+    def _prepare_reset(self, seed, options) -> tuple[dict, World]:
+        """Validated ``(options, fresh world)`` for a reset; ValueError naming the bad argument."""
+        if seed is not None and not (
+            isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)) and seed >= 0
+        ):
+            raise ValueError(f"reset seed must be None or an integer >= 0, got {type(seed).__name__} {seed!r:.60}")
+        if options is None:
+            options = {}
+        elif not isinstance(options, Mapping):
+            raise ValueError(f"reset options must be a dict or None, got {type(options).__name__} {options!r:.60}")
+        options = dict(options)
         unknown = set(options) - self._reset_option_keys
         if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}; valid: {sorted(self._reset_option_keys)}")
+            raise ValueError(
+                f"unknown reset options {sorted(unknown, key=repr)}; valid: {sorted(self._reset_option_keys)}"
+            )
         world = build_world(self.layout, self.robot_params, self.physics_params, self._extra_obstacles())
         if options.get("pose") is not None:
             world.set_pose(options["pose"])  # raises before any state changes
         self._validate_options(options, world)
+        return options, world
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        options, world = self._prepare_reset(seed, options)
+        seed = None if seed is None else int(seed)
         saved = dict(self.__dict__)  # a reset that fails below must leave the old episode intact
         try:
             super().reset(seed=seed)

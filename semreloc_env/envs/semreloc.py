@@ -1,4 +1,4 @@
-"""``SemReloc-v0``: active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v1`` (and ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -14,14 +14,33 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
+from ..layouts import CLASS_NAMES, get_layout
 from ..maps import MAP_SOURCES, maps_for
 from ..scenarios import SCENARIOS, changed_obstacles
-from .base import SemRelocBase
+from ..world import as_pose
+from .base import SemRelocBase, check_layout_seed
 
 DEFAULT_RELOCALIZER = MCLConfig(likelihood_scale=0.03)
 """The env's relocalizer: :class:`filters.localization.mcl.MCLConfig` defaults, but a stronger tempering of
 the likelihood (0.03 instead of 0.1), which halved wrong convergences in global relocalization
 (docs/paper004.md, "Choosing the defaults")."""
+
+LEGACY_RELOCALIZER_OVERRIDES = {
+    "n_particles": 2000,
+    "likelihood_scale": 0.03,
+    "kld": False,
+    "min_particles": 200,
+    "max_particles": 5000,
+    "global_particles_per_m2": 0.0,
+    "resample_mode": "global",
+    "augmented": False,
+    "injection": "uniform",
+    "max_update_log_ratio": math.inf,
+    "lidar_on_rotation": True,
+    "belief": {"converged_rule": "spread"},
+}
+"""``relocalizer=`` overrides that give back SemReloc-v0's relocalizer (2000 particles, no
+recovery, "converged" = small spread), for before/after comparisons."""
 
 SUCCESS_POSITION_M = 0.5
 SUCCESS_HEADING_RAD = math.radians(15.0)
@@ -115,12 +134,17 @@ class SemRelocEnv(SemRelocBase):
     ## Reset options
     ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1: at that step the robot is
     teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
+    A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
+    checks them in its outermost wrapper (:class:`semreloc_env.wrappers.CheckedReset`), so the
+    time limit keeps counting the old episode.
 
     ## Version History
     * v0: initial release.
     """
 
     _reset_option_keys = frozenset({"pose", "tracking", "kidnap_at_step", "kidnap_pose"})
+    default_relocalizer: MCLConfig = DEFAULT_RELOCALIZER
+    """What ``relocalizer=None`` stands for and a dict of overrides applies to."""
 
     def __init__(
         self,
@@ -150,7 +174,9 @@ class SemRelocEnv(SemRelocBase):
         super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
         from ..config import coerce_config
 
-        cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", DEFAULT_RELOCALIZER)
+        cfg = coerce_config(MCLConfig, relocalizer, "relocalizer", self.default_relocalizer)
+        if semantic is not None and not isinstance(semantic, (bool, np.bool_)):
+            raise ValueError(f"semantic must be True, False or None, got {type(semantic).__name__} {semantic!r:.60}")
         if semantic is not None:
             if isinstance(relocalizer, MCLConfig) or (isinstance(relocalizer, dict) and "use_semantic" in relocalizer):
                 if bool(semantic) != cfg.use_semantic:
@@ -159,16 +185,50 @@ class SemRelocEnv(SemRelocBase):
         self.mcl_config = cfg
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
-        self.layout_seed = int(layout_seed)
+        self.map_source = map_source
         self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
+
+    def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None) -> None:
+        """Use another layout from the next :meth:`reset` on (the running episode keeps its world).
+
+        Args:
+            layout: anything ``get_layout`` takes (name, path, dict, Layout).
+            layout_seed: seeds procedural layouts and the ``"changed"`` scenario's obstacles.
+            grid: the filter's map for it; None builds it from the env's ``map_source`` with
+                :func:`semreloc_env.maps.maps_for` (cached there).
+
+        Raises:
+            ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
+                to one layout), or the grid's classes differ; nothing changes then.
+        """
+        layout_seed = check_layout_seed(layout_seed)
+        new_layout = get_layout(layout, seed=layout_seed)
+        if grid is None:
+            if not (isinstance(self.map_source, str) and self.map_source in MAP_SOURCES):
+                raise ValueError(
+                    f"set_layout needs a grid: the env's map_source {self.map_source!r} is fixed to one layout"
+                )
+            grid = maps_for(new_layout, self.map_source, self.lidar.params, self.camera.params)
+        elif not isinstance(grid, GridMap):
+            raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
+        elif grid.class_names != CLASS_NAMES:
+            raise ValueError(f"grid classes {grid.class_names} differ from the env's {CLASS_NAMES}")
+        obstacles = changed_obstacles(new_layout, layout_seed) if self.scenario == "changed" else []
+        self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, layout_seed, grid, obstacles
+        if self._renderer is not None:  # drawn for the old layout
+            self._renderer.close()
+            self._renderer = None
 
     # ------------------------------------------------------------------ hooks
     def _extra_obstacles(self) -> list:
         return self._obstacles
 
     def _validate_options(self, options: dict, world) -> None:
+        tr = options.get("tracking")
+        if tr is not None and not isinstance(tr, (bool, np.bool_)):
+            raise ValueError(f"reset option tracking must be True, False or None, got {tr!r:.60}")
         k = options.get("kidnap_at_step")
         if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1):
             raise ValueError(f"kidnap_at_step must be an integer >= 1, got {k!r}")
@@ -176,12 +236,7 @@ class SemRelocEnv(SemRelocBase):
         if kp is not None:
             if k is None:
                 raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
-            try:
-                kp = np.asarray(kp, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}") from None
-            if kp.shape != (3,) or not np.all(np.isfinite(kp)):
-                raise ValueError(f"kidnap_pose must be three finite numbers, got {options['kidnap_pose']!r}")
+            kp = as_pose(kp, "kidnap_pose")
             if not world.is_free(kp[:2]):
                 raise ValueError(f"kidnap_pose {kp.tolist()} is not free: it overlaps a wall or object")
         if not self.grid.free_mask().any():
@@ -216,18 +271,19 @@ class SemRelocEnv(SemRelocBase):
         self.mcl.update(lidar_scan, semantic_scan if self.mcl_config.use_semantic else None, force=self._steps == 0)
         self._prev_entropy = None if self._belief is None else self._belief.entropy_nats
         self._belief = self.mcl.belief()
-        mean, truth = self._belief.mean, self.world.pose
+        mean, truth = self._belief.estimate, self.world.pose
         self._error = {
             "position": float(np.hypot(*(mean[:2] - truth[:2]))),
             "heading": float(abs(wrap_angle(mean[2] - truth[2]))),
         }
 
     def pose_error(self) -> dict[str, float]:
-        """Position (m) and heading (rad) error of the belief mean against the true pose (this step)."""
+        """Position (m) and heading (rad) error of the belief's estimate (its heaviest hypothesis)
+        against the true pose (this step)."""
         return dict(self._error)
 
     def _near_truth(self) -> bool:
-        """The belief mean is within 0.5 m and 15 deg of the true pose."""
+        """The belief's estimate is within 0.5 m and 15 deg of the true pose."""
         return self._error["position"] < SUCCESS_POSITION_M and self._error["heading"] < SUCCESS_HEADING_RAD
 
     def _is_success(self) -> bool:
@@ -263,15 +319,28 @@ class SemRelocEnv(SemRelocBase):
             for k, v in self.mcl.last_diagnostics.as_dict().items()
         }
         info["kidnapped"] = self._kidnapped
+        info["is_success"] = self._succeeded
         return info
 
     def _render_state(self) -> dict[str, Any]:
         state = super()._render_state()
         state["particles"] = self.mcl.poses
-        state["estimate"] = self._belief.mean
+        state["estimate"] = self._belief.estimate
         err = self.pose_error()
         state["title"] = (
             f"{self.layout.name}  step {self._steps}  error {err['position']:.2f} m / {math.degrees(err['heading']):.0f} deg"
             f"  spread {self._belief.pos_std_m:.2f} m  {'converged' if self._belief.converged else ''}"
         )
         return state
+
+
+class SemRelocEnvV0(SemRelocEnv):
+    """``SemReloc-v0``: :class:`SemRelocEnv` with the first release's relocalizer (2000 particles,
+    global resampling, no recovery, ``converged`` = small spread; :data:`LEGACY_RELOCALIZER_OVERRIDES`).
+    Kept so that results made with v0 can be reproduced; use ``SemReloc-v1``."""
+
+    default_relocalizer = dataclasses.replace(
+        DEFAULT_RELOCALIZER,
+        **{k: v for k, v in LEGACY_RELOCALIZER_OVERRIDES.items() if k != "belief"},
+        belief=dataclasses.replace(DEFAULT_RELOCALIZER.belief, **LEGACY_RELOCALIZER_OVERRIDES["belief"]),
+    )

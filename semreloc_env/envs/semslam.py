@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -56,6 +56,7 @@ class SlamParams:
     resampler: str = "systematic"
     resample_ess_fraction: float = 1.0
     motion_noise: dict | OdometryMotionConfig | None = None
+    _allow_inf: ClassVar[frozenset] = frozenset({"woc_k"})  # K = inf is plain FastSLAM
 
     def __post_init__(self) -> None:
         if not isinstance(self.known_association, (bool, np.bool_)):
@@ -94,7 +95,7 @@ class SemSlamEnv(SemRelocBase):
     """Landmark SLAM of a differential-drive robot from semantic object detections.
 
     ## Description
-    The world, robot and sensors of ``SemReloc-v0`` (a pymunk world built from a *layout*, a 360 deg
+    The world, robot and sensors of ``SemReloc-v1`` (a pymunk world built from a *layout*, a 360 deg
     lidar, a forward semantic camera, wheel odometry). Inside the env runs **WOCPF SLAM** (paper 000):
     FastSLAM (:class:`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
     through the WOC step ``psi = (K-1)/K w + mean(w)/K`` before resampling. Its controls are the noisy
@@ -111,7 +112,7 @@ class SemSlamEnv(SemRelocBase):
     Anything outside the space, or NaN, raises ``ValueError`` and changes nothing.
 
     ## Observation Space
-    Identical to ``SemReloc-v0``: a ``Dict`` of float32 boxes.
+    Identical to ``SemReloc-v1``: a ``Dict`` of float32 boxes.
 
     | key | shape | range | meaning |
     |---|---|---|---|
@@ -150,7 +151,7 @@ class SemSlamEnv(SemRelocBase):
 
     ## Arguments
     * ``layout``, ``layout_seed``, ``action_type``, ``robot``, ``physics``, ``lidar``, ``camera``,
-      ``odometry``, ``render_mode``: as in ``SemReloc-v0``.
+      ``odometry``, ``render_mode``: as in ``SemReloc-v1``.
     * ``slam``: dict of overrides of :class:`SlamParams` (``n_particles`` 100, ``version`` 2, ``woc_k`` 2.0,
       ``known_association`` False, gates, resampler, ``motion_noise``).
     * ``obs_noise``: dict of overrides of the filter's :class:`filters.slam.landmarks.RangeBearingNoise`
@@ -160,7 +161,8 @@ class SemSlamEnv(SemRelocBase):
     Unknown arguments or keys raise ``TypeError`` / ``ValueError``.
 
     ## Reset options
-    ``pose`` only; anything else raises ``ValueError`` and leaves the episode as it was.
+    ``pose`` only; anything else raises ``ValueError`` and leaves the episode as it was
+    (checked outside the time limit, see :class:`semreloc_env.wrappers.CheckedReset`).
 
     ## Version History
     * v0: initial release.

@@ -15,6 +15,8 @@ ODOMETRY_BOUND = np.array([1.0, 1.0, np.pi], dtype=np.float32)
 
 
 def make_action_space(action_type: str) -> spaces.Space:
+    if not isinstance(action_type, str):
+        raise ValueError(f"action_type must be a string, one of {list(ACTION_TYPES)}; got {action_type!r:.60}")
     if action_type == "discrete":
         return spaces.Discrete(len(DISCRETE_ACTIONS))
     if action_type == "continuous":
@@ -33,11 +35,16 @@ def decode_action(action, action_type: str, space: spaces.Space, robot: RobotPar
         w = {"turn_left": 1.0, "turn_right": -1.0}.get(name, 0.0) * robot.max_angular_rps
         return v, w
     try:
-        a = np.asarray(action, dtype=np.float64)
+        a = np.asarray(action)
     except (TypeError, ValueError):
-        raise ValueError(f"invalid action {action!r}: expected (v, omega) in [-1, 1]") from None
-    if a.shape != (2,) or not np.all(np.isfinite(a)) or np.any(np.abs(a) > 1.0 + 1e-6):
-        raise ValueError(f"invalid action {action!r}: expected two finite numbers (v, omega) in [-1, 1]")
+        a = None
+    if isinstance(action, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in action):
+        a = None  # [True, 0] would become the ints [1, 0]
+    if a is None or a.shape != (2,) or a.dtype.kind not in "iuf":  # no strings, bools, complex or objects
+        raise ValueError(f"invalid action {action!r:.80}: expected two real numbers (v, omega) in [-1, 1]")
+    a = a.astype(np.float64)
+    if not np.all(np.isfinite(a)) or np.any(np.abs(a) > 1.0):  # the Box's bounds, exactly
+        raise ValueError(f"invalid action {action!r:.80}: expected two finite numbers (v, omega) in [-1, 1]")
     return float(a[0]) * robot.max_linear_mps, float(a[1]) * robot.max_angular_rps
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from .builtin import BUILTIN_LAYOUTS
 from .layout import CLASS_NAMES, Layout, LayoutError, SemanticObject, layout_from_dict, load_layout, point_in_polygon
-from .procedural import ProceduralParams, procedural_layout
+from .procedural import ProceduralParams, lookalike_layout, procedural_layout
 
 __all__ = [
     "CLASS_NAMES",
@@ -20,19 +20,22 @@ __all__ = [
     "get_layout",
     "layout_from_dict",
     "load_layout",
+    "lookalike_layout",
     "point_in_polygon",
     "procedural_layout",
 ]
 
-LAYOUT_NAMES = (*BUILTIN_LAYOUTS, "procedural", "procedural_sym")
+BUILTIN_LAYOUTS_NAMES = tuple(BUILTIN_LAYOUTS)
+PROCEDURAL_LAYOUTS = ("procedural", "procedural_sym", "procedural_lookalike")
+LAYOUT_NAMES = (*BUILTIN_LAYOUTS, *PROCEDURAL_LAYOUTS)
 
 
 def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
     """Resolve a layout spec to a validated :class:`Layout`.
 
     Args:
-        spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"`` or
-            ``"procedural_sym"`` (generated from ``seed``), a path to a ``.json`` /
+        spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"``,
+            ``"procedural_sym"`` or ``"procedural_lookalike"`` (generated from ``seed``), a path to a ``.json`` /
             ``.yaml`` file, a dict in the layout format, or a Layout (returned as is).
         seed: seed of the procedural generator (ignored otherwise).
     """
@@ -42,8 +45,8 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
         return layout_from_dict(spec)
     if isinstance(spec, str) and spec in BUILTIN_LAYOUTS:
         return layout_from_dict(BUILTIN_LAYOUTS[spec]())
-    if isinstance(spec, str) and spec in ("procedural", "procedural_sym"):
-        params = ProceduralParams(symmetric=spec == "procedural_sym")
+    if isinstance(spec, str) and spec in PROCEDURAL_LAYOUTS:
+        params = ProceduralParams(symmetric=spec == "procedural_sym", lookalike=spec == "procedural_lookalike")
         return layout_from_dict(procedural_layout(np.random.default_rng(seed), params))
     if isinstance(spec, (str, Path)):
         path = Path(spec)

@@ -1,4 +1,4 @@
-"""Built-in layouts: ``lab`` and ``twin_rooms``, as validated plain dicts.
+"""Built-in layouts: ``lab``, ``twin_rooms``, ``three_rooms`` and ``open_hall``, as plain dicts.
 
 Each builder returns the dict form (see :mod:`.layout`) so users can copy, edit
 and save it; :func:`semreloc_env.layouts.get_layout` validates it into a Layout.
@@ -84,4 +84,43 @@ def twin_rooms() -> dict:
     return {"name": "twin_rooms", "outer": [[0, 0], [12, 0], [12, 6], [0, 6]], "walls": walls, "objects": objects}
 
 
-BUILTIN_LAYOUTS = {"lab": lab, "twin_rooms": twin_rooms}
+def three_rooms() -> dict:
+    """Three identical rooms off one corridor; only the classes of their furniture differ.
+
+    18 m x 8 m. Rooms ``x in [6i, 6i + 6], y in [0, 5]`` (i = 0, 1, 2), each with a doorway
+    at ``x in [6i + 2.5, 6i + 3.5]`` onto a 3 m corridor (``y in [5, 8]``). The furniture
+    footprints are the same in every room (a 0.6 m x 1.2 m box on the west wall, a
+    0.5 m box in the south-east corner, a 0.4 m box by the door); their classes are
+    permuted from room to room, so inside a room lidar cannot tell which room it is,
+    and the camera can only once it has looked at the furniture.
+    """
+    footprint = [(0.4, 2.5, 0.6, 1.2), (5.4, 0.5, 0.5, 0.5), (4.6, 4.5, 0.4, 0.4)]
+    classes = [("cabinet", "chair", "trash_bin"), ("chair", "trash_bin", "cabinet"), ("trash_bin", "cabinet", "chair")]
+    objects = []
+    for i, room in enumerate(classes):
+        for cls, (cx, cy, w, h) in zip(room, footprint):
+            objects.append(_box(cls, 6.0 * i + cx, cy, w, h, f"{cls}_room{i}"))
+    walls = [[[0, 5], [2.5, 5]], [[3.5, 5], [8.5, 5]], [[9.5, 5], [14.5, 5]], [[15.5, 5], [18, 5]]]
+    walls += [[[6, 0], [6, 5]], [[12, 0], [12, 5]]]
+    return {"name": "three_rooms", "outer": [[0, 0], [18, 0], [18, 8], [0, 8]], "walls": walls, "objects": objects}
+
+
+def open_hall() -> dict:
+    """A sparse open hall, 20 m x 15 m: few objects and two short partitions.
+
+    From most of the floor the 8 m lidar sees one or two walls only, and few objects are in
+    the camera's 4.5 m: the case where a filter with too few particles starves.
+    """
+    objects = [
+        _box("door", 0.05, 7.5, 0.1, 1.0, "door_west"),
+        _box("cabinet", 19.7, 3.0, 0.6, 1.2, "cabinet_east"),
+        _box("cabinet", 6.0, 14.7, 1.2, 0.6, "cabinet_north"),
+        _box("trash_bin", 10.0, 7.5, 0.4, 0.4, "bin_centre"),
+        _box("chair", 15.0, 11.0, 0.5, 0.5, "chair_ne"),
+        _box("chair", 4.0, 3.0, 0.5, 0.5, "chair_sw"),
+    ]
+    walls = [[[7, 5], [9, 5]], [[13, 10], [13, 12]]]
+    return {"name": "open_hall", "outer": [[0, 0], [20, 0], [20, 15], [0, 15]], "walls": walls, "objects": objects}
+
+
+BUILTIN_LAYOUTS = {"lab": lab, "twin_rooms": twin_rooms, "three_rooms": three_rooms, "open_hall": open_hall}

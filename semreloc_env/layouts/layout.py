@@ -22,11 +22,14 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import shapely
 
 from filters.mapping.grid import DEFAULT_CLASS_NAMES
 
@@ -112,6 +115,22 @@ class Layout:
         }
 
 
+# --------------------------------------------------------------------------- limits
+MAX_COORDINATE_M = 2e9
+"""Largest accepted ``|x|`` or ``|y|`` (metres): map or UTM coordinates fit, and float64 still
+resolves 0.25 micrometres there."""
+
+MAX_VERTICES = 1_000_000
+"""Most vertices a layout may hold in total (outer wall, walls and objects together);
+validation runs in ``O(n log n)`` time and ``O(n)`` memory up to this size."""
+
+TOLERANCE_M = 1e-6
+"""Objects and walls may touch the outer wall and each other; they may not cross by more than this."""
+
+ZERO_AREA_M2 = 1e-12
+"""A polygon whose area is below this (m^2) is degenerate."""
+
+
 # --------------------------------------------------------------------------- geometry
 def _ring_segments(ring: Sequence[Point]) -> np.ndarray:
     p = np.asarray(ring, dtype=np.float64)
@@ -119,93 +138,107 @@ def _ring_segments(ring: Sequence[Point]) -> np.ndarray:
 
 
 def _signed_area(p: np.ndarray) -> float:
-    x, y = p[:, 0], p[:, 1]
+    """Shoelace area, computed about the first vertex so large coordinates keep their precision."""
+    q = p - p[0]
+    x, y = q[:, 0], q[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> bool:
-    """True if closed segments ab and cd share a point."""
+def point_in_polygon(pts: np.ndarray, poly: np.ndarray, chunk: int = 1 << 22) -> np.ndarray:
+    """Even-odd test: bool ``(P,)`` for points ``(P, 2)`` inside ``poly`` ``(V, 2)``.
 
-    def orient(p, q, r):
-        v = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
-        return 0 if abs(v) < 1e-12 else (1 if v > 0 else -1)
-
-    def on_seg(p, q, r):
-        return (
-            min(p[0], r[0]) - 1e-12 <= q[0] <= max(p[0], r[0]) + 1e-12
-            and min(p[1], r[1]) - 1e-12 <= q[1] <= max(p[1], r[1]) + 1e-12
-        )
-
-    o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
-    if o1 != o2 and o3 != o4:
-        return True
-    return (
-        (o1 == 0 and on_seg(a, c, b))
-        or (o2 == 0 and on_seg(a, d, b))
-        or (o3 == 0 and on_seg(c, a, d))
-        or (o4 == 0 and on_seg(c, b, d))
-    )
-
-
-def _check_simple_polygon(p: np.ndarray, what: str) -> None:
-    n = len(p)
-    if n < 3:
-        raise LayoutError(f"{what}: a polygon needs at least 3 distinct vertices, got {n}")
-    for i in range(n):
-        for j in range(i + 1, n):
-            if j == i + 1 or (i == 0 and j == n - 1):
-                continue
-            if _segments_cross(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n]):
-                raise LayoutError(f"{what}: polygon is self-intersecting (edges {i} and {j} cross)")
-    if abs(_signed_area(p)) < 1e-9:
-        raise LayoutError(f"{what}: polygon has zero area")
-
-
-def point_in_polygon(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Even-odd test: bool ``(P,)`` for points ``(P, 2)`` inside ``poly`` ``(V, 2)``."""
+    Works in blocks of at most ``chunk`` point-edge pairs, so memory stays bounded for big grids.
+    """
     pts = np.atleast_2d(np.asarray(pts, dtype=np.float64))
-    x, y = pts[:, 0:1], pts[:, 1:2]
+    poly = np.asarray(poly, dtype=np.float64)
+    out = np.zeros(len(pts), bool)
+    step = max(1, chunk // max(1, len(poly)))
     x0, y0 = poly[:, 0][None, :], poly[:, 1][None, :]
     x1, y1 = np.roll(poly[:, 0], -1)[None, :], np.roll(poly[:, 1], -1)[None, :]
-    straddle = (y0 > y) != (y1 > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-    return np.sum(straddle & (x < xc), axis=1) % 2 == 1
-
-
-def _dist_points_to_ring(pts: np.ndarray, ring: np.ndarray) -> np.ndarray:
-    a = ring[None, :, :]
-    b = np.roll(ring, -1, axis=0)[None, :, :]
-    p = pts[:, None, :]
-    ab = b - a
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-18), 0, 1)
-    return np.min(np.linalg.norm(p - (a + t[..., None] * ab), axis=-1), axis=1)
+    for s in range(0, len(pts), step):
+        x, y = pts[s : s + step, 0:1], pts[s : s + step, 1:2]
+        straddle = (y0 > y) != (y1 > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+        out[s : s + step] = np.sum(straddle & (x < xc), axis=1) % 2 == 1
+    return out
 
 
 # --------------------------------------------------------------------------- parsing
+def _key_list(keys) -> list:
+    """Keys sorted for a message even when they are of mixed types (``{"a", 7}``)."""
+    return sorted(keys, key=repr)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+
+
+def _as_list(raw, what: str, expected: str) -> list:
+    """``raw`` as a list if it is a list, tuple or ndarray; LayoutError otherwise."""
+    if isinstance(raw, np.ndarray):
+        return list(raw)
+    if isinstance(raw, (list, tuple)):
+        return list(raw)
+    raise LayoutError(f"{what}: expected {expected}, got {type(raw).__name__} {raw!r:.80}")
+
+
 def _points(raw, what: str, min_points: int) -> np.ndarray:
-    try:
-        p = np.asarray(raw, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise LayoutError(f"{what}: expected a list of [x, y] points, got {raw!r:.80}") from None
-    if p.ndim != 2 or p.shape[1] != 2:
-        raise LayoutError(f"{what}: expected a list of [x, y] points, got shape {p.shape}")
+    """Validate a list of ``[x, y]`` points (real numbers, finite, within MAX_COORDINATE_M)."""
+    if isinstance(raw, np.ndarray) and raw.dtype.kind in "iuf" and raw.ndim == 2 and raw.shape[1] == 2:
+        p = raw.astype(np.float64)
+    else:
+        pts = _as_list(raw, what, "a list of [x, y] points")
+        if len(pts) > MAX_VERTICES:
+            raise LayoutError(f"{what}: {len(pts)} points, more than the limit of {MAX_VERTICES}")
+        flat = []
+        for i, pt in enumerate(pts):
+            if not (isinstance(pt, (list, tuple)) or (isinstance(pt, np.ndarray) and pt.ndim == 1)) or len(pt) != 2:
+                raise LayoutError(f"{what}[{i}]: expected an [x, y] point, got {pt!r:.80}")
+            for v in pt:
+                if not _is_number(v):
+                    raise LayoutError(f"{what}[{i}]: coordinates must be numbers, got {type(v).__name__} {v!r:.40}")
+            flat.append(pt)
+        p = np.array(flat, dtype=np.float64).reshape(-1, 2)
     if not np.all(np.isfinite(p)):
         raise LayoutError(f"{what}: coordinates must be finite numbers (found NaN or inf)")
+    if p.size and np.abs(p).max() > MAX_COORDINATE_M:
+        raise LayoutError(f"{what}: coordinates must lie within +-{MAX_COORDINATE_M:g} m, got {np.abs(p).max():g}")
     if len(p) < min_points:
         raise LayoutError(f"{what}: needs at least {min_points} points, got {len(p)}")
     return p
 
 
 def _ring(raw, what: str) -> np.ndarray:
+    """A simple polygon from its vertices: counter-clockwise, without repeated vertices."""
     p = _points(raw, what, 3)
-    if len(p) > 3 and np.allclose(p[0], p[-1]):
-        p = p[:-1]  # an explicitly closed ring repeats its first vertex
     keep = np.ones(len(p), bool)
-    keep[1:] = np.any(np.abs(np.diff(p, axis=0)) > 1e-12, axis=1)
+    keep[1:] = np.any(p[1:] != p[:-1], axis=1)  # exact duplicates only: large coordinates keep their corners
     p = p[keep]
-    _check_simple_polygon(p, what)
-    return p if _signed_area(p) > 0 else p[::-1]
+    while len(p) > 1 and np.array_equal(p[0], p[-1]):
+        p = p[:-1]  # an explicitly closed ring repeats its first vertex
+    if len(p) < 3:
+        raise LayoutError(f"{what}: a polygon needs at least 3 distinct vertices, got {len(p)}")
+    area = _signed_area(p)
+    poly = shapely.polygons(p - p[0])
+    if abs(area) < ZERO_AREA_M2 and shapely.convex_hull(poly).area < ZERO_AREA_M2:
+        raise LayoutError(f"{what}: polygon has zero area (its vertices are collinear)")
+    reason = shapely.is_valid_reason(poly)
+    if reason == "Valid Geometry" and abs(area) < ZERO_AREA_M2:
+        raise LayoutError(f"{what}: polygon has zero area")
+    if reason != "Valid Geometry":
+        m = re.search(r"\[([-\d.eE+]+) ([-\d.eE+]+)\]", reason)
+        where = f" near ({float(m[1]) + p[0, 0]:.6g}, {float(m[2]) + p[0, 1]:.6g})" if m else ""
+        kind = "self-intersecting" if "intersection" in reason.lower() else f"invalid ({reason})"
+        raise LayoutError(f"{what}: polygon is {kind}{where}")
+    return p if area > 0 else p[::-1]
+
+
+def _real(entry: Mapping, key: str, what: str, default: float | None = None) -> float:
+    v = entry.get(key, default)
+    if not _is_number(v) or not math.isfinite(v):
+        raise LayoutError(f"{what}.{key} must be a finite number, got {v!r:.80}")
+    return float(v)
 
 
 def _box(entry: Mapping, what: str) -> np.ndarray:
@@ -213,95 +246,165 @@ def _box(entry: Mapping, what: str) -> np.ndarray:
     size = _points([entry["size"]], f"{what}.size", 1)[0]
     if np.any(size <= 0):
         raise LayoutError(f"{what}.size must be positive, got {size.tolist()}")
-    ang = float(entry.get("angle_rad", 0.0))
-    if not math.isfinite(ang):
-        raise LayoutError(f"{what}.angle_rad must be finite")
+    ang = _real(entry, "angle_rad", what, 0.0)
     hx, hy = size / 2
     local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
     rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
     return local @ rot.T + c
 
 
+def _where(geom) -> str:
+    """`` near (x, y)`` for a representative point of a non-empty geometry (local frame)."""
+    if geom.is_empty:
+        return ""
+    pt = geom.representative_point() if geom.geom_type != "Point" else geom
+    return f" near ({pt.x:.6g}, {pt.y:.6g})"
+
+
+def _check_geometry(outer: np.ndarray, walls: list, walls_what: list, objects: list, objects_what: list) -> None:
+    """Containment and overlaps in ``O(n log n)``: walls and objects covered by the outer wall
+    (whole edges, not only vertices), no two objects overlapping, no wall through an object.
+
+    Everything is shifted by the outer wall's first vertex so that large coordinates keep
+    their precision; reported points are shifted back.
+    """
+    o = outer[0]
+    outer_poly = shapely.polygons(outer - o)
+    region = outer_poly.buffer(TOLERANCE_M, join_style="mitre")
+    shapely.prepare(region)
+    wall_geoms = [shapely.linestrings(w - o) for w in walls]
+    obj_geoms = [shapely.polygons(p - o) for p in objects]
+
+    def shifted(geom):
+        return shapely.transform(geom, lambda c: c + o)
+
+    for g, what in zip(wall_geoms, walls_what):
+        if not region.covers(g):
+            raise LayoutError(f"{what}: leaves the outer wall{_where(shifted(g.difference(outer_poly)))} (outside)")
+    for g, what in zip(obj_geoms, objects_what):
+        if not region.covers(g):
+            raise LayoutError(f"{what}: lies partly outside the outer wall{_where(shifted(g.difference(outer_poly)))}")
+    if not obj_geoms:
+        return
+    cores = [g.buffer(-TOLERANCE_M, join_style="mitre") for g in obj_geoms]  # interiors, less the tolerance
+    tree = shapely.STRtree(obj_geoms)
+    pairs = tree.query(cores, predicate="intersects")  # (2, K): core i meets object j
+    for i, j in pairs[:, np.lexsort(pairs[::-1])].T:
+        if i < j and not cores[i].intersection(cores[j]).is_empty:
+            hit = shifted(cores[i].intersection(cores[j]))
+            raise LayoutError(f"{objects_what[j]}: overlaps {objects_what[i]}{_where(hit)}")
+    if wall_geoms:
+        core_tree = shapely.STRtree(cores)
+        pairs = core_tree.query(wall_geoms, predicate="intersects")
+        if pairs.shape[1]:
+            w, k = pairs[:, np.lexsort(pairs[::-1])][:, 0]
+            hit = shifted(wall_geoms[w].intersection(cores[k]))
+            raise LayoutError(f"{walls_what[w]}: passes through {objects_what[k]}{_where(hit)}")
+
+
 _TOP_KEYS = {"name", "outer", "walls", "objects"}
 _OBJECT_KEYS = {"class", "name", "polygon", "center", "size", "angle_rad"}
+
+
+def _optional_list(data: Mapping, key: str) -> list:
+    raw = data.get(key)
+    if raw is None:
+        return []
+    return _as_list(raw, f"'{key}'", "a list")
 
 
 def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     """Validate a plain dict (see the module docstring) and build a :class:`Layout`.
 
+    Checks, in ``O(n log n)`` time for ``n`` vertices in all (limit :data:`MAX_VERTICES`):
+    known keys; coordinates real numbers (not strings or bools), finite, within
+    :data:`MAX_COORDINATE_M`; polygons simple (not self-intersecting) with non-zero area;
+    whole walls and objects inside the outer wall; objects not overlapping each other
+    and no interior wall through an object (touching, within :data:`TOLERANCE_M`, is fine).
+
     Raises:
-        LayoutError: unknown keys, malformed or non-finite coordinates, open,
-            degenerate or self-intersecting polygons, unknown class names, or
-            objects outside the outer wall. The message names the entry.
+        LayoutError: the first problem found; the message names the entry.
     """
     if not isinstance(data, Mapping):
         raise LayoutError(f"a layout must be a mapping, got {type(data).__name__}")
     unknown = set(data) - _TOP_KEYS
     if unknown:
-        raise LayoutError(f"unknown layout keys {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+        raise LayoutError(f"unknown layout keys {_key_list(unknown)}; allowed: {sorted(_TOP_KEYS)}")
     if "outer" not in data:
         raise LayoutError("layout has no 'outer' wall polygon")
-    name = str(data.get("name", default_name))
+    name = data.get("name", default_name)
+    if not isinstance(name, str):
+        raise LayoutError(f"'name' must be a string, got {type(name).__name__}")
+    raw_walls = _optional_list(data, "walls")
+    raw_objects = _optional_list(data, "objects")
+    total = sum(len(x) if isinstance(x, (list, tuple, np.ndarray)) else 0 for x in [data["outer"], *raw_walls])
+    total += sum(len(o.get("polygon") or ()) if isinstance(o, Mapping) else 0 for o in raw_objects)
+    if total > MAX_VERTICES:
+        raise LayoutError(f"layout has {total} vertices, more than the limit of {MAX_VERTICES}")
     outer = _ring(data["outer"], "outer")
-    walls = []
-    raw_walls = data.get("walls", []) or []
-    if not isinstance(raw_walls, Sequence) or isinstance(raw_walls, str):
-        raise LayoutError("'walls' must be a list of polylines")
+    walls, walls_what = [], []
     for i, w in enumerate(raw_walls):
-        p = _points(w, f"walls[{i}]", 2)
-        if np.any(np.linalg.norm(np.diff(p, axis=0), axis=1) < 1e-9):
-            raise LayoutError(f"walls[{i}]: repeated consecutive point (zero-length segment)")
-        inside = point_in_polygon(p, outer) | (_dist_points_to_ring(p, outer) < 1e-6)
-        if not np.all(inside):
-            raise LayoutError(f"walls[{i}]: point {p[~inside][0].tolist()} lies outside the outer wall")
-        walls.append(tuple(map(tuple, p.tolist())))
-    objects = []
-    raw_objects = data.get("objects", []) or []
-    if not isinstance(raw_objects, Sequence) or isinstance(raw_objects, str):
-        raise LayoutError("'objects' must be a list")
+        what = f"walls[{i}]"
+        p = _points(w, what, 2)
+        if np.any(np.all(p[1:] == p[:-1], axis=1)):
+            raise LayoutError(f"{what}: repeated consecutive point (zero-length segment)")
+        walls.append(p)
+        walls_what.append(what)
+    objects, objects_what, classes, names = [], [], [], []
     for i, o in enumerate(raw_objects):
-        what = f"objects[{i}]" + (f" ({o.get('name')})" if isinstance(o, Mapping) and o.get("name") else "")
         if not isinstance(o, Mapping):
-            raise LayoutError(f"{what}: must be a mapping with 'class' and 'polygon' (or 'center' and 'size')")
+            raise LayoutError(f"objects[{i}]: must be a mapping with 'class' and 'polygon' (or 'center' and 'size')")
+        obj_name = o.get("name")
+        if obj_name is not None and not isinstance(obj_name, str):
+            raise LayoutError(f"objects[{i}].name must be a string, got {type(obj_name).__name__}")
+        what = f"objects[{i}]" + (f" ({obj_name})" if obj_name else "")
         unknown = set(o) - _OBJECT_KEYS
         if unknown:
-            raise LayoutError(f"{what}: unknown keys {sorted(unknown)}; allowed: {sorted(_OBJECT_KEYS)}")
+            raise LayoutError(f"{what}: unknown keys {_key_list(unknown)}; allowed: {sorted(_OBJECT_KEYS)}")
         cls = o.get("class")
-        if cls not in CLASS_NAMES:
-            raise LayoutError(f"{what}: unknown class {cls!r}; known classes: {list(CLASS_NAMES)}")
+        if not isinstance(cls, str) or cls not in CLASS_NAMES:
+            raise LayoutError(f"{what}: unknown class {cls!r:.40}; known classes: {list(CLASS_NAMES)}")
         if "polygon" in o:
+            if "center" in o or "size" in o or "angle_rad" in o:
+                raise LayoutError(f"{what}: give either 'polygon' or 'center' and 'size', not both")
             poly = _ring(o["polygon"], what)
         elif "center" in o and "size" in o:
             poly = _ring(_box(o, what), what)
         else:
             raise LayoutError(f"{what}: needs 'polygon' or both 'center' and 'size'")
-        inside = point_in_polygon(poly, outer) | (_dist_points_to_ring(poly, outer) < 1e-6)
-        if not np.all(inside):
-            raise LayoutError(f"{what}: vertex {poly[~inside][0].tolist()} lies outside the outer wall")
-        obj_name = str(o.get("name") or f"{cls}_{i}")
-        objects.append(SemanticObject(cls, tuple(map(tuple, poly.tolist())), obj_name))
-    return Layout(name, tuple(map(tuple, outer.tolist())), tuple(walls), tuple(objects))
+        objects.append(poly)
+        objects_what.append(what)
+        classes.append(cls)
+        names.append(obj_name or f"{cls}_{i}")
+    _check_geometry(outer, walls, walls_what, objects, objects_what)
+    return Layout(
+        name,
+        tuple(map(tuple, outer.tolist())),
+        tuple(tuple(map(tuple, w.tolist())) for w in walls),
+        tuple(SemanticObject(c, tuple(map(tuple, p.tolist())), n) for c, p, n in zip(classes, objects, names)),
+    )
 
 
 def load_layout(path: str | Path) -> Layout:
-    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file."""
+    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text)."""
     path = Path(path)
     if not path.is_file():
         raise LayoutError(f"layout file not found: {path}")
-    text = path.read_text()
+    if path.suffix.lower() not in (".yaml", ".yml", ".json"):
+        raise LayoutError(f"{path}: layout files must end in .json, .yaml or .yml")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise LayoutError(f"{path}: not UTF-8 text (byte {e.start}: {e.reason})") from None
     try:
         if path.suffix.lower() in (".yaml", ".yml"):
             import yaml
 
             data = yaml.safe_load(text)
-        elif path.suffix.lower() == ".json":
-            data = json.loads(text)
         else:
-            raise LayoutError(f"{path}: layout files must end in .json, .yaml or .yml")
-    except (json.JSONDecodeError, ValueError) as e:
-        if isinstance(e, LayoutError):
-            raise
-        raise LayoutError(f"{path}: not valid {path.suffix[1:].upper()}: {e}") from None
+            data = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise LayoutError(f"{path}: not valid JSON: {e}") from None
     except Exception as e:  # yaml.YAMLError without importing yaml at module level
         raise LayoutError(f"{path}: not valid YAML: {e}") from None
     try:

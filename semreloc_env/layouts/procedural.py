@@ -25,6 +25,12 @@ class ProceduralParams:
         symmetric: make the walls and furniture footprints invariant under a half
             turn about the centre, with furniture classes swapped between the
             twins, so lidar cannot tell the halves apart and semantics can.
+        lookalike: every room identical in geometry *and* furniture classes (north rooms
+            are half-turned copies of the south ones), told apart only by
+            ``corridor_objects`` objects against the corridor walls: from inside a room
+            the sensors cannot tell which room it is, only moving out can
+            (:func:`lookalike_layout`).
+        corridor_objects: inclusive range of the number of corridor objects (lookalike only).
     """
 
     rooms_per_side: tuple[int, int] = (2, 4)
@@ -34,6 +40,15 @@ class ProceduralParams:
     doorway_m: float = 1.0
     objects_per_room: tuple[int, int] = (1, 3)
     symmetric: bool = False
+    lookalike: bool = False
+    corridor_objects: tuple[int, int] = (2, 4)
+
+    def __post_init__(self) -> None:
+        if self.symmetric and self.lookalike:
+            raise ValueError("ProceduralParams: symmetric and lookalike exclude each other")
+        lo, hi = self.corridor_objects
+        if not (isinstance(lo, int) and isinstance(hi, int) and 0 <= lo <= hi):
+            raise ValueError(f"ProceduralParams.corridor_objects must be 0 <= lo <= hi, got {self.corridor_objects!r}")
 
 
 def _room_furniture(rng: np.random.Generator, x0: float, x1: float, depth: float, door_x: float, n: int) -> list:
@@ -81,6 +96,8 @@ def procedural_layout(rng: np.random.Generator, params: ProceduralParams | None 
     :func:`semreloc_env.layouts.layout_from_dict` (``get_layout`` does).
     """
     p = params or ProceduralParams()
+    if p.lookalike:
+        return lookalike_layout(rng, p)[0]
     n = int(rng.integers(p.rooms_per_side[0], p.rooms_per_side[1] + 1))
     south_w = rng.uniform(*p.room_width_m, size=n)
     length = float(south_w.sum())
@@ -134,3 +151,100 @@ def procedural_layout(rng: np.random.Generator, params: ProceduralParams | None 
         "walls": walls,
         "objects": objects,
     }
+
+
+_CORRIDOR_OBJECTS = {"cabinet": (0.9, 0.35), "trash_bin": (0.4, 0.4), "chair": (0.45, 0.45), "door": (1.0, 0.1)}
+"""Footprints (along the wall, away from it) of the objects placed in a lookalike corridor, metres."""
+
+
+def lookalike_layout(rng: np.random.Generator, params: ProceduralParams | None = None) -> tuple[dict, list]:
+    """A layout of identical rooms told apart only by objects in the corridor, and its room frames.
+
+    ``n`` equal rooms of width ``W`` south of the corridor, each with its doorway at the same
+    offset and the same furniture (same classes and footprints); north of it their half-turned
+    copies (a half turn maps a south room onto a north one, so a robot inside sees the same).
+    Between ``corridor_objects`` objects of random classes stand against the corridor walls,
+    clear of the doorways and of each other (no two overlap along the corridor, so it stays
+    passable), and against its end walls.
+
+    Returns:
+        ``(layout dict, frames)``: ``frames[i] = (x, y, theta)`` is room ``i``'s frame, so that
+        the local pose ``(u, v, phi)`` of the south room 0 sits at
+        ``(x + u cos theta - v sin theta, y + u sin theta + v cos theta, theta + phi)`` in room
+        ``i`` (south rooms first, west to east, then north rooms). A pose and its images in the
+        other rooms see the same room.
+    """
+    p = params or ProceduralParams(lookalike=True)
+    n = int(rng.integers(p.rooms_per_side[0], p.rooms_per_side[1] + 1))
+    width = float(rng.uniform(*p.room_width_m))
+    length = n * width
+    depth = float(rng.uniform(*p.room_depth_m))
+    corridor = float(rng.uniform(*p.corridor_width_m))
+    height = 2 * depth + corridor
+    half = p.doorway_m / 2
+    offset = float(rng.uniform(half + 0.3, width - half - 0.3))
+    south_x = width * np.arange(n + 1)
+    south_doors = [float(x + offset) for x in south_x[:-1]]
+    north_doors = [length - d for d in south_doors[::-1]]
+
+    def wall_with_gaps(y, gaps):
+        xs = [0.0] + [v for g in gaps for v in (g - half, g + half)] + [length]
+        return [[[xs[i], y], [xs[i + 1], y]] for i in range(0, len(xs), 2)]
+
+    walls = wall_with_gaps(depth, south_doors) + wall_with_gaps(depth + corridor, north_doors)
+    walls += [[[float(x), 0.0], [float(x), depth]] for x in south_x[1:-1]]
+    walls += [[[float(x), depth + corridor], [float(x), height]] for x in south_x[1:-1]]
+
+    k = int(rng.integers(p.objects_per_room[0], p.objects_per_room[1] + 1))
+    room = _room_furniture(rng, 0.0, width, depth, offset, k)
+    frames = [(float(x), 0.0, 0.0) for x in south_x[:-1]] + [(length - float(x), height, math.pi) for x in south_x[:-1]]
+    objects = []
+    for fx, fy, ft in frames:
+        c, s_ = math.cos(ft), math.sin(ft)
+        for o in room:
+            u, v = o["center"]
+            objects.append({**o, "center": [fx + c * u - s_ * v, fy + s_ * u + c * v]})
+
+    objects += _corridor_objects(rng, p, length, depth, corridor, south_doors, north_doors, half)
+    layout = {
+        "name": "procedural_lookalike",
+        "outer": [[0.0, 0.0], [length, 0.0], [length, height], [0.0, height]],
+        "walls": walls,
+        "objects": objects,
+    }
+    return layout, frames
+
+
+def _corridor_objects(rng, p, length, depth, corridor, south_doors, north_doors, half) -> list:
+    """Objects against the corridor's long walls (clear of doorways) and end walls."""
+    n_obj = int(rng.integers(p.corridor_objects[0], p.corridor_objects[1] + 1))
+    gaps = [(d - half - 0.3, d + half + 0.3) for d in south_doors + north_doors]
+    taken: list[tuple[float, float]] = []  # x intervals already used along the corridor (+ margins)
+    ends_used: set[str] = set()
+    out = []
+    for _ in range(n_obj):
+        for _attempt in range(50):
+            cls = str(rng.choice(sorted(_CORRIDOR_OBJECTS)))
+            along, away = _CORRIDOR_OBJECTS[cls]
+            side = str(rng.choice(["south", "north", "west", "east"]))
+            if side in ("west", "east"):
+                if side in ends_used or along > corridor - 0.6:
+                    continue
+                x0 = 0.0 if side == "west" else length - away
+                interval = (x0 - 0.6, x0 + away + 0.6)
+                if any(not (interval[1] < a or b < interval[0]) for a, b in taken):
+                    continue
+                cy = float(rng.uniform(depth + along / 2 + 0.05, depth + corridor - along / 2 - 0.05))
+                out.append({"class": cls, "center": [x0 + away / 2, cy], "size": [away, along]})
+                ends_used.add(side)
+                taken.append(interval)
+                break
+            cx = float(rng.uniform(along / 2 + 0.8, length - along / 2 - 0.8))
+            interval = (cx - along / 2 - 0.5, cx + along / 2 + 0.5)
+            if any(not (interval[1] < a or b < interval[0]) for a, b in gaps + taken):
+                continue
+            cy = depth + away / 2 if side == "south" else depth + corridor - away / 2
+            out.append({"class": cls, "center": [cx, cy], "size": [along, away]})
+            taken.append(interval)
+            break
+    return out

@@ -1,0 +1,160 @@
+"""Hand-written active-relocalization policies behind one interface.
+
+Every policy has ``wrap(env) -> env`` (the env it acts on; the baselines return it unchanged),
+``reset()`` (call at each episode start: it also restarts the policy's own random stream, so an
+episode's actions do not depend on the episodes before it) and ``act(obs) -> action``, for the
+env's raw observation dict. They work with ``action_type="discrete"`` and ``"continuous"``
+(``wrap`` reads which; a discrete forward / turn is sent as ``(1, 0)`` / ``(0, +-1)``).
+
+* :class:`RandomPolicy` — uniformly random discrete actions.
+* :class:`SpinPolicy` — turn left in place forever.
+* :class:`SpinThenBackUp` — Nav2's old recovery: a full turn in place, then back up 0.5 m
+  (continuous actions; with discrete ones, which cannot reverse, a half turn and 0.5 m forward),
+  and again.
+* :class:`WallFollowPolicy` — :class:`agents.baselines.WallFollowExplorer`.
+* :class:`~agents.info_gain.InfoGainPlanner` — the strongest: picks motion primitives by the
+  expected entropy reduction of the filter's belief.
+
+:data:`POLICIES` maps names to constructors ``f(seed) -> policy``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .baselines import FORWARD, STOP, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
+
+BACKWARD = -1
+"""A pseudo-action of the policies here: reverse at full speed (continuous actions only)."""
+
+
+class Policy:
+    """Base class: action encoding for the env's action type, and the interface."""
+
+    def __init__(self, seed: int = 0):
+        self.seed = int(seed)
+        self.rng = np.random.default_rng(self.seed)
+        self.env: gym.Env | None = None
+        self.continuous = False
+
+    def wrap(self, env: gym.Env) -> gym.Env:
+        space = env.action_space
+        if not isinstance(space, (spaces.Discrete, spaces.Box)):
+            raise TypeError(f"{type(self).__name__} needs a Discrete or Box action space, got {space}")
+        self.env = env
+        self.continuous = isinstance(space, spaces.Box)
+        base = env.unwrapped
+        robot = getattr(base, "robot_params", None)
+        physics = getattr(base, "physics_params", None)
+        self.step_m = (robot.max_linear_mps if robot else 0.5) * (physics.dt_s if physics else 0.1)
+        self.step_rad = (robot.max_angular_rps if robot else 1.0) * (physics.dt_s if physics else 0.1)
+        return env
+
+    def reset(self) -> None:
+        self.rng = np.random.default_rng(self.seed)
+
+    def encode(self, a: int):
+        """The env action for a discrete action (or :data:`BACKWARD`)."""
+        if not self.continuous:
+            if a == BACKWARD:
+                raise ValueError("discrete actions cannot reverse")
+            return int(a)
+        v, w = {FORWARD: (1.0, 0.0), TURN_LEFT: (0.0, 1.0), TURN_RIGHT: (0.0, -1.0), STOP: (0.0, 0.0)}.get(
+            a, (-1.0, 0.0)
+        )
+        return np.array([v, w], dtype=np.float32)
+
+    def act(self, obs: dict):  # pragma: no cover - overridden
+        raise NotImplementedError
+
+
+class RandomPolicy(Policy):
+    """Uniformly random forward / left / right / stop from its seeded generator."""
+
+    def act(self, obs: dict):
+        return self.encode(int(self.rng.integers(0, 4)))
+
+
+class SpinPolicy(Policy):
+    """Turn left in place, every step."""
+
+    def act(self, obs: dict):
+        return self.encode(TURN_LEFT)
+
+
+def _sector_min(ranges: np.ndarray, centre_rad: float, half_rad: float) -> float:
+    """Smallest lidar range in a sector (beams spread over 360 deg from -pi, the env's default)."""
+    angles = -np.pi + 2 * np.pi * np.arange(ranges.size) / ranges.size
+    d = np.abs((angles - centre_rad + np.pi) % (2 * np.pi) - np.pi)
+    return float(np.min(ranges[d <= half_rad]))
+
+
+class SpinThenBackUp(Policy):
+    """A full turn in place, then back up ``backup_m`` (Nav2's old spin + backup recovery), repeated.
+
+    With discrete actions, which cannot reverse, the back-up is a half turn and ``backup_m``
+    forward. Driving stops early when the lidar sees an obstacle closer than ``clearance_m`` in
+    the direction of travel.
+    """
+
+    def __init__(self, seed: int = 0, backup_m: float = 0.5, clearance_m: float = 0.45):
+        super().__init__(seed)
+        self.backup_m, self.clearance_m = float(backup_m), float(clearance_m)
+        self._plan: list[int] = []
+
+    def reset(self) -> None:
+        super().reset()
+        self._plan = []
+
+    def _cycle(self) -> list[int]:
+        spin = [TURN_LEFT] * math.ceil(2 * math.pi / self.step_rad)
+        drive = math.ceil(self.backup_m / self.step_m)
+        if self.continuous:
+            return spin + [BACKWARD] * drive
+        return spin + [TURN_LEFT] * math.ceil(math.pi / self.step_rad) + [FORWARD] * drive
+
+    def act(self, obs: dict):
+        if not self._plan:
+            self._plan = self._cycle()
+        a = self._plan.pop(0)
+        if a in (FORWARD, BACKWARD):
+            centre = 0.0 if a == FORWARD else math.pi
+            if _sector_min(np.asarray(obs["lidar"]), centre, 0.5) < self.clearance_m:
+                self._plan = [x for x in self._plan if x not in (FORWARD, BACKWARD)]  # skip the drive
+                a = TURN_LEFT
+        return self.encode(a)
+
+
+class WallFollowPolicy(Policy):
+    """:class:`agents.baselines.WallFollowExplorer` behind the common interface."""
+
+    def __init__(self, seed: int = 0, **kwargs):
+        super().__init__(seed)
+        self.explorer = WallFollowExplorer(**kwargs)
+
+    def reset(self) -> None:
+        super().reset()
+        self.explorer.reset()
+
+    def act(self, obs: dict):
+        return self.encode(self.explorer(obs))
+
+
+def _info_gain(seed: int = 0):
+    from .info_gain import InfoGainPlanner
+
+    return InfoGainPlanner(seed=seed)
+
+
+POLICIES = {
+    "random": RandomPolicy,
+    "spin": SpinPolicy,
+    "spin_backup": SpinThenBackUp,
+    "wall_follow": WallFollowPolicy,
+    "info_gain": _info_gain,
+}
+"""Baseline name -> constructor ``f(seed) -> policy``."""

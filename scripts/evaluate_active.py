@@ -1,0 +1,346 @@
+"""Evaluate active-relocalization policies on the same held-out (layout, start) pairs.
+
+Layouts: the first ``--layouts-per-kind`` held-out seeds
+(:data:`semreloc_env.layout_sampling.HELD_OUT_LAYOUT_SEEDS`, never drawn for training) of
+``procedural``, ``procedural_sym`` and ``procedural_lookalike``, then ``twin_rooms``, ``lab``,
+the changed lab (``scenario="changed"``) and every ``--layout-files`` entry. Each layout gets
+``--starts`` start poses, drawn from a generator seeded by the layout's index and the start's;
+every policy runs from the same start with the same episode seed (sensor noise and filter
+draws), a global relocalization of at most ``--max-steps`` steps.
+
+Starts "from which nothing telling is in sensor range": in a ``procedural_lookalike`` layout,
+every other start is drawn inside a room where the exact all-round view (lidar to its range, the
+semantic classes to the camera's) equals the view from the same place in another, identical
+room; spinning in place cannot tell them apart, only moving out can. These are flagged
+``uninformative`` and summarised on their own.
+
+Per policy (overall, per layout kind, and on the uninformative starts): success within the
+step limit (the env's own test, :mod:`agents.metrics`), wrong convergence (converged, wrong
+place, at the end), unconverged, each with a Wilson 95 % interval
+(``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the successes,
+mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode),
+``summary.json``, ``table.md`` and ``success.png`` (bar plot with the intervals).
+
+The same arguments give the same numbers whatever ``--workers``: every episode is seeded on its
+own and results are put back in job order.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+
+@dataclass(frozen=True)
+class Args:
+    policies: str = "random,spin,spin_backup,wall_follow,info_gain"
+    """comma-separated names from agents.policies.POLICIES"""
+    layouts_per_kind: int = 10
+    """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
+    starts: int = 10
+    """start poses per layout"""
+    layout_files: str = ""
+    """comma-separated layout files (.json / .yaml) to add"""
+    max_steps: int = 200
+    """steps per episode (success must come within them)"""
+    particles: int = 2000
+    """relocalizer particles"""
+    map_source: str = "mapping"
+    """the filter's map: mapping (a simulated mapping run) or perfect"""
+    workers: int = 2
+    """worker processes (1 = in this process)"""
+    out: str = "out/evaluate_active"
+    """output folder"""
+
+
+def parse_args(argv=None) -> Args:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    for name, f in Args.__dataclass_fields__.items():
+        p.add_argument(
+            "--" + name.replace("_", "-"), type=type(f.default), default=f.default, help=f"default {f.default}"
+        )
+    args = Args(**vars(p.parse_args(argv)))
+    from agents.policies import POLICIES
+
+    unknown = [x for x in args.policies.split(",") if x.strip() not in POLICIES]
+    if unknown:
+        p.error(f"--policies: unknown {unknown}; choose from {sorted(POLICIES)}")
+    for name in ("layouts_per_kind", "starts", "max_steps", "particles", "workers"):
+        if getattr(args, name) < (0 if name == "layouts_per_kind" else 1):
+            p.error(f"--{name.replace('_', '-')} must be >= 1")
+    if args.map_source not in ("mapping", "perfect"):
+        p.error("--map-source must be mapping or perfect")
+    return args
+
+
+# ---------------------------------------------------------------------- cases
+PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
+
+
+def _view(world, pose, lidar_max, cam_max, angles, labels):
+    r, hit = world.scene.cast(np.asarray(pose[:2]), pose[2] + angles, lidar_max)
+    owner = np.where(hit >= 0, world.scene.owner[np.maximum(hit, 0)], -1)
+    lab = np.where((owner >= 0) & (r < cam_max), labels[np.maximum(owner, 0)], 0)
+    return r, lab
+
+
+def _image(frame, local):
+    fx, fy, ft = frame
+    c, s = math.cos(ft), math.sin(ft)
+    u, v, phi = local
+    return np.array([fx + c * u - s * v, fy + s * u + c * v, math.remainder(ft + phi, 2 * math.pi)])
+
+
+def uninformative_start(layout_seed: int, world, rng, lidar_max: float, cam_max: float, tries: int = 300):
+    """A pose in a room of the lookalike layout ``layout_seed`` whose exact all-round view equals
+    that of its image in another room, or None if none was found in ``tries`` draws."""
+    from semreloc_env.layouts import ProceduralParams, lookalike_layout
+
+    _, frames = lookalike_layout(np.random.default_rng(layout_seed), ProceduralParams(lookalike=True))
+    width = frames[1][0] - frames[0][0] if len(frames) > 2 else 3.0
+    depth = min(y for w in world.layout.walls for _, y in w if y > 0)
+    labels = np.array([o.label for o in world.layout.objects], dtype=np.int64)
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    for _ in range(tries):
+        room = int(rng.integers(0, len(frames)))
+        local = np.array([rng.uniform(0.4, width - 0.4), rng.uniform(0.4, depth - 0.4), rng.uniform(-math.pi, math.pi)])
+        pose = _image(frames[room], local)
+        if world.clearance(pose[:2]) < 0.45:
+            continue
+        r0, l0 = _view(world, pose, lidar_max, cam_max, angles, labels)
+        for other in range(len(frames)):
+            if other == room:
+                continue
+            q = _image(frames[other], local)
+            r1, l1 = _view(world, q, lidar_max, cam_max, angles, labels)
+            if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
+                return pose
+    return None
+
+
+def build_cases(args: Args) -> list[dict]:
+    """Every (layout, start) pair, in a fixed order."""
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.scenarios import changed_obstacles
+    from semreloc_env.world import build_world
+
+    layouts = [(k, int(s), "nominal") for k in PROCEDURAL_KINDS for s in HELD_OUT_LAYOUT_SEEDS[: args.layouts_per_kind]]
+    layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
+    layouts += [(f.strip(), 0, "nominal") for f in args.layout_files.split(",") if f.strip()]
+    lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
+    cases = []
+    for li, (spec, seed, scenario) in enumerate(layouts):
+        layout = get_layout(spec, seed=seed)
+        extra = changed_obstacles(layout, seed) if scenario == "changed" else []
+        world = build_world(layout, extra_obstacles=extra)
+        for si in range(args.starts):
+            rng = np.random.default_rng([li, si, 7007])
+            pose, flag = None, False
+            if spec == "procedural_lookalike" and si % 2 == 0:
+                pose = uninformative_start(seed, world, rng, lidar_max, cam_max)
+                flag = pose is not None
+            if pose is None:
+                pose = world.sample_free_pose(rng, margin_m=0.3)
+            name = spec if spec in ("twin_rooms", "lab") or spec in PROCEDURAL_KINDS else Path(spec).stem
+            kind = "lab_changed" if scenario == "changed" else (name if spec not in PROCEDURAL_KINDS else spec)
+            cases.append(
+                {
+                    "case": len(cases),
+                    "kind": kind,
+                    "layout": spec,
+                    "layout_seed": seed,
+                    "scenario": scenario,
+                    "start": [float(v) for v in pose],
+                    "episode_seed": 50_000 + len(cases),
+                    "uninformative": flag,
+                }
+            )
+    return cases
+
+
+# ---------------------------------------------------------------------- episodes
+def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
+    """Every policy on one (layout, start) pair."""
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.metrics import EpisodeTracker
+    from agents.policies import POLICIES
+
+    case, policies, args = job
+    rows = []
+    for name in policies:
+        env = gym.make(
+            "SemReloc-v1",
+            layout=case["layout"],
+            layout_seed=case["layout_seed"],
+            scenario=case["scenario"],
+            map_source=args.map_source,
+            relocalizer={"n_particles": args.particles},
+            max_episode_steps=args.max_steps,
+        )
+        policy = POLICIES[name](case["episode_seed"])
+        env = policy.wrap(env)
+        policy.reset()
+        tracker = EpisodeTracker()
+        obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+        tracker.observe(info, is_step=False)
+        collisions = 0
+        t0 = time.perf_counter()
+        while True:
+            obs, reward, term, trunc, info = env.step(policy.act(obs))
+            tracker.observe(info, reward)
+            collisions += bool(info["collided"])
+            if term or trunc:
+                break
+        res = tracker.finish()
+        rows.append(
+            {
+                **case,
+                "policy": name,
+                "outcome": res.outcome,
+                "length": res.length,
+                "steps_to_success": res.steps_to_converge,
+                "collisions": collisions,
+                "final_position_error_m": res.final_position_error_m,
+                "seconds": time.perf_counter() - t0,
+            }
+        )
+        env.close()
+    return rows
+
+
+# ---------------------------------------------------------------------- summary
+def wilson(k: int, n: int) -> tuple[float, float]:
+    from scipy.stats import binomtest
+
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def summarise(rows: list[dict]) -> dict:
+    n = len(rows)
+    out = {"episodes": n}
+    for outcome in ("success", "wrong", "unconverged"):
+        k = sum(r["outcome"] == outcome for r in rows)
+        out[outcome] = {"rate": k / n, "ci95": wilson(k, n), "count": k}
+    steps = [r["steps_to_success"] for r in rows if r["steps_to_success"] is not None]
+    out["median_steps"] = float(np.median(steps)) if steps else None
+    out["collisions_per_episode"] = float(np.mean([r["collisions"] for r in rows]))
+    out["seconds_per_step"] = float(sum(r["seconds"] for r in rows) / max(sum(r["length"] for r in rows), 1))
+    return out
+
+
+def groups(rows: list[dict]) -> dict[str, list[dict]]:
+    g: dict[str, list[dict]] = {"all": rows}
+    for r in rows:
+        g.setdefault(r["kind"], []).append(r)
+    unin = [r for r in rows if r["uninformative"]]
+    if unin:
+        g["uninformative starts"] = unin
+    return g
+
+
+def _pct(x: dict) -> str:
+    lo, hi = x["ci95"]
+    return f"{100 * x['rate']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}]"
+
+
+def table(summary: dict, policies: list[str]) -> str:
+    lines = []
+    for group, per_policy in summary.items():
+        n = per_policy[policies[0]]["episodes"]
+        lines += [
+            f"### {group} ({n} episodes per policy)",
+            "",
+            "| policy | success | wrong | unconverged | median steps | steps in collision / episode |",
+            "|---|---|---|---|---|---|",
+        ]
+        for p in policies:
+            s = per_policy[p]
+            med = "-" if s["median_steps"] is None else f"{s['median_steps']:.0f}"
+            lines.append(
+                f"| {p} | {_pct(s['success'])} | {_pct(s['wrong'])} | {_pct(s['unconverged'])} | {med} | "
+                f"{s['collisions_per_episode']:.1f} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def plot(summary: dict, policies: list[str], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(summary)
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(names) * len(policies) / 3), 4))
+    width = 0.8 / len(policies)
+    x = np.arange(len(names))
+    for i, p in enumerate(policies):
+        rate = np.array([summary[g][p]["success"]["rate"] for g in names])
+        lo = np.array([summary[g][p]["success"]["ci95"][0] for g in names])
+        hi = np.array([summary[g][p]["success"]["ci95"][1] for g in names])
+        ax.bar(x + (i - (len(policies) - 1) / 2) * width, rate, width, yerr=[rate - lo, hi - rate], capsize=2, label=p)
+    ax.set_xticks(x, names, rotation=20, ha="right")
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("success within the step limit (Wilson 95 %)")
+    ax.legend(fontsize=8, ncol=min(len(policies), 5))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None) -> None:
+    args = parse_args(argv)
+    policies = [p.strip() for p in args.policies.split(",") if p.strip()]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.time()
+    cases = build_cases(args)
+    n_unin = sum(c["uninformative"] for c in cases)
+    print(f"{len(cases)} (layout, start) pairs ({n_unin} uninformative starts) x {len(policies)} policies", flush=True)
+    jobs = [(c, tuple(policies), args) for c in cases]
+    rows: list[dict] = []
+    if args.workers == 1:
+        for i, job in enumerate(jobs):
+            rows += run_case(job)
+            print(f"  {i + 1}/{len(jobs)} pairs, {time.time() - t0:.0f} s", flush=True)
+    else:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            for i, r in enumerate(pool.map(run_case, jobs)):  # map keeps job order: deterministic
+                rows += r
+                print(f"  {i + 1}/{len(jobs)} pairs, {time.time() - t0:.0f} s", flush=True)
+    summary = {
+        g: {p: summarise([r for r in rs if r["policy"] == p]) for p in policies} for g, rs in groups(rows).items()
+    }
+    (out / "episodes.json").write_text(json.dumps(rows, indent=1))
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    cli = " ".join(argv if argv is not None else sys.argv[1:])
+    header = (
+        f"Command: `PYTHONPATH=. python scripts/evaluate_active.py {cli}`"
+        f"\n\n{len(cases)} (layout, start) pairs, {n_unin} uninformative; {args.particles} particles, map "
+        f"{args.map_source}, success within {args.max_steps} steps; wall time {time.time() - t0:.0f} s.\n\n"
+    )
+    (out / "table.md").write_text(header + table(summary, policies))
+    plot(summary, policies, out / "success.png")
+    print(table({"all": summary["all"]}, policies))
+    print(f"wrote {out}/table.md, success.png, summary.json, episodes.json ({time.time() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

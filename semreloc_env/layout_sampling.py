@@ -1,0 +1,196 @@
+"""A new layout at every reset: a seeded sampler over layout kinds and seeds, and its wrapper.
+
+* :data:`HELD_OUT_LAYOUT_SEEDS` — the procedural seeds kept for evaluation. A
+  :class:`LayoutSampler` never draws them, whatever seed range it is given, so a policy trained
+  through it has never seen the evaluation layouts of ``scripts/evaluate_active.py``.
+* :class:`LayoutSampler` — draws ``(kind, seed)`` from a seeded generator: a kind (a procedural
+  generator, a built-in, or a layout file) by weight, then for procedural kinds a seed uniformly
+  from the training range without the held-out ones. Layouts are built once per ``(kind, seed)``
+  and cached.
+* :class:`RandomLayout` — a wrapper that gives a ``SemReloc`` env the next drawn layout before
+  every reset (:meth:`~semreloc_env.envs.semreloc.SemRelocEnv.set_layout`), the filter's maps
+  from :func:`semreloc_env.maps.maps_for` (built once per layout, cached).
+
+The same reset seed gives the same layout, bit for bit; ``info["layout"]`` says which.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from .layouts import BUILTIN_LAYOUTS_NAMES, PROCEDURAL_LAYOUTS, Layout, get_layout
+from .maps import maps_for
+
+HELD_OUT_LAYOUT_SEEDS: range = range(1_000_000, 1_000_500)
+"""Procedural layout seeds for evaluation only (500 per procedural kind): never drawn for training."""
+
+DEFAULT_TRAIN_SEEDS: range = range(0, 100_000)
+"""Seed range a :class:`LayoutSampler` draws procedural layouts from by default."""
+
+DEFAULT_KINDS = ("procedural", "procedural_sym", "procedural_lookalike", "lab", "twin_rooms")
+
+_SALT = 0x1A7
+
+
+@dataclass(frozen=True)
+class LayoutDraw:
+    """One drawn layout: its kind (generator name, built-in name or file path), seed and Layout.
+
+    ``seed`` is the procedural seed, 0 for built-ins and files (they have none).
+    """
+
+    kind: str
+    seed: int
+    layout: Layout
+
+    def as_dict(self) -> dict:
+        return {"kind": self.kind, "seed": self.seed, "name": self.layout.name}
+
+
+@functools.lru_cache(maxsize=512)
+def _layout(kind: str, seed: int) -> Layout:
+    return get_layout(kind, seed=seed)
+
+
+def is_held_out(seed: int) -> bool:
+    """Whether a procedural seed is one of :data:`HELD_OUT_LAYOUT_SEEDS`."""
+    return int(seed) in HELD_OUT_LAYOUT_SEEDS
+
+
+class LayoutSampler:
+    """Seeded draws of training layouts.
+
+    Args:
+        kinds: layout names: procedural generators (``"procedural"``, ``"procedural_sym"``,
+            ``"procedural_lookalike"``) and built-ins (``"lab"``, ``"twin_rooms"``).
+        files: layout files (``.json`` / ``.yaml``), each one more entry.
+        seeds: the procedural seeds to draw from (a range or a sequence of ints); the held-out
+            ones are left out.
+        weights: one non-negative weight per entry (``kinds`` then ``files``), default equal.
+
+    Raises:
+        ValueError: an unknown kind, no entry, bad weights, or no seed left once the held-out
+            ones are removed. Files are loaded here, so a bad file fails now.
+    """
+
+    def __init__(
+        self,
+        kinds: Sequence[str] = DEFAULT_KINDS,
+        files: Sequence[str | Path] = (),
+        seeds: range | Sequence[int] = DEFAULT_TRAIN_SEEDS,
+        weights: Sequence[float] | None = None,
+    ):
+        kinds = tuple(str(k) for k in kinds)
+        bad = [k for k in kinds if k not in PROCEDURAL_LAYOUTS and k not in BUILTIN_LAYOUTS_NAMES]
+        if bad:
+            raise ValueError(
+                f"kinds: unknown {bad}; known: {[*PROCEDURAL_LAYOUTS, *BUILTIN_LAYOUTS_NAMES]}; files go in files="
+            )
+        self.files = tuple(str(f) for f in files)
+        self.entries = kinds + self.files
+        if not self.entries:
+            raise ValueError("kinds and files are both empty: nothing to draw")
+        self._file_layouts = {f: get_layout(Path(f)) for f in self.files}
+        w = np.ones(len(self.entries)) if weights is None else np.asarray(weights, dtype=np.float64)
+        if w.shape != (len(self.entries),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+            raise ValueError(f"weights must be {len(self.entries)} non-negative numbers, not all 0; got {weights!r}")
+        self.weights = w / w.sum()
+        if isinstance(seeds, range):
+            if seeds.step != 1:
+                raise ValueError("seeds: a range must have step 1")
+            self._seeds: range | np.ndarray = seeds
+            overlap = len(
+                range(max(seeds.start, HELD_OUT_LAYOUT_SEEDS.start), min(seeds.stop, HELD_OUT_LAYOUT_SEEDS.stop))
+            )
+            n_left = len(seeds) - overlap
+        else:
+            arr = np.asarray(list(seeds), dtype=np.int64)
+            if arr.ndim != 1 or np.any(arr < 0):
+                raise ValueError("seeds must be non-negative integers")
+            self._seeds = np.array([s for s in arr if not is_held_out(s)], dtype=np.int64)
+            n_left = self._seeds.size
+        if any(k in PROCEDURAL_LAYOUTS for k in kinds) and n_left == 0:
+            raise ValueError(f"seeds: none left after removing the held-out seeds {HELD_OUT_LAYOUT_SEEDS}")
+
+    def _seed(self, rng: np.random.Generator) -> int:
+        if isinstance(self._seeds, np.ndarray):
+            return int(self._seeds[rng.integers(0, self._seeds.size)])
+        while True:  # rejection: the held-out block is small next to any useful range
+            s = int(rng.integers(self._seeds.start, self._seeds.stop))
+            if not is_held_out(s):
+                return s
+
+    def draw(self, rng: np.random.Generator) -> LayoutDraw:
+        """The next layout (one entry draw, then one seed draw for procedural kinds)."""
+        i = int(rng.choice(len(self.entries), p=self.weights))
+        kind = self.entries[i]
+        if kind in self._file_layouts:
+            return LayoutDraw(kind, 0, self._file_layouts[kind])
+        seed = self._seed(rng) if kind in PROCEDURAL_LAYOUTS else 0
+        return LayoutDraw(kind, seed, _layout(kind, seed))
+
+
+class RandomLayout(gym.Wrapper):
+    """Give a ``SemReloc`` env a new layout, drawn from ``sampler``, before every reset.
+
+    ``reset(seed=s)`` reseeds the layout stream (``np.random.default_rng([s, salt])``), so the
+    same seed gives the same layout and then the same episode; resets without a seed continue
+    the stream (started from ``seed`` here). The env's ``map_source`` must be ``"mapping"``
+    or ``"perfect"``; each layout's map is built once (:func:`~semreloc_env.maps.maps_for`, its
+    cache) and kept here for the last ``cache_size`` layouts. ``info["layout"]`` is
+    :meth:`LayoutDraw.as_dict` of the episode's layout.
+
+    Args:
+        env: a ``SemReloc-v1`` env.
+        sampler: the layouts to draw (default :class:`LayoutSampler` with its defaults).
+        seed: seed of the layout stream until a reset passes one.
+        cache_size: maps kept in memory.
+    """
+
+    def __init__(self, env: gym.Env, sampler: LayoutSampler | None = None, seed: int = 0, cache_size: int = 64):
+        super().__init__(env)
+        base = env.unwrapped
+        if not hasattr(base, "set_layout"):
+            raise TypeError(f"RandomLayout needs an env with set_layout(); {type(base).__name__} has none")
+        if not (isinstance(base.map_source, str) and base.map_source in ("mapping", "perfect")):
+            raise ValueError(f"RandomLayout needs map_source 'mapping' or 'perfect', got {base.map_source!r}")
+        self.sampler = sampler if sampler is not None else LayoutSampler()
+        self._rng = np.random.default_rng([int(seed), _SALT])
+        self._maps: OrderedDict[tuple, object] = OrderedDict()
+        self.cache_size = int(cache_size)
+        self.current: LayoutDraw | None = None
+
+    def _grid(self, draw: LayoutDraw):
+        key = (draw.kind, draw.seed)
+        grid = self._maps.get(key)
+        if grid is None:
+            base = self.env.unwrapped
+            grid = maps_for(draw.layout, base.map_source, base.lidar.params, base.camera.params)
+            self._maps[key] = grid
+            if len(self._maps) > self.cache_size:
+                self._maps.popitem(last=False)
+        else:
+            self._maps.move_to_end(key)
+        return grid
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if seed is not None:
+            self._rng = np.random.default_rng([int(seed), _SALT])
+        draw = self.sampler.draw(self._rng)
+        self.env.unwrapped.set_layout(draw.layout, draw.seed, grid=self._grid(draw))
+        self.current = draw
+        obs, info = self.env.reset(seed=seed, options=options)
+        info["layout"] = draw.as_dict()
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info["layout"] = self.current.as_dict()
+        return obs, reward, terminated, truncated, info

@@ -1,0 +1,113 @@
+"""Extra reward terms for ``SemReloc-v1``, kept out of the env (its reward logic is fixed there).
+
+* :func:`belief_mass_near` — the share of the belief within ``radius_m`` of a pose: Active
+  Neural Localization's reward (Chaplot et al., ICLR 2018: the belief's probability at the
+  true pose), for a particle belief.
+* :class:`BeliefMassReward` — a wrapper adding it as the named term ``belief_mass`` to
+  ``info["rewards"]`` and to the reward.
+
+A reward may use the truth (it is the training signal, not an observation); the policy's
+observation never does.
+"""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+
+from filters.pose import wrap_angle
+
+BELIEF_MASS_RADIUS_M = 0.5
+"""Default radius of :func:`belief_mass_near`: the env's success radius."""
+
+
+def belief_mass_near(
+    poses: np.ndarray,
+    weights: np.ndarray,
+    pose,
+    radius_m: float = BELIEF_MASS_RADIUS_M,
+    heading_tol_rad: float | None = None,
+) -> float:
+    """Share of the total weight on particles within ``radius_m`` (and, if given,
+    ``heading_tol_rad``) of ``pose``; in ``[0, 1]``.
+
+    Args:
+        poses: ``(N, 3)`` particles ``(x m, y m, theta rad)``.
+        weights: ``(N,)`` non-negative weights (normalised here).
+        pose: ``(3,)`` reference pose (the truth, for a reward).
+
+    Raises:
+        ValueError: bad shapes, a non-positive radius, or weights all zero / negative / non-finite.
+    """
+    p = np.asarray(poses, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    ref = np.asarray(pose, dtype=np.float64).reshape(-1)
+    if p.ndim != 2 or p.shape[1] != 3 or w.shape != (p.shape[0],) or ref.shape != (3,):
+        raise ValueError(f"need poses (N, 3), weights (N,), pose (3,); got {p.shape}, {w.shape}, {ref.shape}")
+    if not (math.isfinite(radius_m) and radius_m > 0):
+        raise ValueError(f"radius_m must be positive, got {radius_m!r}")
+    if not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError("weights must be finite, non-negative and not all zero")
+    near = np.hypot(p[:, 0] - ref[0], p[:, 1] - ref[1]) < radius_m
+    if heading_tol_rad is not None:
+        near &= np.abs(wrap_angle(p[:, 2] - ref[2])) < heading_tol_rad
+    return float(np.clip(w[near].sum() / w.sum(), 0.0, 1.0))
+
+
+class BeliefMassReward(gym.Wrapper):
+    """Add ``weight * belief_mass_near(particles, truth)`` as the reward term ``belief_mass``.
+
+    ``mode="level"`` pays the mass every step (as Active Neural Localization); ``mode="gain"``
+    pays its change since the last step (0 on the first step), so a policy is not paid for
+    lingering once the belief is right. The term is added to ``info["rewards"]`` and to the
+    reward; everything else passes through.
+
+    Args:
+        env: a ``SemReloc-v1`` env (``unwrapped.mcl`` and ``unwrapped.world``).
+        weight: scale of the term (reward units per unit of mass).
+        radius_m, heading_tol_rad: see :func:`belief_mass_near`.
+        mode: ``"level"`` or ``"gain"``.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        weight: float = 0.05,
+        radius_m: float = BELIEF_MASS_RADIUS_M,
+        heading_tol_rad: float | None = None,
+        mode: str = "level",
+    ):
+        super().__init__(env)
+        if mode not in ("level", "gain"):
+            raise ValueError(f"mode must be 'level' or 'gain', got {mode!r}")
+        if not math.isfinite(weight):
+            raise ValueError(f"weight must be finite, got {weight!r}")
+        if not (math.isfinite(radius_m) and radius_m > 0):
+            raise ValueError(f"radius_m must be positive, got {radius_m!r}")
+        self.weight, self.radius_m, self.heading_tol_rad, self.mode = (
+            float(weight),
+            float(radius_m),
+            heading_tol_rad,
+            mode,
+        )
+        self._prev: float | None = None
+
+    def mass(self) -> float:
+        """The current belief mass near the true pose."""
+        base = self.env.unwrapped
+        return belief_mass_near(base.mcl.poses, base.mcl.weights, base.world.pose, self.radius_m, self.heading_tol_rad)
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._prev = self.mass()
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        m = self.mass()
+        term = self.weight * (m if self.mode == "level" else m - self._prev)
+        self._prev = m
+        info["rewards"] = {**info.get("rewards", {}), "belief_mass": term}
+        return obs, float(reward) + term, terminated, truncated, info

@@ -1,0 +1,285 @@
+"""Reproducers of the defects of issue 12 (hardening), one test each: every one failed before its fix."""
+
+import copy
+import math
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from helpers import assert_identical
+
+import semreloc_env  # noqa: F401
+from filters.localization.mcl import MCLConfig
+from semreloc_env.config import LidarParams, PhysicsParams, RobotParams, coerce_config
+from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER
+from semreloc_env.layouts import LayoutError, get_layout, layout_from_dict, load_layout
+from semreloc_env.rasterize import MAX_RASTER_CELLS, rasterize
+
+FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 200}}
+SLAM_FAST = {"slam": {"n_particles": 10}}
+SQUARE = [[0, 0], [8, 0], [8, 8], [0, 8]]
+L_SHAPE = [[0, 0], [8, 0], [8, 4], [4, 4], [4, 8], [0, 8]]  # the notch is x, y in (4, 8)
+
+
+def _chair(cx, cy, s=1.0, **kw):
+    return {"class": "chair", "center": [cx, cy], "size": [s, s], **kw}
+
+
+# ---------------------------------------------------------------- 1. large coordinates
+@pytest.mark.parametrize("base", [1e6, 1e9])
+def test_1_large_coordinates_keep_their_vertices(base):
+    outer = [[base, base], [base + 15, base], [base + 15, base + 10], [base, base + 10]]
+    lay = layout_from_dict({"outer": outer, "objects": [_chair(base + 3, base + 3)]})
+    assert [list(p) for p in lay.outer] == outer
+    assert len(lay.objects[0].polygon) == 4
+    x0, x1, y0, y1 = lay.bounds()
+    assert (x1 - x0, y1 - y0) == (15.0, 10.0)
+
+
+# ---------------------------------------------------------------- 2. containment and overlaps
+@pytest.mark.parametrize(
+    "data, match",
+    [
+        # an object whose vertices are all inside a concave outer wall but whose edge crosses the notch
+        ({"outer": L_SHAPE, "objects": [{"class": "chair", "polygon": [[3, 3], [5, 3.5], [3, 5]]}]}, r"objects\[0\]"),
+        # a wall whose end points are inside but which crosses the notch
+        ({"outer": L_SHAPE, "walls": [[[2, 7], [7, 2]]]}, r"walls\[0\].*leaves the outer wall"),
+        ({"outer": SQUARE, "walls": [[[4, 0], [4, 8]]], "objects": [_chair(4, 4)]}, r"walls\[0\].*through objects"),
+        ({"outer": SQUARE, "objects": [_chair(4, 4, name="a"), _chair(4.5, 4, name="b")]}, r"\(b\).*overlaps.*\(a\)"),
+        ({"outer": SQUARE, "objects": [_chair(4, 4, 2.0), _chair(4, 4, 0.5)]}, r"objects\[1\].*overlaps"),
+        ({"outer": [[0, 0], ["8", 0], [8, 8], [0, 8]]}, r"outer\[1\].*numbers.*str"),
+        ({"outer": SQUARE, "objects": [{"class": "chair", "center": ["4", 4], "size": [1, 1]}]}, r"center"),
+        ({"outer": [[0, 0], [True, 0], [8, 8], [0, 8]]}, r"outer\[1\].*numbers.*bool"),
+    ],
+)
+def test_2_whole_edges_overlaps_and_numeric_strings_are_checked(data, match):
+    with pytest.raises(LayoutError, match=match):
+        layout_from_dict(data)
+
+
+def test_2_touching_is_allowed():
+    lay = layout_from_dict(
+        {
+            "outer": SQUARE,
+            "walls": [[[4, 0], [4, 8]]],
+            "objects": [_chair(4.5, 4), _chair(5.5, 4), {"class": "cabinet", "center": [7.7, 1], "size": [0.6, 1]}],
+        }
+    )
+    assert len(lay.objects) == 3  # against the wall, against each other, against the outer wall
+    # the issue's example wall only touches the notch's corner (4, 4): it stays inside, and is accepted
+    assert len(layout_from_dict({"outer": L_SHAPE, "walls": [[[2, 6], [6, 2]]]}).walls) == 1
+
+
+# ---------------------------------------------------------------- 3. clear errors
+def test_3_clear_errors_for_odd_layout_input(tmp_path):
+    with pytest.raises(LayoutError, match=r"unknown layout keys \['foo', 7\]"):
+        layout_from_dict({"outer": SQUARE, "foo": 1, 7: 2})
+    with pytest.raises(LayoutError, match=r"objects\[0\]: unknown keys \['x', 3\]"):
+        layout_from_dict({"outer": SQUARE, "objects": [{**_chair(2, 2), "x": 1, 3: 2}]})
+    for bad in (None, [1], "0.3"):
+        with pytest.raises(LayoutError, match=r"objects\[0\].angle_rad must be a finite number"):
+            layout_from_dict({"outer": SQUARE, "objects": [_chair(2, 2, angle_rad=bad)]})
+    walls = np.array([[[1.0, 1.0], [2.0, 2.0]], [[3.0, 1.0], [3.0, 2.0]]])
+    assert len(layout_from_dict({"outer": SQUARE, "walls": walls}).walls) == 2  # an ndarray is a list of walls
+    bad = tmp_path / "latin1.yaml"
+    bad.write_bytes("name: caf\xe9\nouter: [[0, 0], [1, 0], [1, 1]]\n".encode("latin-1"))
+    with pytest.raises(LayoutError, match=r"latin1.yaml: not UTF-8"):
+        load_layout(bad)
+
+
+def test_3_clear_errors_for_odd_env_input():
+    env = gym.make("SemSlam-v0", **SLAM_FAST)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"unknown reset options \['foo', 7\]"):
+        env.reset(options={"foo": 1, 7: 2})
+    with pytest.raises(ValueError, match=r"reset options must be a dict"):
+        env.reset(options=[("pose", None)])
+    with pytest.raises(ValueError, match=r"pose must be three finite numbers"):
+        env.reset(options={"pose": "1, 2, 0"})
+    with pytest.raises(ValueError, match=r"pose must be three finite numbers"):
+        env.reset(options={"pose": ["1", "2", "0"]})
+    for seed in (-1, "abc", 1.5, True):
+        with pytest.raises(ValueError, match=r"reset seed must be None or an integer"):
+            env.reset(seed=seed)
+    for layout_seed in (None, "abc", -1, 1.5, True):
+        with pytest.raises(ValueError, match=r"layout_seed must be an integer >= 0"):
+            gym.make("SemSlam-v0", layout="procedural", layout_seed=layout_seed)
+    with pytest.raises(ValueError, match=r"robot: unknown keys \['foo', 7\]"):
+        gym.make("SemSlam-v0", robot={"foo": 1, 7: 2})
+
+
+# ---------------------------------------------------------------- 4. reward weights
+@pytest.mark.parametrize("value", [None, math.nan, math.inf, "1"])
+def test_4_bad_reward_weight_is_rejected_at_construction(value):
+    with pytest.raises(ValueError, match=r"reward_weights.time"):
+        gym.make("SemReloc-v1", reward_weights={"time": value}, **FAST)
+    with pytest.raises(ValueError, match=r"reward_weights.time"):
+        gym.make("SemSlam-v0", reward_weights={"time": value}, **SLAM_FAST)
+
+
+# ---------------------------------------------------------------- 5. sensor noise
+@pytest.mark.parametrize("sensor", ["lidar", "camera"])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -0.1])
+def test_5_nan_or_infinite_sensor_noise_is_rejected(sensor, value):
+    with pytest.raises(ValueError, match=r"noise_std_m"):
+        gym.make("SemSlam-v0", **{sensor: {"noise_std_m": value}})
+
+
+# ---------------------------------------------------------------- 6. slam particles
+@pytest.mark.parametrize("value", [2.0, True, "10"])
+def test_6_slam_particle_count_must_be_an_int(value):
+    with pytest.raises(ValueError, match=r"slam.n_particles must be an integer"):
+        gym.make("SemSlam-v0", slam={"n_particles": value})
+
+
+# ---------------------------------------------------------------- 7. continuous actions
+@pytest.mark.parametrize(
+    "action",
+    [
+        [1 + 5e-7, 0.0],
+        np.array([0.0, -1 - 5e-7]),
+        ["0.5", "0"],
+        np.array(["0.5", "0"]),
+        [0.5 + 1j, 0.0],
+        np.array([0.5 + 1j, 0.0]),
+        [True, 0],
+    ],
+)
+def test_7_actions_outside_the_box_change_nothing(action):
+    env = gym.make("SemSlam-v0", action_type="continuous", **SLAM_FAST)
+    env.reset(seed=0)
+    twin = copy.deepcopy(env)
+    with pytest.raises(ValueError, match="invalid action"):
+        env.step(action)
+    assert_identical(env.step([1.0, 0.0]), twin.step([1.0, 0.0]))
+
+
+def test_7_box_bounds_are_exact():
+    env = gym.make("SemSlam-v0", action_type="continuous", **SLAM_FAST)
+    env.reset(seed=0)
+    env.step(np.array([1.0, -1.0], np.float32))  # the bounds themselves are inside
+    assert not env.action_space.contains(np.array([1 + 5e-7, 0.0], np.float32))
+
+
+# ---------------------------------------------------------------- 8. time limit
+@pytest.mark.parametrize("env_id, kw", [("SemSlam-v0", SLAM_FAST), ("SemReloc-v1", FAST)])
+def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
+    env = gym.make(env_id, max_episode_steps=6, **kw)
+    env.reset(seed=0)
+    for _ in range(5):
+        assert not env.step(3)[3]
+    with pytest.raises(ValueError):
+        env.reset(options={"pose": [-100.0, 0.0, 0.0]})
+    assert env.step(3)[3], "the sixth step of the episode must be truncated"
+    assert type(env).__name__ == "CheckedReset" and "TimeLimit" in str(env)
+
+
+def test_8_check_reset_changes_nothing():
+    a, b = gym.make("SemSlam-v0", **SLAM_FAST), gym.make("SemSlam-v0", **SLAM_FAST)
+    a.reset(seed=1)
+    b.reset(seed=1)
+    a.unwrapped.check_reset(seed=5, options={"pose": [1.0, 1.0, 0.0]})
+    assert_identical([a.step(0) for _ in range(5)], [b.step(0) for _ in range(5)])
+
+
+# ---------------------------------------------------------------- 9. copies in contact
+def test_9_copies_taken_in_contact_do_not_diverge():
+    env = gym.make("SemSlam-v0", **SLAM_FAST)
+    env.reset(seed=0, options={"pose": [0.3, 3.2, math.pi]})  # facing the west wall, 0.1 m away
+    in_contact = 0
+    for k in range(12):
+        info = env.step(0 if k % 3 else 1)[4]
+        in_contact += info["collided"]
+        copies = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+        actions = [0, 0, 1, 0, 2, 0, 0]
+        ref = [env.step(a) for a in actions]
+        for c in copies:
+            assert_identical([c.step(a) for a in actions], ref)
+    assert in_contact >= 6  # the copies were taken while the robot pressed against the wall
+
+
+# ---------------------------------------------------------------- 10. narrow gaps
+def test_10_robot_never_inside_an_obstacle_in_a_narrow_gap():
+    lay = {
+        "outer": [[0, 0], [4, 0], [4, 4], [0, 4]],
+        "objects": [{"class": "cabinet", "polygon": [[0.34, 0], [1.3, 0], [1.3, 0.6], [0.34, 0.6]]}],
+    }
+    env = gym.make("SemSlam-v0", layout=lay, **SLAM_FAST)
+    env.reset(seed=0, options={"pose": [0.21, 1.5, -np.pi / 2]})
+    world = env.unwrapped.world
+    r = world.robot_params.radius_m
+    for k in range(60):
+        env.step(0 if k < 40 else [1, 0, 2][k % 3])
+        assert world.clearance(world.pose[:2]) >= r - 1e-6
+
+
+# ---------------------------------------------------------------- 11. building scale
+def test_11_rasterising_a_huge_layout_fails_before_allocating():
+    lay = layout_from_dict({"outer": [[0, 0], [1e5, 0], [1e5, 1e5], [0, 1e5]]})
+    with pytest.raises(ValueError, match="MAX_RASTER_CELLS"):
+        rasterize(lay)
+    assert rasterize(get_layout("lab")).shape == (220, 320)
+    assert MAX_RASTER_CELLS >= 2_000 * 1_200 * 2  # a 100 m x 60 m building fits at 5 cm
+
+
+def test_11_a_4000_vertex_outer_wall_validates():
+    th = np.linspace(0, 2 * np.pi, 4000, endpoint=False)
+    r = 40 + 5 * np.sin(7 * th)
+    lay = layout_from_dict({"outer": np.c_[r * np.cos(th), r * np.sin(th)], "objects": [_chair(0, 0)]})
+    assert len(lay.outer) == 4000
+
+
+# ---------------------------------------------------------------- 12. loose types
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"robot": {"radius_m": True}}, r"robot.radius_m must be a number, got bool"),
+        ({"lidar": {"n_beams": 1.5}}, r"lidar.n_beams must be an integer, got float"),
+        ({"lidar": {"n_beams": True}}, r"lidar.n_beams must be an integer, got bool"),
+        ({"lidar": {"n_beams": 2.0}}, r"lidar.n_beams must be an integer"),
+        ({"lidar": {"fov_rad": 7.0}}, r"fov_rad must be in \(0, 2\*pi\]"),
+        ({"camera": {"fov_rad": 6.3}}, r"fov_rad must be in \(0, 2\*pi\]"),
+        ({"layout": "procedural", "layout_seed": 1.5}, r"layout_seed must be an integer"),
+        ({"physics": {"substeps": 1e7}}, r"physics.substeps must be an integer"),
+        ({"physics": {"substeps": 10**7}}, r"substeps must be an integer in \[1, 1000\]"),
+        ({"relocalizer": {"use_semantic": "no"}}, r"relocalizer.use_semantic must be a bool"),
+        ({"relocalizer": {"n_particles": 2.0}}, r"relocalizer.n_particles must be (an integer|one of int \| None)"),
+        ({"relocalizer": {"semantic_field": {"max_beams": 1.5}}}, r"relocalizer.semantic_field.max_beams"),
+        ({"relocalizer": {"likelihood_scale": math.nan}}, r"likelihood_scale must be a finite number"),
+        ({"odometry": {"alpha1": "0.1"}}, r"odometry.alpha1 must be a number"),
+    ],
+)
+def test_12_loose_types_are_rejected(kw, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make("SemReloc-v1", **{**FAST, **kw})
+
+
+def test_12_semantic_must_be_a_bool():
+    with pytest.raises(ValueError, match=r"semantic must be True, False or None, got str 'no'"):
+        gym.make("SemReloc-v1", semantic="no", **FAST)
+
+
+def test_12_instances_are_checked_too():
+    with pytest.raises(ValueError, match="radius_m"):
+        RobotParams(radius_m=True)
+    with pytest.raises(ValueError, match="substeps"):
+        PhysicsParams(substeps=2.0)
+    with pytest.raises(ValueError, match="n_beams"):
+        LidarParams(n_beams=np.float64(3))
+    assert LidarParams(n_beams=np.int64(5)).n_beams == 5  # numpy integers are integers
+
+
+def test_nested_overrides_keep_their_own_defaults():
+    cfg = coerce_config(MCLConfig, {"semantic_field": {"sigma_hit_m": 0.4}}, "relocalizer", DEFAULT_RELOCALIZER)
+    default = DEFAULT_RELOCALIZER.semantic_field
+    assert cfg.semantic_field.sigma_hit_m == 0.4
+    assert (cfg.semantic_field.z_hit, cfg.semantic_field.z_rand, cfg.semantic_field.max_beams) == (
+        default.z_hit,
+        default.z_rand,
+        default.max_beams,
+    )
+    assert cfg.lidar_field == DEFAULT_RELOCALIZER.lidar_field
+    assert cfg.likelihood_scale == DEFAULT_RELOCALIZER.likelihood_scale
+    env = gym.make("SemReloc-v1", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
+    assert env.unwrapped.mcl_config.semantic_field == cfg.semantic_field

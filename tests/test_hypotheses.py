@@ -1,0 +1,198 @@
+"""Hypotheses in the belief, the converged rule, clustered resampling, proposals and recovery."""
+
+import math
+
+import numpy as np
+import pytest
+
+from filters.localization.belief import BeliefConfig, cluster_labels, summarize
+from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
+from filters.localization.proposals import ScanProposal, detection_runs
+from filters.pose import compose
+from filters.robot_data.scans import SemanticScan
+from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
+from tests.test_mcl import CAMERA_ANGLES, LIDAR_ANGLES, drive, symmetric_room
+
+
+def blob(rng, centre, n, std_xy=0.05, std_th=0.02):
+    p = np.asarray(centre, float) + rng.normal(0.0, 1.0, (n, 3)) * [std_xy, std_xy, std_th]
+    p[:, 2] = (p[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    return p
+
+
+def test_two_clusters_give_two_hypotheses_sorted_by_weight():
+    rng = np.random.default_rng(0)
+    a, b = blob(rng, [1.0, 1.0, 0.5], 300), blob(rng, [6.0, 3.0, -2.0], 100)
+    w = np.concatenate([np.full(300, 1.0), np.full(100, 2.0)])  # b: 200 of 500 units of mass
+    bel = summarize(np.vstack([a, b]), w)
+    assert bel.n_clusters == 2 and len(bel.hypotheses) == 2
+    h0, h1 = bel.hypotheses
+    assert h0.weight == pytest.approx(0.6) and h1.weight == pytest.approx(0.4)
+    assert h0.n_particles == 300 and h1.n_particles == 100
+    np.testing.assert_allclose(h0.mean, [1.0, 1.0, 0.5], atol=0.02)
+    np.testing.assert_allclose(h1.mean, [6.0, 3.0, -2.0], atol=0.02)
+    assert h0.pos_std_m < 0.1 and h1.theta_std_rad < 0.05
+    np.testing.assert_allclose(bel.estimate, h0.mean)  # the estimate is the heaviest hypothesis
+    d = bel.as_dict()
+    assert [h["weight"] for h in d["hypotheses"]] == pytest.approx([0.6, 0.4])
+    assert len(d["hypotheses"][0]["cov"]) == 3 and d["estimate"] == pytest.approx(list(h0.mean))
+
+
+def test_converged_needs_one_hypothesis_with_nearly_all_the_mass():
+    rng = np.random.default_rng(1)
+    a, b = blob(rng, [1.0, 1.0, 0.0], 400), blob(rng, [6.0, 3.0, 0.0], 400)
+    two = summarize(np.vstack([a, b]), np.ones(800))
+    assert not two.converged  # each part is tight, but the mass is split
+    assert two.best.pos_std_m < 0.1
+    assert summarize(a, np.ones(400)).converged  # one removed: converged
+    w = np.concatenate([np.ones(400), np.full(400, 0.04 / 0.96 / 1.0)])  # 4 % on the second place
+    assert summarize(np.vstack([a, b]), w).converged
+    w = np.concatenate([np.ones(400), np.full(400, 0.1)])  # 9 % on the second place
+    assert not summarize(np.vstack([a, b]), w).converged
+    spread = BeliefConfig(converged_rule="spread")  # the first release's rule, for comparisons
+    assert not summarize(np.vstack([a, b]), np.ones(800), spread).converged
+    assert summarize(a, np.ones(400), spread).converged
+
+
+def test_a_cluster_across_the_heading_seam_is_one_hypothesis():
+    rng = np.random.default_rng(2)
+    seam = blob(rng, [2.0, 2.0, np.pi], 500, std_th=0.05)  # half at +pi, half at -pi
+    assert (seam[:, 2] > 3.0).any() and (seam[:, 2] < -3.0).any()
+    bel = summarize(seam, np.ones(500))
+    assert bel.n_clusters == 1 and bel.converged
+    assert abs(abs(bel.best.mean[2]) - np.pi) < 0.02
+    # same place, opposite headings: two hypotheses
+    flip = np.vstack([blob(rng, [2.0, 2.0, 0.0], 300), blob(rng, [2.0, 2.0, np.pi], 300)])
+    assert summarize(flip, np.ones(600)).n_clusters == 2
+
+
+def test_a_haze_of_unlikely_particles_does_not_join_two_hypotheses():
+    rng = np.random.default_rng(3)
+    a, b = blob(rng, [1.0, 1.0, 0.0], 400), blob(rng, [5.0, 1.0, 0.0], 400)
+    haze = np.column_stack([rng.uniform(0, 6, 4000), rng.uniform(0, 2, 4000), rng.uniform(-np.pi, np.pi, 4000)])
+    poses = np.vstack([a, b, haze])
+    w = np.concatenate([np.ones(800), np.full(4000, 1e-6)])
+    labels, n = cluster_labels(poses, 0.5, math.pi / 4)  # every particle counts: one blob of haze
+    assert n < 10 and labels.min() == 0
+    bel = summarize(poses, w)
+    assert bel.n_clusters == 2 and bel.hypotheses[0].weight == pytest.approx(0.5, abs=0.01)
+
+
+def test_clustered_resampling_keeps_a_weak_hypothesis_and_its_weight():
+    grid = symmetric_room()
+    rng = np.random.default_rng(4)
+    cfg = MCLConfig(n_particles=1000, resample_mode="clustered", cluster_min_particles=50, resample_ess_frac=1.0)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
+    strong, weak = blob(rng, [3.0, 2.5, 0.0], 990), blob(rng, [7.0, 2.5, np.pi], 10)
+    mcl._set(np.vstack([strong, weak]))
+    w = np.concatenate([np.full(990, 0.995 / 990), np.full(10, 0.005 / 10)])
+    mcl._resample_now(w)
+    bel = mcl.belief()
+    assert bel.n_clusters == 1  # 0.5 % is below cluster_min_weight: no listed hypothesis ...
+    near_weak = np.hypot(mcl.poses[:, 0] - 7.0, mcl.poses[:, 1] - 2.5) < 0.5
+    assert near_weak.sum() == 50  # ... but it keeps cluster_min_particles particles
+    assert mcl.weights[near_weak].sum() == pytest.approx(0.005, rel=1e-6)  # and its weight
+    glob = MonteCarloLocalizer(grid, MCLConfig(n_particles=1000), np.random.default_rng(5))
+    glob._set(np.vstack([strong, weak]))
+    glob._resample_now(w)
+    assert np.hypot(glob.poses[:, 0] - 7.0, glob.poses[:, 1] - 2.5).__lt__(0.5).sum() <= 10
+
+
+def test_detection_runs_and_a_proposal_from_a_unique_object_lands_near_the_truth():
+    grid = symmetric_room()  # the cabinet is the only object of its class
+    pose = np.array([3.5, 1.5, np.pi])  # facing the cabinet (x 2.0-2.5, y 1.0-2.0)
+    sem = simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0)
+    runs = detection_runs(sem)
+    assert len(runs) == 1 and runs[0][0] == 1 + grid.class_names.index("cabinet")
+    assert 0.9 < runs[0][1] < 1.6  # about 1 m to the cabinet's face
+    rng = np.random.default_rng(6)
+    prop = ScanProposal(grid, lambda n: np.zeros((n, 3)))
+    cand = prop.candidates(4000, sem, 1.0, rng)
+    assert cand.shape == (4000, 3)
+    lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
+    mcl = MonteCarloLocalizer(grid, MCLConfig(), np.random.default_rng(7))
+    ll_l, ll_s, _ = mcl.measurement_model.log_likelihood_terms(cand, lidar, sem)
+    drawn = prop.draw(200, cand, 0.1 * (ll_l + ll_s), rng)
+    err = np.hypot(drawn[:, 0] - pose[0], drawn[:, 1] - pose[1])
+    assert np.median(err) < 0.3  # the proposal finds the pose, not its mirror image
+    mirror_err = np.hypot(drawn[:, 0] - (10 - pose[0]), drawn[:, 1] - (5 - pose[1]))
+    assert (mirror_err < 0.5).mean() < 0.05
+    assert detection_runs(SemanticScan(np.full(5, 9.0), np.linspace(-0.3, 0.3, 5), np.zeros(5, int), 5.0)) == []
+
+
+def test_augmented_injection_rises_right_after_a_kidnap():
+    grid = symmetric_room()
+    rng = np.random.default_rng(8)
+    cfg = MCLConfig(n_particles=500, augmented=True, injection="scan")
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(9))
+    pose = np.array([4.0, 1.5, np.pi])
+    mcl.init_around(pose, [0.05, 0.05, 0.02])
+    pose = drive(grid, pose, mcl, rng, steps=30)
+    assert mcl.belief().converged and mcl.last_diagnostics.w_slow > 0
+    kidnapped = np.array([8.5, 1.0, 0.5 * np.pi])
+    p, injected = [], 0
+    for _ in range(12):
+        mcl.predict([0.0, 0.0, 0.2])
+        kidnapped = compose(kidnapped, [0.0, 0.0, 0.2])
+        d = mcl.update(
+            simulate_lidar(grid, kidnapped, LIDAR_ANGLES, 8.0, 0.02, rng),
+            simulate_semantic(grid, kidnapped, CAMERA_ANGLES, 5.0),
+        )
+        p.append(d.p_inject)
+        injected += d.n_injected
+    assert max(p[:3]) > 0.03 and injected > 0  # the likelihood drop triggers injection at once
+    err = np.hypot(*(mcl.belief().estimate[:2] - kidnapped[:2]))
+    assert err < 0.5  # scan proposals brought the filter back
+
+
+def test_global_particle_count_follows_the_free_area_and_kld_bounds_hold():
+    grid = symmetric_room()  # about 49 m^2 free
+    by_map = {"n_particles": None, "global_particles_per_m2": 100, "min_particles": 400, "max_particles": 20000}
+    mcl = MonteCarloLocalizer(grid, MCLConfig(**by_map), np.random.default_rng(0))
+    assert 45 < mcl.free_area_m2 < 50
+    assert mcl.global_particle_count() == round(100 * mcl.free_area_m2)
+    mcl.init_global()
+    assert mcl.n_particles == mcl.global_particle_count()
+    mcl.init_around([4.0, 1.5, 0.0], 0.1)
+    assert mcl.n_particles == 400  # a tight cloud starts at the KLD floor
+    capped = MonteCarloLocalizer(
+        grid, MCLConfig(**{**by_map, "global_particles_per_m2": 1000, "max_particles": 8000}), np.random.default_rng(0)
+    )
+    assert capped.global_particle_count() == 8000
+    floor = MonteCarloLocalizer(grid, MCLConfig(**{**by_map, "global_particles_per_m2": 1}), np.random.default_rng(0))
+    assert floor.global_particle_count() == 400
+    fixed = MonteCarloLocalizer(
+        grid, MCLConfig(n_particles=3000, global_particles_per_m2=100), np.random.default_rng(0)
+    )
+    assert fixed.global_particle_count() == 3000  # an explicit count wins
+    with pytest.raises(ValueError, match="global_particles_per_m2"):
+        MCLConfig(n_particles=None)
+    cfg = MCLConfig(kld=True, min_particles=300, max_particles=6000, resample_mode="clustered", resample_ess_frac=1.0)
+    k = MonteCarloLocalizer(grid, cfg, np.random.default_rng(1))
+    rng = np.random.default_rng(2)
+    pose = np.array([4.0, 1.5, np.pi])
+    k.init_global(6000)
+    for _ in range(8):
+        d = k.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng), force=True)
+        assert 300 <= d.n_particles <= 6000 + 50 * 20  # clustered: each kept cluster adds at most its floor
+    assert d.n_particles < 3000
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"resample_mode": "nope"},
+        {"injection": "gps"},
+        {"proposal_frac": 1.5},
+        {"global_particles_per_m2": -1},
+        {"global_particles_per_m2": float("nan")},
+        {"max_update_log_ratio": 0},
+        {"lidar_on_rotation": "no"},
+        {"cluster_min_particles": 0},
+        {"belief": {"converged_rule": "maybe"}},
+        {"belief": {"converged_min_weight": 2.0}},
+    ],
+)
+def test_bad_relocalizer_options_are_rejected(bad):
+    with pytest.raises((ValueError, TypeError)):
+        MCLConfig(**bad)

@@ -1,0 +1,147 @@
+import json
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env  # noqa: F401
+from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS, LayoutSampler, RandomLayout, is_held_out
+from semreloc_env.layouts import ProceduralParams, get_layout, lookalike_layout
+from semreloc_env.rasterize import rasterize
+from semreloc_env.world import build_world
+
+
+def _draws(sampler, seed, n):
+    rng = np.random.default_rng(seed)
+    return [(d.kind, d.seed) for d in (sampler.draw(rng) for _ in range(n))]
+
+
+def test_sampler_is_deterministic_per_seed_and_covers_every_kind():
+    s = LayoutSampler()
+    a, b, c = _draws(s, 1, 60), _draws(s, 1, 60), _draws(s, 2, 60)
+    assert a == b and a != c
+    assert {k for k, _ in a} == {"procedural", "procedural_sym", "procedural_lookalike", "lab", "twin_rooms"}
+    assert all(seed == 0 for k, seed in a if k in ("lab", "twin_rooms"))
+
+
+def test_sampler_never_yields_a_held_out_seed():
+    # a range straddling the held-out block, and a list made mostly of held-out seeds
+    near = range(HELD_OUT_LAYOUT_SEEDS.start - 20, HELD_OUT_LAYOUT_SEEDS.stop + 20)
+    listed = [*HELD_OUT_LAYOUT_SEEDS, 7]
+    for seeds in (near, listed):
+        got = _draws(LayoutSampler(kinds=("procedural",), seeds=seeds), 0, 3000)
+        assert not any(is_held_out(s) for _, s in got)
+        assert len({s for _, s in got}) > 1 or seeds is listed
+    assert {s for _, s in _draws(LayoutSampler(kinds=("procedural",), seeds=listed), 0, 50)} == {7}
+    assert len(HELD_OUT_LAYOUT_SEEDS) == 500 and HELD_OUT_LAYOUT_SEEDS.start == 1_000_000  # documented
+
+
+def test_sampler_rejects_bad_input():
+    with pytest.raises(ValueError, match="kinds"):
+        LayoutSampler(kinds=("maze",))
+    with pytest.raises(ValueError, match="held-out"):
+        LayoutSampler(kinds=("procedural",), seeds=HELD_OUT_LAYOUT_SEEDS)
+    with pytest.raises(ValueError, match="weights"):
+        LayoutSampler(kinds=("lab", "twin_rooms"), weights=[1.0, -1.0])
+    with pytest.raises(ValueError, match="nothing"):
+        LayoutSampler(kinds=())
+
+
+def test_sampler_draws_layout_files(tmp_path):
+    path = tmp_path / "box.json"
+    path.write_text(json.dumps({"name": "box", "outer": [[0, 0], [5, 0], [5, 4], [0, 4]], "walls": []}))
+    s = LayoutSampler(kinds=("lab",), files=[path], weights=[0.0, 1.0])
+    d = s.draw(np.random.default_rng(0))
+    assert d.kind == str(path) and d.layout.name == "box"
+
+
+def _rollout(env, seeds):
+    out = []
+    for s in seeds:
+        obs, info = env.reset(seed=s)
+        o2, *_, i2 = env.step(0)
+        out.append((info["layout"], obs["lidar"].copy(), i2["belief"]["mean"]))
+    return out
+
+
+def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
+    def make():
+        return RandomLayout(gym.make("SemReloc-v1", map_source="perfect", relocalizer={"n_particles": 200}))
+
+    a, b = _rollout(make(), range(6)), _rollout(make(), range(6))
+    for (la, oa, ma), (lb, ob, mb) in zip(a, b):
+        assert la == lb
+        np.testing.assert_array_equal(oa, ob)
+        assert ma == mb
+    assert len({(la["kind"], la["seed"]) for la, _, _ in a}) > 2
+    env = make()
+    env.reset(seed=3)
+    assert env.unwrapped.layout is env.current.layout
+    assert env.unwrapped.grid.shape == rasterize(env.current.layout).shape
+
+
+def test_random_layout_needs_a_layout_free_map(tmp_path):
+    env = gym.make("SemReloc-v1", map_source="perfect")
+    grid = env.unwrapped.grid
+    fixed = gym.make("SemReloc-v1", map_source=grid)
+    with pytest.raises(ValueError, match="map_source"):
+        RandomLayout(fixed)
+    with pytest.raises(ValueError, match="fixed"):
+        fixed.unwrapped.set_layout("twin_rooms")
+
+
+def test_lookalike_rooms_are_identical_and_only_the_corridor_tells_them_apart():
+    layout_dict, frames = lookalike_layout(np.random.default_rng(3), ProceduralParams(lookalike=True))
+    layout = get_layout(layout_dict)
+    assert layout.name == "procedural_lookalike" and len(frames) >= 4
+    world = build_world(layout)
+    labels = np.array([o.label for o in layout.objects] + [0])  # owner -1 (a wall) -> label 0
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+
+    def scan(pose, rmax):
+        r, hit = world.scene.cast(np.asarray(pose[:2]), pose[2] + angles, rmax)
+        return r, labels[np.where(hit >= 0, world.scene.owner[np.maximum(hit, 0)], -1)] * (hit >= 0)
+
+    # a pose in south room 0 and its images in every room see exactly the same all round out to
+    # 2.5 m (beyond, rays through the doorway may reach the corridor)
+    local = np.array([0.8, 0.8, 0.3])
+    scans = []
+    for fx, fy, ft in frames:
+        c, s = math.cos(ft), math.sin(ft)
+        pose = [fx + c * local[0] - s * local[1], fy + s * local[0] + c * local[1], ft + local[2]]
+        assert world.is_free(np.array(pose[:2]))
+        scans.append(scan(pose, 2.5))
+    for r, lab in scans[1:]:
+        np.testing.assert_allclose(r, scans[0][0], atol=1e-6)
+        np.testing.assert_array_equal(lab, scans[0][1])
+    # rooms identical in furniture classes: every room holds the same multiset of classes
+    per_room = []
+    for fx, fy, ft in frames:
+        c, s = math.cos(-ft), math.sin(-ft)
+        cls = []
+        for o in layout.objects:
+            dx, dy = o.centroid() - (fx, fy)
+            u, v = c * dx - s * dy, s * dx + c * dy
+            if -0.01 < v < 3.0 and 0 < u < frames[1][0] - frames[0][0]:
+                cls.append((o.cls, round(u, 2), round(v, 2)))
+        per_room.append(sorted(cls))
+    assert all(r == per_room[0] for r in per_room)
+    # the corridor holds objects outside every room: what tells the rooms apart
+    depth = min(y for x, y in (p for w in layout.walls for p in w) if y > 0)
+    corridor = [o for o in layout.objects if depth - 0.01 < o.centroid()[1] < layout.bounds()[3] - depth + 0.01]
+    assert len(corridor) >= ProceduralParams().corridor_objects[0]
+    with pytest.raises(ValueError, match="exclude"):
+        ProceduralParams(symmetric=True, lookalike=True)
+
+
+def test_set_layout_changes_the_next_episode_only():
+    env = gym.make("SemReloc-v1", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
+    env.reset(seed=0)
+    pose = env.unwrapped.world.pose.copy()
+    env.unwrapped.set_layout("twin_rooms")
+    np.testing.assert_array_equal(env.unwrapped.world.pose, pose)  # running episode untouched
+    assert env.unwrapped.layout.name == "twin_rooms"
+    _, info = env.reset(seed=0)
+    assert env.unwrapped.world.layout.name == "twin_rooms"
+    assert 0 <= info["pose"][0] <= 12

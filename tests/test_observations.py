@@ -1,0 +1,170 @@
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env  # noqa: F401
+from semreloc_env.observations import (
+    BELIEF_SUMMARY,
+    HYPOTHESIS_FEATURES,
+    ActiveObservation,
+    hypotheses_of,
+)
+from semreloc_env.observations.rasters import MapRasters, egocentric_raster
+
+SMALL = {"name": "small", "outer": [[0, 0], [4, 0], [4, 3], [0, 3]], "walls": [], "objects": []}
+BIG = {
+    "name": "big",
+    "outer": [[0, 0], [40, 0], [40, 12], [0, 12]],
+    "walls": [[[20, 0], [20, 5]], [[20, 7], [20, 12]]],
+    "objects": [{"class": "cabinet", "center": [0.3, 6], "size": [0.6, 1.2]}],
+}
+
+
+class _Recorder(gym.Wrapper):
+    """Keeps the raw observation of the last reset / step (what ActiveObservation was given)."""
+
+    def reset(self, **kw):
+        self.last, info = self.env.reset(**kw)
+        return self.last, info
+
+    def step(self, action):
+        self.last, *rest = self.env.step(action)
+        return (self.last, *rest)
+
+
+def _env(layout, n, **kw):
+    inner = gym.make("SemReloc-v1", layout=layout, map_source="perfect", relocalizer={"n_particles": n})
+    return ActiveObservation(_Recorder(inner), **kw)
+
+
+def obs_raw(env):
+    return env.env.last
+
+
+def _spaces_equal(a, b):
+    assert list(a.spaces) == list(b.spaces)
+    for k in a.spaces:
+        sa, sb = a[k], b[k]
+        assert type(sa) is type(sb)
+        if hasattr(sa, "low"):
+            np.testing.assert_array_equal(sa.low, sb.low)
+            np.testing.assert_array_equal(sa.high, sb.high)
+        else:
+            np.testing.assert_array_equal(sa.nvec, sb.nvec)
+
+
+@pytest.mark.parametrize("layout", ["twin_rooms", SMALL, BIG])
+@pytest.mark.parametrize("n", [30, 2500])
+def test_observation_inside_its_space_at_any_particle_count_and_layout_size(layout, n):
+    env = _env(layout, n)
+    _spaces_equal(env.observation_space, _env("lab", 1000).observation_space)  # bounds independent of both
+    rng = np.random.default_rng(0)
+    obs, info = env.reset(seed=2)
+    assert env.observation_space.contains(obs)
+    for _ in range(25):
+        obs, *_, info = env.step(int(rng.integers(0, 4)))
+        assert env.observation_space.contains(obs), [
+            k for k, v in obs.items() if not env.observation_space[k].contains(v)
+        ]
+    assert obs["semantic_class"].dtype == np.int64
+    assert obs["ego"][:4].max() == pytest.approx(1.0)  # max-normalised mass: some particle near the anchor
+
+
+class _NoTruth:
+    def __getattr__(self, name):
+        raise AssertionError(f"the observation read the simulator's world ({name})")
+
+
+def test_observation_never_reads_the_true_pose_or_the_error():
+    env = _env("twin_rooms", 400)
+    obs, info = env.reset(seed=4)
+    for a in (0, 0, 1, 1, 0):
+        obs, *_, info = env.step(a)
+    base = env.unwrapped
+    world = base.world
+    base.world = _NoTruth()
+    stripped = {k: v for k, v in info.items() if k not in ("pose", "pose_error")}
+    try:
+        again = env.observe(obs_raw(env), stripped)
+    finally:
+        base.world = world
+    for k in obs:
+        np.testing.assert_array_equal(again[k], obs[k])
+
+
+def test_observation_depends_on_the_belief_not_on_where_the_robot_is():
+    # same filter state, different true pose: same belief images and hypotheses
+    env = _env("lab", 300)
+    obs, info = env.reset(seed=0)
+    base = env.unwrapped
+    world = base.world
+    before = env.observe(obs_raw(env), info)
+    world.set_pose(world.sample_free_pose(np.random.default_rng(9)))
+    after = env.observe(obs_raw(env), info)
+    for k in ("ego", "global", "hypotheses", "belief"):
+        np.testing.assert_array_equal(before[k], after[k])
+
+
+def test_last_action_and_scans_are_encoded():
+    env = _env("twin_rooms", 200)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_array_equal(obs["last_action"], np.zeros(4))
+    obs, *_ = env.step(2)
+    np.testing.assert_array_equal(obs["last_action"], [0, 0, 1, 0])
+    raw = obs_raw(env)
+    np.testing.assert_allclose(obs["lidar"], raw["lidar"] / 8.0, rtol=1e-6)
+    np.testing.assert_array_equal(obs["semantic_class"], raw["semantic"][32:].astype(int))
+    cont = ActiveObservation(
+        gym.make(
+            "SemReloc-v1",
+            layout="twin_rooms",
+            map_source="perfect",
+            action_type="continuous",
+            relocalizer={"n_particles": 100},
+        )
+    )
+    cont.reset(seed=0)
+    obs, *_ = cont.step(np.array([0.5, -0.25], np.float32))
+    np.testing.assert_allclose(obs["last_action"], [0.5, -0.25])
+    assert cont.observation_space.contains(obs)
+
+
+def test_keys_select_entries_and_bad_arguments_raise():
+    env = _env("twin_rooms", 100, keys=("hypotheses", "lidar"))
+    obs, _ = env.reset(seed=0)
+    assert list(obs) == ["hypotheses", "lidar"] and env.observation_space.contains(obs)
+    assert obs["hypotheses"].shape == (8, len(HYPOTHESIS_FEATURES))
+    for kw, name in (
+        ({"keys": ("pose",)}, "keys"),
+        ({"ego_size": 0}, "ego_size"),
+        ({"ego_cell_m": -1.0}, "ego_cell_m"),
+    ):
+        with pytest.raises(ValueError, match=name):
+            _env("twin_rooms", 100, **kw)
+    assert len(BELIEF_SUMMARY) == 7
+
+
+def test_hypotheses_of_prefers_the_filters_list():
+    env = _env("twin_rooms", 100)
+    _, info = env.reset(seed=0)
+    mine = hypotheses_of(env, info)
+    mcl = env.unwrapped.mcl
+    assert mine == info["belief"]["hypotheses"] == mcl.belief().as_dict()["hypotheses"]
+    assert sum(h["weight"] for h in mine) <= 1.0 + 1e-9 and sum(h["n_particles"] for h in mine) <= 100
+    published = [{"weight": 1.0, "mean": [1.0, 2.0, 0.0], "cov": np.eye(3).tolist(), "n_particles": 100}]
+    assert hypotheses_of(env, {"belief": {"hypotheses": published}}) == published
+
+
+def test_egocentric_raster_frame():
+    grid = gym.make("SemReloc-v1", layout="twin_rooms", map_source="perfect").unwrapped.grid
+    r = MapRasters(grid, 0.25, 32)
+    anchor = np.array([3.0, 3.0, math.pi / 2])  # facing +y
+    # one particle 1 m ahead of the anchor (4 cells along the columns), one 1 m to its left (rows)
+    poses = np.array([[3.0, 4.0, math.pi / 2], [2.0, 3.0, math.pi]])
+    img, mass = egocentric_raster(r, poses, np.array([1.0, 0.5]), anchor, 32, 4)
+    assert mass == pytest.approx(1.0)
+    assert img[0, 16, 20] == pytest.approx(1.0)  # heading equal to the anchor's: bin 0
+    assert img[1, 20, 16] == pytest.approx(0.5)  # heading +90 deg relative: bin 1
+    assert img[:4].sum() == pytest.approx(1.5)
