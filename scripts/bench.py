@@ -15,6 +15,7 @@ excluded (warm-up calls before timing); repeated timings report the median.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import sys
 import time
@@ -284,6 +285,33 @@ def bench_env(args: Args) -> list[Row]:
     ]
 
 
+def bench_batched(args: Args) -> list[Row]:
+    """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64."""
+    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+    rows = []
+    for r in (1, 16, 64):
+        venv = SemRelocLoopVectorEnv(num_envs=r)
+        venv.reset(seed=args.seed)
+        rng = np.random.default_rng(args.seed)
+        n = max(5, args.steps // r)
+        venv.step(rng.integers(0, 4, r))
+        with Clock() as c:
+            for _ in range(n):
+                venv.step(rng.integers(0, 4, r))
+        venv.close()
+        rows.append(
+            Row(
+                f"batched env R={r}",
+                n * r / c.cpu,
+                n * r / c.wall,
+                "robot-steps/s",
+                "random actions; target 5000 at R=64",
+            )
+        )
+    return rows
+
+
 def bench_stages(args: Args) -> list[Row]:
     """Per-stage CPU time of a default step (cProfile, process clock; inflates short calls)."""
     from profile_step import stage_breakdown
@@ -400,35 +428,41 @@ def bench_mapping(args: Args) -> list[Row]:
 
 
 def bench_ppo(args: Args) -> list[Row]:
-    """PPO training steps/s vs raw steps/s of the same vec env (DummyVecEnv x4, BeliefObservation)."""
+    """PPO training steps/s vs raw steps/s of the same vec env (``agents.train``: BeliefObservation,
+    metrics callback, rollout 1024 steps): DummyVecEnv x4 and the batched env (SB3 adapter) x16."""
     if args.quick:
         return []
-    from stable_baselines3.common.env_util import make_vec_env
+    from agents.train import TrainConfig, make_venv, train
 
-    from agents.train import TrainConfig, make_env, train
-
-    cfg = TrainConfig(total_timesteps=args.ppo_steps, progress_every_s=None, seed=args.seed)
-    venv = make_vec_env(lambda: make_env({}), n_envs=cfg.n_envs, seed=cfg.seed)
-    venv.reset()
-    rng = np.random.default_rng(args.seed)
-    n_raw = args.ppo_steps // cfg.n_envs
-    with Clock() as raw:
-        for _ in range(n_raw):
-            venv.step(rng.integers(0, 4, cfg.n_envs))
-    venv.close()
-    train(
-        TrainConfig(total_timesteps=cfg.n_envs * cfg.n_steps, progress_every_s=None, seed=args.seed)
-    ).get_env().close()
-    with Clock() as ppo:
-        model = train(cfg)
-    model.get_env().close()
-    raw_cpu, raw_wall = n_raw * cfg.n_envs / raw.cpu, n_raw * cfg.n_envs / raw.wall
-    ppo_cpu, ppo_wall = args.ppo_steps / ppo.cpu, args.ppo_steps / ppo.wall
-    return [
-        Row("vec env raw (DummyVecEnv x4)", raw_cpu, raw_wall, "steps/s", "random actions"),
-        Row("PPO training", ppo_cpu, ppo_wall, "steps/s", f"{args.ppo_steps} steps, n_steps 256, 4 epochs"),
-        Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
-    ]
+    rows = []
+    for vec_env, n_envs in (("dummy", 4), ("batched", 16)):
+        cfg = TrainConfig(
+            n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, total_timesteps=args.ppo_steps,
+            progress_every_s=None, seed=args.seed,
+        )  # fmt: skip
+        venv = make_venv(cfg)
+        venv.reset()
+        rng = np.random.default_rng(args.seed)
+        n_raw = args.ppo_steps // n_envs
+        with Clock() as raw:
+            for _ in range(n_raw):
+                venv.step(rng.integers(0, 4, n_envs))
+        venv.close()
+        warm = dataclasses.replace(cfg, total_timesteps=1024)
+        train(warm).get_env().close()  # warm-up: torch, numba
+        with Clock() as ppo:
+            model = train(cfg)
+        model.get_env().close()
+        raw_cpu, raw_wall = n_raw * n_envs / raw.cpu, n_raw * n_envs / raw.wall
+        ppo_cpu, ppo_wall = args.ppo_steps / ppo.cpu, args.ppo_steps / ppo.wall
+        rows += [
+            Row(f"{vec_env} x{n_envs}: raw vec env", raw_cpu, raw_wall, "steps/s", "random actions"),
+            Row(
+                f"{vec_env} x{n_envs}: PPO training", ppo_cpu, ppo_wall, "steps/s", f"{args.ppo_steps} steps, 4 epochs"
+            ),
+            Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
+        ]
+    return rows
 
 
 def bench_mappers(args: Args) -> list[Row]:
@@ -457,6 +491,7 @@ def bench_mappers(args: Args) -> list[Row]:
 BENCHMARKS: list[Callable[[Args], list[Row]]] = [
     bench_likelihood,
     bench_env,
+    bench_batched,
     bench_stages,
     bench_scaling,
     bench_reset,
