@@ -159,6 +159,35 @@ def _cast_kernel(ox, oy, cos_a, sin_a, a, e, start, items, gx0, gy0, cell, nx, n
     return 0
 
 
+@numba.njit(cache=True, nogil=True)
+def _near_kernel(px, py, reach, a, e, start, items, gx0, gy0, cell, nx, ny, seen):  # pragma: no cover - compiled
+    """Mark ``seen[i]`` for the segments within ``reach`` of ``(px, py)`` (the formula of ``distances``).
+
+    Returns how many were marked."""
+    c0 = max(0, int(math.floor((px - reach - gx0) / cell)))
+    c1 = min(nx - 1, int(math.floor((px + reach - gx0) / cell)))
+    r0 = max(0, int(math.floor((py - reach - gy0) / cell)))
+    r1 = min(ny - 1, int(math.floor((py + reach - gy0) / cell)))
+    count = 0
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            k = r * nx + c
+            for q in range(start[k], start[k + 1]):
+                i = items[q]
+                if seen[i]:
+                    continue
+                ex = e[i, 0]
+                ey = e[i, 1]
+                ee = max(ex * ex + ey * ey, 1e-18)
+                t = min(max(((px - a[i, 0]) * ex + (py - a[i, 1]) * ey) / ee, 0.0), 1.0)
+                dx = a[i, 0] + t * ex - px
+                dy = a[i, 1] + t * ey - py
+                if math.sqrt(dx * dx + dy * dy) <= reach:
+                    seen[i] = True
+                    count += 1
+    return count
+
+
 @dataclass(frozen=True, eq=False)
 class SegmentScene:
     """Static line segments with the object each belongs to.
@@ -261,7 +290,18 @@ class SegmentScene:
         return self._e
 
     def near(self, point: np.ndarray, reach_m: float) -> np.ndarray:
-        """Indices of the segments within ``reach_m`` of ``point`` ``(2,)``, ascending."""
+        """Indices of the segments within ``reach_m`` of ``point`` ``(2,)``, ascending (compiled:
+        only the bucket cells within ``reach_m`` are looked at; :meth:`near_reference` tests all)."""
+        start, items, gx0, gy0, cell, nx, ny = self._grid
+        p = np.asarray(point, dtype=np.float64)
+        seen = np.zeros(self._a.shape[0], dtype=np.bool_)
+        n = _near_kernel(
+            float(p[0]), float(p[1]), float(reach_m), self._a, self._e, start, items, gx0, gy0, cell, nx, ny, seen
+        )
+        return np.flatnonzero(seen) if n else np.zeros(0, np.int64)
+
+    def near_reference(self, point: np.ndarray, reach_m: float) -> np.ndarray:
+        """:meth:`near` by the distance to every segment (NumPy)."""
         return np.flatnonzero(self.distance_to(point) <= reach_m)
 
     def distance_to(self, point: np.ndarray) -> np.ndarray:

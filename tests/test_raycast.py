@@ -202,3 +202,13 @@ def test_compiled_motion_sample_equals_the_numpy_reference():
         b = model.sample_reference(poses, delta, np.random.default_rng(seed))
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
         assert np.all((a[:, 2] >= -np.pi) & (a[:, 2] < np.pi))
+
+
+def test_compiled_near_equals_the_distance_to_every_segment():
+    world = build_world(get_layout("procedural", seed=4))
+    x0, x1, y0, y1 = world.layout.bounds()
+    rng = np.random.default_rng(9)
+    for _ in range(3000):
+        p = rng.uniform((x0 - 1, y0 - 1), (x1 + 1, y1 + 1))
+        reach = float(rng.uniform(0.0, 3.0))
+        assert np.array_equal(world.scene.near(p, reach), world.scene.near_reference(p, reach))
