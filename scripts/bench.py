@@ -272,17 +272,10 @@ def _steps_per_s(env, steps: int, seed: int) -> tuple[float, float]:
     return steps / cpu, steps / wall
 
 
-BASELINE_STEPS_PER_CPU_S = 680.0
-"""SemReloc-v1 defaults before issue 8 (1.47 ms CPU per step on this machine; docs/performance.md)."""
-
-
 def bench_env(args: Args) -> list[Row]:
     """Single ``SemReloc-v1`` at the defaults (lab, mapped map, 2000 particles, 60 + 32 beams)."""
     cpu, wall = _steps_per_s(_env(), args.steps, args.seed)
-    return [
-        Row("SemReloc-v1 step (defaults)", cpu, wall, "steps/s", f"{1e3 / cpu:.3f} ms CPU per step"),
-        Row("  vs before issue 8", cpu / BASELINE_STEPS_PER_CPU_S, float("nan"), "x", "target >= 3"),
-    ]
+    return [Row("SemReloc-v1 step (defaults)", cpu, wall, "steps/s", f"{1e3 / cpu:.3f} ms CPU per step")]
 
 
 def bench_batched(args: Args) -> list[Row]:
