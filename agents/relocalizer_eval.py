@@ -204,3 +204,65 @@ def save_jsonl(results: list[dict], path) -> None:
 def load_jsonl(path) -> list[dict]:
     with open(path) as f:
         return [json.loads(line) for line in f if line.strip()]
+
+
+# ----------------------------------------------------------------------------- real robot log
+_LOG_CACHE: dict = {}
+
+
+def _log_and_map(path: str):
+    """The CARMEN log and the map built from its corrected poses (cached per process)."""
+    if path not in _LOG_CACHE:
+        from filters.mapping.from_scans import map_from_scans
+        from filters.robot_data.carmen import read_carmen
+
+        log = read_carmen(path)
+        _LOG_CACHE[path] = (log, map_from_scans(log.poses, log.scans(), resolution_m=0.05))
+    return _LOG_CACHE[path]
+
+
+def log_trial(job: tuple) -> dict:
+    """One global-localization trial on a log: ``(path, label, mcl_overrides, start, n_steps)``.
+
+    The relocalizer is the env's default with ``mcl_overrides`` and ``use_semantic=False`` (a log
+    has no semantic scans); the trial is seeded by its start scan.
+    """
+    from filters.robot_data.replay import global_localization_trials
+    from semreloc_env.config import coerce_config
+    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER, MCLConfig
+
+    path, label, overrides, start, n_steps = job
+    cfg = coerce_config(MCLConfig, {**overrides, "use_semantic": False}, "relocalizer", DEFAULT_RELOCALIZER)
+    log, grid = _log_and_map(path)
+    c0 = time.process_time()
+    (r,) = global_localization_trials(log, grid, cfg, [start], n_steps, rng_seed=start)
+    return {
+        "label": label,
+        "start": start,
+        "outcome": r.outcome,
+        "steps": r.steps,
+        "pos_error_m": r.pos_error_m,
+        "cpu_s": time.process_time() - c0,
+    }
+
+
+def log_tracking(job: tuple) -> dict:
+    """Tracking over a whole log: ``(path, label, mcl_overrides, seed)`` -> error statistics."""
+    from filters.robot_data.replay import track
+    from semreloc_env.config import coerce_config
+    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER, MCLConfig
+
+    path, label, overrides, seed = job
+    cfg = coerce_config(MCLConfig, {**overrides, "use_semantic": False}, "relocalizer", DEFAULT_RELOCALIZER)
+    log, grid = _log_and_map(path)
+    c0 = time.process_time()
+    tr = track(log, grid, cfg, rng_seed=seed)
+    return {"label": label, "seed": seed, **tr.stats(), "cpu_s_per_scan": (time.process_time() - c0) / len(log)}
+
+
+def run_jobs(fn, jobs: list, workers: int) -> list:
+    """``[fn(j) for j in jobs]``, in a process pool if ``workers > 1`` (same order, same results)."""
+    if workers <= 1:
+        return [fn(j) for j in jobs]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(fn, jobs, chunksize=1))

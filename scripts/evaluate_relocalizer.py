@@ -21,7 +21,18 @@ import sys
 import time
 from pathlib import Path
 
-from agents.relocalizer_eval import POLICIES, EpisodeSpec, pct, run_grid, save_jsonl, summarize
+from agents.relocalizer_eval import (
+    POLICIES,
+    EpisodeSpec,
+    log_tracking,
+    log_trial,
+    pct,
+    run_grid,
+    run_jobs,
+    save_jsonl,
+    summarize,
+    wilson,
+)
 from semreloc_env.envs.semreloc import LEGACY_RELOCALIZER_OVERRIDES
 
 VARIANTS = {"before": LEGACY_RELOCALIZER_OVERRIDES, "after": {}}
@@ -77,6 +88,33 @@ def table(results: list[dict], variants: list[str], rows: list[str]) -> str:
     return head + "\n".join(lines) + "\n"
 
 
+ACES_LOG = Path(__file__).resolve().parent.parent / "tests" / "data" / "aces-corrected.log.gz"
+
+
+def log_table(trials: list[dict], tracks: list[dict], names: list[str]) -> str:
+    head = (
+        "| variant | starts | correct | wrong | unconverged | median scans to correct "
+        "| CPU s per trial | tracking median error m (seeds) |\n" + "|---" * 8 + "|\n"
+    )
+    lines = []
+    for v in names:
+        ts = [t for t in trials if t["label"] == v]
+        if not ts:
+            continue
+        n = len(ts)
+        cell = {o: (sum(t["outcome"] == o for t in ts) / n, *wilson(sum(t["outcome"] == o for t in ts), n)) for o in
+                ("correct", "wrong", "unconverged")}  # fmt: skip
+        ok = [t["steps"] for t in ts if t["outcome"] == "correct"]
+        med = f"{sorted(ok)[len(ok) // 2]}" if ok else "—"
+        tr = [t for t in tracks if t["label"] == v]
+        trk = ", ".join(f"{t['pos_median_m']:.3f}" for t in tr) or "—"
+        lines.append(
+            f"| {v} | {n} | {pct(cell['correct'])} | {pct(cell['wrong'])} | {pct(cell['unconverged'])} | {med} "
+            f"| {sum(t['cpu_s'] for t in ts) / n:.1f} | {trk} |"
+        )
+    return head + "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", default="before,after", help="comma-separated names of VARIANTS")
@@ -87,6 +125,9 @@ def main(argv=None) -> None:
     ap.add_argument("--sym-seeds", default="0,1,2,3,4,5,6,7,8,9", help="procedural_sym layout seeds")
     ap.add_argument("--workers", type=int, default=2, help="worker processes")
     ap.add_argument("--out", default="out/reloc_eval", help="output folder (results.jsonl, table.md)")
+    ap.add_argument("--log-starts", type=int, default=44, help="ACES log: evenly spaced start scans (0 = skip the log)")
+    ap.add_argument("--log-steps", type=int, default=60, help="ACES log: scans per global-localization trial")
+    ap.add_argument("--log-tracking-seeds", type=int, default=3, help="ACES log: tracking runs over the whole log")
     args = ap.parse_args(argv)
     variants = dict(VARIANTS)
     variants.update(json.loads(args.extra))
@@ -94,7 +135,7 @@ def main(argv=None) -> None:
     unknown = [v for v in names if v not in variants]
     if unknown:
         ap.error(f"unknown variants {unknown}; known: {sorted(variants)}")
-    rows = [r for r in args.rows.split(",") if r]
+    rows = [r for r in args.rows.split(",") if r and r != "none"]
     sym = [int(s) for s in args.sym_seeds.split(",")]
     specs = []
     for row in rows:  # grouped by row, so a worker meets few layouts (maps are cached per process)
@@ -108,9 +149,19 @@ def main(argv=None) -> None:
         if k % 20 == 0 or k == n:
             print(f"  {k}/{n} episodes, {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
 
-    results = run_grid(specs, workers=args.workers, progress=progress)
+    results = run_grid(specs, workers=args.workers, progress=progress) if specs else []
     save_jsonl(results, out / "results.jsonl")
-    md = table(results, names, rows)
+    md = table(results, names, rows) if results else ""
+    if args.log_starts > 0:
+        log_path = str(ACES_LOG)
+        n_scans = 440
+        starts = [round(i * (n_scans - args.log_steps) / args.log_starts) for i in range(args.log_starts)]
+        trials = run_jobs(log_trial, [(log_path, v, variants[v], s, args.log_steps) for v in names for s in starts],
+                          args.workers)  # fmt: skip
+        tracks = run_jobs(log_tracking, [(log_path, v, variants[v], k) for v in names
+                                         for k in range(args.log_tracking_seeds)], args.workers)  # fmt: skip
+        save_jsonl(trials + tracks, out / "log_results.jsonl")
+        md += "\n### ACES log (lidar only, map from the corrected poses)\n\n" + log_table(trials, tracks, names)
     (out / "table.md").write_text(md)
     print(md)
     print(f"{len(results)} episodes in {time.time() - t0:.0f} s; written to {out}")

@@ -56,6 +56,8 @@ class Args:
     """JSON dict of MCLConfig overrides (filters.localization.mcl), both variants, e.g. '{"likelihood_scale": 0.05}'"""
     workers: int = 2
     """worker processes"""
+    env_id: str = "SemReloc-v0"
+    """env id: docs/paper004.md was made with SemReloc-v0 (the first release's relocalizer)"""
     out: str = "docs"
     """folder for paper004.md and figures/"""
 
@@ -76,9 +78,9 @@ def run_episode(job: tuple) -> dict:
     import semreloc_env  # noqa: F401
     from agents.baselines import WallFollowExplorer
 
-    case, semantic, seed, max_steps, particles, mcl, snapshot = job
+    case, semantic, seed, max_steps, particles, mcl, snapshot, env_id = job
     env = gym.make(
-        "SemReloc-v1",
+        env_id,
         **CASES[case],
         semantic=semantic,
         relocalizer={"n_particles": particles, **mcl},
@@ -150,7 +152,7 @@ def main(argv=None) -> None:
 
     mcl = json.loads(args.mcl)
     jobs = [
-        (c, sem, s, args.max_steps, args.particles, mcl, s == args.first_seed)
+        (c, sem, s, args.max_steps, args.particles, mcl, s == args.first_seed, args.env_id)
         for c in cases
         for sem in (False, True)
         for s in range(args.first_seed, args.first_seed + args.seeds)

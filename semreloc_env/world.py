@@ -299,12 +299,18 @@ class World:
             xy, g.ring_edges, g.ring_start, g.ring_bbox, ob_start, ob_items, g.scene._a, g.scene._e,
             seg_start, seg_items, gx0, gy0, cell, nx, ny, clearance, out,
         )  # fmt: skip
+        solid_at = getattr(self.layout, "solid_at", None)  # worlds built from maps: occupied cells are solid
+        if solid_at is not None and out.any():
+            out[out] &= ~solid_at(xy[out])
         return out
 
     def free_points_reference(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
         """:meth:`free_points` in plain NumPy (the reference the compiled test is checked against)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         ok = point_in_polygon(xy, np.asarray(self.layout.outer))
+        solid_at = getattr(self.layout, "solid_at", None)  # worlds built from maps: occupied cells are solid
+        if solid_at is not None:
+            ok[ok] &= ~solid_at(xy[ok])
         for poly in self._obstacles:
             ok &= ~point_in_polygon(xy, poly)
         ok[ok] &= self.scene.distances(xy[ok]).min(axis=1) >= self.robot_params.radius_m + margin_m

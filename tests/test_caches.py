@@ -108,3 +108,30 @@ def test_tiled_layout_repeats_the_base_and_checks_its_arguments():
         tiled_layout(lab, 0, 1)
     with pytest.raises(ValueError, match="rectangle"):
         tiled_layout(get_layout({"outer": [[0, 0], [4, 0], [2, 3]]}), 2, 2)
+
+
+def test_array_level_mapper_updates_equal_the_scan_object_path():
+    from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper
+    from filters.robot_data.scans import LaserScan, SemanticScan
+
+    rng = np.random.default_rng(3)
+    n, b = 40, 30
+    poses = np.column_stack([rng.uniform(1, 4, n), rng.uniform(1, 4, n), rng.uniform(-np.pi, np.pi, n)])
+    angles = np.linspace(-1.0, 1.0, b)
+    ranges = rng.uniform(0.0, 6.0, (n, b))  # some beyond the 5 m range: no return
+    labels = rng.integers(0, 5, (n, b))
+    for params in (OccupancyParams(), OccupancyParams(clear_no_return=False)):
+        a, c = OccupancyMapper((100, 100), 0.05, params=params), OccupancyMapper((100, 100), 0.05, params=params)
+        a.update_many(poses, [LaserScan(r, angles, 5.0) for r in ranges])
+        c.update_arrays(poses, ranges, angles, 5.0)
+        np.testing.assert_array_equal(a.logodds, c.logodds)
+    a, c = SemanticMapper((100, 100), 0.05), SemanticMapper((100, 100), 0.05)
+    a.update_many(poses, [SemanticScan(r, angles, lab, 5.0) for r, lab in zip(ranges, labels)])
+    c.update_arrays(poses, ranges, labels, angles, 5.0)
+    np.testing.assert_array_equal(a.logodds, c.logodds)
+    import pytest
+
+    with pytest.raises(ValueError, match="labels"):
+        c.update_arrays(poses, ranges, labels + 5, angles, 5.0)
+    with pytest.raises(ValueError, match="ranges"):
+        c.update_arrays(poses, ranges[:3], labels[:3], angles, 5.0)

@@ -165,10 +165,9 @@ GOOD_KEYS = {
     "image": "image: lab.pgm",
     "resolution": "resolution: 0.1",
     "origin": "origin: [-1.0, 2.0, 0.0]",
-    "negate": "negate: 0",
     "occupied_thresh": "occupied_thresh: 0.65",
     "free_thresh": "free_thresh: 0.196",
-}
+}  # negate and mode are optional (map_server defaults 0 and trinary)
 
 
 def _yaml_with(**override: str | None) -> str:
@@ -186,14 +185,14 @@ YAML_CASES = {
     **{f"missing {k}": (_yaml_with(**{k: None}), f"missing key '{k}'") for k in GOOD_KEYS},
     "non-numeric resolution": (_yaml_with(resolution="resolution: fine"), "resolution must be a number"),
     "negative resolution": (_yaml_with(resolution="resolution: -0.05"), "resolution must be positive"),
-    "nonzero yaw": (_yaml_with(origin="origin: [0.0, 0.0, 0.3]"), "rotated maps are not supported"),
+    "nonzero yaw": (_yaml_with(origin="origin: [0.0, 0.0, 0.3]"), "origin yaw is 0.3 rad; rotated maps are not"),
     "short origin": (_yaml_with(origin="origin: [0.0, 0.0]"), "origin must be a list"),
-    "bad negate": (_yaml_with(negate="negate: 2"), "negate must be 0 or 1"),
+    "bad negate": (_yaml_with(extra="negate: 2"), "negate must be 0 or 1"),
     "thresholds swapped": (
         _yaml_with(occupied_thresh="occupied_thresh: 0.1", free_thresh="free_thresh: 0.9"),
         "free_thresh",
     ),
-    "raw mode": (_yaml_with(extra="mode: raw"), "mode 'raw' is not supported"),
+    "unknown mode": (_yaml_with(extra="mode: fancy"), "mode 'fancy' is not supported"),
     "not yaml": ("image: [unclosed\n", "not valid YAML"),
     "not a mapping": ("- 1\n- 2\n", "expected a YAML mapping"),
     "image file missing": (_yaml_with(image="image: elsewhere.pgm"), "image file not found"),
@@ -213,12 +212,13 @@ def test_malformed_yaml_raises_naming_the_file(tmp_path, case):
 
 
 PGM_CASES = {
-    "bad magic": (b"P6\n4 3\n255\n" + bytes(36), "magic number"),
+    "bad magic": (b"Q5\n4 3\n255\n" + bytes(36), "magic number"),
     "not a pgm at all": (b"\x89PNG\r\n\x1a\n", "magic number"),
     "non-integer size": (b"P5\nfour 3\n255\n" + bytes(12), "not integers"),
     "truncated header": (b"P5\n4 3", "ends inside the header"),
     "zero width": (b"P5\n0 3\n255\n", "image size"),
-    "16-bit": (b"P5\n4 3\n65535\n" + bytes(24), "maxval 65535"),
+    "maxval above 16 bit": (b"P5\n4 3\n70000\n" + bytes(24), "maxval 70000"),
+    "16-bit too few bytes": (b"P5\n4 3\n65535\n" + bytes(12), "wrong size"),
     "too few pixels": (b"P5\n4 3\n255\n" + bytes(11), "wrong size"),
     "too many pixels": (b"P5\n4 3\n255\n" + bytes(13), "wrong size"),
     "P2 too few pixels": (b"P2\n4 3\n255\n" + b"0 " * 11, "wrong size"),

@@ -291,22 +291,22 @@ def cluster_stats(
     inside = labels >= 0
     if not inside.all():
         poses, w, labels = poses[inside], w[inside], labels[inside]
+    x, y, th = np.ascontiguousarray(poses.T)
     count = np.bincount(labels, minlength=n)
     weight = np.bincount(labels, weights=w, minlength=n)
     ww = np.where((weight > 0)[labels], w, 1.0 / np.maximum(count[labels], 1))
     wsum = np.where(weight > 0, weight, 1.0)
     mean = np.empty((n, 3))
-    mean[:, 0] = np.bincount(labels, weights=ww * poses[:, 0], minlength=n) / wsum
-    mean[:, 1] = np.bincount(labels, weights=ww * poses[:, 1], minlength=n) / wsum
-    s = np.bincount(labels, weights=ww * np.sin(poses[:, 2]), minlength=n)
-    c = np.bincount(labels, weights=ww * np.cos(poses[:, 2]), minlength=n)
+    mean[:, 0] = np.bincount(labels, weights=ww * x, minlength=n) / wsum
+    mean[:, 1] = np.bincount(labels, weights=ww * y, minlength=n) / wsum
+    s = np.bincount(labels, weights=ww * np.sin(th), minlength=n)
+    c = np.bincount(labels, weights=ww * np.cos(th), minlength=n)
     mean[:, 2] = wrap_angle(np.arctan2(s, c))
-    r = poses - mean[labels]
-    r[:, 2] = wrap_angle(r[:, 2])
+    r = np.stack([x - mean[labels, 0], y - mean[labels, 1], wrap_angle(th - mean[labels, 2])])
     cov = np.empty((n, 3, 3))
     for a in range(3):
         for b in range(a, 3):
-            v = np.bincount(labels, weights=ww * r[:, a] * r[:, b], minlength=n) / wsum
+            v = np.bincount(labels, weights=ww * r[a] * r[b], minlength=n) / wsum
             cov[:, a, b] = v
             cov[:, b, a] = v
     return weight, mean, cov, count
@@ -328,11 +328,12 @@ def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | Non
     if not np.all(np.isfinite(p)):
         raise ValueError("poses contain NaN or inf")
     w = _normalised(weights, n)
+    x, y, th = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
 
-    mx, my = float(w @ p[:, 0]), float(w @ p[:, 1])
-    mth = float(wrap_angle(np.arctan2(w @ np.sin(p[:, 2]), w @ np.cos(p[:, 2]))))
-    res = np.stack([p[:, 0] - mx, p[:, 1] - my, wrap_angle(p[:, 2] - mth)], axis=1)
-    cov = (res * w[:, None]).T @ res
+    mx, my = float(w @ x), float(w @ y)
+    mth = float(wrap_angle(np.arctan2(w @ np.sin(th), w @ np.cos(th))))
+    res = np.stack([x - mx, y - my, wrap_angle(th - mth)])
+    cov = (res * w) @ res.T
     cov = 0.5 * (cov + cov.T)
     ess = float(1.0 / np.sum(w * w))
     entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad)

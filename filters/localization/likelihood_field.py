@@ -4,7 +4,8 @@ The standard likelihood-field model (Thrun et al., *Probabilistic Robotics* §6.
 ROS AMCL's ``likelihood_field``), extended with one field per semantic class as in
 paper 004 (Eq. 8-11):
 
-* Each beam end point (sensor at the robot centre) is projected into the map.
+* Each beam end point (from the sensor at its mounting pose ``scan.sensor_pose`` in the
+  robot frame, default the robot centre) is projected into the map.
 * ``d`` = distance from the end point's cell to the nearest *occupied* cell (lidar
   beams, Eq. 10) or to the nearest cell *of the beam's class* (labelled semantic
   beams, Eq. 11); ``d`` is capped at ``max_dist_m``.
@@ -15,7 +16,8 @@ paper 004 (Eq. 8-11):
   beam as far from any obstacle as the cap allows, i.e. the random-measurement
   floor ``z_rand / range_max`` plus a Gaussian tail that is negligible for the
   defaults (``exp(-50)``). This is AMCL's choice as well.
-* Beams at or beyond ``range_max`` (no return) are skipped; semantic beams with
+* Beams at or beyond ``range_max`` (no return) or below a lidar's ``range_min_m`` (invalid)
+  are skipped; semantic beams with
   label 0 (no object) contribute nothing.
 * A scan's log-likelihood is the sum over the selected beams.
 
@@ -48,7 +50,7 @@ from scipy import ndimage
 
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.mapping.grid import GridMap
-from filters.robot_data.scans import LaserScan, SemanticScan
+from filters.robot_data.scans import LaserScan, SemanticScan, beam_endpoints
 
 
 @dataclass(frozen=True)
@@ -298,9 +300,9 @@ class LikelihoodFieldModel:
                 raise TypeError(f"lidar must be a LaserScan, got {type(lidar).__name__}")
             c = self.lidar_config
             idx = select_beams(lidar.valid, c.beam_stride, c.max_beams)
-            r, a = lidar.ranges[idx], lidar.angles[idx]
-            lxs.append(r * np.cos(a))
-            lys.append(r * np.sin(a))
+            ex, ey = beam_endpoints(lidar.ranges[idx], lidar.angles[idx], lidar.sensor_pose)
+            lxs.append(ex)
+            lys.append(ey)
             tabs.append(np.zeros(idx.size, np.int64))
             n_l = int(idx.size)
             l_rmax = lidar.range_max_m
@@ -314,9 +316,9 @@ class LikelihoodFieldModel:
                 )
             c = self.semantic_config
             idx = select_beams(semantic.labelled, c.beam_stride, c.max_beams)
-            r, a = semantic.ranges[idx], semantic.angles[idx]
-            lxs.append(r * np.cos(a))
-            lys.append(r * np.sin(a))
+            ex, ey = beam_endpoints(semantic.ranges[idx], semantic.angles[idx], semantic.sensor_pose)
+            lxs.append(ex)
+            lys.append(ey)
             tabs.append(semantic.labels[idx].astype(np.int64))
             n_s = int(idx.size)
             n_det = count_detections(semantic)

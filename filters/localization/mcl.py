@@ -40,8 +40,9 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
    one by one until ``n >= n_chi(k)`` where ``k`` is the number of occupied
    ``kld_bin_xy_m x kld_bin_xy_m x kld_bin_theta_rad`` bins so far and
    ``n_chi(k) = (k - 1) / (2 eps) * (1 - 2/(9(k-1)) + sqrt(2/(9(k-1))) z)^3``,
-   clipped to ``[min_particles, max_particles]``. Vectorised: ``max_particles`` draws,
-   then the first prefix length that satisfies the bound.
+   clipped to ``[min_particles, max_particles]``. Vectorised: ``max(2 N, 4 min_particles)``
+   draws (all ``max_particles`` if the bound is not met within them), then the first prefix
+   length that satisfies the bound.
 6. **Clustered resampling** (after the clustered particle filter of Milstein et al. 2002),
    if ``resample_mode == "clustered"``: the particles are split into the clusters of
    :func:`filters.localization.belief.cluster_labels`; every cluster whose weight is at least
@@ -564,7 +565,8 @@ class MonteCarloLocalizer:
         if want and not held:
             self._resample_now(w)
             resampled = True
-        n_inj = self._inject(max(p_inj, c.proposal_frac), lid, sem) if max(p_inj, c.proposal_frac) > 0.0 else 0
+        p_any = max(p_inj, c.proposal_frac)
+        n_inj = self._inject(p_any, lid, sem, recovery=p_inj > c.proposal_frac) if p_any > 0.0 else 0
         if p_inj > 0.0 and n_inj:
             self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
         diag = UpdateDiagnostics(
@@ -600,7 +602,14 @@ class MonteCarloLocalizer:
 
     def _kld_indices(self, w: np.ndarray) -> np.ndarray:
         c = self.config
-        m = c.max_particles
+        m = min(c.max_particles, max(2 * w.size, 4 * c.min_particles))  # enough draws almost always
+        idx = self._kld_draw(w, m)
+        if idx.size == m and m < c.max_particles:  # the bound was not met within m draws: draw all
+            idx = self._kld_draw(w, c.max_particles)
+        return idx
+
+    def _kld_draw(self, w: np.ndarray, m: int) -> np.ndarray:
+        c = self.config
         cdf = np.cumsum(w)
         cdf[-1] = 1.0
         idx = np.minimum(np.searchsorted(cdf, self.rng.random(m), side="right"), w.size - 1)
@@ -663,8 +672,12 @@ class MonteCarloLocalizer:
         cdf[-1] = 1.0
         return np.minimum(np.searchsorted(cdf, u, side="right"), w.size - 1)
 
-    def _inject(self, p_inj: float, lidar: LaserScan | None, semantic: SemanticScan | None) -> int:
-        """Replace each particle with probability ``p_inj`` by an injected one; returns how many."""
+    def _inject(self, p_inj: float, lidar: LaserScan | None, semantic: SemanticScan | None, recovery: bool) -> int:
+        """Replace each particle with probability ``p_inj`` by an injected one; returns how many.
+
+        A recovery (augmented MCL) draws from ``proposal_candidates`` candidates; the routine
+        Mixture-MCL injection from ``min(proposal_candidates, max(200, 20 m))`` for ``m`` particles.
+        """
         c = self.config
         mask = self.rng.random(self.n_particles) < p_inj
         m = int(mask.sum())
@@ -673,7 +686,7 @@ class MonteCarloLocalizer:
         if c.injection == "scan":
             if self._proposal is None:
                 self._proposal = ScanProposal(self.grid, self.sample_free)
-            k = max(c.proposal_candidates, m)
+            k = c.proposal_candidates if recovery else min(c.proposal_candidates, max(200, 20 * m))
             cand = self._proposal.candidates(k, semantic, c.proposal_semantic_frac, self.rng)
             ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
             new = self._proposal.draw(m, cand, c.likelihood_scale * (np.asarray(ll_l) + np.asarray(ll_s)), self.rng)

@@ -19,8 +19,10 @@ cell's Bayes update, which in log-odds form is a sum of per-frame increments
   ``l_unlabelled_end`` at its end cell: its return is a surface the detector saw and did
   not call an object.
 
-Geometry. Scans are taken at the robot centre; beam ``i`` of a scan at pose ``(x, y, th)``
-runs from ``(x, y)`` at world angle ``th + angles[i]``. Its cells are the exact
+Geometry. A scan's sensor sits at ``scan.sensor_pose`` in the robot frame (default the robot
+centre); beam ``i`` of a scan at robot pose ``P`` runs from the sensor's world position
+``(sx, sy, sth) = P ⊕ sensor_pose`` at world angle ``sth + angles[i]``. Lidar beams below the
+scan's ``range_min_m`` are invalid and update nothing. Its cells are the exact
 4-connected traversal of the segment (Amanatides & Woo DDA, compiled with numba; see
 :func:`beam_cells`); a cell is listed once per beam, so a beam updates a cell at most once.
 Several beams of one scan do update a cell several times. A range that ends exactly on
@@ -44,6 +46,7 @@ import numpy as np
 from scipy.special import expit
 
 from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
+from filters.pose import compose
 from filters.robot_data.scans import LaserScan, SemanticScan
 
 __all__ = [
@@ -77,12 +80,13 @@ class OccupancyParams:
         l_min, l_max: clamp after every cell update, ``l_min < 0 < l_max``. Defaults ``-2.0`` and ``3.5``
             (``p = 0.12`` and ``0.97``): keeps the map able to change (a moved obstacle is
             cleared by about nine passes).
-        max_range_m: beams are used up to this length, metres; a longer return is treated
-            as no return (clears up to ``max_range_m``, marks nothing). Default ``inf``: the
-            scan's own ``range_max_m``.
-        clear_no_return: beams without a return clear their cells (default True). Set False
-            for a lidar whose dropouts read as no return although a surface is in range: a
-            dropout would otherwise clear the wall it missed and the space behind it.
+        max_range_m: beams are used up to this length, metres; a longer return clears up
+            to ``max_range_m`` and marks nothing. Default ``inf``: the scan's own ``range_max_m``.
+        clear_no_return: beams without a return (``range >= scan.range_max_m``) clear their
+            cells up to the limit (default True). Set False for a lidar whose dropouts read as
+            no return although a surface is in range: a dropout would otherwise clear the wall
+            it missed and the space behind it. Returns beyond ``max_range_m`` are real returns
+            and clear up to ``max_range_m`` either way.
     """
 
     l_occ: float = 0.85
@@ -341,18 +345,27 @@ class _RasterMapper:
         ranges = np.concatenate([s.ranges for s in scans])
         angles = np.concatenate([s.angles for s in scans])
         rmax = np.repeat(np.array([s.range_max_m for s in scans], dtype=np.float64), counts)
-        p = np.repeat(poses, counts, axis=0)
+        rmin = np.repeat(np.array([getattr(s, "range_min_m", 0.0) for s in scans], dtype=np.float64), counts)
+        sensor = compose(poses, np.array([s.sensor_pose for s in scans], dtype=np.float64))
+        p = np.repeat(sensor, counts, axis=0)
         use = np.minimum(rmax, max_range_m)
-        returned = (ranges < rmax) & (ranges <= use)
+        no_return = ranges >= rmax
+        returned = ~no_return & (ranges <= use)
         length = np.where(returned, ranges, use)
         th = p[:, 2] + angles
         u0 = (p[:, 0] - self._origin[0]) / self._res
         v0 = (p[:, 1] - self._origin[1]) / self._res
         t_end = length / self._res
-        return u0, v0, np.cos(th), np.sin(th), t_end, returned
+        ok = ranges >= rmin  # below the sensor's minimum range: invalid, no update
+        if not ok.all():
+            u0, v0, th, t_end, returned, no_return = (a[ok] for a in (u0, v0, th, t_end, returned, no_return))
+            if t_end.size == 0:
+                return None
+        return u0, v0, np.cos(th), np.sin(th), t_end, returned, no_return
 
     def _beam_arrays(self, poses, ranges, angles, range_max_m: float, max_range_m: float):
-        """:meth:`_beams` for scans given as arrays: ``ranges (N, B)``, ``angles (B,)`` or ``(N, B)``."""
+        """:meth:`_beams` for scans given as arrays: ``ranges (N, B)``, ``angles (B,)`` or ``(N, B)``
+        (sensor at the robot centre, no minimum range)."""
         poses = np.asarray(poses, dtype=np.float64)
         r = np.asarray(ranges, dtype=np.float64)
         if poses.ndim != 2 or poses.shape[1] != 3 or not np.all(np.isfinite(poses)):
@@ -370,12 +383,13 @@ class _RasterMapper:
         if r.size == 0:
             return None
         use = min(float(range_max_m), max_range_m)
-        returned = ((r < range_max_m) & (r <= use)).ravel()
+        no_return = (r >= range_max_m).ravel()
+        returned = ~no_return & (r <= use).ravel()
         length = np.where(returned, r.ravel(), use)
         th = (poses[:, 2:3] + a).ravel()
         u0 = np.repeat((poses[:, 0] - self._origin[0]) / self._res, r.shape[1])
         v0 = np.repeat((poses[:, 1] - self._origin[1]) / self._res, r.shape[1])
-        return u0, v0, np.cos(th), np.sin(th), length / self._res, returned
+        return u0, v0, np.cos(th), np.sin(th), length / self._res, returned, no_return
 
     @staticmethod
     def _one(pose, scan) -> tuple[np.ndarray, list]:
@@ -436,10 +450,10 @@ class OccupancyMapper(_RasterMapper):
     def _integrate(self, beams) -> None:
         if beams is None:
             return
-        u0, v0, du, dv, t_end, returned = beams
+        u0, v0, du, dv, t_end, returned, no_return = beams
         p = self.params
-        if not p.clear_no_return:
-            u0, v0, du, dv, t_end, returned = (a[returned] for a in beams)
+        if not p.clear_no_return:  # drop the sensor's no-return beams; returns beyond max_range_m still clear
+            u0, v0, du, dv, t_end, returned = (a[~no_return] for a in beams[:6])
             if t_end.size == 0:
                 return
         _occupancy_kernel(self._L, u0, v0, du, dv, t_end, returned, p.l_free, p.l_occ, p.l_min, p.l_max,
@@ -538,7 +552,7 @@ class SemanticMapper(_RasterMapper):
             self._integrate(beams, lab.astype(np.int64).ravel())
 
     def _integrate(self, beams, labels: np.ndarray) -> None:
-        u0, v0, du, dv, t_end, returned = beams
+        u0, v0, du, dv, t_end, returned, _ = beams
         p = self.params
         end_label = np.where(returned, labels, -1).astype(np.int64)
         free_delta = np.where(labels > 0, p.l_free_inside, p.l_free_outside).astype(np.float64)

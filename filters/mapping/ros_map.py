@@ -10,23 +10,27 @@ A map on disk is
 
 The full specification, with a worked example, is ``docs/maps.md``. In short:
 
-Occupancy YAML keys (all required except ``mode``):
-    ``image`` (path, relative to the YAML's folder unless absolute),
-    ``resolution`` (metres per cell, > 0), ``origin`` (``[x, y, yaw]``: world pose of
-    the lower-left pixel's lower-left corner; ``yaw`` must be 0 here),
-    ``negate`` (0/1), ``occupied_thresh``, ``free_thresh`` (in ``[0, 1]``),
-    ``mode`` (``trinary`` (default) or ``scale``; ``raw`` is rejected).
+Occupancy YAML (``.yaml`` or ``.yml``) keys: ``image`` (path, relative to the YAML's folder
+unless absolute), ``resolution`` (metres per cell, > 0), ``origin`` (``[x, y, yaw]``: world pose
+of the lower-left pixel's lower-left corner; a non-zero ``yaw`` is refused with an error, since
+a :class:`GridMap` is axis-aligned), ``occupied_thresh``, ``free_thresh`` (in ``[0, 1]``), all
+required; ``negate`` (0/1, default 0) and ``mode`` (``trinary`` (default), ``scale`` or ``raw``)
+optional, as in map_server.
 
-Pixel to probability, as map_server does: ``p = (255 - v) / 255`` (``p = v / 255``
-when ``negate`` is 1). ``trinary``: ``p > occupied_thresh`` -> occupied (1.0),
-``p < free_thresh`` -> free (0.0), otherwise unknown (0.5). ``scale``: the cell keeps
-``p`` itself (its class under the same thresholds is what map_server reports).
+Pixel to probability, as map_server does (``v`` = grey level scaled to 0..255; colour images:
+mean of the colour channels; ``negate: 1`` first replaces ``v`` by ``255 - v``):
+``p = (255 - v) / 255``. ``trinary``: ``p > occupied_thresh`` -> occupied (1.0),
+``p < free_thresh`` -> free (0.0), otherwise unknown (0.5). ``scale``: the cell keeps ``p``
+itself (its class under the same thresholds is what map_server reports); a fully transparent
+pixel between the thresholds is unknown. ``raw``: ``round(v)`` is the occupancy in percent,
+``p = round(v) / 100``; values above 100 are unknown (0.5), as in nav2.
 
 The image's first row is the *top* of the map (largest y); :class:`GridMap` row 0
 is the bottom, so rows are flipped on read and write.
 
-Images: binary ``P5`` and ASCII ``P2`` greymaps with ``maxval <= 255`` (values are
-rescaled to 0..255 when ``maxval < 255``). Anything wrong with the files raises
+Images: binary ``P5`` and ASCII ``P2`` greymaps with ``#`` comments, 8 or 16 bit
+(``maxval`` up to 65535, rescaled to 0..255), read here; any other format (PNG, BMP, TIFF, ...)
+through Pillow (:func:`read_map_image`). Maps are written as 8-bit ``P5``. Anything wrong with the files raises
 :class:`MapFormatError`, naming the file and the problem.
 """
 
@@ -42,7 +46,15 @@ import yaml
 
 from filters.mapping.grid import GridMap
 
-__all__ = ["MapFormatError", "save_map", "load_map", "read_pgm", "write_pgm", "semantic_yaml_path"]
+__all__ = [
+    "MapFormatError",
+    "save_map",
+    "load_map",
+    "read_pgm",
+    "read_map_image",
+    "write_pgm",
+    "semantic_yaml_path",
+]
 
 SEMANTIC_FORMAT = "semreloc-semantic/1"
 """Value of the ``format`` key of a semantic YAML written by this version."""
@@ -100,22 +112,20 @@ def _pgm_tokens(data: bytes, count: int, start: int, path: Path) -> tuple[list[b
     return tokens, i
 
 
-def read_pgm(path: str | os.PathLike) -> np.ndarray:
-    """Read an 8-bit greymap (``P5`` binary or ``P2`` ASCII) as ``(H, W)`` uint8, first row = top of the picture.
-
-    ``maxval`` must be in ``1..255``; values are rescaled to ``0..255`` (``round(v * 255 / maxval)``).
-
-    Raises:
-        MapFormatError: the file is missing, is not a P5/P2 PGM, has a bad header, a 16-bit
-            ``maxval``, or holds more or fewer pixels than ``width * height``.
-    """
-    path = Path(path)
+def _read_bytes(path: Path) -> bytes:
     try:
-        data = path.read_bytes()
+        return path.read_bytes()
     except FileNotFoundError:
         raise MapFormatError(path, "image file not found") from None
     except OSError as e:
         raise MapFormatError(path, f"cannot read image file ({e.strerror})") from None
+
+
+def _parse_pgm(data: bytes, path: Path) -> tuple[np.ndarray, int]:
+    """``(values (H, W) int64, maxval)`` of a ``P5`` / ``P2`` greymap, ``maxval`` in ``1..65535``.
+
+    16-bit ``P5`` samples are big-endian (the Netpbm definition).
+    """
     magic = data[:2]
     if magic not in (b"P5", b"P2"):
         raise MapFormatError(path, f"bad PGM header: magic number {magic!r}, expected b'P5' or b'P2'")
@@ -126,17 +136,19 @@ def read_pgm(path: str | os.PathLike) -> np.ndarray:
         raise MapFormatError(path, f"bad PGM header: width/height/maxval {tokens!r} are not integers") from None
     if w <= 0 or h <= 0:
         raise MapFormatError(path, f"bad PGM header: image size {w} x {h}")
-    if not 0 < maxval <= 255:
-        raise MapFormatError(
-            path, f"bad PGM header: maxval {maxval}; only 8-bit greymaps (maxval 1..255) are supported"
-        )
+    if not 0 < maxval <= 65535:
+        raise MapFormatError(path, f"bad PGM header: maxval {maxval}; must be in 1..65535")
     if magic == b"P5":
         body = data[end + 1 :]  # exactly one whitespace byte separates header and raster
-        if len(body) != w * h:
+        nbytes = 1 if maxval <= 255 else 2
+        if len(body) != w * h * nbytes:
             raise MapFormatError(
-                path, f"wrong size: header says {w} x {h} = {w * h} pixels, file holds {len(body)} bytes"
+                path,
+                f"wrong size: header says {w} x {h} = {w * h} pixels of {nbytes} byte(s), file holds {len(body)} bytes",
             )
-        img = np.frombuffer(body, dtype=np.uint8).reshape(h, w)
+        vals = np.frombuffer(body, dtype=np.uint8 if nbytes == 1 else ">u2").reshape(h, w).astype(np.int64)
+        if vals.max() > maxval:
+            raise MapFormatError(path, f"bad P5 raster: pixel values outside 0..{maxval}")
     else:
         words = data[end:].split()
         if len(words) != w * h:
@@ -147,10 +159,78 @@ def read_pgm(path: str | os.PathLike) -> np.ndarray:
             raise MapFormatError(path, "bad P2 raster: non-integer pixel value") from None
         if vals.min() < 0 or vals.max() > maxval:
             raise MapFormatError(path, f"bad P2 raster: pixel values outside 0..{maxval}")
-        img = vals.astype(np.uint8).reshape(h, w)
+        vals = vals.reshape(h, w)
+    return vals, maxval
+
+
+def read_pgm(path: str | os.PathLike) -> np.ndarray:
+    """Read an 8-bit greymap (``P5`` binary or ``P2`` ASCII) as ``(H, W)`` uint8, first row = top of the picture.
+
+    ``maxval`` must be in ``1..255``; values are rescaled to ``0..255`` (``round(v * 255 / maxval)``).
+    (16-bit greymaps: :func:`read_map_image`.)
+
+    Raises:
+        MapFormatError: the file is missing, is not a P5/P2 PGM, has a bad header, a 16-bit
+            ``maxval``, or holds more or fewer pixels than ``width * height``.
+    """
+    path = Path(path)
+    data = _read_bytes(path)
+    if data[:2] in (b"P5", b"P2"):
+        tokens, _ = _pgm_tokens(data, 3, 2, path)
+        if len(tokens) == 3 and tokens[2].isdigit() and int(tokens[2]) > 255:
+            raise MapFormatError(
+                path, f"bad PGM header: maxval {int(tokens[2])}; read_pgm reads 8-bit greymaps (use read_map_image)"
+            )
+    vals, maxval = _parse_pgm(data, path)
+    img = vals.astype(np.uint8)
     if maxval != 255:
-        img = np.round(img.astype(np.float64) * (255.0 / maxval)).astype(np.uint8)
+        img = np.round(vals.astype(np.float64) * (255.0 / maxval)).astype(np.uint8)
     return np.array(img, dtype=np.uint8)
+
+
+def read_map_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read a map image as map_server does: ``(grey (H, W) float64 in [0, 255], alpha (H, W) bool or None)``.
+
+    * PGM (``P5`` / ``P2``, 8 or 16 bit, ``#`` comments): ``grey = v * 255 / maxval``.
+    * Any other image Pillow reads (PNG, BMP, TIFF, ...): grey images as they are (16-bit
+      scaled by ``255 / 65535``); colour images give the mean of their colour channels
+      (alpha left out). ``alpha`` is ``True`` where an alpha channel is fully transparent
+      (``None`` without alpha channel).
+
+    First row = top of the picture. Raises :class:`MapFormatError` naming the file.
+    """
+    path = Path(path)
+    data = _read_bytes(path)
+    if data[:2] in (b"P5", b"P2"):
+        vals, maxval = _parse_pgm(data, path)
+        return vals.astype(np.float64) * (255.0 / maxval), None
+    import io
+
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        im = Image.open(io.BytesIO(data))
+        im.load()
+    except UnidentifiedImageError:
+        raise MapFormatError(
+            path, f"bad PGM header: magic number {data[:2]!r}, and not an image Pillow can read either"
+        ) from None
+    except (OSError, ValueError) as e:
+        raise MapFormatError(path, f"cannot decode image ({e})") from None
+    transparent = None
+    if im.mode in ("I;16", "I;16B", "I;16L", "I"):
+        grey = np.asarray(im, dtype=np.float64) * (255.0 / 65535.0)
+    elif im.mode in ("L", "1"):
+        grey = np.asarray(im.convert("L"), dtype=np.float64)
+    else:
+        has_alpha = im.mode in ("LA", "RGBA", "PA") or (im.mode == "P" and "transparency" in im.info)
+        rgba = np.asarray(im.convert("RGBA"), dtype=np.float64)
+        grey = rgba[..., :3].mean(axis=2) if im.mode not in ("LA", "La") else rgba[..., 0]
+        if has_alpha:
+            transparent = rgba[..., 3] == 0
+    if grey.ndim != 2 or grey.size == 0:
+        raise MapFormatError(path, f"image has shape {grey.shape}, expected a non-empty 2D raster")
+    return grey, transparent
 
 
 # --------------------------------------------------------------------------------------------- YAML
@@ -196,7 +276,11 @@ def _origin(doc: dict, path: Path) -> tuple[float, float]:
         raise MapFormatError(path, f"origin must be a list [x, y, yaw], got {origin!r}")
     x, y, yaw = (_number(v, f"origin[{i}]", path) for i, v in enumerate(origin))
     if yaw != 0.0:
-        raise MapFormatError(path, f"origin yaw is {yaw}; rotated maps are not supported (yaw must be 0)")
+        raise MapFormatError(
+            path,
+            f"origin yaw is {yaw} rad; rotated maps are not supported (a GridMap is axis-aligned): "
+            "set yaw to 0 and express poses in the map's own frame, or re-save the map unrotated",
+        )
     return x, y
 
 
@@ -335,11 +419,21 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
 
 
 # --------------------------------------------------------------------------------------------- load
-def _occupancy_from_pixels(img: np.ndarray, negate: bool, mode: str, occ_t: float, free_t: float) -> np.ndarray:
+def _occupancy_from_pixels(
+    img: np.ndarray, negate: bool, mode: str, occ_t: float, free_t: float, transparent: np.ndarray | None = None
+) -> np.ndarray:
     v = img.astype(np.float64)
-    p = v / 255.0 if negate else (255.0 - v) / 255.0
+    if negate:
+        v = 255.0 - v
+    if mode == "raw":  # the pixel is the occupancy in percent; anything above 100 is unknown (nav2)
+        v = np.round(v)
+        return np.where(v <= 100.0, v / 100.0, 0.5)
+    p = (255.0 - v) / 255.0
     if mode == "scale":
-        return p
+        out = p.copy()
+        if transparent is not None:  # map_server: a transparent pixel between the thresholds is unknown
+            out[transparent & (p <= occ_t) & (p >= free_t)] = 0.5
+        return out
     out = np.full(p.shape, 0.5)
     out[p > occ_t] = 1.0
     out[p < free_t] = 0.0
@@ -401,8 +495,9 @@ def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | No
             (absent -> a map without classes; given explicitly but absent -> error).
 
     Returns:
-        A ``GridMap`` with ``occupancy`` in ``{0, 0.5, 1}`` (``trinary``) or the pixel
-        probability (``scale``), thresholds from the YAML, row 0 = bottom of the map.
+        A ``GridMap`` with ``occupancy`` in ``{0, 0.5, 1}`` (``trinary``), the pixel
+        probability (``scale``) or the percentage / 100 (``raw``), thresholds from the YAML,
+        row 0 = bottom of the map.
 
     Raises:
         FileNotFoundError: ``path_yaml`` (or an explicitly given ``semantic_yaml``) does not exist.
@@ -416,7 +511,7 @@ def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | No
     img_path = _image_path(doc, path_yaml)
     res = _resolution(doc, path_yaml)
     origin = _origin(doc, path_yaml)
-    negate = _require(doc, "negate", path_yaml)
+    negate = doc.get("negate", 0)  # optional, default 0, as in map_server
     if negate not in (0, 1) or isinstance(negate, float):  # True/False count as 1/0, as YAML users expect
         raise MapFormatError(path_yaml, f"negate must be 0 or 1, got {negate!r}")
     occ_t = _number(_require(doc, "occupied_thresh", path_yaml), "occupied_thresh", path_yaml)
@@ -424,10 +519,10 @@ def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | No
     if not 0.0 <= free_t <= occ_t <= 1.0:
         raise MapFormatError(path_yaml, f"need 0 <= free_thresh ({free_t}) <= occupied_thresh ({occ_t}) <= 1")
     mode = doc.get("mode", "trinary")
-    if mode not in ("trinary", "scale"):
-        raise MapFormatError(path_yaml, f"mode {mode!r} is not supported (use 'trinary' or 'scale')")
-    img = read_pgm(img_path)
-    occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t))
+    if mode not in ("trinary", "scale", "raw"):
+        raise MapFormatError(path_yaml, f"mode {mode!r} is not supported (use 'trinary', 'scale' or 'raw')")
+    img, transparent = read_map_image(img_path)
+    occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t, transparent))
 
     names: tuple[str, ...] = ()
     sem = np.zeros((0,) + img.shape, np.float32)

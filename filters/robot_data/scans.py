@@ -1,16 +1,51 @@
 """Scan containers: what a range sensor hands to a filter.
 
-Every scan is taken from the robot's centre (the sensor is mounted at the pose
-origin), with beam angles in the robot frame, radians, counter-clockwise from
-the heading. A beam whose range is ``>= range_max_m`` returned nothing and is
-skipped by the measurement models.
+A scan is taken by a sensor mounted at ``sensor_pose = (x m, y m, theta rad)`` in the
+robot frame (default ``(0, 0, 0)``: at the robot centre, facing the heading). Beam
+angles are in the *sensor* frame, radians, counter-clockwise; beam ``i`` with range
+``r`` ends at ``sensor_pose ⊕ (r cos a_i, r sin a_i)`` in the robot frame.
+
+Per beam:
+
+* ``range_min_m <= r < range_max_m``: a return (used by the measurement models and mapping);
+* ``r >= range_max_m``: no return: skipped by the measurement models; mapping clears
+  the cells up to the limit (see :class:`filters.mapping.occupancy.OccupancyParams`);
+* ``r < range_min_m``: invalid, skipped everywhere.
+
+:meth:`LaserScan.from_ros` builds a scan from the fields of a ROS ``sensor_msgs/LaserScan``.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+
+def _checked_sensor_pose(sensor_pose, what: str) -> np.ndarray:
+    sp = np.asarray(sensor_pose, dtype=np.float64).reshape(-1)
+    if sp.shape != (3,) or not np.all(np.isfinite(sp)):
+        raise ValueError(f"{what}: sensor_pose must be 3 finite numbers (x m, y m, theta rad), got {sensor_pose!r}")
+    sp.setflags(write=False)
+    return sp
+
+
+def beam_endpoints(ranges: np.ndarray, angles: np.ndarray, sensor_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Robot-frame end points ``(x (B,), y (B,))`` of beams with ``ranges`` / sensor-frame ``angles``.
+
+    With ``sensor_pose == (0, 0, 0)`` this is exactly ``(r cos a, r sin a)`` (no extra rounding).
+    """
+    r = np.asarray(ranges, dtype=np.float64)
+    a = np.asarray(angles, dtype=np.float64)
+    sx, sy, st = (float(v) for v in sensor_pose)
+    if st == 0.0:
+        x, y = r * np.cos(a), r * np.sin(a)
+    else:
+        x, y = r * np.cos(a + st), r * np.sin(a + st)
+    if sx != 0.0 or sy != 0.0:
+        x, y = x + sx, y + sy
+    return x, y
 
 
 def _checked_beams(ranges, angles, range_max_m: float, what: str) -> tuple[np.ndarray, np.ndarray]:
@@ -36,25 +71,82 @@ class LaserScan:
     """A lidar scan.
 
     Attributes:
-        ranges: ``(B,)`` metres; ``>= range_max_m`` means no return.
-        angles: ``(B,)`` beam angles in the robot frame, radians.
-        range_max_m: the sensor's maximum range in metres.
+        ranges: ``(B,)`` finite metres >= 0; ``>= range_max_m`` means no return,
+            ``< range_min_m`` invalid.
+        angles: ``(B,)`` beam angles in the sensor frame, radians.
+        range_max_m: the sensor's maximum range in metres (> 0).
+        range_min_m: readings below this are invalid (metres, ``0 <= range_min_m < range_max_m``).
+        sensor_pose: ``(3,)`` pose of the sensor in the robot frame ``(x m, y m, theta rad)``.
     """
 
     ranges: np.ndarray
     angles: np.ndarray
     range_max_m: float
+    range_min_m: float = 0.0
+    sensor_pose: np.ndarray = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         r, a = _checked_beams(self.ranges, self.angles, self.range_max_m, "LaserScan")
+        rmin = self.range_min_m
+        if not (isinstance(rmin, (int, float, np.floating)) and math.isfinite(rmin) and 0 <= rmin < self.range_max_m):
+            raise ValueError(f"LaserScan: range_min_m must be in [0, range_max_m), got {rmin!r}")
         object.__setattr__(self, "ranges", r)
         object.__setattr__(self, "angles", a)
         object.__setattr__(self, "range_max_m", float(self.range_max_m))
+        object.__setattr__(self, "range_min_m", float(rmin))
+        object.__setattr__(self, "sensor_pose", _checked_sensor_pose(self.sensor_pose, "LaserScan"))
+
+    @classmethod
+    def from_ros(
+        cls,
+        ranges,
+        angle_min: float,
+        angle_increment: float,
+        range_min: float,
+        range_max: float,
+        sensor_pose=(0.0, 0.0, 0.0),
+    ) -> LaserScan:
+        """A scan from the fields of a ROS ``sensor_msgs/LaserScan`` (REP 117 readings).
+
+        Beam ``i`` is at ``angle_min + i * angle_increment``. Readings are taken as ROS
+        defines them:
+
+        * ``+inf`` (nothing within ``range_max``) and finite values ``> range_max``: no
+          return, stored as ``range_max`` (skipped by the measurement models, cleared up to
+          the limit by mapping);
+        * ``NaN`` (erroneous), ``-inf`` (too close to measure) and values ``< range_min``:
+          invalid, *dropped* (the scan keeps only the other beams with their own angles,
+          so it may have fewer beams than the message).
+
+        Args:
+            ranges: the message's ``ranges`` (metres).
+            angle_min, angle_increment: radians (``angle_increment`` non-zero, may be negative).
+            range_min, range_max: metres, ``0 <= range_min < range_max``.
+            sensor_pose: the laser frame's pose in the robot (``base_link``) frame, ``(x, y, yaw)``.
+        """
+        r = np.asarray(ranges, dtype=np.float64).reshape(-1)
+        for name, v in (("angle_min", angle_min), ("angle_increment", angle_increment)):
+            if not math.isfinite(v):
+                raise ValueError(f"LaserScan.from_ros: {name} must be finite, got {v!r}")
+        if angle_increment == 0:
+            raise ValueError("LaserScan.from_ros: angle_increment must be non-zero")
+        if not (math.isfinite(range_max) and range_max > 0):
+            raise ValueError(f"LaserScan.from_ros: range_max must be a positive number, got {range_max!r}")
+        if not (math.isfinite(range_min) and 0 <= range_min < range_max):
+            raise ValueError(f"LaserScan.from_ros: range_min must be in [0, range_max), got {range_min!r}")
+        angles = angle_min + angle_increment * np.arange(r.size)
+        keep = ~np.isnan(r) & (r >= range_min)  # NaN, -inf and too-short readings are invalid
+        out = np.minimum(r[keep], range_max)  # +inf and beyond-range readings: no return
+        return cls(out, angles[keep], float(range_max), float(range_min), sensor_pose)
 
     @property
     def valid(self) -> np.ndarray:
-        """Bool ``(B,)``: beams that hit something within range."""
-        return self.ranges < self.range_max_m
+        """Bool ``(B,)``: beams that hit something within ``[range_min_m, range_max_m)``."""
+        return (self.ranges < self.range_max_m) & (self.ranges >= self.range_min_m)
+
+    def endpoints(self) -> tuple[np.ndarray, np.ndarray]:
+        """Robot-frame end points ``(x (B,), y (B,))`` of all beams, metres (see :func:`beam_endpoints`)."""
+        return beam_endpoints(self.ranges, self.angles, self.sensor_pose)
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,12 +158,14 @@ class SemanticScan:
         angles: ``(B,)`` beam angles in the robot frame, radians.
         labels: ``(B,)`` int; ``0`` = no detected object, ``k + 1`` = class ``k`` of the map.
         range_max_m: the camera's maximum range in metres.
+        sensor_pose: ``(3,)`` pose of the camera in the robot frame (angles are in its frame).
     """
 
     ranges: np.ndarray
     angles: np.ndarray
     labels: np.ndarray
     range_max_m: float
+    sensor_pose: np.ndarray = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         r, a = _checked_beams(self.ranges, self.angles, self.range_max_m, "SemanticScan")
@@ -88,8 +182,13 @@ class SemanticScan:
         object.__setattr__(self, "angles", a)
         object.__setattr__(self, "labels", lab)
         object.__setattr__(self, "range_max_m", float(self.range_max_m))
+        object.__setattr__(self, "sensor_pose", _checked_sensor_pose(self.sensor_pose, "SemanticScan"))
 
     @property
     def labelled(self) -> np.ndarray:
         """Bool ``(B,)``: beams that carry an object class and hit within range."""
         return (self.labels > 0) & (self.ranges < self.range_max_m)
+
+    def endpoints(self) -> tuple[np.ndarray, np.ndarray]:
+        """Robot-frame end points ``(x (B,), y (B,))`` of all beams, metres (see :func:`beam_endpoints`)."""
+        return beam_endpoints(self.ranges, self.angles, self.sensor_pose)

@@ -14,8 +14,8 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
-from ..layouts import CLASS_NAMES, get_layout
-from ..maps import MAP_SOURCES, maps_for
+from ..layouts import CLASS_NAMES, LAYOUT_NAMES, get_layout
+from ..maps import MAP_SOURCES, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
 from .base import SemRelocBase, check_layout_seed
@@ -114,8 +114,9 @@ class SemRelocEnv(SemRelocBase):
     ``collided``; ``kidnapped`` (True from the kidnap step on).
 
     ## Arguments
-    * ``layout``: ``"lab"``, ``"twin_rooms"``, ``"procedural"``, ``"procedural_sym"``, a
-      ``.json``/``.yaml`` path, a dict or a :class:`~semreloc_env.layouts.Layout`; ``layout_seed`` seeds procedural ones.
+    * ``layout``: ``"lab"`` (default, unless ``map_source`` is a map), ``"twin_rooms"``, ``"procedural"``,
+      ``"procedural_sym"``, a ``.json``/``.yaml`` path, a dict, a :class:`~semreloc_env.layouts.Layout`,
+      or a ROS map ``.yaml`` / GridMap (the world it shows); ``layout_seed`` seeds procedural ones.
     * ``action_type``: ``"discrete"`` or ``"continuous"``.
     * ``robot``, ``physics``, ``lidar``, ``camera``, ``odometry``: dicts of overrides of
       :class:`~semreloc_env.config.RobotParams`, ``PhysicsParams``, ``LidarParams``,
@@ -125,7 +126,10 @@ class SemRelocEnv(SemRelocBase):
     * ``semantic``: False runs the relocalizer lidar-only (the comparison of paper 004); None
       (default) keeps the relocalizer's ``use_semantic`` (True unless overridden there).
     * ``map_source``: ``"mapping"`` (default; maps built by a simulated mapping run, so map and
-      world disagree as on a robot), ``"perfect"`` (rasterised layout), a ROS map ``.yaml`` path, or a GridMap.
+      world disagree as on a robot), ``"perfect"`` (rasterised layout), a ROS map ``.yaml`` / ``.yml``
+      path, a GridMap, or another layout (name or file; its mapping run is the map). With
+      ``layout`` unset, a map file or GridMap also gives the world (traced from its occupied
+      cells, :mod:`semreloc_env.map_world`); a map whose extent or frame does not fit the world is an error.
     * ``scenario``: ``"nominal"`` or ``"changed"`` (obstacles in the world that the map lacks, paper 004).
     * ``reward_weights``: dict of overrides of :class:`RewardWeights`.
     * ``render_mode``: ``"rgb_array"`` or ``"human"``.
@@ -148,7 +152,7 @@ class SemRelocEnv(SemRelocBase):
 
     def __init__(
         self,
-        layout="lab",
+        layout=None,
         layout_seed: int = 0,
         action_type: str = "discrete",
         robot=None,
@@ -166,11 +170,17 @@ class SemRelocEnv(SemRelocBase):
         if scenario not in SCENARIOS:
             raise ValueError(f"unknown scenario {scenario!r}; choose one of {list(SCENARIOS)}")
         if not (
-            isinstance(map_source, (GridMap, Path)) or map_source in MAP_SOURCES or str(map_source).endswith(".yaml")
+            isinstance(map_source, (GridMap, Path))
+            or map_source in MAP_SOURCES
+            or names_a_layout(map_source)
+            or str(map_source).endswith((".yaml", ".yml", ".json"))
         ):
             raise ValueError(
-                f"map_source must be one of {list(MAP_SOURCES)}, a map .yaml path or a GridMap, got {map_source!r}"
+                f"map_source must be one of {list(MAP_SOURCES)}, a map .yaml/.yml path, a GridMap, or a layout "
+                f"(one of {list(LAYOUT_NAMES)}, a name on $SEMRELOC_LAYOUT_PATH or a layout file), got {map_source!r}"
             )
+        if layout is None:  # unset: the world the map shows, or the lab
+            layout = map_source if isinstance(map_source, GridMap) or is_ros_map_file(map_source) else "lab"
         super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
         from ..config import coerce_config
 
@@ -186,7 +196,7 @@ class SemRelocEnv(SemRelocBase):
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
         self.map_source = map_source
-        self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params)
+        self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
 

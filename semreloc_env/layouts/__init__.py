@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -13,6 +14,9 @@ from .procedural import ProceduralParams, lookalike_layout, procedural_layout
 
 __all__ = [
     "CLASS_NAMES",
+    "LAYOUT_NAMES",
+    "LAYOUT_PATH_ENV",
+    "find_layout_file",
     "Layout",
     "LayoutError",
     "ProceduralParams",
@@ -30,17 +34,56 @@ PROCEDURAL_LAYOUTS = ("procedural", "procedural_sym", "procedural_lookalike")
 LAYOUT_NAMES = (*BUILTIN_LAYOUTS, *PROCEDURAL_LAYOUTS)
 
 
+LAYOUT_PATH_ENV = "SEMRELOC_LAYOUT_PATH"
+"""Environment variable: folders (``os.pathsep``-separated) searched for layouts given by name."""
+
+
+def find_layout_file(name: str) -> Path | None:
+    """The first ``<folder>/<name>.yaml``, ``.yml`` or ``.json`` over the folders of ``$SEMRELOC_LAYOUT_PATH``
+    (``os.pathsep``-separated, searched in order), or None. Names with a path separator are not searched."""
+    if not name or "/" in name or os.sep in name:
+        return None
+    for folder in filter(None, os.environ.get(LAYOUT_PATH_ENV, "").split(os.pathsep)):
+        for ext in (".yaml", ".yml", ".json"):
+            p = Path(folder) / f"{name}{ext}"
+            if p.is_file():
+                return p
+    return None
+
+
+def _is_ros_map(spec) -> bool:
+    if not isinstance(spec, (str, Path)) or Path(spec).suffix.lower() not in (".yaml", ".yml"):
+        return False
+    from ..maps import is_ros_map_file  # lazy: maps imports this package
+
+    return is_ros_map_file(spec)
+
+
 def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
     """Resolve a layout spec to a validated :class:`Layout`.
 
     Args:
         spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"``,
-            ``"procedural_sym"`` or ``"procedural_lookalike"`` (generated from ``seed``), a path to a ``.json`` /
-            ``.yaml`` file, a dict in the layout format, or a Layout (returned as is).
+            ``"procedural_sym"`` or ``"procedural_lookalike"`` (generated from ``seed``), the name of a
+            layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (:func:`find_layout_file`), a path
+            to a ``.json`` / ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a
+            map: a ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
+            :class:`~filters.mapping.grid.GridMap`, whose world is traced from its occupied
+            cells (:func:`semreloc_env.map_world.layout_from_map`).
         seed: seed of the procedural generator (ignored otherwise).
     """
     if isinstance(spec, Layout):
         return spec
+    from filters.mapping.grid import GridMap
+
+    if isinstance(spec, GridMap) or _is_ros_map(spec):
+        from ..map_world import layout_from_map  # lazy: map_world imports this package
+
+        if isinstance(spec, GridMap):
+            return layout_from_map(spec)
+        from filters.mapping.ros_map import load_map
+
+        return layout_from_map(load_map(spec), name=Path(spec).stem)
     if isinstance(spec, Mapping):
         return layout_from_dict(spec)
     if isinstance(spec, str) and spec in BUILTIN_LAYOUTS:
@@ -52,5 +95,11 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
         path = Path(spec)
         if path.suffix.lower() in (".json", ".yaml", ".yml") or path.exists():
             return load_layout(path)
-        raise LayoutError(f"unknown layout {str(spec)!r}: not one of {list(LAYOUT_NAMES)} and not a layout file path")
+        found = find_layout_file(str(spec))
+        if found is not None:
+            return load_layout(found)
+        raise LayoutError(
+            f"unknown layout {str(spec)!r}: not one of {list(LAYOUT_NAMES)}, not a layout file path, and no "
+            f"<name>.yaml/.yml/.json in ${LAYOUT_PATH_ENV} ({os.environ.get(LAYOUT_PATH_ENV, 'unset')})"
+        )
     raise LayoutError(f"a layout must be a name, a file path, a dict or a Layout, got {type(spec).__name__}")

@@ -1,0 +1,167 @@
+"""CARMEN log reader: the ACES log's facts (tests/data/README.md) and synthetic edge cases."""
+
+import gzip
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from filters.pose import compose, relative, wrap_angle
+from filters.robot_data.carmen import CarmenLogError, flaser_angles, read_carmen
+
+ACES = Path(__file__).parent / "data" / "aces-corrected.log.gz"
+
+
+@pytest.fixture(scope="module")
+def aces():
+    return read_carmen(ACES)
+
+
+def test_aces_counts(aces):
+    assert len(aces) == 440
+    assert aces.n_beams == 180
+    assert aces.laser == "FLASER"
+    assert aces.range_max_m == 50.0
+    assert aces.odometry_convention == "anchored"
+    np.testing.assert_allclose(np.degrees(aces.angles[:2]), [-90.0, -89.0])
+    np.testing.assert_allclose(np.degrees(aces.angles[-1]), 89.0)
+    assert aces.skipped == {"NEFF": 440}
+    assert aces.params["simulator_num_readings"] == "180"
+    assert len(aces.comments) == 2
+    np.testing.assert_array_equal(aces.sensor_pose, [0.0, 0.0, 0.0])
+    # 50.0 m readings are no-return beams
+    scan = aces.scan(0)
+    assert not scan.valid[scan.ranges >= 50.0].any()
+
+
+def test_aces_odometry_increments(aces):
+    true = relative(aces.poses[:-1], aces.poses[1:])
+    err = aces.odometry[1:] - true
+    pos = np.median(np.hypot(err[:, 0], err[:, 1]))
+    ang = np.degrees(np.median(np.abs(wrap_angle(err[:, 2]))))
+    assert 0.04 < pos < 0.06  # README: median 0.05 m
+    assert 0.6 < ang < 0.8  # README: median 0.7 deg
+    assert 315 < np.hypot(true[:, 0], true[:, 1]).sum() < 330  # ~323 m of travel
+    np.testing.assert_array_equal(aces.odometry[0], 0.0)
+    # the FLASER odom fields equal the corrected pose: the "scan" convention sees no noise at all
+    scan_conv = read_carmen(ACES, odometry="scan")
+    np.testing.assert_allclose(scan_conv.odometry[1:], true, atol=1e-9)
+
+
+def test_aces_first_increment_by_hand(aces):
+    """Scan 1: anchor = the ODOM right after scan 0, end = the last ODOM before scan 1 (lines of the file)."""
+    with gzip.open(ACES, "rt") as f:
+        lines = f.read().splitlines()
+    i0, i1 = [i for i, s in enumerate(lines) if s.startswith("FLASER")][:2]
+    odo = [i for i in range(i0 + 1, i1) if lines[i].startswith("ODOM")]
+    a = np.array(lines[odo[0]].split()[1:4], float)
+    b = np.array(lines[odo[-1]].split()[1:4], float)
+    np.testing.assert_allclose(aces.odometry[1], relative(a, b), atol=1e-12)
+    np.testing.assert_allclose(a, aces.poses[0], atol=1e-9)
+
+
+def test_subset_and_dead_reckoning(aces):
+    part = aces.subset(10, 20)
+    assert len(part) == 10
+    np.testing.assert_array_equal(part.odometry[0], 0.0)
+    np.testing.assert_array_equal(part.odometry[1:], aces.odometry[11:20])
+    dr = part.odometry_poses()
+    np.testing.assert_allclose(dr[0], part.poses[0])
+    assert np.hypot(*(dr[-1, :2] - part.poses[-1, :2])) < 2.0
+    with pytest.raises(ValueError, match="subset"):
+        aces.subset(5, 5)
+
+
+def _flaser(ranges, pose, odom, ts):
+    r = " ".join(f"{v:.3f}" for v in ranges)
+    p = " ".join(f"{v:.6f}" for v in pose)
+    o = " ".join(f"{v:.6f}" for v in odom)
+    return f"FLASER {len(ranges)} {r} {p} {o} {ts:.4f} host {ts:.4f}"
+
+
+def test_raw_log_scan_convention_and_broken_timestamps(tmp_path):
+    poses = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.1), (1.5, 0.5, 0.3)]
+    lines = ["# a raw log", "PARAM robot_frontlaser_offset 0.2 nohost 0", "PARAM robot_front_laser_max 8.0"]
+    for k, p in enumerate(poses):
+        lines.append(f"ODOM {p[0]} {p[1]} {p[2]} 0 0 0 {5 - k} host 0")
+        lines.append(_flaser([1.0, 2.0, 9.0], compose(np.array(p), [0.2, 0, 0]), p, ts=5.0 - k))  # time runs back
+    lines.append("TRUEPOS 1 2 3")
+    f = tmp_path / "raw.log"
+    f.write_text("\n".join(lines) + "\n")
+    log = read_carmen(f)
+    assert log.odometry_convention == "scan"
+    assert log.range_max_m == 8.0
+    np.testing.assert_allclose(log.sensor_pose, [0.2, 0.0, 0.0])
+    np.testing.assert_allclose(log.poses, poses, atol=1e-6)  # the laser offset is removed
+    np.testing.assert_allclose(log.odometry[2], relative(np.array(poses[1]), np.array(poses[2])), atol=1e-6)
+    np.testing.assert_array_equal(log.timestamps, [5.0, 4.0, 3.0])  # file order kept
+    assert log.skipped == {"TRUEPOS": 1}
+    assert log.comments == ("a raw log",)
+    assert not log.scan(0).valid[2]  # 9 m > 8 m max: no return
+    np.testing.assert_allclose(log.scan(0).sensor_pose, [0.2, 0.0, 0.0])
+    cont = read_carmen(f, odometry="continuous")
+    np.testing.assert_allclose(cont.odometry, log.odometry, atol=1e-6)
+
+
+def test_robotlaser1(tmp_path):
+    def rl(ranges, laser_pose, robot_pose):
+        r, lp, rp = (" ".join(map(str, v)) for v in (ranges, laser_pose, robot_pose))
+        return f"ROBOTLASER1 0 -1.5708 3.14159 0.0174533 30.0 0.01 0 {len(ranges)} {r} 0 {lp} {rp} 0 0 1 1 0 7.0 h 7.0"
+
+    robot = [np.array([0.0, 0.0, 0.0]), np.array([0.5, 0.0, math.pi / 2])]
+    off = np.array([0.1, 0.05, 0.0])
+    lines = [rl([1.0] * 5, compose(r, off), r) for r in robot]
+    f = tmp_path / "rl.log"
+    f.write_text("\n".join(lines) + "\n")
+    log = read_carmen(f)
+    assert log.laser == "ROBOTLASER1"
+    assert log.range_max_m == 30.0
+    np.testing.assert_allclose(log.sensor_pose, off, atol=1e-12)
+    np.testing.assert_allclose(log.poses, robot, atol=1e-12)
+    np.testing.assert_allclose(log.angles[1] - log.angles[0], 0.0174533)
+    np.testing.assert_allclose(log.odometry[1], relative(robot[0], robot[1]), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "line, match",
+    [
+        ("FLASER 3 1.0 2.0", "need"),
+        ("FLASER x 1.0", "not an integer"),
+        ("FLASER 2 1.0 abc 0 0 0 0 0 0 1.0 h 1.0", "non-numeric"),
+        ("FLASER 2 1.0 -2.0 0 0 0 0 0 0 1.0 h 1.0", "negative range"),
+        ("ODOM 1 2", "ODOM"),
+    ],
+)
+def test_malformed_lines(tmp_path, line, match):
+    f = tmp_path / "bad.log"
+    f.write_text("# ok\n" + _flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 0.0) + "\n" + line + "\n")
+    with pytest.raises(CarmenLogError, match=match) as e:
+        read_carmen(f)
+    assert e.value.line in (0, 3)
+
+
+def test_bad_arguments(tmp_path):
+    f = tmp_path / "empty.log"
+    f.write_text("# nothing\nODOM 0 0 0 0 0 0 0 h 0\n")
+    with pytest.raises(CarmenLogError, match="no FLASER or ROBOTLASER1"):
+        read_carmen(f)
+    with pytest.raises(ValueError, match="laser must be"):
+        read_carmen(ACES, laser="RLASER")
+    with pytest.raises(ValueError, match="odometry must be"):
+        read_carmen(ACES, odometry="gps")
+    with pytest.raises(ValueError, match="range_max_m"):
+        read_carmen(ACES, range_max_m=-1.0)
+    with pytest.raises(ValueError, match="angles must be 180"):
+        read_carmen(ACES, angles=np.zeros(3))
+    with pytest.raises(FileNotFoundError):
+        read_carmen(tmp_path / "missing.log")
+    with pytest.raises(CarmenLogError, match="no ODOM"):
+        g = tmp_path / "two.log"
+        g.write_text(_flaser([1.0], (0, 0, 0), (0, 0, 0), 0) + "\n" + _flaser([1.0], (1, 0, 0), (1, 0, 0), 1) + "\n")
+        read_carmen(g, odometry="anchored")
+
+
+def test_flaser_angles():
+    np.testing.assert_allclose(np.degrees(flaser_angles(181))[[0, -1]], [-90.0, 90.0])
+    np.testing.assert_allclose(np.degrees(flaser_angles(360))[[0, 1]], [-90.0, -89.5])

@@ -1,0 +1,49 @@
+"""Plain ROS maps (no semantic sidecar, .yml, PNG) as the env's map_source."""
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from PIL import Image
+
+import semreloc_env  # noqa: F401
+from filters.mapping.ros_map import save_map
+from semreloc_env.layouts import get_layout
+from semreloc_env.rasterize import rasterize
+
+
+def _plain_map(tmp_path, suffix=".yaml"):
+    grid = rasterize(get_layout("twin_rooms"))
+    plain = dataclasses.replace(grid, semantic=np.zeros((0, 0, 0), np.float32), class_names=())
+    return grid, save_map(plain, tmp_path / f"plain{suffix}")
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".yml"])
+def test_plain_ros_map_runs_lidar_only(tmp_path, suffix):
+    grid, path = _plain_map(tmp_path, suffix)
+    assert not (tmp_path / "plain.semantic.yaml").exists()
+    env = gym.make("SemReloc-v1", layout="twin_rooms", map_source=str(path), semantic=False,
+                   relocalizer={"n_particles": 200})  # fmt: skip
+    env.reset(seed=0)
+    for _ in range(3):
+        _, _, _, _, info = env.step(0)
+    assert np.isfinite(info["pose_error"]["position"])
+    np.testing.assert_array_equal(env.unwrapped.grid.occupied_mask(), grid.occupied_mask())
+    env.close()
+
+
+def test_plain_ros_map_with_semantic_on_says_what_to_do(tmp_path):
+    _, path = _plain_map(tmp_path)
+    with pytest.raises(ValueError, match="has no semantic classes.*semantic=False"):
+        gym.make("SemReloc-v1", layout="twin_rooms", map_source=str(path))
+
+
+def test_png_map_in_the_env(tmp_path):
+    _, path = _plain_map(tmp_path)
+    Image.open(tmp_path / "plain.pgm").save(tmp_path / "plain.png")
+    (tmp_path / "png.yml").write_text(path.read_text().replace("plain.pgm", "plain.png").replace("negate: 0\n", ""))
+    env = gym.make("SemReloc-v1", layout="twin_rooms", map_source=str(tmp_path / "png.yml"), semantic=False,
+                   relocalizer={"n_particles": 100})  # fmt: skip
+    env.reset(seed=0)
+    env.close()

@@ -1,0 +1,117 @@
+"""What map_server / map_saver write: P5 with comments, 16-bit PGM, PNG and colour images, optional
+negate, modes trinary / scale / raw, .yml, rotated origins."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from filters.mapping.grid import GridMap
+from filters.mapping.ros_map import MapFormatError, load_map, read_map_image, read_pgm, save_map
+
+TOP_FIRST = np.array([[0, 254, 205, 255], [254, 254, 0, 100], [0, 0, 0, 254]], dtype=np.uint8)
+TRINARY_BOTTOM_FIRST = np.array([[1.0, 1.0, 1.0, 0.0], [0.0, 0.0, 1.0, 0.5], [1.0, 0.0, 0.5, 0.0]])
+
+
+def _yaml(folder, image, extra="", suffix=".yaml"):
+    path = folder / f"m{suffix}"
+    path.write_text(
+        f"image: {image}\nresolution: 0.05\norigin: [1.0, -2.0, 0.0]\n"
+        f"occupied_thresh: 0.65\nfree_thresh: 0.196\n{extra}\n"
+    )
+    return path
+
+
+def test_p5_with_comments_everywhere(tmp_path):
+    body = TOP_FIRST.tobytes()
+    (tmp_path / "a.pgm").write_bytes(b"P5\n# CREATOR: map_saver.cpp 0.050 m/pix\n4 # width\n3\n# max\n255\n" + body)
+    grid = load_map(_yaml(tmp_path, "a.pgm"))
+    np.testing.assert_array_equal(grid.occupancy, TRINARY_BOTTOM_FIRST)
+    assert grid.origin_xy_m == (1.0, -2.0)
+
+
+def test_16_bit_pgm_reads_like_the_8_bit_one(tmp_path):
+    wide = (TOP_FIRST.astype(np.uint16) * 257).astype(">u2")  # 255 -> 65535: the same grey levels
+    (tmp_path / "w.pgm").write_bytes(b"P5\n4 3\n65535\n" + wide.tobytes())
+    grid = load_map(_yaml(tmp_path, "w.pgm", "mode: scale"))
+    ref = (255.0 - TOP_FIRST[::-1].astype(np.float64)) / 255.0
+    np.testing.assert_allclose(grid.occupancy, ref, atol=1e-6)
+    grey, alpha = read_map_image(tmp_path / "w.pgm")
+    np.testing.assert_allclose(grey, TOP_FIRST, atol=1e-9)
+    assert alpha is None
+    with pytest.raises(MapFormatError, match="read_map_image"):
+        read_pgm(tmp_path / "w.pgm")
+
+
+@pytest.mark.parametrize("kind", ["L", "RGB", "LA", "I;16", "P"])
+def test_png_images(tmp_path, kind):
+    if kind == "L":
+        im = Image.fromarray(TOP_FIRST)
+    elif kind == "RGB":
+        im = Image.fromarray(np.repeat(TOP_FIRST[..., None], 3, axis=2))
+    elif kind == "LA":
+        im = Image.fromarray(np.stack([TOP_FIRST, np.full_like(TOP_FIRST, 255)], axis=2), mode="LA")
+    elif kind == "I;16":
+        im = Image.fromarray(TOP_FIRST.astype(np.uint16) * 257)
+    else:
+        im = Image.fromarray(TOP_FIRST).convert("P")
+    im.save(tmp_path / "m.png")
+    grid = load_map(_yaml(tmp_path, "m.png"))
+    np.testing.assert_array_equal(grid.occupancy, TRINARY_BOTTOM_FIRST)
+
+
+def test_colour_pixels_average_their_channels_and_transparency_is_unknown_in_scale_mode(tmp_path):
+    rgba = np.zeros((1, 3, 4), np.uint8)
+    rgba[0, 0] = (255, 255, 255, 255)  # white: free
+    rgba[0, 1] = (255, 0, 0, 255)  # mean 85: p = 0.667 > 0.65: occupied
+    rgba[0, 2] = (128, 128, 128, 0)  # transparent grey, between the thresholds
+    Image.fromarray(rgba, mode="RGBA").save(tmp_path / "c.png")
+    grid = load_map(_yaml(tmp_path, "c.png", "mode: scale"))
+    np.testing.assert_allclose(grid.occupancy[0], [0.0, 170 / 255, 0.5], atol=1e-6)
+    assert grid.occupied_mask()[0].tolist() == [False, True, False]
+
+
+def test_negate_is_optional_and_defaults_to_0(tmp_path):
+    Image.fromarray(TOP_FIRST).save(tmp_path / "m.png")
+    plain = load_map(_yaml(tmp_path, "m.png"))
+    explicit = load_map(_yaml(tmp_path, "m.png", "negate: 0"))
+    negated = load_map(_yaml(tmp_path, "m.png", "negate: 1"))
+    np.testing.assert_array_equal(plain.occupancy, explicit.occupancy)
+    assert negated.occupancy[2, 0] == 0.0 and plain.occupancy[2, 0] == 1.0  # black: occupied / free
+
+
+def test_raw_mode(tmp_path):
+    img = np.array([[0, 50, 100, 101, 255]], np.uint8)
+    Image.fromarray(img).save(tmp_path / "r.png")
+    grid = load_map(_yaml(tmp_path, "r.png", "mode: raw"))
+    np.testing.assert_allclose(grid.occupancy[0], [0.0, 0.5, 1.0, 0.5, 0.5])
+    neg = load_map(_yaml(tmp_path, "r.png", "mode: raw\nnegate: 1"))  # map_server negates before raw
+    np.testing.assert_allclose(neg.occupancy[0], [0.5, 0.5, 0.5, 0.5, 0.0])
+
+
+def test_yml_everywhere(tmp_path):
+    grid = GridMap(np.array([[0.0, 1.0], [0.5, 0.0]], np.float32), 0.1, (2.0, 3.0))
+    path = save_map(grid, tmp_path / "x.yml")
+    assert path.suffix == ".yml" and (tmp_path / "x.pgm").is_file()
+    back = load_map(path)
+    np.testing.assert_array_equal(back.occupancy, grid.occupancy)
+    Image.fromarray(TOP_FIRST).save(tmp_path / "m.png")
+    assert load_map(_yaml(tmp_path, "m.png", suffix=".yml")).shape == (3, 4)
+
+
+def test_rotated_origin_is_refused_with_a_clear_error(tmp_path):
+    Image.fromarray(TOP_FIRST).save(tmp_path / "m.png")
+    path = tmp_path / "rot.yaml"
+    path.write_text(
+        "image: m.png\nresolution: 0.05\norigin: [0.0, 0.0, 1.5708]\noccupied_thresh: 0.65\nfree_thresh: 0.2\n"
+    )
+    with pytest.raises(MapFormatError, match="origin yaw is 1.5708 rad; rotated maps are not supported") as e:
+        load_map(path)
+    assert e.value.path == str(path)
+
+
+def test_undecodable_image(tmp_path):
+    (tmp_path / "m.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)
+    with pytest.raises(MapFormatError, match="m.png"):
+        load_map(_yaml(tmp_path, "m.png"))

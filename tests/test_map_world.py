@@ -1,0 +1,182 @@
+"""Worlds from maps: traced walls, physics and lidar against the map, map/world agreement, layouts as map sources."""
+
+import dataclasses
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env  # noqa: F401
+from filters.mapping.grid import GridMap
+from filters.mapping.ros_map import save_map
+from filters.simulators.grid_raycast import simulate_lidar
+from semreloc_env.layouts import get_layout
+from semreloc_env.layouts.builtin import lab
+from semreloc_env.map_world import MapLayout, check_map_matches_world, layout_from_map, trace_boundaries
+from semreloc_env.rasterize import rasterize
+from semreloc_env.world import build_world
+
+
+def _ring_area(r):
+    x, y = r[:-1, 0], r[:-1, 1]
+    return 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+
+
+def test_trace_boundaries():
+    one = np.zeros((3, 3), bool)
+    one[1, 1] = True
+    (ring,) = trace_boundaries(one)
+    assert len(ring) == 5 and _ring_area(ring) == 1.0  # counter-clockwise unit square
+    assert {tuple(p) for p in ring} == {(1, 1), (2, 1), (2, 2), (1, 2)}
+    donut = np.ones((5, 5), bool)
+    donut[2, 2] = False
+    rings = trace_boundaries(donut)
+    assert sorted(_ring_area(r) for r in rings) == [-1.0, 25.0]  # the hole runs clockwise
+    diag = np.array([[True, False], [False, True]])
+    assert sorted(_ring_area(r) for r in trace_boundaries(diag)) == [1.0, 1.0]  # corner contact: two blobs
+    assert trace_boundaries(np.zeros((2, 2), bool)) == []
+
+
+def _map_with_diagonal() -> GridMap:
+    """A 6 m x 4 m room with a diagonal wall and a disc, 0.05 m cells, origin off zero."""
+    res, h, w = 0.05, 80, 120
+    yy, xx = np.mgrid[0:h, 0:w]
+    occ = np.zeros((h, w), np.float32)
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = 1.0
+    occ[np.abs((yy - 10) - 0.6 * (xx - 20)) < 1.0] = 1.0  # diagonal wall
+    occ[(yy - 55) ** 2 + (xx - 90) ** 2 < 64] = 1.0  # a disc
+    occ[:, 60] = np.where(occ[:, 60] > 0, 1.0, 0.0)
+    return GridMap(occ, res, (-1.3, 2.1))
+
+
+def test_world_from_map_matches_the_maps_ray_cast_and_stops_the_robot():
+    grid = _map_with_diagonal()
+    lay = layout_from_map(grid)
+    n_seg = len(lay.wall_segments())
+    assert 10 < n_seg < 300  # traced and simplified: not one segment per cell edge (~1000 here)
+    world = build_world(lay)
+    rng = np.random.default_rng(0)
+    ang = np.linspace(-math.pi, math.pi, 91)[:-1]
+    diffs = []
+    for _ in range(20):
+        p = world.sample_free_pose(rng)
+        assert grid.is_free(p[:2])
+        r_world, _ = world.scene.cast(p[:2], p[2] + ang, 10.0)
+        r_map = simulate_lidar(grid, p, ang, 10.0).ranges
+        diffs.append(np.abs(r_world - r_map))
+    d = np.concatenate(diffs)
+    assert np.mean(d <= grid.resolution_m) > 0.97  # within a cell (simplification is half a cell)
+    assert np.percentile(d, 99) < 3 * grid.resolution_m
+    # drive into the east wall: the robot stops in front of it
+    world.set_pose((4.0, 4.1, 0.0))
+    for _ in range(60):
+        world.drive(0.5, 0.0)
+    x_wall = grid.extent_m[1] - 2 * grid.resolution_m
+    assert world.pose[0] <= x_wall - world.robot_params.radius_m + 1e-3
+    assert world.pose[0] > x_wall - world.robot_params.radius_m - 0.1
+    with pytest.raises(ValueError, match="not free"):
+        world.set_pose((4.6 - 1.3 + 0.05, 55 * 0.05 + 2.1, 0.0))  # centre of the disc: solid
+
+
+def test_objects_from_semantic_classes():
+    g = rasterize(get_layout("twin_rooms"))
+    lay = layout_from_map(g)
+    assert isinstance(lay, MapLayout)
+    want = sorted(o.cls for o in get_layout("twin_rooms").objects)
+    assert sorted(o.cls for o in lay.objects) == want
+    from semreloc_env.layouts import point_in_polygon
+
+    for obj in get_layout("twin_rooms").objects:  # every object is traced, with its class, where it was
+        c = obj.centroid()[None]
+        hits = [o.cls for o in lay.objects if point_in_polygon(c, np.asarray(o.polygon))[0]]
+        assert hits == [obj.cls]
+    world = build_world(lay)
+    owners = set(world.scene.owner.tolist())
+    assert owners == {-1, *range(len(lay.objects))}  # object edges carry their object, walls -1
+
+
+def _plain(grid):
+    return dataclasses.replace(grid, semantic=np.zeros((0, 0, 0), np.float32), class_names=())
+
+
+def test_env_runs_in_the_world_a_ros_map_shows(tmp_path):
+    path = save_map(_plain(_map_with_diagonal()), tmp_path / "room.yaml")
+    env = gym.make("SemReloc-v1", map_source=str(path), semantic=False, relocalizer={"n_particles": 300})
+    env.reset(seed=0)
+    base = env.unwrapped
+    assert isinstance(base.layout, MapLayout) and base.layout.name == "room"
+    for _ in range(5):
+        _, _, _, _, info = env.step(0)
+    assert np.isfinite(info["pose_error"]["position"])
+    env.close()
+    with pytest.raises(ValueError, match="no semantic classes"):
+        gym.make("SemReloc-v1", map_source=str(path))
+    # the same map as a GridMap
+    env = gym.make("SemReloc-v1", map_source=_plain(_map_with_diagonal()), semantic=False,
+                   relocalizer={"n_particles": 100})  # fmt: skip
+    env.reset(seed=1)
+    assert isinstance(env.unwrapped.layout, MapLayout)
+
+
+def test_env_with_a_semantic_map_world(tmp_path):
+    path = save_map(rasterize(get_layout("twin_rooms")), tmp_path / "twin.yaml")
+    env = gym.make("SemReloc-v1", map_source=str(path), relocalizer={"n_particles": 300})
+    obs, info = env.reset(seed=0)
+    assert len(env.unwrapped.layout.objects) == len(get_layout("twin_rooms").objects)
+    for _ in range(3):
+        env.step(1)
+    env.close()
+
+
+def test_mismatched_map_and_world_are_errors(tmp_path):
+    twin = rasterize(get_layout("twin_rooms"))
+    with pytest.raises(ValueError, match="does not fit the world 'lab'"):
+        gym.make("SemReloc-v1", layout="lab", map_source=twin)
+    path = save_map(twin, tmp_path / "twin.yaml")
+    with pytest.raises(ValueError, match="does not fit the world 'lab'"):
+        gym.make("SemReloc-v1", layout="lab", map_source=str(path))
+    shifted = dataclasses.replace(twin, origin_xy_m=(twin.origin_xy_m[0] + 0.3, twin.origin_xy_m[1] - 0.3))
+    with pytest.raises(ValueError, match="disagree in frame"):
+        check_map_matches_world(shifted, get_layout("twin_rooms"))
+    with pytest.raises(ValueError, match="does not fit"):
+        gym.make("SemReloc-v1", layout="lab", map_source="twin_rooms")
+    check_map_matches_world(twin, get_layout("twin_rooms"))  # its own world fits
+
+
+def test_map_of_one_layout_world_of_another():
+    """The map is the lab, the world is the lab with its furniture moved: one argument."""
+    moved = lab()
+    for o in moved["objects"]:
+        if o["class"] != "door":  # furniture moves 0.3 m towards the middle of the building
+            o["center"] = [o["center"][0] + (0.3 if o["center"][0] < 7.5 else -0.3), o["center"][1]]
+    moved["name"] = "lab_moved"
+    env = gym.make("SemReloc-v1", layout=moved, map_source="lab", relocalizer={"n_particles": 200})
+    env.reset(seed=0)
+    base = env.unwrapped
+    np.testing.assert_array_equal(base.grid.occupancy, gym.make("SemReloc-v1").unwrapped.grid.occupancy)
+    assert base.layout.name == "lab_moved"
+    env.step(0)
+    env.close()
+
+
+def test_layouts_by_name_on_the_search_path(tmp_path, monkeypatch):
+    import json
+
+    from semreloc_env.layouts import LayoutError, find_layout_file
+
+    moved = lab()
+    moved["name"] = "lab_moved"
+    (tmp_path / "lab_moved.json").write_text(json.dumps(moved))
+    with pytest.raises(LayoutError, match="SEMRELOC_LAYOUT_PATH"):
+        get_layout("lab_moved")
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path))
+    assert find_layout_file("lab_moved") == tmp_path / "lab_moved.json"
+    assert get_layout("lab_moved").name == "lab_moved"
+    env = gym.make("SemReloc-v1", layout="lab", map_source="lab_moved", relocalizer={"n_particles": 100})
+    assert env.unwrapped.layout.name == "lab"
+
+
+def test_missing_map_file_is_still_file_not_found(tmp_path):
+    with pytest.raises(FileNotFoundError, match="map YAML not found"):
+        gym.make("SemReloc-v1", layout="lab", map_source=str(tmp_path / "nope.yaml"))
