@@ -40,7 +40,8 @@ from .features import SemRelocExtractor
 from .metrics import EpisodeTracker, summarize_episodes
 
 ENV_ID = "SemReloc-v1"
-VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv}
+VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv, "batched": None}
+"""``"batched"``: :class:`agents.vec_env.SB3VecEnvAdapter` over the batched env (R robots in one process)."""
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,9 @@ class TrainConfig:
         env_kwargs: ``gym.make`` keyword arguments (e.g. ``layout``, ``semantic``, ``relocalizer``,
             ``max_episode_steps``); unknown ones are errors, as in the env.
         n_envs: parallel envs.
-        vec_env: ``"dummy"`` (one process) or ``"subproc"`` (one process per env).
+        vec_env: ``"dummy"`` (one process), ``"subproc"`` (one process per env) or ``"batched"``
+            (:class:`semreloc_env.envs.batched.SemRelocLoopVectorEnv` through :class:`agents.vec_env.SB3VecEnvAdapter`:
+            one process, the same episodes as ``"dummy"``).
         total_timesteps: env steps to train for (summed over envs).
         seed: seeds PPO (network init, action sampling, minibatches) and the envs (``seed + k``).
         n_steps: steps per env per rollout (rollout size ``n_steps * n_envs``).
@@ -109,6 +112,31 @@ def make_env(env_kwargs: dict[str, Any] | None = None, belief: bool = True) -> g
     return BeliefObservation(env) if belief else env
 
 
+def make_venv(config: TrainConfig):
+    """The training ``VecEnv`` of ``config``: env ``k`` seeded ``config.seed + k``, each in SB3's ``Monitor``."""
+    env_kwargs = dict(config.env_kwargs)
+    if config.vec_env == "batched":
+        from stable_baselines3.common.monitor import Monitor
+
+        from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+        from .vec_env import SB3VecEnvAdapter
+
+        venv = SB3VecEnvAdapter(
+            SemRelocLoopVectorEnv(
+                num_envs=config.n_envs, env_id=ENV_ID, wrapper=lambda e: Monitor(BeliefObservation(e)), **env_kwargs
+            )
+        )
+        venv.seed(config.seed)
+        return venv
+    return make_vec_env(
+        lambda: make_env(env_kwargs),
+        n_envs=config.n_envs,
+        seed=config.seed,
+        vec_env_cls=VEC_ENVS[config.vec_env],
+    )
+
+
 def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
     """Train PPO as ``config`` says and return the model.
 
@@ -117,13 +145,7 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
     plus ``callbacks``. The model's env is left open; ``model.get_env().close()`` releases it.
     """
     torch.set_num_threads(int(config.torch_threads))
-    env_kwargs = dict(config.env_kwargs)
-    venv = make_vec_env(
-        lambda: make_env(env_kwargs),
-        n_envs=config.n_envs,
-        seed=config.seed,
-        vec_env_cls=VEC_ENVS[config.vec_env],
-    )
+    venv = make_venv(config)
     model = PPO(
         "MultiInputPolicy",
         venv,

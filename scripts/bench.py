@@ -1,19 +1,21 @@
-"""Benchmarks of the relocalizer: measurement kernel (numba vs NumPy reference) and a full MCL step.
+"""Speed of semreloc, in one run: kernels, env steps, stages, resets, maps, scaling, PPO.
 
 Usage::
 
-    python scripts/bench.py                    # defaults: N=2000 particles, B=60 beams
-    python scripts/bench.py --particles 5000 --beams 120 --repeats 50
+    PYTHONPATH=. python scripts/bench.py              # everything (~3 min on 2 shared cores)
+    PYTHONPATH=. python scripts/bench.py --quick      # skip the building-size layout and PPO
+    PYTHONPATH=. python scripts/bench.py --only env,stages
 
-Each benchmark is a function ``bench_*(args) -> list[Row]``; :func:`main` runs them
-all and prints one table. Add a benchmark by writing a function and listing it in
-:data:`BENCHMARKS`. Single-threaded numba kernels; numba compile time is excluded
-(one warm-up call before timing). Times are the median over ``--repeats`` runs.
+Every figure is given twice: per CPU-second of this process (``time.process_time``; what
+counts on a machine shared with other jobs) and per wall-clock second. Each benchmark is a
+function ``bench_*(args) -> list[Row]`` listed in :data:`BENCHMARKS`. Numba compile time is
+excluded (warm-up calls before timing); repeated timings report the median.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import sys
 import time
@@ -28,9 +30,10 @@ try:
 except ImportError:  # running from a checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import numba
+
 from filters.localization.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
 from filters.localization.likelihood_reference import log_likelihood_reference
-from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
 from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
 
@@ -51,12 +54,24 @@ class Args:
     """timed repetitions (median reported)."""
     seed: int = 0
     """seed of the synthetic map, poses and scans."""
+    steps: int = 600
+    """env steps per steps/s measurement."""
+    ppo_steps: int = 4096
+    """PPO training steps (4 envs x 256-step rollouts: 4 rollouts)."""
+    quick: bool = False
+    """skip the building-size layout and PPO."""
+    only: str = ""
+    """comma-separated benchmark names (e.g. "likelihood,env"); empty = all."""
 
 
 @dataclass(frozen=True)
 class Row:
+    """One figure: ``cpu`` per CPU-second of this process, ``wall`` per wall-clock second (or the
+    same quantity measured both ways); ``wall`` is NaN where only one value makes sense."""
+
     name: str
-    value: float
+    cpu: float
+    wall: float
     unit: str
     note: str = ""
 
@@ -104,128 +119,346 @@ def _scene(args: Args):
     return grid, pose, poses, lidar, semantic
 
 
-def _median_time(fn: Callable[[], object], repeats: int) -> float:
-    fn()  # warm-up (numba compile, table cache)
-    times = []
+class Clock:
+    """CPU (this process) and wall seconds of a block: ``with Clock() as c: ...; c.cpu, c.wall``."""
+
+    def __enter__(self) -> Clock:
+        self._c, self._w = time.process_time(), time.perf_counter()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.cpu = time.process_time() - self._c
+        self.wall = time.perf_counter() - self._w
+
+
+def _median_time(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
+    """Median (CPU s, wall s) of ``fn()`` over ``repeats`` calls after one warm-up call."""
+    fn()
+    cpus, walls = [], []
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        with Clock() as c:
+            fn()
+        cpus.append(c.cpu)
+        walls.append(c.wall)
+    return statistics.median(cpus), statistics.median(walls)
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def fused_probe(x, y, c_, s_, lx, ly, offset, flat, floors_b, ox, oy, inv_res, w, h, out):  # pragma: no cover
+    """The reference probe: the same look-up-and-sum as the likelihood kernel, fused into one loop
+    over all beams, everything float32, fastmath (what a hand-tuned kernel could reach)."""
+    for i in range(x.shape[0]):
+        px = x[i]
+        py = y[i]
+        c = c_[i]
+        s = s_[i]
+        acc = np.float32(0.0)
+        for j in range(lx.shape[0]):
+            fx = (px + c * lx[j] - s * ly[j] - ox) * inv_res
+            fy = (py + s * lx[j] + c * ly[j] - oy) * inv_res
+            if fx >= 0 and fx < w and fy >= 0 and fy < h:
+                acc += flat[offset[j] + int(fy) * w + int(fx)]
+            else:
+                acc += floors_b[j]
+        out[i] = acc
 
 
 def bench_likelihood(args: Args) -> list[Row]:
-    """Measurement model: particle-beams per second, numba kernel vs NumPy reference."""
+    """Measurement update: the shipped kernel vs the NumPy reference vs the fused float32 probe."""
     grid, _, poses, lidar, semantic = _scene(args)
     model = LikelihoodFieldModel(grid)
     beams = model.beams(lidar, semantic)
     nb = beams.n_lidar + beams.n_semantic
     work = args.particles * nb
-    t_numba = _median_time(lambda: model.log_likelihood(poses, lidar, semantic), args.repeats)
-    t_numpy = _median_time(lambda: log_likelihood_reference(model, poses, lidar, semantic), max(3, args.repeats // 5))
+    k_cpu, k_wall = _median_time(lambda: model.log_likelihood_terms(poses, lidar, semantic), args.repeats)
+    r_cpu, r_wall = _median_time(
+        lambda: log_likelihood_reference(model, poses, lidar, semantic), max(3, args.repeats // 5)
+    )
     tables, floors = model.log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
-    x, y = poses[:, 0].copy(), poses[:, 1].copy()
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    out_l, out_s = np.zeros(args.particles), np.zeros(args.particles)
+    h, w = grid.shape
+    f32 = np.float32
     ox, oy = grid.origin_xy_m
+    probe_args = (
+        poses[:, 0].astype(f32),
+        poses[:, 1].astype(f32),
+        np.cos(poses[:, 2]).astype(f32),
+        np.sin(poses[:, 2]).astype(f32),
+        beams.lx.astype(f32),
+        beams.ly.astype(f32),
+        beams.table * (h * w),
+        tables.ravel().astype(f32),
+        floors[beams.table].astype(f32),
+        f32(ox),
+        f32(oy),
+        f32(1.0 / grid.resolution_m),
+        w,
+        h,
+        np.zeros(args.particles, f32),
+    )
+    p_cpu, p_wall = _median_time(lambda: fused_probe(*probe_args), args.repeats)
+    _, _, flat = model._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
+    inv = 1.0 / grid.resolution_m
+    out_l, out_s = np.zeros(args.particles), np.zeros(args.particles)
     kernel_args = (
-        x,
-        y,
-        c,
-        s,
-        beams.lx,
-        beams.ly,
-        beams.table,
+        poses[:, 0].copy(),
+        poses[:, 1].copy(),
+        np.cos(poses[:, 2]),
+        np.sin(poses[:, 2]),
+        beams.lx * inv,
+        beams.ly * inv,
+        beams.table * (h * w),
+        beams.table + model.distance_fields_m.size,
         beams.n_lidar,
-        tables,
-        floors,
-        ox,
-        oy,
-        1.0 / grid.resolution_m,
+        flat,
+        float(ox),
+        float(oy),
+        inv,
+        w,
+        h,
         out_l,
         out_s,
     )
-    t_kernel = _median_time(lambda: log_likelihood_kernel(*kernel_args), args.repeats)
-    a = model.log_likelihood(poses, lidar, semantic)
+    c_cpu, c_wall = _median_time(lambda: log_likelihood_kernel(*kernel_args), args.repeats)
     b = log_likelihood_reference(model, poses, lidar, semantic)
+    fused_probe(*probe_args)
+    probe_err = float(np.max(np.abs(probe_args[-1] - b)))
+    log_likelihood_kernel(*kernel_args)
+    kernel_err = float(np.max(np.abs(out_l + out_s - b)))
     shape = f"N={args.particles}, B={nb}"
     unit = "M particle-beams/s"
     return [
-        Row("likelihood numba", work / t_numba / 1e6, unit, f"{shape}, {t_numba * 1e3:.3f} ms/update"),
-        Row("  of which kernel", work / t_kernel / 1e6, unit, f"{t_kernel * 1e3:.3f} ms (no beam prep)"),
-        Row("likelihood numpy ref", work / t_numpy / 1e6, unit, f"{shape}, {t_numpy * 1e3:.3f} ms/update"),
-        Row("speed-up numba/numpy", t_numpy / t_numba, "x", f"max |diff| = {np.max(np.abs(a - b)):.1e}"),
+        Row("likelihood kernel", work / c_cpu / 1e6, work / c_wall / 1e6, unit, f"{shape}, {c_cpu * 1e3:.3f} ms CPU"),
+        Row(
+            "  with beam prep (model call)", work / k_cpu / 1e6, work / k_wall / 1e6, unit, f"{k_cpu * 1e3:.3f} ms CPU"
+        ),
+        Row("likelihood NumPy reference", work / r_cpu / 1e6, work / r_wall / 1e6, unit, f"{r_cpu * 1e3:.3f} ms CPU"),
+        Row("fused float32 probe", work / p_cpu / 1e6, work / p_wall / 1e6, unit, f"{p_cpu * 1e3:.3f} ms CPU"),
+        Row("kernel / probe speed", p_cpu / c_cpu, p_wall / c_wall, "x", "target >= 0.9"),
+        Row("model call / NumPy reference speed", r_cpu / k_cpu, r_wall / k_wall, "x", ""),
+        Row("max |kernel - reference|", kernel_err, float("nan"), "nats", f"probe: {probe_err:.1e} (float32)"),
     ]
 
 
-def bench_mcl_step(args: Args) -> list[Row]:
-    """A full filter step: predict + update (forced) + resample (every step), steps per second."""
-    grid, pose, _, lidar, semantic = _scene(args)
-    rows = []
-    for sem_on in (False, True) if semantic is not None else (False,):
-        cfg = MCLConfig(n_particles=args.particles, resample_ess_frac=1.0, use_semantic=sem_on)
-        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(args.seed))
-        mcl.init_global()
-
-        def step(mcl=mcl, delta=ODOM_STEP):
-            mcl.predict(delta)
-            d = mcl.update(lidar, semantic, force=True)
-            assert d.resampled
-
-        t = _median_time(step, args.repeats)
-        label = "+semantic" if sem_on else ""
-        rows.append(Row(f"MCL step{label}", 1.0 / t, "steps/s", f"N={args.particles}, {t * 1e3:.3f} ms/step"))
-        t_b = _median_time(mcl.belief, args.repeats)
-        if not sem_on:
-            rows.append(Row("belief summary", 1.0 / t_b, "calls/s", f"{t_b * 1e3:.3f} ms/call"))
-    return rows
+ENV_ID = "SemReloc-v1"
 
 
-ODOM_STEP = (0.05, 0.0, 0.02)
-"""Odometry increment of one benchmarked MCL step (dx m, dy m, dtheta rad)."""
-
-
-def bench_env(args: Args) -> list[Row]:
-    """``SemReloc-v1`` steps per second (N particles, B lidar beams, semantic camera), against
-    the same world + sensors without any filter, measured in the same run."""
+def _env(**kwargs):
     import gymnasium as gym
 
     import semreloc_env  # noqa: F401
+
+    return gym.make(ENV_ID, **kwargs).unwrapped
+
+
+def _steps_per_s(env, steps: int, seed: int) -> tuple[float, float]:
+    """(CPU, wall) env steps per second under the wall-following explorer; resets not counted."""
     from agents.baselines import WallFollowExplorer
 
-    kwargs = dict(map_source="perfect", lidar={"n_beams": args.beams}, relocalizer={"n_particles": args.particles})
-    env = gym.make("SemReloc-v1", **kwargs).unwrapped
-    n_steps = 20 * args.repeats
+    policy = WallFollowExplorer()
+    obs, _ = env.reset(seed=seed)
+    for _ in range(20):
+        obs = env.step(policy(obs))[0]
+    cpu = wall = 0.0
+    s = seed
+    for _ in range(steps):
+        action = policy(obs)
+        with Clock() as c:
+            obs, _, term, trunc, _ = env.step(action)
+        cpu += c.cpu
+        wall += c.wall
+        if term or trunc:
+            s += 1
+            obs, _ = env.reset(seed=s)
+    return steps / cpu, steps / wall
 
-    def episode(step_fn) -> float:
-        policy = WallFollowExplorer()
-        obs, _ = env.reset(seed=args.seed)
-        for _ in range(10):  # warm-up: numba, caches
-            obs = step_fn(policy(obs))
-        t0 = time.perf_counter()
-        for _ in range(n_steps):
-            obs = step_fn(policy(obs))
-        return n_steps / (time.perf_counter() - t0)
 
-    full = episode(lambda a: env.step(a)[0])
+def bench_env(args: Args) -> list[Row]:
+    """Single ``SemReloc-v1`` at the defaults (lab, mapped map, 2000 particles, 60 + 32 beams)."""
+    cpu, wall = _steps_per_s(_env(), args.steps, args.seed)
+    return [Row("SemReloc-v1 step (defaults)", cpu, wall, "steps/s", f"{1e3 / cpu:.3f} ms CPU per step")]
 
-    def world_only(a):
-        env._move(a)
-        lidar, semantic = env._sense()
-        from semreloc_env.envs.spaces import make_observation
 
-        return make_observation(lidar, semantic, np.zeros(3))
+def bench_batched(args: Args) -> list[Row]:
+    """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64."""
+    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
-    bare = episode(world_only)
-    note = f"N={args.particles}, {args.beams} lidar + {env.camera.params.n_beams} semantic beams"
+    rows = []
+    for r in (1, 16, 64):
+        venv = SemRelocLoopVectorEnv(num_envs=r)
+        venv.reset(seed=args.seed)
+        rng = np.random.default_rng(args.seed)
+        n = max(5, args.steps // r)
+        venv.step(rng.integers(0, 4, r))
+        with Clock() as c:
+            for _ in range(n):
+                venv.step(rng.integers(0, 4, r))
+        venv.close()
+        rows.append(
+            Row(
+                f"batched env R={r}",
+                n * r / c.cpu,
+                n * r / c.wall,
+                "robot-steps/s",
+                "random actions; target 5000 at R=64",
+            )
+        )
+    return rows
+
+
+def bench_stages(args: Args) -> list[Row]:
+    """Per-stage CPU time of a default step (cProfile, process clock; inflates short calls)."""
+    from profile_step import stage_breakdown
+
+    from agents.baselines import WallFollowExplorer
+
+    stages, total, _ = stage_breakdown(_env(), WallFollowExplorer(), max(200, args.steps // 2), args.seed)
+    rows = [Row("step under cProfile", total * 1e3, float("nan"), "ms CPU", "stages below")]
+    for k, v in stages.items():
+        rows.append(Row(f"  {k}", v * 1e3, 100 * v / total, "ms CPU | %", ""))
+    return rows
+
+
+def bench_scaling(args: Args) -> list[Row]:
+    """time(10000 particles, 180 beams) / time(2000, 60) per env step (all lidar beams used)."""
+    out = {}
+    for n, b in ((2000, 60), (10000, 180)):
+        env = _env(lidar={"n_beams": b}, relocalizer={"n_particles": n, "lidar_field": {"max_beams": b}})
+        out[(n, b)] = _steps_per_s(env, max(100, args.steps // 3), args.seed)
+    r_cpu = out[(2000, 60)][0] / out[(10000, 180)][0]
+    r_wall = out[(2000, 60)][1] / out[(10000, 180)][1]
+    note = f"{1e3 / out[(10000, 180)][0]:.2f} vs {1e3 / out[(2000, 60)][0]:.2f} ms CPU per step"
+    return [Row("time(10000, 180) / time(2000, 60)", r_cpu, r_wall, "x", note + "; target <= 12")]
+
+
+def bench_reset(args: Args) -> list[Row]:
+    """reset() with a cached map, gym.make with a cached map, and a new layout (no disk cache)."""
+    import os
+
+    env = _env()
+    env.reset(seed=0)
+    seeds = iter(range(1, 10**6))
+    r_cpu, r_wall = _median_time(lambda: env.reset(seed=next(seeds)), max(20, args.repeats))
+    m_cpu, m_wall = _median_time(_env, 5)
+    old = os.environ.get("SEMRELOC_CACHE_DIR")
+    os.environ["SEMRELOC_CACHE_DIR"] = ""
+    try:
+        rows = []
+        for name, seed in (("procedural", 1001), ("procedural", 1002)):
+            with Clock() as c:
+                e = _env(layout=name, layout_seed=seed)
+                e.reset(seed=0)
+            rows.append((c.cpu, c.wall, e.layout.bounds()))
+    finally:
+        if old is None:
+            del os.environ["SEMRELOC_CACHE_DIR"]
+        else:
+            os.environ["SEMRELOC_CACHE_DIR"] = old
+    n_cpu = statistics.median(r[0] for r in rows)
+    n_wall = statistics.median(r[1] for r in rows)
+    x0, x1, y0, y1 = rows[0][2]
     return [
-        Row("SemReloc-v1 step", full, "steps/s", note),
-        Row("  world + sensors only", bare, "steps/s", "pymunk + ray casting, no filter"),
-        Row("  filter share of a step", 1.0 - full / bare, "fraction", ""),
+        Row("reset() (cached map)", r_cpu * 1e3, r_wall * 1e3, "ms", "target <= 2 ms"),
+        Row("gym.make (cached map)", m_cpu * 1e3, m_wall * 1e3, "ms", ""),
+        Row(
+            "new layout: gym.make + reset",
+            n_cpu,
+            n_wall,
+            "s",
+            f"procedural ~{x1 - x0:.0f} x {y1 - y0:.0f} m, mapping run; target <= 0.3 s",
+        ),
     ]
 
 
+_READY_CHILD = r"""
+import json, os, resource, sys, time
+os.environ["SEMRELOC_CACHE_DIR"] = ""
+sys.path.insert(0, os.getcwd())
+import gymnasium as gym, numpy as np
+import semreloc_env
+from semreloc_env.layouts import get_layout
+from semreloc_env.layouts.tiling import tiled_layout
+from semreloc_env.mapping_run import build_maps, mapping_drive
+build_maps(get_layout("twin_rooms"))  # warm numba caches (not counted)
+gym.make("SemReloc-v1", layout="twin_rooms").reset(seed=0)
+base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+nx, ny = int(sys.argv[1]), int(sys.argv[2])
+layout = tiled_layout(get_layout("lab"), nx, ny)
+n_poses = len(mapping_drive(layout)[0])
+c0, w0 = time.process_time(), time.perf_counter()
+env = gym.make("SemReloc-v1", layout=layout)
+env.reset(seed=0)
+c1, w1 = time.process_time(), time.perf_counter()
+x0, x1, y0, y1 = layout.bounds()
+print(json.dumps({"area": (x1 - x0) * (y1 - y0), "w": x1 - x0, "h": y1 - y0, "poses": n_poses,
+                  "cpu": c1 - c0, "wall": w1 - w0, "base_rss_mb": base_rss,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
 def bench_mapping(args: Args) -> list[Row]:
+    """New layout ready (gym.make: mapping run + likelihood field, then reset) against area: copies of
+    the lab, each in a fresh process (so peak RSS is that of the run; imports and numba warm-up excluded)."""
+    import json
+    import subprocess
+
+    tiles = [(1, 1), (2, 2), (4, 4)] + ([] if args.quick else [(7, 6)])
+    rows = []
+    for nx, ny in tiles:
+        out = subprocess.run(
+            [sys.executable, "-c", _READY_CHILD, str(nx), str(ny)],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=str(Path(__file__).resolve().parents[1]),
+        )
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        note = (
+            f"{r['w']:.0f} x {r['h']:.0f} m, {r['poses']} poses; peak RSS {r['peak_rss_mb']:.0f} MB "
+            f"(after imports {r['base_rss_mb']:.0f} MB)"
+        )
+        rows.append(Row(f"ready: {r['area']:.0f} m^2 ({nx}x{ny} labs)", r["cpu"], r["wall"], "s", note))
+    return rows
+
+
+def bench_ppo(args: Args) -> list[Row]:
+    """PPO training steps/s vs raw steps/s of the same vec env (``agents.train``: BeliefObservation,
+    metrics callback, rollout 1024 steps): DummyVecEnv x4 and the batched env (SB3 adapter) x16."""
+    if args.quick:
+        return []
+    from agents.train import TrainConfig, make_venv, train
+
+    rows = []
+    for vec_env, n_envs in (("dummy", 4), ("batched", 16)):
+        cfg = TrainConfig(
+            n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, total_timesteps=args.ppo_steps,
+            progress_every_s=None, seed=args.seed,
+        )  # fmt: skip
+        venv = make_venv(cfg)
+        venv.reset()
+        rng = np.random.default_rng(args.seed)
+        n_raw = args.ppo_steps // n_envs
+        with Clock() as raw:
+            for _ in range(n_raw):
+                venv.step(rng.integers(0, 4, n_envs))
+        venv.close()
+        warm = dataclasses.replace(cfg, total_timesteps=1024)
+        train(warm).get_env().close()  # warm-up: torch, numba
+        with Clock() as ppo:
+            model = train(cfg)
+        model.get_env().close()
+        raw_cpu, raw_wall = n_raw * n_envs / raw.cpu, n_raw * n_envs / raw.wall
+        ppo_cpu, ppo_wall = args.ppo_steps / ppo.cpu, args.ppo_steps / ppo.wall
+        rows += [
+            Row(f"{vec_env} x{n_envs}: raw vec env", raw_cpu, raw_wall, "steps/s", "random actions"),
+            Row(
+                f"{vec_env} x{n_envs}: PPO training", ppo_cpu, ppo_wall, "steps/s", f"{args.ppo_steps} steps, 4 epochs"
+            ),
+            Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
+        ]
+    return rows
+
+
+def bench_mappers(args: Args) -> list[Row]:
     """Occupancy + semantic mapping of a lab-sized run: 1000 poses x 60 beams into a 15 m x 10 m grid."""
     from filters.mapping.occupancy import OccupancyMapper, SemanticMapper
     from filters.robot_data.scans import LaserScan, SemanticScan
@@ -244,34 +477,58 @@ def bench_mapping(args: Args) -> list[Row]:
         sem.update_many(poses, camera)
         return occ.to_grid(sem)
 
-    t = _median_time(run, max(1, min(args.repeats, 5)))
-    return [Row("mapping_lab_run", t, "s", "1000 poses x 60 beams, 200 x 300 cells (was a < 3 s test)")]
+    cpu, wall = _median_time(run, max(1, min(args.repeats, 5)))
+    return [Row("mappers: lab-sized run", cpu, wall, "s", "1000 poses x 60 beams, 200 x 300 cells (was a < 3 s test)")]
 
 
-BENCHMARKS: list[Callable[[Args], list[Row]]] = [bench_likelihood, bench_mcl_step, bench_env, bench_mapping]
+BENCHMARKS: list[Callable[[Args], list[Row]]] = [
+    bench_likelihood,
+    bench_env,
+    bench_batched,
+    bench_stages,
+    bench_scaling,
+    bench_reset,
+    bench_mapping,
+    bench_mappers,
+    bench_ppo,
+]
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     for f in fields(Args):
-        parser.add_argument(f"--{f.name.replace('_', '-')}", type=type(f.default), default=f.default)
+        flag = f"--{f.name.replace('_', '-')}"
+        if isinstance(f.default, bool):
+            parser.add_argument(flag, action="store_true")
+        else:
+            parser.add_argument(flag, type=type(f.default), default=f.default)
     return Args(**vars(parser.parse_args(argv)))
 
 
 def print_table(rows: list[Row]) -> None:
     w = max(len(r.name) for r in rows)
+    print(f"{'':<{w}}  {'CPU':>12}  {'wall':>12}")
     for r in rows:
-        print(f"{r.name:<{w}}  {r.value:>12.2f}  {r.unit:<20} {r.note}")
+        wall = "" if r.wall != r.wall else f"{r.wall:12.3f}"
+        cpu = f"{r.cpu:12.3g}" if abs(r.cpu) < 1e-3 and r.cpu else f"{r.cpu:12.3f}"
+        print(f"{r.name:<{w}}  {cpu}  {wall:>12}  {r.unit:<20} {r.note}")
 
 
 def main(argv: list[str] | None = None) -> list[Row]:
     args = parse_args(argv)
+    import os
+
     print(f"# semreloc bench: {args}")
+    print(f"# {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start")
+    wanted = {w.strip() for w in args.only.split(",") if w.strip()}
     rows: list[Row] = []
     for bench in BENCHMARKS:
+        if wanted and bench.__name__.removeprefix("bench_") not in wanted:
+            continue
         print(f"... {bench.__name__}", file=sys.stderr, flush=True)
         rows.extend(bench(args))
     print_table(rows)
+    print(f"# load average {os.getloadavg()[0]:.2f} at the end")
     return rows
 
 

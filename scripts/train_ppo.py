@@ -44,6 +44,8 @@ class Args:
     """parallel training envs"""
     subproc: bool = False
     """one process per env (SubprocVecEnv) instead of one process (DummyVecEnv)"""
+    batched: bool = False
+    """the batched env (R robots in one process, SB3 adapter) instead of DummyVecEnv"""
     total_timesteps: int = 200_000
     """PPO training budget in env steps (summed over envs)"""
     n_steps: int = 256
@@ -143,7 +145,7 @@ def main(argv: list[str] | None = None) -> dict:
     config = TrainConfig(
         env_kwargs=env_kwargs,
         n_envs=args.n_envs,
-        vec_env="subproc" if args.subproc else "dummy",
+        vec_env="subproc" if args.subproc else ("batched" if args.batched else "dummy"),
         total_timesteps=args.total_timesteps,
         seed=args.seed,
         n_steps=args.n_steps,

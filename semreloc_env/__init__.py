@@ -35,6 +35,15 @@ if "SemReloc-v0" not in registry:
         max_episode_steps=400,
         additional_wrappers=_CHECKED_RESET,
     )
+if "SemRelocVec-v1" not in registry:
+    # R robots in one process (a loop over SemReloc-v1 envs): gym.make_vec("SemRelocVec-v1", num_envs=R).
+    # A separate id because make_vec refuses a vector entry point on a spec with additional wrappers.
+    register(
+        id="SemRelocVec-v1",
+        entry_point="semreloc_env.envs.semreloc:SemRelocEnv",
+        vector_entry_point="semreloc_env.envs.batched:SemRelocLoopVectorEnv",
+        max_episode_steps=400,
+    )
 if "SemSlam-v0" not in registry:
     register(
         id="SemSlam-v0",

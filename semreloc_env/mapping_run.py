@@ -1,10 +1,16 @@
 """The mapping run of paper 004 §2: drive through a layout with known poses, build the maps.
 
-The robot visits a lattice of free waypoints in boustrophedon order (shortest
-lattice paths around walls), turning on the spot at each waypoint so the forward
-camera sees every direction. At every pose the simulated lidar and semantic
-camera (with their noise, misses and false detections) feed the log-odds
-occupancy and Bayesian semantic mappers of :mod:`filters.mapping.occupancy`. The result
+The robot visits a lattice of free waypoints, turning on the spot at each first visit so
+the forward camera sees every direction. The tour is greedy: from the current waypoint,
+a breadth-first search over the lattice (straight 8-neighbour hops that stay free) finds
+the nearest unvisited waypoint (ties: lowest boustrophedon index), and the robot drives
+that lattice path. A waypoint the lattice cannot reach starts a new leg (the poses are
+known, so the drive may jump). Time and memory grow with the number of waypoints (the
+layout's area), not its square: no all-pairs shortest paths.
+
+At every pose the simulated lidar and semantic camera (with their noise, misses and false
+detections) feed the log-odds occupancy and Bayesian semantic mappers of
+:mod:`filters.mapping.occupancy`, in chunks of poses so memory stays bounded. The result
 disagrees with the layout as a map built on a robot does.
 """
 
@@ -12,101 +18,197 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import shortest_path
 
 from filters.mapping.grid import GridMap
 from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper
 
 from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES, Layout
-from .rasterize import rasterize
+from .rasterize import raster_geometry
 from .sensors import Lidar, SemanticCamera
 from .world import build_world
 
+MAPPING_RUN_VERSION = "2"
+"""Bump when the mapping run's output changes for the same inputs (keys the on-disk map cache)."""
 
-def mapping_path(layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8) -> np.ndarray:
-    """Known poses ``(P, 3)`` of a mapping drive covering the layout's free space.
+CHUNK_POSES = 2048
+"""Poses sensed and integrated per batch by :func:`build_maps` (bounds its memory)."""
 
-    Waypoints: a ``spacing_m`` lattice of poses with at least robot-radius + 0.1 m
-    clearance, visited in boustrophedon order; between waypoints the path follows
-    the shortest lattice route (straight 8-neighbour hops that stay free), sampled
-    every ``step_m`` with the heading along the path; at each waypoint's first visit
-    the robot turns through ``turns`` headings. A waypoint the lattice cannot reach
-    from the current one starts a new leg (the poses are known, so the drive may jump):
-    every free waypoint is visited.
+
+@numba.njit(cache=True, nogil=True)
+def _greedy_tour(indptr, indices, n):  # pragma: no cover - compiled
+    """Visit order of nodes ``0..n-1`` of a graph (CSR): ``(nodes, driven)`` arrays.
+
+    From node 0, repeatedly breadth-first search to the nearest unvisited node (neighbours
+    in ascending index order, so ties go to the lowest index) and append the path to it
+    (``driven = True``); when none is reachable, jump to the lowest unvisited node
+    (``driven = False``). Each search stops at its first unvisited node.
     """
+    visited = np.zeros(n, np.bool_)
+    stamp = np.full(n, -1, np.int64)  # BFS epoch that reached a node (no clearing between searches)
+    parent = np.empty(n, np.int64)
+    queue = np.empty(n, np.int64)
+    out_nodes = np.empty(4 * n + 8, np.int64)
+    out_driven = np.empty(4 * n + 8, np.bool_)
+    m = 0
+    cur = 0
+    visited[0] = True
+    n_visited = 1
+    out_nodes[0] = 0
+    out_driven[0] = False
+    m = 1
+    lowest = 0  # every node below this is visited
+    epoch = 0
+    while n_visited < n:
+        epoch += 1
+        head = 0
+        tail = 0
+        queue[tail] = cur
+        tail += 1
+        stamp[cur] = epoch
+        found = -1
+        while head < tail and found < 0:
+            u = queue[head]
+            head += 1
+            for q in range(indptr[u], indptr[u + 1]):
+                v = indices[q]
+                if stamp[v] != epoch:
+                    stamp[v] = epoch
+                    parent[v] = u
+                    if not visited[v]:
+                        found = v
+                        break
+                    queue[tail] = v
+                    tail += 1
+        if found >= 0:
+            k = 0  # the path back to cur, reversed into the output
+            v = found
+            while v != cur:
+                queue[k] = v
+                k += 1
+                v = parent[v]
+            if m + k > out_nodes.shape[0]:
+                grow = max(out_nodes.shape[0], k)
+                out_nodes = np.concatenate((out_nodes, np.empty(grow, np.int64)))
+                out_driven = np.concatenate((out_driven, np.empty(grow, np.bool_)))
+            for j in range(k - 1, -1, -1):
+                out_nodes[m] = queue[j]
+                out_driven[m] = True
+                m += 1
+                if not visited[queue[j]]:
+                    visited[queue[j]] = True
+                    n_visited += 1
+            cur = found
+        else:
+            while visited[lowest]:
+                lowest += 1
+            if m + 1 > out_nodes.shape[0]:
+                out_nodes = np.concatenate((out_nodes, np.empty(out_nodes.shape[0], np.int64)))
+                out_driven = np.concatenate((out_driven, np.empty(out_driven.shape[0], np.bool_)))
+            cur = lowest
+            visited[cur] = True
+            n_visited += 1
+            out_nodes[m] = cur
+            out_driven[m] = False
+            m += 1
+    return out_nodes[:m], out_driven[:m]
+
+
+def _lattice(layout: Layout, spacing_m: float):
+    """Free waypoints ``(V, 2)`` in boustrophedon order and the CSR adjacency of free straight hops."""
     world = build_world(layout)
     x0, x1, y0, y1 = layout.bounds()
     xs = np.arange(x0 + spacing_m / 2, x1, spacing_m)
     ys = np.arange(y0 + spacing_m / 2, y1, spacing_m)
     gx, gy = np.meshgrid(xs, ys)
     free = world.free_points(np.stack([gx.ravel(), gy.ravel()], 1), margin_m=0.1).reshape(gy.shape)
-    nodes, index = [], {}
-    for j in range(len(ys)):
-        order = range(len(xs)) if j % 2 == 0 else range(len(xs) - 1, -1, -1)
-        for i in order:
-            if free[j, i]:
-                index[(i, j)] = len(nodes)
-                nodes.append((i, j))
-    if not nodes:
+    # boustrophedon numbering: even rows left to right, odd rows right to left
+    cols = np.where((np.arange(len(ys)) % 2 == 0)[:, None], np.arange(len(xs))[None, :], np.arange(len(xs))[::-1])
+    jj = np.repeat(np.arange(len(ys)), len(xs))
+    ii = cols.ravel()
+    keep = free[jj, ii]
+    jj, ii = jj[keep], ii[keep]
+    if ii.size == 0:
         raise ValueError(f"layout {layout.name!r} has no free space for a mapping run")
-    pts = np.array([(xs[i], ys[j]) for i, j in nodes])
-
-    # candidate edges to the 8-neighbours; keep those whose straight hop stays free
-    pairs = [
-        (k, index[(i + di, j + dj)])
-        for (i, j), k in index.items()
-        for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1))
-        if (i + di, j + dj) in index
-    ]
-    a, b = (np.array(v, dtype=np.int64) for v in zip(*pairs)) if pairs else (np.zeros(0, int), np.zeros(0, int))
+    index = np.full(free.shape, -1, np.int64)
+    index[jj, ii] = np.arange(ii.size)
+    pts = np.stack([xs[ii], ys[jj]], axis=1)
+    a_parts, b_parts = [], []
+    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        ni, nj = ii + di, jj + dj
+        ok = (ni >= 0) & (ni < len(xs)) & (nj >= 0) & (nj < len(ys))
+        nb = np.full(ii.shape, -1, np.int64)
+        nb[ok] = index[nj[ok], ni[ok]]
+        has = nb >= 0
+        a_parts.append(np.flatnonzero(has))
+        b_parts.append(nb[has])
+    a, b = np.concatenate(a_parts), np.concatenate(b_parts)
     t = np.linspace(0.0, 1.0, 9)
-    samples = pts[a][:, None, :] + t[None, :, None] * (pts[b] - pts[a])[:, None, :]
-    ok = world.free_points(samples.reshape(-1, 2)).reshape(len(a), len(t)).all(axis=1)
+    ok = np.ones(a.size, bool)
+    for lo in range(0, a.size, 65536):  # bounded temporaries
+        sl = slice(lo, lo + 65536)
+        samples = pts[a[sl]][:, None, :] + t[None, :, None] * (pts[b[sl]] - pts[a[sl]])[:, None, :]
+        ok[sl] = world.free_points(samples.reshape(-1, 2)).reshape(-1, len(t)).all(axis=1)
     a, b = a[ok], b[ok]
-    d = np.linalg.norm(pts[a] - pts[b], axis=1)
-    rows, cols, dists = np.concatenate([a, b]), np.concatenate([b, a]), np.concatenate([d, d])
-    graph = csr_matrix((dists, (rows, cols)), shape=(len(nodes), len(nodes)))
-    _, pred = shortest_path(graph, directed=False, return_predecessors=True)
+    src, dst = np.concatenate([a, b]), np.concatenate([b, a])
+    order = np.lexsort((dst, src))  # neighbours of each node in ascending index
+    src, dst = src[order], dst[order]
+    indptr = np.zeros(ii.size + 1, np.int64)
+    np.add.at(indptr, src + 1, 1)
+    return pts, np.cumsum(indptr), np.ascontiguousarray(dst)
 
-    # the route: (node, reached by driving) pairs; a node the lattice cannot reach from the
-    # current one (a doorway no straight hop crosses) starts a new leg: the poses are known,
-    # so the drive need not be continuous, and every free waypoint gets visited
-    route: list[tuple[int, bool]] = [(0, False)]
-    visited = {0}
-    for k in range(1, len(nodes)):
-        if k in visited:
-            continue
-        cur = route[-1][0]
-        hop, back = [], k
-        while back != cur and back >= 0:
-            hop.append(back)
-            back = pred[cur, back]
-        steps = [(h, True) for h in hop[::-1]] if back >= 0 else [(k, False)]
-        route += steps
-        visited.update(h for h, _ in steps)
 
-    def look_around(p, heading):
-        return [np.array([p[0], p[1], heading + 2 * math.pi * q / turns]) for q in range(turns)]
+def mapping_path(layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8) -> np.ndarray:
+    """Known poses ``(P, 3)`` of a mapping drive covering the layout's free space.
 
-    poses: list[np.ndarray] = look_around(pts[0], 0.0)
-    seen = {0}
-    for (a, _), (b, driven) in zip(route[:-1], route[1:]):
-        pa, pb = pts[a], pts[b]
-        heading = math.atan2(pb[1] - pa[1], pb[0] - pa[0]) if driven else 0.0
-        if driven:
-            n = max(1, int(np.ceil(np.linalg.norm(pb - pa) / step_m)))
-            poses += [np.array([*(pa + t * (pb - pa)), heading]) for t in np.arange(1, n) / n]
-        if b not in seen:  # first visit: look around
-            seen.add(b)
-            poses += look_around(pb, heading)
-        else:
-            poses.append(np.array([pb[0], pb[1], heading]))
-    out = np.array(poses)
+    Waypoints: a ``spacing_m`` lattice of poses with at least robot-radius + 0.1 m
+    clearance; the greedy nearest-unvisited tour of the module docstring over straight
+    8-neighbour hops that stay free, sampled every ``step_m`` with the heading along the
+    hop; at each waypoint's first visit the robot turns through ``turns`` headings starting
+    from its arrival heading (0 after a jump). Every free waypoint is visited.
+    """
+    return mapping_drive(layout, spacing_m, step_m, turns)[0]
+
+
+LIDAR_TURN_STRIDE = 4
+"""During the turn on the spot, the 360 deg lidar is integrated at every 4th heading only: it
+sees the same surfaces from every heading, so more scans would only cost time (the camera,
+70 deg wide, is integrated at every heading)."""
+
+
+def mapping_drive(
+    layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(poses (P, 3), lidar_due (P,) bool)``: :func:`mapping_path` and where the lidar is integrated
+    (every pose except the turn headings between each :data:`LIDAR_TURN_STRIDE`-th)."""
+    if not (isinstance(turns, int) and turns >= 1) or not (spacing_m > 0 and step_m > 0):
+        raise ValueError(f"need spacing_m > 0, step_m > 0 and an int turns >= 1, got {spacing_m}, {step_m}, {turns}")
+    pts, indptr, indices = _lattice(layout, spacing_m)
+    nodes, driven = _greedy_tour(indptr, indices, len(pts))
+    prev, nxt, drv = nodes[:-1], nodes[1:], driven[1:]
+    d = pts[nxt] - pts[prev]
+    heading = np.where(drv, np.arctan2(d[:, 1], d[:, 0]), 0.0)
+    n_sub = np.where(drv, np.maximum(1, np.ceil(np.linalg.norm(d, axis=1) / step_m)).astype(np.int64), 1)
+    first = np.zeros(len(nodes), bool)
+    _, first_at = np.unique(nodes, return_index=True)
+    first[first_at] = True
+    # per hop: n_sub - 1 intermediate poses, then turns poses (first visit) or one pose at the waypoint
+    n_end = np.where(first[1:], turns, 1)
+    counts = (n_sub - 1) + n_end
+    hop = np.repeat(np.arange(len(nxt)), counts)
+    k = np.arange(hop.size) - np.repeat(np.cumsum(counts) - counts, counts)  # index within the hop
+    inter = k < (n_sub - 1)[hop]
+    frac = np.where(inter, (k + 1) / n_sub[hop], 1.0)
+    xy = pts[prev][hop] + frac[:, None] * d[hop]
+    q = np.where(inter, 0, k - (n_sub - 1)[hop])  # turn index at the waypoint
+    th = heading[hop] + np.where(first[1:][hop], 2 * math.pi * q / turns, 0.0)
+    start = np.column_stack([np.repeat(pts[0][None], turns, 0), 2 * math.pi * np.arange(turns) / turns])
+    out = np.concatenate([start, np.column_stack([xy, th])])
     out[:, 2] = (out[:, 2] + math.pi) % (2 * math.pi) - math.pi
-    return out
+    q_all = np.concatenate([np.arange(turns), q])
+    return out, q_all % LIDAR_TURN_STRIDE == 0
 
 
 def build_maps(
@@ -119,21 +221,23 @@ def build_maps(
     """Run the mapping drive on ``layout`` and return the occupancy + semantic map.
 
     Sensors are simulated with their configured noise; ``rng`` (default: seed 0)
-    drives that noise, so the same generator gives the same map.
+    drives that noise, so the same generator gives the same map. The raster is that of
+    :func:`~semreloc_env.rasterize.rasterize`.
     """
     rng = rng if rng is not None else np.random.default_rng(0)
     lidar_s = Lidar(lidar or LidarParams())
     camera_s = SemanticCamera(camera or CameraParams())
     world = build_world(layout)
-    template = rasterize(layout, resolution_m)
+    shape, origin = raster_geometry(layout, resolution_m)
     # the simulated lidar's dropouts read as "no return" in front of real walls: they must not clear
-    occ = OccupancyMapper.like(template, OccupancyParams(clear_no_return=False))
-    sem = SemanticMapper.like(template, CLASS_NAMES)
-    poses = mapping_path(layout)
-    lidar_scans, camera_scans = [], []
-    for pose in poses:
-        lidar_scans.append(lidar_s.read(world, pose, rng))
-        camera_scans.append(camera_s.read(world, pose, rng))
-    occ.update_many(poses, lidar_scans)
-    sem.update_many(poses, camera_scans)
+    occ = OccupancyMapper(shape, resolution_m, origin, OccupancyParams(clear_no_return=False))
+    sem = SemanticMapper(shape, resolution_m, origin, CLASS_NAMES)
+    poses, lidar_due = mapping_drive(layout)
+    for lo in range(0, len(poses), CHUNK_POSES):
+        chunk = poses[lo : lo + CHUNK_POSES]
+        lchunk = chunk[lidar_due[lo : lo + CHUNK_POSES]]
+        ranges = lidar_s.read_many(world, lchunk, rng)
+        occ.update_arrays(lchunk, ranges, lidar_s.angles, lidar_s.params.range_max_m)
+        s_ranges, labels = camera_s.read_many(world, chunk, rng)
+        sem.update_arrays(chunk, s_ranges, labels, camera_s.angles, camera_s.params.range_max_m)
     return occ.to_grid(sem)

@@ -82,6 +82,13 @@ def grid_shape(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5
     return h, w
 
 
+def raster_geometry(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5):
+    """``((rows, cols), origin_xy_m)`` of :func:`rasterize`'s grid (checked as :func:`grid_shape` does)."""
+    h, w = grid_shape(layout, resolution_m, margin_m)
+    x0, _, y0, _ = layout.bounds()
+    return (h, w), (x0 - margin_m, y0 - margin_m)
+
+
 def rasterize(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5) -> GridMap:
     """The perfect occupancy and semantic grids of ``layout``.
 

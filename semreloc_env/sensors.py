@@ -11,11 +11,13 @@ All return :mod:`filters.robot_data.scans` containers or plain arrays, so filter
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from filters.mapping.grid import NO_CLASS
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
-from filters.pose import relative
 from filters.robot_data.scans import LaserScan, SemanticScan
 
 from .config import CameraParams, LidarParams
@@ -56,6 +58,20 @@ class Lidar:
         dropped = rng.random(r.shape) < p.dropout_prob
         noisy = np.where(hit & ~dropped, np.clip(noisy, 0.0, p.range_max_m), p.range_max_m)
         return LaserScan(noisy, self.angles, p.range_max_m)
+
+    def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Noisy ranges ``(P, B)`` from ``poses (P, 3)`` in one pass (beam angles: :attr:`angles`).
+
+        The same model as :meth:`read`; draws ``(P, B)`` normals, then ``(P, B)`` uniforms (so
+        for ``P = 1`` exactly the draws of :meth:`read`).
+        """
+        p = self.params
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        r, _ = world.scene.cast_many(poses[:, :2], poses[:, 2:3] + self.angles, p.range_max_m)
+        hit = r < p.range_max_m
+        noisy = r + p.noise_std_m * rng.standard_normal(r.shape)
+        dropped = rng.random(r.shape) < p.dropout_prob
+        return np.where(hit & ~dropped, np.clip(noisy, 0.0, p.range_max_m), p.range_max_m)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -101,7 +117,16 @@ class SemanticCamera:
         )
         labels = np.full(ranges.shape, NO_CLASS, dtype=np.int64)
         n_classes = len(CLASS_NAMES)
-        for k in np.unique(obj[obj >= 0]):
+        obj_l = obj.tolist()  # a few dozen beams: plain Python beats array calls here
+        visible = sorted(set(obj_l) - {-1})
+        runs_of: dict[int, list[tuple[int, int]]] = {}  # object -> its contiguous runs of beams
+        start = 0
+        for i in range(1, len(obj_l) + 1):
+            if i == len(obj_l) or obj_l[i] != obj_l[start]:
+                runs_of.setdefault(obj_l[start], []).append((start, i))
+                start = i
+        r_l = ranges.tolist()
+        for k in visible:
             detected = rng.random() >= p.miss_rate
             wrong = rng.random() < p.wrong_class_rate
             label = world.layout.objects[k].label
@@ -109,9 +134,8 @@ class SemanticCamera:
                 label = 1 + (label - 1 + int(rng.integers(1, n_classes))) % n_classes
             if not detected:
                 continue
-            runs = _runs(obj == k)
-            nearest = min(runs, key=lambda r: ranges[r[0] : r[1]].min())
-            labels[nearest[0] : nearest[1]] = label
+            a, b = min(runs_of[k], key=lambda run: min(r_l[run[0] : run[1]]))
+            labels[a:b] = label
         if rng.random() < p.false_positive_rate:
             wall_runs = _runs(hit & (obj < 0))
             start_run = int(rng.integers(0, max(len(wall_runs), 1)))
@@ -121,6 +145,109 @@ class SemanticCamera:
                 a, b = wall_runs[start_run]
                 labels[a : min(b, a + length)] = cls
         return SemanticScan(noisy, self.angles, labels, p.range_max_m)
+
+    def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Noisy ranges and labels ``(P, S)`` from ``poses (P, 3)`` in one pass (for mapping runs).
+
+        The detector model of :meth:`read` (misses, wrong classes, false positives, nearest run
+        per object), with the draws made up front: ``(P, S)`` normals (noise), then ``(P, S, 2)``
+        uniforms (miss and wrong class of the k-th visible object of each frame, ascending
+        index), ``(P, S)`` class shifts, ``(P, 4)`` uniforms for the false positive (occurs,
+        run, length, class). Not the draw order of :meth:`read`, so frames differ from it.
+        """
+        p = self.params
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        r, seg = world.scene.cast_many(poses[:, :2], poses[:, 2:3] + self.angles, p.range_max_m)
+        in_range = (r >= p.range_min_m) & (r < p.range_max_m)
+        obj = np.where((seg >= 0) & in_range, world.scene.owner[np.maximum(seg, 0)], -1)
+        ranges = np.where(in_range, r, p.range_max_m)
+        hit = ranges < p.range_max_m
+        noise = rng.standard_normal(ranges.shape)
+        noisy = np.where(hit, np.clip(ranges + p.noise_std_m * noise, 0, p.range_max_m), p.range_max_m)
+        n_classes = len(CLASS_NAMES)
+        u_obj = rng.random(ranges.shape + (2,))
+        shift = rng.integers(1, n_classes, size=ranges.shape) if n_classes > 1 else np.ones(ranges.shape, np.int64)
+        u_fp = rng.random((ranges.shape[0], 4))
+        obj_label = np.array([o.label for o in world.layout.objects] + [0], dtype=np.int64)
+        labels = np.zeros(ranges.shape, np.int64)
+        _detector_kernel(
+            obj, ranges, hit, obj_label, u_obj, shift, u_fp, p.miss_rate, p.wrong_class_rate,
+            p.false_positive_rate, n_classes, labels,
+        )  # fmt: skip
+        return noisy, labels
+
+
+@numba.njit(cache=True, nogil=True)
+def _detector_kernel(
+    obj, ranges, hit, obj_label, u_obj, shift, u_fp, miss, wrong_rate, fp_rate, n_classes, labels
+):  # pragma: no cover - compiled
+    """Labels ``(P, S)`` of :meth:`SemanticCamera.read_many` from its pre-drawn random numbers."""
+    n_frames, n_beams = obj.shape
+    for f in range(n_frames):
+        k = 0  # index of the visible object, ascending object index
+        last = -1
+        while True:
+            nxt = -1  # smallest object index > last seen in this frame
+            for b in range(n_beams):
+                o = obj[f, b]
+                if o > last and (nxt < 0 or o < nxt):
+                    nxt = o
+            if nxt < 0:
+                break
+            last = nxt
+            detected = u_obj[f, k, 0] >= miss
+            label = obj_label[nxt]
+            if u_obj[f, k, 1] < wrong_rate:
+                label = 1 + (label - 1 + shift[f, k]) % n_classes
+            k += 1
+            if not detected:
+                continue
+            best_a = -1  # the nearest contiguous run of beams on this object
+            best_b = -1
+            best_r = np.inf
+            b = 0
+            while b < n_beams:
+                if obj[f, b] == nxt:
+                    a = b
+                    rmin = ranges[f, b]
+                    while b < n_beams and obj[f, b] == nxt:
+                        rmin = min(rmin, ranges[f, b])
+                        b += 1
+                    if rmin < best_r:
+                        best_r = rmin
+                        best_a = a
+                        best_b = b
+                else:
+                    b += 1
+            for q in range(best_a, best_b):
+                labels[f, q] = label
+        if u_fp[f, 0] < fp_rate:
+            n_runs = 0  # runs of wall beams (hit, no object)
+            b = 0
+            while b < n_beams:
+                if hit[f, b] and obj[f, b] < 0:
+                    n_runs += 1
+                    while b < n_beams and hit[f, b] and obj[f, b] < 0:
+                        b += 1
+                else:
+                    b += 1
+            if n_runs > 0:
+                target = min(int(u_fp[f, 1] * n_runs), n_runs - 1)
+                length = 1 + min(int(u_fp[f, 2] * 4), 3)
+                cls = 1 + min(int(u_fp[f, 3] * n_classes), n_classes - 1)
+                run = 0
+                b = 0
+                while b < n_beams:
+                    if hit[f, b] and obj[f, b] < 0:
+                        a = b
+                        while b < n_beams and hit[f, b] and obj[f, b] < 0:
+                            b += 1
+                        if run == target:
+                            for q in range(a, min(b, a + length)):
+                                labels[f, q] = cls
+                        run += 1
+                    else:
+                        b += 1
 
 
 class Odometry:
@@ -134,8 +261,20 @@ class Odometry:
     def __init__(self, params: OdometryMotionConfig):
         self.params = params
         self._model = OdometryMotionModel(params)
-        self._origin = np.zeros((1, 3))
+        self._origin = np.zeros(3)
 
     def read(self, prev_pose: np.ndarray, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``."""
-        return self._model.sample(self._origin, relative(prev_pose, pose), rng)[0]
+        """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``.
+
+        Draws 3 normals (:meth:`~filters.motion.odometry.OdometryMotionModel.sample_pose`).
+        """
+        return self._model.sample_pose(self._origin, _relative(prev_pose, pose), rng)
+
+
+def _relative(pose_from: np.ndarray, pose_to: np.ndarray) -> tuple[float, float, float]:
+    """:func:`filters.pose.relative` of two ``(3,)`` poses in scalar arithmetic (the same numbers)."""
+    ax, ay, ath = (float(v) for v in pose_from)
+    bx, by, bth = (float(v) for v in pose_to)
+    dx, dy = bx - ax, by - ay
+    c, s = math.cos(ath), math.sin(ath)
+    return (c * dx + s * dy, -s * dx + c * dy, (bth - ath + math.pi) % (2.0 * math.pi) - math.pi)

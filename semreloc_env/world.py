@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections import OrderedDict
+from dataclasses import dataclass
 
+import numba
 import numpy as np
 import pymunk
 from pymunk.autogeometry import convex_decomposition
@@ -55,6 +58,168 @@ def _convex_parts(poly: np.ndarray) -> list[list[tuple[float, float]]]:
     return [list(part) for part in convex_decomposition(pts + [pts[0]], 1e-9)]
 
 
+@dataclass(frozen=True, eq=False)
+class StaticGeometry:
+    """What a world's static part is built from, computed once per (layout, extra obstacles).
+
+    Attributes:
+        walls: ``(K, 2, 2)`` wall segments.
+        obstacles: obstacle polygons (layout objects first, then the extra obstacles, counter-clockwise).
+        convex_parts: per obstacle, its convex pieces (pymunk polygons must be convex).
+        scene: the segments every sensor casts against.
+        ring_edges: ``(E, 4)`` edges ``(x0, y0, x1, y1)`` of the outer wall (ring 0) and the obstacles.
+        ring_start: ``(n_obstacles + 2,)``: ring ``k``'s edges are ``ring_edges[ring_start[k]:ring_start[k + 1]]``.
+        ring_bbox: ``(n_obstacles + 1, 4)`` ``(x0, y0, x1, y1)`` of each ring.
+        obstacle_buckets: CSR ``(start, items)`` of the obstacles whose bounding box overlaps each
+            cell of the scene's bucket grid (items are ring indices ``k + 1``).
+    """
+
+    walls: np.ndarray
+    obstacles: tuple[np.ndarray, ...]
+    convex_parts: tuple[list[list[tuple[float, float]]], ...]
+    scene: SegmentScene
+    ring_edges: np.ndarray
+    ring_start: np.ndarray
+    ring_bbox: np.ndarray
+    obstacle_buckets: tuple[np.ndarray, np.ndarray]
+
+
+def _polygon_key(polys) -> tuple:
+    return tuple((np.asarray(p, dtype=np.float64).shape, np.asarray(p, dtype=np.float64).tobytes()) for p in polys)
+
+
+_geometry_cache: OrderedDict[tuple, StaticGeometry] = OrderedDict()
+
+
+def static_geometry(layout: Layout, extra_obstacles=()) -> StaticGeometry:
+    """The :class:`StaticGeometry` of ``layout`` plus ``extra_obstacles`` (cached, 32 entries)."""
+    key = (layout, _polygon_key(extra_obstacles))
+    hit = _geometry_cache.get(key)
+    if hit is not None:
+        _geometry_cache.move_to_end(key)
+        return hit
+    walls = np.asarray(layout.wall_segments(), dtype=np.float64).reshape(-1, 2, 2)
+    polygons = [np.asarray(o.polygon, dtype=np.float64) for o in layout.objects]
+    obstacles = polygons + [_counter_clockwise(np.asarray(p, dtype=np.float64)) for p in extra_obstacles]
+    segments, owners = [*walls], [-1] * len(walls)
+    for i, poly in enumerate(obstacles):
+        owner = i if i < len(polygons) else -1  # extra obstacles carry no class
+        for a, b in zip(poly, np.roll(poly, -1, axis=0)):
+            segments.append((a, b))
+            owners.append(owner)
+    rings = [np.asarray(layout.outer, dtype=np.float64)] + obstacles
+    edges = np.concatenate([np.hstack([r, np.roll(r, -1, axis=0)]) for r in rings])
+    ring_start = np.concatenate([[0], np.cumsum([len(r) for r in rings])]).astype(np.int64)
+    ring_bbox = np.array([[*r.min(axis=0), *r.max(axis=0)] for r in rings], dtype=np.float64)
+    scene = SegmentScene(np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2), np.asarray(owners, np.int64))
+    _, _, gx0, gy0, cell, nx, ny = scene.bucket_grid
+    lists: list[list[int]] = [[] for _ in range(nx * ny)]
+    for k in range(1, len(rings)):
+        c0, r0 = (max(0, int(np.floor((v - g) / cell))) for v, g in zip(ring_bbox[k, :2], (gx0, gy0)))
+        c1 = min(nx - 1, int(np.floor((ring_bbox[k, 2] - gx0) / cell)))
+        r1 = min(ny - 1, int(np.floor((ring_bbox[k, 3] - gy0) / cell)))
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                lists[r * nx + c].append(k)
+    ob_start = np.concatenate([[0], np.cumsum([len(v) for v in lists])]).astype(np.int64)
+    ob_items = np.array([k for v in lists for k in v], dtype=np.int64)
+    geo = StaticGeometry(
+        walls=walls,
+        obstacles=tuple(obstacles),
+        convex_parts=tuple(_convex_parts(p) for p in obstacles),
+        scene=scene,
+        ring_edges=np.ascontiguousarray(edges),
+        ring_start=ring_start,
+        ring_bbox=ring_bbox,
+        obstacle_buckets=(ob_start, ob_items),
+    )
+    _geometry_cache[key] = geo
+    while len(_geometry_cache) > 32:
+        _geometry_cache.popitem(last=False)
+    return geo
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _inside_ring(x, y, edges, lo, hi):  # pragma: no cover - compiled
+    """Even-odd test of ``(x, y)`` against the edges ``lo:hi`` (the formula of ``point_in_polygon``)."""
+    inside = False
+    for k in range(lo, hi):
+        x0 = edges[k, 0]
+        y0 = edges[k, 1]
+        x1 = edges[k, 2]
+        y1 = edges[k, 3]
+        if (y0 > y) != (y1 > y):
+            if x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+                inside = not inside
+    return inside
+
+
+@numba.njit(cache=True, nogil=True)
+def _free_kernel(
+    xy,
+    edges,
+    ring_start,
+    ring_bbox,
+    ob_start,
+    ob_items,
+    a,
+    e,
+    seg_start,
+    seg_items,
+    gx0,
+    gy0,
+    cell,
+    nx,
+    ny,
+    clearance,
+    out,
+):  # pragma: no cover - compiled
+    """``out[p]``: point ``p`` inside ring 0, outside every obstacle ring, at least ``clearance``
+    from every segment. The even-odd and distance formulas of
+    :func:`~semreloc_env.layouts.point_in_polygon` and :meth:`SegmentScene.distances`; only the
+    obstacles and segments listed in the bucket cells near ``p`` are tested."""
+    for p in range(xy.shape[0]):
+        x = xy[p, 0]
+        y = xy[p, 1]
+        ok = _inside_ring(x, y, edges, ring_start[0], ring_start[1])
+        cx = int(math.floor((x - gx0) / cell))
+        cy = int(math.floor((y - gy0) / cell))
+        if ok and 0 <= cx < nx and 0 <= cy < ny:
+            c = cy * nx + cx
+            for q in range(ob_start[c], ob_start[c + 1]):
+                k = ob_items[q]
+                bb = ring_bbox[k]
+                if bb[0] <= x <= bb[2] and bb[1] <= y <= bb[3]:
+                    if _inside_ring(x, y, edges, ring_start[k], ring_start[k + 1]):
+                        ok = False
+                        break
+        if ok:
+            c0 = max(0, int(math.floor((x - clearance - gx0) / cell)))
+            c1 = min(nx - 1, int(math.floor((x + clearance - gx0) / cell)))
+            r0 = max(0, int(math.floor((y - clearance - gy0) / cell)))
+            r1 = min(ny - 1, int(math.floor((y + clearance - gy0) / cell)))
+            for r in range(r0, r1 + 1):
+                if not ok:
+                    break
+                for c in range(c0, c1 + 1):
+                    if not ok:
+                        break
+                    k = r * nx + c
+                    for q in range(seg_start[k], seg_start[k + 1]):
+                        i = seg_items[q]
+                        ex = e[i, 0]
+                        ey = e[i, 1]
+                        ee = max(ex * ex + ey * ey, 1e-18)
+                        t = ((x - a[i, 0]) * ex + (y - a[i, 1]) * ey) / ee
+                        t = min(max(t, 0.0), 1.0)
+                        dx = a[i, 0] + t * ex - x
+                        dy = a[i, 1] + t * ey - y
+                        if math.sqrt(dx * dx + dy * dy) < clearance:
+                            ok = False
+                            break
+        out[p] = ok
+
+
 def as_pose(value, what: str = "pose") -> np.ndarray:
     """``value`` as a ``(3,)`` float64 pose; ValueError naming ``what`` unless it is three finite real numbers."""
     a = None if isinstance(value, (str, bytes, dict)) else np.asarray(value) if _array_like(value) else None
@@ -74,38 +239,31 @@ def _array_like(value) -> bool:
 class World:
     """A layout in pymunk plus the robot. Poses are ``(x, y, theta)``, metres and radians.
 
-    Use :func:`build_world`; then :meth:`set_pose` and :meth:`drive`.
+    Use :func:`build_world`; then :meth:`set_pose` and :meth:`drive`. The static geometry
+    (segments, convex pieces) comes from :func:`static_geometry`, the pymunk space is new.
     """
 
     def __init__(self, layout: Layout, robot: RobotParams, physics: PhysicsParams, extra_obstacles=()):
         self.layout = layout
         self.robot_params = robot
         self.physics = physics
-        self.space = pymunk.Space()
-        self.space.collision_slop = 0.002
-        self.space.iterations = 20
-        static = self.space.static_body
-        segments, owners = [], []
-        for a, b in layout.wall_segments():
-            self.space.add(pymunk.Segment(static, tuple(a), tuple(b), 0.0))
-            segments.append((a, b))
-            owners.append(-1)
         max_step = robot.max_linear_mps * physics.dt_s / physics.substeps
         if max_step >= robot.radius_m:
             raise ValueError(
                 f"the robot would move {max_step:.3f} m per physics substep, not less than its radius "
                 f"{robot.radius_m} m: it could pass through thin walls; raise physics.substeps or control_hz"
             )
-        polygons = [np.asarray(o.polygon) for o in layout.objects]
-        self._obstacles = polygons + [_counter_clockwise(np.asarray(p, dtype=np.float64)) for p in extra_obstacles]
-        for i, poly in enumerate(self._obstacles):
-            for part in _convex_parts(poly):
-                self.space.add(pymunk.Poly(static, part))
-            owner = i if i < len(polygons) else -1  # extra obstacles carry no class
-            for a, b in zip(poly, np.roll(poly, -1, axis=0)):
-                segments.append((a, b))
-                owners.append(owner)
-        self.scene = SegmentScene(np.asarray(segments, dtype=np.float64), np.asarray(owners, dtype=np.int64))
+        geo = static_geometry(layout, extra_obstacles)
+        self.geometry = geo
+        self.space = pymunk.Space()
+        self.space.collision_slop = 0.002
+        self.space.iterations = 20
+        static = self.space.static_body
+        shapes = [pymunk.Segment(static, tuple(a), tuple(b), 0.0) for a, b in geo.walls]
+        shapes += [pymunk.Poly(static, part) for parts in geo.convex_parts for part in parts]
+        self.space.add(*shapes)
+        self._obstacles = list(geo.obstacles)
+        self.scene = geo.scene
         # pushed-out robots stop this far beyond their radius: a few ulps of the coordinates, at least 1 nm
         self._skin = 1e-9 + 8 * float(np.spacing(np.abs(self.scene.segments).max(initial=1.0)))
         self.body = pymunk.Body(1.0, math.inf)
@@ -130,7 +288,24 @@ class World:
         return bool(self.free_points(np.asarray(xy, dtype=np.float64)[None], margin_m)[0])
 
     def free_points(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
-        """Vectorised :meth:`is_free`: bool ``(P,)`` for points ``(P, 2)``."""
+        """Vectorised :meth:`is_free`: bool ``(P,)`` for points ``(P, 2)``; compiled (:meth:`free_points_reference`)."""
+        xy = np.ascontiguousarray(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
+        g = self.geometry
+        out = np.empty(xy.shape[0], dtype=np.bool_)
+        clearance = float(self.robot_params.radius_m + margin_m)
+        ob_start, ob_items = g.obstacle_buckets
+        seg_start, seg_items, gx0, gy0, cell, nx, ny = g.scene.bucket_grid
+        _free_kernel(
+            xy, g.ring_edges, g.ring_start, g.ring_bbox, ob_start, ob_items, g.scene._a, g.scene._e,
+            seg_start, seg_items, gx0, gy0, cell, nx, ny, clearance, out,
+        )  # fmt: skip
+        solid_at = getattr(self.layout, "solid_at", None)  # worlds built from maps: occupied cells are solid
+        if solid_at is not None and out.any():
+            out[out] &= ~solid_at(xy[out])
+        return out
+
+    def free_points_reference(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
+        """:meth:`free_points` in plain NumPy (the reference the compiled test is checked against)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         ok = point_in_polygon(xy, np.asarray(self.layout.outer))
         solid_at = getattr(self.layout, "solid_at", None)  # worlds built from maps: occupied cells are solid

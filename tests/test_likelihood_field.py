@@ -129,3 +129,42 @@ def test_zero_z_rand_and_tiny_sigma_stay_finite():
     ll = m.log_likelihood(np.array([[0.05, 0.05, 0.0], [9.0, 9.0, 1.0]]), LaserScan([0.3, 0.3], [0.0, 1.0], RMAX))
     assert np.all(np.isfinite(ll))
     assert np.all(ll < -1e4)  # astronomically unlikely, but a number
+
+
+def test_kernel_equals_reference_for_end_points_on_cell_faces():
+    from filters.localization.likelihood_reference import log_likelihood_reference
+
+    grid = GridMap(np.kron(np.eye(8), np.ones((2, 2))).astype(np.float32), 0.05, (-0.2, 0.1))
+    model = LikelihoodFieldModel(grid, CFG, CFG)
+    k = np.arange(-2, 20)
+    # particles on cell corners, beams of whole cells along the axes: end points on cell faces
+    poses = np.array([(-0.2 + 0.05 * i, 0.1 + 0.05 * j, th) for i in k for j in k for th in (0.0, np.pi / 2, -np.pi)])
+    angles = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2, np.pi / 4])
+    scan = LaserScan(np.array([0.05, 0.1, 0.15, 0.35, 0.05 * np.sqrt(2)]), angles, RMAX)
+    a = model.log_likelihood(poses, scan)
+    b = log_likelihood_reference(model, poses, scan)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+    assert np.ptp(a) > 1.0
+
+
+def test_cached_model_is_shared_by_equal_maps_and_keyed_on_configs():
+    from filters.localization import likelihood_field as lf
+
+    grid = tiny_grid()
+    twin = tiny_grid()  # another object, same content
+    m = lf.cached_model(grid, CFG, CFG)
+    assert lf.cached_model(twin, CFG, CFG) is m
+    assert lf.cached_model(grid, CFG, lf.DEFAULT_SEMANTIC_FIELD) is not m
+    assert lf.cached_model(grid, CFG, CFG, backend="numpy").backend == "numpy"
+    changed = GridMap(
+        np.where(np.eye(5, dtype=bool), 1.0, 0.0).astype(np.float32), RES, (0.0, 0.0), twin.semantic, CLASSES
+    )
+    assert lf.cached_model(changed, CFG, CFG) is not m
+    np.testing.assert_array_equal(m.distance_fields_m, LikelihoodFieldModel(grid, CFG, CFG).distance_fields_m)
+    for s in np.linspace(0.11, 0.5, lf.MODEL_CACHE_SIZE + 1):  # evicts m (least recently used)
+        lf.cached_model(grid, CFG, LikelihoodFieldConfig(sigma_hit_m=float(s)))
+    assert lf.cached_model(grid, CFG, CFG) is not m
+    with pytest.raises(TypeError, match="grid"):
+        lf.cached_model(np.zeros((5, 5)), CFG, CFG)
+    with pytest.raises(ValueError, match="backend"):
+        lf.cached_model(grid, CFG, CFG, backend="cuda")

@@ -38,7 +38,10 @@ without the tables, used to test the kernel.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import weakref
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numba
@@ -158,47 +161,52 @@ class BeamSet:
     semantic_range_max_m: float
 
 
-@numba.njit(cache=True, fastmath=False, nogil=True)
-def log_likelihood_kernel(x, y, cos_t, sin_t, lx, ly, table, n_lidar, tables, floors, ox, oy, inv_res, out_l, out_s):
+@numba.njit(cache=True, nogil=True, inline="always")
+def _beam_cells(pu, pv, c, s, lu, lv, offset, outside, w, h, idx):  # pragma: no cover - compiled
+    """Flat table index of every beam end point of one particle (exact IEEE arithmetic, no fastmath)."""
+    for j in range(lu.shape[0]):
+        fx = pu + (c * lu[j] - s * lv[j])
+        fy = pv + (s * lu[j] + c * lv[j])
+        if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
+            idx[j] = offset[j] + int(fy) * w + int(fx)
+        else:
+            idx[j] = outside[j]
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def _gather_sum(flat, idx, lo, hi):  # pragma: no cover - compiled
+    """``sum(flat[idx[lo:hi]])``; fastmath lets the compiler reorder (and vectorise) the sum."""
+    acc = 0.0
+    for j in range(lo, hi):
+        acc += flat[idx[j]]
+    return acc
+
+
+@numba.njit(cache=True, nogil=True)
+def log_likelihood_kernel(
+    x, y, cos_t, sin_t, lu, lv, offset, outside, n_lidar, flat, ox, oy, inv_res, w, h, out_l, out_s
+):  # pragma: no cover - compiled
     """Sum of per-beam ``log p`` for every particle (numba, single thread).
 
-    For particle ``i`` and beam ``j`` the end point is
-    ``(x + c*lx - s*ly, y + s*lx + c*ly)``; its cell is ``floor((e - o) * inv_res)``;
-    the value is ``tables[table[j], row, col]`` or ``floors[table[j]]`` off the map.
-    Beams ``j < n_lidar`` add to ``out_l[i]``, the others to ``out_s[i]``.
+    For particle ``i`` and beam ``j`` the end point in cell units is
+    ``(u, v) = ((x - ox) * inv_res + c*lu - s*lv, (y - oy) * inv_res + s*lu + c*lv)`` with the
+    beam's robot-frame end point ``(lu, lv)`` already in cells; its cell is ``(floor(v), floor(u))``
+    and its value ``flat[offset[j] + row * w + col]``, or ``flat[outside[j]]`` (the field's floor)
+    off the ``h x w`` map. Beams ``j < n_lidar`` add to ``out_l[i]``, the others to ``out_s[i]``.
+
+    Two phases per particle: the cell indices in exact arithmetic (so every end point lands in
+    the same cell as in :mod:`filters.localization.likelihood_reference`), then a gather-sum under
+    fastmath (the only difference from the reference is the order of the additions, ~1e-13).
     ``cos_t``/``sin_t`` are passed in so kernel and reference share them bit for bit.
     """
-    n = x.shape[0]
-    nb = lx.shape[0]
-    h = tables.shape[1]
-    w = tables.shape[2]
-    for i in range(n):
-        px = x[i]
-        py = y[i]
-        c = cos_t[i]
-        s = sin_t[i]
-        acc_l = 0.0
-        for j in range(n_lidar):
-            ex = px + c * lx[j] - s * ly[j]
-            ey = py + s * lx[j] + c * ly[j]
-            fx = (ex - ox) * inv_res
-            fy = (ey - oy) * inv_res
-            if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
-                acc_l += tables[table[j], int(fy), int(fx)]
-            else:
-                acc_l += floors[table[j]]
-        acc_s = 0.0
-        for j in range(n_lidar, nb):
-            ex = px + c * lx[j] - s * ly[j]
-            ey = py + s * lx[j] + c * ly[j]
-            fx = (ex - ox) * inv_res
-            fy = (ey - oy) * inv_res
-            if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
-                acc_s += tables[table[j], int(fy), int(fx)]
-            else:
-                acc_s += floors[table[j]]
-        out_l[i] = acc_l
-        out_s[i] = acc_s
+    nb = lu.shape[0]
+    idx = np.empty(nb, np.int64)
+    for i in range(x.shape[0]):
+        _beam_cells(
+            (x[i] - ox) * inv_res, (y[i] - oy) * inv_res, cos_t[i], sin_t[i], lu, lv, offset, outside, w, h, idx
+        )
+        out_l[i] = _gather_sum(flat, idx, 0, n_lidar)
+        out_s[i] = _gather_sum(flat, idx, n_lidar, nb)
 
 
 class LikelihoodFieldModel:
@@ -240,7 +248,7 @@ class LikelihoodFieldModel:
         fields.setflags(write=False)
         self.distance_fields_m = fields
         """``(1 + C, H, W)`` uncapped distances in metres: ``[0]`` to occupied cells, ``[k + 1]`` to class ``k``."""
-        self._tables: dict[tuple[float, float], tuple[np.ndarray, np.ndarray]] = {}
+        self._tables: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     @property
     def n_classes(self) -> int:
@@ -252,6 +260,11 @@ class LikelihoodFieldModel:
 
     def log_tables(self, lidar_range_max_m: float, semantic_range_max_m: float) -> tuple[np.ndarray, np.ndarray]:
         """``(tables (1+C, H, W), floors (1+C,))`` of ``log p`` per cell, cached per range pair."""
+        tables, floors, _ = self._log_tables(lidar_range_max_m, semantic_range_max_m)
+        return tables, floors
+
+    def _log_tables(self, lidar_range_max_m: float, semantic_range_max_m: float):
+        """``(tables, floors, flat)``: ``flat`` = ``tables.ravel()`` followed by ``floors`` (the kernel's input)."""
         key = (float(lidar_range_max_m), float(semantic_range_max_m))
         hit = self._tables.get(key)
         if hit is not None:
@@ -266,8 +279,11 @@ class LikelihoodFieldModel:
             floors[t] = cfg.log_p(np.array(cfg.max_dist_m), rmax)
         if len(self._tables) >= 4:
             self._tables.pop(next(iter(self._tables)))
-        self._tables[key] = (tables, floors)
-        return tables, floors
+        flat = np.concatenate([tables.ravel(), floors])
+        for a in (tables, floors, flat):
+            a.setflags(write=False)
+        self._tables[key] = (tables, floors, flat)
+        return self._tables[key]
 
     def beams(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> BeamSet:
         """Select the beams of one update and turn them into robot-frame end points.
@@ -338,26 +354,31 @@ class LikelihoodFieldModel:
         if self.backend == "numpy":
             ll_l, ll_s = log_likelihood_terms_reference(self, p, beams)
             return ll_l, ll_s, beams
-        tables, floors = self.log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
+        _, _, flat = self._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
         n = p.shape[0]
         out_l = np.zeros(n)
         out_s = np.zeros(n)
         if n and beams.lx.size:
             ox, oy = self.grid.origin_xy_m
+            h, w = self.grid.shape
+            inv_res = 1.0 / self.grid.resolution_m
+            offset = beams.table * (h * w)
             log_likelihood_kernel(
                 p[:, 0].copy(),
                 p[:, 1].copy(),
                 np.cos(p[:, 2]),
                 np.sin(p[:, 2]),
-                beams.lx,
-                beams.ly,
-                beams.table,
+                beams.lx * inv_res,
+                beams.ly * inv_res,
+                offset,
+                beams.table + self.distance_fields_m.size,
                 beams.n_lidar,
-                tables,
-                floors,
+                flat,
                 float(ox),
                 float(oy),
-                1.0 / self.grid.resolution_m,
+                inv_res,
+                w,
+                h,
                 out_l,
                 out_s,
             )
@@ -369,3 +390,56 @@ class LikelihoodFieldModel:
         """``(N,)`` ``log p(lidar | pose) + log p(semantic | pose)`` (natural log, unnormalised)."""
         ll_l, ll_s, _ = self.log_likelihood_terms(poses, lidar, semantic)
         return ll_l + ll_s
+
+
+# ------------------------------------------------------------------------------------------ model cache
+MODEL_CACHE_SIZE = 4
+"""Likelihood-field models kept by :func:`cached_model` (least recently used dropped first)."""
+
+_models: OrderedDict[tuple, LikelihoodFieldModel] = OrderedDict()
+_content_keys: weakref.WeakKeyDictionary[GridMap, str] = weakref.WeakKeyDictionary()
+
+
+def grid_content_key(grid: GridMap) -> str:
+    """Hex digest of everything in ``grid`` a likelihood field depends on (grids, raster, classes, thresholds).
+
+    Computed once per GridMap object (its arrays are read-only), then remembered.
+    """
+    key = _content_keys.get(grid)
+    if key is None:
+        h = hashlib.blake2b(digest_size=16)
+        meta = (grid.shape, grid.resolution_m, grid.origin_xy_m, grid.class_names)
+        h.update(repr((meta, grid.occupied_thresh, grid.free_thresh, grid.semantic_thresh)).encode())
+        h.update(np.ascontiguousarray(grid.occupancy).tobytes())
+        h.update(np.ascontiguousarray(grid.semantic).tobytes())
+        key = h.hexdigest()
+        _content_keys[grid] = key
+    return key
+
+
+def cached_model(
+    grid: GridMap,
+    lidar: LikelihoodFieldConfig | None = None,
+    semantic: LikelihoodFieldConfig | None = None,
+    backend: str = "numba",
+) -> LikelihoodFieldModel:
+    """A :class:`LikelihoodFieldModel` for ``(grid, lidar, semantic, backend)``, built once per process.
+
+    Keyed on the map's *content* (:func:`grid_content_key`) and the configs, so two GridMap
+    objects holding the same map share one model; at most :data:`MODEL_CACHE_SIZE` models are
+    kept. The model is stateless apart from its own caches, so sharing it between filters is safe.
+    """
+    if not isinstance(grid, GridMap):
+        raise TypeError(f"grid must be a filters.mapping.grid.GridMap, got {type(grid).__name__}")
+    lidar = lidar if lidar is not None else LikelihoodFieldConfig()
+    semantic = semantic if semantic is not None else DEFAULT_SEMANTIC_FIELD
+    key = (grid_content_key(grid), lidar, semantic, backend)
+    model = _models.get(key)
+    if model is None:
+        model = LikelihoodFieldModel(grid, lidar, semantic, backend)  # validates the arguments
+        _models[key] = model
+        while len(_models) > MODEL_CACHE_SIZE:
+            _models.popitem(last=False)
+    else:
+        _models.move_to_end(key)
+    return model

@@ -35,17 +35,15 @@ def log_likelihood_terms_reference(
     inv_res = 1.0 / grid.resolution_m
     x, y = p[:, 0:1], p[:, 1:2]
     c, s = np.cos(p[:, 2:3]), np.sin(p[:, 2:3])
-    lx, ly = beams.lx[None, :], beams.ly[None, :]
-    ex = x + c * lx - s * ly  # (N, B) world end points
-    ey = y + s * lx + c * ly
-    fx = (ex - ox) * inv_res
-    fy = (ey - oy) * inv_res
+    lu, lv = beams.lx[None, :] * inv_res, beams.ly[None, :] * inv_res  # robot-frame end points, cells
+    fx = (x - ox) * inv_res + (c * lu - s * lv)  # (N, B) end points in cell units
+    fy = (y - oy) * inv_res + (s * lu + c * lv)
     inside = (fx >= 0.0) & (fx < w) & (fy >= 0.0) & (fy < h)
     col = np.where(inside, fx, 0.0).astype(np.int64)  # truncation == floor for fx >= 0
     row = np.where(inside, fy, 0.0).astype(np.int64)
-    t = np.broadcast_to(beams.table[None, :], ex.shape)
+    t = np.broadcast_to(beams.table[None, :], fx.shape)
     dist = model.distance_fields_m[t, row, col]
-    logp = np.empty(ex.shape)
+    logp = np.empty(fx.shape)
     for field in np.unique(beams.table):
         cfg = model.config_of(int(field))
         rmax = beams.lidar_range_max_m if field == 0 else beams.semantic_range_max_m

@@ -363,6 +363,34 @@ class _RasterMapper:
                 return None
         return u0, v0, np.cos(th), np.sin(th), t_end, returned, no_return
 
+    def _beam_arrays(self, poses, ranges, angles, range_max_m: float, max_range_m: float):
+        """:meth:`_beams` for scans given as arrays: ``ranges (N, B)``, ``angles (B,)`` or ``(N, B)``
+        (sensor at the robot centre, no minimum range)."""
+        poses = np.asarray(poses, dtype=np.float64)
+        r = np.asarray(ranges, dtype=np.float64)
+        if poses.ndim != 2 or poses.shape[1] != 3 or not np.all(np.isfinite(poses)):
+            raise ValueError(f"poses must be finite with shape (N, 3), got {poses.shape}")
+        if r.ndim != 2 or r.shape[0] != poses.shape[0]:
+            raise ValueError(f"ranges must have shape (N, B) with N = {poses.shape[0]} poses, got {r.shape}")
+        try:
+            a = np.broadcast_to(np.asarray(angles, dtype=np.float64), r.shape)
+        except ValueError:
+            raise ValueError(f"angles {np.shape(angles)} do not match ranges {r.shape}") from None
+        if not (np.all(np.isfinite(r)) and np.all(r >= 0) and np.all(np.isfinite(a))):
+            raise ValueError("ranges must be finite and >= 0, angles finite")
+        if not (math.isfinite(range_max_m) and range_max_m > 0):
+            raise ValueError(f"range_max_m must be positive, got {range_max_m!r}")
+        if r.size == 0:
+            return None
+        use = min(float(range_max_m), max_range_m)
+        no_return = (r >= range_max_m).ravel()
+        returned = ~no_return & (r <= use).ravel()
+        length = np.where(returned, r.ravel(), use)
+        th = (poses[:, 2:3] + a).ravel()
+        u0 = np.repeat((poses[:, 0] - self._origin[0]) / self._res, r.shape[1])
+        v0 = np.repeat((poses[:, 1] - self._origin[1]) / self._res, r.shape[1])
+        return u0, v0, np.cos(th), np.sin(th), length / self._res, returned, no_return
+
     @staticmethod
     def _one(pose, scan) -> tuple[np.ndarray, list]:
         pose = np.asarray(pose, dtype=np.float64)
@@ -412,7 +440,14 @@ class OccupancyMapper(_RasterMapper):
         for s in scans:
             if not isinstance(s, LaserScan):
                 raise TypeError(f"OccupancyMapper needs LaserScan objects, got {type(s).__name__}")
-        beams = self._beams(poses, scans, self.params.max_range_m)
+        self._integrate(self._beams(poses, scans, self.params.max_range_m))
+
+    def update_arrays(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, range_max_m: float) -> None:
+        """:meth:`update_many` for scans held as arrays (no scan objects): ``ranges (N, B)`` metres taken at
+        ``poses (N, 3)``, beam angles ``(B,)`` (or ``(N, B)``) in the robot frame, one ``range_max_m``."""
+        self._integrate(self._beam_arrays(poses, ranges, angles, range_max_m, self.params.max_range_m))
+
+    def _integrate(self, beams) -> None:
         if beams is None:
             return
         u0, v0, du, dv, t_end, returned, no_return = beams
@@ -500,8 +535,24 @@ class SemanticMapper(_RasterMapper):
         beams = self._beams(poses, scans, self.params.max_range_m)
         if beams is None:
             return
+        self._integrate(beams, np.concatenate([s.labels for s in scans]).astype(np.int64))
+
+    def update_arrays(
+        self, poses: np.ndarray, ranges: np.ndarray, labels: np.ndarray, angles: np.ndarray, range_max_m: float
+    ) -> None:
+        """:meth:`update_many` for scans held as arrays: ``ranges`` and integer ``labels`` ``(N, B)``
+        (0 = none, ``k + 1`` = class ``k``) at ``poses (N, 3)``, angles ``(B,)`` or ``(N, B)``."""
+        lab = np.asarray(labels)
+        if lab.shape != np.shape(ranges) or (lab.size and not np.issubdtype(lab.dtype, np.integer)):
+            raise ValueError(f"labels must be integers of the ranges' shape {np.shape(ranges)}, got {lab.shape}")
+        if lab.size and (lab.min() < 0 or lab.max() > len(self.class_names)):
+            raise ValueError(f"labels must be in 0..{len(self.class_names)}, got {int(lab.min())}..{int(lab.max())}")
+        beams = self._beam_arrays(poses, ranges, angles, range_max_m, self.params.max_range_m)
+        if beams is not None:
+            self._integrate(beams, lab.astype(np.int64).ravel())
+
+    def _integrate(self, beams, labels: np.ndarray) -> None:
         u0, v0, du, dv, t_end, returned, _ = beams
-        labels = np.concatenate([s.labels for s in scans]).astype(np.int64)
         p = self.params
         end_label = np.where(returned, labels, -1).astype(np.int64)
         free_delta = np.where(labels > 0, p.l_free_inside, p.l_free_outside).astype(np.float64)

@@ -31,8 +31,10 @@ alphas are therefore tuned for a given odometry rate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from filters.pose import wrap_angle
@@ -82,6 +84,18 @@ def _fold(rot: float) -> float:
     return min(a, abs(np.pi - a))
 
 
+@numba.njit(cache=True, nogil=True)
+def _sample_kernel(p, rot1, trans, rot2, s_r1, s_t, s_r2, noise, out):  # pragma: no cover - compiled
+    """``out[i]`` = ``p[i]`` moved by ``(rot1, trans, rot2)`` perturbed by ``noise[:, i]`` (see ``sample``)."""
+    two_pi = 2.0 * math.pi
+    for i in range(p.shape[0]):
+        heading = p[i, 2] + (rot1 - s_r1 * noise[0, i])
+        t = trans - s_t * noise[1, i]
+        out[i, 0] = p[i, 0] + t * math.cos(heading)
+        out[i, 1] = p[i, 1] + t * math.sin(heading)
+        out[i, 2] = (heading + (rot2 - s_r2 * noise[2, i]) + math.pi) % two_pi - math.pi
+
+
 class OdometryMotionModel:
     """``sample(poses, delta, rng)``: draw new poses given an odometry increment.
 
@@ -120,6 +134,16 @@ class OdometryMotionModel:
             raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
         rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
         s_r1, s_t, s_r2 = self.stds(delta)
+        noise = rng.standard_normal((3, p.shape[0]))
+        out = np.empty_like(p)
+        _sample_kernel(np.ascontiguousarray(p), rot1, trans, rot2, s_r1, s_t, s_r2, noise, out)
+        return out
+
+    def sample_reference(self, poses: np.ndarray, delta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`sample` as plain NumPy array code (the reference the compiled kernel is tested against)."""
+        p = np.asarray(poses, dtype=np.float64)
+        rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
+        s_r1, s_t, s_r2 = self.stds(delta)
         n = p.shape[0]
         noise = rng.standard_normal((3, n))
         r1 = rot1 - s_r1 * noise[0]
@@ -130,4 +154,38 @@ class OdometryMotionModel:
         out[:, 0] = p[:, 0] + t * np.cos(heading)
         out[:, 1] = p[:, 1] + t * np.sin(heading)
         out[:, 2] = wrap_angle(heading + r2)
+        return out
+
+    def sample_pose(self, pose, delta, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`sample` for a single pose ``(3,)``, without the particle-array overhead.
+
+        Draws the same 3 normals in the same order and returns the same numbers bit for bit
+        as ``sample(pose[None], delta, rng)[0]`` (scalar arithmetic with NumPy's ``arctan2`` /
+        ``hypot`` where Python's ``math`` rounds differently).
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        p = np.asarray(pose, dtype=np.float64).reshape(-1)
+        d = np.asarray(delta, dtype=np.float64).reshape(-1)
+        if p.shape != (3,):
+            raise ValueError(f"pose must have shape (3,), got {np.shape(pose)}")
+        if d.shape != (3,) or not np.all(np.isfinite(d)):
+            raise ValueError(f"odometry delta must be 3 finite numbers (dx, dy, dtheta), got {delta!r}")
+        x, y, th = p.tolist()
+        dx, dy, dth = d.tolist()
+        c = self.config
+        trans = float(np.hypot(dx, dy))
+        rot1 = float(np.arctan2(dy, dx)) if trans >= c.min_trans_m else 0.0
+        rot2 = (dth - rot1 + math.pi) % (2.0 * math.pi) - math.pi
+        r1, r2 = _fold(rot1), _fold(rot2)
+        s_r1 = math.sqrt(c.alpha1 * r1 * r1 + c.alpha2 * trans * trans)
+        s_t = math.sqrt(c.alpha3 * trans * trans + c.alpha4 * (r1 * r1 + r2 * r2))
+        s_r2 = math.sqrt(c.alpha1 * r2 * r2 + c.alpha2 * trans * trans)
+        n0, n1, n2 = rng.standard_normal(3).tolist()
+        heading = th + (rot1 - s_r1 * n0)
+        t = trans - s_t * n1
+        out = np.empty(3)
+        out[0] = x + t * math.cos(heading)
+        out[1] = y + t * math.sin(heading)
+        out[2] = (heading + (rot2 - s_r2 * n2) + math.pi) % (2.0 * math.pi) - math.pi
         return out

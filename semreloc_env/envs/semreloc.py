@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from filters.localization.likelihood_field import cached_model
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
@@ -263,7 +264,7 @@ class SemRelocEnv(SemRelocBase):
             raise ValueError("the relocalizer's map has no free cell: nowhere to put particles")
 
     def _reset_estimator(self, options: dict) -> None:
-        self.mcl = MonteCarloLocalizer(self.grid, self.mcl_config, self._estimator_rng)
+        self.mcl = MonteCarloLocalizer(self.grid, self.mcl_config, self._estimator_rng, measurement_model=cached_model(self.grid, self.mcl_config.lidar_field, self.mcl_config.semantic_field, self.mcl_config.backend))  # fmt: skip
         if options.get("tracking"):
             self.mcl.init_around(self.world.pose, (0.1, 0.1, math.radians(5.0)))
         else:

@@ -1,0 +1,91 @@
+"""stable-baselines3 ``VecEnv`` over the batched env (:class:`semreloc_env.envs.batched.SemRelocLoopVectorEnv`).
+
+SB3 resets a finished env inside the same ``step`` (its ``terminal_observation`` goes to the
+info, ``TimeLimit.truncated`` marks time-outs), Gymnasium's vector envs reset on the next
+step; the adapter drives the batched env's robots with SB3's rule, so a policy trained on it
+sees what it would see with ``DummyVecEnv`` over the same envs. Infos are per-robot dicts
+(not copied: the env builds a new one every step).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
+
+from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+
+class SB3VecEnvAdapter(VecEnv):
+    """SB3 ``VecEnv`` view of a :class:`SemRelocLoopVectorEnv` (``venv``); seeds via :meth:`seed` as in SB3."""
+
+    def __init__(self, venv: SemRelocLoopVectorEnv):
+        if not isinstance(venv, SemRelocLoopVectorEnv):
+            raise TypeError(f"venv must be a SemRelocLoopVectorEnv, got {type(venv).__name__}")
+        self.venv = venv
+        self.envs = venv.envs
+        super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+        self._actions: np.ndarray | None = None
+        self._keys = tuple(venv.single_observation_space.spaces)
+
+    def _stack(self, obs_list: list[dict]) -> dict[str, np.ndarray]:
+        return {k: np.stack([o[k] for o in obs_list]) for k in self._keys}
+
+    def reset(self) -> VecEnvObs:
+        obs = []
+        for i, env in enumerate(self.envs):
+            o, self.reset_infos[i] = env.reset(
+                seed=self._seeds[i], **({"options": self._options[i]} if self._options[i] else {})
+            )
+            obs.append(o)
+        self._reset_seeds()
+        self._reset_options()
+        return self._stack(obs)
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, infos = [], []
+        rewards = np.zeros(self.num_envs, dtype=np.float32)
+        dones = np.zeros(self.num_envs, dtype=bool)
+        for i, env in enumerate(self.envs):
+            o, r, term, trunc, info = env.step(self._actions[i])
+            rewards[i], dones[i] = r, term or trunc
+            info["TimeLimit.truncated"] = bool(trunc and not term)
+            if dones[i]:
+                info["terminal_observation"] = o
+                o, self.reset_infos[i] = env.reset()
+            obs.append(o)
+            infos.append(info)
+        return self._stack(obs), rewards, dones, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def _targets(self, indices) -> list:
+        return [self.envs[i] for i in self._get_indices(indices)]
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        return [
+            getattr(env.unwrapped, attr_name) if attr_name != "render_mode" else env.render_mode
+            for env in self._targets(indices)
+        ]
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        for env in self._targets(indices):
+            setattr(env.unwrapped, attr_name, value)
+
+    def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
+        return [getattr(env, method_name)(*args, **kwargs) for env in self._targets(indices)]
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        from stable_baselines3.common import env_util
+
+        return [env_util.is_wrapped(env, wrapper_class) for env in self._targets(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None for _ in self.envs]

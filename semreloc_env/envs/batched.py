@@ -1,0 +1,176 @@
+"""R robots in one process as a Gymnasium ``VectorEnv``: a loop over R ``SemReloc`` envs.
+
+:class:`SemRelocLoopVectorEnv` steps ``num_envs`` independent :class:`~semreloc_env.envs.semreloc.SemRelocEnv`
+instances (each its own world, sensors and particle filter) one after the other. What it
+shares is what the process caches anyway: the map (:func:`semreloc_env.maps.maps_for`), the
+likelihood field (:func:`filters.localization.likelihood_field.cached_model`) and the static
+geometry of the world. It is *not* a fused kernel over robots: the per-robot cost is that of
+one env (see ``docs/performance.md``). What it gives today is the Gymnasium vector API with
+next-step autoreset, per-robot results equal bit for bit to R separate envs seeded
+``seed + i``, and no subprocesses.
+
+Create it with ``gym.make_vec("SemRelocVec-v1", num_envs=R)`` (vector entry point) or
+directly; :func:`agents.vec_env.SB3VecEnvAdapter` turns it into a stable-baselines3 ``VecEnv``.
+
+Autoreset follows Gymnasium's ``NEXT_STEP`` mode: a robot whose episode ended
+(terminated or truncated) in one ``step`` is reset by the *next* ``step`` call, which
+ignores that robot's action and returns its reset observation with reward 0,
+``terminated = truncated = False`` and the reset ``info``.
+"""
+
+from __future__ import annotations
+
+from copy import deepcopy
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
+
+SINGLE_ENV_ID = "SemReloc-v1"
+
+
+class SemRelocLoopVectorEnv(VectorEnv):
+    """``num_envs`` SemReloc envs stepped in a loop in this process (see the module docstring).
+
+    Args:
+        num_envs: number of robots R (>= 1).
+        env_id: the single-robot env each robot runs (``"SemReloc-v1"`` or ``"SemReloc-v0"``),
+            made with ``gym.make`` so it carries the same wrappers (``CheckedReset``, ``TimeLimit``).
+        max_episode_steps: time limit per robot (default: the single env's registration).
+        wrapper: optional callable applied to each robot's env (e.g.
+            :class:`semreloc_env.wrappers.BeliefObservation`); the spaces are the wrapped env's.
+        **kwargs: ``gym.make`` keyword arguments of the single env (layout, relocalizer, ...).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        env_id: str = SINGLE_ENV_ID,
+        max_episode_steps: int | None = None,
+        wrapper=None,
+        **kwargs,
+    ):
+        if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
+            raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        if kwargs.get("render_mode") is not None:
+            raise ValueError("SemRelocLoopVectorEnv does not render; make single envs to render")
+        extra = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
+        self.envs = [gym.make(env_id, **kwargs, **extra) for _ in range(int(num_envs))]
+        if wrapper is not None:
+            self.envs = [wrapper(env) for env in self.envs]
+        self.num_envs = int(num_envs)
+        self.single_observation_space = self.envs[0].observation_space
+        self.single_action_space = self.envs[0].action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.spec = None
+        self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
+        self._done = np.zeros(self.num_envs, dtype=np.bool_)
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Reset every robot: ``seed`` int gives robot ``i`` the seed ``seed + i``; a list gives each its own."""
+        if seed is None or isinstance(seed, (int, np.integer)):
+            seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"got {len(seeds)} seeds for {self.num_envs} robots")
+        super().reset(seed=seeds[0])
+        obs_list, infos = [], {}
+        for i, (env, s) in enumerate(zip(self.envs, seeds)):
+            obs, info = env.reset(seed=s, options=options)
+            obs_list.append(obs)
+            infos = self._add_info(infos, info, i)
+        self._done[:] = False
+        return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), infos
+
+    def step(self, actions):
+        """Step every robot with its action (a robot that ended last step is reset instead)."""
+        acts = list(actions) if not isinstance(actions, np.ndarray) else list(actions)
+        if len(acts) != self.num_envs:
+            raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
+        rewards = np.zeros(self.num_envs, dtype=np.float64)
+        terms = np.zeros(self.num_envs, dtype=np.bool_)
+        truncs = np.zeros(self.num_envs, dtype=np.bool_)
+        obs_list, infos = [], {}
+        for i, env in enumerate(self.envs):
+            if self._done[i]:
+                obs, info = env.reset()
+            else:
+                obs, rewards[i], terms[i], truncs[i], info = env.step(acts[i])
+            obs_list.append(obs)
+            infos = self._add_info(infos, info, i)
+        self._done = terms | truncs
+        return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), rewards, terms, truncs, infos
+
+    def close_extras(self, **kwargs) -> None:
+        for env in self.envs:
+            env.close()
+
+    # ------------------------------------------------------------------ helpers
+    def _add_info(self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int) -> dict[str, Any]:
+        """Gymnasium's info batching (arrays per key plus ``_key`` masks), but lossless: an array whose
+        dtype cannot hold a later robot's value exactly (None in a float array, a float in an int
+        array, another shape) becomes an object array, so :meth:`robot_info` returns every value as given."""
+        n = self.num_envs
+        for key, value in env_info.items():
+            if isinstance(value, dict):
+                vector_infos[key] = self._add_info(vector_infos.get(key, {}), value, env_num)
+            else:
+                arr = vector_infos.get(key)
+                if arr is None:
+                    arr = _new_info_array(value, n)
+                elif arr.dtype != object and not _fits(arr, value):
+                    arr = _as_object(arr)
+                arr[env_num] = value
+                vector_infos[key] = arr
+            mask = vector_infos.get(f"_{key}")
+            if mask is None:
+                mask = np.zeros(n, dtype=np.bool_)
+            mask[env_num] = True
+            vector_infos[f"_{key}"] = mask
+        return vector_infos
+
+    @staticmethod
+    def robot_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
+        """Robot ``i``'s ``info`` dict back from the batched ``infos`` (keys its ``_key`` masks mark present)."""
+        out = {}
+        for key, value in infos.items():
+            if key.startswith("_"):
+                continue
+            if isinstance(value, dict):
+                if infos.get(f"_{key}", np.ones(i + 1, bool))[i]:
+                    out[key] = SemRelocLoopVectorEnv.robot_info(value, i)
+            elif infos[f"_{key}"][i]:
+                v = value[i]
+                out[key] = v.item() if isinstance(v, np.generic) else v
+        return out
+
+
+def _new_info_array(value, n: int) -> np.ndarray:
+    if type(value) in (int, float, bool) or isinstance(value, np.number):
+        return np.zeros(n, dtype=type(value))
+    if isinstance(value, np.ndarray):
+        return np.zeros((n, *value.shape), dtype=value.dtype)
+    return np.full(n, None, dtype=object)
+
+
+def _fits(arr: np.ndarray, value) -> bool:
+    """``value`` can be stored in a row of ``arr`` without changing it."""
+    if isinstance(value, np.ndarray):
+        return value.shape == arr.shape[1:] and value.dtype == arr.dtype
+    if arr.ndim != 1:
+        return False
+    return (type(value) in (int, float, bool) or isinstance(value, np.number)) and np.dtype(type(value)) == arr.dtype
+
+
+def _as_object(arr: np.ndarray) -> np.ndarray:
+    out = np.full(arr.shape[0], None, dtype=object)
+    for i in range(arr.shape[0]):
+        out[i] = arr[i].item() if arr.ndim == 1 else arr[i].copy()
+    return out

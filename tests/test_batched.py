@@ -1,0 +1,101 @@
+"""The batched env: R robots in one process, equal bit for bit to R independent envs."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env  # noqa: F401
+from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+KW = dict(layout="twin_rooms", relocalizer={"n_particles": 300}, max_episode_steps=25)
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return isinstance(b, (list, tuple)) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.array_equal(np.asarray(a), np.asarray(b))
+    if isinstance(a, float) and isinstance(b, float) and np.isnan(a) and np.isnan(b):
+        return True
+    return a == b
+
+
+def test_make_vec_vector_entry_point_gives_the_loop_env_with_batched_spaces():
+    venv = gym.make_vec("SemRelocVec-v1", num_envs=3, vectorization_mode="vector_entry_point", **KW)
+    assert isinstance(venv.unwrapped, SemRelocLoopVectorEnv)
+    assert venv.num_envs == 3 and venv.metadata["autoreset_mode"] == gym.vector.AutoresetMode.NEXT_STEP
+    obs, infos = venv.reset(seed=0)
+    assert venv.observation_space.contains(obs)
+    assert obs["lidar"].shape == (3,) + venv.single_observation_space["lidar"].shape
+    assert infos["_pose"].all() and infos["pose"].shape == (3, 3)
+    venv.close()
+
+
+def test_each_robot_equals_an_independent_env_bit_for_bit_through_autoresets():
+    r, seed, n_steps = 3, 11, 60
+    venv = SemRelocLoopVectorEnv(num_envs=r, **KW)
+    singles = [gym.make("SemReloc-v1", **KW) for _ in range(r)]
+    rng = np.random.default_rng(0)
+    obs, infos = venv.reset(seed=seed)
+    ref = [env.reset(seed=seed + i) for i, env in enumerate(singles)]
+    for i in range(r):
+        assert _same({k: obs[k][i] for k in obs}, ref[i][0])
+        assert _same(venv.robot_info(infos, i), ref[i][1])
+    done = np.zeros(r, bool)
+    n_resets = 0
+    for _ in range(n_steps):
+        actions = rng.integers(0, 4, r)
+        obs, rew, term, trunc, infos = venv.step(actions)
+        for i, env in enumerate(singles):
+            if done[i]:  # next-step autoreset: the action is ignored, the robot starts a new episode
+                o, info = env.reset()
+                rw, te, tr = 0.0, False, False
+                n_resets += 1
+            else:
+                o, rw, te, tr, info = env.step(actions[i])
+            assert _same({k: obs[k][i] for k in obs}, o)
+            assert rew[i] == rw and term[i] == te and trunc[i] == tr
+            assert _same(venv.robot_info(infos, i), info)
+            done[i] = te or tr
+    assert n_resets >= r  # the 25-step limit made every robot autoreset at least once
+    venv.close()
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="num_envs"):
+        SemRelocLoopVectorEnv(num_envs=0)
+    venv = SemRelocLoopVectorEnv(num_envs=2, **KW)
+    with pytest.raises(ValueError, match="seeds"):
+        venv.reset(seed=[1, 2, 3])
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="actions"):
+        venv.step([0])
+
+
+def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from agents.vec_env import SB3VecEnvAdapter
+    from semreloc_env.wrappers import BeliefObservation
+
+    r = 2
+    adapter = SB3VecEnvAdapter(SemRelocLoopVectorEnv(num_envs=r, wrapper=BeliefObservation, **KW))
+    dummy = DummyVecEnv([lambda: BeliefObservation(gym.make("SemReloc-v1", **KW)) for _ in range(r)])
+    assert adapter.observation_space == dummy.observation_space
+    adapter.seed(5)
+    dummy.seed(5)
+    a, b = adapter.reset(), dummy.reset()
+    assert _same(a, b)
+    rng = np.random.default_rng(1)
+    n_done = 0
+    for _ in range(60):
+        actions = rng.integers(0, 4, r)
+        oa, ra, da, ia = adapter.step(actions)
+        ob, rb, db, ib = dummy.step(actions)
+        assert _same(oa, ob) and np.array_equal(ra, rb) and np.array_equal(da, db) and _same(ia, ib)
+        n_done += int(da.sum())
+    assert n_done >= r
+    assert adapter.get_attr("layout")[0].name == "twin_rooms"
+    adapter.close()

@@ -1,0 +1,137 @@
+"""Caches that make resets and new envs cheap: the likelihood field per map, maps per layout."""
+
+import gymnasium as gym
+import numpy as np
+
+import semreloc_env  # noqa: F401
+
+
+def test_envs_on_the_same_map_share_one_likelihood_model_across_resets():
+    a = gym.make("SemReloc-v1", map_source="perfect").unwrapped
+    b = gym.make("SemReloc-v1", map_source="perfect").unwrapped
+    a.reset(seed=0)
+    model = a.mcl.measurement_model
+    a.reset(seed=1)
+    b.reset(seed=2)
+    assert a.mcl.measurement_model is model and b.mcl.measurement_model is model
+    c = gym.make("SemReloc-v1", map_source="perfect", relocalizer={"lidar_field": {"sigma_hit_m": 0.3}}).unwrapped
+    c.reset(seed=0)
+    assert c.mcl.measurement_model is not model
+    assert np.isclose(c.mcl.measurement_model.lidar_config.sigma_hit_m, 0.3)
+
+
+def test_mapping_run_maps_are_cached_on_disk_and_reloaded_equal(tmp_path, monkeypatch):
+    from semreloc_env import maps
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.layouts import get_layout
+
+    monkeypatch.setenv("SEMRELOC_CACHE_DIR", str(tmp_path))
+    layout = get_layout("procedural", seed=21)
+    lidar, camera = LidarParams(), CameraParams()
+    built = maps.mapped(layout, lidar, camera)
+    files = list((tmp_path / "maps").glob("*.npz"))
+    assert len(files) == 1 and files[0].stem == maps.map_key(layout, lidar, camera)
+    assert maps.mapped(layout, lidar, camera) is built  # memory
+    maps._memory.clear()
+    loaded = maps.mapped(layout, lidar, camera)  # disk
+    assert loaded is not built
+    np.testing.assert_array_equal(loaded.occupancy, built.occupancy)
+    np.testing.assert_array_equal(loaded.semantic, built.semantic)
+    assert (loaded.resolution_m, loaded.origin_xy_m, loaded.class_names) == (
+        built.resolution_m,
+        built.origin_xy_m,
+        built.class_names,
+    )
+    # other sensor parameters, another layout: other keys
+    assert maps.map_key(layout, LidarParams(n_beams=90), camera) != files[0].stem
+    assert maps.map_key(get_layout("procedural", seed=22), lidar, camera) != files[0].stem
+    # a corrupt file is rebuilt and replaced
+    files[0].write_bytes(b"not a map")
+    maps._memory.clear()
+    again = maps.mapped(layout, lidar, camera)
+    np.testing.assert_array_equal(again.occupancy, built.occupancy)
+    assert files[0].stat().st_size > 1000
+
+
+def test_disk_cache_can_be_switched_off(tmp_path, monkeypatch):
+    from semreloc_env import maps
+
+    monkeypatch.setenv("SEMRELOC_CACHE_DIR", "")
+    assert maps.cache_dir() is None
+    monkeypatch.setenv("SEMRELOC_CACHE_DIR", str(tmp_path))
+    assert maps.cache_dir() == tmp_path / "maps"
+    monkeypatch.delenv("SEMRELOC_CACHE_DIR")
+    assert maps.cache_dir().parts[-3:] == (".cache", "semreloc", "maps")
+
+
+def test_mapping_tour_visits_every_free_waypoint_without_all_pairs_paths():
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.layouts.tiling import tiled_layout
+    from semreloc_env.mapping_run import _lattice, mapping_drive
+
+    layout = tiled_layout(get_layout("twin_rooms"), 2, 1)
+    pts, indptr, indices = _lattice(layout, 0.6)
+    poses, lidar_due = mapping_drive(layout)
+    visited = {tuple(p) for p in np.round(poses[:, :2], 9).tolist()}
+    assert all(tuple(p) in visited for p in np.round(pts, 9).tolist())
+    # consecutive poses are a hop apart at most (or a jump to a new leg), the lidar runs at 1 in 4 turn headings
+    steps = np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)
+    assert np.mean(steps <= 0.2 + 1e-9) > 0.99
+    assert 0.2 < lidar_due.mean() < 0.6
+
+
+def test_tiled_layout_repeats_the_base_and_checks_its_arguments():
+    import pytest
+
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.layouts.tiling import tiled_layout
+    from semreloc_env.world import build_world
+
+    lab = get_layout("lab")
+    big = tiled_layout(lab, 3, 2)
+    assert big.bounds() == (0.0, 45.0, 0.0, 20.0)
+    assert len(big.objects) == 6 * len(lab.objects)
+    world = build_world(big)
+    # the tiles are joined: a pose in the far tile is free, and the doorway between tiles is open
+    assert world.is_free([15.0 + 7.5, 10.0 + 2.0])
+    from semreloc_env.layouts.tiling import _gap_centre
+
+    gy, gx = _gap_centre(lab, False, 0.8), _gap_centre(lab, True, 0.8)
+    assert world.is_free([15.0, gy]) and world.is_free([gx, 10.0])  # doorways in the shared walls
+    assert not world.is_free([15.0, gy + 0.5]) and not world.is_free([gx + 0.5, 10.0])
+    from semreloc_env.mapping_run import _greedy_tour, _lattice
+
+    _, indptr, indices = _lattice(big, 0.6)
+    _, driven = _greedy_tour(indptr, indices, len(indptr) - 1)
+    assert np.sum(~driven) <= 3  # (nearly) one connected drive: the tiles are joined
+    with pytest.raises(ValueError, match="nx"):
+        tiled_layout(lab, 0, 1)
+    with pytest.raises(ValueError, match="rectangle"):
+        tiled_layout(get_layout({"outer": [[0, 0], [4, 0], [2, 3]]}), 2, 2)
+
+
+def test_array_level_mapper_updates_equal_the_scan_object_path():
+    from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper
+    from filters.robot_data.scans import LaserScan, SemanticScan
+
+    rng = np.random.default_rng(3)
+    n, b = 40, 30
+    poses = np.column_stack([rng.uniform(1, 4, n), rng.uniform(1, 4, n), rng.uniform(-np.pi, np.pi, n)])
+    angles = np.linspace(-1.0, 1.0, b)
+    ranges = rng.uniform(0.0, 6.0, (n, b))  # some beyond the 5 m range: no return
+    labels = rng.integers(0, 5, (n, b))
+    for params in (OccupancyParams(), OccupancyParams(clear_no_return=False)):
+        a, c = OccupancyMapper((100, 100), 0.05, params=params), OccupancyMapper((100, 100), 0.05, params=params)
+        a.update_many(poses, [LaserScan(r, angles, 5.0) for r in ranges])
+        c.update_arrays(poses, ranges, angles, 5.0)
+        np.testing.assert_array_equal(a.logodds, c.logodds)
+    a, c = SemanticMapper((100, 100), 0.05), SemanticMapper((100, 100), 0.05)
+    a.update_many(poses, [SemanticScan(r, angles, lab, 5.0) for r, lab in zip(ranges, labels)])
+    c.update_arrays(poses, ranges, labels, angles, 5.0)
+    np.testing.assert_array_equal(a.logodds, c.logodds)
+    import pytest
+
+    with pytest.raises(ValueError, match="labels"):
+        c.update_arrays(poses, ranges, labels + 5, angles, 5.0)
+    with pytest.raises(ValueError, match="ranges"):
+        c.update_arrays(poses, ranges[:3], labels[:3], angles, 5.0)
