@@ -59,7 +59,7 @@ class BeliefObservation(gym.Wrapper):
         pos_std_max_m: upper bound of ``pos_std_m`` (default 20 m, beyond the half-diagonal of
             the built-in layouts).
         entropy_max_nats: upper bound of ``entropy_nats``; default ``log`` of the relocalizer's
-            largest particle count (``max_particles`` with KLD sampling, else ``n_particles``),
+            largest particle count (``n_particles``, or ``max_particles`` when it is None),
             read from ``env.unwrapped.mcl_config``, or ``log(10_000)`` if the env has none.
         max_clusters: upper bound of ``n_clusters`` (default 20).
     """
@@ -80,7 +80,7 @@ class BeliefObservation(gym.Wrapper):
             cfg = getattr(env.unwrapped, "mcl_config", None)
             n_max = 10_000
             if cfg is not None:
-                n_max = int(cfg.max_particles) if getattr(cfg, "kld", False) else int(cfg.n_particles)
+                n_max = int(cfg.max_particles) if cfg.n_particles is None else int(cfg.n_particles)
             entropy_max_nats = math.log(max(n_max, 2))
         for name, v in (
             ("pos_std_max_m", pos_std_max_m),

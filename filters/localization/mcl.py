@@ -40,14 +40,16 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
    one by one until ``n >= n_chi(k)`` where ``k`` is the number of occupied
    ``kld_bin_xy_m x kld_bin_xy_m x kld_bin_theta_rad`` bins so far and
    ``n_chi(k) = (k - 1) / (2 eps) * (1 - 2/(9(k-1)) + sqrt(2/(9(k-1))) z)^3``,
-   clipped to ``[min_particles, max_particles]``. Vectorised: ``max(2 N, 4 min_particles)``
+   clipped to :attr:`MonteCarloLocalizer.kld_bounds` (``[min_particles, max_particles]``; an
+   explicit ``n_particles`` is the upper bound instead). Vectorised: ``max(2 N, 4 min_particles)``
    draws (all ``max_particles`` if the bound is not met within them), then the first prefix
    length that satisfies the bound.
 6. **Clustered resampling** (after the clustered particle filter of Milstein et al. 2002),
    if ``resample_mode == "clustered"``: the particles are split into the clusters of
    :func:`filters.localization.belief.cluster_labels`; every cluster whose weight is at least
    ``cluster_keep_weight`` keeps its weight and gets
-   ``max(cluster_min_particles, round(n_new * weight))`` particles, drawn from its own
+   ``max(floor, round(n_new * weight))`` particles (``floor = min(cluster_min_particles,
+   n_new // kept clusters)``), drawn from its own
    particles with ``resampler``; lighter clusters are dropped. A hypothesis that the
    sensors still support is never lost to resampling noise; ``n_new`` is N (or the KLD count).
 7. **Augmented MCL** (Thrun et al. Table 8.3, with AMCL ``pf.c``'s semantics), if
@@ -600,15 +602,23 @@ class MonteCarloLocalizer:
         n = km1 / (2.0 * c.kld_epsilon) * (1.0 - a + np.sqrt(a) * c.kld_z) ** 3
         return np.where(k > 1, n, 1.0)
 
-    def _kld_indices(self, w: np.ndarray) -> np.ndarray:
+    @property
+    def kld_bounds(self) -> tuple[int, int]:
+        """``(min, max)`` particle count of KLD sampling: ``[min_particles, max_particles]``, or
+        ``[min(min_particles, n_particles), n_particles]`` when ``n_particles`` is given."""
         c = self.config
-        m = min(c.max_particles, max(2 * w.size, 4 * c.min_particles))  # enough draws almost always
-        idx = self._kld_draw(w, m)
-        if idx.size == m and m < c.max_particles:  # the bound was not met within m draws: draw all
-            idx = self._kld_draw(w, c.max_particles)
+        hi = c.max_particles if c.n_particles is None else c.n_particles
+        return min(c.min_particles, hi), hi
+
+    def _kld_indices(self, w: np.ndarray) -> np.ndarray:
+        lo, hi = self.kld_bounds
+        m = min(hi, max(2 * w.size, 4 * lo))  # enough draws almost always
+        idx = self._kld_draw(w, m, lo)
+        if idx.size == m and m < hi:  # the bound was not met within m draws: draw all
+            idx = self._kld_draw(w, hi, lo)
         return idx
 
-    def _kld_draw(self, w: np.ndarray, m: int) -> np.ndarray:
+    def _kld_draw(self, w: np.ndarray, m: int, lo: int) -> np.ndarray:
         c = self.config
         cdf = np.cumsum(w)
         cdf[-1] = 1.0
@@ -624,7 +634,7 @@ class MonteCarloLocalizer:
         new_bin[first] = True
         k = np.cumsum(new_bin)  # occupied bins after 1..m draws
         count = np.arange(1, m + 1)
-        ok = (count >= self.kld_required(k)) & (count >= c.min_particles)
+        ok = (count >= self.kld_required(k)) & (count >= lo)
         n_new = int(np.argmax(ok)) + 1 if ok.any() else m
         return idx[:n_new]
 
@@ -653,10 +663,11 @@ class MonteCarloLocalizer:
         order = np.argsort(labels, kind="stable")
         starts = np.searchsorted(labels[order], np.arange(n_lab + 1))
         total = cw[keep].sum()
+        floor = min(c.cluster_min_particles, max(1, n_new // keep.size))  # floors never exceed the budget
         poses, logw = [], []
         for k in keep:
             members = order[starts[k] : starts[k + 1]]
-            m = max(c.cluster_min_particles, round(n_new * cw[k] / total))
+            m = max(floor, round(n_new * cw[k] / total))
             idx = members[self._resample_n(w[members] / cw[k], m)]
             poses.append(self._poses[idx])
             logw.append(np.full(m, math.log(cw[k] / total / m)))
