@@ -226,8 +226,12 @@ def test_v0_keeps_the_first_release_relocalizer():
         env = gym.make("SemReloc-v0", layout="twin_rooms", map_source="perfect")
     cfg = env.unwrapped.mcl_config
     assert cfg.n_particles == 2000 and not cfg.kld and not cfg.augmented and cfg.resample_mode == "global"
-    assert cfg.belief.converged_rule == "spread" and cfg.likelihood_scale == 0.03
+    assert cfg.belief.converged_rule == "spread" and cfg.likelihood_scale == 0.03 and cfg.proposal_frac == 0
     _, info = env.reset(seed=0)
     assert info["belief"]["n_particles"] == 2000
+    infos = drive(env, 60, seed=4, options={"tracking": True})  # v0 still tracks and says converged
+    assert max(i["pose_error"]["position"] for i in infos) < 0.2
+    assert all(i["belief"]["converged"] for i in infos[-10:])
+    assert sum(i["mcl"]["n_injected"] for i in infos) == 0
     v1 = gym.make("SemReloc-v1", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
     assert v1.unwrapped.mcl_config.n_particles == 300 and v1.unwrapped.mcl_config.kld

@@ -40,22 +40,14 @@ detections first) plus augmented-MCL recovery, the lidar factor left out of turn
 updates, tempering 0.06. Chosen on tuning seeds 5000+ and procedural_sym layouts 100-104
 (docs/relocalizer_eval.md, "Choosing the defaults"); evaluated on other seeds and layouts."""
 
-LEGACY_RELOCALIZER_OVERRIDES = {
-    "n_particles": 2000,
-    "likelihood_scale": 0.03,
-    "kld": False,
-    "min_particles": 200,
-    "max_particles": 5000,
-    "global_particles_per_m2": 0.0,
-    "resample_mode": "global",
-    "augmented": False,
-    "injection": "uniform",
-    "max_update_log_ratio": math.inf,
-    "lidar_on_rotation": True,
-    "belief": {"converged_rule": "spread"},
-}
-"""``relocalizer=`` overrides that give back SemReloc-v0's relocalizer (2000 particles, no
-recovery, "converged" = small spread), for before/after comparisons."""
+LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
+"""SemReloc-v0's relocalizer: the plain :class:`MCLConfig` (2000 particles, global systematic
+resampling, no KLD, no injection of any kind) tempered with 0.03, and "converged" = small
+spread of the whole set."""
+
+LEGACY_RELOCALIZER_OVERRIDES = LEGACY_RELOCALIZER.as_dict()
+"""Every field of :data:`LEGACY_RELOCALIZER` as ``relocalizer=`` overrides (for before/after
+comparisons in one env id)."""
 
 SUCCESS_POSITION_M = 0.5
 SUCCESS_HEADING_RAD = math.radians(15.0)
@@ -371,12 +363,7 @@ class SemRelocEnv(SemRelocBase):
 
 
 class SemRelocEnvV0(SemRelocEnv):
-    """``SemReloc-v0``: :class:`SemRelocEnv` with the first release's relocalizer (2000 particles,
-    global resampling, no recovery, ``converged`` = small spread; :data:`LEGACY_RELOCALIZER_OVERRIDES`).
-    Kept so that results made with v0 can be reproduced; use ``SemReloc-v1``."""
+    """``SemReloc-v0``: :class:`SemRelocEnv` with the first release's relocalizer
+    (:data:`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v1``."""
 
-    default_relocalizer = dataclasses.replace(
-        DEFAULT_RELOCALIZER,
-        **{k: v for k, v in LEGACY_RELOCALIZER_OVERRIDES.items() if k != "belief"},
-        belief=dataclasses.replace(DEFAULT_RELOCALIZER.belief, **LEGACY_RELOCALIZER_OVERRIDES["belief"]),
-    )
+    default_relocalizer = LEGACY_RELOCALIZER
