@@ -188,11 +188,13 @@ def summarize(results: list[dict]) -> dict:
 
 
 def pct(t: tuple[float, float, float]) -> str:
-    """``"12 % [8-17]"`` from ``(rate, low, high)``."""
+    """``"12 % [8–17]"`` from ``(rate, low, high)`` (one decimal below 10 %)."""
     r, lo, hi = t
     if math.isnan(r):
         return "—"
-    return f"{100 * r:.0f} % [{100 * lo:.0f}–{100 * hi:.0f}]"
+    mid = f"{100 * r:.1f}" if 0 < r < 0.1 else f"{100 * r:.0f}"
+    d = 1 if hi < 0.1 else 0
+    return f"{mid} % [{100 * lo:.{d}f}–{100 * hi:.{d}f}]"
 
 
 def save_jsonl(results: list[dict], path) -> None:
