@@ -28,7 +28,8 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import stats
+
+from filters.experiments.stats import wilson_interval
 
 POLICIES = ("random", "spin", "wall_follow")
 
@@ -158,12 +159,7 @@ def run_grid(specs: list[EpisodeSpec], workers: int = 1, progress=None) -> list[
         return out
 
 
-def wilson(k: int, n: int) -> tuple[float, float]:
-    """Wilson 95 % interval of a binomial rate ``k / n`` (scipy.stats)."""
-    if n == 0:
-        return (math.nan, math.nan)
-    ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
-    return (float(ci.low), float(ci.high))
+wilson = wilson_interval  # Wilson 95 % interval of ``k / n`` (filters.experiments.stats)
 
 
 def summarize(results: list[dict]) -> dict:

@@ -42,6 +42,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from filters.experiments.stats import wilson_interval  # noqa: E402
+
 
 @dataclass(frozen=True)
 class Args:
@@ -225,11 +227,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
 
 
 # ---------------------------------------------------------------------- summary
-def wilson(k: int, n: int) -> tuple[float, float]:
-    from scipy.stats import binomtest
-
-    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
-    return float(ci.low), float(ci.high)
+wilson = wilson_interval  # Wilson 95 % interval (filters.experiments.stats)
 
 
 def summarise(rows: list[dict]) -> dict:

@@ -34,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from filters.experiments.stats import normal_mean_interval  # noqa: E402
 from filters.motion.velocity import BicycleModel  # noqa: E402
 from filters.simulators.car_sim import CarSimConfig, CarSimRun, default_course, simulate  # noqa: E402
 from filters.slam.association import AssociationConfig  # noqa: E402
@@ -179,13 +180,9 @@ def filter_rng(args: Args, setting_idx: int, r: int, tag: int) -> np.random.Gene
 
 # ---------------------------------------------------------------------------- statistics and report
 def ci95(x) -> tuple[float, float]:
-    """Mean and half-width of a normal-approximation 95 % CI (1.96 * std / sqrt(n)) of ``x``."""
+    """Mean and half-width of a normal-approximation 95 % CI (z * std / sqrt(n)) of the finite ``x``."""
     x = np.asarray(x, dtype=np.float64)
-    x = x[np.isfinite(x)]
-    if x.size == 0:
-        return float("nan"), float("nan")
-    hw = 1.96 * x.std(ddof=1) / math.sqrt(x.size) if x.size > 1 else float("nan")
-    return float(x.mean()), float(hw)
+    return normal_mean_interval(x[np.isfinite(x)])
 
 
 def fmt(x) -> str:

@@ -28,13 +28,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 from tqdm import tqdm
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from filters.experiments.stats import paired_bootstrap_interval as improvement_ci  # noqa: E402
+from filters.experiments.stats import t_mean_interval as mean_ci  # noqa: E402
 from filters.smc.firefly import (  # noqa: E402
     FAPF,
     IFAPF,
@@ -128,25 +129,6 @@ def parse_args(argv: list[str] | None = None) -> Args:
     ):
         p.error("runs >= 2, steps >= 1, slam_runs >= 1, slam_steps >= 1 and particles >= 1 are required")
     return args
-
-
-# ---- statistics -------------------------------------------------------------------------------
-def mean_ci(x: np.ndarray, level: float = 0.95) -> tuple[float, float]:
-    """Mean and the half-width of its Student-t confidence interval."""
-    x = np.asarray(x, dtype=np.float64)
-    if x.size < 2:
-        return float(x.mean()), float("nan")
-    return float(x.mean()), float(stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size))
-
-
-def improvement_ci(base: np.ndarray, new: np.ndarray, rng: np.random.Generator, n_boot: int = 4000):
-    """``100 * (1 - mean(new) / mean(base))`` and a paired bootstrap 95 % interval (percent)."""
-    base, new = np.asarray(base), np.asarray(new)
-    point = 100.0 * (1.0 - new.mean() / base.mean())
-    idx = rng.integers(0, base.size, size=(n_boot, base.size))
-    boot = 100.0 * (1.0 - new[idx].mean(axis=1) / base[idx].mean(axis=1))
-    lo, hi = np.percentile(boot, [2.5, 97.5])
-    return float(point), float(lo), float(hi)
 
 
 # ---- Table 1 ----------------------------------------------------------------------------------

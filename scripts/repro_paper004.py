@@ -123,13 +123,10 @@ def summarise(results: list[dict]) -> dict:
     succ = sum(r["outcome"] == "success" for r in results)
     wrong = sum(r["outcome"] == "wrong" for r in results)
 
+    from filters.experiments.stats import wilson_interval
+
     def ci(k):  # Wilson 95% interval of a rate, in percent
-        if n == 0:
-            return (math.nan, math.nan)
-        p, z = k / n, 1.96
-        mid = (p + z * z / (2 * n)) / (1 + z * z / n)
-        half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-        return (100 * (mid - half), 100 * (mid + half))
+        return tuple(100 * v for v in wilson_interval(k, n))
 
     return {
         "n": n,

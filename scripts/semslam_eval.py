@@ -25,6 +25,7 @@ import numpy as np
 
 import semreloc_env  # noqa: F401  (registers the envs)
 from agents.baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
+from filters.experiments.stats import normal_mean_interval
 from filters.pose import compose, wrap_angle
 
 
@@ -119,8 +120,8 @@ def _fmt(values) -> str:
     v = v[np.isfinite(v)]
     if v.size == 0:
         return "-"
-    half = 1.96 * v.std(ddof=1) / math.sqrt(v.size) if v.size > 1 else 0.0
-    return f"{v.mean():.3f} ± {half:.3f}"
+    mean, half = normal_mean_interval(v)
+    return f"{mean:.3f} ± {0.0 if v.size < 2 else half:.3f}"
 
 
 def main() -> None:

@@ -40,7 +40,7 @@ from filters.slam.landmarks import (
     validate_observations,
 )
 from filters.slam.weight_transforms import identity
-from filters.smc.resampling import get_resampler
+from filters.smc.resampling import effective_sample_size, get_resampler
 
 
 @dataclass(frozen=True)
@@ -393,7 +393,7 @@ class FastSLAM:
         frac = self.config.resample_ess_fraction
         if frac >= 1.0:
             return True
-        return bool(1.0 / np.sum(psi * psi) < frac * self.n_particles)
+        return effective_sample_size(psi) < frac * self.n_particles
 
     def _resample(self, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """Hook: ``(indices (N,), mutate mask (N,) bool or None)``; default: the configured scheme, no mutation."""

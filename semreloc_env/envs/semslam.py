@@ -16,6 +16,7 @@ from filters.slam.class_votes import ClassVotingFastSLAM
 from filters.slam.fastslam import FastSLAMConfig, SLAMEstimate
 from filters.slam.landmarks import RangeBearingNoise
 from filters.slam.weight_transforms import WOC
+from filters.smc.resampling import effective_sample_size
 
 from ..config import coerce_config
 from ..landmark_sensor import LandmarkSensor, LandmarkSensorParams
@@ -275,7 +276,7 @@ class SemSlamEnv(SemRelocBase):
             "landmark_classes": [int(c) for c in self._landmark_classes()],
             "n_landmarks": est.count,
             "n_observations": self._n_obs,
-            "ess": float(1.0 / np.sum(self.slam.last_weights**2)),
+            "ess": effective_sample_size(self.slam.last_weights),
         }
         info["slam_error"] = self.slam_error()
         return info

@@ -1,0 +1,1 @@
+"""Support for experiment scripts: confidence intervals from :mod:`scipy.stats` (:mod:`.stats`)."""

@@ -1,0 +1,123 @@
+"""Confidence intervals used by the evaluation and reproduction scripts, all from :mod:`scipy.stats`.
+
+* :func:`wilson_interval` -- Wilson interval of a binomial rate ``k / n``.
+* :func:`t_mean_interval` -- mean and Student-t half-width of a sample mean.
+* :func:`normal_mean_interval` -- mean and normal-approximation half-width (``z * s / sqrt(n)``).
+* :func:`paired_bootstrap_interval` -- percentile bootstrap interval of a statistic of paired samples.
+
+Effective sample size lives with the weights it describes:
+:func:`filters.smc.resampling.effective_sample_size`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from scipy import stats
+
+__all__ = [
+    "wilson_interval",
+    "t_mean_interval",
+    "normal_mean_interval",
+    "paired_bootstrap_interval",
+    "relative_reduction_pct",
+]
+
+
+def _check_level(level: float) -> None:
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"level must be in (0, 1), got {level}")
+
+
+def wilson_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Wilson ``level`` interval ``(low, high)`` of the rate ``k / n`` (fractions in [0, 1]).
+
+    ``n == 0`` gives ``(nan, nan)``. Raises ``ValueError`` unless ``0 <= k <= n``.
+    """
+    _check_level(level)
+    if n < 0 or k < 0 or k > n:
+        raise ValueError(f"need 0 <= k <= n, got k={k}, n={n}")
+    if n == 0:
+        return (math.nan, math.nan)
+    ci = stats.binomtest(int(k), int(n)).proportion_ci(confidence_level=level, method="wilson")
+    return (float(ci.low), float(ci.high))
+
+
+def _sample(x) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"x must be one-dimensional, got shape {x.shape}")
+    return x
+
+
+def t_mean_interval(x, level: float = 0.95) -> tuple[float, float]:
+    """``(mean, half_width)`` of the Student-t ``level`` interval of the mean of ``x``.
+
+    The half-width is ``t_{(1+level)/2, n-1} * s / sqrt(n)`` with the sample standard deviation ``s``
+    (``ddof=1``); it is ``nan`` for fewer than two values (and the mean too for none).
+    """
+    _check_level(level)
+    x = _sample(x)
+    if x.size == 0:
+        return (math.nan, math.nan)
+    if x.size < 2:
+        return (float(x.mean()), math.nan)
+    half = stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size)
+    return (float(x.mean()), float(half))
+
+
+def normal_mean_interval(x, level: float = 0.95) -> tuple[float, float]:
+    """``(mean, half_width)`` of the normal-approximation ``level`` interval of the mean of ``x``.
+
+    The half-width is ``z_{(1+level)/2} * s / sqrt(n)`` (``z = 1.959964`` at 95 %), ``s`` with
+    ``ddof=1``; ``nan`` for fewer than two values (and the mean too for none).
+    """
+    _check_level(level)
+    x = _sample(x)
+    if x.size == 0:
+        return (math.nan, math.nan)
+    if x.size < 2:
+        return (float(x.mean()), math.nan)
+    half = stats.norm.ppf(0.5 + level / 2) * x.std(ddof=1) / math.sqrt(x.size)
+    return (float(x.mean()), float(half))
+
+
+def relative_reduction_pct(base: np.ndarray, new: np.ndarray, axis: int = -1) -> np.ndarray:
+    """``100 * (1 - mean(new) / mean(base))`` along ``axis`` (percent; positive = ``new`` is smaller)."""
+    return 100.0 * (1.0 - np.mean(new, axis=axis) / np.mean(base, axis=axis))
+
+
+def paired_bootstrap_interval(
+    base,
+    new,
+    rng: np.random.Generator,
+    statistic: Callable[..., np.ndarray] = relative_reduction_pct,
+    n_resamples: int = 4000,
+    level: float = 0.95,
+) -> tuple[float, float, float]:
+    """``(point, low, high)``: ``statistic(base, new)`` and its paired percentile bootstrap interval.
+
+    Pairs ``(base[i], new[i])`` are resampled together (``scipy.stats.bootstrap(paired=True)``), so
+    run-to-run variation shared by both methods cancels. ``statistic`` must be vectorised over an
+    ``axis`` keyword. The draws come from ``rng`` (``n_resamples`` rows of ``rng.integers``).
+    """
+    _check_level(level)
+    base, new = _sample(base), _sample(new)
+    if base.shape != new.shape or base.size < 2:
+        raise ValueError(f"base and new must be paired samples of >= 2 values, got {base.shape} and {new.shape}")
+    if n_resamples < 1:
+        raise ValueError(f"n_resamples must be >= 1, got {n_resamples}")
+    res = stats.bootstrap(
+        (base, new),
+        statistic,
+        paired=True,
+        vectorized=True,
+        n_resamples=n_resamples,
+        confidence_level=level,
+        method="percentile",
+        rng=rng,
+    )
+    ci = res.confidence_interval
+    return (float(statistic(base, new)), float(ci.low), float(ci.high))
