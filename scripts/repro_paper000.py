@@ -36,11 +36,12 @@ if str(ROOT) not in sys.path:
 
 from filters.experiments.stats import normal_mean_interval  # noqa: E402
 from filters.motion.velocity import BicycleModel  # noqa: E402
-from filters.simulators.car_sim import CarSimConfig, CarSimRun, default_course, simulate  # noqa: E402
+from filters.simulators.car_sim import CarSimConfig, CarSimRun, default_course, run_slam, simulate  # noqa: E402
 from filters.slam.association import AssociationConfig  # noqa: E402
 from filters.slam.ekf_slam import EKFSLAM, EKFSLAMConfig  # noqa: E402
 from filters.slam.fastslam import FastSLAM, FastSLAMConfig  # noqa: E402
 from filters.slam.landmarks import RangeBearingNoise  # noqa: E402
+from filters.slam.metrics import map_landmark_errors  # noqa: E402
 from filters.slam.weight_transforms import WOC  # noqa: E402
 
 PAPER_TABLE2 = {  # algorithm -> (pose low, landmark low, pose high, landmark high), metres
@@ -105,26 +106,14 @@ def run_filter(f, run: CarSimRun) -> dict:
     lm_err / map_rmse: mean / RMS distance of each final map landmark to its true landmark (m): by id
     under known association, to the nearest true landmark under ML association.
     """
-    scans = run.scans_by_step()
-    dt = run.dt_control_s
-    errs = np.empty(len(scans))
-    s = 0
     t0 = time.perf_counter()
-    for t in range(run.n_steps):
-        f.predict(run.controls[t], dt)
-        if t in scans:
-            f.update(*scans[t])
-            p = f.estimate().pose
-            errs[s] = math.hypot(p[0] - run.true_poses[t + 1, 0], p[1] - run.true_poses[t + 1, 1])
-            s += 1
+    errs = run_slam(f, run)
     wall = time.perf_counter() - t0
     est = f.estimate()
     if est.count == 0:
         d = np.array([np.nan])
-    elif f.config.association.mode == "known":
-        d = np.linalg.norm(est.landmarks - run.landmarks[est.landmark_ids], axis=1)
     else:
-        d = np.linalg.norm(est.landmarks[:, None, :] - run.landmarks[None], axis=-1).min(axis=1)
+        d = map_landmark_errors(est.landmarks, est.landmark_ids, run.landmarks, f.config.association.mode == "known")
     return {
         "pose_err": float(errs.mean()),
         "path_rmse": float(np.sqrt(np.mean(errs**2))),

@@ -301,26 +301,9 @@ def make_slam_filters(n_particles: int, version: int, sim_config) -> dict:
     }
 
 
-def run_slam(slam, sim) -> np.ndarray:
-    """Drive ``slam`` through a :class:`filters.simulators.car_sim.CarSimRun`; position error (m) at each scan.
-
-    The error is that of the weighted-mean pose (``slam.estimate().pose``) right after each update.
-    """
-    scans = sim.scans_by_step()
-    err = []
-    for t in range(sim.n_steps):
-        slam.predict(sim.controls[t], sim.dt_control_s)
-        if t in scans:
-            z, ids = scans[t]
-            slam.update(z, ids)
-            p = slam.estimate().pose
-            err.append(np.hypot(*(p[:2] - sim.true_poses[t + 1, :2])))
-    return np.asarray(err)
-
-
 def run_table3(args: Args) -> dict | None:
     try:
-        from filters.simulators.car_sim import CarSimConfig, default_course, simulate
+        from filters.simulators.car_sim import CarSimConfig, default_course, run_slam, simulate
         from filters.slam.ifa_fastslam import IFAFastSLAM  # noqa: F401  (availability check)
     except ImportError as e:  # colleague's modules not there
         print(f"Table 3 skipped: {e}", file=sys.stderr)

@@ -3,7 +3,7 @@ import pytest
 
 from filters.motion.velocity import BicycleModel
 from filters.pose import wrap_angle
-from filters.simulators.car_sim import CarSimConfig, simulate, small_course
+from filters.simulators.car_sim import CarSimConfig, run_slam, simulate, small_course
 from filters.slam.association import AssociationConfig
 from filters.slam.fastslam import FastSLAM, FastSLAMConfig
 from filters.slam.ifa_fastslam import FAFastSLAM, FireflySLAMConfig, IFAFastSLAM
@@ -20,23 +20,12 @@ def sim():
     return simulate(CarSimConfig(max_steps=400), small_course(), np.random.default_rng(0))
 
 
-def _drive(slam, sim):
-    scans = sim.scans_by_step()
-    err = []
-    for t in range(sim.n_steps):
-        slam.predict(sim.controls[t], sim.dt_control_s)
-        if t in scans:
-            slam.update(*scans[t])
-            err.append(np.hypot(*(slam.estimate().pose[:2] - sim.true_poses[t + 1, :2])))
-    return np.array(err)
-
-
 @pytest.mark.parametrize("cls", [FAFastSLAM, IFAFastSLAM])
 def test_firefly_fastslam_runs_moves_and_is_deterministic(sim, cls):
     a = cls(MOTION, NOISE, CFG, np.random.default_rng(3))
-    ea = _drive(a, sim)
-    eb = _drive(cls(MOTION, NOISE, CFG, np.random.default_rng(3)), sim)
-    ec = _drive(cls(MOTION, NOISE, CFG, np.random.default_rng(4)), sim)
+    ea = run_slam(a, sim)
+    eb = run_slam(cls(MOTION, NOISE, CFG, np.random.default_rng(3)), sim)
+    ec = run_slam(cls(MOTION, NOISE, CFG, np.random.default_rng(4)), sim)
     assert ea.size == len(sim.observations) and np.all(np.isfinite(ea))
     assert np.array_equal(ea, eb) and not np.array_equal(ea, ec)
     assert a.n_moves > 0  # the hook really ran

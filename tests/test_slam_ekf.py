@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from filters.motion.velocity import BicycleModel, UnicycleModel
-from filters.simulators.car_sim import CarSimConfig, simulate, small_course
+from filters.simulators.car_sim import CarSimConfig, run_slam, simulate, small_course
 from filters.slam.association import AssociationConfig
 from filters.slam.ekf_slam import EKFSLAM, EKFSLAMConfig
 from filters.slam.landmarks import (
@@ -19,11 +19,7 @@ NOISE = RangeBearingNoise(0.1, math.radians(1.0))
 
 
 def _drive(filt, run):
-    scans = run.scans_by_step()
-    for t in range(run.n_steps):
-        filt.predict(run.controls[t], run.dt_control_s)
-        if t in scans:
-            filt.update(*scans[t])
+    run_slam(filt, run)
     return filt.estimate()
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from filters.motion.velocity import BicycleModel, UnicycleModel
-from filters.simulators.car_sim import CarSimConfig, simulate, small_course
+from filters.simulators.car_sim import CarSimConfig, run_slam, simulate, small_course
 from filters.slam.association import AssociationConfig
 from filters.slam.fastslam import FastSLAM, FastSLAMConfig
 from filters.slam.landmarks import RangeBearingNoise
@@ -14,13 +14,7 @@ TINY_NOISE = RangeBearingNoise(1e-4, 1e-5)
 
 
 def _drive(filt, run, every_scan=None):
-    scans = run.scans_by_step()
-    for t in range(run.n_steps):
-        filt.predict(run.controls[t], run.dt_control_s)
-        if t in scans:
-            filt.update(*scans[t])
-            if every_scan is not None:
-                every_scan(filt, t)
+    run_slam(filt, run, every_scan)
     return filt.estimate()
 
 

@@ -22,6 +22,7 @@ All random draws come from the ``rng`` passed to :func:`simulate`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -241,3 +242,27 @@ def simulate(config: CarSimConfig, course: Course, rng: np.random.Generator) -> 
         waypoint_reached=reached,
         dt_control_s=dt,
     )
+
+
+def run_slam(slam, run: CarSimRun, on_scan: Callable[[object, int], None] | None = None) -> np.ndarray:
+    """Drive a landmark-SLAM filter through ``run``; position error (m) right after each scan's update.
+
+    ``slam`` is any filter with ``predict(control, dt_s)``, ``update(z, ids)`` and ``estimate().pose``
+    (FastSLAM and its subclasses, EKF-SLAM). Each control step ``t`` is predicted with
+    ``run.controls[t]``; after a step with a scan the filter is updated with ``(z, ids)``, the error
+    ``|estimate().pose[:2] - run.true_poses[t + 1, :2]|`` recorded, and ``on_scan(slam, t)`` called
+    if given. Returns shape ``(len(run.obs_steps),)``; ``slam.estimate()`` afterwards is the final map.
+    """
+    scans = run.scans_by_step()
+    errs = np.empty(len(scans))
+    s = 0
+    for t in range(run.n_steps):
+        slam.predict(run.controls[t], run.dt_control_s)
+        if t in scans:
+            slam.update(*scans[t])
+            p = slam.estimate().pose
+            errs[s] = math.hypot(p[0] - run.true_poses[t + 1, 0], p[1] - run.true_poses[t + 1, 1])
+            s += 1
+            if on_scan is not None:
+                on_scan(slam, t)
+    return errs

@@ -15,6 +15,7 @@ from filters.slam.association import AssociationConfig
 from filters.slam.class_votes import ClassVotingFastSLAM
 from filters.slam.fastslam import FastSLAMConfig, SLAMEstimate
 from filters.slam.landmarks import RangeBearingNoise
+from filters.slam.metrics import true_landmark_errors
 from filters.slam.weight_transforms import WOC
 from filters.smc.resampling import effective_sample_size
 
@@ -236,15 +237,10 @@ class SemSlamEnv(SemRelocBase):
         seen = np.flatnonzero(self._seen)
         lm_err = None
         if seen.size:
-            if est.count == 0:
-                lm_err = math.inf
-            elif self.slam_params.known_association:
-                by_id = dict(zip(est.landmark_ids.tolist(), est.landmarks))
-                d = [np.hypot(*(by_id[i] - self.centroids[i])) if i in by_id else math.inf for i in seen]
-                lm_err = float(np.mean(d))
-            else:
-                diff = self.centroids[seen][:, None, :] - est.landmarks[None, :, :]
-                lm_err = float(np.hypot(diff[..., 0], diff[..., 1]).min(axis=1).mean())
+            d = true_landmark_errors(
+                est.landmarks, est.landmark_ids, self.centroids, seen, self.slam_params.known_association
+            )
+            lm_err = float(np.mean(d))
         return {
             "position": float(np.hypot(*(est.pose[:2] - truth[:2]))),
             "heading": float(abs(wrap_angle(est.pose[2] - truth[2]))),
