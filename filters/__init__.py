@@ -14,5 +14,6 @@ real robot as well as from :mod:`semreloc_env`. One subpackage per concept:
 * :mod:`filters.robot_data` -- sensor data containers (laser and semantic scans).
 * :mod:`filters.simulators` -- simulators that serve only experiments and tests (car-like SLAM
   simulator, grid ray caster).
+* :mod:`filters.experiments` -- what experiment scripts share: confidence intervals (``scipy.stats``).
 * :mod:`filters.pose` -- pose algebra shared by all of the above.
 """
