@@ -5,7 +5,7 @@ Writes into ``--out`` (default ``out/demo``):
 * ``world.png`` — the lab at the start: walls, objects in paper 004's colours,
   lidar beams (orange) and semantic beams (class colours);
 * ``relocalization.gif`` — the episode: particles, true pose (black), estimate (magenta);
-* ``error.png`` — pose error and particle spread against step;
+* ``error.png`` — pose error, the heaviest hypothesis's spread and its share of the mass against step;
 
 and prints a one-line result. Run ``python scripts/demo.py --help`` for options.
 """
@@ -65,11 +65,13 @@ def main() -> None:
 
     Image.fromarray(_world_picture(env)).save(out / "world.png")
     frames = [env.render()]
-    errors, spreads, converged_at = [], [], None
+    errors, spreads, masses, converged_at = [], [], [], None
     for step in range(1, args.steps + 1):
         obs, reward, terminated, truncated, info = env.step(policy(obs))
         errors.append(info["pose_error"]["position"])
-        spreads.append(info["belief"]["pos_std_m"])
+        best = _best(info)
+        spreads.append(best[1])
+        masses.append(best[0])
         if converged_at is None and info["belief"]["converged"]:
             converged_at = step
         if step % args.frame_every == 0 or terminated:
@@ -78,16 +80,26 @@ def main() -> None:
             break
     images = [Image.fromarray(f) for f in frames]
     images[0].save(out / "relocalization.gif", save_all=True, append_images=images[1:], duration=150, loop=0)
-    _plot(errors, spreads, converged_at, out / "error.png", args)
+    _plot(errors, spreads, masses, converged_at, out / "error.png", args)
     env.close()
     err = info["pose_error"]
     verdict = "SUCCESS" if terminated else ("converged WRONG" if info["belief"]["converged"] else "not converged")
     print(
         f"{args.layout} seed {args.seed} ({'lidar only' if args.lidar_only else 'lidar + semantic'}): {verdict} "
         f"after {step} steps; final error {err['position']:.2f} m / {math.degrees(err['heading']):.1f} deg, "
-        f"spread {info['belief']['pos_std_m']:.2f} m; wrote {out}/world.png, relocalization.gif, error.png "
+        f"heaviest hypothesis {100 * _best(info)[0]:.0f} % of the mass, spread {_best(info)[1]:.2f} m; "
+        f"wrote {out}/world.png, relocalization.gif, error.png "
         f"in {time.perf_counter() - t0:.1f} s"
     )
+
+
+def _best(info) -> tuple[float, float]:
+    """(weight, position std m) of the belief's heaviest hypothesis (0 and the whole spread if none)."""
+    hyps = info["belief"]["hypotheses"]
+    if not hyps:
+        return 0.0, info["belief"]["pos_std_m"]
+    cov = np.asarray(hyps[0]["cov"])
+    return hyps[0]["weight"], float(np.sqrt(max(cov[0, 0] + cov[1, 1], 0.0)))
 
 
 def _world_picture(env) -> np.ndarray:
@@ -107,13 +119,14 @@ def _world_picture(env) -> np.ndarray:
     return frame
 
 
-def _plot(errors, spreads, converged_at, path: Path, args: Args) -> None:
+def _plot(errors, spreads, masses, converged_at, path: Path, args: Args) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 3.2), dpi=100)
     steps = np.arange(1, len(errors) + 1)
-    ax.plot(steps, errors, label="position error of the mean (m)")
-    ax.plot(steps, spreads, label="particle spread (m)")
+    ax.plot(steps, errors, label="position error of the estimate (m)")
+    ax.plot(steps, spreads, label="spread of the heaviest hypothesis (m)")
+    ax.plot(steps, masses, label="its share of the mass", color="tab:green", alpha=0.8)
     if converged_at is not None:
         ax.axvline(converged_at, color="k", ls=":", label=f"converged (step {converged_at})")
     ax.set_yscale("log")

@@ -568,7 +568,8 @@ class MonteCarloLocalizer:
             self._resample_now(w)
             resampled = True
         p_any = max(p_inj, c.proposal_frac)
-        n_inj = self._inject(p_any, lid, sem, recovery=p_inj > c.proposal_frac) if p_any > 0.0 else 0
+        # proposals are weighted by the whole current scan, also when the lidar factor sat this update out
+        n_inj = self._inject(p_any, lidar, sem, recovery=p_inj > c.proposal_frac) if p_any > 0.0 else 0
         if p_inj > 0.0 and n_inj:
             self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
         diag = UpdateDiagnostics(

@@ -357,7 +357,8 @@ class SemRelocEnv(SemRelocBase):
         err = self.pose_error()
         state["title"] = (
             f"{self.layout.name}  step {self._steps}  error {err['position']:.2f} m / {math.degrees(err['heading']):.0f} deg"
-            f"  spread {self._belief.pos_std_m:.2f} m  {'converged' if self._belief.converged else ''}"
+            f"  best hypothesis {100 * (self._belief.best.weight if self._belief.best else 0):.0f} %"
+            f"  {'converged' if self._belief.converged else ''}"
         )
         return state
 
