@@ -1,4 +1,4 @@
-"""stable-baselines3 callbacks: relocalization metrics in the training log, and a progress line.
+"""stable-baselines3 callback: relocalization metrics in the training log (progress: SB3's ``progress_bar``).
 
 :class:`RelocalizationMetricsCallback` reads ``info["belief"]`` and ``info["pose_error"]`` of
 every env step (works with any VecEnv: the ``info`` of a step that ends an episode is that
@@ -17,8 +17,6 @@ every rollout, records over the last ``window`` episodes:
 from __future__ import annotations
 
 import math
-import sys
-import time
 from collections import deque
 
 from stable_baselines3.common.callbacks import BaseCallback
@@ -81,36 +79,3 @@ class RelocalizationMetricsCallback(BaseCallback):
         self.logger.record("reloc/steps_to_converge", math.nan if steps is None else steps)
         self.logger.record("reloc/final_position_error_m", s["median_final_position_error_m"])
         self.logger.record("reloc/episodes", len(self.results))
-
-
-class ProgressCallback(BaseCallback):
-    """Print one progress line (steps, steps/s, elapsed, ETA) every ``every_s`` seconds to stderr.
-
-    Args:
-        total_timesteps: the training budget, for the ETA.
-        every_s: seconds between lines.
-    """
-
-    def __init__(self, total_timesteps: int, every_s: float = 30.0):
-        super().__init__(0)
-        self.total = int(total_timesteps)
-        self.every_s = float(every_s)
-
-    def _on_training_start(self) -> None:
-        self._t0 = self._last = time.perf_counter()
-        self._n0 = self.num_timesteps
-
-    def _on_step(self) -> bool:
-        now = time.perf_counter()
-        if now - self._last >= self.every_s:
-            self._last = now
-            done = self.num_timesteps - self._n0
-            rate = done / max(now - self._t0, 1e-9)
-            eta = (self.total - done) / max(rate, 1e-9)
-            print(
-                f"[train] {self.num_timesteps}/{self.total} steps  {rate:.0f} steps/s  "
-                f"elapsed {now - self._t0:.0f} s  eta {eta:.0f} s",
-                file=sys.stderr,
-                flush=True,
-            )
-        return True

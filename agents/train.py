@@ -5,7 +5,10 @@
 * :func:`make_env` — ``gym.make("SemReloc-v1", **env_kwargs)`` wrapped in
   :class:`~semreloc_env.wrappers.BeliefObservation` (the policy sees the belief summary, not the pose).
 * :func:`train` — builds the vectorised envs and PPO (``MultiInputPolicy`` with
-  :class:`~agents.features.SemRelocExtractor`), learns, returns the model.
+  :class:`~agents.features.SemRelocExtractor`), learns, returns the model. With a ``log_dir`` it
+  writes there, and only there: ``progress.csv``, TensorBoard event files (``tensorboard --logdir
+  LOG_DIR``), checkpoints (``checkpoints/``) and the periodic evaluation (``eval/evaluations.npz``,
+  ``eval/best_model.zip``; its ``eval/success_rate`` comes from the env's ``info["is_success"]``).
 * :func:`evaluate` — runs ``n_episodes`` episodes, episode ``i`` reset with seed ``seed + i``, and
   returns :func:`agents.metrics.summarize_episodes` of them. The same seeds give the same start
   poses, sensor noise and filter draws for every policy evaluated, so policies are compared on
@@ -20,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -27,7 +31,7 @@ import numpy as np
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
@@ -35,7 +39,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 import semreloc_env  # noqa: F401  (registers the envs)
 from semreloc_env.wrappers import BeliefObservation
 
-from .callbacks import ProgressCallback, RelocalizationMetricsCallback
+from .callbacks import RelocalizationMetricsCallback
 from .features import SemRelocExtractor
 from .metrics import EpisodeTracker, summarize_episodes
 
@@ -68,10 +72,20 @@ class TrainConfig:
         features_dim: output size of :class:`~agents.features.SemRelocExtractor`.
         net_arch: hidden sizes of the policy and value heads after the extractor.
         torch_threads: ``torch.set_num_threads`` (small nets are fastest on 1 thread).
-        log_dir: where SB3 writes ``progress.csv`` (None: stdout only).
+        device: torch device of the policy (``"cpu"``, ``"cuda"``, ``"auto"``; PPO with small MLPs
+            is usually fastest on the CPU).
+        log_dir: the run's folder: ``progress.csv``, TensorBoard events, checkpoints and evaluations
+            go there and nowhere else (None: nothing is written; stdout only with ``verbose``).
         verbose: SB3 verbosity (1 prints the log table every rollout).
-        progress_every_s: seconds between progress lines on stderr (None: none).
+        progress_bar: SB3's progress bar (tqdm + rich) on stderr.
         metrics_window: episodes the logged relocalization rates are taken over.
+        checkpoint_every: env steps (summed over envs) between checkpoints
+            ``log_dir/checkpoints/ppo_<steps>_steps.zip`` (None: no checkpoints; needs ``log_dir``).
+        eval_every: env steps (summed over envs) between evaluations by SB3's ``EvalCallback`` on one
+            separate env (None: none; needs ``log_dir``). Logged as ``eval/mean_reward``,
+            ``eval/success_rate`` (``info["is_success"]`` at episode end), ...
+        eval_episodes: episodes per evaluation.
+        eval_seed: seed of the evaluation env (its episodes follow from it, disjoint from training's).
     """
 
     env_kwargs: dict[str, Any] = field(default_factory=dict)
@@ -90,17 +104,36 @@ class TrainConfig:
     features_dim: int = 128
     net_arch: tuple[int, ...] = (64, 64)
     torch_threads: int = 1
+    device: str = "cpu"
     log_dir: str | None = None
     verbose: int = 0
-    progress_every_s: float | None = 30.0
+    progress_bar: bool = False
     metrics_window: int = 100
+    checkpoint_every: int | None = None
+    eval_every: int | None = None
+    eval_episodes: int = 5
+    eval_seed: int = 10_000
 
     def __post_init__(self) -> None:
         if self.vec_env not in VEC_ENVS:
             raise ValueError(f"vec_env must be one of {list(VEC_ENVS)}, got {self.vec_env!r}")
-        for name in ("n_envs", "total_timesteps", "n_steps", "batch_size", "n_epochs", "torch_threads"):
+        positive = ("n_envs", "total_timesteps", "n_steps", "batch_size", "n_epochs", "torch_threads", "eval_episodes")
+        for name in positive:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        for name in ("checkpoint_every", "eval_every"):
+            every = getattr(self, name)
+            if every is None:
+                continue
+            if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+                raise ValueError(f"{name} must be None or an int >= 1, got {every!r}")
+            if self.log_dir is None:
+                raise ValueError(f"{name} needs a log_dir to write to")
+        try:
+            if self.device != "auto":
+                torch.device(self.device)
+        except (RuntimeError, TypeError) as e:
+            raise ValueError(f"device must be 'auto' or a torch device such as 'cpu', got {self.device!r}") from e
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -141,8 +174,10 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
     """Train PPO as ``config`` says and return the model.
 
     A :class:`~agents.callbacks.RelocalizationMetricsCallback` always runs (its keys appear in the
-    log and in ``log_dir/progress.csv``), plus a progress line when ``config.progress_every_s`` is set,
-    plus ``callbacks``. The model's env is left open; ``model.get_env().close()`` releases it.
+    log, ``log_dir/progress.csv`` and TensorBoard), plus SB3's ``CheckpointCallback`` and
+    ``EvalCallback`` when ``config.checkpoint_every`` / ``config.eval_every`` are set, plus
+    ``callbacks``. The logger is closed when learning ends (or fails); the model's env is left open,
+    ``model.get_env().close()`` releases it.
     """
     torch.set_num_threads(int(config.torch_threads))
     venv = make_venv(config)
@@ -163,18 +198,45 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
             "net_arch": list(config.net_arch),
         },
         seed=config.seed,
-        device="cpu",
+        device=config.device,
         verbose=config.verbose,
     )
     formats = ["stdout"] if config.verbose else []
     if config.log_dir is not None:
-        formats.append("csv")
-    model.set_logger(configure(config.log_dir, formats))
+        formats += ["csv", "tensorboard"]
+    logger = configure(config.log_dir, formats)
+    model.set_logger(logger)
     cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=config.metrics_window)]
-    if config.progress_every_s is not None:
-        cbs.append(ProgressCallback(config.total_timesteps, every_s=config.progress_every_s))
+    eval_venv = None
+    if config.checkpoint_every is not None:
+        cbs.append(
+            CheckpointCallback(
+                save_freq=max(1, config.checkpoint_every // config.n_envs),
+                save_path=str(Path(config.log_dir) / "checkpoints"),
+                name_prefix="ppo",
+            )
+        )
+    if config.eval_every is not None:
+        eval_venv = make_vec_env(lambda: make_env(config.env_kwargs), n_envs=1, seed=config.eval_seed)
+        eval_dir = str(Path(config.log_dir) / "eval")
+        cbs.append(
+            EvalCallback(
+                eval_venv,
+                n_eval_episodes=config.eval_episodes,
+                eval_freq=max(1, config.eval_every // config.n_envs),
+                log_path=eval_dir,
+                best_model_save_path=eval_dir,
+                deterministic=True,
+                verbose=config.verbose,
+            )
+        )
     cbs.extend(callbacks)
-    model.learn(total_timesteps=config.total_timesteps, callback=cbs)
+    try:
+        model.learn(total_timesteps=config.total_timesteps, callback=cbs, progress_bar=config.progress_bar)
+    finally:
+        logger.close()
+        if eval_venv is not None:
+            eval_venv.close()
     return model
 
 

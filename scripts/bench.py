@@ -431,7 +431,7 @@ def bench_ppo(args: Args) -> list[Row]:
     for vec_env, n_envs in (("dummy", 4), ("batched", 16)):
         cfg = TrainConfig(
             n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, total_timesteps=args.ppo_steps,
-            progress_every_s=None, seed=args.seed,
+            seed=args.seed,
         )  # fmt: skip
         venv = make_venv(cfg)
         venv.reset()

@@ -4,8 +4,14 @@ Trains a ``MultiInputPolicy`` PPO (:func:`agents.train.train`; observation = lid
 pseudo-laser, odometry and the filter's belief summary, never the true pose), saves it, then
 evaluates PPO, :class:`agents.baselines.WallFollowExplorer` and :class:`agents.baselines.RandomWalk`
 on the *same* episode seeds (same start poses, noise and filter draws) and prints a table of
-success rate, wrong-convergence rate, median steps to converge and median final error. With
-``--doc`` the table and the command go to a Markdown file (default ``docs/rl.md``).
+success rate, wrong-convergence rate, median steps to converge and median final error.
+
+Everything is written under ``--out`` (default ``out/ppo``): ``model.zip``, ``progress.csv``,
+TensorBoard events (``tensorboard --logdir out/ppo``), ``checkpoints/``, ``eval/`` (periodic
+``EvalCallback`` evaluations, ``best_model.zip``), ``results.json`` and ``results.md`` (the command
+and the table; ``--load`` appends a re-evaluation). ``--doc PATH`` also writes the report to
+``PATH``, but never over an existing file (it appends re-evaluations): hand-written notes in
+``docs/rl.md`` are safe.
 
 The defaults train for about 10-20 min on two CPU cores. Example::
 
@@ -65,11 +71,21 @@ class Args:
     eval_seed: int = 10_000
     """first evaluation episode seed (disjoint from the training seeds' first episodes)"""
     out: str = "out/ppo"
-    """folder for the model (model.zip), progress.csv and results.json"""
-    doc: str = "docs/rl.md"
-    """Markdown file the results table is written to ('' to skip)"""
+    """the run's folder: model.zip, progress.csv, TensorBoard events, checkpoints/, eval/, results.json/.md"""
+    doc: str = ""
+    """also write the report to this Markdown file, which must not exist yet ('' to skip; --load appends)"""
     verbose: bool = False
     """print SB3's log table after every rollout"""
+    device: str = "cpu"
+    """torch device of the policy: cpu, cuda or auto"""
+    checkpoint_every: int = 50_000
+    """env steps between checkpoints in OUT/checkpoints (0: none)"""
+    eval_every: int = 20_000
+    """env steps between EvalCallback evaluations in OUT/eval (0: none)"""
+    eval_every_episodes: int = 10
+    """episodes per EvalCallback evaluation"""
+    no_progress_bar: bool = False
+    """hide SB3's progress bar"""
     load: str = ""
     """skip training: evaluate this saved model.zip (trained with the same env options) and append the
     table to --doc under a 'Re-evaluation' heading instead of rewriting it"""
@@ -140,6 +156,9 @@ def main(argv: list[str] | None = None) -> dict:
     from agents.train import TrainConfig, evaluate, train
 
     out = Path(args.out)
+    doc = Path(args.doc) if args.doc else None
+    if doc is not None and doc.exists() and not args.load:
+        raise SystemExit(f"--doc {doc} exists: refusing to overwrite it (pick a new file, or omit --doc)")
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = env_kwargs_of(args)
     config = TrainConfig(
@@ -155,12 +174,17 @@ def main(argv: list[str] | None = None) -> dict:
         ent_coef=args.ent_coef,
         log_dir=str(out),
         verbose=int(args.verbose),
-        progress_every_s=30.0,
+        progress_bar=not args.no_progress_bar,
+        device=args.device,
+        checkpoint_every=args.checkpoint_every or None,
+        eval_every=args.eval_every or None,
+        eval_episodes=args.eval_every_episodes,
+        eval_seed=args.eval_seed + args.eval_episodes,
     )
     if args.load:
         from stable_baselines3 import PPO
 
-        model, train_s = PPO.load(args.load, device="cpu"), 0.0
+        model, train_s = PPO.load(args.load, device=args.device), 0.0
         print(f"[train_ppo] loaded {args.load}", file=sys.stderr, flush=True)
     else:
         print(f"[train_ppo] training PPO for {args.total_timesteps} steps on {env_kwargs}", file=sys.stderr, flush=True)
@@ -195,10 +219,13 @@ def main(argv: list[str] | None = None) -> dict:
         "results": rows,
     }
     (out / ("results_reeval.json" if args.load else "results.json")).write_text(json.dumps(record, indent=2))
-    if args.doc and args.load:
-        _append_reevaluation(Path(args.doc), args, command, table)
-    elif args.doc:
-        _write_doc(Path(args.doc), args, command, table, train_s)
+    for path in (out / "results.md", doc):
+        if path is None:
+            continue
+        if args.load:
+            _append_reevaluation(path, args, command, table)
+        else:
+            _write_doc(path, args, command, table, train_s)
     return record
 
 

@@ -27,8 +27,10 @@ def smoke(tmp_path_factory):
         batch_size=64,
         n_epochs=1,
         log_dir=str(log_dir),
-        progress_every_s=None,
         seed=1,
+        checkpoint_every=128,
+        eval_every=128,
+        eval_episodes=1,
     )
     model = train(config, callbacks=[cb])
     yield model, cb, log_dir
@@ -45,6 +47,42 @@ def test_ppo_smoke_run_trains_and_predicts_valid_actions(smoke):
         assert env.action_space.contains(int(action))
         obs, *_ = env.step(int(action))
     assert "belief" in model.observation_space.spaces
+
+
+def test_smoke_run_writes_tensorboard_checkpoints_and_evaluations_under_log_dir(smoke):
+    from stable_baselines3 import PPO
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    model, _, log_dir = smoke
+    events = sorted(log_dir.rglob("events.out.tfevents.*"))
+    assert events and all(e.stat().st_size > 0 for e in events)
+    acc = EventAccumulator(str(events[0].parent))
+    acc.Reload()
+    scalars = set(acc.Tags()["scalars"])
+    assert {"reloc/success_rate", "eval/mean_reward", "eval/success_rate"} <= scalars
+    checkpoints = sorted((log_dir / "checkpoints").glob("ppo_*_steps.zip"))
+    assert [c.name for c in checkpoints] == ["ppo_128_steps.zip", "ppo_256_steps.zip"]
+    assert PPO.load(checkpoints[-1], device="cpu").observation_space == model.observation_space
+    evals = np.load(log_dir / "eval" / "evaluations.npz")
+    assert list(evals["timesteps"]) == [128, 256]
+    assert evals["successes"].shape == (2, 1)  # info["is_success"] reached EvalCallback
+    assert (log_dir / "eval" / "best_model.zip").is_file()
+    # the logger is closed at the end of learning (no unclosed progress.csv)
+    assert all(getattr(f, "file", None) is None or f.file.closed for f in model.logger.output_formats)
+    written = {p.relative_to(log_dir).parts[0] for p in log_dir.rglob("*") if p.is_file()}
+    assert written <= {"progress.csv", "checkpoints", "eval"} | {e.name for e in events}
+
+
+def test_train_config_rejects_bad_callback_and_device_options():
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        TrainConfig(checkpoint_every=100)  # no log_dir
+    with pytest.raises(ValueError, match="eval_every"):
+        TrainConfig(eval_every=0, log_dir="x")
+    with pytest.raises(ValueError, match="eval_every"):
+        TrainConfig(eval_every=True, log_dir="x")
+    with pytest.raises(ValueError, match="device"):
+        TrainConfig(device="gpu0")
+    assert TrainConfig(device="auto").device == "auto"
 
 
 def test_callback_scores_episodes_and_logs_metric_keys(smoke):
@@ -189,3 +227,23 @@ def test_train_ppo_cli_documents_every_option_and_formats_missing_values():
     }
     line = mod.results_table({"p": row}).splitlines()[-1]
     assert line == "| p | 25 % | 50 % | 25 % | - | 1.23 | -0.50 |"
+
+
+def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path, monkeypatch):
+    mod = _load_script()
+    monkeypatch.chdir(tmp_path)
+    doc = tmp_path / "notes.md"
+    doc.write_text("hand-written\n")
+    small = ["--total-timesteps", "64", "--n-steps", "32", "--batch-size", "32", "--n-envs", "1"]
+    small += ["--eval-episodes", "1", "--max-episode-steps", "10", "--map-source", "perfect"]
+    small += ["--n-particles", "200", "--checkpoint-every", "32", "--eval-every", "0", "--no-progress-bar"]
+    with pytest.raises(SystemExit, match="refusing to overwrite"):
+        mod.main([*small, "--out", "run", "--doc", str(doc)])
+    assert doc.read_text() == "hand-written\n" and not (tmp_path / "run").exists()
+    record = mod.main([*small, "--out", "run"])
+    assert set(record["results"]) == {"PPO", "WallFollowExplorer", "RandomWalk"}
+    assert {p.name for p in tmp_path.iterdir()} == {"notes.md", "run"}
+    run = tmp_path / "run"
+    assert {"model.zip", "progress.csv", "results.json", "results.md", "checkpoints"} <= {p.name for p in run.iterdir()}
+    assert list(run.glob("events.out.tfevents.*"))
+    assert "| PPO |" in (run / "results.md").read_text()
