@@ -6,6 +6,8 @@ trash bin red, cabinet blue.
 
 from __future__ import annotations
 
+import time
+import warnings
 from typing import Any
 
 import numpy as np
@@ -43,44 +45,67 @@ def _beam_ends(pose: np.ndarray, ranges: np.ndarray, angles: np.ndarray) -> np.n
     return np.stack([pose[0] + ranges * np.cos(a), pose[1] + ranges * np.sin(a)], axis=1)
 
 
-def draw_scans(ax, pose: np.ndarray, lidar=None, semantic=None) -> None:
-    """Lidar beams (thin orange) and semantic beams (class colours; unlabelled grey)."""
+def draw_scans(ax, pose: np.ndarray, lidar=None, semantic=None) -> list:
+    """Lidar beams (thin orange) and semantic beams (class colours; unlabelled grey); returns the artists."""
+    artists = []
     if lidar is not None:
         ok = lidar.valid
         ends = _beam_ends(pose, lidar.ranges[ok], lidar.angles[ok])
         segs = np.stack([np.broadcast_to(pose[:2], ends.shape), ends], axis=1)
-        ax.add_collection(LineCollection(segs, colors="#ff9900", linewidths=0.5, alpha=0.6))
-        ax.plot(ends[:, 0], ends[:, 1], ".", color="#ff6600", ms=2)
+        artists.append(ax.add_collection(LineCollection(segs, colors="#ff9900", linewidths=0.5, alpha=0.6)))
+        artists += ax.plot(ends[:, 0], ends[:, 1], ".", color="#ff6600", ms=2)
     if semantic is not None:
         ok = semantic.ranges < semantic.range_max_m
         ends = _beam_ends(pose, semantic.ranges[ok], semantic.angles[ok])
         segs = np.stack([np.broadcast_to(pose[:2], ends.shape), ends], axis=1)
         colors = [class_color(int(k)) for k in semantic.labels[ok]]
         widths = [1.5 if k > 0 else 0.4 for k in semantic.labels[ok]]
-        ax.add_collection(LineCollection(segs, colors=colors, linewidths=widths, alpha=0.9))
+        artists.append(ax.add_collection(LineCollection(segs, colors=colors, linewidths=widths, alpha=0.9)))
+    return artists
 
 
-def draw_pose(ax, pose: np.ndarray, color: str, radius: float = 0.2, label: str | None = None) -> None:
-    ax.add_patch(Circle(pose[:2], radius, fill=False, color=color, lw=1.5, label=label))
-    ax.plot(
+def draw_pose(ax, pose: np.ndarray, color: str, radius: float = 0.2, label: str | None = None) -> list:
+    """A circle with a heading tick; returns the artists."""
+    circle = ax.add_patch(Circle(pose[:2], radius, fill=False, color=color, lw=1.5, label=label))
+    tick = ax.plot(
         [pose[0], pose[0] + 1.5 * radius * np.cos(pose[2])],
         [pose[1], pose[1] + 1.5 * radius * np.sin(pose[2])],
         color=color,
         lw=1.5,
     )
+    return [circle, *tick]
 
 
-def draw_particles(ax, particles: np.ndarray, max_points: int = 3000) -> None:
+def draw_particles(ax, particles: np.ndarray, max_points: int = 3000) -> list:
+    """At most ``max_points`` particles as arrows; returns the artists."""
     p = particles[:: max(1, len(particles) // max_points)]
-    ax.quiver(p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), color="#aa00aa", alpha=0.35, scale=60, width=0.002)
+    arrows = ax.quiver(
+        p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), color="#aa00aa", alpha=0.35, scale=60, width=0.002
+    )
+    return [arrows]
 
 
 class Renderer:
-    """Draws env states to RGB arrays (``rgb_array``) or a window (``human``)."""
+    """Draws env states to RGB arrays (``rgb_array``) or a window (``human``).
 
-    def __init__(self, layout: Layout, human: bool = False, dpi: int = 80):
+    The static layout (walls, objects, extra obstacles) is drawn once and cached as a pixel
+    background; each frame restores it and draws only what moves (particles, scans, landmarks,
+    poses, title). The background is redrawn only when the extra obstacles change.
+
+    Args:
+        layout: the world drawn.
+        human: draw into a pyplot window (paced to ``fps``) instead of an off-screen canvas.
+        dpi: pixels per inch of the figure (8 in on its longer side).
+        fps: frames per second in ``human`` mode: :meth:`draw` sleeps until ``1 / fps`` s have passed
+            since the previous frame (None: no pacing).
+    """
+
+    def __init__(self, layout: Layout, human: bool = False, dpi: int = 80, fps: float | None = None):
+        if fps is not None and not fps > 0:
+            raise ValueError(f"fps must be > 0 or None, got {fps!r}")
         self.layout = layout
         self.human = human
+        self.fps = fps
         x0, x1, y0, y1 = layout.bounds()
         scale = 8.0 / max(x1 - x0, y1 - y0)
         size = ((x1 - x0) * scale + 0.4, (y1 - y0) * scale + 0.4)
@@ -89,39 +114,76 @@ class Renderer:
 
             plt.ion()
             self.fig, self.ax = plt.subplots(figsize=size, dpi=dpi)
-            self.fig.show()
+            with warnings.catch_warnings():  # a non-interactive backend (Agg) has no window to show
+                warnings.filterwarnings("ignore", message=".*non-interactive.*", category=UserWarning)
+                self.fig.show()
         else:  # off-screen: a figure pyplot does not track, freed with the renderer
             self.fig = Figure(figsize=size, dpi=dpi)
             FigureCanvasAgg(self.fig)
             self.ax = self.fig.add_subplot()
+        self._background = None
+        self._background_key: tuple | None = None
+        self._dynamic: list = []
+        self._last_frame_t: float | None = None
+        self.background_draws = 0
+        """How often the static background was drawn (1 unless the extra obstacles changed)."""
+
+    def _draw_background(self, extra_obstacles) -> None:
+        ax = self.ax
+        ax.clear()
+        draw_layout(ax, self.layout, extra_obstacles)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(" ", fontsize=9)  # reserves the title's room in the layout
+        self.fig.tight_layout()
+        self.fig.canvas.draw()
+        self._background = self.fig.canvas.copy_from_bbox(self.fig.bbox)
+        self.background_draws += 1
 
     def draw(self, state: dict[str, Any]) -> np.ndarray:
         """Draw one state: layout, particles, scans, landmarks (crosses), true pose (black), estimate (magenta)."""
         ax = self.ax
-        ax.clear()
-        draw_layout(ax, state["layout"], state.get("extra_obstacles", ()))
+        for artist in self._dynamic:
+            artist.remove()
+        self._dynamic = []
+        extra = state.get("extra_obstacles", ())
+        key = (id(state["layout"]), tuple(np.asarray(p, dtype=float).tobytes() for p in extra))
+        if key != self._background_key:
+            self.layout = state["layout"]
+            self._draw_background(extra)
+            self._background_key = key
+        dynamic = []
         if state.get("particles") is not None:
-            draw_particles(ax, state["particles"])
-        draw_scans(ax, state["pose"], state.get("lidar"), state.get("semantic"))
+            dynamic += draw_particles(ax, state["particles"])
+        dynamic += draw_scans(ax, state["pose"], state.get("lidar"), state.get("semantic"))
         if state.get("landmarks") is not None:  # {"means": (M, 2), "classes": (M,) labels}: crosses in class colours
             lm = state["landmarks"]
             for (x, y), k in zip(np.asarray(lm["means"]).reshape(-1, 2), lm["classes"]):
-                ax.plot(x, y, "x", color=class_color(int(k)), ms=8, mew=2)
-        draw_pose(ax, state["pose"], "k", label="true pose")
+                dynamic += ax.plot(x, y, "x", color=class_color(int(k)), ms=8, mew=2)
+        dynamic += draw_pose(ax, state["pose"], "k", label="true pose")
         if state.get("estimate") is not None:
-            draw_pose(ax, np.asarray(state["estimate"]), "#aa00aa", label="estimate")
-        if state.get("title"):
-            ax.set_title(state["title"], fontsize=9)
-        ax.set_xticks([])
-        ax.set_yticks([])
-        self.fig.tight_layout()
-        self.fig.canvas.draw()
-        frame = np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
+            dynamic += draw_pose(ax, np.asarray(state["estimate"]), "#aa00aa", label="estimate")
+        self._dynamic = dynamic
+        ax.title.set_text(state.get("title") or " ")
+        canvas = self.fig.canvas
+        canvas.restore_region(self._background)
+        for artist in [*dynamic, ax.title]:
+            ax.draw_artist(artist)
+        frame = np.asarray(canvas.buffer_rgba())[..., :3].copy()
         if self.human:
-            import matplotlib.pyplot as plt
-
-            plt.pause(0.001)
+            canvas.blit(self.fig.bbox)
+            canvas.flush_events()
+            self._pace()
         return frame
+
+    def _pace(self) -> None:
+        now = time.monotonic()
+        if self.fps is not None and self._last_frame_t is not None:
+            wait = 1.0 / self.fps - (now - self._last_frame_t)
+            if wait > 0:
+                time.sleep(wait)
+                now += wait
+        self._last_frame_t = now
 
     def close(self) -> None:
         if self.human:

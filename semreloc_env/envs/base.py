@@ -55,6 +55,8 @@ class SemRelocBase(gym.Env):
         self.layout = get_layout(layout, seed=self.layout_seed)
         self.robot_params = coerce_config(RobotParams, robot, "robot")
         self.physics_params = coerce_config(PhysicsParams, physics, "physics")
+        # one frame per control step: videos (RecordVideo) and human mode play in real time
+        self.metadata = {**type(self).metadata, "render_fps": self.physics_params.control_hz}
         self.lidar = Lidar(coerce_config(LidarParams, lidar, "lidar"))
         self.camera = SemanticCamera(coerce_config(CameraParams, camera, "camera"))
         self.odometry = Odometry(coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()))
@@ -202,7 +204,8 @@ class SemRelocBase(gym.Env):
         from ..render import Renderer  # lazy: matplotlib only when drawing
 
         if self._renderer is None:
-            self._renderer = Renderer(self.layout, human=self.render_mode == "human")
+            human = self.render_mode == "human"
+            self._renderer = Renderer(self.layout, human=human, fps=self.metadata["render_fps"] if human else None)
         frame = self._renderer.draw(self._render_state())
         return frame if self.render_mode == "rgb_array" else None
 

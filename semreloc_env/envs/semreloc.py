@@ -141,7 +141,9 @@ class SemRelocEnv(SemRelocBase):
       cells, :mod:`semreloc_env.map_world`); a map whose extent or frame does not fit the world is an error.
     * ``scenario``: ``"nominal"`` or ``"changed"`` (obstacles in the world that the map lacks, paper 004).
     * ``reward_weights``: dict of overrides of :class:`RewardWeights`.
-    * ``render_mode``: ``"rgb_array"`` or ``"human"``.
+    * ``render_mode``: ``"rgb_array"`` or ``"human"`` (a matplotlib window, paced to ``metadata["render_fps"]``).
+      ``metadata["render_fps"]`` is the control rate ``physics.control_hz`` (one frame per step), so
+      ``gymnasium.wrappers.RecordVideo`` (extra ``video``: moviepy) plays in real time.
     Unknown arguments or keys raise ``TypeError`` / ``ValueError``.
 
     ## Reset options

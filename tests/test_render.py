@@ -1,0 +1,101 @@
+"""Rendering: render_fps follows the control rate, the static layout is drawn once, RecordVideo, human mode."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env  # noqa: F401
+from semreloc_env import render
+
+FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
+
+
+def test_render_fps_follows_the_control_rate_per_instance():
+    fast = gym.make("SemReloc-v1", physics={"control_hz": 20.0}, **FAST)
+    slow = gym.make("SemSlam-v0", physics={"control_hz": 5.0})
+    assert fast.metadata["render_fps"] == 20.0 and fast.unwrapped.metadata["render_fps"] == 20.0
+    assert slow.metadata["render_fps"] == 5.0
+    assert gym.make("SemReloc-v1", **FAST).metadata["render_fps"] == 10.0
+    assert type(fast.unwrapped).metadata["render_fps"] == 10  # the class default is untouched
+
+
+def _frames(env, seed: int, actions) -> list[np.ndarray]:
+    env.reset(seed=seed)
+    out = [env.render()]
+    for a in actions:
+        env.step(a)
+        out.append(env.render())
+    return out
+
+
+def test_static_layout_drawn_once_and_frames_carry_nothing_over():
+    actions = [0, 0, 1, 0, 2, 0]
+    env = gym.make("SemReloc-v1", render_mode="rgb_array", **FAST)
+    many = _frames(env, 3, actions)
+    renderer = env.unwrapped._renderer
+    assert renderer.background_draws == 1
+    assert not np.array_equal(many[0], many[-1])  # the robot, scans and particles moved
+    # a renderer that drew only the last state gives the same pixels: no artist of earlier frames is left
+    fresh = render.Renderer(env.unwrapped.layout)
+    np.testing.assert_array_equal(fresh.draw(env.unwrapped._render_state()), many[-1])
+    fresh.close()
+    # new extra obstacles redraw the background
+    state = {**env.unwrapped._render_state(), "extra_obstacles": [np.array([[1.0, 1.0], [2.0, 1.0], [2.0, 2.0]])]}
+    with_box = renderer.draw(state)
+    assert renderer.background_draws == 2 and not np.array_equal(with_box, renderer.draw(env.unwrapped._render_state()))
+    env.close()
+
+
+def test_record_video_writes_a_playable_mp4(tmp_path):
+    pytest.importorskip("moviepy", reason="RecordVideo needs the 'video' extra (moviepy)")
+    from moviepy import VideoFileClip
+
+    env = gym.make("SemReloc-v1", render_mode="rgb_array", max_episode_steps=12, physics={"control_hz": 5.0}, **FAST)
+    folder = tmp_path / "videos"
+    env = gym.wrappers.RecordVideo(env, str(folder), episode_trigger=lambda ep: ep == 0, disable_logger=True)
+    env.reset(seed=0)
+    done, steps = False, 0
+    while not done:
+        *_, terminated, truncated, _ = env.step(steps % 4)
+        done, steps = terminated or truncated, steps + 1
+    env.close()
+    videos = list(folder.glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 0
+    clip = VideoFileClip(str(videos[0]))
+    try:
+        assert clip.fps == pytest.approx(5.0)
+        frames = list(clip.iter_frames())
+        # reset and every step at the env's control rate (the reader may drop the last frame)
+        assert clip.duration == pytest.approx((steps + 1) / 5.0, abs=0.21)
+        assert steps <= len(frames) <= steps + 1
+        assert frames[0].ndim == 3 and frames[0].std() > 0
+    finally:
+        clip.close()
+
+
+def test_human_mode_steps_under_agg_and_is_paced_to_render_fps(monkeypatch):
+    import matplotlib.pyplot as plt
+
+    old = plt.get_backend()
+    plt.switch_backend("Agg")  # no window in tests: the same drawing code on a non-interactive canvas
+    clock = {"t": 0.0}
+    sleeps: list[float] = []
+    monkeypatch.setattr(render.time, "monotonic", lambda: clock["t"])
+    monkeypatch.setattr(render.time, "sleep", lambda s: sleeps.append(s))
+    try:
+        env = gym.make("SemReloc-v1", render_mode="human", physics={"control_hz": 4.0}, **FAST)
+        env.reset(seed=0)  # first frame: nothing to wait for
+        clock["t"] = 0.05
+        _, _, _, _, info = env.step(0)
+        assert env.render() is None and "pose" in info
+        assert sleeps[0] == pytest.approx(0.25 - 0.05)  # 4 Hz: a frame every 0.25 s
+        env.close()
+        assert not plt.get_fignums()  # close() closes the window
+    finally:
+        plt.switch_backend(old)
+
+
+def test_renderer_rejects_bad_fps():
+    env = gym.make("SemReloc-v1", **FAST)
+    with pytest.raises(ValueError, match="fps"):
+        render.Renderer(env.unwrapped.layout, fps=0)
