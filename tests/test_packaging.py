@@ -1,0 +1,36 @@
+"""Packaging metadata: PEP 561 markers shipped, CITATION.cff complete."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("semreloc_env", "filters", "agents")
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_py_typed_marker_exists_and_is_package_data(package):
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+    assert (ROOT / package / "py.typed").is_file()
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "py.typed" in config["tool"]["setuptools"]["package-data"][package]
+
+
+def test_citation_cff_cites_the_project_and_the_three_papers_in_full():
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text(encoding="utf-8"))
+    assert cff["cff-version"] == "1.2.0" and cff["type"] == "software"
+    assert cff["title"].startswith("semreloc") and cff["authors"] and cff["message"]
+    config_version = next(
+        line.split("=")[1].strip().strip('"')
+        for line in (ROOT / "pyproject.toml").read_text().splitlines()
+        if line.startswith("version")
+    )
+    assert str(cff["version"]) == config_version
+    refs = cff["references"]
+    assert len(refs) == 3
+    for ref in refs:
+        assert ref["type"] == "article" and ref["title"] and isinstance(ref["year"], int)
+        assert ref["authors"] and all(a["family-names"] and a["given-names"] for a in ref["authors"])
+    firsts = {ref["authors"][0]["family-names"] for ref in refs}
+    assert firsts == {"Jiang", "Wang", "Cui"}
