@@ -51,7 +51,7 @@ def test_png_images(tmp_path, kind):
     elif kind == "RGB":
         im = Image.fromarray(np.repeat(TOP_FIRST[..., None], 3, axis=2))
     elif kind == "LA":
-        im = Image.fromarray(np.stack([TOP_FIRST, np.full_like(TOP_FIRST, 255)], axis=2), mode="LA")
+        im = Image.fromarray(np.stack([TOP_FIRST, np.full_like(TOP_FIRST, 255)], axis=2))
     elif kind == "I;16":
         im = Image.fromarray(TOP_FIRST.astype(np.uint16) * 257)
     else:
@@ -66,7 +66,7 @@ def test_colour_pixels_average_their_channels_and_transparency_is_unknown_in_sca
     rgba[0, 0] = (255, 255, 255, 255)  # white: free
     rgba[0, 1] = (255, 0, 0, 255)  # mean 85: p = 0.667 > 0.65: occupied
     rgba[0, 2] = (128, 128, 128, 0)  # transparent grey, between the thresholds
-    Image.fromarray(rgba, mode="RGBA").save(tmp_path / "c.png")
+    Image.fromarray(rgba).save(tmp_path / "c.png")
     grid = load_map(_yaml(tmp_path, "c.png", "mode: scale"))
     np.testing.assert_allclose(grid.occupancy[0], [0.0, 170 / 255, 0.5], atol=1e-6)
     assert grid.occupied_mask()[0].tolist() == [False, True, False]
