@@ -95,7 +95,7 @@ from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import compose, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
-from filters.smc.resampling import RESAMPLERS, get_resampler
+from filters.smc.resampling import RESAMPLERS, get_resampler, inverse_cdf
 
 _SUBCONFIGS = {
     "lidar_field": LikelihoodFieldConfig,
@@ -621,9 +621,7 @@ class MonteCarloLocalizer:
 
     def _kld_draw(self, w: np.ndarray, m: int, lo: int) -> np.ndarray:
         c = self.config
-        cdf = np.cumsum(w)
-        cdf[-1] = 1.0
-        idx = np.minimum(np.searchsorted(cdf, self.rng.random(m), side="right"), w.size - 1)
+        idx = inverse_cdf(w, self.rng.random(m))
         p = self._poses[idx]
         keys = linear_bin_keys(
             np.floor(p[:, 0] / c.kld_bin_xy_m).astype(np.int64),
@@ -676,13 +674,11 @@ class MonteCarloLocalizer:
         return np.ascontiguousarray(np.vstack(poses)), logw - logsumexp(logw)
 
     def _resample_n(self, w: np.ndarray, m: int) -> np.ndarray:
-        """``m`` indices into ``w`` (normalised) with the configured scheme."""
+        """``m`` indices into ``w`` (normalised): the configured scheme when ``m == len(w)``, else
+        systematic pointers (``m`` of them)."""
         if m == w.size:
             return self._resample(w, self.rng)
-        u = (self.rng.random() + np.arange(m)) / m  # systematic with m draws
-        cdf = np.cumsum(w)
-        cdf[-1] = 1.0
-        return np.minimum(np.searchsorted(cdf, u, side="right"), w.size - 1)
+        return inverse_cdf(w, (self.rng.random() + np.arange(m)) / m)
 
     def _inject(self, p_inj: float, lidar: LaserScan | None, semantic: SemanticScan | None, recovery: bool) -> int:
         """Replace each particle with probability ``p_inj`` by an injected one; returns how many.

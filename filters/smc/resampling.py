@@ -27,7 +27,8 @@ def normalise_weights(weights: np.ndarray) -> np.ndarray:
     return w / total
 
 
-def _search(w: np.ndarray, u: np.ndarray) -> np.ndarray:
+def inverse_cdf(w: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Indices ``i`` with ``cdf[i-1] <= u < cdf[i]`` for normalised weights ``w`` and pointers ``u`` in [0, 1)."""
     cdf = np.cumsum(w)
     cdf[-1] = 1.0
     return np.minimum(np.searchsorted(cdf, u, side="right"), w.size - 1).astype(np.int64)
@@ -36,21 +37,21 @@ def _search(w: np.ndarray, u: np.ndarray) -> np.ndarray:
 def multinomial(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Independent draws from the categorical distribution (the "roulette wheel")."""
     w = normalise_weights(weights)
-    return _search(w, np.sort(rng.random(w.size)))
+    return inverse_cdf(w, np.sort(rng.random(w.size)))
 
 
 def stratified(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One uniform draw in each of N equal strata of [0, 1)."""
     w = normalise_weights(weights)
     n = w.size
-    return _search(w, (np.arange(n) + rng.random(n)) / n)
+    return inverse_cdf(w, (np.arange(n) + rng.random(n)) / n)
 
 
 def systematic(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One uniform offset shared by N evenly spaced pointers."""
     w = normalise_weights(weights)
     n = w.size
-    return _search(w, (np.arange(n) + rng.random()) / n)
+    return inverse_cdf(w, (np.arange(n) + rng.random()) / n)
 
 
 def residual(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -62,7 +63,7 @@ def residual(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     idx = np.repeat(np.arange(n), counts)
     if rest > 0:
         res = n * w - counts
-        extra = _search(res / res.sum(), np.sort(rng.random(rest)))
+        extra = inverse_cdf(res / res.sum(), np.sort(rng.random(rest)))
         idx = np.sort(np.concatenate([idx, extra]))
     return idx
 
