@@ -143,20 +143,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
 
 def run_grid(specs: list[EpisodeSpec], workers: int = 1, progress=None) -> list[dict]:
     """Run every spec (in a process pool if ``workers > 1``); results in the order of ``specs``."""
-    if workers <= 1:
-        out = []
-        for s in specs:
-            out.append(run_episode(s))
-            if progress:
-                progress(len(out), len(specs))
-        return out
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        out = []
-        for r in pool.map(run_episode, specs, chunksize=1):
-            out.append(r)
-            if progress:
-                progress(len(out), len(specs))
-        return out
+    return run_jobs(run_episode, specs, workers, progress)
 
 
 wilson = wilson_interval  # Wilson 95 % interval of ``k / n`` (filters.experiments.stats)
@@ -258,9 +245,17 @@ def log_tracking(job: tuple) -> dict:
     return {"label": label, "seed": seed, **tr.stats(), "cpu_s_per_scan": (time.process_time() - c0) / len(log)}
 
 
-def run_jobs(fn, jobs: list, workers: int) -> list:
-    """``[fn(j) for j in jobs]``, in a process pool if ``workers > 1`` (same order, same results)."""
-    if workers <= 1:
-        return [fn(j) for j in jobs]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(fn, jobs, chunksize=1))
+def run_jobs(fn, jobs: list, workers: int, progress=None) -> list:
+    """``[fn(j) for j in jobs]``, in a process pool if ``workers > 1`` (same order, same results);
+    ``progress(done, total)`` is called after each job."""
+    out = []
+    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+    try:
+        for r in pool.map(fn, jobs, chunksize=1) if pool else map(fn, jobs):
+            out.append(r)
+            if progress:
+                progress(len(out), len(jobs))
+    finally:
+        if pool:
+            pool.shutdown()
+    return out
