@@ -190,4 +190,45 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 from .observations import ActiveObservation  # noqa: E402  (the spatial observation for active relocalization)
 
-__all__ = ["BELIEF_FEATURES", "ActiveObservation", "BeliefObservation", "CheckedReset", "FlatObservation"]
+__all__ = [
+    "BELIEF_FEATURES",
+    "ActionRepeat",
+    "ActiveObservation",
+    "BeliefObservation",
+    "CheckedReset",
+    "FlatObservation",
+]
+
+
+class ActionRepeat(gym.Wrapper):
+    """Send each action ``repeat`` times (fewer if the episode ends): one decision per ``repeat`` steps.
+
+    The returned observation, ``terminated``, ``truncated`` and ``info`` are those of the last
+    inner step; the reward is the sum over the inner steps, and ``info["rewards"]`` the sum of each
+    named term. ``info["inner_steps"]`` is how many env steps the call took. A policy trained
+    through this wrapper acts on an unwrapped env by holding each action for ``repeat`` steps
+    (:class:`agents.learned.LearnedPolicy` does).
+
+    Args:
+        env: any env.
+        repeat: env steps per action, ``>= 1``.
+    """
+
+    def __init__(self, env: gym.Env, repeat: int):
+        super().__init__(env)
+        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
+            raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
+        self.repeat = int(repeat)
+
+    def step(self, action):
+        total, terms, n = 0.0, {}, 0
+        while n < self.repeat:
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            n += 1
+            total += float(reward)
+            for name, value in info.get("rewards", {}).items():
+                terms[name] = terms.get(name, 0.0) + float(value)
+            if terminated or truncated:
+                break
+        info = {**info, "rewards": terms, "inner_steps": n}
+        return obs, total, terminated, truncated, info
