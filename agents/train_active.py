@@ -217,6 +217,40 @@ def build_model(config: ActiveTrainConfig, venv) -> PPO:
     )
 
 
+def plot_learning_curve(progress_csv: str | Path, path: str | Path, repeat: int = 1) -> Path:
+    """Plot a run's ``rollout/success_rate`` and ``rollout/ep_rew_mean`` (over the last 100 episodes)
+    against env steps (decisions x ``repeat``) from its ``progress.csv``; write a PNG to ``path``.
+
+    Raises:
+        ValueError: the csv has no rows with those columns.
+    """
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with open(progress_csv, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r.get("rollout/success_rate") and r.get("time/total_timesteps")]
+    if not rows:
+        raise ValueError(f"{progress_csv}: no rows with rollout/success_rate")
+    steps = [int(r["time/total_timesteps"]) * repeat for r in rows]
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    ax.plot(steps, [float(r["rollout/success_rate"]) for r in rows], color="tab:blue", label="success rate")
+    ax.set_xlabel("env steps (decisions x repeat)")
+    ax.set_ylabel("training success rate (last 100 episodes)", color="tab:blue")
+    ax.set_ylim(0, 1)
+    ax2 = ax.twinx()
+    ax2.plot(steps, [float(r["rollout/ep_rew_mean"]) for r in rows], color="tab:orange", label="episode return")
+    ax2.set_ylabel("episode return", color="tab:orange")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def train_active(
     config: ActiveTrainConfig,
     out: str | Path,
@@ -227,8 +261,9 @@ def train_active(
 
     ``out`` receives ``config.json``, ``progress.csv`` and TensorBoard events, ``checkpoints/``
     (``ppo_<decisions>_steps.zip``), ``policy.zip`` (:func:`agents.learned.save_policy`) and
-    ``timing.json`` (wall and CPU seconds, decisions and env steps). ``resume``: a checkpoint of
-    this run to continue from (its step count carries on; ``total_timesteps`` counts from 0).
+    ``timing.json`` (wall and CPU seconds, decisions and env steps) and ``learning_curve.png``.
+    ``resume``: a checkpoint of this run to continue from (its step count carries on;
+    ``total_timesteps`` counts from 0).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -272,6 +307,10 @@ def train_active(
         "resumed_from": None if resume is None else str(resume),
     }
     (out / "timing.json").write_text(json.dumps(timing, indent=1))
+    try:
+        plot_learning_curve(out / "progress.csv", out / "learning_curve.png", config.repeat)
+    except ValueError:  # too short a run for one logged rollout
+        pass
     return save_policy(
         model,
         out / "policy.zip",

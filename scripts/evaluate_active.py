@@ -67,6 +67,8 @@ class Args:
     """the filter's map: mapping (a simulated mapping run) or perfect"""
     workers: int = 2
     """worker processes (1 = in this process)"""
+    gif_case: int = -1
+    """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases)"""
     out: str = "out/evaluate_active"
     """output folder"""
 
@@ -190,12 +192,11 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
 
     import semreloc_env  # noqa: F401
     from agents.metrics import EpisodeTracker
-    from agents.policies import POLICIES
 
     case, policies, args = job
     rows = []
     for spec in policies:
-        name, _, path = spec.partition("=")
+        name = spec.partition("=")[0]
         env = gym.make(
             "SemReloc-v1",
             layout=case["layout"],
@@ -205,12 +206,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
             relocalizer={"n_particles": args.particles},
             max_episode_steps=args.max_steps,
         )
-        if path:
-            from agents.learned import load_policy
-
-            policy = load_policy(path)
-        else:
-            policy = POLICIES[name](case["episode_seed"])
+        policy = make_policy(spec, case["episode_seed"])
         env = policy.wrap(env)
         policy.reset()
         tracker = EpisodeTracker()
@@ -239,6 +235,53 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
         )
         env.close()
     return rows
+
+
+def make_policy(spec: str, seed: int):
+    """The policy named by ``spec``: a baseline name of agents.policies.POLICIES or NAME=PATH."""
+    from agents.policies import POLICIES
+
+    name, _, path = spec.partition("=")
+    if path:
+        from agents.learned import load_policy
+
+        return load_policy(path)
+    return POLICIES[name](seed)
+
+
+def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) -> None:
+    """One episode of ``spec`` on ``case`` as a GIF (every ``every``-th frame, 10 fps)."""
+    import gymnasium as gym
+    from PIL import Image
+
+    import semreloc_env  # noqa: F401
+
+    env = gym.make(
+        "SemReloc-v1",
+        layout=case["layout"],
+        layout_seed=case["layout_seed"],
+        scenario=case["scenario"],
+        map_source=args.map_source,
+        relocalizer={"n_particles": args.particles},
+        max_episode_steps=args.max_steps,
+        render_mode="rgb_array",
+    )
+    policy = make_policy(spec, case["episode_seed"])
+    env = policy.wrap(env)
+    policy.reset()
+    obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+    frames, t = [env.render()], 0
+    while True:
+        obs, _, term, trunc, info = env.step(policy.act(obs))
+        t += 1
+        if t % every == 0 or term or trunc:
+            frames.append(env.render())
+        if term or trunc:
+            break
+    env.close()
+    images = [Image.fromarray(f).convert("P", palette=Image.Palette.ADAPTIVE) for f in frames]
+    images += [images[-1]] * 10  # hold the end
+    images[0].save(path, save_all=True, append_images=images[1:], duration=100, loop=0)
 
 
 # ---------------------------------------------------------------------- summary
@@ -367,6 +410,9 @@ def main(argv=None) -> None:
     )
     (out / "table.md").write_text(header + table(summary, policies))
     plot(summary, policies, out / "success.png")
+    if 0 <= args.gif_case < len(cases):
+        for spec in specs:
+            record_gif(cases[args.gif_case], spec, args, out / f"gif_{spec.partition('=')[0]}.gif")
     print(table({"all": summary["all"]}, policies))
     print(f"wrote {out}/table.md, success.png, summary.json, episodes.json ({time.time() - t0:.0f} s)")
 

@@ -61,6 +61,14 @@ def test_extractor_handles_every_active_key_and_rejects_small_images():
         ActiveExtractor(small)
 
 
+def test_learning_curve_needs_logged_rollouts(tmp_path):
+    from agents.train_active import plot_learning_curve
+
+    (tmp_path / "progress.csv").write_text("time/total_timesteps,rollout/success_rate,rollout/ep_rew_mean\n")
+    with pytest.raises(ValueError, match="no rows"):
+        plot_learning_curve(tmp_path / "progress.csv", tmp_path / "c.png")
+
+
 def test_config_rejects_bad_values():
     with pytest.raises(ValueError):
         ActiveTrainConfig(vec_env="ray")
@@ -105,6 +113,7 @@ def test_ppo_smoke_run_writes_logs_checkpoints_and_a_loadable_policy(smoke_run):
     assert (out / "progress.csv").read_text().count("\n") >= 2
     assert list(out.glob("events.out.tfevents.*")), "no TensorBoard events"
     assert list((out / "checkpoints").glob("ppo_*_steps.zip"))
+    assert (out / "learning_curve.png").stat().st_size > 0
     timing = json.loads((out / "timing.json").read_text())
     assert timing["decisions"] >= 128 and timing["env_steps_max"] == 3 * timing["decisions"]
     meta = read_metadata(path)
