@@ -95,11 +95,11 @@ class ActiveObservation(gym.Wrapper):
       the action of the last step (zeros after a reset).
 
     Args:
-        env: a ``SemReloc-v1`` env (anything with ``unwrapped.mcl``, ``unwrapped.grid``,
-            ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
+        env: a ``SemReloc-v2`` env, or ``-v1`` / ``-v0`` (either raw observation layout; anything with
+            ``unwrapped.mcl``, ``unwrapped.grid``, ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
         keys: which keys to keep, in order (default :data:`OBSERVATION_KEYS`, all of them).
-        ego_size, ego_cell_m: side of the ego crop in cells, and its cell size in metres
-            (default 32 x 0.25 m: 8 m, the lidar's reach).
+        ego_size: side of the ego crop in cells (default 32: with ``ego_cell_m`` 8 m, the lidar's reach).
+        ego_cell_m: cell size of the ego crop (m).
         global_size: side of the allocentric image in cells.
         n_heading_bins: particle-mass channels per image.
         max_hypotheses: rows of ``hypotheses``.
