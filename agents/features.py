@@ -126,7 +126,13 @@ class SemRelocExtractor(BaseFeaturesExtractor):
         if key == "semantic_range" and "semantic_class" in observations:
             ranges = self.scalers[key](obs)
             # SB3's preprocess_obs one-hot encodes a MultiDiscrete: (B, beams * classes), beam-major
-            onehot = observations["semantic_class"].flatten(1).reshape(ranges.shape[0], ranges.shape[1], -1)
+            classes = observations["semantic_class"].flatten(1)
+            if classes.shape[1] != ranges.shape[1] * self.n_sem_classes:
+                raise ValueError(
+                    f"'semantic_class' must arrive one-hot, {ranges.shape[1]} x {self.n_sem_classes} values per "
+                    f"sample (stable_baselines3.common.preprocessing.preprocess_obs), got {classes.shape[1]}"
+                )
+            onehot = classes.reshape(ranges.shape[0], ranges.shape[1], self.n_sem_classes)
             return torch.cat([ranges.unsqueeze(1), onehot.float().transpose(1, 2)], dim=1)
         if key == "semantic":
             flat = obs.flatten(1)

@@ -170,6 +170,9 @@ def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
         half = r2["semantic"].shape[1] // 2
         r2["semantic"][:, half:] = (r2["semantic"][:, half:] + 1) % 5
     assert not torch.allclose(ext(_preprocessed(space, r2)), out)
+    if "semantic_class" in raw:  # raw labels, not one-hot: a clear error rather than a shape mismatch deep inside
+        with pytest.raises(ValueError, match="one-hot"):
+            ext({k: torch.as_tensor(v) for k, v in raw.items()})
 
 
 def test_features_extractor_gives_the_same_features_for_both_observation_layouts():
