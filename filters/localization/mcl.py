@@ -128,9 +128,11 @@ class MCLConfig:
         resampler: name in :data:`filters.smc.resampling.RESAMPLERS`.
         resample_ess_frac: resample when ESS < this fraction of N (1.0 = every update).
         holdoff_min_detections: semantic hold-off (0 = off).
-        kld, kld_bin_xy_m, kld_bin_theta_rad, kld_epsilon, kld_z, min_particles,
-            max_particles: KLD-sampling (``kld_z`` is the upper standard normal quantile,
-            2.326 for 1 - delta = 0.99).
+        kld: KLD-sampling (Fox 2003): the particle count adapts to the belief's spread.
+        kld_bin_xy_m, kld_bin_theta_rad: its histogram bins (m, rad).
+        kld_epsilon, kld_z: its error bound and the upper standard normal quantile (2.326 for
+            1 - delta = 0.99).
+        min_particles, max_particles: the bounds of the particle count.
         global_particles_per_m2: particles per m^2 of free space for ``init_global`` when
             ``n_particles`` is None (> 0 then).
         resample_mode: ``"global"`` (one draw over all particles) or ``"clustered"``.

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -34,6 +34,12 @@ class SemRelocBase(gym.Env):
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
     _reset_option_keys: frozenset[str] = frozenset({"pose"})
+    observation_layout: ClassVar[str] = "typed"
+    """``"typed"`` (semantic ranges and class labels in separate entries, the labels ``MultiDiscrete``) or
+    ``"flat"`` (one float32 ``semantic`` Box, kept by the older env ids): :func:`.spaces.make_observation_space`."""
+    info_missing: ClassVar[str] = "drop"
+    """How ``info`` shows a value not computed in a step: ``"drop"`` leaves its key out (so vector envs batch
+    the rest as typed arrays, with ``_key`` masks marking who has it); ``"none"`` (older env ids) puts None."""
 
     def __init__(
         self,
@@ -62,7 +68,7 @@ class SemRelocBase(gym.Env):
         self.odometry = Odometry(coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()))
         self.action_space = make_action_space(action_type)
         self.action_type = action_type
-        self.observation_space = make_observation_space(self.lidar.params, self.camera.params)
+        self.observation_space = make_observation_space(self.lidar.params, self.camera.params, self.observation_layout)
         self.render_mode = render_mode
         self.world: World | None = None
         self._renderer = None
@@ -143,7 +149,7 @@ class SemRelocBase(gym.Env):
             self.__dict__.clear()
             self.__dict__.update(saved)
             raise
-        obs = make_observation(lidar_scan, semantic_scan, odom)
+        obs = make_observation(lidar_scan, semantic_scan, odom, self.observation_layout)
         self._last = {"lidar": lidar_scan, "semantic": semantic_scan}
         info = self._info()
         if self.render_mode == "human":
@@ -177,7 +183,7 @@ class SemRelocBase(gym.Env):
         if self.render_mode == "human":
             self.render()
         return (
-            make_observation(lidar_scan, semantic_scan, odom),
+            make_observation(lidar_scan, semantic_scan, odom, self.observation_layout),
             float(sum(terms.values())),
             self._terminated(),
             False,
