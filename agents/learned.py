@@ -152,8 +152,9 @@ def load_policy(
         path: the ``.zip``.
         device: torch device to load onto.
         deterministic: see :class:`LearnedPolicy`.
-        observation, repeat: override (or, for a checkpoint without metadata, supply) the
-            wrapper settings.
+        observation: override (or, for a checkpoint without metadata, supply) the
+            `ActiveObservation` settings.
+        repeat: the same for the action repeat.
 
     Raises:
         FileNotFoundError, ValueError: see :func:`read_metadata`.

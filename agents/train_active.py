@@ -49,68 +49,72 @@ lab of the evaluation are layouts the policy has never seen (as are the held-out
 
 @dataclass(frozen=True)
 class ActiveTrainConfig:
-    """One PPO training run for active relocalization.
-
-    Attributes:
-        kinds: layout kinds drawn for training (:class:`~semreloc_env.layout_sampling.LayoutSampler`).
-        kind_weights: one weight per kind (None: equal).
-        layout_seeds: ``(start, stop)`` of the procedural seeds drawn (the held-out ones never are);
-            a small range lets the mapping-run cache serve repeats.
-        particles: the relocalizer's particle count while training (the policy's observation does
-            not depend on it; evaluate at any count).
-        max_episode_steps: env steps per episode (the evaluation's success limit is 200).
-        repeat: env steps per decision (:class:`~semreloc_env.wrappers.ActionRepeat`).
-        belief_mass_weight: weight of the ``belief_mass`` reward term (gain mode: the change of the
-            belief mass within 0.5 m of the truth, a potential-based shaping); 0 turns it off.
-        reward_weights: overrides of the env's :class:`~semreloc_env.envs.semreloc.RewardWeights`.
-        observation: :class:`ActiveObservation` keyword arguments.
-        n_envs: parallel envs; vec_env: ``"subproc"`` (one process each) or ``"dummy"`` (in this process).
-        total_timesteps: decisions to train for, summed over envs (env steps: up to ``repeat`` times more).
-        seed: seeds PPO and the envs (env ``k``: ``seed + k``).
-        n_steps, batch_size, n_epochs, learning_rate, gamma, gae_lambda, ent_coef, clip_range,
-        vf_coef: PPO's (``gamma`` per decision).
-        features_dim, net_arch: sizes of :class:`ActiveExtractor`'s output and of the policy / value heads.
-        cnn_channels: channels of the image CNNs.
-        torch_threads: ``torch.set_num_threads`` of the learner.
-        device: torch device.
-        checkpoint_every: decisions (summed over envs) between checkpoints (None: none).
-        time_budget_s: stop learning after this many wall seconds (None: run ``total_timesteps``);
-            the policy is saved either way.
-        progress_bar: SB3's progress bar.
-        verbose: SB3 verbosity.
-    """
+    """One PPO training run for active relocalization (each field documented below)."""
 
     kinds: tuple[str, ...] = TRAIN_KINDS
+    """layout kinds drawn for training (`semreloc_env.layout_sampling.LayoutSampler`)"""
     kind_weights: tuple[float, ...] | None = (1.0, 1.0, 2.0)
+    """one weight per kind (None: equal)"""
     layout_seeds: tuple[int, int] = (0, 1000)
+    """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
+    mapping-run cache serve repeats"""
     particles: int = 1000
+    """the relocalizer's particle count while training (the observation does not depend on it)"""
     max_episode_steps: int = 200
+    """env steps per episode (the evaluation's success limit is 200)"""
     repeat: int = 4
+    """env steps per decision (`semreloc_env.wrappers.ActionRepeat`)"""
     belief_mass_weight: float = 0.5
+    """weight of the belief_mass reward term (gain mode: change of the belief mass within 0.5 m of the
+    truth, a potential-based shaping); 0 turns it off"""
     reward_weights: dict[str, float] = field(default_factory=dict)
+    """overrides of the env's `RewardWeights`"""
     observation: dict[str, Any] = field(default_factory=dict)
+    """`ActiveObservation` keyword arguments"""
     n_envs: int = 4
+    """parallel envs"""
     vec_env: str = "subproc"
+    """subproc (one process per env) or dummy (all in this process)"""
     total_timesteps: int = 60_000
+    """decisions to train for, summed over envs (env steps: up to `repeat` times more)"""
     seed: int = 0
+    """seeds PPO and the envs (env k: seed + k)"""
     n_steps: int = 128
+    """PPO: decisions per env per rollout"""
     batch_size: int = 256
+    """PPO: minibatch size"""
     n_epochs: int = 4
+    """PPO: passes over each rollout"""
     learning_rate: float = 3e-4
+    """PPO: Adam step size"""
     gamma: float = 0.98
+    """PPO: discount per decision"""
     gae_lambda: float = 0.95
+    """PPO: GAE lambda"""
     ent_coef: float = 0.01
+    """PPO: entropy bonus"""
     clip_range: float = 0.2
+    """PPO: ratio clip"""
     vf_coef: float = 0.5
+    """PPO: value-loss weight"""
     features_dim: int = 256
+    """output size of `ActiveExtractor`"""
     net_arch: tuple[int, ...] = (128,)
+    """hidden sizes of the policy and value heads"""
     cnn_channels: tuple[int, int, int] = (16, 32, 32)
+    """channels of the image CNNs' three convolutions"""
     torch_threads: int = 1
+    """torch.set_num_threads of the learner"""
     device: str = "cpu"
+    """torch device"""
     checkpoint_every: int | None = 10_000
+    """decisions (summed over envs) between checkpoints (None: none)"""
     time_budget_s: float | None = None
+    """stop learning after this many wall seconds (None: run total_timesteps); the policy is saved either way"""
     progress_bar: bool = True
+    """SB3's progress bar"""
     verbose: int = 0
+    """SB3 verbosity"""
 
     def __post_init__(self) -> None:
         if self.vec_env not in ("subproc", "dummy"):
