@@ -144,6 +144,10 @@ class MCLConfig:
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
+        fast_path: numba kernels for the belief summary, the clustering of clustered resampling
+            and the filter's bookkeeping (True), or the NumPy reference code (False). Unlike
+            ``backend`` this changes nothing but speed: both give the same particles, weights,
+            diagnostics and beliefs bit for bit (``tests/test_fast_path.py``).
     """
 
     n_particles: int | None = 2000
@@ -179,6 +183,7 @@ class MCLConfig:
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
+    fast_path: bool = True
 
     def __post_init__(self) -> None:
         for name, cls in _SUBCONFIGS.items():
@@ -231,7 +236,7 @@ class MCLConfig:
         v = self.max_update_log_ratio
         if isinstance(v, bool) or not (isinstance(v, (int, float)) and v > 0 and not math.isnan(v)):
             raise ValueError(f"MCLConfig.max_update_log_ratio must be > 0 (inf = no cap), got {v!r}")
-        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation"):
+        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
@@ -331,6 +336,7 @@ class MonteCarloLocalizer:
             else LikelihoodFieldModel(grid, c.lidar_field, c.semantic_field, backend=c.backend)
         )
         self._resample = get_resampler(c.resampler)
+        self._belief_backend = "numba" if c.fast_path else "numpy"
         self._free_cells: np.ndarray | None = None
         self._proposal: ScanProposal | None = None
         self._poses = np.zeros((0, 3))
@@ -652,7 +658,9 @@ class MonteCarloLocalizer:
         """Within-cluster resampling to about ``n_new`` particles; cluster weights are kept."""
         c = self.config
         b = c.belief
-        labels, n_lab = cluster_labels(self._poses, b.cluster_bin_m, b.cluster_bin_theta_rad, w, b.cluster_min_bin_frac)
+        labels, n_lab = cluster_labels(
+            self._poses, b.cluster_bin_m, b.cluster_bin_theta_rad, w, b.cluster_min_bin_frac, self._belief_backend
+        )
         labels = np.where(labels < 0, n_lab, labels)  # the haze outside every cluster is one more group
         n_lab += 1
         cw = np.bincount(labels, weights=w, minlength=n_lab)
@@ -711,4 +719,4 @@ class MonteCarloLocalizer:
     def belief(self) -> Belief:
         """Summary of the current particle set (see :mod:`filters.localization.belief`)."""
         self._require_particles()
-        return summarize(self._poses, np.exp(self._logw), self.config.belief)
+        return summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)
