@@ -40,7 +40,8 @@ Backends: every function here takes ``backend="numba"`` (default; the kernels of
 specification). Both give the same results *bit for bit* — labels, counts and every float —
 because the kernels repeat the reference's floating-point operations in the same order and
 leave BLAS dot products, pairwise sums and transcendental functions to NumPy
-(``tests/test_belief_kernels.py``).
+(``tests/test_belief_kernels.py``); the long dot products go through :func:`filters._blas.dot`,
+which gives ``w @ x``'s bits without waking OpenBLAS's threads.
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from filters import _blas
 from filters.localization import belief_kernels as _k
 from filters.pose import wrap_angle
 from filters.smc.resampling import normalise_weights
@@ -424,9 +426,10 @@ def summarize(
     w = _normalised(weights, n)
     x, y, th = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
 
-    mx, my = float(w @ x), float(w @ y)
+    dot = _blas.dot if backend == "numba" else np.dot  # the same bits (filters._blas)
+    mx, my = float(dot(w, x)), float(dot(w, y))
     sin_th, cos_th = np.sin(th), np.cos(th)
-    mth = float(wrap_angle(np.arctan2(w @ sin_th, w @ cos_th)))
+    mth = float(wrap_angle(np.arctan2(dot(w, sin_th), dot(w, cos_th))))
     if backend == "numba":
         res = np.empty((3, n))
         _k.residuals(p, mx, my, mth, res)

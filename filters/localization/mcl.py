@@ -88,6 +88,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy.special import logsumexp
 
+from filters import _blas
 from filters.localization.belief import Belief, BeliefConfig, cluster_labels, linear_bin_keys, summarize
 from filters.localization.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
 from filters.localization.proposals import ScanProposal
@@ -555,7 +556,8 @@ class MonteCarloLocalizer:
         p_inj = 0.0
         if c.augmented and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
-            w_avg = float(np.exp(self._logw) @ per_beam)
+            prior = np.exp(self._logw)
+            w_avg = float(_blas.dot(prior, per_beam) if c.fast_path else prior @ per_beam)
             if self._w_slow == 0.0:  # pf.c: the averages start at the first average
                 self._w_slow = self._w_fast = w_avg
             else:
