@@ -85,6 +85,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+import numba
 import numpy as np
 from scipy.special import logsumexp
 
@@ -96,7 +97,22 @@ from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import compose, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
+from filters.smc.logsumexp import logsumexp as fast_logsumexp
 from filters.smc.resampling import RESAMPLERS, get_resampler, inverse_cdf
+
+_MAX_DENSE_KEYS = 8_000_000
+"""Largest KLD bin key for which the fast path marks first occurrences in a dense table."""
+
+
+@numba.njit(cache=True, nogil=True)
+def _first_occurrence(keys, seen, out):  # pragma: no cover - compiled
+    """``out[i]``: ``keys[i]`` occurs at no index below ``i`` (``np.unique(..., return_index=True)``'s
+    first indices, as a mask); ``seen`` is a zeroed table of ``max(keys) + 1`` flags."""
+    for i in range(keys.shape[0]):
+        k = keys[i]
+        out[i] = not seen[k]
+        seen[k] = True
+
 
 _SUBCONFIGS = {
     "lidar_field": LikelihoodFieldConfig,
@@ -338,6 +354,7 @@ class MonteCarloLocalizer:
         )
         self._resample = get_resampler(c.resampler)
         self._belief_backend = "numba" if c.fast_path else "numpy"
+        self._lse = fast_logsumexp if c.fast_path else logsumexp  # the same bits (filters.smc.logsumexp)
         self._free_cells: np.ndarray | None = None
         self._proposal: ScanProposal | None = None
         self._poses = np.zeros((0, 3))
@@ -537,7 +554,7 @@ class MonteCarloLocalizer:
             tempered = np.maximum(tempered, np.max(tempered) - c.max_update_log_ratio)
         logw = self._logw + tempered
         finite_any = bool(np.any(np.isfinite(logw)))
-        lse = float(logsumexp(logw)) if finite_any else -np.inf
+        lse = float(self._lse(logw)) if finite_any else -np.inf
         if not math.isfinite(lse):
             self.init_global(n)
             diag = UpdateDiagnostics(
@@ -636,9 +653,13 @@ class MonteCarloLocalizer:
             np.floor(p[:, 1] / c.kld_bin_xy_m).astype(np.int64),
             np.floor((p[:, 2] + np.pi) / c.kld_bin_theta_rad).astype(np.int64),
         )
-        _, first = np.unique(keys, return_index=True)
-        new_bin = np.zeros(m, dtype=bool)
-        new_bin[first] = True
+        if self.config.fast_path and keys.size and int(keys.max()) < _MAX_DENSE_KEYS:
+            new_bin = np.empty(m, dtype=bool)
+            _first_occurrence(keys, np.zeros(int(keys.max()) + 1, dtype=np.bool_), new_bin)
+        else:
+            _, first = np.unique(keys, return_index=True)
+            new_bin = np.zeros(m, dtype=bool)
+            new_bin[first] = True
         k = np.cumsum(new_bin)  # occupied bins after 1..m draws
         count = np.arange(1, m + 1)
         ok = (count >= self.kld_required(k)) & (count >= lo)
@@ -681,7 +702,7 @@ class MonteCarloLocalizer:
             poses.append(self._poses[idx])
             logw.append(np.full(m, math.log(cw[k] / total / m)))
         logw = np.concatenate(logw)
-        return np.ascontiguousarray(np.vstack(poses)), logw - logsumexp(logw)
+        return np.ascontiguousarray(np.vstack(poses)), logw - self._lse(logw)
 
     def _resample_n(self, w: np.ndarray, m: int) -> np.ndarray:
         """``m`` indices into ``w`` (normalised): the configured scheme when ``m == len(w)``, else
@@ -714,7 +735,7 @@ class MonteCarloLocalizer:
         self._poses[mask] = new
         logw = self._logw.copy()
         logw[mask] = -math.log(self.n_particles)
-        self._logw = logw - logsumexp(logw)
+        self._logw = logw - self._lse(logw)
         return m
 
     # ------------------------------------------------------------ summary
