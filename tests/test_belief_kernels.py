@@ -49,7 +49,7 @@ def clouds(seed: int):
     return out
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(4))
 def test_entropy_and_labels_match_reference(seed):
     for p, w in clouds(seed):
         wn = w / w.sum()
@@ -64,7 +64,7 @@ def test_entropy_and_labels_match_reference(seed):
                     same_bits(x, y)
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(4))
 def test_summary_matches_reference(seed):
     for p, w in clouds(seed):
         for cfg in (BeliefConfig(), BeliefConfig(converged_rule="spread", cluster_min_weight=0.0)):
