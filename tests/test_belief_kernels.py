@@ -102,3 +102,17 @@ def test_bad_backend_is_an_error():
         summarize(p, np.ones(3), backend="cuda")
     with pytest.raises(ValueError, match="backend"):
         cluster_labels(p, 0.5, 0.5, backend="")
+
+
+def test_absurdly_spread_cloud_takes_the_coarser_raster_in_both_backends():
+    """More than 4M raster cells: both backends re-bin at 4x the cell size, with the same labels."""
+    rng = np.random.default_rng(5)
+    p = rng.uniform([0, 0, -np.pi], [1500, 900, np.pi], (3000, 3))
+    p[:1500] = [700.0, 400.0, 0.5] + rng.normal(0, 0.3, (1500, 3))
+    w = rng.random(3000)
+    w /= w.sum()
+    lab_a, n_a = cluster_labels(p, 0.5, math.pi / 4, w, 0.05, backend="numba")
+    lab_b, n_b = cluster_labels(p, 0.5, math.pi / 4, w, 0.05, backend="numpy")
+    assert n_a == n_b >= 1
+    same_bits(lab_a, lab_b)
+    same_bits(histogram_entropy(p, w, 0.5, math.pi / 8, "numba"), histogram_entropy(p, w, 0.5, math.pi / 8, "numpy"))
