@@ -40,6 +40,8 @@ class SemRelocBase(gym.Env):
     info_missing: ClassVar[str] = "drop"
     """How ``info`` shows a value not computed in a step: ``"drop"`` leaves its key out (so vector envs batch
     the rest as typed arrays, with ``_key`` masks marking who has it); ``"none"`` (older env ids) puts None."""
+    _world_option_keys: frozenset[str] = frozenset({"pose"})
+    """Reset options whose check needs the world (:meth:`check_reset` builds one only for them)."""
 
     def __init__(
         self,
@@ -79,8 +81,9 @@ class SemRelocBase(gym.Env):
         """Polygons added to the world but not to the layout (none by default)."""
         return []
 
-    def _validate_options(self, options: dict, world: World) -> None:
-        """Raise ValueError for bad reset options, before any state changes."""
+    def _validate_options(self, options: dict, world: World | None) -> None:
+        """Raise ValueError for bad reset options, before any state changes (``world`` is None when
+        no option in :attr:`_world_option_keys` is set and the caller is :meth:`check_reset`)."""
 
     def _reset_estimator(self, options: dict) -> None:  # pragma: no cover - overridden
         pass
@@ -105,10 +108,15 @@ class SemRelocBase(gym.Env):
         (:class:`semreloc_env.wrappers.CheckedReset`) so that a rejected reset never reaches
         Gymnasium's ``TimeLimit``, which zeroes its step counter before passing ``reset`` on.
         """
-        self._prepare_reset(seed, options)
+        self._prepare_reset(seed, options, need_world=False)
 
-    def _prepare_reset(self, seed, options) -> tuple[dict, World]:
-        """Validated ``(options, fresh world)`` for a reset; ValueError naming the bad argument."""
+    def _prepare_reset(self, seed, options, need_world: bool = True) -> tuple[dict, World | None]:
+        """Validated ``(options, fresh world)`` for a reset; ValueError naming the bad argument.
+
+        With ``need_world=False`` (:meth:`check_reset`) the pymunk world is only built when an
+        option in :attr:`_world_option_keys` needs it for its check; otherwise ``world`` is None
+        (and :meth:`_validate_options` gets None). The checks are the same either way.
+        """
         if seed is not None and not (
             isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)) and seed >= 0
         ):
@@ -123,9 +131,11 @@ class SemRelocBase(gym.Env):
             raise ValueError(
                 f"unknown reset options {sorted(unknown, key=repr)}; valid: {sorted(self._reset_option_keys)}"
             )
-        world = build_world(self.layout, self.robot_params, self.physics_params, self._extra_obstacles())
-        if options.get("pose") is not None:
-            world.set_pose(options["pose"])  # raises before any state changes
+        world = None
+        if need_world or any(options.get(k) is not None for k in self._world_option_keys):
+            world = build_world(self.layout, self.robot_params, self.physics_params, self._extra_obstacles())
+            if options.get("pose") is not None:
+                world.set_pose(options["pose"])  # raises before any state changes
         self._validate_options(options, world)
         return options, world
 

@@ -178,6 +178,7 @@ class SemRelocEnv(SemRelocBase):
     """
 
     _reset_option_keys = frozenset({"pose", "tracking", "kidnap_at_step", "kidnap_pose"})
+    _world_option_keys = frozenset({"pose", "kidnap_pose"})
     default_relocalizer: MCLConfig = DEFAULT_RELOCALIZER
     """What ``relocalizer=None`` stands for and a dict of overrides applies to."""
 
