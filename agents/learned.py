@@ -37,12 +37,20 @@ SHIPPED_POLICY = Path(__file__).resolve().parent / "data" / "active_ppo.zip"
 was trained and how it scores): ``load_policy(SHIPPED_POLICY)``."""
 
 
-def save_policy(model, path: str | Path, observation: dict[str, Any], repeat: int, extra: dict | None = None) -> Path:
+def save_policy(
+    model,
+    path: str | Path,
+    observation: dict[str, Any],
+    repeat: int,
+    explorer_option: bool = False,
+    extra: dict | None = None,
+) -> Path:
     """Save ``model`` (an SB3 algorithm) to ``path`` (``.zip`` added if missing) with its metadata.
 
     Args:
         observation: keyword arguments of :class:`ActiveObservation` the model was trained with.
         repeat: env steps per decision (:class:`semreloc_env.wrappers.ActionRepeat`).
+        explorer_option: whether it acts through :class:`agents.options.ExplorerOption`.
         extra: anything else worth keeping beside it (training config, env id, ...): JSON-able.
 
     Returns:
@@ -58,6 +66,7 @@ def save_policy(model, path: str | Path, observation: dict[str, Any], repeat: in
         "algorithm": type(model).__name__,
         "observation": dict(observation),
         "repeat": int(repeat),
+        "explorer_option": bool(explorer_option),
         "extra": extra or {},
     }
     with zipfile.ZipFile(path, "a") as z:
@@ -96,25 +105,44 @@ class LearnedPolicy:
         observation: the :class:`ActiveObservation` keyword arguments it was trained with.
         repeat: env steps per decision.
         deterministic: act on the mode of the action distribution (default) or sample from it.
+        explorer_option: the model's actions are :class:`agents.options.ExplorerOption`'s (the env's
+            four and "explore"); :meth:`wrap` adds that wrapper.
     """
 
-    def __init__(self, model, observation: dict[str, Any], repeat: int = 1, deterministic: bool = True):
+    def __init__(
+        self,
+        model,
+        observation: dict[str, Any],
+        repeat: int = 1,
+        deterministic: bool = True,
+        explorer_option: bool = False,
+    ):
         if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
             raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
         self.model = model
         self.observation = dict(observation)
         self.repeat = int(repeat)
         self.deterministic = bool(deterministic)
+        self.explorer_option = bool(explorer_option)
         self._t = 0
         self._action = None
 
     def wrap(self, env: gym.Env) -> gym.Env:
-        """``ActiveObservation(env, **observation)``, checked against the model's spaces.
+        """``ActiveObservation(env, **observation)`` (over :class:`agents.options.ExplorerOption` when
+        the policy uses it), checked against the model's spaces.
 
         Raises:
             ValueError: the env's action space or the wrapped observation space differs from the
                 model's (another action type, camera or lidar beam count, ...).
         """
+        if self.explorer_option:
+            from .options import ExplorerOption
+
+            if env.action_space != gym.spaces.Discrete(4):
+                raise ValueError(
+                    f"the env's action space {env.action_space} is not Discrete(4), which the policy needs"
+                )
+            env = ExplorerOption(env)
         if env.action_space != self.model.action_space:
             raise ValueError(f"the env's action space {env.action_space} is not the policy's {self.model.action_space}")
         wrapped = ActiveObservation(env, **self.observation)
@@ -145,6 +173,7 @@ def load_policy(
     deterministic: bool = True,
     observation: dict[str, Any] | None = None,
     repeat: int | None = None,
+    explorer_option: bool | None = None,
 ) -> LearnedPolicy:
     """Load a policy saved by :func:`save_policy` (or a bare SB3 PPO checkpoint, given its settings).
 
@@ -155,6 +184,8 @@ def load_policy(
         observation: override (or, for a checkpoint without metadata, supply) the
             `ActiveObservation` settings.
         repeat: the same for the action repeat.
+        explorer_option: the same for :class:`agents.options.ExplorerOption` (default False
+            without metadata).
 
     Raises:
         FileNotFoundError, ValueError: see :func:`read_metadata`.
@@ -162,9 +193,17 @@ def load_policy(
     from stable_baselines3 import PPO
 
     path = Path(path)
-    if observation is None or repeat is None:
-        meta = read_metadata(path)
+    if observation is None or repeat is None or explorer_option is None:
+        try:
+            meta = read_metadata(path)
+        except ValueError:
+            if observation is None or repeat is None:
+                raise
+            meta = {}
         observation = meta["observation"] if observation is None else observation
         repeat = meta["repeat"] if repeat is None else repeat
+        explorer_option = bool(meta.get("explorer_option", False)) if explorer_option is None else explorer_option
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"no policy file {path}")
     model = PPO.load(path, device=device)
-    return LearnedPolicy(model, observation, repeat, deterministic)
+    return LearnedPolicy(model, observation, repeat, deterministic, explorer_option)

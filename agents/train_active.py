@@ -40,8 +40,9 @@ from semreloc_env.wrappers import ActionRepeat
 from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
 from .learned import save_policy
+from .options import ExplorerOption
 
-ENV_ID = "SemReloc-v1"
+ENV_ID = "SemReloc-v2"
 TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
 """Layout kinds drawn for training: procedural only, so ``lab``, ``twin_rooms`` and the changed
 lab of the evaluation are layouts the policy has never seen (as are the held-out seeds)."""
@@ -64,11 +65,15 @@ class ActiveTrainConfig:
     """env steps per episode (the evaluation's success limit is 200)"""
     repeat: int = 4
     """env steps per decision (`semreloc_env.wrappers.ActionRepeat`)"""
+    explorer_option: bool = True
+    """add action 4, one step of the reactive explorer (`agents.options.ExplorerOption`), to the env's
+    four"""
     belief_mass_weight: float = 0.5
     """weight of the belief_mass reward term (gain mode: change of the belief mass within 0.5 m of the
     truth, a potential-based shaping); 0 turns it off"""
-    reward_weights: dict[str, float] = field(default_factory=dict)
-    """overrides of the env's `RewardWeights`"""
+    reward_weights: dict[str, float] = field(default_factory=lambda: {"collision": -0.1})
+    """overrides of the env's `RewardWeights` (default: collisions cost -0.1 a step instead of -0.5, so
+    that driving is not learned away before localizing is)"""
     observation: dict[str, Any] = field(default_factory=dict)
     """`ActiveObservation` keyword arguments"""
     n_envs: int = 4
@@ -91,7 +96,7 @@ class ActiveTrainConfig:
     """PPO: discount per decision"""
     gae_lambda: float = 0.95
     """PPO: GAE lambda"""
-    ent_coef: float = 0.01
+    ent_coef: float = 0.02
     """PPO: entropy bonus"""
     clip_range: float = 0.2
     """PPO: ratio clip"""
@@ -174,6 +179,8 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0) -> gym.Env:
     env = RandomLayout(env, sampler, seed=seed)
     if config.belief_mass_weight:
         env = BeliefMassReward(env, weight=config.belief_mass_weight, mode="gain")
+    if config.explorer_option:
+        env = ExplorerOption(env)
     env = ActionRepeat(env, config.repeat)
     env = ActiveObservation(env, **config.observation)
     return Monitor(env, info_keywords=("is_success",))
@@ -320,5 +327,6 @@ def train_active(
         out / "policy.zip",
         observation=config.observation,
         repeat=config.repeat,
+        explorer_option=config.explorer_option,
         extra={"env_id": ENV_ID, "config": config.as_dict(), "timing": timing},
     )

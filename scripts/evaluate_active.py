@@ -98,6 +98,9 @@ def parse_args(argv=None) -> Args:
     return args
 
 
+ENV_ID = "SemReloc-v2"
+"""The env every episode runs in (v2 and v1 give the same episodes; v2 has typed observations)."""
+
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
 
@@ -198,7 +201,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
     for spec in policies:
         name = spec.partition("=")[0]
         env = gym.make(
-            "SemReloc-v1",
+            ENV_ID,
             layout=case["layout"],
             layout_seed=case["layout_seed"],
             scenario=case["scenario"],
@@ -257,7 +260,7 @@ def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) ->
     import semreloc_env  # noqa: F401
 
     env = gym.make(
-        "SemReloc-v1",
+        ENV_ID,
         layout=case["layout"],
         layout_seed=case["layout_seed"],
         scenario=case["scenario"],

@@ -20,7 +20,7 @@ from semreloc_env.wrappers import ActionRepeat
 
 def _env(**kw):
     kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 50, **kw}
-    return gym.make("SemReloc-v1", **kw)
+    return gym.make("SemReloc-v2", **kw)
 
 
 def test_action_repeat_sums_rewards_and_terms_and_stops_at_the_episode_end():
@@ -117,7 +117,7 @@ def test_ppo_smoke_run_writes_logs_checkpoints_and_a_loadable_policy(smoke_run):
     timing = json.loads((out / "timing.json").read_text())
     assert timing["decisions"] >= 128 and timing["env_steps_max"] == 3 * timing["decisions"]
     meta = read_metadata(path)
-    assert meta["repeat"] == 3 and meta["extra"]["config"]["particles"] == 200
+    assert meta["repeat"] == 3 and meta["explorer_option"] and meta["extra"]["config"]["particles"] == 200
 
 
 def test_loaded_policy_acts_deterministically_on_another_layout_and_particle_count(smoke_run):
@@ -188,3 +188,24 @@ def test_shipped_policy_loads_and_acts():
         a = policy.act(obs)
         assert env.action_space.contains(a)
         obs, *_ = env.step(a)
+
+
+def test_explorer_option_steps_as_the_explorer_and_checks_its_actions():
+    from agents.baselines import WallFollowExplorer
+    from agents.options import EXPLORE, ExplorerOption
+
+    env = ExplorerOption(_env(max_episode_steps=60))
+    ref, explorer = _env(max_episode_steps=60), WallFollowExplorer()
+    obs, _ = env.reset(seed=2)
+    ref_obs, _ = ref.reset(seed=2)
+    for _ in range(40):
+        a = explorer(ref_obs)
+        ref_obs, *_ = ref.step(a)
+        obs, _, _, _, info = env.step(EXPLORE)
+        assert info["explore_action"] == a
+        np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
+    for bad in (5, -1, 1.5, True, "0"):
+        with pytest.raises(ValueError):
+            env.step(bad)
+    with pytest.raises(TypeError):
+        ExplorerOption(_env(action_type="continuous"))
