@@ -51,8 +51,8 @@ class Args:
     """comma-separated names from agents.policies.POLICIES, or NAME=PATH for a trained policy
     saved by agents.learned.save_policy (loaded with agents.load_policy)"""
     reuse: str = ""
-    """a folder of an earlier run with the same cases: its episodes.json rows are kept for the
-    policies listed here, and only the other policies are run"""
+    """comma-separated folders of earlier runs with the same cases: their episodes.json rows are kept
+    for the policies listed here, and only the other policies are run"""
     layouts_per_kind: int = 10
     """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
     starts: int = 10
@@ -86,8 +86,9 @@ def parse_args(argv=None) -> Args:
     bad_files = [x for x in args.policies.split(",") if "=" in x and not Path(x.split("=", 1)[1].strip()).is_file()]
     if bad_files:
         p.error(f"--policies: no policy file for {bad_files}")
-    if args.reuse and not (Path(args.reuse) / "episodes.json").is_file():
-        p.error(f"--reuse: no episodes.json in {args.reuse}")
+    missing = [d for d in args.reuse.split(",") if d.strip() and not (Path(d.strip()) / "episodes.json").is_file()]
+    if missing:
+        p.error(f"--reuse: no episodes.json in {missing}")
     if unknown:
         p.error(f"--policies: unknown {unknown}; choose from {sorted(POLICIES)}")
     for name in ("layouts_per_kind", "starts", "max_steps", "particles", "workers"):
@@ -99,6 +100,8 @@ def parse_args(argv=None) -> Args:
 
 
 ENV_ID = "SemReloc-v2"
+POLICY_NAMES = ("random", "spin", "spin_backup", "wall_follow", "info_gain")
+"""The baselines' names (agents.policies.POLICIES); any other name in a table is a learned policy."""
 """The env every episode runs in (v2 and v1 give the same episodes; v2 has typed observations)."""
 
 # ---------------------------------------------------------------------- cases
@@ -340,6 +343,60 @@ def table(summary: dict, policies: list[str]) -> str:
     return "\n".join(lines)
 
 
+def _mean_difference(base: np.ndarray, new: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.mean(new - base, axis=axis)
+
+
+def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[dict]:
+    """Success of each learned policy against each other policy on the same cases: the difference
+    of the success rates with a paired bootstrap 95 % interval (``filters.experiments.stats``,
+    seeded) and McNemar's exact p-value (a binomial test on the discordant pairs)."""
+    from scipy.stats import binomtest
+
+    from filters.experiments.stats import paired_bootstrap_interval
+
+    by = {(r["case"], r["policy"]): r["outcome"] == "success" for r in rows}
+    cases = sorted({r["case"] for r in rows})
+    out = []
+    for a in learned:
+        for b in policies:
+            if b == a:
+                continue
+            x = np.array([by[(c, a)] for c in cases], dtype=np.float64)
+            y = np.array([by[(c, b)] for c in cases], dtype=np.float64)
+            point, lo, hi = paired_bootstrap_interval(y, x, np.random.default_rng(0), statistic=_mean_difference)
+            wins, losses = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
+            p = binomtest(wins, wins + losses).pvalue if wins + losses else 1.0
+            out.append(
+                {
+                    "policy": a,
+                    "against": b,
+                    "difference": point,
+                    "ci95": [lo, hi],
+                    "wins": wins,
+                    "losses": losses,
+                    "mcnemar_p": p,
+                }
+            )
+    return out
+
+
+def paired_table(comparisons: list[dict]) -> str:
+    lines = [
+        "### paired: success of the learned policy minus the other's, same cases",
+        "",
+        "| policy | against | difference [paired bootstrap 95 %] | only it solved | only other solved | McNemar p |",
+        "|---|---|---|---|---|---|",
+    ]
+    for c in comparisons:
+        lo, hi = c["ci95"]
+        lines.append(
+            f"| {c['policy']} | {c['against']} | {100 * c['difference']:+.1f} pp [{100 * lo:+.1f}, {100 * hi:+.1f}] | "
+            f"{c['wins']} | {c['losses']} | {c['mcnemar_p']:.3g} |"
+        )
+    return "\n".join([*lines, ""])
+
+
 def plot(summary: dict, policies: list[str], path: Path) -> None:
     import matplotlib
 
@@ -376,11 +433,22 @@ def main(argv=None) -> None:
     print(f"{len(cases)} (layout, start) pairs ({n_unin} uninformative starts) x {len(policies)} policies", flush=True)
     rows: list[dict] = []
     if args.reuse:
-        old = json.loads((Path(args.reuse) / "episodes.json").read_text())
+        old = [
+            r
+            for d in args.reuse.split(",")
+            if d.strip()
+            for r in json.loads((Path(d.strip()) / "episodes.json").read_text())
+        ]
         keep = {c["case"]: c for c in cases}
         for r in old:
             c = keep.get(r["case"])
-            if r["policy"] in policies and c is not None and all(r[k] == v for k, v in c.items()):
+            seen = {(x["case"], x["policy"]) for x in rows}
+            if (
+                r["policy"] in policies
+                and c is not None
+                and all(r[k] == v for k, v in c.items())
+                and (r["case"], r["policy"]) not in seen
+            ):
                 rows.append(r)
         done = {(r["case"], r["policy"]) for r in rows}
         print(f"reused {len(rows)} episodes from {args.reuse}", flush=True)
@@ -404,19 +472,27 @@ def main(argv=None) -> None:
         g: {p: summarise([r for r in rs if r["policy"] == p]) for p in policies} for g, rs in groups(rows).items()
     }
     (out / "episodes.json").write_text(json.dumps(rows, indent=1))
-    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    learned = [s.partition("=")[0] for s in specs if "=" in s]
+    learned += [p for p in policies if p not in POLICY_NAMES and p not in learned]  # reused learned rows
+    comparisons = paired(rows, learned, policies) if learned and len(policies) > 1 else []
+    summary_out = {**summary, "paired": comparisons} if comparisons else summary
+    (out / "summary.json").write_text(json.dumps(summary_out, indent=1))
     cli = " ".join(argv if argv is not None else sys.argv[1:])
     header = (
         f"Command: `PYTHONPATH=. python scripts/evaluate_active.py {cli}`"
         f"\n\n{len(cases)} (layout, start) pairs, {n_unin} uninformative; {args.particles} particles, map "
         f"{args.map_source}, success within {args.max_steps} steps; wall time {time.time() - t0:.0f} s.\n\n"
     )
-    (out / "table.md").write_text(header + table(summary, policies))
+    (out / "table.md").write_text(
+        header + table(summary, policies) + ("\n" + paired_table(comparisons) if comparisons else "")
+    )
     plot(summary, policies, out / "success.png")
     if 0 <= args.gif_case < len(cases):
         for spec in specs:
             record_gif(cases[args.gif_case], spec, args, out / f"gif_{spec.partition('=')[0]}.gif")
     print(table({"all": summary["all"]}, policies))
+    if comparisons:
+        print(paired_table(comparisons))
     print(f"wrote {out}/table.md, success.png, summary.json, episodes.json ({time.time() - t0:.0f} s)")
 
 
