@@ -392,20 +392,17 @@ def write_report(args, argv, out, settings, t2, t1, tk, n1, ks, total_s) -> None
             pap_s = "not in the paper (its 2nd row is 'ref. [14]': 0.723 / 0.445 / 0.869 / 0.664)"
         w(f"| {name} | " + " | ".join(cells) + f" | {pap_s} |")
     w("")
-    w("Paired differences WOCPF − FastSLAM (negative = WOC better), mean ± 95 % CI:\n")
-    w("| setting | pose err diff (m) | landmark err diff (m) |")
-    w("|---|---|---|")
-    for si, st in enumerate(settings):
-        a, b = t2[(si, "FastSLAM")], t2[(si, "WOCPF")]
-        w(f"| {st.label()} | {paired(a, b, 'pose_err')} | {paired(a, b, 'lm_err')} |")
-    w("")
-    w("Paired differences WOCPF − EKF-SLAM:\n")
-    w("| setting | pose err diff (m) | landmark err diff (m) |")
-    w("|---|---|---|")
-    for si, st in enumerate(settings):
-        a, b = t2[(si, "EKF-SLAM")], t2[(si, "WOCPF")]
-        w(f"| {st.label()} | {paired(a, b, 'pose_err')} | {paired(a, b, 'lm_err')} |")
-    w("")
+    for base, intro in (
+        ("FastSLAM", "Paired differences WOCPF − FastSLAM (negative = WOC better), mean ± 95 % CI:\n"),
+        ("EKF-SLAM", "Paired differences WOCPF − EKF-SLAM:\n"),
+    ):
+        w(intro)
+        w("| setting | pose err diff (m) | landmark err diff (m) |")
+        w("|---|---|---|")
+        for si, st in enumerate(settings):
+            a, b = t2[(si, base)], t2[(si, "WOCPF")]
+            w(f"| {st.label()} | {paired(a, b, 'pose_err')} | {paired(a, b, 'lm_err')} |")
+        w("")
     nl = {name: np.mean([x["n_landmarks"] for x in t2[(0, name)]]) for name in ("EKF-SLAM", "FastSLAM", "WOCPF")}
     w(
         "Mean number of landmarks in the final map (low noise; true: 31): "

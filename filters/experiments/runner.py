@@ -51,7 +51,7 @@ Executor = Literal["auto", "sequential", "process", "ray"]
 
 @dataclass(frozen=True)
 class RunnerConfig:
-    """How :func:`run_jobs` executes the jobs (never what they compute)."""
+    """How the runs are executed; the results do not depend on it (docs/cluster.md)."""
 
     executor: Executor = "auto"
     """auto (ray with --address, process pool with --workers > 1, else sequential), sequential, process or ray"""

@@ -103,6 +103,19 @@ def mutate(data: dict, rng: np.random.Generator) -> tuple[dict, str, str]:
     return d, f"objects[{k}]", kind
 
 
+def check_mutation(data: dict, rng: np.random.Generator, c: Counter) -> None:
+    """Mutate the valid layout ``data`` into an invalid one (:func:`mutate`) and count in ``c`` whether
+    ``layout_from_dict`` rejects it (``FAIL_mutation_accepted``) naming the entry (``FAIL_mutation_unnamed``)."""
+    bad, entry, what = mutate(data, rng)
+    c["mutations"] += 1
+    try:
+        layout_from_dict(bad)
+        c["FAIL_mutation_accepted"] += 1
+        print(f"mutation {what} accepted", file=sys.stderr)
+    except LayoutError as e:
+        c["FAIL_mutation_unnamed"] += entry not in str(e)
+
+
 def random_settings(rng: np.random.Generator) -> tuple[str, dict]:
     """An env id and random (valid) keyword arguments."""
     radius = float(rng.uniform(0.1, 0.3))
@@ -189,14 +202,7 @@ def soak(steps: int, seed: int, episode_steps: int, twin_every: int) -> Counter:
         if kind < 0.6:
             data = random_layout(rng)
             layout = layout_from_dict(data)
-            bad, entry, what = mutate(data, rng)
-            c["mutations"] += 1
-            try:
-                layout_from_dict(bad)
-                c["FAIL_mutation_accepted"] += 1
-                print(f"mutation {what} accepted", file=sys.stderr)
-            except LayoutError as e:
-                c["FAIL_mutation_unnamed"] += entry not in str(e)
+            check_mutation(data, rng, c)
             layout_kw = {"layout": layout}
         else:
             name = ["procedural", "procedural_sym", "lab", "twin_rooms"][int(rng.integers(4))]
@@ -276,13 +282,7 @@ def soak_layouts(n: int, seed: int) -> Counter:
             if i % 2 == 0:
                 data = random_layout(rng)
                 layout = layout_from_dict(data)
-                bad, entry, what = mutate(data, rng)
-                c["mutations"] += 1
-                try:
-                    layout_from_dict(bad)
-                    c["FAIL_mutation_accepted"] += 1
-                except LayoutError as e:
-                    c["FAIL_mutation_unnamed"] += entry not in str(e)
+                check_mutation(data, rng, c)
             else:
                 layout = get_layout(["procedural", "procedural_sym"][i % 4 // 2], seed=int(rng.integers(0, 10**9)))
             world = build_world(layout)
