@@ -40,6 +40,7 @@ def test_ray_gives_the_sequential_results():
         cfg = RunnerConfig(executor="ray", progress=False)
         assert _rmse(run_jobs(paper001.table1_job, jobs, cfg)) == _rmse(seq)
         assert run_jobs(paper001.reference_job, ref_jobs, cfg) == seq_ref
+        assert run_jobs(abs, [-1, 2], cfg) == [1, 2]  # any picklable callable, a builtin too
         assert ray.is_initialized()  # a Ray started by the caller is left running
     finally:
         ray.shutdown()

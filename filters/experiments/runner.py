@@ -147,8 +147,9 @@ def _run_ray(fn: Callable, jobs: list, config: RunnerConfig, tick: Callable[[], 
         else:
             ray.init(num_cpus=config.workers, include_dashboard=False, log_to_driver=False)
     try:
-        remote = ray.remote(num_cpus=1)(fn)
-        refs = [remote.remote(job) for job in jobs]
+        remote = ray.remote(num_cpus=1)(_apply)
+        fn_ref = ray.put(fn)  # pickled once; any callable (a builtin too), resolved on the worker
+        refs = [remote.remote(fn_ref, job) for job in jobs]
         pending = list(refs)
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
@@ -158,3 +159,8 @@ def _run_ray(fn: Callable, jobs: list, config: RunnerConfig, tick: Callable[[], 
     finally:
         if started:
             ray.shutdown()
+
+
+def _apply(fn: Callable, job: Any) -> Any:
+    """``fn(job)``: the Ray task (a plain function, so that ``fn`` may be any picklable callable)."""
+    return fn(job)
