@@ -7,9 +7,11 @@ feature vector:
   so metres, radians and counts reach the network on one scale without ``VecNormalize``;
 * ``lidar``: a 1D convolution with *circular* padding over the beams (a 360 deg scan has no
   edges), then a linear layer;
-* ``semantic``: the first half (ranges) and a one-hot of the second half (class labels
-  ``0..n_classes-1``) per beam, stacked as channels, through a 1D convolution (zero padding:
-  the camera's field of view has edges), then a linear layer;
+* the semantic camera, in either observation layout: ``semantic_range`` (Box) with ``semantic_class``
+  (``MultiDiscrete``, which SB3 hands over one-hot; ``SemReloc-v2``, ``ActiveObservation``), or the flat
+  ``semantic`` Box of ``SemReloc-v1``/``-v0`` (ranges, then labels as floats, one-hot encoded here): per
+  beam, the scaled range and the one-hot class stacked as channels, through a 1D convolution (zero
+  padding: the camera's field of view has edges), then a linear layer;
 * any other key (``odometry``, ``belief``, ...): a small MLP.
 
 The per-key outputs are concatenated and passed through a final linear layer + ReLU to
@@ -49,12 +51,14 @@ class SemRelocExtractor(BaseFeaturesExtractor):
     """Per-key encoders for the semreloc Dict observation, concatenated (see the module docstring).
 
     Args:
-        observation_space: a ``Dict`` of ``Box`` entries; ``lidar`` and ``semantic`` get
-            convolutions when present, every other key an MLP.
+        observation_space: a ``Dict`` of ``Box`` entries, plus ``semantic_class`` (``MultiDiscrete``,
+            one entry per beam, all with the same number of classes) next to ``semantic_range``;
+            ``lidar`` and the semantic camera get convolutions when present, every other key an MLP.
         features_dim: size of the output feature vector.
         conv_channels: channels of each 1D convolution layer (two layers, kernel 5, stride 2).
         key_dim: output size of each per-key encoder.
-        n_classes: number of semantic labels including 0 = none (default ``len(CLASS_NAMES) + 1``).
+        n_classes: number of semantic labels including 0 = none in the flat ``semantic`` layout
+            (default ``len(CLASS_NAMES) + 1``); the typed layout reads it from ``semantic_class``.
     """
 
     def __init__(
@@ -69,18 +73,30 @@ class SemRelocExtractor(BaseFeaturesExtractor):
         if not isinstance(observation_space, gym.spaces.Dict):
             raise TypeError(f"SemRelocExtractor needs a Dict observation space, got {observation_space}")
         self.n_classes = int(n_classes)
-        self.keys = tuple(observation_space.spaces)
+        entries = observation_space.spaces
+        classes = entries.get("semantic_class")
+        if classes is not None:
+            nvec = np.asarray(getattr(classes, "nvec", []))
+            ranges = entries.get("semantic_range")
+            if not isinstance(classes, gym.spaces.MultiDiscrete) or nvec.ndim != 1 or np.any(nvec != nvec[0]):
+                raise TypeError(f"'semantic_class' must be a 1-D MultiDiscrete with one class count, got {classes}")
+            if not isinstance(ranges, gym.spaces.Box) or int(np.prod(ranges.shape)) != nvec.size:
+                raise ValueError(f"'semantic_class' needs a 'semantic_range' Box of {nvec.size} beams, got {ranges}")
+            self.n_sem_classes = int(nvec[0])
+        self.keys = tuple(k for k in entries if k != "semantic_class")  # encoded with semantic_range
         self.scalers = nn.ModuleDict()
         self.encoders = nn.ModuleDict()
         total = 0
         for key in self.keys:
-            box = observation_space.spaces[key]
+            box = entries[key]
             if not isinstance(box, gym.spaces.Box):
                 raise TypeError(f"observation entry {key!r} is {box}, not a Box")
             n = int(np.prod(box.shape))
             self.scalers[key] = _Scale(box)
             if key == "lidar":
                 enc = self._conv(1, n, conv_channels, key_dim, padding_mode="circular")
+            elif key == "semantic_range" and classes is not None:
+                enc = self._conv(1 + self.n_sem_classes, n, conv_channels, key_dim, padding_mode="zeros")
             elif key == "semantic":
                 if n % 2:
                     raise ValueError(f"'semantic' must hold ranges then labels (even length), got {n}")
@@ -104,9 +120,20 @@ class SemRelocExtractor(BaseFeaturesExtractor):
             n_flat = conv(torch.zeros(1, in_ch, length)).shape[1]
         return nn.Sequential(conv, nn.Linear(n_flat, out_dim), nn.ReLU())
 
-    def _channels(self, key: str, obs: torch.Tensor) -> torch.Tensor:
+    def _channels(self, key: str, obs: torch.Tensor, observations: dict[str, torch.Tensor]) -> torch.Tensor:
         if key == "lidar":
             return self.scalers[key](obs).unsqueeze(1)
+        if key == "semantic_range" and "semantic_class" in observations:
+            ranges = self.scalers[key](obs)
+            # SB3's preprocess_obs one-hot encodes a MultiDiscrete: (B, beams * classes), beam-major
+            classes = observations["semantic_class"].flatten(1)
+            if classes.shape[1] != ranges.shape[1] * self.n_sem_classes:
+                raise ValueError(
+                    f"'semantic_class' must arrive one-hot, {ranges.shape[1]} x {self.n_sem_classes} values per "
+                    f"sample (stable_baselines3.common.preprocessing.preprocess_obs), got {classes.shape[1]}"
+                )
+            onehot = classes.reshape(ranges.shape[0], ranges.shape[1], self.n_sem_classes)
+            return torch.cat([ranges.unsqueeze(1), onehot.float().transpose(1, 2)], dim=1)
         if key == "semantic":
             flat = obs.flatten(1)
             half = flat.shape[1] // 2
@@ -117,5 +144,5 @@ class SemRelocExtractor(BaseFeaturesExtractor):
         return self.scalers[key](obs)
 
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
-        parts = [self.encoders[k](self._channels(k, observations[k])) for k in self.keys]
+        parts = [self.encoders[k](self._channels(k, observations[k], observations)) for k in self.keys]
         return self.head(torch.cat(parts, dim=1))

@@ -1,8 +1,8 @@
-"""Train PPO on ``SemReloc-v1`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
+"""Train PPO on ``SemReloc-v2`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
 
 * :class:`TrainConfig` — every knob of a training run (env keyword arguments, vectorisation,
   PPO hyper-parameters, network sizes, seed).
-* :func:`make_env` — ``gym.make("SemReloc-v1", **env_kwargs)`` wrapped in
+* :func:`make_env` — ``gym.make("SemReloc-v2", **env_kwargs)`` wrapped in
   :class:`~semreloc_env.wrappers.BeliefObservation` (the policy sees the belief summary, not the pose).
 * :func:`train` — builds the vectorised envs and PPO (``MultiInputPolicy`` with
   :class:`~agents.features.SemRelocExtractor`), learns, returns the model. With a ``log_dir`` it
@@ -43,16 +43,19 @@ from .callbacks import RelocalizationMetricsCallback
 from .features import SemRelocExtractor
 from .metrics import EpisodeTracker, summarize_episodes
 
-ENV_ID = "SemReloc-v1"
+ENV_ID = "SemReloc-v2"
+"""The env id training and evaluation use unless told otherwise (``TrainConfig.env_id``, ``env_id=``)."""
 VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv, "batched": None}
 """``"batched"``: :class:`agents.vec_env.SB3VecEnvAdapter` over the batched env (R robots in one process)."""
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """One PPO training run on ``SemReloc-v1``.
+    """One PPO training run on ``SemReloc-v2`` (or ``env_id``).
 
     Attributes:
+        env_id: the registered single-robot env (``"SemReloc-v2"``; ``"SemReloc-v1"`` has the flat
+            observation that models trained before v2 expect).
         env_kwargs: ``gym.make`` keyword arguments (e.g. ``layout``, ``semantic``, ``relocalizer``,
             ``max_episode_steps``); unknown ones are errors, as in the env.
         n_envs: parallel envs.
@@ -89,6 +92,7 @@ class TrainConfig:
     """
 
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    env_id: str = ENV_ID
     n_envs: int = 4
     vec_env: str = "dummy"
     total_timesteps: int = 100_000
@@ -139,9 +143,9 @@ class TrainConfig:
         return dataclasses.asdict(self)
 
 
-def make_env(env_kwargs: dict[str, Any] | None = None, belief: bool = True) -> gym.Env:
-    """``SemReloc-v1`` with ``env_kwargs``, wrapped in :class:`BeliefObservation` when ``belief``."""
-    env = gym.make(ENV_ID, **dict(env_kwargs or {}))
+def make_env(env_kwargs: dict[str, Any] | None = None, belief: bool = True, env_id: str = ENV_ID) -> gym.Env:
+    """``gym.make(env_id, **env_kwargs)``, wrapped in :class:`BeliefObservation` when ``belief``."""
+    env = gym.make(env_id, **dict(env_kwargs or {}))
     return BeliefObservation(env) if belief else env
 
 
@@ -157,13 +161,16 @@ def make_venv(config: TrainConfig):
 
         venv = SB3VecEnvAdapter(
             SemRelocLoopVectorEnv(
-                num_envs=config.n_envs, env_id=ENV_ID, wrapper=lambda e: Monitor(BeliefObservation(e)), **env_kwargs
+                num_envs=config.n_envs,
+                env_id=config.env_id,
+                wrapper=lambda e: Monitor(BeliefObservation(e)),
+                **env_kwargs,
             )
         )
         venv.seed(config.seed)
         return venv
     return make_vec_env(
-        lambda: make_env(env_kwargs),
+        lambda: make_env(env_kwargs, env_id=config.env_id),
         n_envs=config.n_envs,
         seed=config.seed,
         vec_env_cls=VEC_ENVS[config.vec_env],
@@ -217,7 +224,9 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
             )
         )
     if config.eval_every is not None:
-        eval_venv = make_vec_env(lambda: make_env(config.env_kwargs), n_envs=1, seed=config.eval_seed)
+        eval_venv = make_vec_env(
+            lambda: make_env(config.env_kwargs, env_id=config.env_id), n_envs=1, seed=config.eval_seed
+        )
         eval_dir = str(Path(config.log_dir) / "eval")
         cbs.append(
             EvalCallback(
@@ -261,6 +270,7 @@ def evaluate(
     seed: int = 0,
     deterministic: bool = True,
     return_episodes: bool = False,
+    env_id: str = ENV_ID,
 ) -> dict[str, Any]:
     """Run ``n_episodes`` episodes of ``model_or_policy`` and summarise them.
 
@@ -269,11 +279,12 @@ def evaluate(
             ``obs dict -> action`` such as :class:`agents.baselines.WallFollowExplorer` (its ``reset()``
             is called at every episode start, if it has one). Callables see the same observation
             as models, including the ``belief`` key.
-        env_kwargs: ``gym.make("SemReloc-v1", ...)`` keyword arguments (``max_episode_steps`` too).
+        env_kwargs: ``gym.make(env_id, ...)`` keyword arguments (``max_episode_steps`` too).
         n_episodes: episodes; episode ``i`` starts with ``reset(seed=seed + i)``.
         seed: first episode seed.
         deterministic: SB3 models act greedily (ignored for callables).
         return_episodes: add ``"per_episode"``: the list of :meth:`EpisodeResult.as_dict`.
+        env_id: the env to run (a model trained on ``SemReloc-v1``'s flat observation needs ``"SemReloc-v1"``).
 
     Returns:
         :func:`agents.metrics.summarize_episodes` of the episodes: ``success_rate``,
@@ -284,12 +295,12 @@ def evaluate(
     """
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
-    env = make_env(env_kwargs)
+    env = make_env(env_kwargs, env_id=env_id)
     if isinstance(model_or_policy, BaseAlgorithm) and model_or_policy.observation_space != env.observation_space:
         env.close()
         raise ValueError(
             f"the model observes {model_or_policy.observation_space}, the env gives {env.observation_space}: "
-            "evaluate it with the env_kwargs it was trained with"
+            f"evaluate it with the env id and env_kwargs it was trained with (this is {env_id})"
         )
     act, reset_policy = _as_action_fn(model_or_policy, deterministic)
     discrete = isinstance(env.action_space, gym.spaces.Discrete)

@@ -250,11 +250,12 @@ def _env(**kwargs):
     return gym.make(ENV_ID, **kwargs).unwrapped
 
 
-def _steps_per_s(env, steps: int, seed: int) -> tuple[float, float]:
-    """(CPU, wall) env steps per second under the wall-following explorer; resets not counted."""
+def _steps_per_s(env, steps: int, seed: int, policy=None) -> tuple[float, float]:
+    """(CPU, wall) env steps per second under ``policy`` (default: the wall-following explorer);
+    resets not counted."""
     from agents.baselines import WallFollowExplorer
 
-    policy = WallFollowExplorer()
+    policy = WallFollowExplorer() if policy is None else policy
     obs, _ = env.reset(seed=seed)
     for _ in range(20):
         obs = env.step(policy(obs))[0]
@@ -272,10 +273,65 @@ def _steps_per_s(env, steps: int, seed: int) -> tuple[float, float]:
     return steps / cpu, steps / wall
 
 
+class RandomPolicy:
+    """Uniform random discrete actions from a seeded generator (what early RL does)."""
+
+    def __init__(self, seed: int) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, obs) -> int:
+        return int(self.rng.integers(0, 4))
+
+
 def bench_env(args: Args) -> list[Row]:
-    """Single ``SemReloc-v1`` at the defaults (lab, mapped map, 2000 particles, 60 + 32 beams)."""
-    cpu, wall = _steps_per_s(_env(), args.steps, args.seed)
-    return [Row("SemReloc-v1 step (defaults)", cpu, wall, "steps/s", f"{1e3 / cpu:.3f} ms CPU per step")]
+    """Single ``SemReloc-v1`` at its defaults (lab, mapped map, map-sized particle set with KLD, 60 + 32
+    beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
+    code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
+    explorer and under random actions (a spread belief: 10,000-20,000 particles)."""
+    from filters import _blas
+
+    rows = []
+    for label, make_policy in (("explorer", lambda: None), ("random", lambda: RandomPolicy(args.seed))):
+        fast = ref = (0.0, 0.0)
+        for _ in range(2):  # interleaved rounds: the load changes over minutes; best of each
+            f = _steps_per_s(_env(), args.steps // 2, args.seed, make_policy())
+            r = _steps_per_s(_env(relocalizer={"fast_path": False}), args.steps // 2, args.seed, make_policy())
+            fast = max(fast, f)
+            ref = max(ref, r)
+        rows += [
+            Row(f"SemReloc-v1 step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
+            Row(f"SemReloc-v1 step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
+            Row("  fast / reference", fast[0] / ref[0], fast[1] / ref[1], "x", "target >= 3"),
+        ]
+    rows.append(
+        Row("NumPy's OpenBLAS threads", float(_blas.openblas_threads() or 0), float("nan"), "", "0 = not OpenBLAS")
+    )
+    return rows
+
+
+def bench_belief(args: Args) -> list[Row]:
+    """Belief summary of real particle sets (a spread global belief after the first update, and a
+    converged one): the numba kernels against the NumPy reference (same Belief bit for bit)."""
+    from filters.localization.belief import summarize
+
+    env = _env()
+    env.reset(seed=args.seed)
+    mcl = env.mcl
+    sets = [("spread", mcl.poses.copy(), mcl.weights)]
+    env_t = _env()
+    env_t.reset(seed=args.seed, options={"tracking": True})
+    sets.append(("tracking", env_t.mcl.poses.copy(), env_t.mcl.weights))
+    rows = []
+    for name, p, w in sets:
+        f_cpu, f_wall = _median_time(lambda p=p, w=w: summarize(p, w, backend="numba"), args.repeats)
+        r_cpu, r_wall = _median_time(lambda p=p, w=w: summarize(p, w, backend="numpy"), max(5, args.repeats // 3))
+        n = p.shape[0]
+        rows += [
+            Row(f"belief summary, {name} (N={n}), numba", f_cpu * 1e3, f_wall * 1e3, "ms", ""),
+            Row(f"belief summary, {name} (N={n}), reference", r_cpu * 1e3, r_wall * 1e3, "ms", ""),
+            Row("  reference / numba", r_cpu / f_cpu, r_wall / f_wall, "x", ""),
+        ]
+    return rows
 
 
 def bench_batched(args: Args) -> list[Row]:
@@ -338,6 +394,11 @@ def bench_reset(args: Args) -> list[Row]:
     env.reset(seed=0)
     seeds = iter(range(1, 10**6))
     r_cpu, r_wall = _median_time(lambda: env.reset(seed=next(seeds)), max(20, args.repeats))
+    n_spread = env.mcl.global_particle_count()
+    t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), max(20, args.repeats))
+    small = _env(relocalizer={"n_particles": 2000})
+    small.reset(seed=0)
+    s_cpu, s_wall = _median_time(lambda: small.reset(seed=next(seeds)), max(20, args.repeats))
     m_cpu, m_wall = _median_time(_env, 5)
     old = os.environ.get("SEMRELOC_CACHE_DIR")
     os.environ["SEMRELOC_CACHE_DIR"] = ""
@@ -357,7 +418,9 @@ def bench_reset(args: Args) -> list[Row]:
     n_wall = statistics.median(r[1] for r in rows)
     x0, x1, y0, y1 = rows[0][2]
     return [
-        Row("reset() (cached map)", r_cpu * 1e3, r_wall * 1e3, "ms", "target <= 2 ms"),
+        Row("reset() (cached map)", r_cpu * 1e3, r_wall * 1e3, "ms", f"global, {n_spread} particles; target <= 2 ms"),
+        Row("reset() (cached map), tracking", t_cpu * 1e3, t_wall * 1e3, "ms", "500 particles around the pose"),
+        Row("reset() (cached map), n_particles=2000", s_cpu * 1e3, s_wall * 1e3, "ms", "global, 2000 particles"),
         Row("gym.make (cached map)", m_cpu * 1e3, m_wall * 1e3, "ms", ""),
         Row(
             "new layout: gym.make + reset",
@@ -484,6 +547,7 @@ def bench_mappers(args: Args) -> list[Row]:
 BENCHMARKS: list[Callable[[Args], list[Row]]] = [
     bench_likelihood,
     bench_env,
+    bench_belief,
     bench_batched,
     bench_stages,
     bench_scaling,

@@ -48,7 +48,11 @@ from filters.experiments.stats import wilson_interval  # noqa: E402
 @dataclass(frozen=True)
 class Args:
     policies: str = "random,spin,spin_backup,wall_follow,info_gain"
-    """comma-separated names from agents.policies.POLICIES"""
+    """comma-separated names from agents.policies.POLICIES, or NAME=PATH for a trained policy
+    saved by agents.learned.save_policy (loaded with agents.load_policy)"""
+    reuse: str = ""
+    """a folder of an earlier run with the same cases: its episodes.json rows are kept for the
+    policies listed here, and only the other policies are run"""
     layouts_per_kind: int = 10
     """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
     starts: int = 10
@@ -63,6 +67,8 @@ class Args:
     """the filter's map: mapping (a simulated mapping run) or perfect"""
     workers: int = 2
     """worker processes (1 = in this process)"""
+    gif_case: int = -1
+    """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases)"""
     out: str = "out/evaluate_active"
     """output folder"""
 
@@ -76,7 +82,12 @@ def parse_args(argv=None) -> Args:
     args = Args(**vars(p.parse_args(argv)))
     from agents.policies import POLICIES
 
-    unknown = [x for x in args.policies.split(",") if x.strip() not in POLICIES]
+    unknown = [x for x in args.policies.split(",") if x.strip() not in POLICIES and "=" not in x]
+    bad_files = [x for x in args.policies.split(",") if "=" in x and not Path(x.split("=", 1)[1].strip()).is_file()]
+    if bad_files:
+        p.error(f"--policies: no policy file for {bad_files}")
+    if args.reuse and not (Path(args.reuse) / "episodes.json").is_file():
+        p.error(f"--reuse: no episodes.json in {args.reuse}")
     if unknown:
         p.error(f"--policies: unknown {unknown}; choose from {sorted(POLICIES)}")
     for name in ("layouts_per_kind", "starts", "max_steps", "particles", "workers"):
@@ -86,6 +97,9 @@ def parse_args(argv=None) -> Args:
         p.error("--map-source must be mapping or perfect")
     return args
 
+
+ENV_ID = "SemReloc-v2"
+"""The env every episode runs in (v2 and v1 give the same episodes; v2 has typed observations)."""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
@@ -181,13 +195,13 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
 
     import semreloc_env  # noqa: F401
     from agents.metrics import EpisodeTracker
-    from agents.policies import POLICIES
 
     case, policies, args = job
     rows = []
-    for name in policies:
+    for spec in policies:
+        name = spec.partition("=")[0]
         env = gym.make(
-            "SemReloc-v1",
+            ENV_ID,
             layout=case["layout"],
             layout_seed=case["layout_seed"],
             scenario=case["scenario"],
@@ -195,7 +209,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
             relocalizer={"n_particles": args.particles},
             max_episode_steps=args.max_steps,
         )
-        policy = POLICIES[name](case["episode_seed"])
+        policy = make_policy(spec, case["episode_seed"])
         env = policy.wrap(env)
         policy.reset()
         tracker = EpisodeTracker()
@@ -224,6 +238,53 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
         )
         env.close()
     return rows
+
+
+def make_policy(spec: str, seed: int):
+    """The policy named by ``spec``: a baseline name of agents.policies.POLICIES or NAME=PATH."""
+    from agents.policies import POLICIES
+
+    name, _, path = spec.partition("=")
+    if path:
+        from agents.learned import load_policy
+
+        return load_policy(path)
+    return POLICIES[name](seed)
+
+
+def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) -> None:
+    """One episode of ``spec`` on ``case`` as a GIF (every ``every``-th frame, 10 fps)."""
+    import gymnasium as gym
+    from PIL import Image
+
+    import semreloc_env  # noqa: F401
+
+    env = gym.make(
+        ENV_ID,
+        layout=case["layout"],
+        layout_seed=case["layout_seed"],
+        scenario=case["scenario"],
+        map_source=args.map_source,
+        relocalizer={"n_particles": args.particles},
+        max_episode_steps=args.max_steps,
+        render_mode="rgb_array",
+    )
+    policy = make_policy(spec, case["episode_seed"])
+    env = policy.wrap(env)
+    policy.reset()
+    obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+    frames, t = [env.render()], 0
+    while True:
+        obs, _, term, trunc, info = env.step(policy.act(obs))
+        t += 1
+        if t % every == 0 or term or trunc:
+            frames.append(env.render())
+        if term or trunc:
+            break
+    env.close()
+    images = [Image.fromarray(f).convert("P", palette=Image.Palette.ADAPTIVE) for f in frames]
+    images += [images[-1]] * 10  # hold the end
+    images[0].save(path, save_all=True, append_images=images[1:], duration=100, loop=0)
 
 
 # ---------------------------------------------------------------------- summary
@@ -305,15 +366,30 @@ def plot(summary: dict, policies: list[str], path: Path) -> None:
 
 def main(argv=None) -> None:
     args = parse_args(argv)
-    policies = [p.strip() for p in args.policies.split(",") if p.strip()]
+    specs = [p.strip() for p in args.policies.split(",") if p.strip()]
+    policies = [s.partition("=")[0] for s in specs]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     cases = build_cases(args)
     n_unin = sum(c["uninformative"] for c in cases)
     print(f"{len(cases)} (layout, start) pairs ({n_unin} uninformative starts) x {len(policies)} policies", flush=True)
-    jobs = [(c, tuple(policies), args) for c in cases]
     rows: list[dict] = []
+    if args.reuse:
+        old = json.loads((Path(args.reuse) / "episodes.json").read_text())
+        keep = {c["case"]: c for c in cases}
+        for r in old:
+            c = keep.get(r["case"])
+            if r["policy"] in policies and c is not None and all(r[k] == v for k, v in c.items()):
+                rows.append(r)
+        done = {(r["case"], r["policy"]) for r in rows}
+        print(f"reused {len(rows)} episodes from {args.reuse}", flush=True)
+    else:
+        done = set()
+    todo = [s for s in specs if any((c["case"], s.partition("=")[0]) not in done for c in cases)]
+    todo_names = {s.partition("=")[0] for s in todo}
+    rows = [r for r in rows if r["policy"] not in todo_names]  # a policy is reused whole or run whole
+    jobs = [(c, tuple(todo), args) for c in cases] if todo else []
     if args.workers == 1:
         for i, job in enumerate(jobs):
             rows += run_case(job)
@@ -323,6 +399,7 @@ def main(argv=None) -> None:
             for i, r in enumerate(pool.map(run_case, jobs)):  # map keeps job order: deterministic
                 rows += r
                 print(f"  {i + 1}/{len(jobs)} pairs, {time.time() - t0:.0f} s", flush=True)
+    rows.sort(key=lambda r: (r["case"], policies.index(r["policy"])))
     summary = {
         g: {p: summarise([r for r in rs if r["policy"] == p]) for p in policies} for g, rs in groups(rows).items()
     }
@@ -336,6 +413,9 @@ def main(argv=None) -> None:
     )
     (out / "table.md").write_text(header + table(summary, policies))
     plot(summary, policies, out / "success.png")
+    if 0 <= args.gif_case < len(cases):
+        for spec in specs:
+            record_gif(cases[args.gif_case], spec, args, out / f"gif_{spec.partition('=')[0]}.gif")
     print(table({"all": summary["all"]}, policies))
     print(f"wrote {out}/table.md, success.png, summary.json, episodes.json ({time.time() - t0:.0f} s)")
 

@@ -4,6 +4,8 @@ Usage::
 
     PYTHONPATH=. python scripts/profile_step.py                 # 1000 steps, lab, defaults
     PYTHONPATH=. python scripts/profile_step.py --steps 300 --top 30
+    PYTHONPATH=. python scripts/profile_step.py --policy random --particles 2000
+    PYTHONPATH=. python scripts/profile_step.py --reference     # the NumPy reference path
 
 The stages are the cumulative CPU times of the functions a step calls (cProfile with a
 process-time clock, so other processes on a shared machine do not count); ``rest`` is the
@@ -45,8 +47,12 @@ STAGES: dict[str, tuple[str, str]] = {
 class Args:
     steps: int = 1000
     """profiled env steps"""
-    particles: int = 2000
-    """relocalizer particles"""
+    particles: int = 0
+    """relocalizer particles (0 = SemReloc-v1's default: sized by the map, KLD)"""
+    policy: str = "explorer"
+    """"explorer" (wall following) or "random" (seeded uniform actions, a spread belief)"""
+    reference: bool = False
+    """profile the NumPy reference path (relocalizer fast_path=False) instead of the fast path"""
     beams: int = 60
     """lidar beams"""
     layout: str = "lab"
@@ -121,16 +127,29 @@ def stage_breakdown(env, policy, steps: int, seed: int = 0) -> tuple[dict[str, f
 def main(argv: list[str] | None = None) -> dict[str, float]:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     for f in fields(Args):
-        p.add_argument(f"--{f.name}", type=type(f.default), default=f.default)
+        if isinstance(f.default, bool):
+            p.add_argument(f"--{f.name}", action="store_true")
+        else:
+            p.add_argument(f"--{f.name}", type=type(f.default), default=f.default)
     args = Args(**vars(p.parse_args(argv)))
+    if args.policy not in ("explorer", "random"):
+        p.error(f"--policy must be 'explorer' or 'random', got {args.policy!r}")
     import gymnasium as gym
+    import numpy as np
 
     from agents.baselines import WallFollowExplorer
 
-    env = gym.make(
-        "SemReloc-v1", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer={"n_particles": args.particles}
-    ).unwrapped
-    policy = WallFollowExplorer()
+    reloc: dict = {"fast_path": not args.reference}
+    if args.particles:
+        reloc["n_particles"] = args.particles
+    env = gym.make("SemReloc-v1", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc).unwrapped
+    if args.policy == "random":
+        rng = np.random.default_rng(args.seed)
+
+        def policy(obs) -> int:
+            return int(rng.integers(0, 4))
+    else:
+        policy = WallFollowExplorer()
     # unprofiled CPU time per step, for scale
     plain = step_cpu_time(env, policy, args.steps, args.seed)
     stages, total, stats = stage_breakdown(env, policy, args.steps, args.seed)

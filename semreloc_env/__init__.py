@@ -5,7 +5,7 @@ Importing the package registers the environments::
     import gymnasium as gym
     import semreloc_env  # noqa: F401
 
-    env = gym.make("SemReloc-v1", layout="twin_rooms")
+    env = gym.make("SemReloc-v2", layout="twin_rooms")
 """
 
 from gymnasium.envs.registration import WrapperSpec, register, registry
@@ -13,41 +13,46 @@ from gymnasium.envs.registration import WrapperSpec, register, registry
 from .layouts import CLASS_NAMES, Layout, LayoutError, get_layout, load_layout
 from .world import World, build_world
 
-__all__ = ["CLASS_NAMES", "ENV_IDS", "Layout", "LayoutError", "World", "build_world", "get_layout", "load_layout"]
+__all__ = [
+    "CLASS_NAMES",
+    "ENV_IDS",
+    "VECTOR_ENV_IDS",
+    "Layout",
+    "LayoutError",
+    "World",
+    "build_world",
+    "get_layout",
+    "load_layout",
+]
 
-ENV_IDS = ("SemReloc-v1", "SemReloc-v0", "SemSlam-v0")
-"""Every registered id; ``SemReloc-v0`` is the first release's relocalizer, kept for reproducing old results."""
+ENV_IDS = ("SemReloc-v2", "SemReloc-v1", "SemReloc-v0", "SemSlam-v1", "SemSlam-v0")
+"""Every registered single-robot id, newest first; the older ones are kept for reproducing old results and
+running old policies (each env's Version History says what changed): ``SemReloc-v1`` and ``SemSlam-v0`` have
+the flat observation, ``SemReloc-v0`` also the first release's relocalizer."""
+
+VECTOR_ENV_IDS = ("SemRelocVec-v2", "SemRelocVec-v1")
+"""Ids for ``gym.make_vec``: R robots of ``SemReloc-v2`` / ``SemReloc-v1`` in one process."""
 
 # outermost: reset arguments are checked before TimeLimit zeroes its counter (wrappers.CheckedReset)
 _CHECKED_RESET = (WrapperSpec("CheckedReset", "semreloc_env.wrappers:CheckedReset", {}),)
 
-if "SemReloc-v1" not in registry:
-    register(
-        id="SemReloc-v1",
-        entry_point="semreloc_env.envs.semreloc:SemRelocEnv",
-        max_episode_steps=400,
-        additional_wrappers=_CHECKED_RESET,
-    )
-if "SemReloc-v0" not in registry:
-    register(
-        id="SemReloc-v0",
-        entry_point="semreloc_env.envs.semreloc:SemRelocEnvV0",
-        max_episode_steps=400,
-        additional_wrappers=_CHECKED_RESET,
-    )
-if "SemRelocVec-v1" not in registry:
-    # R robots in one process (a loop over SemReloc-v1 envs): gym.make_vec("SemRelocVec-v1", num_envs=R).
-    # A separate id because make_vec refuses a vector entry point on a spec with additional wrappers.
-    register(
-        id="SemRelocVec-v1",
-        entry_point="semreloc_env.envs.semreloc:SemRelocEnv",
-        vector_entry_point="semreloc_env.envs.batched:SemRelocLoopVectorEnv",
-        max_episode_steps=400,
-    )
-if "SemSlam-v0" not in registry:
-    register(
-        id="SemSlam-v0",
-        entry_point="semreloc_env.envs.semslam:SemSlamEnv",
-        max_episode_steps=400,
-        additional_wrappers=_CHECKED_RESET,
-    )
+_SINGLE = {
+    "SemReloc-v2": "semreloc_env.envs.semreloc:SemRelocEnv",
+    "SemReloc-v1": "semreloc_env.envs.semreloc:SemRelocEnvV1",
+    "SemReloc-v0": "semreloc_env.envs.semreloc:SemRelocEnvV0",
+    "SemSlam-v1": "semreloc_env.envs.semslam:SemSlamEnv",
+    "SemSlam-v0": "semreloc_env.envs.semslam:SemSlamEnvV0",
+}
+for _id, _entry in _SINGLE.items():
+    if _id not in registry:
+        register(id=_id, entry_point=_entry, max_episode_steps=400, additional_wrappers=_CHECKED_RESET)
+
+# R robots in one process (a loop over SemReloc envs): gym.make_vec("SemRelocVec-v2", num_envs=R).
+# Separate ids because make_vec refuses a vector entry point on a spec with additional wrappers.
+_VECTOR = {
+    "SemRelocVec-v2": ("semreloc_env.envs.semreloc:SemRelocEnv", "semreloc_env.envs.vector_ids:semreloc_vec_v2"),
+    "SemRelocVec-v1": ("semreloc_env.envs.semreloc:SemRelocEnvV1", "semreloc_env.envs.batched:SemRelocLoopVectorEnv"),
+}
+for _id, (_entry, _vector_entry) in _VECTOR.items():
+    if _id not in registry:
+        register(id=_id, entry_point=_entry, vector_entry_point=_vector_entry, max_episode_steps=400)

@@ -67,7 +67,8 @@ class BeliefMassReward(gym.Wrapper):
     Args:
         env: a ``SemReloc-v1`` env (``unwrapped.mcl`` and ``unwrapped.world``).
         weight: scale of the term (reward units per unit of mass).
-        radius_m, heading_tol_rad: see :func:`belief_mass_near`.
+        radius_m: see :func:`belief_mass_near`.
+        heading_tol_rad: see :func:`belief_mass_near`.
         mode: ``"level"`` or ``"gain"``.
     """
 

@@ -15,7 +15,7 @@
 
 Typical use::
 
-    env = FlatObservation(BeliefObservation(gym.make("SemReloc-v1")))
+    env = FlatObservation(BeliefObservation(gym.make("SemReloc-v2")))
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ class BeliefObservation(gym.Wrapper):
     histogram of N particles is at most ``log N``, and the default ``entropy_max_nats`` is the
     log of the largest particle count the env's relocalizer may hold.
 
-    The wrapped env must put ``belief`` in ``info`` at every reset and step (``SemReloc-v1``
+    The wrapped env must put ``belief`` in ``info`` at every reset and step (``SemReloc-v2``
     does); a missing key raises ``KeyError``. Rewards, termination and ``info`` pass through
     unchanged.
 
@@ -131,16 +131,18 @@ class BeliefObservation(gym.Wrapper):
 
 
 class FlatObservation(gym.ObservationWrapper):
-    """Concatenate the Box entries of a Dict observation into one float32 Box.
+    """Concatenate the entries of a Dict observation into one float32 Box.
 
     The flat vector holds the keys in ``keys`` order (default: the Dict's own key order, which
-    gymnasium sorts: ``belief, lidar, odometry, semantic`` for the wrapped env), each
-    flattened C-order; ``low`` / ``high`` are the concatenated bounds, so units and ranges are
-    those of the Dict entries (see the env docstring and :class:`BeliefObservation`).
+    gymnasium sorts: ``belief, lidar, odometry, semantic_class, semantic_range`` for
+    ``BeliefObservation(gym.make("SemReloc-v2"))``). A Box entry is flattened C-order with its own
+    bounds, so units and ranges are those of the Dict entry (see the env docstring and
+    :class:`BeliefObservation`); a ``MultiDiscrete`` entry (the class labels) is one-hot encoded,
+    ``nvec[i]`` entries in ``[0, 1]`` per element, element-major, as stable-baselines3 encodes it.
     ``self.slices[key]`` is where a key sits in the vector.
 
     Args:
-        env: an env with a ``Dict`` observation space of ``Box`` entries.
+        env: an env with a ``Dict`` observation space of ``Box`` and 1-D ``MultiDiscrete`` entries.
         keys: which keys to keep, in order (default: all).
     """
 
@@ -154,18 +156,33 @@ class FlatObservation(gym.ObservationWrapper):
         if unknown:
             raise KeyError(f"keys {unknown} not in the observation; it has {list(space.spaces)}")
         lows, highs, self.slices, start = [], [], {}, 0
+        self._onehot: dict[str, np.ndarray] = {}  # key -> offset of each element's one-hot block
         for k in self.keys:
             box = space.spaces[k]
-            if not isinstance(box, spaces.Box):
-                raise TypeError(f"observation entry {k!r} is {box}, not a Box")
-            lows.append(np.asarray(box.low, dtype=np.float32).ravel())
-            highs.append(np.asarray(box.high, dtype=np.float32).ravel())
+            if isinstance(box, spaces.MultiDiscrete) and box.nvec.ndim == 1:
+                nvec = box.nvec.astype(np.int64)
+                self._onehot[k] = np.concatenate([[0], np.cumsum(nvec)[:-1]]) - box.start.astype(np.int64)
+                lows.append(np.zeros(int(nvec.sum()), np.float32))
+                highs.append(np.ones(int(nvec.sum()), np.float32))
+            elif isinstance(box, spaces.Box):
+                lows.append(np.asarray(box.low, dtype=np.float32).ravel())
+                highs.append(np.asarray(box.high, dtype=np.float32).ravel())
+            else:
+                raise TypeError(f"observation entry {k!r} is {box}, not a Box or a 1-D MultiDiscrete")
             self.slices[k] = slice(start, start + lows[-1].size)
             start += lows[-1].size
         self.observation_space = spaces.Box(np.concatenate(lows), np.concatenate(highs), dtype=np.float32)
 
     def observation(self, observation: dict) -> np.ndarray:
-        return np.concatenate([np.asarray(observation[k], dtype=np.float32).ravel() for k in self.keys])
+        parts = []
+        for k in self.keys:
+            if k in self._onehot:
+                v = np.zeros(self.slices[k].stop - self.slices[k].start, np.float32)
+                v[self._onehot[k] + np.asarray(observation[k], dtype=np.int64)] = 1.0
+                parts.append(v)
+            else:
+                parts.append(np.asarray(observation[k], dtype=np.float32).ravel())
+        return np.concatenate(parts)
 
 
 class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -190,4 +207,45 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 from .observations import ActiveObservation  # noqa: E402  (the spatial observation for active relocalization)
 
-__all__ = ["BELIEF_FEATURES", "ActiveObservation", "BeliefObservation", "CheckedReset", "FlatObservation"]
+__all__ = [
+    "BELIEF_FEATURES",
+    "ActionRepeat",
+    "ActiveObservation",
+    "BeliefObservation",
+    "CheckedReset",
+    "FlatObservation",
+]
+
+
+class ActionRepeat(gym.Wrapper):
+    """Send each action ``repeat`` times (fewer if the episode ends): one decision per ``repeat`` steps.
+
+    The returned observation, ``terminated``, ``truncated`` and ``info`` are those of the last
+    inner step; the reward is the sum over the inner steps, and ``info["rewards"]`` the sum of each
+    named term. ``info["inner_steps"]`` is how many env steps the call took. A policy trained
+    through this wrapper acts on an unwrapped env by holding each action for ``repeat`` steps
+    (:class:`agents.learned.LearnedPolicy` does).
+
+    Args:
+        env: any env.
+        repeat: env steps per action, ``>= 1``.
+    """
+
+    def __init__(self, env: gym.Env, repeat: int):
+        super().__init__(env)
+        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
+            raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
+        self.repeat = int(repeat)
+
+    def step(self, action):
+        total, terms, n = 0.0, {}, 0
+        while n < self.repeat:
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            n += 1
+            total += float(reward)
+            for name, value in info.get("rewards", {}).items():
+                terms[name] = terms.get(name, 0.0) + float(value)
+            if terminated or truncated:
+                break
+        info = {**info, "rewards": terms, "inner_steps": n}
+        return obs, total, terminated, truncated, info

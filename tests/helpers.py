@@ -4,19 +4,9 @@ import numpy as np
 
 
 def assert_identical(a, b) -> None:
-    """Recursively assert two env outputs (dicts, lists, arrays, scalars) are exactly equal."""
-    if isinstance(a, dict):
-        assert a.keys() == b.keys()
-        for k in a:
-            assert_identical(a[k], b[k])
-    elif isinstance(a, (list, tuple)):
-        assert len(a) == len(b)
-        for x, y in zip(a, b):
-            assert_identical(x, y)
-    elif isinstance(a, np.ndarray):
-        np.testing.assert_array_equal(a, b)
-    else:
-        assert a == b
+    """Assert two env outputs (dicts, lists, arrays, scalars) are exactly equal, recursively
+    (``np.testing.assert_equal``: NaN equals NaN, a missing key is a difference)."""
+    np.testing.assert_equal(a, b)
 
 
 def random_rollout(env, seed: int, n: int = 200, action_seed: int = 123) -> list:

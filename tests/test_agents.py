@@ -142,23 +142,57 @@ def test_evaluate_model_is_deterministic_and_checks_spaces(smoke):
         evaluate(object(), FAST, n_episodes=1)
 
 
-def test_features_extractor_shapes_scaling_and_label_sensitivity():
-    space = make_env(FAST).observation_space
+def _preprocessed(space, raw: dict) -> dict:
+    """A batch as SB3 hands it to a features extractor (MultiDiscrete one-hot encoded)."""
+    from stable_baselines3.common.preprocessing import preprocess_obs
+
+    return preprocess_obs({k: torch.as_tensor(v) for k, v in raw.items()}, space, normalize_images=False)
+
+
+@pytest.mark.parametrize("env_id", ["SemReloc-v2", "SemReloc-v1"])
+def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
+    space = make_env(FAST, env_id=env_id).observation_space
     torch.manual_seed(0)
     ext = SemRelocExtractor(space, features_dim=32)
     for i, s in enumerate(space.spaces.values()):
         s.seed(i)
-    batch = {k: torch.as_tensor(np.stack([s.sample() for _ in range(5)])) for k, s in space.spaces.items()}
-    out = ext(batch)
+    raw = {k: np.stack([s.sample() for _ in range(5)]) for k, s in space.spaces.items()}
+    out = ext(_preprocessed(space, raw))
     assert out.shape == (5, 32) and torch.all(torch.isfinite(out))
     # lidar is scaled by its bounds: range_max maps to 1
     scaled = ext.scalers["lidar"](torch.full((1, 60), 8.0))
     assert torch.allclose(scaled, torch.ones(1, 60))
     # changing only the semantic class labels changes the features
-    b2 = {k: v.clone() for k, v in batch.items()}
-    half = b2["semantic"].shape[1] // 2
-    b2["semantic"][:, half:] = (b2["semantic"][:, half:] + 1) % 5
-    assert not torch.allclose(ext(b2), out)
+    r2 = {k: v.copy() for k, v in raw.items()}
+    if "semantic_class" in r2:
+        r2["semantic_class"] = (r2["semantic_class"] + 1) % 5
+    else:
+        half = r2["semantic"].shape[1] // 2
+        r2["semantic"][:, half:] = (r2["semantic"][:, half:] + 1) % 5
+    assert not torch.allclose(ext(_preprocessed(space, r2)), out)
+    if "semantic_class" in raw:  # raw labels, not one-hot: a clear error rather than a shape mismatch deep inside
+        with pytest.raises(ValueError, match="one-hot"):
+            ext({k: torch.as_tensor(v) for k, v in raw.items()})
+
+
+def test_features_extractor_gives_the_same_features_for_both_observation_layouts():
+    """SemReloc-v2's typed observation and v1's flat one of the same step give the same features
+    (same seed, same weights): the one-hot of the MultiDiscrete equals the one-hot of the float labels."""
+    envs = {i: make_env(FAST, env_id=i) for i in ("SemReloc-v2", "SemReloc-v1")}
+    ext = {}
+    for i, env in envs.items():
+        torch.manual_seed(0)
+        ext[i] = SemRelocExtractor(env.observation_space, features_dim=32)
+    obs = {i: [env.reset(seed=4, options={"pose": [2.0, 5.0, 0.0]})[0]] for i, env in envs.items()}
+    for a in (0, 0, 1, 1, 0):
+        for i, env in envs.items():
+            obs[i].append(env.step(a)[0])
+    assert any((o["semantic_class"] > 0).any() for o in obs["SemReloc-v2"])  # objects in view
+    feats = {}
+    for i, env in envs.items():
+        batch = {k: np.stack([o[k] for o in obs[i]]) for k in env.observation_space.spaces}
+        feats[i] = ext[i](_preprocessed(env.observation_space, batch))
+    torch.testing.assert_close(feats["SemReloc-v2"], feats["SemReloc-v1"], rtol=0, atol=0)
 
 
 def _info(converged, pos, head=0.0):

@@ -89,7 +89,7 @@ def test_3_clear_errors_for_odd_layout_input(tmp_path):
 
 
 def test_3_clear_errors_for_odd_env_input():
-    env = gym.make("SemSlam-v0", **SLAM_FAST)
+    env = gym.make("SemSlam-v1", **SLAM_FAST)
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"unknown reset options \['foo', 7\]"):
         env.reset(options={"foo": 1, 7: 2})
@@ -104,18 +104,18 @@ def test_3_clear_errors_for_odd_env_input():
             env.reset(seed=seed)
     for layout_seed in (None, "abc", -1, 1.5, True):
         with pytest.raises(ValueError, match=r"layout_seed must be an integer >= 0"):
-            gym.make("SemSlam-v0", layout="procedural", layout_seed=layout_seed)
+            gym.make("SemSlam-v1", layout="procedural", layout_seed=layout_seed)
     with pytest.raises(ValueError, match=r"robot: unknown keys \['foo', 7\]"):
-        gym.make("SemSlam-v0", robot={"foo": 1, 7: 2})
+        gym.make("SemSlam-v1", robot={"foo": 1, 7: 2})
 
 
 # ---------------------------------------------------------------- 4. reward weights
 @pytest.mark.parametrize("value", [None, math.nan, math.inf, "1"])
 def test_4_bad_reward_weight_is_rejected_at_construction(value):
     with pytest.raises(ValueError, match=r"reward_weights.time"):
-        gym.make("SemReloc-v1", reward_weights={"time": value}, **FAST)
+        gym.make("SemReloc-v2", reward_weights={"time": value}, **FAST)
     with pytest.raises(ValueError, match=r"reward_weights.time"):
-        gym.make("SemSlam-v0", reward_weights={"time": value}, **SLAM_FAST)
+        gym.make("SemSlam-v1", reward_weights={"time": value}, **SLAM_FAST)
 
 
 # ---------------------------------------------------------------- 5. sensor noise
@@ -123,14 +123,14 @@ def test_4_bad_reward_weight_is_rejected_at_construction(value):
 @pytest.mark.parametrize("value", [math.nan, math.inf, -0.1])
 def test_5_nan_or_infinite_sensor_noise_is_rejected(sensor, value):
     with pytest.raises(ValueError, match=r"noise_std_m"):
-        gym.make("SemSlam-v0", **{sensor: {"noise_std_m": value}})
+        gym.make("SemSlam-v1", **{sensor: {"noise_std_m": value}})
 
 
 # ---------------------------------------------------------------- 6. slam particles
 @pytest.mark.parametrize("value", [2.0, True, "10"])
 def test_6_slam_particle_count_must_be_an_int(value):
     with pytest.raises(ValueError, match=r"slam.n_particles must be an integer"):
-        gym.make("SemSlam-v0", slam={"n_particles": value})
+        gym.make("SemSlam-v1", slam={"n_particles": value})
 
 
 # ---------------------------------------------------------------- 7. continuous actions
@@ -147,7 +147,7 @@ def test_6_slam_particle_count_must_be_an_int(value):
     ],
 )
 def test_7_actions_outside_the_box_change_nothing(action):
-    env = gym.make("SemSlam-v0", action_type="continuous", **SLAM_FAST)
+    env = gym.make("SemSlam-v1", action_type="continuous", **SLAM_FAST)
     env.reset(seed=0)
     twin = copy.deepcopy(env)
     with pytest.raises(ValueError, match="invalid action"):
@@ -156,14 +156,14 @@ def test_7_actions_outside_the_box_change_nothing(action):
 
 
 def test_7_box_bounds_are_exact():
-    env = gym.make("SemSlam-v0", action_type="continuous", **SLAM_FAST)
+    env = gym.make("SemSlam-v1", action_type="continuous", **SLAM_FAST)
     env.reset(seed=0)
     env.step(np.array([1.0, -1.0], np.float32))  # the bounds themselves are inside
     assert not env.action_space.contains(np.array([1 + 5e-7, 0.0], np.float32))
 
 
 # ---------------------------------------------------------------- 8. time limit
-@pytest.mark.parametrize("env_id, kw", [("SemSlam-v0", SLAM_FAST), ("SemReloc-v1", FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemSlam-v1", SLAM_FAST), ("SemReloc-v2", FAST)])
 def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
     env = gym.make(env_id, max_episode_steps=6, **kw)
     env.reset(seed=0)
@@ -176,7 +176,7 @@ def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
 
 
 def test_8_check_reset_changes_nothing():
-    a, b = gym.make("SemSlam-v0", **SLAM_FAST), gym.make("SemSlam-v0", **SLAM_FAST)
+    a, b = gym.make("SemSlam-v1", **SLAM_FAST), gym.make("SemSlam-v1", **SLAM_FAST)
     a.reset(seed=1)
     b.reset(seed=1)
     a.unwrapped.check_reset(seed=5, options={"pose": [1.0, 1.0, 0.0]})
@@ -185,7 +185,7 @@ def test_8_check_reset_changes_nothing():
 
 # ---------------------------------------------------------------- 9. copies in contact
 def test_9_copies_taken_in_contact_do_not_diverge():
-    env = gym.make("SemSlam-v0", **SLAM_FAST)
+    env = gym.make("SemSlam-v1", **SLAM_FAST)
     env.reset(seed=0, options={"pose": [0.3, 3.2, math.pi]})  # facing the west wall, 0.1 m away
     in_contact = 0
     for k in range(12):
@@ -205,7 +205,7 @@ def test_10_robot_never_inside_an_obstacle_in_a_narrow_gap():
         "outer": [[0, 0], [4, 0], [4, 4], [0, 4]],
         "objects": [{"class": "cabinet", "polygon": [[0.34, 0], [1.3, 0], [1.3, 0.6], [0.34, 0.6]]}],
     }
-    env = gym.make("SemSlam-v0", layout=lay, **SLAM_FAST)
+    env = gym.make("SemSlam-v1", layout=lay, **SLAM_FAST)
     env.reset(seed=0, options={"pose": [0.21, 1.5, -np.pi / 2]})
     world = env.unwrapped.world
     r = world.robot_params.radius_m
@@ -252,12 +252,12 @@ def test_11_a_4000_vertex_outer_wall_validates():
 )
 def test_12_loose_types_are_rejected(kw, match):
     with pytest.raises(ValueError, match=match):
-        gym.make("SemReloc-v1", **{**FAST, **kw})
+        gym.make("SemReloc-v2", **{**FAST, **kw})
 
 
 def test_12_semantic_must_be_a_bool():
     with pytest.raises(ValueError, match=r"semantic must be True, False or None, got str 'no'"):
-        gym.make("SemReloc-v1", semantic="no", **FAST)
+        gym.make("SemReloc-v2", semantic="no", **FAST)
 
 
 def test_12_instances_are_checked_too():
@@ -281,5 +281,5 @@ def test_nested_overrides_keep_their_own_defaults():
     )
     assert cfg.lidar_field == DEFAULT_RELOCALIZER.lidar_field
     assert cfg.likelihood_scale == DEFAULT_RELOCALIZER.likelihood_scale
-    env = gym.make("SemReloc-v1", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
+    env = gym.make("SemReloc-v2", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
     assert env.unwrapped.mcl_config.semantic_field == cfg.semantic_field

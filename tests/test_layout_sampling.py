@@ -67,7 +67,7 @@ def _rollout(env, seeds):
 
 def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
     def make():
-        return RandomLayout(gym.make("SemReloc-v1", map_source="perfect", relocalizer={"n_particles": 200}))
+        return RandomLayout(gym.make("SemReloc-v2", map_source="perfect", relocalizer={"n_particles": 200}))
 
     a, b = _rollout(make(), range(6)), _rollout(make(), range(6))
     for (la, oa, ma), (lb, ob, mb) in zip(a, b):
@@ -82,9 +82,9 @@ def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
 
 
 def test_random_layout_needs_a_layout_free_map(tmp_path):
-    env = gym.make("SemReloc-v1", map_source="perfect")
+    env = gym.make("SemReloc-v2", map_source="perfect")
     grid = env.unwrapped.grid
-    fixed = gym.make("SemReloc-v1", map_source=grid)
+    fixed = gym.make("SemReloc-v2", map_source=grid)
     with pytest.raises(ValueError, match="map_source"):
         RandomLayout(fixed)
     with pytest.raises(ValueError, match="fixed"):
@@ -136,7 +136,7 @@ def test_lookalike_rooms_are_identical_and_only_the_corridor_tells_them_apart():
 
 
 def test_set_layout_changes_the_next_episode_only():
-    env = gym.make("SemReloc-v1", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v2", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
     env.reset(seed=0)
     pose = env.unwrapped.world.pose.copy()
     env.unwrapped.set_layout("twin_rooms")

@@ -11,7 +11,7 @@ KW = {"layout": "twin_rooms", "map_source": "perfect", "relocalizer": {"n_partic
 
 def _episode(name, seed=1, **kw):
     pol = POLICIES[name](seed)
-    env = pol.wrap(gym.make("SemReloc-v1", **{**KW, **kw}))
+    env = pol.wrap(gym.make("SemReloc-v2", **{**KW, **kw}))
     pol.reset()
     obs, _ = env.reset(seed=seed)
     actions = []
@@ -40,7 +40,7 @@ def test_baselines_drive_continuous_envs(name):
 
 def test_spin_then_back_up_spins_a_full_turn_then_reverses():
     pol = SpinThenBackUp()
-    env = pol.wrap(gym.make("SemReloc-v1", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
+    env = pol.wrap(gym.make("SemReloc-v2", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
     pol.reset()
     obs, _ = env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0)})  # room to back up
     acts = [pol.act(obs) for _ in range(73)]
@@ -55,7 +55,7 @@ class _NoTruth:
 
 def test_info_gain_planner_reads_the_belief_not_the_truth():
     pol = InfoGainPlanner(seed=0, n_particles=16)
-    env = pol.wrap(gym.make("SemReloc-v1", **KW))
+    env = pol.wrap(gym.make("SemReloc-v2", **KW))
     pol.reset()
     env.reset(seed=2)
     base = env.unwrapped
@@ -74,7 +74,7 @@ def test_info_gain_planner_expects_nothing_from_a_tight_belief():
     # a belief on one pose (tracking start) is one hypothesis: no primitive can gain
     pol = InfoGainPlanner(seed=0, n_particles=24)
     no_injection = {**KW.get("relocalizer", {}), "proposal_frac": 0.0, "augmented": False}
-    env = pol.wrap(gym.make("SemReloc-v1", **{**KW, "relocalizer": no_injection}))
+    env = pol.wrap(gym.make("SemReloc-v2", **{**KW, "relocalizer": no_injection}))
     pol.reset()
     env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0), "tracking": True})
     tight = pol.plan()

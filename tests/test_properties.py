@@ -24,8 +24,8 @@ CELL = 2.0
 # derandomize: the suite stays deterministic; scripts/soak.py explores further
 SETTINGS = settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 ENVS = {
-    "SemSlam-v0": {"slam": {"n_particles": 10}},
-    "SemReloc-v1": {"map_source": "perfect", "relocalizer": {"n_particles": 100}},
+    "SemSlam-v1": {"slam": {"n_particles": 10}},
+    "SemReloc-v2": {"map_source": "perfect", "relocalizer": {"n_particles": 100}},
 }
 
 

@@ -42,9 +42,9 @@ def _rollout(env, seed=3, n=40):
 
 
 def test_belief_observation_space_and_features_equal_info():
-    env = BeliefObservation(gym.make("SemReloc-v1", **FAST))
+    env = BeliefObservation(gym.make("SemReloc-v2", **FAST))
     space = env.observation_space
-    assert set(space.spaces) == {"lidar", "semantic", "odometry", "belief"}
+    assert set(space.spaces) == {"lidar", "semantic_range", "semantic_class", "odometry", "belief"}
     assert space["belief"].shape == (len(BELIEF_FEATURES),)
     assert space["belief"].dtype == np.float32
     # documented bounds; entropy bound = log(n_particles)
@@ -66,8 +66,8 @@ def test_belief_observation_space_and_features_equal_info():
 
 
 def test_belief_observation_does_not_change_the_rest_of_the_step():
-    plain = gym.make("SemReloc-v1", **FAST)
-    wrapped = BeliefObservation(gym.make("SemReloc-v1", **FAST))
+    plain = gym.make("SemReloc-v2", **FAST)
+    wrapped = BeliefObservation(gym.make("SemReloc-v2", **FAST))
     for (o1, i1), (o2, i2) in zip(_rollout(plain, n=15), _rollout(wrapped, n=15)):
         for k in o1:
             np.testing.assert_array_equal(o1[k], o2[k])
@@ -78,7 +78,7 @@ def test_belief_observation_does_not_change_the_rest_of_the_step():
 
 
 def test_belief_observation_clips_to_bounds():
-    env = BeliefObservation(gym.make("SemReloc-v1", **FAST), pos_std_max_m=1.0, max_clusters=2)
+    env = BeliefObservation(gym.make("SemReloc-v2", **FAST), pos_std_max_m=1.0, max_clusters=2)
     obs, info = env.reset(seed=0)
     assert info["belief"]["pos_std_m"] > 1.0  # global start: spread over the lab
     assert obs["belief"][0] == np.float32(1.0)
@@ -89,11 +89,11 @@ def test_belief_observation_clips_to_bounds():
 
 def test_belief_observation_rejects_bad_envs_and_bounds():
     with pytest.raises(ValueError):
-        BeliefObservation(BeliefObservation(gym.make("SemReloc-v1", **FAST)))
+        BeliefObservation(BeliefObservation(gym.make("SemReloc-v2", **FAST)))
     with pytest.raises(TypeError):
         BeliefObservation(gym.make("CartPole-v1"))
     with pytest.raises(ValueError):
-        BeliefObservation(gym.make("SemReloc-v1", **FAST), pos_std_max_m=0.0)
+        BeliefObservation(gym.make("SemReloc-v2", **FAST), pos_std_max_m=0.0)
 
 
 def _check(env):
@@ -111,27 +111,53 @@ def test_check_env_passes_on_wrapped_envs_with_warnings_as_errors():
     _check(BeliefObservation(SemRelocEnv(action_type="continuous", **FAST)))
 
 
-def test_flat_observation_concatenates_in_key_order():
-    inner = BeliefObservation(gym.make("SemReloc-v1", **FAST))
+@pytest.mark.parametrize(
+    "env_id, keys",
+    [
+        ("SemReloc-v2", ("belief", "lidar", "odometry", "semantic_class", "semantic_range")),
+        ("SemReloc-v1", ("belief", "lidar", "odometry", "semantic")),
+    ],
+)
+def test_flat_observation_concatenates_in_key_order(env_id, keys):
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*out of date.*", category=DeprecationWarning)
+        inner = BeliefObservation(gym.make(env_id, **FAST))
     flat = FlatObservation(inner)
-    n = sum(int(np.prod(s.shape)) for s in inner.observation_space.spaces.values())
+    spaces = inner.observation_space.spaces
+    n = sum(
+        int(s.nvec.sum()) if isinstance(s, gym.spaces.MultiDiscrete) else int(np.prod(s.shape)) for s in spaces.values()
+    )
     assert flat.observation_space.shape == (n,)
-    assert flat.keys == ("belief", "lidar", "odometry", "semantic")  # gymnasium's Dict sorts its keys
-    for (o_dict, _), (o_flat, _) in zip(_rollout(inner, n=10), _rollout(flat, n=10)):
+    assert flat.keys == keys  # gymnasium's Dict sorts its keys
+    seen_classes = set()
+    for (o_dict, _), (o_flat, _) in zip(_rollout(inner, n=40), _rollout(flat, n=40)):
         assert flat.observation_space.contains(o_flat)
         for k in flat.keys:
-            np.testing.assert_array_equal(o_flat[flat.slices[k]], o_dict[k].ravel())
+            part = o_flat[flat.slices[k]]
+            if isinstance(spaces[k], gym.spaces.MultiDiscrete):  # one-hot per beam, beam-major
+                onehot = part.reshape(len(spaces[k].nvec), -1)
+                np.testing.assert_array_equal(onehot.sum(axis=1), 1.0)
+                np.testing.assert_array_equal(onehot.argmax(axis=1), o_dict[k])
+                seen_classes |= set(o_dict[k].tolist())
+            else:
+                np.testing.assert_array_equal(part, o_dict[k].ravel())
+    if "semantic_class" in keys:
+        assert len(seen_classes) >= 2  # the rollout saw objects, so the one-hot was exercised
     for k in flat.keys:
-        np.testing.assert_array_equal(flat.observation_space.low[flat.slices[k]], inner.observation_space[k].low)
-        np.testing.assert_array_equal(flat.observation_space.high[flat.slices[k]], inner.observation_space[k].high)
+        low, high = flat.observation_space.low[flat.slices[k]], flat.observation_space.high[flat.slices[k]]
+        if isinstance(spaces[k], gym.spaces.MultiDiscrete):
+            assert (low == 0).all() and (high == 1).all()
+        else:
+            np.testing.assert_array_equal(low, spaces[k].low)
+            np.testing.assert_array_equal(high, spaces[k].high)
 
 
 def test_flat_observation_key_subset_and_errors():
-    flat = FlatObservation(gym.make("SemReloc-v1", **FAST), keys=["odometry", "lidar"])
+    flat = FlatObservation(gym.make("SemReloc-v2", **FAST), keys=["odometry", "lidar"])
     obs, _ = flat.reset(seed=0)
     assert obs.shape == (3 + 60,)
     assert flat.slices["odometry"] == slice(0, 3)
     with pytest.raises(KeyError):
-        FlatObservation(gym.make("SemReloc-v1", **FAST), keys=["belief"])
+        FlatObservation(gym.make("SemReloc-v2", **FAST), keys=["belief"])
     with pytest.raises(TypeError):
         FlatObservation(gym.make("CartPole-v1"))

@@ -34,6 +34,14 @@ Definitions (all weights normalised to sum 1):
   same thresholds, whatever its hypotheses.)
 
 Cost: O(N) plus the raster (the particles' bounding box), every step.
+
+Backends: every function here takes ``backend="numba"`` (default; the kernels of
+:mod:`filters.localization.belief_kernels`) or ``backend="numpy"`` (the reference, kept as the
+specification). Both give the same results *bit for bit* — labels, counts and every float —
+because the kernels repeat the reference's floating-point operations in the same order and
+leave BLAS dot products, pairwise sums and transcendental functions to NumPy
+(``tests/test_belief_kernels.py``); the long dot products go through :func:`filters._blas.dot`,
+which gives ``w @ x``'s bits without waking OpenBLAS's threads.
 """
 
 from __future__ import annotations
@@ -46,10 +54,29 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from filters import _blas
+from filters.localization import belief_kernels as _k
 from filters.pose import wrap_angle
 from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
+BACKENDS = ("numba", "numpy")
+
+
+def _check_backend(backend: str) -> None:
+    if backend not in BACKENDS:
+        raise ValueError(f"belief backend must be one of {BACKENDS}, got {backend!r}")
+
+
+def _raster(poses: np.ndarray, bin_xy_m: float, bin_theta_rad: float):
+    """``(ix, iy, it, nx, ny, nt)`` raster cells of ``poses`` (the numba version of the reference's binning)."""
+    n = poses.shape[0]
+    ix = np.empty(n, dtype=np.int64)
+    iy = np.empty(n, dtype=np.int64)
+    it = np.empty(n, dtype=np.int64)
+    nt, scale = _k.heading_scale(bin_theta_rad)
+    nx, ny = _k.raster_bins(poses, float(bin_xy_m), nt, scale, ix, iy, it)
+    return ix, iy, it, int(nx), int(ny), nt
 
 
 @dataclass(frozen=True)
@@ -206,8 +233,22 @@ def _heading_bins(theta: np.ndarray, bin_rad: float) -> tuple[np.ndarray, int]:
     return np.minimum(k, n - 1), n
 
 
-def histogram_entropy(poses: np.ndarray, w: np.ndarray, bin_xy_m: float, bin_theta_rad: float) -> float:
+def histogram_entropy(
+    poses: np.ndarray, w: np.ndarray, bin_xy_m: float, bin_theta_rad: float, backend: str = "numba"
+) -> float:
     """Shannon entropy (nats) of normalised weights ``w`` over the coarse pose bins."""
+    _check_backend(backend)
+    if backend == "numba":
+        p = np.ascontiguousarray(poses, dtype=np.float64)
+        ix, iy, it, nx, ny, nt = _raster(p, bin_xy_m, bin_theta_rad)
+        if nx * ny * nt <= _MAX_RASTER_CELLS:
+            mass = np.zeros(nx * ny * nt)
+            _k.raster_mass(
+                ix, iy, it, nx, nt, np.ascontiguousarray(w, dtype=np.float64), mass, np.zeros(mass.size, dtype=np.int64)
+            )
+            mass = _k.nonzero_mass(mass)
+            return max(float(-(mass * np.log(mass)).sum()), 0.0)
+        return histogram_entropy(poses, w, bin_xy_m, bin_theta_rad, "numpy")
     ix = _bin_keys(poses[:, 0], bin_xy_m)
     iy = _bin_keys(poses[:, 1], bin_xy_m)
     it, nt = _heading_bins(poses[:, 2], bin_theta_rad)
@@ -229,6 +270,7 @@ def cluster_labels(
     bin_theta_rad: float,
     weights: np.ndarray | None = None,
     min_bin_frac: float = 0.0,
+    backend: str = "numba",
 ) -> tuple[np.ndarray, int]:
     """``(labels (N,), n)``: the connected cluster (``0 .. n-1``) of every particle, or -1.
 
@@ -239,6 +281,9 @@ def cluster_labels(
     particles in other cells get label -1, so a thin haze of unlikely particles does not join
     two hypotheses, while a uniform cloud stays one cluster on a map of any size.
     """
+    _check_backend(backend)
+    if backend == "numba":
+        return _cluster_labels_numba(poses, bin_m, bin_theta_rad, weights, min_bin_frac)
     p = np.asarray(poses, dtype=np.float64)
     ix = _bin_keys(p[:, 0], bin_m)
     iy = _bin_keys(p[:, 1], bin_m)
@@ -247,7 +292,7 @@ def cluster_labels(
     nx, ny = int(ix.max()) + 1, int(iy.max()) + 1
     it, nt = _heading_bins(p[:, 2], bin_theta_rad)
     if nx * ny * nt > _MAX_RASTER_CELLS:  # absurdly spread cloud: coarser raster
-        return cluster_labels(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
+        return cluster_labels(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac, "numpy")
     if weights is not None and min_bin_frac > 0:
         mass = np.bincount((iy * nx + ix) * nt + it, weights=weights, minlength=nx * ny * nt)
         held = np.bincount((iy * nx + ix) * nt + it, minlength=nx * ny * nt) > 0
@@ -280,14 +325,49 @@ def cluster_labels(
     return lab[iy, ix, it].astype(np.int64) - 1, int(n)
 
 
+def _cluster_labels_numba(poses, bin_m, bin_theta_rad, weights, min_bin_frac) -> tuple[np.ndarray, int]:
+    p = np.ascontiguousarray(poses, dtype=np.float64)
+    ix, iy, it, nx, ny, nt = _raster(p, bin_m, bin_theta_rad)
+    size = nx * ny * nt
+    if size > _MAX_RASTER_CELLS:  # absurdly spread cloud: coarser raster, as the reference
+        return _cluster_labels_numba(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
+    mass = np.zeros(size)
+    count = np.zeros(size, dtype=np.int64)
+    w = np.zeros(p.shape[0]) if weights is None else np.ascontiguousarray(weights, dtype=np.float64)
+    _k.raster_mass(ix, iy, it, nx, nt, w, mass, count)
+    held = count > 0
+    if weights is not None and min_bin_frac > 0:
+        # the reference's threshold, with the same NumPy reductions (pairwise sum over the raster)
+        occupied = (mass >= min_bin_frac * mass.sum() / held.sum()) & held
+    else:
+        occupied = held
+    lab = np.zeros(size, dtype=np.int64)
+    n = _k.label_components(occupied, ny, nx, nt, nt > 2, lab)
+    out = np.empty(p.shape[0], dtype=np.int64)
+    _k.particle_labels(ix, iy, it, nx, nt, lab, out)
+    return out, int(n)
+
+
 def cluster_stats(
-    poses: np.ndarray, w: np.ndarray, labels: np.ndarray, n: int
+    poses: np.ndarray, w: np.ndarray, labels: np.ndarray, n: int, backend: str = "numba"
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per-cluster ``(weight (n,), mean (n, 3), cov (n, 3, 3), count (n,))`` of normalised weights ``w``.
 
     Particles labelled -1 belong to no cluster. A cluster with zero weight gets its particles'
     unweighted mean and covariance.
     """
+    _check_backend(backend)
+    if backend == "numba":
+        p = np.ascontiguousarray(poses, dtype=np.float64)
+        th = p[:, 2]
+        return _cluster_stats_numba(
+            p,
+            np.ascontiguousarray(w, dtype=np.float64),
+            np.ascontiguousarray(labels, dtype=np.int64),
+            n,
+            np.sin(th),
+            np.cos(th),
+        )
     inside = labels >= 0
     if not inside.all():
         poses, w, labels = poses[inside], w[inside], labels[inside]
@@ -312,12 +392,28 @@ def cluster_stats(
     return weight, mean, cov, count
 
 
-def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | None = None) -> Belief:
+def _cluster_stats_numba(p, w, labels, n, sin_th, cos_th):
+    count, weight, wsum, sums = _k.cluster_sums(labels, n, p, sin_th, cos_th, w)
+    mean = np.empty((n, 3))
+    mean[:, 0] = sums[:, 0] / wsum
+    mean[:, 1] = sums[:, 1] / wsum
+    mean[:, 2] = wrap_angle(np.arctan2(sums[:, 2], sums[:, 3]))
+    cov = _k.cluster_covariances(labels, n, p, w, count, weight, wsum, mean)
+    return weight, mean, cov, count
+
+
+def summarize(
+    poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | None = None, backend: str = "numba"
+) -> Belief:
     """Summarise ``poses (N, 3)`` with non-negative ``weights (N,)`` (normalised here).
 
+    ``backend``: ``"numba"`` or ``"numpy"`` (reference); the same Belief bit for bit.
+
     Raises:
-        ValueError: no particles, bad shapes, or weights that are negative, non-finite or all zero.
+        ValueError: no particles, bad shapes, or weights that are negative, non-finite or all zero,
+            or an unknown backend.
     """
+    _check_backend(backend)
     cfg = config if config is not None else BeliefConfig()
     p = np.asarray(poses, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3:
@@ -330,16 +426,27 @@ def summarize(poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | Non
     w = _normalised(weights, n)
     x, y, th = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
 
-    mx, my = float(w @ x), float(w @ y)
-    mth = float(wrap_angle(np.arctan2(w @ np.sin(th), w @ np.cos(th))))
-    res = np.stack([x - mx, y - my, wrap_angle(th - mth)])
+    dot = _blas.dot if backend == "numba" else np.dot  # the same bits (filters._blas)
+    mx, my = float(dot(w, x)), float(dot(w, y))
+    sin_th, cos_th = np.sin(th), np.cos(th)
+    mth = float(wrap_angle(np.arctan2(dot(w, sin_th), dot(w, cos_th))))
+    if backend == "numba":
+        res = np.empty((3, n))
+        _k.residuals(p, mx, my, mth, res)
+    else:
+        res = np.stack([x - mx, y - my, wrap_angle(th - mth)])
     cov = (res * w) @ res.T
     cov = 0.5 * (cov + cov.T)
     ess = float(1.0 / np.sum(w * w))
-    entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad)
+    entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad, backend)
 
-    labels, n_lab = cluster_labels(p, cfg.cluster_bin_m, cfg.cluster_bin_theta_rad, w, cfg.cluster_min_bin_frac)
-    cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n_lab)
+    labels, n_lab = cluster_labels(
+        p, cfg.cluster_bin_m, cfg.cluster_bin_theta_rad, w, cfg.cluster_min_bin_frac, backend
+    )
+    if backend == "numba":  # np.sin / np.cos are elementwise: the same values as on the cluster members
+        cw, cmean, ccov, ccount = _cluster_stats_numba(np.ascontiguousarray(p), w, labels, n_lab, sin_th, cos_th)
+    else:
+        cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n_lab, "numpy")
     keep = np.flatnonzero(cw >= cfg.cluster_min_weight - 1e-12)
     keep = keep[np.argsort(-cw[keep], kind="stable")]
     hyps = []

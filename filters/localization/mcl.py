@@ -85,9 +85,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+import numba
 import numpy as np
 from scipy.special import logsumexp
 
+from filters import _blas
 from filters.localization.belief import Belief, BeliefConfig, cluster_labels, linear_bin_keys, summarize
 from filters.localization.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
 from filters.localization.proposals import ScanProposal
@@ -95,7 +97,22 @@ from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import compose, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
+from filters.smc.logsumexp import logsumexp as fast_logsumexp
 from filters.smc.resampling import RESAMPLERS, get_resampler, inverse_cdf
+
+_MAX_DENSE_KEYS = 8_000_000
+"""Largest KLD bin key for which the fast path marks first occurrences in a dense table."""
+
+
+@numba.njit(cache=True, nogil=True)
+def _first_occurrence(keys, seen, out):  # pragma: no cover - compiled
+    """``out[i]``: ``keys[i]`` occurs at no index below ``i`` (``np.unique(..., return_index=True)``'s
+    first indices, as a mask); ``seen`` is a zeroed table of ``max(keys) + 1`` flags."""
+    for i in range(keys.shape[0]):
+        k = keys[i]
+        out[i] = not seen[k]
+        seen[k] = True
+
 
 _SUBCONFIGS = {
     "lidar_field": LikelihoodFieldConfig,
@@ -128,9 +145,11 @@ class MCLConfig:
         resampler: name in :data:`filters.smc.resampling.RESAMPLERS`.
         resample_ess_frac: resample when ESS < this fraction of N (1.0 = every update).
         holdoff_min_detections: semantic hold-off (0 = off).
-        kld, kld_bin_xy_m, kld_bin_theta_rad, kld_epsilon, kld_z, min_particles,
-            max_particles: KLD-sampling (``kld_z`` is the upper standard normal quantile,
-            2.326 for 1 - delta = 0.99).
+        kld: KLD-sampling (Fox 2003): the particle count adapts to the belief's spread.
+        kld_bin_xy_m, kld_bin_theta_rad: its histogram bins (m, rad).
+        kld_epsilon, kld_z: its error bound and the upper standard normal quantile (2.326 for
+            1 - delta = 0.99).
+        min_particles, max_particles: the bounds of the particle count.
         global_particles_per_m2: particles per m^2 of free space for ``init_global`` when
             ``n_particles`` is None (> 0 then).
         resample_mode: ``"global"`` (one draw over all particles) or ``"clustered"``.
@@ -144,6 +163,10 @@ class MCLConfig:
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
+        fast_path: numba kernels for the belief summary, the clustering of clustered resampling
+            and the filter's bookkeeping (True), or the NumPy reference code (False). Unlike
+            ``backend`` this changes nothing but speed: both give the same particles, weights,
+            diagnostics and beliefs bit for bit (``tests/test_fast_path.py``).
     """
 
     n_particles: int | None = 2000
@@ -179,6 +202,7 @@ class MCLConfig:
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
+    fast_path: bool = True
 
     def __post_init__(self) -> None:
         for name, cls in _SUBCONFIGS.items():
@@ -231,7 +255,7 @@ class MCLConfig:
         v = self.max_update_log_ratio
         if isinstance(v, bool) or not (isinstance(v, (int, float)) and v > 0 and not math.isnan(v)):
             raise ValueError(f"MCLConfig.max_update_log_ratio must be > 0 (inf = no cap), got {v!r}")
-        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation"):
+        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
@@ -331,6 +355,8 @@ class MonteCarloLocalizer:
             else LikelihoodFieldModel(grid, c.lidar_field, c.semantic_field, backend=c.backend)
         )
         self._resample = get_resampler(c.resampler)
+        self._belief_backend = "numba" if c.fast_path else "numpy"
+        self._lse = fast_logsumexp if c.fast_path else logsumexp  # the same bits (filters.smc.logsumexp)
         self._free_cells: np.ndarray | None = None
         self._proposal: ScanProposal | None = None
         self._poses = np.zeros((0, 3))
@@ -530,7 +556,7 @@ class MonteCarloLocalizer:
             tempered = np.maximum(tempered, np.max(tempered) - c.max_update_log_ratio)
         logw = self._logw + tempered
         finite_any = bool(np.any(np.isfinite(logw)))
-        lse = float(logsumexp(logw)) if finite_any else -np.inf
+        lse = float(self._lse(logw)) if finite_any else -np.inf
         if not math.isfinite(lse):
             self.init_global(n)
             diag = UpdateDiagnostics(
@@ -549,7 +575,8 @@ class MonteCarloLocalizer:
         p_inj = 0.0
         if c.augmented and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
-            w_avg = float(np.exp(self._logw) @ per_beam)
+            prior = np.exp(self._logw)
+            w_avg = float(_blas.dot(prior, per_beam) if c.fast_path else prior @ per_beam)
             if self._w_slow == 0.0:  # pf.c: the averages start at the first average
                 self._w_slow = self._w_fast = w_avg
             else:
@@ -628,9 +655,13 @@ class MonteCarloLocalizer:
             np.floor(p[:, 1] / c.kld_bin_xy_m).astype(np.int64),
             np.floor((p[:, 2] + np.pi) / c.kld_bin_theta_rad).astype(np.int64),
         )
-        _, first = np.unique(keys, return_index=True)
-        new_bin = np.zeros(m, dtype=bool)
-        new_bin[first] = True
+        if self.config.fast_path and keys.size and int(keys.max()) < _MAX_DENSE_KEYS:
+            new_bin = np.empty(m, dtype=bool)
+            _first_occurrence(keys, np.zeros(int(keys.max()) + 1, dtype=np.bool_), new_bin)
+        else:
+            _, first = np.unique(keys, return_index=True)
+            new_bin = np.zeros(m, dtype=bool)
+            new_bin[first] = True
         k = np.cumsum(new_bin)  # occupied bins after 1..m draws
         count = np.arange(1, m + 1)
         ok = (count >= self.kld_required(k)) & (count >= lo)
@@ -652,7 +683,9 @@ class MonteCarloLocalizer:
         """Within-cluster resampling to about ``n_new`` particles; cluster weights are kept."""
         c = self.config
         b = c.belief
-        labels, n_lab = cluster_labels(self._poses, b.cluster_bin_m, b.cluster_bin_theta_rad, w, b.cluster_min_bin_frac)
+        labels, n_lab = cluster_labels(
+            self._poses, b.cluster_bin_m, b.cluster_bin_theta_rad, w, b.cluster_min_bin_frac, self._belief_backend
+        )
         labels = np.where(labels < 0, n_lab, labels)  # the haze outside every cluster is one more group
         n_lab += 1
         cw = np.bincount(labels, weights=w, minlength=n_lab)
@@ -671,7 +704,7 @@ class MonteCarloLocalizer:
             poses.append(self._poses[idx])
             logw.append(np.full(m, math.log(cw[k] / total / m)))
         logw = np.concatenate(logw)
-        return np.ascontiguousarray(np.vstack(poses)), logw - logsumexp(logw)
+        return np.ascontiguousarray(np.vstack(poses)), logw - self._lse(logw)
 
     def _resample_n(self, w: np.ndarray, m: int) -> np.ndarray:
         """``m`` indices into ``w`` (normalised): the configured scheme when ``m == len(w)``, else
@@ -704,11 +737,11 @@ class MonteCarloLocalizer:
         self._poses[mask] = new
         logw = self._logw.copy()
         logw[mask] = -math.log(self.n_particles)
-        self._logw = logw - logsumexp(logw)
+        self._logw = logw - self._lse(logw)
         return m
 
     # ------------------------------------------------------------ summary
     def belief(self) -> Belief:
         """Summary of the current particle set (see :mod:`filters.localization.belief`)."""
         self._require_particles()
-        return summarize(self._poses, np.exp(self._logw), self.config.belief)
+        return summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)

@@ -96,11 +96,15 @@ def map_from_scans(
     """Occupancy map of ``scans`` taken at the known robot ``poses``, on a raster sized from the data.
 
     Args:
-        poses, scans, resolution_m, margin_m: see :func:`raster_for`.
+        poses: see :func:`raster_for`.
+        scans: see :func:`raster_for`.
+        resolution_m: see :func:`raster_for`.
+        margin_m: see :func:`raster_for`.
         params: log-odds increments and no-return policy; default :data:`LOG_OCCUPANCY_PARAMS`.
         save_to: if given, a ``.yaml`` / ``.yml`` path: the map is written there as a ROS map
             (:func:`~filters.mapping.ros_map.save_map` with ``mode``).
-        occupied_thresh, free_thresh: thresholds of the returned map (and of the file).
+        occupied_thresh: occupancy threshold of the returned map (and of the file).
+        free_thresh: free threshold of the returned map (and of the file).
 
     Returns:
         The map (no semantic classes).

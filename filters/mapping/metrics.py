@@ -33,7 +33,8 @@ def iou(a: np.ndarray, b: np.ndarray, where: np.ndarray | None = None) -> float:
     """``|a & b| / |a | b|`` of two boolean grids of the same shape (cells counted, no units).
 
     Args:
-        a, b: boolean arrays of one shape (anything else: ``ValueError``).
+        a: boolean array (anything else: ``ValueError``).
+        b: boolean array of ``a``'s shape.
         where: optional boolean mask of that shape; only cells where it is ``True`` count
             (e.g. the cells a mapping run could observe).
 
@@ -90,7 +91,8 @@ def class_iou(
     """Per-class IoU of the class masks (each map's own ``semantic_thresh``), classes matched by *name*.
 
     Args:
-        pred, truth: maps on the same raster (else ``ValueError``).
+        pred: the map to score.
+        truth: the reference map, on ``pred``'s raster (else ``ValueError``).
         classes: names to compare; default all of ``truth.class_names``. A name missing from
             either map raises ``KeyError``.
         where: optional boolean mask restricting the cells that count.

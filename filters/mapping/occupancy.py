@@ -487,7 +487,9 @@ class SemanticMapper(_RasterMapper):
     """Per-class Bayesian (log-odds) semantic grids from semantic pseudo-laser scans at known poses.
 
     Args:
-        shape, resolution_m, origin_xy_m: the raster (see :class:`OccupancyMapper`).
+        shape: ``(H, W)`` cells of the raster, row 0 = bottom (as :class:`OccupancyMapper`).
+        resolution_m: cell edge, metres.
+        origin_xy_m: world ``(x, y)`` of the lower-left corner of cell ``(0, 0)``, metres.
         class_names: class of label ``k + 1`` is ``class_names[k]``; default the paper's four.
         params: log-odds increments, see :class:`SemanticParams`.
 

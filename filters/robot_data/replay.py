@@ -131,7 +131,8 @@ def track(
         grid: the map.
         mcl_config: filter configuration (None = defaults).
         rng_seed: seed of the ``numpy.random.Generator`` the filter draws from.
-        start, stop: scan range (``stop`` default: the end of the log).
+        start: first scan.
+        stop: scan after the last (default: the end of the log).
         init_std: ``(sx m, sy m, stheta rad)`` of the initial cloud (tracking).
         global_init: start uniform over free space instead.
         record_particles: keep a copy of the particles after every step (for animations).

@@ -120,8 +120,10 @@ class LaserScan:
 
         Args:
             ranges: the message's ``ranges`` (metres).
-            angle_min, angle_increment: radians (``angle_increment`` non-zero, may be negative).
-            range_min, range_max: metres, ``0 <= range_min < range_max``.
+            angle_min: angle of the first beam (rad).
+            angle_increment: angle between beams (rad; non-zero, may be negative).
+            range_min: shortest valid range (m), ``0 <= range_min < range_max``.
+            range_max: longest valid range (m).
             sensor_pose: the laser frame's pose in the robot (``base_link``) frame, ``(x, y, yaw)``.
         """
         r = np.asarray(ranges, dtype=np.float64).reshape(-1)

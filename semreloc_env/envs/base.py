@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -34,6 +34,14 @@ class SemRelocBase(gym.Env):
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
     _reset_option_keys: frozenset[str] = frozenset({"pose"})
+    observation_layout: ClassVar[str] = "typed"
+    """``"typed"`` (semantic ranges and class labels in separate entries, the labels ``MultiDiscrete``) or
+    ``"flat"`` (one float32 ``semantic`` Box, kept by the older env ids): :func:`.spaces.make_observation_space`."""
+    info_missing: ClassVar[str] = "drop"
+    """How ``info`` shows a value not computed in a step: ``"drop"`` leaves its key out (so vector envs batch
+    the rest as typed arrays, with ``_key`` masks marking who has it); ``"none"`` (older env ids) puts None."""
+    _world_option_keys: frozenset[str] = frozenset({"pose"})
+    """Reset options whose check needs the world (:meth:`check_reset` builds one only for them)."""
 
     def __init__(
         self,
@@ -62,7 +70,7 @@ class SemRelocBase(gym.Env):
         self.odometry = Odometry(coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()))
         self.action_space = make_action_space(action_type)
         self.action_type = action_type
-        self.observation_space = make_observation_space(self.lidar.params, self.camera.params)
+        self.observation_space = make_observation_space(self.lidar.params, self.camera.params, self.observation_layout)
         self.render_mode = render_mode
         self.world: World | None = None
         self._renderer = None
@@ -73,8 +81,9 @@ class SemRelocBase(gym.Env):
         """Polygons added to the world but not to the layout (none by default)."""
         return []
 
-    def _validate_options(self, options: dict, world: World) -> None:
-        """Raise ValueError for bad reset options, before any state changes."""
+    def _validate_options(self, options: dict, world: World | None) -> None:
+        """Raise ValueError for bad reset options, before any state changes (``world`` is None when
+        no option in :attr:`_world_option_keys` is set and the caller is :meth:`check_reset`)."""
 
     def _reset_estimator(self, options: dict) -> None:  # pragma: no cover - overridden
         pass
@@ -99,10 +108,15 @@ class SemRelocBase(gym.Env):
         (:class:`semreloc_env.wrappers.CheckedReset`) so that a rejected reset never reaches
         Gymnasium's ``TimeLimit``, which zeroes its step counter before passing ``reset`` on.
         """
-        self._prepare_reset(seed, options)
+        self._prepare_reset(seed, options, need_world=False)
 
-    def _prepare_reset(self, seed, options) -> tuple[dict, World]:
-        """Validated ``(options, fresh world)`` for a reset; ValueError naming the bad argument."""
+    def _prepare_reset(self, seed, options, need_world: bool = True) -> tuple[dict, World | None]:
+        """Validated ``(options, fresh world)`` for a reset; ValueError naming the bad argument.
+
+        With ``need_world=False`` (:meth:`check_reset`) the pymunk world is only built when an
+        option in :attr:`_world_option_keys` needs it for its check; otherwise ``world`` is None
+        (and :meth:`_validate_options` gets None). The checks are the same either way.
+        """
         if seed is not None and not (
             isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)) and seed >= 0
         ):
@@ -117,9 +131,11 @@ class SemRelocBase(gym.Env):
             raise ValueError(
                 f"unknown reset options {sorted(unknown, key=repr)}; valid: {sorted(self._reset_option_keys)}"
             )
-        world = build_world(self.layout, self.robot_params, self.physics_params, self._extra_obstacles())
-        if options.get("pose") is not None:
-            world.set_pose(options["pose"])  # raises before any state changes
+        world = None
+        if need_world or any(options.get(k) is not None for k in self._world_option_keys):
+            world = build_world(self.layout, self.robot_params, self.physics_params, self._extra_obstacles())
+            if options.get("pose") is not None:
+                world.set_pose(options["pose"])  # raises before any state changes
         self._validate_options(options, world)
         return options, world
 
@@ -143,7 +159,7 @@ class SemRelocBase(gym.Env):
             self.__dict__.clear()
             self.__dict__.update(saved)
             raise
-        obs = make_observation(lidar_scan, semantic_scan, odom)
+        obs = make_observation(lidar_scan, semantic_scan, odom, self.observation_layout)
         self._last = {"lidar": lidar_scan, "semantic": semantic_scan}
         info = self._info()
         if self.render_mode == "human":
@@ -177,7 +193,7 @@ class SemRelocBase(gym.Env):
         if self.render_mode == "human":
             self.render()
         return (
-            make_observation(lidar_scan, semantic_scan, odom),
+            make_observation(lidar_scan, semantic_scan, odom, self.observation_layout),
             float(sum(terms.values())),
             self._terminated(),
             False,

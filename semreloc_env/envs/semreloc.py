@@ -1,4 +1,4 @@
-"""``SemReloc-v1`` (and ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v2`` (and ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ DEFAULT_RELOCALIZER = MCLConfig(
     lidar_on_rotation=False,
     likelihood_scale=0.06,
 )
-"""SemReloc-v1's relocalizer (:class:`filters.localization.mcl.MCLConfig` with these overrides):
+"""The relocalizer of SemReloc-v1 and -v2 (:class:`filters.localization.mcl.MCLConfig` with these overrides):
 50 particles per m^2 of free space (500 to 20,000) with KLD sampling, clustered resampling,
 5 % of the particles replaced every update by poses drawn from the current scan (semantic
 detections first) plus augmented-MCL recovery, the lidar factor left out of turn-in-place
@@ -84,13 +84,18 @@ class SemRelocEnv(SemRelocBase):
     Anything outside the space, or NaN, raises ``ValueError`` and changes nothing.
 
     ## Observation Space
-    ``Dict`` of float32 boxes:
+    ``Dict`` of float32 boxes and one ``MultiDiscrete`` (``SemReloc-v2``, ``observation_layout = "typed"``):
 
-    | key | shape | range | meaning |
-    |---|---|---|---|
-    | ``lidar`` | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
-    | ``semantic`` | ``(2 * camera.n_beams,)`` | first half ``[0, range_max_m]`` m, second half ``{0..4}`` | pseudo-laser ranges, then the class label per beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
-    | ``odometry`` | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame |
+    | key | space | shape | range | meaning |
+    |---|---|---|---|---|
+    | ``lidar`` | Box float32 | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
+    | ``odometry`` | Box float32 | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame |
+    | ``semantic_class`` | MultiDiscrete int64 | ``(camera.n_beams,)`` | ``{0..4}`` | class label per pseudo-laser beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
+    | ``semantic_range`` | Box float32 | ``(camera.n_beams,)`` | ``[0, camera.range_max_m]`` m | pseudo-laser range per beam (``range_max_m`` where no object) |
+
+    ``SemReloc-v1`` and ``-v0`` (``observation_layout = "flat"``) have one float32 Box ``semantic`` of
+    shape ``(2 * camera.n_beams,)`` instead of the last two: the ranges, then the labels as floats.
+    :func:`semreloc_env.envs.spaces.semantic_parts` reads either.
 
     Belief features for a policy: wrap with :class:`semreloc_env.wrappers.BeliefObservation`.
 
@@ -118,8 +123,9 @@ class SemRelocEnv(SemRelocBase):
     (:meth:`filters.localization.belief.Belief.as_dict`: ``converged`` — one tight hypothesis
     holds >= 95 % of the mass —, ``hypotheses`` by weight, ``estimate``, spread, entropy, ESS);
     ``pose_error`` ``{"position": m, "heading": rad}`` of the belief's estimate (its heaviest
-    hypothesis); ``is_success`` (the success test below has been met in this episode); ``mcl`` the last update's diagnostics (:class:`filters.localization.mcl.UpdateDiagnostics`,
-    None for values not computed in this step); ``rewards``;
+    hypothesis); ``is_success`` (the success test below has been met in this episode); ``mcl`` the last update's diagnostics (:class:`filters.localization.mcl.UpdateDiagnostics`;
+    a value not computed in this step, such as ``ess`` when the motion gate skipped the update, is left
+    out; ``SemReloc-v1``/``-v0`` put None there instead); ``rewards``;
     ``collided``; ``kidnapped`` (True from the kidnap step on).
 
     ## Arguments
@@ -154,6 +160,11 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v2: typed observations: the class labels are a ``MultiDiscrete`` entry ``semantic_class`` (int64)
+      and the ranges a Box ``semantic_range``, replacing the float32 ``semantic`` Box that held both;
+      ``info["mcl"]`` leaves out the diagnostics not computed in a step (v1: None), so vector envs
+      batch them as float arrays. Dynamics, relocalizer, rewards and episode end are v1's: the same
+      seed gives the same episode (:class:`SemRelocEnvV1` is v1).
     * v1: the relocalizer of the relocalizer issue (:data:`DEFAULT_RELOCALIZER`): particle count
       sized by the map's free area with KLD sampling, clustered resampling, scan-based
       (semantic) proposals with Mixture-MCL and augmented-MCL injection; ``converged`` needs
@@ -167,6 +178,7 @@ class SemRelocEnv(SemRelocBase):
     """
 
     _reset_option_keys = frozenset({"pose", "tracking", "kidnap_at_step", "kidnap_pose"})
+    _world_option_keys = frozenset({"pose", "kidnap_pose"})
     default_relocalizer: MCLConfig = DEFAULT_RELOCALIZER
     """What ``relocalizer=None`` stands for and a dict of overrides applies to."""
 
@@ -344,10 +356,13 @@ class SemRelocEnv(SemRelocBase):
         info["belief"] = self._belief.as_dict()
         info["pose_error"] = self.pose_error()
         # NaN marks "not computed this step" in the diagnostics; None compares equal to itself
-        info["mcl"] = {
-            k: None if isinstance(v, float) and math.isnan(v) else v
-            for k, v in self.mcl.last_diagnostics.as_dict().items()
-        }
+        info["mcl"] = self.mcl.last_diagnostics.as_dict()
+        for k, v in list(info["mcl"].items()):  # NaN marks "not computed this step"
+            if isinstance(v, float) and math.isnan(v):
+                if self.info_missing == "drop":
+                    del info["mcl"][k]
+                else:
+                    info["mcl"][k] = None
         info["kidnapped"] = self._kidnapped
         info["is_success"] = self._succeeded
         return info
@@ -365,8 +380,18 @@ class SemRelocEnv(SemRelocBase):
         return state
 
 
-class SemRelocEnvV0(SemRelocEnv):
-    """``SemReloc-v0``: :class:`SemRelocEnv` with the first release's relocalizer
-    (:data:`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v1``."""
+class SemRelocEnvV1(SemRelocEnv):
+    """``SemReloc-v1``: :class:`SemRelocEnv` with the flat observation (one float32 ``semantic`` Box:
+    ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
+    Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
+    v1 keep working; new work should use ``SemReloc-v2``."""
+
+    observation_layout = "flat"
+    info_missing = "none"
+
+
+class SemRelocEnvV0(SemRelocEnvV1):
+    """``SemReloc-v0``: :class:`SemRelocEnvV1` with the first release's relocalizer
+    (:data:`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v2``."""
 
     default_relocalizer = LEGACY_RELOCALIZER

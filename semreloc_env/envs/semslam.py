@@ -1,4 +1,4 @@
-"""``SemSlam-v0``: landmark SLAM (FastSLAM + WOC, paper 000) on the semantic camera's object detections."""
+"""``SemSlam-v1`` (and ``-v0``): landmark SLAM (FastSLAM + WOC, paper 000) on the semantic camera's object detections."""
 
 from __future__ import annotations
 
@@ -97,7 +97,7 @@ class SemSlamEnv(SemRelocBase):
     """Landmark SLAM of a differential-drive robot from semantic object detections.
 
     ## Description
-    The world, robot and sensors of ``SemReloc-v1`` (a pymunk world built from a *layout*, a 360 deg
+    The world, robot and sensors of ``SemReloc-v2`` (a pymunk world built from a *layout*, a 360 deg
     lidar, a forward semantic camera, wheel odometry). Inside the env runs **WOCPF SLAM** (paper 000):
     FastSLAM (:class:`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
     through the WOC step ``psi = (K-1)/K w + mean(w)/K`` before resampling. Its controls are the noisy
@@ -114,13 +114,17 @@ class SemSlamEnv(SemRelocBase):
     Anything outside the space, or NaN, raises ``ValueError`` and changes nothing.
 
     ## Observation Space
-    Identical to ``SemReloc-v1``: a ``Dict`` of float32 boxes.
+    Identical to ``SemReloc-v2``: a ``Dict`` of float32 boxes and one ``MultiDiscrete``.
 
-    | key | shape | range | meaning |
-    |---|---|---|---|
-    | ``lidar`` | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
-    | ``semantic`` | ``(2 * camera.n_beams,)`` | first half ``[0, range_max_m]`` m, second half ``{0..4}`` | pseudo-laser ranges, then the class label per beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
-    | ``odometry`` | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame |
+    | key | space | shape | range | meaning |
+    |---|---|---|---|---|
+    | ``lidar`` | Box float32 | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
+    | ``odometry`` | Box float32 | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame |
+    | ``semantic_class`` | MultiDiscrete int64 | ``(camera.n_beams,)`` | ``{0..4}`` | class label per pseudo-laser beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
+    | ``semantic_range`` | Box float32 | ``(camera.n_beams,)`` | ``[0, camera.range_max_m]`` m | pseudo-laser range per beam |
+
+    ``SemSlam-v0`` has ``SemReloc-v1``'s flat layout instead: one float32 Box ``semantic`` of shape
+    ``(2 * camera.n_beams,)``, the ranges, then the labels as floats.
 
     ## Rewards
     A dict of named terms in ``info["rewards"]``, weighted by ``reward_weights``
@@ -148,7 +152,8 @@ class SemSlamEnv(SemRelocBase):
     * ``slam_error``: ``position`` m and ``heading`` rad of ``slam.pose``; ``landmark`` m: mean over the
       true objects observed so far of the distance from the object's centroid to its estimated landmark
       (known association: the landmark with the object's id; ML association: the nearest estimated
-      landmark), ``None`` while no object has been observed; ``n_seen`` objects observed so far.
+      landmark), left out while no object has been observed (``SemSlam-v0``: None); ``n_seen`` objects
+      observed so far.
     * ``rewards``; ``collided`` (step only).
 
     ## Arguments
@@ -167,6 +172,9 @@ class SemSlamEnv(SemRelocBase):
     (checked outside the time limit, see :class:`semreloc_env.wrappers.CheckedReset`).
 
     ## Version History
+    * v1: typed observations as in ``SemReloc-v2`` (``semantic_class`` MultiDiscrete and ``semantic_range``
+      Box instead of the float32 ``semantic`` Box); ``info["slam_error"]`` leaves ``landmark`` out while no
+      object has been observed (v0: None). Dynamics, filter and rewards unchanged (:class:`SemSlamEnvV0` is v0).
     * v0: initial release.
     """
 
@@ -275,6 +283,8 @@ class SemSlamEnv(SemRelocBase):
             "ess": effective_sample_size(self.slam.last_weights),
         }
         info["slam_error"] = self.slam_error()
+        if info["slam_error"]["landmark"] is None and self.info_missing == "drop":
+            del info["slam_error"]["landmark"]
         return info
 
     def _render_state(self) -> dict[str, Any]:
@@ -290,3 +300,12 @@ class SemSlamEnv(SemRelocBase):
             f"{math.degrees(err['heading']):.0f} deg  landmarks {est.count} (seen {err['n_seen']}, error {lm})"
         )
         return state
+
+
+class SemSlamEnvV0(SemSlamEnv):
+    """``SemSlam-v0``: :class:`SemSlamEnv` with the flat observation (one float32 ``semantic`` Box) and
+    ``info["slam_error"]["landmark"] = None`` before the first object is seen. Otherwise identical to
+    ``SemSlam-v1`` (same seed, same episode); new work should use ``SemSlam-v1``."""
+
+    observation_layout = "flat"
+    info_missing = "none"

@@ -48,23 +48,56 @@ def decode_action(action, action_type: str, space: spaces.Space, robot: RobotPar
     return float(a[0]) * robot.max_linear_mps, float(a[1]) * robot.max_angular_rps
 
 
-def make_observation_space(lidar: LidarParams, camera: CameraParams) -> spaces.Dict:
-    """The Dict of float32 boxes every semreloc env observes (see the env docstrings)."""
+OBSERVATION_LAYOUTS = ("typed", "flat")
+"""``"typed"`` (``SemReloc-v2``, ``SemSlam-v1``): ``semantic_range`` Box + ``semantic_class`` MultiDiscrete;
+``"flat"`` (``SemReloc-v1``/``-v0``, ``SemSlam-v0``): one float32 ``semantic`` Box, ranges then labels."""
+
+
+def _check_layout(layout: str) -> None:
+    if layout not in OBSERVATION_LAYOUTS:
+        raise ValueError(f"unknown observation layout {layout!r}; choose one of {list(OBSERVATION_LAYOUTS)}")
+
+
+def make_observation_space(lidar: LidarParams, camera: CameraParams, layout: str = "typed") -> spaces.Dict:
+    """The Dict observation space of the semreloc envs (see the env docstrings).
+
+    ``layout="typed"``: ``lidar`` and ``semantic_range`` float32 Boxes (m), ``semantic_class``
+    ``MultiDiscrete([1 + len(CLASS_NAMES)] * camera.n_beams)`` (int64, 0 = no object), ``odometry``.
+    ``layout="flat"``: ``lidar``, ``semantic`` (float32, ``2 * camera.n_beams``: ranges, then the labels
+    as floats), ``odometry``.
+    """
+    _check_layout(layout)
     n_sem = int(camera.n_beams)
-    sem_low = np.zeros(2 * n_sem, np.float32)
-    sem_high = np.concatenate([np.full(n_sem, camera.range_max_m), np.full(n_sem, len(CLASS_NAMES))]).astype(np.float32)
-    return spaces.Dict(
-        {
-            "lidar": spaces.Box(0.0, lidar.range_max_m, shape=(int(lidar.n_beams),), dtype=np.float32),
-            "semantic": spaces.Box(sem_low, sem_high, dtype=np.float32),
-            "odometry": spaces.Box(-ODOMETRY_BOUND, ODOMETRY_BOUND, dtype=np.float32),
-        }
-    )
+    entries = {"lidar": spaces.Box(0.0, lidar.range_max_m, shape=(int(lidar.n_beams),), dtype=np.float32)}
+    if layout == "typed":
+        entries["semantic_range"] = spaces.Box(0.0, camera.range_max_m, shape=(n_sem,), dtype=np.float32)
+        entries["semantic_class"] = spaces.MultiDiscrete(np.full(n_sem, 1 + len(CLASS_NAMES), dtype=np.int64))
+    else:
+        sem_low = np.zeros(2 * n_sem, np.float32)
+        sem_high = np.concatenate([np.full(n_sem, camera.range_max_m), np.full(n_sem, len(CLASS_NAMES))])
+        entries["semantic"] = spaces.Box(sem_low, sem_high.astype(np.float32), dtype=np.float32)
+    entries["odometry"] = spaces.Box(-ODOMETRY_BOUND, ODOMETRY_BOUND, dtype=np.float32)
+    return spaces.Dict(entries)
 
 
-def make_observation(lidar_scan, semantic_scan, odom: np.ndarray) -> dict[str, np.ndarray]:
-    return {
-        "lidar": lidar_scan.ranges.astype(np.float32),
-        "semantic": np.concatenate([semantic_scan.ranges, semantic_scan.labels]).astype(np.float32),
-        "odometry": np.clip(odom, -ODOMETRY_BOUND, ODOMETRY_BOUND).astype(np.float32),
-    }
+def make_observation(lidar_scan, semantic_scan, odom: np.ndarray, layout: str = "typed") -> dict[str, np.ndarray]:
+    """One observation in ``layout`` (see :func:`make_observation_space`)."""
+    obs = {"lidar": lidar_scan.ranges.astype(np.float32)}
+    if layout == "typed":
+        obs["semantic_range"] = np.asarray(semantic_scan.ranges, dtype=np.float32)
+        obs["semantic_class"] = np.asarray(semantic_scan.labels, dtype=np.int64)
+    else:
+        obs["semantic"] = np.concatenate([semantic_scan.ranges, semantic_scan.labels]).astype(np.float32)
+    obs["odometry"] = np.clip(odom, -ODOMETRY_BOUND, ODOMETRY_BOUND).astype(np.float32)
+    return obs
+
+
+def semantic_parts(obs: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``(ranges m float64, class labels int64)`` of the semantic camera from a raw observation of either
+    layout (``semantic_range`` + ``semantic_class``, or the flat ``semantic`` vector, whose second half
+    holds the labels as floats). KeyError if the observation has neither."""
+    if "semantic_class" in obs:
+        return np.asarray(obs["semantic_range"], dtype=np.float64), np.asarray(obs["semantic_class"], dtype=np.int64)
+    sem = np.asarray(obs["semantic"], dtype=np.float64)
+    n = sem.shape[-1] // 2
+    return sem[..., :n], np.rint(sem[..., n:]).astype(np.int64)

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..envs.spaces import ODOMETRY_BOUND
+from ..envs.spaces import ODOMETRY_BOUND, semantic_parts
 from ..layouts import CLASS_NAMES
 from .hypotheses import hypotheses_of
 from .rasters import MapRasters, allocentric_raster, egocentric_raster
@@ -95,11 +95,11 @@ class ActiveObservation(gym.Wrapper):
       the action of the last step (zeros after a reset).
 
     Args:
-        env: a ``SemReloc-v1`` env (anything with ``unwrapped.mcl``, ``unwrapped.grid``,
-            ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
+        env: a ``SemReloc-v2`` env, or ``-v1`` / ``-v0`` (either raw observation layout; anything with
+            ``unwrapped.mcl``, ``unwrapped.grid``, ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
         keys: which keys to keep, in order (default :data:`OBSERVATION_KEYS`, all of them).
-        ego_size, ego_cell_m: side of the ego crop in cells, and its cell size in metres
-            (default 32 x 0.25 m: 8 m, the lidar's reach).
+        ego_size: side of the ego crop in cells (default 32: with ``ego_cell_m`` 8 m, the lidar's reach).
+        ego_cell_m: cell size of the ego crop (m).
         global_size: side of the allocentric image in cells.
         n_heading_bins: particle-mass channels per image.
         max_hypotheses: rows of ``hypotheses``.
@@ -248,13 +248,13 @@ class ActiveObservation(gym.Wrapper):
                 ego_mass,
             ]
             out["belief"] = np.clip(np.asarray(raw, np.float32), 0.0, 1.0)
-        sem = np.asarray(obs["semantic"], dtype=np.float64)
+        sem_ranges, sem_labels = semantic_parts(obs)  # either raw layout (SemReloc-v2 typed, v1/v0 flat)
         if "lidar" in self.keys:
             out["lidar"] = np.clip(np.asarray(obs["lidar"], np.float32) / self._lidar_max, 0.0, 1.0)
         if "semantic_range" in self.keys:
-            out["semantic_range"] = np.clip(sem[: self._n_cam] / self._cam_max, 0.0, 1.0).astype(np.float32)
+            out["semantic_range"] = np.clip(sem_ranges / self._cam_max, 0.0, 1.0).astype(np.float32)
         if "semantic_class" in self.keys:
-            out["semantic_class"] = np.clip(np.rint(sem[self._n_cam :]), 0, len(CLASS_NAMES)).astype(np.int64)
+            out["semantic_class"] = np.clip(sem_labels, 0, len(CLASS_NAMES)).astype(np.int64)
         if "odometry" in self.keys:
             out["odometry"] = np.clip(np.asarray(obs["odometry"], np.float32) / ODOMETRY_BOUND, -1.0, 1.0)
         if "last_action" in self.keys:

@@ -1,0 +1,209 @@
+"""Trained active-relocalization policies behind the baselines' interface.
+
+* :func:`save_policy` writes an SB3 model zip with one more member, ``semreloc_policy.json``:
+  what the policy needs around it (the :class:`~semreloc_env.observations.ActiveObservation`
+  settings and the action repeat it was trained with).
+* :func:`load_policy` reads such a file and returns a :class:`LearnedPolicy` with
+  ``wrap(env) -> env`` (applies the same observation wrapper to any ``SemReloc`` env, any layout
+  and particle count), ``reset()`` and ``act(obs) -> action`` (deterministic), exactly as the
+  baselines of :mod:`agents.policies`.
+
+A policy trained through :class:`semreloc_env.wrappers.ActionRepeat` decides every ``repeat``
+env steps; :meth:`LearnedPolicy.act` is called every step and holds its last decision in
+between, so an evaluation loop drives it like any other policy and sees the same observations
+at the decision steps as training did.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from semreloc_env.observations import ActiveObservation
+
+META_NAME = "semreloc_policy.json"
+"""Name of the metadata member inside a saved policy zip."""
+
+FORMAT_VERSION = 1
+
+SHIPPED_POLICY = Path(__file__).resolve().parent / "data" / "active_ppo.zip"
+"""The trained active-relocalization policy shipped with the package (docs/active.md says how it
+was trained and how it scores): ``load_policy(SHIPPED_POLICY)``."""
+
+
+def save_policy(
+    model,
+    path: str | Path,
+    observation: dict[str, Any],
+    repeat: int,
+    explorer_option: bool = False,
+    extra: dict | None = None,
+) -> Path:
+    """Save ``model`` (an SB3 algorithm) to ``path`` (``.zip`` added if missing) with its metadata.
+
+    Args:
+        observation: keyword arguments of :class:`ActiveObservation` the model was trained with.
+        repeat: env steps per decision (:class:`semreloc_env.wrappers.ActionRepeat`).
+        explorer_option: whether it acts through :class:`agents.options.ExplorerOption`.
+        extra: anything else worth keeping beside it (training config, env id, ...): JSON-able.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    if path.suffix != ".zip":
+        path = path.with_suffix(".zip")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    model.save(path)
+    meta = {
+        "format": FORMAT_VERSION,
+        "algorithm": type(model).__name__,
+        "observation": dict(observation),
+        "repeat": int(repeat),
+        "explorer_option": bool(explorer_option),
+        "extra": extra or {},
+    }
+    with zipfile.ZipFile(path, "a") as z:
+        z.writestr(META_NAME, json.dumps(meta, indent=1, default=str))
+    return path
+
+
+def read_metadata(path: str | Path) -> dict[str, Any]:
+    """The metadata of a policy saved by :func:`save_policy`.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: not a zip, or a zip without the metadata member (e.g. a bare SB3 checkpoint:
+            pass ``observation`` and ``repeat`` to :func:`load_policy` then).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no policy file {path}")
+    try:
+        with zipfile.ZipFile(path) as z:
+            if META_NAME not in z.namelist():
+                raise ValueError(f"{path} has no {META_NAME}: not saved by agents.learned.save_policy")
+            meta = json.loads(z.read(META_NAME))
+    except zipfile.BadZipFile as e:
+        raise ValueError(f"{path} is not a policy zip: {e}") from e
+    if meta.get("format") != FORMAT_VERSION:
+        raise ValueError(f"{path}: policy format {meta.get('format')!r}, this code reads {FORMAT_VERSION}")
+    return meta
+
+
+class LearnedPolicy:
+    """A trained SB3 model with the interface of :mod:`agents.policies`.
+
+    Args:
+        model: an SB3 algorithm whose observation space is :class:`ActiveObservation`'s.
+        observation: the :class:`ActiveObservation` keyword arguments it was trained with.
+        repeat: env steps per decision.
+        deterministic: act on the mode of the action distribution (default) or sample from it.
+        explorer_option: the model's actions are :class:`agents.options.ExplorerOption`'s (the env's
+            four and "explore"); :meth:`wrap` adds that wrapper.
+    """
+
+    def __init__(
+        self,
+        model,
+        observation: dict[str, Any],
+        repeat: int = 1,
+        deterministic: bool = True,
+        explorer_option: bool = False,
+    ):
+        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
+            raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
+        self.model = model
+        self.observation = dict(observation)
+        self.repeat = int(repeat)
+        self.deterministic = bool(deterministic)
+        self.explorer_option = bool(explorer_option)
+        self._t = 0
+        self._action = None
+
+    def wrap(self, env: gym.Env) -> gym.Env:
+        """``ActiveObservation(env, **observation)`` (over :class:`agents.options.ExplorerOption` when
+        the policy uses it), checked against the model's spaces.
+
+        Raises:
+            ValueError: the env's action space or the wrapped observation space differs from the
+                model's (another action type, camera or lidar beam count, ...).
+        """
+        if self.explorer_option:
+            from .options import ExplorerOption
+
+            if env.action_space != gym.spaces.Discrete(4):
+                raise ValueError(
+                    f"the env's action space {env.action_space} is not Discrete(4), which the policy needs"
+                )
+            env = ExplorerOption(env)
+        if env.action_space != self.model.action_space:
+            raise ValueError(f"the env's action space {env.action_space} is not the policy's {self.model.action_space}")
+        wrapped = ActiveObservation(env, **self.observation)
+        if wrapped.observation_space != self.model.observation_space:
+            raise ValueError(
+                "the wrapped env's observation space differs from the policy's (sensor beam counts?):\n"
+                f"  env:    {wrapped.observation_space}\n  policy: {self.model.observation_space}"
+            )
+        return wrapped
+
+    def reset(self) -> None:
+        """Start an episode: the next :meth:`act` decides afresh."""
+        self._t = 0
+        self._action = None
+
+    def act(self, obs: dict):
+        """The action for this step: a new decision every ``repeat`` steps, else the held one."""
+        if self._t % self.repeat == 0 or self._action is None:
+            action, _ = self.model.predict(obs, deterministic=self.deterministic)
+            self._action = int(action) if isinstance(self.model.action_space, spaces.Discrete) else np.asarray(action)
+        self._t += 1
+        return self._action
+
+
+def load_policy(
+    path: str | Path,
+    device: str = "cpu",
+    deterministic: bool = True,
+    observation: dict[str, Any] | None = None,
+    repeat: int | None = None,
+    explorer_option: bool | None = None,
+) -> LearnedPolicy:
+    """Load a policy saved by :func:`save_policy` (or a bare SB3 PPO checkpoint, given its settings).
+
+    Args:
+        path: the ``.zip``.
+        device: torch device to load onto.
+        deterministic: see :class:`LearnedPolicy`.
+        observation: override (or, for a checkpoint without metadata, supply) the
+            `ActiveObservation` settings.
+        repeat: the same for the action repeat.
+        explorer_option: the same for :class:`agents.options.ExplorerOption` (default False
+            without metadata).
+
+    Raises:
+        FileNotFoundError, ValueError: see :func:`read_metadata`.
+    """
+    from stable_baselines3 import PPO
+
+    path = Path(path)
+    if observation is None or repeat is None or explorer_option is None:
+        try:
+            meta = read_metadata(path)
+        except ValueError:
+            if observation is None or repeat is None:
+                raise
+            meta = {}
+        observation = meta["observation"] if observation is None else observation
+        repeat = meta["repeat"] if repeat is None else repeat
+        explorer_option = bool(meta.get("explorer_option", False)) if explorer_option is None else explorer_option
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"no policy file {path}")
+    model = PPO.load(path, device=device)
+    return LearnedPolicy(model, observation, repeat, deterministic, explorer_option)

@@ -1,0 +1,332 @@
+"""PPO for active relocalization: a new procedural layout every episode, spatial belief observations.
+
+:func:`make_active_env` builds one training env:
+``SemReloc-v1`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
+:class:`~semreloc_env.layout_sampling.RandomLayout` (a new layout per reset, never a held-out
+seed) -> :class:`~semreloc_env.rewards.BeliefMassReward` (``mode="gain"``) ->
+:class:`~semreloc_env.wrappers.ActionRepeat` -> :class:`~semreloc_env.observations.ActiveObservation`
+-> SB3's ``Monitor``. :func:`train_active` trains SB3 PPO with :class:`~agents.active_features.ActiveExtractor`
+on ``n_envs`` of them, logs csv + TensorBoard, shows SB3's progress bar, writes checkpoints,
+resumes from one, and saves the final policy with :func:`agents.learned.save_policy` (load it back
+with :func:`agents.learned.load_policy`). Everything a run writes goes under ``out``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import inspect
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.logger import configure
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+import semreloc_env  # noqa: F401  (registers the env ids)
+from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
+from semreloc_env.observations import ActiveObservation
+from semreloc_env.rewards import BeliefMassReward
+from semreloc_env.wrappers import ActionRepeat
+
+from .active_features import ActiveExtractor
+from .callbacks import RelocalizationMetricsCallback
+from .learned import save_policy
+from .options import ExplorerOption
+
+ENV_ID = "SemReloc-v2"
+TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
+"""Layout kinds drawn for training: procedural only, so ``lab``, ``twin_rooms`` and the changed
+lab of the evaluation are layouts the policy has never seen (as are the held-out seeds)."""
+
+
+@dataclass(frozen=True)
+class ActiveTrainConfig:
+    """One PPO training run for active relocalization (each field documented below)."""
+
+    kinds: tuple[str, ...] = TRAIN_KINDS
+    """layout kinds drawn for training (`semreloc_env.layout_sampling.LayoutSampler`)"""
+    kind_weights: tuple[float, ...] | None = (1.0, 1.0, 2.0)
+    """one weight per kind (None: equal)"""
+    layout_seeds: tuple[int, int] = (0, 1000)
+    """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
+    mapping-run cache serve repeats"""
+    particles: int = 1000
+    """the relocalizer's particle count while training (the observation does not depend on it)"""
+    max_episode_steps: int = 200
+    """env steps per episode (the evaluation's success limit is 200)"""
+    repeat: int = 4
+    """env steps per decision (`semreloc_env.wrappers.ActionRepeat`)"""
+    explorer_option: bool = True
+    """add action 4, one step of the reactive explorer (`agents.options.ExplorerOption`), to the env's
+    four"""
+    belief_mass_weight: float = 0.5
+    """weight of the belief_mass reward term (gain mode: change of the belief mass within 0.5 m of the
+    truth, a potential-based shaping); 0 turns it off"""
+    reward_weights: dict[str, float] = field(default_factory=lambda: {"collision": -0.1})
+    """overrides of the env's `RewardWeights` (default: collisions cost -0.1 a step instead of -0.5, so
+    that driving is not learned away before localizing is)"""
+    observation: dict[str, Any] = field(default_factory=dict)
+    """`ActiveObservation` keyword arguments"""
+    n_envs: int = 4
+    """parallel envs"""
+    vec_env: str = "subproc"
+    """subproc (one process per env) or dummy (all in this process)"""
+    total_timesteps: int = 60_000
+    """decisions to train for, summed over envs (env steps: up to `repeat` times more)"""
+    seed: int = 0
+    """seeds PPO and the envs (env k: seed + k)"""
+    n_steps: int = 128
+    """PPO: decisions per env per rollout"""
+    batch_size: int = 256
+    """PPO: minibatch size"""
+    n_epochs: int = 4
+    """PPO: passes over each rollout"""
+    learning_rate: float = 3e-4
+    """PPO: Adam step size"""
+    gamma: float = 0.98
+    """PPO: discount per decision"""
+    gae_lambda: float = 0.95
+    """PPO: GAE lambda"""
+    ent_coef: float = 0.02
+    """PPO: entropy bonus"""
+    clip_range: float = 0.2
+    """PPO: ratio clip"""
+    vf_coef: float = 0.5
+    """PPO: value-loss weight"""
+    features_dim: int = 256
+    """output size of `ActiveExtractor`"""
+    net_arch: tuple[int, ...] = (128,)
+    """hidden sizes of the policy and value heads"""
+    cnn_channels: tuple[int, int, int] = (16, 32, 32)
+    """channels of the image CNNs' three convolutions"""
+    torch_threads: int = 1
+    """torch.set_num_threads of the learner"""
+    device: str = "cpu"
+    """torch device"""
+    checkpoint_every: int | None = 10_000
+    """decisions (summed over envs) between checkpoints (None: none)"""
+    time_budget_s: float | None = None
+    """stop learning after this many wall seconds (None: run total_timesteps); the policy is saved either way"""
+    progress_bar: bool = True
+    """SB3's progress bar"""
+    verbose: int = 0
+    """SB3 verbosity"""
+
+    def __post_init__(self) -> None:
+        if self.vec_env not in ("subproc", "dummy"):
+            raise ValueError(f"vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
+        for name in ("particles", "max_episode_steps", "repeat", "n_envs", "total_timesteps", "n_steps"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name} must be an int >= 1, got {v!r}")
+        if self.batch_size < 1 or self.n_epochs < 1 or self.torch_threads < 1:
+            raise ValueError("batch_size, n_epochs and torch_threads must be >= 1")
+        lo, hi = self.layout_seeds
+        if not (0 <= lo < hi):
+            raise ValueError(f"layout_seeds must be (start, stop) with 0 <= start < stop, got {self.layout_seeds!r}")
+        if self.kind_weights is not None and len(self.kind_weights) != len(self.kinds):
+            raise ValueError(f"kind_weights needs one weight per kind ({len(self.kinds)}), got {self.kind_weights!r}")
+        if self.time_budget_s is not None and not self.time_budget_s > 0:
+            raise ValueError(f"time_budget_s must be None or > 0, got {self.time_budget_s!r}")
+        if self.checkpoint_every is not None and self.checkpoint_every < 1:
+            raise ValueError("checkpoint_every must be None or >= 1")
+        allowed = set(inspect.signature(ActiveObservation.__init__).parameters) - {"self", "env"}
+        unknown = sorted(set(self.observation) - allowed)
+        if unknown:
+            raise ValueError(f"observation: unknown ActiveObservation arguments {unknown}; known {sorted(allowed)}")
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+class WallClockBudget(BaseCallback):
+    """Stop learning once ``budget_s`` wall seconds have passed since training started."""
+
+    def __init__(self, budget_s: float):
+        super().__init__()
+        self.budget_s = float(budget_s)
+        self._t0 = 0.0
+
+    def _on_training_start(self) -> None:
+        self._t0 = time.time()
+
+    def _on_step(self) -> bool:
+        return time.time() - self._t0 < self.budget_s
+
+
+def make_active_env(config: ActiveTrainConfig, seed: int = 0) -> gym.Env:
+    """One training env of ``config`` (see the module docstring); its layout stream starts at ``seed``."""
+    env = gym.make(
+        ENV_ID,
+        relocalizer={"n_particles": config.particles},
+        reward_weights=dict(config.reward_weights),
+        max_episode_steps=config.max_episode_steps,
+    )
+    sampler = LayoutSampler(
+        kinds=config.kinds,
+        seeds=range(*config.layout_seeds),
+        weights=None if config.kind_weights is None else list(config.kind_weights),
+    )
+    env = RandomLayout(env, sampler, seed=seed)
+    if config.belief_mass_weight:
+        env = BeliefMassReward(env, weight=config.belief_mass_weight, mode="gain")
+    if config.explorer_option:
+        env = ExplorerOption(env)
+    env = ActionRepeat(env, config.repeat)
+    env = ActiveObservation(env, **config.observation)
+    return Monitor(env, info_keywords=("is_success",))
+
+
+def _env_fn(config: ActiveTrainConfig, seed: int) -> gym.Env:
+    return make_active_env(config, seed)
+
+
+def make_active_venv(config: ActiveTrainConfig):
+    """``n_envs`` training envs, env ``k`` seeded ``seed + k``."""
+    return make_vec_env(
+        functools.partial(_env_fn, config, config.seed),
+        n_envs=config.n_envs,
+        seed=config.seed,
+        vec_env_cls=SubprocVecEnv if config.vec_env == "subproc" else DummyVecEnv,
+    )
+
+
+def build_model(config: ActiveTrainConfig, venv) -> PPO:
+    """A fresh PPO model for ``config`` on ``venv``."""
+    return PPO(
+        "MultiInputPolicy",
+        venv,
+        n_steps=config.n_steps,
+        batch_size=config.batch_size,
+        n_epochs=config.n_epochs,
+        learning_rate=config.learning_rate,
+        gamma=config.gamma,
+        gae_lambda=config.gae_lambda,
+        ent_coef=config.ent_coef,
+        clip_range=config.clip_range,
+        vf_coef=config.vf_coef,
+        policy_kwargs={
+            "features_extractor_class": ActiveExtractor,
+            "features_extractor_kwargs": {
+                "features_dim": config.features_dim,
+                "cnn_channels": tuple(config.cnn_channels),
+            },
+            "net_arch": list(config.net_arch),
+        },
+        seed=config.seed,
+        device=config.device,
+        verbose=config.verbose,
+    )
+
+
+def plot_learning_curve(progress_csv: str | Path, path: str | Path, repeat: int = 1) -> Path:
+    """Plot a run's ``rollout/success_rate`` and ``rollout/ep_rew_mean`` (over the last 100 episodes)
+    against env steps (decisions x ``repeat``) from its ``progress.csv``; write a PNG to ``path``.
+
+    Raises:
+        ValueError: the csv has no rows with those columns.
+    """
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with open(progress_csv, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r.get("rollout/success_rate") and r.get("time/total_timesteps")]
+    if not rows:
+        raise ValueError(f"{progress_csv}: no rows with rollout/success_rate")
+    steps = [int(r["time/total_timesteps"]) * repeat for r in rows]
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    ax.plot(steps, [float(r["rollout/success_rate"]) for r in rows], color="tab:blue", label="success rate")
+    ax.set_xlabel("env steps (decisions x repeat)")
+    ax.set_ylabel("training success rate (last 100 episodes)", color="tab:blue")
+    ax.set_ylim(0, 1)
+    ax2 = ax.twinx()
+    ax2.plot(steps, [float(r["rollout/ep_rew_mean"]) for r in rows], color="tab:orange", label="episode return")
+    ax2.set_ylabel("episode return", color="tab:orange")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def train_active(
+    config: ActiveTrainConfig,
+    out: str | Path,
+    resume: str | Path | None = None,
+    callbacks: list[BaseCallback] | None = None,
+) -> Path:
+    """Train as ``config`` says; write everything under ``out``; return the saved policy's path.
+
+    ``out`` receives ``config.json``, ``progress.csv`` and TensorBoard events, ``checkpoints/``
+    (``ppo_<decisions>_steps.zip``), ``policy.zip`` (:func:`agents.learned.save_policy`) and
+    ``timing.json`` (wall and CPU seconds, decisions and env steps) and ``learning_curve.png``.
+    ``resume``: a checkpoint of this run to continue from (its step count carries on;
+    ``total_timesteps`` counts from 0).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(int(config.torch_threads))
+    (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
+    venv = make_active_venv(config)
+    if resume is not None:
+        model = PPO.load(resume, env=venv, device=config.device)
+    else:
+        model = build_model(config, venv)
+    logger = configure(str(out), (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
+    model.set_logger(logger)
+    cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=100)]
+    if config.checkpoint_every is not None:
+        cbs.append(
+            CheckpointCallback(
+                save_freq=max(1, config.checkpoint_every // config.n_envs),
+                save_path=str(out / "checkpoints"),
+                name_prefix="ppo",
+            )
+        )
+    if config.time_budget_s is not None:
+        cbs.append(WallClockBudget(config.time_budget_s))
+    cbs += list(callbacks or [])
+    t0, c0 = time.time(), time.process_time()
+    try:
+        model.learn(
+            total_timesteps=config.total_timesteps,
+            callback=cbs,
+            progress_bar=config.progress_bar,
+            reset_num_timesteps=resume is None,
+        )
+    finally:
+        logger.close()
+        venv.close()
+    timing = {
+        "wall_s": time.time() - t0,
+        "learner_cpu_s": time.process_time() - c0,
+        "decisions": int(model.num_timesteps),
+        "env_steps_max": int(model.num_timesteps) * config.repeat,
+        "resumed_from": None if resume is None else str(resume),
+    }
+    (out / "timing.json").write_text(json.dumps(timing, indent=1))
+    try:
+        plot_learning_curve(out / "progress.csv", out / "learning_curve.png", config.repeat)
+    except ValueError:  # too short a run for one logged rollout
+        pass
+    return save_policy(
+        model,
+        out / "policy.zip",
+        observation=config.observation,
+        repeat=config.repeat,
+        explorer_option=config.explorer_option,
+        extra={"env_id": ENV_ID, "config": config.as_dict(), "timing": timing},
+    )

@@ -1,0 +1,230 @@
+"""Numba kernels of the belief summary (:mod:`filters.localization.belief`), one pass per stage.
+
+Contract: every kernel reproduces the NumPy reference in :mod:`filters.localization.belief`
+*bit for bit*, not just closely. That is possible because the reference's float results come
+from operations whose order is fixed and reproducible here without fastmath:
+
+* ``np.floor(v / size)``, ``wrap_angle`` (``(a + pi) % 2pi - pi``, NumPy's floored modulo,
+  which numba's float ``%`` implements with the same ``fmod`` steps), products and quotients
+  are single IEEE operations;
+* ``np.bincount(keys, weights=v)`` adds ``v[i]`` into its bin in index order, as the loops
+  below do.
+
+What is *not* reproducible here stays in NumPy in the callers: BLAS dot products (OpenBLAS
+splits long ones over threads), pairwise ``np.sum`` and the transcendental functions
+(``np.sin``, ``np.log``, ``np.arctan2``, whose SIMD versions may differ from libm in the last
+bit). Tests: ``tests/test_belief_kernels.py`` (kernels against the reference on random and
+adversarial clouds) and ``tests/test_fast_path.py`` (whole seeded episodes).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+_TWO_PI = 2.0 * np.pi
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _wrap(a):  # pragma: no cover - compiled
+    """``filters.pose.wrap_angle`` for one float, bit for bit.
+
+    ``y % 2pi`` (floored modulo) is ``y`` itself when ``0 <= y < 2pi`` (``fmod`` is exact and
+    needs no sign fix; a zero becomes ``+0.0`` as in NumPy), so the slow ``fmod`` only runs for
+    headings outside ``[-pi, pi)``; the particles' headings are almost always inside.
+    """
+    y = a + np.pi
+    if 0.0 < y < _TWO_PI:
+        return y - np.pi
+    if y == 0.0:
+        return 0.0 - np.pi
+    return y % _TWO_PI - np.pi
+
+
+@numba.njit(cache=True, nogil=True)
+def residuals(poses, mx, my, mth, out):  # pragma: no cover - compiled
+    """``out (3, N)`` = ``(x - mx, y - my, wrap(theta - mth))``, the reference's ``np.stack``."""
+    for i in range(poses.shape[0]):
+        out[0, i] = poses[i, 0] - mx
+        out[1, i] = poses[i, 1] - my
+        out[2, i] = _wrap(poses[i, 2] - mth)
+
+
+@numba.njit(cache=True, nogil=True)
+def raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it):  # pragma: no cover - compiled
+    """Raster cell of every pose, as the reference's ``_bin_keys`` / ``_heading_bins``.
+
+    ``ix, iy`` (out) are ``floor(x / bin_xy_m)`` shifted to start at 0; ``it`` (out) is
+    ``min(floor((wrap(theta) + pi) * scale), nt - 1)`` with ``scale = nt / (2 pi)`` computed by
+    the caller. Returns ``(nx, ny)``.
+    """
+    n = poses.shape[0]
+    mx = np.int64(0)
+    my = np.int64(0)
+    for i in range(n):
+        a = np.int64(np.floor(poses[i, 0] / bin_xy_m))
+        b = np.int64(np.floor(poses[i, 1] / bin_xy_m))
+        ix[i] = a
+        iy[i] = b
+        if i == 0 or a < mx:
+            mx = a
+        if i == 0 or b < my:
+            my = b
+        k = np.int64(np.floor((_wrap(poses[i, 2]) + np.pi) * scale))
+        it[i] = min(k, nt - 1)
+    nx = np.int64(0)
+    ny = np.int64(0)
+    for i in range(n):
+        ix[i] -= mx
+        iy[i] -= my
+        nx = max(nx, ix[i] + 1)
+        ny = max(ny, iy[i] + 1)
+    return nx, ny
+
+
+@numba.njit(cache=True, nogil=True)
+def raster_mass(ix, iy, it, nx, nt, w, mass, count):  # pragma: no cover - compiled
+    """``mass[c] += w[i]`` and ``count[c] += 1`` for the cell ``c = (iy nx + ix) nt + it`` of every
+    particle, in index order (``np.bincount``'s order); ``mass`` and ``count`` must be zeroed."""
+    for i in range(ix.shape[0]):
+        c = (iy[i] * nx + ix[i]) * nt + it[i]
+        mass[c] += w[i]
+        count[c] += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def nonzero_mass(mass):  # pragma: no cover - compiled
+    """``mass[mass > 0]`` (raster order)."""
+    k = 0
+    for c in range(mass.shape[0]):
+        if mass[c] > 0:
+            k += 1
+    out = np.empty(k)
+    k = 0
+    for c in range(mass.shape[0]):
+        if mass[c] > 0:
+            out[k] = mass[c]
+            k += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - compiled
+    """Connected components of the occupied cells of a ``(ny, nx, nt)`` raster (flat, C order).
+
+    26-neighbourhood; with ``wrap_t`` the heading axis is circular. ``lab`` (out, zeroed) gets
+    ``1..n`` for occupied cells and 0 elsewhere; components are numbered in the order of their
+    first cell in C order, which is the numbering ``scipy.ndimage.label`` plus the reference's
+    seam merge produce. Returns ``n``.
+    """
+    size = ny * nx * nt
+    stack = np.empty(size, dtype=np.int64)
+    n = 0
+    for start in range(size):
+        if not occupied[start] or lab[start] != 0:
+            continue
+        n += 1
+        lab[start] = n
+        top = 0
+        stack[0] = start
+        top = 1
+        while top > 0:
+            top -= 1
+            c = stack[top]
+            t = c % nt
+            xy = c // nt
+            x = xy % nx
+            y = xy // nx
+            for dy in range(-1, 2):
+                yy = y + dy
+                if yy < 0 or yy >= ny:
+                    continue
+                for dx in range(-1, 2):
+                    xx = x + dx
+                    if xx < 0 or xx >= nx:
+                        continue
+                    for dt in range(-1, 2):
+                        tt = t + dt
+                        if tt < 0 or tt >= nt:
+                            if not wrap_t:
+                                continue
+                            tt = (tt + nt) % nt
+                        cc = (yy * nx + xx) * nt + tt
+                        if occupied[cc] and lab[cc] == 0:
+                            lab[cc] = n
+                            stack[top] = cc
+                            top += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def particle_labels(ix, iy, it, nx, nt, lab, out):  # pragma: no cover - compiled
+    """``out[i] = lab[cell of particle i] - 1`` (-1: the particle's cell is in no cluster)."""
+    for i in range(ix.shape[0]):
+        out[i] = lab[(iy[i] * nx + ix[i]) * nt + it[i]] - 1
+
+
+@numba.njit(cache=True, nogil=True)
+def cluster_sums(labels, n, poses, sin_th, cos_th, w):  # pragma: no cover - compiled
+    """First pass of ``cluster_stats``: per cluster the count, weight, ``ww``-weighted sums of
+    ``x``, ``y``, ``sin``, ``cos`` (``ww`` = the weight, or ``1 / count`` in a zero-weight
+    cluster), in particle order. Returns ``(count, weight, wsum, sums (n, 4))``."""
+    count = np.zeros(n, dtype=np.int64)
+    weight = np.zeros(n)
+    for i in range(labels.shape[0]):
+        k = labels[i]
+        if k >= 0:
+            count[k] += 1
+            weight[k] += w[i]
+    sums = np.zeros((n, 4))
+    for i in range(labels.shape[0]):
+        k = labels[i]
+        if k < 0:
+            continue
+        ww = w[i] if weight[k] > 0 else 1.0 / max(count[k], 1)
+        sums[k, 0] += ww * poses[i, 0]
+        sums[k, 1] += ww * poses[i, 1]
+        sums[k, 2] += ww * sin_th[i]
+        sums[k, 3] += ww * cos_th[i]
+    wsum = np.empty(n)
+    for k in range(n):
+        wsum[k] = weight[k] if weight[k] > 0 else 1.0
+    return count, weight, wsum, sums
+
+
+@numba.njit(cache=True, nogil=True)
+def cluster_covariances(labels, n, poses, w, count, weight, wsum, mean):  # pragma: no cover - compiled
+    """Second pass of ``cluster_stats``: ``cov (n, 3, 3)`` about ``mean`` (wrapped heading residuals)."""
+    acc = np.zeros((n, 6))
+    r = np.empty(3)
+    for i in range(labels.shape[0]):
+        k = labels[i]
+        if k < 0:
+            continue
+        ww = w[i] if weight[k] > 0 else 1.0 / max(count[k], 1)
+        r[0] = poses[i, 0] - mean[k, 0]
+        r[1] = poses[i, 1] - mean[k, 1]
+        r[2] = _wrap(poses[i, 2] - mean[k, 2])
+        j = 0
+        for a in range(3):
+            for b in range(a, 3):
+                acc[k, j] += ww * r[a] * r[b]
+                j += 1
+    cov = np.empty((n, 3, 3))
+    for k in range(n):
+        j = 0
+        for a in range(3):
+            for b in range(a, 3):
+                v = acc[k, j] / wsum[k]
+                cov[k, a, b] = v
+                cov[k, b, a] = v
+                j += 1
+    return cov
+
+
+def heading_scale(bin_theta_rad: float) -> tuple[int, float]:
+    """``(nt, nt / (2 pi))`` of the reference's ``_heading_bins``."""
+    nt = max(1, round(2.0 * math.pi / bin_theta_rad))
+    return nt, nt / (2.0 * math.pi)

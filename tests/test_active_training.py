@@ -1,0 +1,211 @@
+"""Active-relocalization training: ActionRepeat, the CNN + MLP extractor, a PPO smoke run saved and
+reloaded through agents.load_policy, the shipped policy, and evaluate_active with learned policies."""
+
+import json
+import zipfile
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from test_evaluate_active import _load as load_evaluate_active
+
+import semreloc_env  # noqa: F401
+from agents.active_features import ActiveExtractor
+from agents.learned import META_NAME, SHIPPED_POLICY, load_policy, read_metadata
+from agents.train_active import ActiveTrainConfig, train_active
+from semreloc_env.observations import ActiveObservation
+from semreloc_env.wrappers import ActionRepeat
+
+
+def _env(**kw):
+    kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 50, **kw}
+    return gym.make("SemReloc-v2", **kw)
+
+
+def test_action_repeat_sums_rewards_and_terms_and_stops_at_the_episode_end():
+    plain, rep = _env(max_episode_steps=10), ActionRepeat(_env(max_episode_steps=10), 4)
+    plain.reset(seed=3)
+    rep.reset(seed=3)
+    total, terms = 0.0, {}
+    for _ in range(4):
+        _, r, _, _, info = plain.step(0)
+        total += r
+        for k, v in info["rewards"].items():
+            terms[k] = terms.get(k, 0.0) + v
+    obs_r, r_r, term_r, trunc_r, info_r = rep.step(0)
+    assert r_r == pytest.approx(total)
+    assert info_r["rewards"] == pytest.approx(terms) and info_r["inner_steps"] == 4
+    np.testing.assert_array_equal(info_r["pose"], info["pose"])
+    rep.step(0)  # 8 steps
+    *_, trunc, info = rep.step(0)  # only 2 steps left before the time limit
+    assert trunc and info["inner_steps"] == 2
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError):
+            ActionRepeat(_env(), bad)
+
+
+def test_extractor_handles_every_active_key_and_rejects_small_images():
+    env = ActiveObservation(_env())
+    ext = ActiveExtractor(env.observation_space, features_dim=16, cnn_channels=(4, 4, 4), image_dim=8, vector_dim=8)
+    assert ext.image_keys == ["ego", "global"]
+    assert "semantic_class" in ext.vector_keys and "hypotheses" in ext.vector_keys
+    from stable_baselines3.common.preprocessing import preprocess_obs
+
+    obs, _ = env.reset(seed=0)
+    batch = {k: torch.as_tensor(np.asarray(v)[None]) for k, v in obs.items()}
+    feats = ext(preprocess_obs(batch, env.observation_space))
+    assert feats.shape == (1, 16) and torch.all(torch.isfinite(feats))
+    small = gym.spaces.Dict({"img": gym.spaces.Box(0, 1, (3, 4, 4), np.float32)})
+    with pytest.raises(ValueError, match="H, W >= 8"):
+        ActiveExtractor(small)
+
+
+def test_learning_curve_needs_logged_rollouts(tmp_path):
+    from agents.train_active import plot_learning_curve
+
+    (tmp_path / "progress.csv").write_text("time/total_timesteps,rollout/success_rate,rollout/ep_rew_mean\n")
+    with pytest.raises(ValueError, match="no rows"):
+        plot_learning_curve(tmp_path / "progress.csv", tmp_path / "c.png")
+
+
+def test_config_rejects_bad_values():
+    with pytest.raises(ValueError):
+        ActiveTrainConfig(vec_env="ray")
+    with pytest.raises(ValueError):
+        ActiveTrainConfig(repeat=0)
+    with pytest.raises(ValueError):
+        ActiveTrainConfig(layout_seeds=(5, 5))
+    with pytest.raises(ValueError):
+        ActiveTrainConfig(kind_weights=(1.0,))
+    with pytest.raises(ValueError, match="unknown ActiveObservation"):
+        ActiveTrainConfig(observation={"ego_pixels": 3})
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("active")
+    config = ActiveTrainConfig(
+        kinds=("procedural",),
+        kind_weights=None,
+        layout_seeds=(0, 2),
+        particles=200,
+        max_episode_steps=40,
+        repeat=3,
+        n_envs=2,
+        vec_env="dummy",
+        total_timesteps=128,
+        n_steps=32,
+        batch_size=32,
+        n_epochs=1,
+        features_dim=16,
+        cnn_channels=(4, 4, 4),
+        net_arch=(8,),
+        checkpoint_every=64,
+        progress_bar=False,
+    )
+    return out, train_active(config, out)
+
+
+def test_ppo_smoke_run_writes_logs_checkpoints_and_a_loadable_policy(smoke_run):
+    out, path = smoke_run
+    assert path == out / "policy.zip"
+    assert (out / "progress.csv").read_text().count("\n") >= 2
+    assert list(out.glob("events.out.tfevents.*")), "no TensorBoard events"
+    assert list((out / "checkpoints").glob("ppo_*_steps.zip"))
+    assert (out / "learning_curve.png").stat().st_size > 0
+    timing = json.loads((out / "timing.json").read_text())
+    assert timing["decisions"] >= 128 and timing["env_steps_max"] == 3 * timing["decisions"]
+    meta = read_metadata(path)
+    assert meta["repeat"] == 3 and meta["explorer_option"] and meta["extra"]["config"]["particles"] == 200
+
+
+def test_loaded_policy_acts_deterministically_on_another_layout_and_particle_count(smoke_run):
+    _, path = smoke_run
+    runs = []
+    for _ in range(2):
+        policy = load_policy(path)
+        env = policy.wrap(_env(layout="lab", relocalizer={"n_particles": 1500}, max_episode_steps=12))
+        policy.reset()
+        obs, _ = env.reset(seed=4)
+        actions = []
+        for _ in range(12):
+            a = policy.act(obs)
+            assert env.action_space.contains(a)
+            actions.append(a)
+            obs, *_ = env.step(a)
+        runs.append(actions)
+    assert runs[0] == runs[1]
+    for k in range(0, 12, 3):  # one decision held for `repeat` steps
+        assert len(set(runs[0][k : k + 3])) == 1
+
+
+def test_load_policy_errors(smoke_run, tmp_path):
+    _, path = smoke_run
+    with pytest.raises(FileNotFoundError):
+        load_policy(tmp_path / "missing.zip")
+    (tmp_path / "junk.zip").write_text("not a zip")
+    with pytest.raises(ValueError, match="not a policy zip"):
+        load_policy(tmp_path / "junk.zip")
+    bare = tmp_path / "bare.zip"
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(bare, "w") as dst:
+        for name in src.namelist():
+            if name != META_NAME:
+                dst.writestr(name, src.read(name))
+    with pytest.raises(ValueError, match="no semreloc_policy.json"):
+        load_policy(bare)
+    assert load_policy(bare, observation={}, repeat=3).repeat == 3
+    policy = load_policy(path)
+    with pytest.raises(ValueError, match="observation space differs"):
+        policy.wrap(_env(camera={"n_beams": 16}))
+    with pytest.raises(ValueError, match="action space"):
+        policy.wrap(_env(action_type="continuous"))
+
+
+def test_evaluate_active_runs_a_learned_policy_and_reuses_earlier_rows(smoke_run, tmp_path):
+    _, path = smoke_run
+    ev = load_evaluate_active()
+    common = ["--layouts-per-kind", "0", "--starts", "1", "--max-steps", "6", "--particles", "100"]
+    common += ["--map-source", "perfect", "--workers", "1"]
+    ev.main([*common, "--policies", "spin", "--out", str(tmp_path / "a")])
+    ev.main([*common, "--policies", f"spin,ppo={path}", "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")])
+    a = json.loads((tmp_path / "a" / "episodes.json").read_text())
+    b = json.loads((tmp_path / "b" / "episodes.json").read_text())
+    assert [r for r in b if r["policy"] == "spin"] == a
+    assert sum(r["policy"] == "ppo" for r in b) == len(a) == 3
+    with pytest.raises(SystemExit):
+        ev.parse_args(["--policies", f"ppo={tmp_path / 'nope.zip'}"])
+
+
+@pytest.mark.skipif(not SHIPPED_POLICY.is_file(), reason="no policy shipped in this checkout")
+def test_shipped_policy_loads_and_acts():
+    assert SHIPPED_POLICY.stat().st_size <= 10 * 2**20
+    policy = load_policy(SHIPPED_POLICY)
+    env = policy.wrap(_env(layout="procedural_lookalike", layout_seed=7, max_episode_steps=8))
+    policy.reset()
+    obs, _ = env.reset(seed=0)
+    for _ in range(8):
+        a = policy.act(obs)
+        assert env.action_space.contains(a)
+        obs, *_ = env.step(a)
+
+
+def test_explorer_option_steps_as_the_explorer_and_checks_its_actions():
+    from agents.baselines import WallFollowExplorer
+    from agents.options import EXPLORE, ExplorerOption
+
+    env = ExplorerOption(_env(max_episode_steps=60))
+    ref, explorer = _env(max_episode_steps=60), WallFollowExplorer()
+    obs, _ = env.reset(seed=2)
+    ref_obs, _ = ref.reset(seed=2)
+    for _ in range(40):
+        a = explorer(ref_obs)
+        ref_obs, *_ = ref.step(a)
+        obs, _, _, _, info = env.step(EXPLORE)
+        assert info["explore_action"] == a
+        np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
+    for bad in (5, -1, 1.5, True, "0"):
+        with pytest.raises(ValueError):
+            env.step(bad)
+    with pytest.raises(TypeError):
+        ExplorerOption(_env(action_type="continuous"))

@@ -1,0 +1,142 @@
+"""The registered ids behave as their Version History says: SemReloc-v2 / SemSlam-v1 (typed observation,
+not-computed info values left out) against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env
+from semreloc_env.envs.spaces import semantic_parts
+from semreloc_env.layouts import CLASS_NAMES
+from semreloc_env.observations import ActiveObservation
+
+FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
+SLAM_FAST = {"slam": {"n_particles": 20}}
+START = {"pose": [2.0, 5.0, 0.0]}  # lab: objects in the camera's view within a few steps
+SLAM_START = {"pose": [2.0, 5.0, 1.5707963267948966]}  # lab: no object in view at first
+ACTIONS = [3, 0, 0, 1, 1, 3, 0, 2, 0, 0, 3, 1, 0, 0, 2, 3]  # 3 = stop: the motion gate skips that update
+
+
+def make(env_id, **kw):
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*out of date.*", category=DeprecationWarning)
+        return gym.make(env_id, **kw)
+
+
+def rollout(env, seed=4, options=START, actions=ACTIONS):
+    obs, info = env.reset(seed=seed, options=options)
+    out = [(obs, 0.0, False, False, info)]
+    for a in actions:
+        out.append(env.step(a))
+    return out
+
+
+def test_registered_ids_and_versions():
+    assert semreloc_env.ENV_IDS == ("SemReloc-v2", "SemReloc-v1", "SemReloc-v0", "SemSlam-v1", "SemSlam-v0")
+    for env_id in (*semreloc_env.ENV_IDS, *semreloc_env.VECTOR_ENV_IDS):
+        assert env_id in gym.registry
+    typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
+    flat = {"lidar", "odometry", "semantic"}
+    for env_id, keys in [
+        ("SemReloc-v2", typed),
+        ("SemReloc-v1", flat),
+        ("SemReloc-v0", flat),
+        ("SemSlam-v1", typed),
+        ("SemSlam-v0", flat),
+    ]:
+        env = make(env_id, **(SLAM_FAST if "Slam" in env_id else FAST))
+        assert set(env.observation_space.spaces) == keys, env_id
+    with pytest.warns(DeprecationWarning, match="out of date"):
+        gym.make("SemReloc-v1", **FAST)
+
+
+def test_typed_observation_space():
+    env = make("SemReloc-v2", camera={"n_beams": 7, "range_max_m": 5.0}, **FAST)
+    sc, sr = env.observation_space["semantic_class"], env.observation_space["semantic_range"]
+    assert isinstance(sc, gym.spaces.MultiDiscrete) and sc.dtype == np.int64
+    np.testing.assert_array_equal(sc.nvec, [1 + len(CLASS_NAMES)] * 7)
+    assert isinstance(sr, gym.spaces.Box) and sr.dtype == np.float32 and sr.shape == (7,)
+    assert sr.low.min() == 0.0 and sr.high.max() == np.float32(5.0)
+
+
+@pytest.mark.parametrize(
+    "new_id, old_id, kw, start, info_key, missing",
+    [
+        ("SemReloc-v2", "SemReloc-v1", FAST, START, "mcl", ("ess", "mean_lidar_beam_likelihood")),
+        ("SemSlam-v1", "SemSlam-v0", SLAM_FAST, SLAM_START, "slam_error", ("landmark",)),
+    ],
+)
+def test_new_and_old_ids_give_the_same_episode_in_their_own_layout(new_id, old_id, kw, start, info_key, missing):
+    actions = ACTIONS + [1] * 20 + [0] * 10  # turn until objects come into view
+    new, old = (
+        rollout(make(new_id, **kw), options=start, actions=actions),
+        rollout(make(old_id, **kw), options=start, actions=actions),
+    )
+    dropped = 0
+    for (o2, r2, t2, tr2, i2), (o1, r1, t1, tr1, i1) in zip(new, old):
+        # observation: the same numbers, typed in v2
+        assert o2["semantic_class"].dtype == np.int64
+        np.testing.assert_array_equal(o2["lidar"], o1["lidar"])
+        np.testing.assert_array_equal(o2["odometry"], o1["odometry"])
+        n = o2["semantic_range"].size
+        np.testing.assert_array_equal(o2["semantic_range"], o1["semantic"][:n])
+        np.testing.assert_array_equal(o2["semantic_class"], o1["semantic"][n:])
+        for o in (o1, o2):
+            ranges, labels = semantic_parts(o)
+            np.testing.assert_array_equal(ranges, o2["semantic_range"])
+            np.testing.assert_array_equal(labels, o2["semantic_class"])
+        assert (r2, t2, tr2) == (r1, t1, tr1)
+        # info: the same, except that v2 leaves out what v1 sets to None
+        for k in missing:
+            if i1[info_key][k] is None:
+                assert k not in i2[info_key]
+                dropped += 1
+                i1 = {**i1, info_key: {kk: v for kk, v in i1[info_key].items() if kk != k}}
+        np.testing.assert_equal(i2, i1)
+        assert not any(v is None for v in i2[info_key].values())
+        assert not any(isinstance(v, float) and np.isnan(v) for v in i2[info_key].values())
+    assert dropped > 0  # the rollout did hit steps with values not computed
+    assert any((o["semantic_class"] > 0).any() for o, *_ in new)  # and saw objects
+
+
+def test_vector_env_v2_batches_info_as_typed_arrays_and_follows_semreloc_v2():
+    kw = dict(layout="twin_rooms", relocalizer={"n_particles": 200}, max_episode_steps=10)
+    venv = gym.make_vec("SemRelocVec-v2", num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    single = make("SemReloc-v2", **kw)
+    assert venv.single_observation_space == single.observation_space
+    obs, infos = venv.reset(seed=3)
+    ref = single.reset(seed=3)
+    np.testing.assert_equal({k: v[0] for k, v in obs.items()}, ref[0])
+    rng = np.random.default_rng(0)
+    kinds = set()
+    for _ in range(12):
+        actions = rng.integers(0, 4, size=2)
+        actions[0] = 3 if rng.random() < 0.5 else actions[0]  # stops: updates the gate skips
+        obs, rewards, terms, truncs, infos = venv.step(actions)
+        for key, arr in infos["mcl"].items():
+            assert arr.dtype != object, key  # v1 made object arrays of None here
+        if "ess" in infos["mcl"]:
+            kinds.add(tuple(infos["mcl"]["_ess"]))
+            assert np.isfinite(infos["mcl"]["ess"][infos["mcl"]["_ess"]]).all()
+    assert kinds  # some step had the ESS computed for a robot
+    venv.close()
+    with pytest.raises(TypeError, match="SemReloc-v2"):
+        gym.make_vec("SemRelocVec-v2", num_envs=1, vectorization_mode="vector_entry_point", env_id="SemReloc-v1")
+    v1 = gym.make_vec("SemRelocVec-v1", num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    assert "semantic" in v1.single_observation_space.spaces
+    v1.close()
+
+
+def test_active_observation_is_the_same_on_v1_and_v2():
+    """ActiveObservation reads either raw layout and gives the same spaces and values."""
+    kw = dict(layout="lab", **FAST)
+    a1, a2 = ActiveObservation(make("SemReloc-v1", **kw)), ActiveObservation(make("SemReloc-v2", **kw))
+    assert a1.observation_space == a2.observation_space
+    seen = False
+    for (o1, *rest1), (o2, *rest2) in zip(rollout(a1), rollout(a2)):
+        np.testing.assert_equal(o2, o1)
+        assert rest1[:3] == rest2[:3]
+        seen |= bool((o2["semantic_class"] > 0).any())
+    assert seen
