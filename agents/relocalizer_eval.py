@@ -15,8 +15,10 @@ stopping at success, so the belief is watched after it claims convergence. Per e
 * **cpu_s_per_step**: process CPU time per env step (the machine may be shared).
 * **median_error_m**: median position error of the estimate over the scored steps.
 
-:func:`run_grid` runs many episodes in a process pool, deterministically: each episode's
-result depends only on its :class:`EpisodeSpec`.
+Each episode's result depends only on its :class:`EpisodeSpec`, so many of them run with
+:func:`filters.experiments.runner.run_jobs` (``run_jobs(run_episode, specs, runner)``) give the
+same results sequentially, in a process pool or on Ray. :func:`log_trial` and :func:`log_tracking`
+are the jobs of the ACES-log rows. The command is :mod:`agents.experiments.evaluate_relocalizer`.
 """
 
 from __future__ import annotations
@@ -24,7 +26,6 @@ from __future__ import annotations
 import json
 import math
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -141,11 +142,6 @@ def run_episode(spec: EpisodeSpec) -> dict:
     return out
 
 
-def run_grid(specs: list[EpisodeSpec], workers: int = 1, progress=None) -> list[dict]:
-    """Run every spec (in a process pool if ``workers > 1``); results in the order of ``specs``."""
-    return run_jobs(run_episode, specs, workers, progress)
-
-
 wilson = wilson_interval  # Wilson 95 % interval of ``k / n`` (filters.experiments.stats)
 
 
@@ -243,19 +239,3 @@ def log_tracking(job: tuple) -> dict:
     c0 = time.process_time()
     tr = track(log, grid, cfg, rng_seed=seed)
     return {"label": label, "seed": seed, **tr.stats(), "cpu_s_per_scan": (time.process_time() - c0) / len(log)}
-
-
-def run_jobs(fn, jobs: list, workers: int, progress=None) -> list:
-    """``[fn(j) for j in jobs]``, in a process pool if ``workers > 1`` (same order, same results);
-    ``progress(done, total)`` is called after each job."""
-    out = []
-    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
-    try:
-        for r in pool.map(fn, jobs, chunksize=1) if pool else map(fn, jobs):
-            out.append(r)
-            if progress:
-                progress(len(out), len(jobs))
-    finally:
-        if pool:
-            pool.shutdown()
-    return out

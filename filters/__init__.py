@@ -14,6 +14,9 @@ real robot as well as from :mod:`semreloc_env`. One subpackage per concept:
 * :mod:`filters.robot_data` -- sensor data containers (laser and semantic scans).
 * :mod:`filters.simulators` -- simulators that serve only experiments and tests (car-like SLAM
   simulator, grid ray caster).
-* :mod:`filters.experiments` -- what experiment scripts share: confidence intervals (``scipy.stats``).
+* :mod:`filters.experiments` -- what every experiment shares: the runner (sequential, process pool or
+  Ray), confidence intervals (``scipy.stats``), report writers, typed command lines (tyro); and the
+  paper 000 / 001 reproductions, which need nothing above this package.
+* :mod:`filters.tools` -- commands over the filters alone (replaying a robot log).
 * :mod:`filters.pose` -- pose algebra shared by all of the above.
 """

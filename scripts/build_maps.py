@@ -1,78 +1,10 @@
 """Build the maps of a layout from a simulated mapping run and save them as ROS map_server files.
 
-Writes ``<out>/<name>.yaml`` + ``.pgm`` (occupancy) and ``<name>.semantic.yaml`` +
-one ``.pgm`` per class (see docs/maps.md), plus ``<name>.perfect.*`` (the rasterised
-layout) with ``--perfect``. Prints how well the mapped grids match the layout.
-
-    python scripts/build_maps.py --layout lab --out maps/
-    python scripts/build_maps.py --layout my_floor.yaml --seed 3 --out maps/
-
-Use the result with ``gym.make("SemReloc-v1", layout="lab", map_source="maps/lab.yaml")``.
+The command lives in :mod:`semreloc_env.tools.build_maps` (also installed as ``semreloc-build-maps``);
+``python scripts/build_maps.py --help`` lists every option.
 """
 
-from __future__ import annotations
-
-import argparse
-import time
-from dataclasses import dataclass
-from pathlib import Path
-
-import numpy as np
-
-from filters.mapping.metrics import semantic_surface_quality
-from filters.mapping.ros_map import save_map
-from semreloc_env.layouts import get_layout
-from semreloc_env.mapping_run import build_maps, mapping_path
-from semreloc_env.rasterize import rasterize
-
-
-@dataclass(frozen=True)
-class Args:
-    layout: str = "lab"
-    """built-in name or layout file"""
-    layout_seed: int = 0
-    """seed of procedural layouts"""
-    seed: int = 0
-    """seed of the sensor noise during the mapping run"""
-    resolution: float = 0.05
-    """cell size, metres"""
-    perfect: bool = False
-    """also save the rasterised layout"""
-    out: str = "maps"
-    """output folder"""
-
-
-def parse_args(argv=None) -> Args:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    for name, f in Args.__dataclass_fields__.items():
-        flag = "--" + name.replace("_", "-")
-        if isinstance(f.default, bool):
-            p.add_argument(flag, action="store_true", help=f.name)
-        else:
-            p.add_argument(flag, type=type(f.default), default=f.default, help=f"default {f.default}")
-    return Args(**vars(p.parse_args(argv)))
-
-
-def main(argv=None) -> Path:
-    args = parse_args(argv)
-    layout = get_layout(args.layout, seed=args.layout_seed)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    grid = build_maps(layout, rng=np.random.default_rng(args.seed), resolution_m=args.resolution)
-    name = layout.name if not layout.name.startswith("procedural") else f"{layout.name}_{args.layout_seed}"
-    path = save_map(grid, out / f"{name}.yaml")
-    truth = rasterize(layout, args.resolution)
-    print(f"{layout.name}: {len(mapping_path(layout))} poses mapped in {time.perf_counter() - t0:.1f} s -> {path}")
-    for name, q in semantic_surface_quality(grid, truth).items():
-        print(
-            f"  {name:10s} IoU vs visible surface {q['iou']:.2f}, precision {q['precision']:.2f}, "
-            f"recall {q['recall']:.2f} (1-cell tolerance)"
-        )
-    if args.perfect:
-        save_map(truth, out / f"{name}.perfect.yaml")
-    return path
-
+from semreloc_env.tools.build_maps import main
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -3,7 +3,7 @@
 Random valid layouts are built valid by construction: a rectangular (or L-shaped) outer wall
 cut into 2 m cells, interior walls along cell lines, at most one furniture polygon strictly
 inside each cell (so nothing overlaps or crosses a wall). Runtime is kept to a few tens of
-seconds; ``scripts/soak.py`` runs the same checks for millions of steps.
+seconds; ``scripts/soak.py`` (:mod:`semreloc_env.tools.soak`) runs the same checks for millions of steps.
 """
 
 import copy
@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 import semreloc_env  # noqa: F401
 from semreloc_env.layouts import CLASS_NAMES, LayoutError, layout_from_dict
+from semreloc_env.tools.soak import all_finite as _finite
 
 CELL = 2.0
 # derandomize: the suite stays deterministic; scripts/soak.py explores further
@@ -57,19 +58,6 @@ def valid_layouts(draw) -> dict:
         poly = [[c[0] + radius * math.cos(a), c[1] + radius * math.sin(a)] for a in ang]
         objects.append({"class": cls, "polygon": poly, "name": f"o{i}_{j}"})
     return {"name": "hyp", "outer": outer, "walls": walls, "objects": objects}
-
-
-def _finite(x) -> bool:
-    """No NaN in any number of an observation or info (None stands for 'not computed')."""
-    if isinstance(x, dict):
-        return all(_finite(v) for v in x.values())
-    if isinstance(x, (list, tuple)):
-        return all(_finite(v) for v in x)
-    if isinstance(x, np.ndarray):
-        return x.dtype.kind not in "fc" or not np.isnan(x).any()
-    if isinstance(x, float):
-        return not math.isnan(x)
-    return True
 
 
 @SETTINGS

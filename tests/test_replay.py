@@ -1,6 +1,5 @@
 """Map from a log, tracking and global localization replayed on the ACES log, and scripts/replay_log.py."""
 
-import importlib.util
 import math
 from pathlib import Path
 
@@ -113,14 +112,16 @@ def test_replay_script(tmp_path, aces_map):
     from filters.mapping.ros_map import save_map
 
     save_map(aces_map, tmp_path / "aces.yaml")
-    spec = importlib.util.spec_from_file_location("replay_log", ROOT / "scripts" / "replay_log.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    from filters.experiments.cli import parse
+    from filters.tools import replay_log
+
     out = tmp_path / "out"
-    res = mod.main(
+    args = parse(
+        replay_log.Args,
         ["--map", str(tmp_path / "aces.yaml"), "--particles", "300", "--steps", "20", "--frame-every", "5",
-         "--out", str(out)]
+         "--out", str(out)],
     )  # fmt: skip
+    res = replay_log.run(args)
     assert (out / "error.png").stat().st_size > 0
     assert (out / "particles.gif").stat().st_size > 0
     assert res["track"]["steps"] == 20 and res["track"]["pos_median_m"] < 0.3

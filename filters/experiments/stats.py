@@ -52,20 +52,25 @@ def _sample(x) -> np.ndarray:
     return x
 
 
-def t_mean_interval(x, level: float = 0.95) -> tuple[float, float]:
-    """``(mean, half_width)`` of the Student-t ``level`` interval of the mean of ``x``.
-
-    The half-width is ``t_{(1+level)/2, n-1} * s / sqrt(n)`` with the sample standard deviation ``s``
-    (``ddof=1``); it is ``nan`` for fewer than two values (and the mean too for none).
-    """
+def _mean_interval(x, level: float, quantile: Callable[[float, int], float]) -> tuple[float, float]:
+    """``(mean, quantile(q, n) * s / sqrt(n))`` with ``q = (1 + level) / 2``; see the two callers."""
     _check_level(level)
     x = _sample(x)
     if x.size == 0:
         return (math.nan, math.nan)
     if x.size < 2:
         return (float(x.mean()), math.nan)
-    half = stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size)
+    half = quantile(0.5 + level / 2, x.size) * x.std(ddof=1) / math.sqrt(x.size)
     return (float(x.mean()), float(half))
+
+
+def t_mean_interval(x, level: float = 0.95) -> tuple[float, float]:
+    """``(mean, half_width)`` of the Student-t ``level`` interval of the mean of ``x``.
+
+    The half-width is ``t_{(1+level)/2, n-1} * s / sqrt(n)`` with the sample standard deviation ``s``
+    (``ddof=1``); it is ``nan`` for fewer than two values (and the mean too for none).
+    """
+    return _mean_interval(x, level, lambda q, n: stats.t.ppf(q, n - 1))
 
 
 def normal_mean_interval(x, level: float = 0.95) -> tuple[float, float]:
@@ -74,14 +79,7 @@ def normal_mean_interval(x, level: float = 0.95) -> tuple[float, float]:
     The half-width is ``z_{(1+level)/2} * s / sqrt(n)`` (``z = 1.959964`` at 95 %), ``s`` with
     ``ddof=1``; ``nan`` for fewer than two values (and the mean too for none).
     """
-    _check_level(level)
-    x = _sample(x)
-    if x.size == 0:
-        return (math.nan, math.nan)
-    if x.size < 2:
-        return (float(x.mean()), math.nan)
-    half = stats.norm.ppf(0.5 + level / 2) * x.std(ddof=1) / math.sqrt(x.size)
-    return (float(x.mean()), float(half))
+    return _mean_interval(x, level, lambda q, n: stats.norm.ppf(q))
 
 
 def relative_reduction_pct(base: np.ndarray, new: np.ndarray, axis: int = -1) -> np.ndarray:

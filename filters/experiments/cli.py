@@ -1,0 +1,45 @@
+"""Typed command lines from the config dataclasses (tyro), shared by every command of the project.
+
+A command is a frozen dataclass ``Args`` whose fields are its options: the type is the option's
+type, the default the option's default, the docstring under the field its ``--help`` text, and
+``__post_init__`` rejects bad values (tyro prints the message and exits with status 2). Then::
+
+    def main(argv: list[str] | None = None) -> int:
+        args = parse(Args, argv, __doc__)
+        ...
+
+``field_name`` becomes ``--field-name``; a ``bool`` becomes ``--flag`` / ``--no-flag``; a
+``tuple[int, ...]`` takes several values (``--particles 50 100``). A ``runner: Runner = RunnerConfig()``
+field adds the experiment runner's options (``--executor``, ``--workers``, ``--address``,
+``--progress``) without a prefix.
+
+Every command is a console entry point (``[project.scripts]`` in pyproject.toml) and a file in
+``scripts/`` that calls the same ``main``.
+"""
+
+from __future__ import annotations
+
+import shlex
+from collections.abc import Sequence
+from typing import TypeVar
+
+import tyro
+
+from filters.experiments.runner import RunnerConfig
+
+__all__ = ["Runner", "parse", "command_line"]
+
+T = TypeVar("T")
+
+Runner = tyro.conf.OmitArgPrefixes[RunnerConfig]
+"""Annotation of an ``Args`` field holding the runner's options, flags without a ``runner.`` prefix."""
+
+
+def parse(cls: type[T], argv: Sequence[str] | None = None, description: str | None = None) -> T:
+    """``cls`` filled from ``argv`` (default: ``sys.argv[1:]``); ``--help`` prints every option."""
+    return tyro.cli(cls, args=None if argv is None else list(argv), description=description)
+
+
+def command_line(script: str, argv: Sequence[str]) -> str:
+    """The shell command that reruns ``script`` (a path under ``scripts/``) with ``argv``, quoted."""
+    return " ".join(["python", script, *(shlex.quote(a) for a in argv)])

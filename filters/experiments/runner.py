@@ -1,0 +1,166 @@
+"""The experiment runner: a list of seeded jobs mapped over one function, sequentially, in a local
+process pool or on Ray (this machine or a cluster), with the same results in job order either way.
+
+Contract of a job function ``fn(job) -> result``:
+
+* it is a module-level function (importable by name: process pools and Ray pickle it by reference);
+* ``job`` and ``result`` are picklable plain data (tuples, dicts, dataclasses, NumPy arrays);
+* every random draw inside comes from generators seeded from ``job`` alone (for example
+  ``np.random.default_rng([seed, run, ...])``), never from global state or from the order in which
+  jobs run. Then :func:`run_jobs` returns the same list with every executor and any worker count
+  (wall-clock and CPU times measured inside a job aside).
+
+Use::
+
+    from filters.experiments.runner import RunnerConfig, run_jobs
+
+    results = run_jobs(my_job, [(seed, r) for r in range(100)], RunnerConfig(workers=2), desc="runs")
+
+A command line gets the runner's options by holding a ``runner: filters.experiments.cli.Runner`` field in its tyro
+``Args`` dataclass (``--executor``, ``--workers``, ``--address``, ``--progress/--no-progress``;
+see :mod:`filters.experiments.cli`).
+
+Executors (``RunnerConfig.executor``):
+
+* ``"sequential"``: ``[fn(j) for j in jobs]`` in this process.
+* ``"process"``: a :class:`concurrent.futures.ProcessPoolExecutor` of ``workers`` processes.
+* ``"ray"``: one Ray task per job (``num_cpus=1`` each). If Ray is not initialised yet, the runner
+  calls ``ray.init(address=address)`` for a cluster (``"auto"``, ``"ray://head:10001"``, ...) or,
+  with no address, ``ray.init(num_cpus=workers, include_dashboard=False)`` on this machine, and
+  shuts Ray down afterwards; an already initialised Ray is used as it is and left running. Ray is
+  the optional extra ``ray`` (``pip install -e ".[ray]"``); every node of a cluster needs this
+  package installed at the same commit (see docs/cluster.md).
+* ``"auto"`` (default): ``"ray"`` if an address is given, else ``"process"`` if ``workers > 1``,
+  else ``"sequential"``.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Any, Literal
+
+__all__ = ["EXECUTORS", "RunnerConfig", "run_jobs"]
+
+EXECUTORS = ("auto", "sequential", "process", "ray")
+
+Executor = Literal["auto", "sequential", "process", "ray"]
+
+
+@dataclass(frozen=True)
+class RunnerConfig:
+    """How the runs are executed; the results do not depend on it (docs/cluster.md)."""
+
+    executor: Executor = "auto"
+    """auto (ray with --address, process pool with --workers > 1, else sequential), sequential, process or ray"""
+    workers: int = 1
+    """worker processes (process pool) or CPUs given to a local Ray; ignored on a Ray cluster"""
+    address: str = ""
+    """Ray cluster address ('auto' or 'ray://<head>:10001'); empty = run on this machine"""
+    progress: bool = True
+    """show a progress bar on stderr"""
+
+    def __post_init__(self) -> None:
+        if self.executor not in EXECUTORS:
+            raise ValueError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+            raise ValueError(f"workers must be an int >= 1, got {self.workers!r}")
+        if self.address and self.executor not in ("auto", "ray"):
+            raise ValueError(f"address {self.address!r} needs the ray executor, not {self.executor!r}")
+
+    @property
+    def resolved_executor(self) -> str:
+        """The executor ``"auto"`` stands for with these settings."""
+        if self.executor != "auto":
+            return self.executor
+        if self.address:
+            return "ray"
+        return "process" if self.workers > 1 else "sequential"
+
+
+def run_jobs(
+    fn: Callable[[Any], Any],
+    jobs: Sequence[Any],
+    config: RunnerConfig | None = None,
+    desc: str = "jobs",
+    on_result: Callable[[int, int], None] | None = None,
+) -> list:
+    """``[fn(job) for job in jobs]``, executed as ``config`` says; results in the order of ``jobs``.
+
+    ``on_result(done, total)`` is called in this process after each finished job (in completion
+    order); ``config.progress`` adds a tqdm bar named ``desc`` on stderr. An exception raised by a
+    job propagates (the remaining jobs of a pool are cancelled).
+    """
+    config = config or RunnerConfig()
+    jobs = list(jobs)
+    if not jobs:
+        return []
+    bar = None
+    if config.progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(jobs), desc=desc, unit="job", file=sys.stderr)
+    done = 0
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        if bar is not None:
+            bar.update(1)
+        if on_result is not None:
+            on_result(done, len(jobs))
+
+    try:
+        kind = config.resolved_executor
+        if kind == "sequential":
+            out = []
+            for job in jobs:
+                out.append(fn(job))
+                tick()
+            return out
+        if kind == "process":
+            out = []
+            with ProcessPoolExecutor(max_workers=config.workers) as pool:
+                for result in pool.map(fn, jobs, chunksize=1):
+                    out.append(result)
+                    tick()
+            return out
+        return _run_ray(fn, jobs, config, tick)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _run_ray(fn: Callable, jobs: list, config: RunnerConfig, tick: Callable[[], None]) -> list:
+    try:
+        import ray
+    except ImportError as e:  # pragma: no cover - depends on the installation
+        raise ImportError(
+            'the ray executor needs Ray: python -m pip install -e ".[ray]" (or pip install "ray>=2.9")'
+        ) from e
+    started = not ray.is_initialized()
+    if started:
+        if config.address:
+            ray.init(address=config.address)
+        else:
+            ray.init(num_cpus=config.workers, include_dashboard=False, log_to_driver=False)
+    try:
+        remote = ray.remote(num_cpus=1)(_apply)
+        fn_ref = ray.put(fn)  # pickled once; any callable (a builtin too), resolved on the worker
+        refs = [remote.remote(fn_ref, job) for job in jobs]
+        pending = list(refs)
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            ray.get(ready)  # raise a failed job's exception now
+            tick()
+        return ray.get(refs)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _apply(fn: Callable, job: Any) -> Any:
+    """``fn(job)``: the Ray task (a plain function, so that ``fn`` may be any picklable callable)."""
+    return fn(job)

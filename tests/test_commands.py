@@ -1,0 +1,53 @@
+"""The command lines: every console entry point resolves to a ``main(argv)`` that parses typed options
+(``--help`` exits 0, a bad value exits 2), and every file in ``scripts/`` that names one calls it."""
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+# [project.scripts] of pyproject.toml (read by hand: tomllib needs Python 3.11)
+_SECTION = (ROOT / "pyproject.toml").read_text().split("[project.scripts]\n", 1)[1].split("\n[", 1)[0]
+ENTRY_POINTS = dict(re.findall(r'^([\w-]+) = "([\w.:]+)"$', _SECTION, re.M))
+BAD = {  # one rejected value per command (checked in the Args dataclass or by the type)
+    "semreloc-demo": ["--steps", "0"],
+    "semreloc-repro-paper000": ["--association", "nearest"],
+    "semreloc-repro-paper001": ["--runs", "1"],
+    "semreloc-repro-paper004": ["--cases", "kitchen"],
+    "semreloc-semslam-eval": ["--policy", "random"],
+    "semreloc-evaluate-relocalizer": ["--variants", "nope"],
+    "semreloc-soak": ["--episode-steps", "2"],
+    "semreloc-build-maps": ["--resolution", "0"],
+    "semreloc-replay-log": ["--mode", "teleport"],
+}
+
+
+def _main(target: str):
+    module, func = target.split(":")
+    return getattr(importlib.import_module(module), func)
+
+
+@pytest.mark.parametrize("name", sorted(ENTRY_POINTS))
+def test_entry_point_parses_typed_options(name, capsys):
+    main = _main(ENTRY_POINTS[name])
+    with pytest.raises(SystemExit) as ok:
+        main(["--help"])
+    assert ok.value.code == 0
+    assert "--help" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as bad:
+        main(BAD[name])
+    assert bad.value.code == 2
+
+
+def test_every_entry_point_has_its_script_and_each_script_calls_it():
+    assert set(BAD) == set(ENTRY_POINTS)
+    for name, target in ENTRY_POINTS.items():
+        script = ROOT / "scripts" / (name.removeprefix("semreloc-").replace("-", "_") + ".py")
+        if name.startswith("semreloc-repro-"):
+            script = ROOT / "scripts" / ("repro_" + name.removeprefix("semreloc-repro-") + ".py")
+        text = script.read_text()
+        module = target.split(":")[0]
+        assert re.search(rf"^from {re.escape(module)} import main$", text, re.M), script
+        assert "sys.path" not in text

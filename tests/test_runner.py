@@ -1,0 +1,77 @@
+"""filters.experiments.runner: the same results in job order sequentially, in a process pool and on a
+local Ray, on real seeded jobs (paper 001's Table 1 and reference runs); options checked."""
+
+import pytest
+
+from filters.experiments import paper001
+from filters.experiments.cli import parse
+from filters.experiments.runner import RunnerConfig, run_jobs
+
+
+def _table1_jobs():
+    args = parse(paper001.Args, ["--runs", "3", "--steps", "15", "--particles", "20", "30", "--no-ablations"])
+    return [(args, n, r) for n in args.particles for r in range(args.runs)]
+
+
+def _rmse(results):
+    return [res["rmse"] for res in results]
+
+
+def test_process_pool_gives_the_sequential_results_in_job_order():
+    jobs = _table1_jobs()
+    seq = run_jobs(paper001.table1_job, jobs, RunnerConfig(executor="sequential", progress=False))
+    pool = run_jobs(paper001.table1_job, jobs, RunnerConfig(executor="process", workers=2, progress=False))
+    assert _rmse(pool) == _rmse(seq)
+    # the jobs differ from each other (the comparison is not between constants)
+    assert len({tuple(r.values()) for r in _rmse(seq)}) == len(jobs)
+    # job order, not completion order: run r of the first N is the job (args, 20, r)
+    one = paper001.table1_job(jobs[1])
+    assert seq[1]["rmse"] == one["rmse"]
+
+
+def test_ray_gives_the_sequential_results():
+    ray = pytest.importorskip("ray")
+    jobs = _table1_jobs()
+    ref_jobs = [(paper001.Args(runs=3, steps=15, reference_particles=200), r) for r in range(3)]
+    seq = run_jobs(paper001.table1_job, jobs, RunnerConfig(executor="sequential", progress=False))
+    seq_ref = run_jobs(paper001.reference_job, ref_jobs, RunnerConfig(progress=False))
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        cfg = RunnerConfig(executor="ray", progress=False)
+        assert _rmse(run_jobs(paper001.table1_job, jobs, cfg)) == _rmse(seq)
+        assert run_jobs(paper001.reference_job, ref_jobs, cfg) == seq_ref
+        assert run_jobs(abs, [-1, 2], cfg) == [1, 2]  # any picklable callable, a builtin too
+        assert ray.is_initialized()  # a Ray started by the caller is left running
+    finally:
+        ray.shutdown()
+
+
+def test_progress_callback_and_auto_executor():
+    calls = []
+    out = run_jobs(abs, [-3, 2, -1], RunnerConfig(progress=False), on_result=lambda k, n: calls.append((k, n)))
+    assert out == [3, 2, 1] and calls == [(1, 3), (2, 3), (3, 3)]
+    assert run_jobs(abs, [], RunnerConfig(progress=False)) == []
+    assert RunnerConfig().resolved_executor == "sequential"
+    assert RunnerConfig(workers=2).resolved_executor == "process"
+    assert RunnerConfig(address="auto").resolved_executor == "ray"
+
+
+@pytest.mark.parametrize(
+    "kw, msg",
+    [
+        ({"executor": "threads"}, "executor"),
+        ({"workers": 0}, "workers"),
+        ({"workers": True}, "workers"),
+        ({"executor": "process", "address": "auto"}, "address"),
+    ],
+)
+def test_bad_runner_options_are_rejected(kw, msg):
+    with pytest.raises(ValueError, match=msg):
+        RunnerConfig(**kw)
+
+
+def test_runner_options_on_the_command_line():
+    args = parse(paper001.Args, ["--workers", "2", "--executor", "process", "--no-progress"])
+    assert args.runner == RunnerConfig(executor="process", workers=2, progress=False)
+    with pytest.raises(SystemExit):
+        parse(paper001.Args, ["--workers", "0"])
