@@ -21,6 +21,7 @@ BAD = {  # one rejected value per command (checked in the Args dataclass or by t
     "semreloc-soak": ["--episode-steps", "2"],
     "semreloc-build-maps": ["--resolution", "0"],
     "semreloc-replay-log": ["--mode", "teleport"],
+    "semreloc-train-active": ["--config.repeat", "0"],
 }
 
 

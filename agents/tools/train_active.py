@@ -1,0 +1,36 @@
+"""Train a PPO policy for active relocalization (`agents.train_active`) and save it for `agents.load_policy`.
+
+Every option is a field of `agents.train_active.ActiveTrainConfig` (`--config.<field>`); everything the
+run writes goes under `--out`: config.json, progress.csv, TensorBoard events
+(`tensorboard --logdir <out>`), checkpoints/, policy.zip, timing.json, learning_curve.png. Evaluate the
+result with `python scripts/evaluate_active.py --policies info_gain wall_follow ppo=<out>/policy.zip`.
+
+The documented run (docs/active.md):
+    python scripts/train_active.py --out out/active --config.time-budget-s 3000 --config.layout-seeds 0 100
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from filters.experiments.cli import parse
+
+from ..train_active import ActiveTrainConfig, train_active
+
+
+@dataclass(frozen=True)
+class Args:
+    config: ActiveTrainConfig = field(default_factory=ActiveTrainConfig)
+    """the training run"""
+    out: str = "out/active"
+    """output folder (created; nothing is written elsewhere)"""
+    resume: str | None = None
+    """a checkpoint .zip of this run to continue from"""
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command: parse ``argv`` (default ``sys.argv[1:]``), train, save; prints the policy's path."""
+    args = parse(Args, argv, __doc__)
+    path = train_active(args.config, args.out, resume=args.resume)
+    print(f"saved {path}")
+    return 0
