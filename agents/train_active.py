@@ -56,7 +56,7 @@ class ActiveTrainConfig:
     """layout kinds drawn for training (`semreloc_env.layout_sampling.LayoutSampler`)"""
     kind_weights: tuple[float, ...] | None = (1.0, 1.0, 2.0)
     """one weight per kind (None: equal)"""
-    layout_seeds: tuple[int, int] = (0, 1000)
+    layout_seeds: tuple[int, int] = (0, 100)
     """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
     mapping-run cache serve repeats"""
     particles: int = 1000
