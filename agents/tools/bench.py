@@ -2,9 +2,11 @@
 
 Usage::
 
-    PYTHONPATH=. python scripts/bench.py              # everything (~3 min on 2 shared cores)
-    PYTHONPATH=. python scripts/bench.py --quick      # skip the building-size layout and PPO
-    PYTHONPATH=. python scripts/bench.py --only env,stages
+    python scripts/bench.py                 # everything (~3 min on 2 shared cores)
+    python scripts/bench.py --quick         # skip the building-size layout and PPO
+    python scripts/bench.py --only env stages
+
+(``semreloc-bench`` is the same command; ``--help`` lists every option.)
 
 Every figure is given twice: per CPU-second of this process (``time.process_time``; what
 counts on a machine shared with other jobs) and per wall-clock second. Each benchmark is a
@@ -14,24 +16,18 @@ excluded (warm-up calls before timing); repeated timings report the median.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import statistics
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 
-try:
-    import filters  # noqa: F401
-except ImportError:  # running from a checkout without `pip install -e .`
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import numba
-
+from filters.experiments.cli import parse
 from filters.localization.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
 from filters.localization.likelihood_reference import log_likelihood_reference
 from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
@@ -60,8 +56,21 @@ class Args:
     """PPO training steps (4 envs x 256-step rollouts: 4 rollouts)."""
     quick: bool = False
     """skip the building-size layout and PPO."""
-    only: str = ""
-    """comma-separated benchmark names (e.g. "likelihood,env"); empty = all."""
+    only: tuple[str, ...] = ()
+    """benchmark names, space-separated (e.g. likelihood env); empty = all."""
+
+    def __post_init__(self) -> None:
+        names = [b.__name__.removeprefix("bench_") for b in BENCHMARKS]
+        unknown = [o for o in self.only if o not in names]
+        if unknown:
+            raise ValueError(f"only: unknown benchmarks {unknown}; choose from {names}")
+        positive = ("particles", "beams", "repeats", "steps", "ppo_steps")
+        bad = [f"{k}={getattr(self, k)}" for k in positive if getattr(self, k) < 1]
+        if bad or self.semantic_beams < 0 or self.map_size_m <= 0:
+            raise ValueError(
+                f"particles, beams, repeats, steps, ppo_steps must be >= 1, semantic_beams >= 0 and map_size_m > 0; "
+                f"got {bad or (self.semantic_beams, self.map_size_m)}"
+            )
 
 
 @dataclass(frozen=True)
@@ -435,7 +444,6 @@ def bench_reset(args: Args) -> list[Row]:
 _READY_CHILD = r"""
 import json, os, resource, sys, time
 os.environ["SEMRELOC_CACHE_DIR"] = ""
-sys.path.insert(0, os.getcwd())
 import gymnasium as gym, numpy as np
 import semreloc_env
 from semreloc_env.layouts import get_layout
@@ -458,6 +466,18 @@ print(json.dumps({"area": (x1 - x0) * (y1 - y0), "w": x1 - x0, "h": y1 - y0, "po
 """
 
 
+def _child_env() -> dict[str, str]:
+    """This process's environment with the folder holding the imported packages first on ``PYTHONPATH``,
+    so a child process imports the same code (a checkout or worktree, not another installed copy)."""
+    import os
+
+    import semreloc_env
+
+    root = str(Path(semreloc_env.__file__).resolve().parents[1])
+    paths = [root, *(p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p)]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+
+
 def bench_mapping(args: Args) -> list[Row]:
     """New layout ready (gym.make: mapping run + likelihood field, then reset) against area: copies of
     the lab, each in a fresh process (so peak RSS is that of the run; imports and numba warm-up excluded)."""
@@ -472,7 +492,7 @@ def bench_mapping(args: Args) -> list[Row]:
             capture_output=True,
             text=True,
             check=True,
-            cwd=str(Path(__file__).resolve().parents[1]),
+            env=_child_env(),
         )
         r = json.loads(out.stdout.strip().splitlines()[-1])
         note = (
@@ -558,17 +578,6 @@ BENCHMARKS: list[Callable[[Args], list[Row]]] = [
 ]
 
 
-def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    for f in fields(Args):
-        flag = f"--{f.name.replace('_', '-')}"
-        if isinstance(f.default, bool):
-            parser.add_argument(flag, action="store_true")
-        else:
-            parser.add_argument(flag, type=type(f.default), default=f.default)
-    return Args(**vars(parser.parse_args(argv)))
-
-
 def print_table(rows: list[Row]) -> None:
     w = max(len(r.name) for r in rows)
     print(f"{'':<{w}}  {'CPU':>12}  {'wall':>12}")
@@ -578,13 +587,13 @@ def print_table(rows: list[Row]) -> None:
         print(f"{r.name:<{w}}  {cpu}  {wall:>12}  {r.unit:<20} {r.note}")
 
 
-def main(argv: list[str] | None = None) -> list[Row]:
-    args = parse_args(argv)
+def run(args: Args) -> list[Row]:
+    """Run the benchmarks ``args`` selects and print their table; returns the rows."""
     import os
 
     print(f"# semreloc bench: {args}")
     print(f"# {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start")
-    wanted = {w.strip() for w in args.only.split(",") if w.strip()}
+    wanted = set(args.only)
     rows: list[Row] = []
     for bench in BENCHMARKS:
         if wanted and bench.__name__.removeprefix("bench_") not in wanted:
@@ -596,5 +605,11 @@ def main(argv: list[str] | None = None) -> list[Row]:
     return rows
 
 
+def main(argv: list[str] | None = None) -> int:
+    """The command: parse ``argv`` (default ``sys.argv[1:]``), run the benchmarks, print the table."""
+    run(parse(Args, argv, __doc__))
+    return 0
+
+
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

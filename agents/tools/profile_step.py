@@ -2,10 +2,12 @@
 
 Usage::
 
-    PYTHONPATH=. python scripts/profile_step.py                 # 1000 steps, lab, defaults
-    PYTHONPATH=. python scripts/profile_step.py --steps 300 --top 30
-    PYTHONPATH=. python scripts/profile_step.py --policy random --particles 2000
-    PYTHONPATH=. python scripts/profile_step.py --reference     # the NumPy reference path
+    python scripts/profile_step.py                 # 1000 steps, lab, defaults
+    python scripts/profile_step.py --steps 300 --top 30
+    python scripts/profile_step.py --policy random --particles 2000
+    python scripts/profile_step.py --reference     # the NumPy reference path
+
+(``semreloc-profile-step`` is the same command; ``--help`` lists every option.)
 
 The stages are the cumulative CPU times of the functions a step calls (cProfile with a
 process-time clock, so other processes on a shared machine do not count); ``rest`` is the
@@ -15,18 +17,14 @@ shares matter more than the absolute figures (the total without the profiler is 
 
 from __future__ import annotations
 
-import argparse
 import cProfile
 import pstats
-import sys
 import time
-from dataclasses import dataclass, fields
-from pathlib import Path
+from dataclasses import dataclass
+from typing import Literal
 
-try:
-    import semreloc_env  # noqa: F401
-except ImportError:  # running from a checkout without `pip install -e .`
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import semreloc_env  # noqa: F401  (registers the envs)
+from filters.experiments.cli import parse
 
 STAGES: dict[str, tuple[str, str]] = {
     "physics (World.drive)": ("world.py", "drive"),
@@ -49,8 +47,8 @@ class Args:
     """profiled env steps"""
     particles: int = 0
     """relocalizer particles (0 = SemReloc-v1's default: sized by the map, KLD)"""
-    policy: str = "explorer"
-    """"explorer" (wall following) or "random" (seeded uniform actions, a spread belief)"""
+    policy: Literal["explorer", "random"] = "explorer"
+    """explorer (wall following) or random (seeded uniform actions, a spread belief)"""
     reference: bool = False
     """profile the NumPy reference path (relocalizer fast_path=False) instead of the fast path"""
     beams: int = 60
@@ -61,6 +59,13 @@ class Args:
     """episode seed"""
     top: int = 0
     """also print the top functions by cumulative time (0 = none)"""
+
+    def __post_init__(self) -> None:
+        if self.steps < 1 or self.beams < 1 or self.particles < 0 or self.top < 0:
+            raise ValueError(
+                f"steps and beams must be >= 1, particles and top >= 0; got steps={self.steps}, "
+                f"beams={self.beams}, particles={self.particles}, top={self.top}"
+            )
 
 
 def step_cpu_time(env, policy, steps: int, seed: int = 0) -> float:
@@ -124,16 +129,8 @@ def stage_breakdown(env, policy, steps: int, seed: int = 0) -> tuple[dict[str, f
     return out, total, stats
 
 
-def main(argv: list[str] | None = None) -> dict[str, float]:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    for f in fields(Args):
-        if isinstance(f.default, bool):
-            p.add_argument(f"--{f.name}", action="store_true")
-        else:
-            p.add_argument(f"--{f.name}", type=type(f.default), default=f.default)
-    args = Args(**vars(p.parse_args(argv)))
-    if args.policy not in ("explorer", "random"):
-        p.error(f"--policy must be 'explorer' or 'random', got {args.policy!r}")
+def run(args: Args) -> dict[str, float]:
+    """Profile as ``args`` says and print the stages; returns ``{stage: CPU s per step}``."""
     import gymnasium as gym
     import numpy as np
 
@@ -163,5 +160,11 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     return stages
 
 
+def main(argv: list[str] | None = None) -> int:
+    """The command: parse ``argv`` (default ``sys.argv[1:]``), profile, print the stages."""
+    run(parse(Args, argv, __doc__))
+    return 0
+
+
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -1,0 +1,10 @@
+"""Where the time of a default ``SemReloc-v1`` step goes: CPU time per stage (cProfile).
+
+The command lives in :mod:`agents.tools.profile_step` (also installed as ``semreloc-profile-step``);
+``python scripts/profile_step.py --help`` lists every option.
+"""
+
+from agents.tools.profile_step import main
+
+if __name__ == "__main__":
+    raise SystemExit(main())
