@@ -25,6 +25,7 @@ BAD = {  # one rejected value per command (checked in the Args dataclass or by t
     "semreloc-evaluate-active": ["--policies", "teleport"],
     "semreloc-bench": ["--only", "warp_drive"],
     "semreloc-profile-step": ["--policy", "teleport"],
+    "semreloc-train-ppo": ["--config.n-envs", "0"],
 }
 
 
