@@ -87,7 +87,7 @@ class Args:
                 f"{self.n_particles}, {self.max_episode_steps}, {self.eval_episodes}"
             )
         final = range(self.eval_seed, self.eval_seed + self.eval_episodes)
-        if self.config.eval_every is not None and self.config.eval_seed in final:
+        if not self.load and self.config.eval_every is not None and self.config.eval_seed in final:
             raise ValueError(
                 f"config.eval_seed {self.config.eval_seed} (the EvalCallback's env) lies among the final "
                 f"evaluation's seeds {final.start}..{final.stop - 1}; pick one outside, e.g. {final.stop}"
