@@ -8,8 +8,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
-from test_evaluate_active import _load as load_evaluate_active
 
+import agents.experiments.evaluate_active as ev
 import semreloc_env  # noqa: F401
 from agents.active_features import ActiveExtractor
 from agents.learned import META_NAME, SHIPPED_POLICY, load_policy, read_metadata
@@ -164,17 +164,18 @@ def test_load_policy_errors(smoke_run, tmp_path):
 
 def test_evaluate_active_runs_a_learned_policy_and_reuses_earlier_rows(smoke_run, tmp_path):
     _, path = smoke_run
-    ev = load_evaluate_active()
     common = ["--layouts-per-kind", "0", "--starts", "1", "--max-steps", "6", "--particles", "100"]
-    common += ["--map-source", "perfect", "--workers", "1"]
+    common += ["--map-source", "perfect", "--workers", "1", "--no-progress"]
     ev.main([*common, "--policies", "spin", "--out", str(tmp_path / "a")])
-    ev.main([*common, "--policies", f"spin,ppo={path}", "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")])
+    ev.main(
+        [*common, "--policies", "spin", f"ppo={path}", "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")]
+    )
     a = json.loads((tmp_path / "a" / "episodes.json").read_text())
     b = json.loads((tmp_path / "b" / "episodes.json").read_text())
     assert [r for r in b if r["policy"] == "spin"] == a
     assert sum(r["policy"] == "ppo" for r in b) == len(a) == 3
     with pytest.raises(SystemExit):
-        ev.parse_args(["--policies", f"ppo={tmp_path / 'nope.zip'}"])
+        ev.main(["--policies", f"ppo={tmp_path / 'nope.zip'}"])
 
 
 @pytest.mark.skipif(not SHIPPED_POLICY.is_file(), reason="no policy shipped in this checkout")

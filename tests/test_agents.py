@@ -11,6 +11,7 @@ from agents.callbacks import METRIC_KEYS, RelocalizationMetricsCallback
 from agents.features import SemRelocExtractor
 from agents.metrics import EpisodeTracker, summarize_episodes
 from agents.train import TrainConfig, evaluate, make_env, train
+from filters.experiments.cli import parse
 
 FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}, "max_episode_steps": 30}
 
@@ -230,25 +231,16 @@ def test_train_config_rejects_bad_values():
     assert gym.spaces.Discrete(4).contains(int(WallFollowExplorer()({"lidar": np.full(60, 8.0)})))
 
 
-def _load_script():
-    import importlib.util
-    import sys
-    from pathlib import Path
+def test_train_ppo_cli_takes_the_train_config_and_formats_missing_values():
+    import agents.tools.train_ppo as mod
 
-    path = Path(__file__).resolve().parents[1] / "scripts" / "train_ppo.py"
-    spec = importlib.util.spec_from_file_location("train_ppo", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["train_ppo"] = mod  # dataclasses look their module up there
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_train_ppo_cli_documents_every_option_and_formats_missing_values():
-    mod = _load_script()
-    docs = mod._field_docs()
-    assert set(docs) == {f.name for f in mod.fields(mod.Args)} and all(docs.values())
-    args = mod.parse_args(["--layout", "twin_rooms", "--lidar-only", "--total-timesteps", "1000"])
-    assert (args.layout, args.lidar_only, args.total_timesteps) == ("twin_rooms", True, 1000)
+    args = parse(mod.Args, ["--layout", "twin_rooms", "--lidar-only", "--config.total-timesteps", "1000"])
+    assert (args.layout, args.lidar_only, args.config.total_timesteps) == ("twin_rooms", True, 1000)
+    assert args.config.checkpoint_every == mod.DEFAULT_CONFIG.checkpoint_every and str(args.out) == "out/ppo"
+    with pytest.raises(ValueError, match="final evaluation's seeds"):
+        mod.Args(eval_episodes=100)  # the EvalCallback's seed 10050 would be one of the final episodes
+    with pytest.raises(ValueError, match="run folder"):
+        mod.Args(config=mod.TrainConfig())
     kw = mod.env_kwargs_of(args)
     assert kw["semantic"] is False and kw["max_episode_steps"] == args.max_episode_steps
     row = {
@@ -264,17 +256,20 @@ def test_train_ppo_cli_documents_every_option_and_formats_missing_values():
 
 
 def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path, monkeypatch):
-    mod = _load_script()
+    import agents.tools.train_ppo as mod
+
     monkeypatch.chdir(tmp_path)
     doc = tmp_path / "notes.md"
     doc.write_text("hand-written\n")
-    small = ["--total-timesteps", "64", "--n-steps", "32", "--batch-size", "32", "--n-envs", "1"]
-    small += ["--eval-episodes", "1", "--max-episode-steps", "10", "--map-source", "perfect"]
-    small += ["--n-particles", "200", "--checkpoint-every", "32", "--eval-every", "0", "--no-progress-bar"]
+    small = ["--config.total-timesteps", "64", "--config.n-steps", "32", "--config.batch-size", "32"]
+    small += ["--config.n-envs", "1", "--eval-episodes", "1", "--max-episode-steps", "10", "--map-source", "perfect"]
+    small += ["--n-particles", "200", "--config.checkpoint-every", "32", "--config.eval-every", "None"]
+    small += ["--config.no-progress-bar", "--config.log-dir", "run"]
     with pytest.raises(SystemExit, match="refusing to overwrite"):
-        mod.main([*small, "--out", "run", "--doc", str(doc)])
+        mod.main([*small, "--doc", str(doc)])
     assert doc.read_text() == "hand-written\n" and not (tmp_path / "run").exists()
-    record = mod.main([*small, "--out", "run"])
+    record = mod.run(parse(mod.Args, small), small)
+    assert record["command"].startswith("python scripts/train_ppo.py --config.total-timesteps 64")
     assert set(record["results"]) == {"PPO", "WallFollowExplorer", "RandomWalk"}
     assert {p.name for p in tmp_path.iterdir()} == {"notes.md", "run"}
     run = tmp_path / "run"

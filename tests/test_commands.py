@@ -22,6 +22,10 @@ BAD = {  # one rejected value per command (checked in the Args dataclass or by t
     "semreloc-build-maps": ["--resolution", "0"],
     "semreloc-replay-log": ["--mode", "teleport"],
     "semreloc-train-active": ["--config.repeat", "0"],
+    "semreloc-evaluate-active": ["--policies", "teleport"],
+    "semreloc-bench": ["--only", "warp_drive"],
+    "semreloc-profile-step": ["--policy", "teleport"],
+    "semreloc-train-ppo": ["--config.n-envs", "0"],
 }
 
 

@@ -1,23 +1,13 @@
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-
-def _load():
-    path = Path(__file__).resolve().parents[1] / "scripts" / "evaluate_active.py"
-    spec = importlib.util.spec_from_file_location("evaluate_active", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["evaluate_active"] = mod  # dataclasses and pickling look their module up there
-    spec.loader.exec_module(mod)
-    return mod
+import agents.experiments.evaluate_active as ev
+from filters.experiments.cli import parse
 
 
 def test_wilson_interval_matches_the_formula():
-    ev = _load()
     lo, hi = ev.wilson(8, 20)
     z, p, n = 1.959964, 0.4, 20
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
@@ -26,10 +16,9 @@ def test_wilson_interval_matches_the_formula():
 
 
 def test_cases_are_held_out_fixed_and_include_uninformative_starts():
-    ev = _load()
     from semreloc_env.layout_sampling import is_held_out
 
-    args = ev.parse_args(["--layouts-per-kind", "2", "--starts", "2"])
+    args = parse(ev.Args, ["--layouts-per-kind", "2", "--starts", "2"])
     cases = ev.build_cases(args)
     assert cases == ev.build_cases(args)
     assert len(cases) == (3 * 2 + 3) * 2
@@ -38,15 +27,20 @@ def test_cases_are_held_out_fixed_and_include_uninformative_starts():
     assert any(c["uninformative"] for c in cases)
     assert not any(c["uninformative"] for c in cases if c["kind"] != "procedural_lookalike")
     with pytest.raises(SystemExit):
-        ev.parse_args(["--policies", "teleport"])
+        ev.main(["--policies", "teleport"])
+    with pytest.raises(ValueError, match="unknown"):
+        ev.Args(policies=("spin", "teleport"))
+    with pytest.raises(ValueError, match="separate the policies with spaces"):
+        ev.Args(policies=("spin,random",))
+    with pytest.raises(ValueError, match="episodes.json"):
+        ev.Args(reuse=("/nonexistent/run",))
 
 
 def test_evaluation_runs_writes_its_outputs_and_does_not_depend_on_workers(tmp_path, capsys):
-    ev = _load()
-    common = ["--policies", "spin,random", "--layouts-per-kind", "0", "--starts", "1", "--max-steps", "4"]
-    common += ["--particles", "100", "--map-source", "perfect"]
-    ev.main([*common, "--workers", "1", "--out", str(tmp_path / "a")])
-    ev.main([*common, "--workers", "2", "--out", str(tmp_path / "b")])
+    common = ["--policies", "spin", "random", "--layouts-per-kind", "0", "--starts", "1", "--max-steps", "4"]
+    common += ["--particles", "100", "--map-source", "perfect", "--no-progress"]
+    assert ev.main([*common, "--workers", "1", "--out", str(tmp_path / "a")]) == 0
+    assert ev.main([*common, "--workers", "2", "--out", str(tmp_path / "b")]) == 0
     rows = [json.loads((tmp_path / d / "episodes.json").read_text()) for d in "ab"]
     strip = [[{k: v for k, v in r.items() if k != "seconds"} for r in rs] for rs in rows]
     assert strip[0] == strip[1] and len(strip[0]) == 3 * 1 * 2

@@ -1,0 +1,501 @@
+"""Evaluate active-relocalization policies on the same held-out (layout, start) pairs.
+
+Layouts: the first ``--layouts-per-kind`` held-out seeds
+(:data:`semreloc_env.layout_sampling.HELD_OUT_LAYOUT_SEEDS`, never drawn for training) of
+``procedural``, ``procedural_sym`` and ``procedural_lookalike``, then ``twin_rooms``, ``lab``,
+the changed lab (``scenario="changed"``) and every ``--layout-files`` entry. Each layout gets
+``--starts`` start poses, drawn from a generator seeded by the layout's index and the start's;
+every policy runs from the same start with the same episode seed (sensor noise and filter
+draws), a global relocalization of at most ``--max-steps`` steps.
+
+Starts "from which nothing telling is in sensor range": in a ``procedural_lookalike`` layout,
+every other start is drawn inside a room where the exact all-round view (lidar to its range, the
+semantic classes to the camera's) equals the view from the same place in another, identical
+room; spinning in place cannot tell them apart, only moving out can. These are flagged
+``uninformative`` and summarised on their own.
+
+Per policy (overall, per layout kind, and on the uninformative starts): success within the
+step limit (the env's own test, :mod:`agents.metrics`), wrong convergence (converged, wrong
+place, at the end), unconverged, each with a Wilson 95 % interval
+(``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the successes,
+mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode),
+``summary.json``, ``table.md`` and ``success.png`` (bar plot with the intervals).
+
+The same arguments give the same numbers whatever the runner (``--executor``, ``--workers``,
+``--address``): every episode is seeded on its own and results are put back in job order.
+
+    python scripts/evaluate_active.py --policies random spin wall_follow info_gain ppo=out/active/policy.zip \\
+        --layouts-per-kind 10 --starts 10 --workers 2 --out out/evaluate_active
+
+(``semreloc-evaluate-active`` is the same command; list options take space-separated values;
+``--reuse A B`` keeps the rows of earlier runs' ``episodes.json`` for the policies they hold.)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from filters.experiments.cli import Runner, command_line, parse
+from filters.experiments.runner import RunnerConfig, run_jobs
+from filters.experiments.stats import wilson_interval
+
+DEFAULT_POLICIES = ("random", "spin", "spin_backup", "wall_follow", "info_gain")
+
+
+@dataclass(frozen=True)
+class Args:
+    """Evaluate active-relocalization policies on the same held-out (layout, start) pairs."""
+
+    policies: tuple[str, ...] = DEFAULT_POLICIES
+    """names from agents.policies.POLICIES, or NAME=PATH for a trained policy saved by
+    agents.learned.save_policy (loaded with agents.load_policy); space-separated"""
+    reuse: tuple[str, ...] = ()
+    """folders of earlier runs with the same cases: their episodes.json rows are kept for the policies
+    listed here, and only the other policies are run"""
+    layouts_per_kind: int = 10
+    """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
+    starts: int = 10
+    """start poses per layout"""
+    layout_files: tuple[str, ...] = ()
+    """layout files (.json / .yaml) to add"""
+    max_steps: int = 200
+    """steps per episode (success must come within them)"""
+    particles: int = 2000
+    """relocalizer particles"""
+    map_source: str = "mapping"
+    """the filter's map: mapping (a simulated mapping run) or perfect"""
+    gif_case: int = -1
+    """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases)"""
+    out: str = "out/evaluate_active"
+    """output folder"""
+    runner: Runner = RunnerConfig(workers=2)
+
+    def __post_init__(self) -> None:
+        from agents.policies import POLICIES
+
+        if not self.policies:
+            raise ValueError("policies: give at least one")
+        comma = [x for x in self.policies if "," in x]
+        if comma:
+            raise ValueError(f"policies: {comma} holds a comma; separate the policies with spaces")
+        unknown = [x for x in self.policies if x not in POLICIES and "=" not in x]
+        if unknown:
+            raise ValueError(f"policies: unknown {unknown}; choose from {sorted(POLICIES)} or NAME=PATH")
+        bad_files = [x for x in self.policies if "=" in x and not Path(x.split("=", 1)[1]).is_file()]
+        if bad_files:
+            raise ValueError(f"policies: no policy file for {bad_files}")
+        names = [x.partition("=")[0] for x in self.policies]
+        if len(set(names)) < len(names) or not all(names):
+            raise ValueError(f"policies: names must be unique and non-empty, got {names}")
+        missing = [d for d in self.reuse if not (Path(d) / "episodes.json").is_file()]
+        if missing:
+            raise ValueError(f"reuse: no episodes.json in {missing}")
+        for name in ("layouts_per_kind", "starts", "max_steps", "particles"):
+            if getattr(self, name) < (0 if name == "layouts_per_kind" else 1):
+                raise ValueError(
+                    f"{name} must be >= {0 if name == 'layouts_per_kind' else 1}, got {getattr(self, name)}"
+                )
+        if self.map_source not in ("mapping", "perfect"):
+            raise ValueError(f"map_source must be mapping or perfect, got {self.map_source!r}")
+
+
+ENV_ID = "SemReloc-v2"
+"""The env every episode runs in (v2 and v1 give the same episodes; v2 has typed observations)."""
+POLICY_NAMES = ("random", "spin", "spin_backup", "wall_follow", "info_gain")
+"""The baselines' names (agents.policies.POLICIES); any other name in a table is a learned policy."""
+
+# ---------------------------------------------------------------------- cases
+PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
+
+
+def _view(world, pose, lidar_max, cam_max, angles, labels):
+    r, hit = world.scene.cast(np.asarray(pose[:2]), pose[2] + angles, lidar_max)
+    owner = np.where(hit >= 0, world.scene.owner[np.maximum(hit, 0)], -1)
+    lab = np.where((owner >= 0) & (r < cam_max), labels[np.maximum(owner, 0)], 0)
+    return r, lab
+
+
+def _image(frame, local):
+    fx, fy, ft = frame
+    c, s = math.cos(ft), math.sin(ft)
+    u, v, phi = local
+    return np.array([fx + c * u - s * v, fy + s * u + c * v, math.remainder(ft + phi, 2 * math.pi)])
+
+
+def uninformative_start(layout_seed: int, world, rng, lidar_max: float, cam_max: float, tries: int = 300):
+    """A pose in a room of the lookalike layout ``layout_seed`` whose exact all-round view equals
+    that of its image in another room, or None if none was found in ``tries`` draws."""
+    from semreloc_env.layouts import ProceduralParams, lookalike_layout
+
+    _, frames = lookalike_layout(np.random.default_rng(layout_seed), ProceduralParams(lookalike=True))
+    width = frames[1][0] - frames[0][0] if len(frames) > 2 else 3.0
+    depth = min(y for w in world.layout.walls for _, y in w if y > 0)
+    labels = np.array([o.label for o in world.layout.objects], dtype=np.int64)
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    for _ in range(tries):
+        room = int(rng.integers(0, len(frames)))
+        local = np.array([rng.uniform(0.4, width - 0.4), rng.uniform(0.4, depth - 0.4), rng.uniform(-math.pi, math.pi)])
+        pose = _image(frames[room], local)
+        if world.clearance(pose[:2]) < 0.45:
+            continue
+        r0, l0 = _view(world, pose, lidar_max, cam_max, angles, labels)
+        for other in range(len(frames)):
+            if other == room:
+                continue
+            q = _image(frames[other], local)
+            r1, l1 = _view(world, q, lidar_max, cam_max, angles, labels)
+            if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
+                return pose
+    return None
+
+
+def build_cases(args: Args) -> list[dict]:
+    """Every (layout, start) pair, in a fixed order."""
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.scenarios import changed_obstacles
+    from semreloc_env.world import build_world
+
+    layouts = [(k, int(s), "nominal") for k in PROCEDURAL_KINDS for s in HELD_OUT_LAYOUT_SEEDS[: args.layouts_per_kind]]
+    layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
+    layouts += [(f, 0, "nominal") for f in args.layout_files]
+    lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
+    cases = []
+    for li, (spec, seed, scenario) in enumerate(layouts):
+        layout = get_layout(spec, seed=seed)
+        extra = changed_obstacles(layout, seed) if scenario == "changed" else []
+        world = build_world(layout, extra_obstacles=extra)
+        for si in range(args.starts):
+            rng = np.random.default_rng([li, si, 7007])
+            pose, flag = None, False
+            if spec == "procedural_lookalike" and si % 2 == 0:
+                pose = uninformative_start(seed, world, rng, lidar_max, cam_max)
+                flag = pose is not None
+            if pose is None:
+                pose = world.sample_free_pose(rng, margin_m=0.3)
+            name = spec if spec in ("twin_rooms", "lab") or spec in PROCEDURAL_KINDS else Path(spec).stem
+            kind = "lab_changed" if scenario == "changed" else (name if spec not in PROCEDURAL_KINDS else spec)
+            cases.append(
+                {
+                    "case": len(cases),
+                    "kind": kind,
+                    "layout": spec,
+                    "layout_seed": seed,
+                    "scenario": scenario,
+                    "start": [float(v) for v in pose],
+                    "episode_seed": 50_000 + len(cases),
+                    "uninformative": flag,
+                }
+            )
+    return cases
+
+
+# ---------------------------------------------------------------------- episodes
+def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
+    """Every policy on one (layout, start) pair."""
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.metrics import EpisodeTracker
+
+    case, policies, args = job
+    rows = []
+    for spec in policies:
+        name = spec.partition("=")[0]
+        env = gym.make(
+            ENV_ID,
+            layout=case["layout"],
+            layout_seed=case["layout_seed"],
+            scenario=case["scenario"],
+            map_source=args.map_source,
+            relocalizer={"n_particles": args.particles},
+            max_episode_steps=args.max_steps,
+        )
+        policy = make_policy(spec, case["episode_seed"])
+        env = policy.wrap(env)
+        policy.reset()
+        tracker = EpisodeTracker()
+        obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+        tracker.observe(info, is_step=False)
+        collisions = 0
+        t0 = time.perf_counter()
+        while True:
+            obs, reward, term, trunc, info = env.step(policy.act(obs))
+            tracker.observe(info, reward)
+            collisions += bool(info["collided"])
+            if term or trunc:
+                break
+        res = tracker.finish()
+        rows.append(
+            {
+                **case,
+                "policy": name,
+                "outcome": res.outcome,
+                "length": res.length,
+                "steps_to_success": res.steps_to_converge,
+                "collisions": collisions,
+                "final_position_error_m": res.final_position_error_m,
+                "seconds": time.perf_counter() - t0,
+            }
+        )
+        env.close()
+    return rows
+
+
+def make_policy(spec: str, seed: int):
+    """The policy named by ``spec``: a baseline name of agents.policies.POLICIES or NAME=PATH."""
+    from agents.policies import POLICIES
+
+    name, _, path = spec.partition("=")
+    if path:
+        from agents.learned import load_policy
+
+        return load_policy(path)
+    return POLICIES[name](seed)
+
+
+def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) -> None:
+    """One episode of ``spec`` on ``case`` as a GIF (every ``every``-th frame, 10 fps)."""
+    import gymnasium as gym
+    from PIL import Image
+
+    import semreloc_env  # noqa: F401
+
+    env = gym.make(
+        ENV_ID,
+        layout=case["layout"],
+        layout_seed=case["layout_seed"],
+        scenario=case["scenario"],
+        map_source=args.map_source,
+        relocalizer={"n_particles": args.particles},
+        max_episode_steps=args.max_steps,
+        render_mode="rgb_array",
+    )
+    policy = make_policy(spec, case["episode_seed"])
+    env = policy.wrap(env)
+    policy.reset()
+    obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+    frames, t = [env.render()], 0
+    while True:
+        obs, _, term, trunc, info = env.step(policy.act(obs))
+        t += 1
+        if t % every == 0 or term or trunc:
+            frames.append(env.render())
+        if term or trunc:
+            break
+    env.close()
+    images = [Image.fromarray(f).convert("P", palette=Image.Palette.ADAPTIVE) for f in frames]
+    images += [images[-1]] * 10  # hold the end
+    images[0].save(path, save_all=True, append_images=images[1:], duration=100, loop=0)
+
+
+# ---------------------------------------------------------------------- summary
+wilson = wilson_interval  # Wilson 95 % interval (filters.experiments.stats)
+
+
+def summarise(rows: list[dict]) -> dict:
+    n = len(rows)
+    out = {"episodes": n}
+    for outcome in ("success", "wrong", "unconverged"):
+        k = sum(r["outcome"] == outcome for r in rows)
+        out[outcome] = {"rate": k / n, "ci95": wilson(k, n), "count": k}
+    steps = [r["steps_to_success"] for r in rows if r["steps_to_success"] is not None]
+    out["median_steps"] = float(np.median(steps)) if steps else None
+    out["collisions_per_episode"] = float(np.mean([r["collisions"] for r in rows]))
+    out["seconds_per_step"] = float(sum(r["seconds"] for r in rows) / max(sum(r["length"] for r in rows), 1))
+    return out
+
+
+def groups(rows: list[dict]) -> dict[str, list[dict]]:
+    g: dict[str, list[dict]] = {"all": rows}
+    for r in rows:
+        g.setdefault(r["kind"], []).append(r)
+    unin = [r for r in rows if r["uninformative"]]
+    if unin:
+        g["uninformative starts"] = unin
+    return g
+
+
+def _pct(x: dict) -> str:
+    lo, hi = x["ci95"]
+    return f"{100 * x['rate']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}]"
+
+
+def table(summary: dict, policies: list[str]) -> str:
+    lines = []
+    for group, per_policy in summary.items():
+        n = per_policy[policies[0]]["episodes"]
+        lines += [
+            f"### {group} ({n} episodes per policy)",
+            "",
+            "| policy | success | wrong | unconverged | median steps | steps in collision / episode |",
+            "|---|---|---|---|---|---|",
+        ]
+        for p in policies:
+            s = per_policy[p]
+            med = "-" if s["median_steps"] is None else f"{s['median_steps']:.0f}"
+            lines.append(
+                f"| {p} | {_pct(s['success'])} | {_pct(s['wrong'])} | {_pct(s['unconverged'])} | {med} | "
+                f"{s['collisions_per_episode']:.1f} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _mean_difference(base: np.ndarray, new: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.mean(new - base, axis=axis)
+
+
+def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[dict]:
+    """Success of each learned policy against each other policy on the same cases: the difference
+    of the success rates with a paired bootstrap 95 % interval (``filters.experiments.stats``,
+    seeded) and McNemar's exact p-value (a binomial test on the discordant pairs)."""
+    from scipy.stats import binomtest
+
+    from filters.experiments.stats import paired_bootstrap_interval
+
+    by = {(r["case"], r["policy"]): r["outcome"] == "success" for r in rows}
+    cases = sorted({r["case"] for r in rows})
+    out = []
+    for a in learned:
+        for b in policies:
+            if b == a:
+                continue
+            x = np.array([by[(c, a)] for c in cases], dtype=np.float64)
+            y = np.array([by[(c, b)] for c in cases], dtype=np.float64)
+            point, lo, hi = paired_bootstrap_interval(y, x, np.random.default_rng(0), statistic=_mean_difference)
+            wins, losses = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
+            p = binomtest(wins, wins + losses).pvalue if wins + losses else 1.0
+            out.append(
+                {
+                    "policy": a,
+                    "against": b,
+                    "difference": point,
+                    "ci95": [lo, hi],
+                    "wins": wins,
+                    "losses": losses,
+                    "mcnemar_p": p,
+                }
+            )
+    return out
+
+
+def paired_table(comparisons: list[dict]) -> str:
+    lines = [
+        "### paired: success of the learned policy minus the other's, same cases",
+        "",
+        "| policy | against | difference [paired bootstrap 95 %] | only it solved | only other solved | McNemar p |",
+        "|---|---|---|---|---|---|",
+    ]
+    for c in comparisons:
+        lo, hi = c["ci95"]
+        lines.append(
+            f"| {c['policy']} | {c['against']} | {100 * c['difference']:+.1f} pp [{100 * lo:+.1f}, {100 * hi:+.1f}] | "
+            f"{c['wins']} | {c['losses']} | {c['mcnemar_p']:.3g} |"
+        )
+    return "\n".join([*lines, ""])
+
+
+def plot(summary: dict, policies: list[str], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(summary)
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(names) * len(policies) / 3), 4))
+    width = 0.8 / len(policies)
+    x = np.arange(len(names))
+    for i, p in enumerate(policies):
+        rate = np.array([summary[g][p]["success"]["rate"] for g in names])
+        lo = np.array([summary[g][p]["success"]["ci95"][0] for g in names])
+        hi = np.array([summary[g][p]["success"]["ci95"][1] for g in names])
+        ax.bar(x + (i - (len(policies) - 1) / 2) * width, rate, width, yerr=[rate - lo, hi - rate], capsize=2, label=p)
+    ax.set_xticks(x, names, rotation=20, ha="right")
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("success within the step limit (Wilson 95 %)")
+    ax.legend(fontsize=8, ncol=min(len(policies), 5))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command: parse ``argv`` (default ``sys.argv[1:]``), run the episodes, write the outputs."""
+    args = parse(Args, argv, __doc__)
+    specs = list(args.policies)
+    policies = [s.partition("=")[0] for s in specs]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.time()
+    cases = build_cases(args)
+    n_unin = sum(c["uninformative"] for c in cases)
+    print(f"{len(cases)} (layout, start) pairs ({n_unin} uninformative starts) x {len(policies)} policies", flush=True)
+    rows: list[dict] = []
+    if args.reuse:
+        old = [r for d in args.reuse for r in json.loads((Path(d) / "episodes.json").read_text())]
+        keep = {c["case"]: c for c in cases}
+        for r in old:
+            c = keep.get(r["case"])
+            seen = {(x["case"], x["policy"]) for x in rows}
+            if (
+                r["policy"] in policies
+                and c is not None
+                and all(r[k] == v for k, v in c.items())
+                and (r["case"], r["policy"]) not in seen
+            ):
+                rows.append(r)
+        done = {(r["case"], r["policy"]) for r in rows}
+        print(f"reused {len(rows)} episodes from {', '.join(args.reuse)}", flush=True)
+    else:
+        done = set()
+    todo = [s for s in specs if any((c["case"], s.partition("=")[0]) not in done for c in cases)]
+    todo_names = {s.partition("=")[0] for s in todo}
+    rows = [r for r in rows if r["policy"] not in todo_names]  # a policy is reused whole or run whole
+    jobs = [(c, tuple(todo), args) for c in cases] if todo else []
+
+    def report(done_jobs: int, total: int) -> None:
+        print(f"  {done_jobs}/{total} pairs, {time.time() - t0:.0f} s", flush=True)
+
+    for r in run_jobs(run_case, jobs, args.runner, desc="pairs", on_result=report):  # results in job order
+        rows += r
+    rows.sort(key=lambda r: (r["case"], policies.index(r["policy"])))
+    summary = {
+        g: {p: summarise([r for r in rs if r["policy"] == p]) for p in policies} for g, rs in groups(rows).items()
+    }
+    (out / "episodes.json").write_text(json.dumps(rows, indent=1))
+    learned = [s.partition("=")[0] for s in specs if "=" in s]
+    learned += [p for p in policies if p not in POLICY_NAMES and p not in learned]  # reused learned rows
+    comparisons = paired(rows, learned, policies) if learned and len(policies) > 1 else []
+    summary_out = {**summary, "paired": comparisons} if comparisons else summary
+    (out / "summary.json").write_text(json.dumps(summary_out, indent=1))
+    cli = command_line("scripts/evaluate_active.py", sys.argv[1:] if argv is None else argv)
+    header = (
+        f"Command: `{cli}`"
+        f"\n\n{len(cases)} (layout, start) pairs, {n_unin} uninformative; {args.particles} particles, map "
+        f"{args.map_source}, success within {args.max_steps} steps; wall time {time.time() - t0:.0f} s.\n\n"
+    )
+    (out / "table.md").write_text(
+        header + table(summary, policies) + ("\n" + paired_table(comparisons) if comparisons else "")
+    )
+    plot(summary, policies, out / "success.png")
+    if 0 <= args.gif_case < len(cases):
+        for spec in specs:
+            record_gif(cases[args.gif_case], spec, args, out / f"gif_{spec.partition('=')[0]}.gif")
+    print(table({"all": summary["all"]}, policies))
+    if comparisons:
+        print(paired_table(comparisons))
+    print(f"wrote {out}/table.md, success.png, summary.json, episodes.json ({time.time() - t0:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,615 @@
+"""Speed of semreloc, in one run: kernels, env steps, stages, resets, maps, scaling, PPO.
+
+Usage::
+
+    python scripts/bench.py                 # everything (~3 min on 2 shared cores)
+    python scripts/bench.py --quick         # skip the building-size layout and PPO
+    python scripts/bench.py --only env stages
+
+(``semreloc-bench`` is the same command; ``--help`` lists every option.)
+
+Every figure is given twice: per CPU-second of this process (``time.process_time``; what
+counts on a machine shared with other jobs) and per wall-clock second. Each benchmark is a
+function ``bench_*(args) -> list[Row]`` listed in :data:`BENCHMARKS`. Numba compile time is
+excluded (warm-up calls before timing); repeated timings report the median.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from filters.experiments.cli import parse
+from filters.localization.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
+from filters.localization.likelihood_reference import log_likelihood_reference
+from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
+from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
+
+
+@dataclass(frozen=True)
+class Args:
+    """Benchmark options (each one is a ``--flag``)."""
+
+    particles: int = 2000
+    """N: particles."""
+    beams: int = 60
+    """B: lidar beams per scan (all within range)."""
+    semantic_beams: int = 0
+    """labelled semantic beams added to each scan for the likelihood benchmark (0 = lidar only)."""
+    map_size_m: float = 20.0
+    """edge of the square synthetic map, metres (0.05 m cells)."""
+    repeats: int = 30
+    """timed repetitions (median reported)."""
+    seed: int = 0
+    """seed of the synthetic map, poses and scans."""
+    steps: int = 600
+    """env steps per steps/s measurement."""
+    ppo_steps: int = 4096
+    """PPO training steps (4 envs x 256-step rollouts: 4 rollouts)."""
+    quick: bool = False
+    """skip the building-size layout and PPO."""
+    only: tuple[str, ...] = ()
+    """benchmark names, space-separated (e.g. likelihood env); empty = all."""
+
+    def __post_init__(self) -> None:
+        names = [b.__name__.removeprefix("bench_") for b in BENCHMARKS]
+        unknown = [o for o in self.only if o not in names]
+        if unknown:
+            raise ValueError(f"only: unknown benchmarks {unknown}; choose from {names}")
+        positive = ("particles", "beams", "repeats", "steps", "ppo_steps")
+        bad = [f"{k}={getattr(self, k)}" for k in positive if getattr(self, k) < 1]
+        if bad or self.semantic_beams < 0 or self.map_size_m <= 0:
+            raise ValueError(
+                f"particles, beams, repeats, steps, ppo_steps must be >= 1, semantic_beams >= 0 and map_size_m > 0; "
+                f"got {bad or (self.semantic_beams, self.map_size_m)}"
+            )
+
+
+@dataclass(frozen=True)
+class Row:
+    """One figure: ``cpu`` per CPU-second of this process, ``wall`` per wall-clock second (or the
+    same quantity measured both ways); ``wall`` is NaN where only one value makes sense."""
+
+    name: str
+    cpu: float
+    wall: float
+    unit: str
+    note: str = ""
+
+
+def synthetic_map(size_m: float, seed: int) -> GridMap:
+    """A square room with random boxes, some of them labelled with a class."""
+    res = 0.05
+    n = int(round(size_m / res))
+    rng = np.random.default_rng(seed)
+    occ = np.zeros((n, n), np.float32)
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = 1.0
+    sem = np.zeros((len(DEFAULT_CLASS_NAMES), n, n), np.float32)
+    for k in range(int(size_m * size_m / 8)):
+        r, c = rng.integers(10, n - 30, 2)
+        h, w = rng.integers(4, 20, 2)
+        occ[r : r + h, c : c + w] = 1.0
+        if k % 3 == 0:
+            sem[k % len(DEFAULT_CLASS_NAMES), r : r + h, c : c + w] = 1.0
+    return GridMap(occ, res, (0.0, 0.0), sem, DEFAULT_CLASS_NAMES)
+
+
+def _scene(args: Args):
+    grid = synthetic_map(args.map_size_m, args.seed)
+    rng = np.random.default_rng(args.seed)
+    free = np.argwhere(grid.free_mask())
+    cell = free[rng.integers(len(free))]
+    pose = np.array([(cell[1] + 0.5) * grid.resolution_m, (cell[0] + 0.5) * grid.resolution_m, 0.3])
+    angles = np.linspace(-np.pi, np.pi, args.beams, endpoint=False)
+    lidar = simulate_lidar(grid, pose, angles, 1e3)  # huge range: every beam returns
+    lidar = type(lidar)(np.minimum(lidar.ranges, 29.0), lidar.angles, 30.0)
+    semantic = None
+    if args.semantic_beams:
+        sa = np.linspace(-0.5, 0.5, args.semantic_beams)
+        semantic = simulate_semantic(grid, pose, sa, 30.0)
+        labels = np.where(semantic.labels > 0, semantic.labels, 1 + np.arange(sa.size) % len(DEFAULT_CLASS_NAMES))
+        semantic = type(semantic)(np.minimum(semantic.ranges, 29.0), sa, labels, 30.0)
+    xy = free[rng.integers(len(free), size=args.particles)]
+    poses = np.column_stack(
+        [
+            (xy[:, 1] + rng.random(args.particles)) * grid.resolution_m,
+            (xy[:, 0] + rng.random(args.particles)) * grid.resolution_m,
+            rng.uniform(-np.pi, np.pi, args.particles),
+        ]
+    )
+    return grid, pose, poses, lidar, semantic
+
+
+class Clock:
+    """CPU (this process) and wall seconds of a block: ``with Clock() as c: ...; c.cpu, c.wall``."""
+
+    def __enter__(self) -> Clock:
+        self._c, self._w = time.process_time(), time.perf_counter()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.cpu = time.process_time() - self._c
+        self.wall = time.perf_counter() - self._w
+
+
+def _median_time(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
+    """Median (CPU s, wall s) of ``fn()`` over ``repeats`` calls after one warm-up call."""
+    fn()
+    cpus, walls = [], []
+    for _ in range(repeats):
+        with Clock() as c:
+            fn()
+        cpus.append(c.cpu)
+        walls.append(c.wall)
+    return statistics.median(cpus), statistics.median(walls)
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def fused_probe(x, y, c_, s_, lx, ly, offset, flat, floors_b, ox, oy, inv_res, w, h, out):  # pragma: no cover
+    """The reference probe: the same look-up-and-sum as the likelihood kernel, fused into one loop
+    over all beams, everything float32, fastmath (what a hand-tuned kernel could reach)."""
+    for i in range(x.shape[0]):
+        px = x[i]
+        py = y[i]
+        c = c_[i]
+        s = s_[i]
+        acc = np.float32(0.0)
+        for j in range(lx.shape[0]):
+            fx = (px + c * lx[j] - s * ly[j] - ox) * inv_res
+            fy = (py + s * lx[j] + c * ly[j] - oy) * inv_res
+            if fx >= 0 and fx < w and fy >= 0 and fy < h:
+                acc += flat[offset[j] + int(fy) * w + int(fx)]
+            else:
+                acc += floors_b[j]
+        out[i] = acc
+
+
+def bench_likelihood(args: Args) -> list[Row]:
+    """Measurement update: the shipped kernel vs the NumPy reference vs the fused float32 probe."""
+    grid, _, poses, lidar, semantic = _scene(args)
+    model = LikelihoodFieldModel(grid)
+    beams = model.beams(lidar, semantic)
+    nb = beams.n_lidar + beams.n_semantic
+    work = args.particles * nb
+    k_cpu, k_wall = _median_time(lambda: model.log_likelihood_terms(poses, lidar, semantic), args.repeats)
+    r_cpu, r_wall = _median_time(
+        lambda: log_likelihood_reference(model, poses, lidar, semantic), max(3, args.repeats // 5)
+    )
+    tables, floors = model.log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
+    h, w = grid.shape
+    f32 = np.float32
+    ox, oy = grid.origin_xy_m
+    probe_args = (
+        poses[:, 0].astype(f32),
+        poses[:, 1].astype(f32),
+        np.cos(poses[:, 2]).astype(f32),
+        np.sin(poses[:, 2]).astype(f32),
+        beams.lx.astype(f32),
+        beams.ly.astype(f32),
+        beams.table * (h * w),
+        tables.ravel().astype(f32),
+        floors[beams.table].astype(f32),
+        f32(ox),
+        f32(oy),
+        f32(1.0 / grid.resolution_m),
+        w,
+        h,
+        np.zeros(args.particles, f32),
+    )
+    p_cpu, p_wall = _median_time(lambda: fused_probe(*probe_args), args.repeats)
+    _, _, flat = model._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
+    inv = 1.0 / grid.resolution_m
+    out_l, out_s = np.zeros(args.particles), np.zeros(args.particles)
+    kernel_args = (
+        poses[:, 0].copy(),
+        poses[:, 1].copy(),
+        np.cos(poses[:, 2]),
+        np.sin(poses[:, 2]),
+        beams.lx * inv,
+        beams.ly * inv,
+        beams.table * (h * w),
+        beams.table + model.distance_fields_m.size,
+        beams.n_lidar,
+        flat,
+        float(ox),
+        float(oy),
+        inv,
+        w,
+        h,
+        out_l,
+        out_s,
+    )
+    c_cpu, c_wall = _median_time(lambda: log_likelihood_kernel(*kernel_args), args.repeats)
+    b = log_likelihood_reference(model, poses, lidar, semantic)
+    fused_probe(*probe_args)
+    probe_err = float(np.max(np.abs(probe_args[-1] - b)))
+    log_likelihood_kernel(*kernel_args)
+    kernel_err = float(np.max(np.abs(out_l + out_s - b)))
+    shape = f"N={args.particles}, B={nb}"
+    unit = "M particle-beams/s"
+    return [
+        Row("likelihood kernel", work / c_cpu / 1e6, work / c_wall / 1e6, unit, f"{shape}, {c_cpu * 1e3:.3f} ms CPU"),
+        Row(
+            "  with beam prep (model call)", work / k_cpu / 1e6, work / k_wall / 1e6, unit, f"{k_cpu * 1e3:.3f} ms CPU"
+        ),
+        Row("likelihood NumPy reference", work / r_cpu / 1e6, work / r_wall / 1e6, unit, f"{r_cpu * 1e3:.3f} ms CPU"),
+        Row("fused float32 probe", work / p_cpu / 1e6, work / p_wall / 1e6, unit, f"{p_cpu * 1e3:.3f} ms CPU"),
+        Row("kernel / probe speed", p_cpu / c_cpu, p_wall / c_wall, "x", "target >= 0.9"),
+        Row("model call / NumPy reference speed", r_cpu / k_cpu, r_wall / k_wall, "x", ""),
+        Row("max |kernel - reference|", kernel_err, float("nan"), "nats", f"probe: {probe_err:.1e} (float32)"),
+    ]
+
+
+ENV_ID = "SemReloc-v1"
+
+
+def _env(**kwargs):
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+
+    return gym.make(ENV_ID, **kwargs).unwrapped
+
+
+def _steps_per_s(env, steps: int, seed: int, policy=None) -> tuple[float, float]:
+    """(CPU, wall) env steps per second under ``policy`` (default: the wall-following explorer);
+    resets not counted."""
+    from agents.baselines import WallFollowExplorer
+
+    policy = WallFollowExplorer() if policy is None else policy
+    obs, _ = env.reset(seed=seed)
+    for _ in range(20):
+        obs = env.step(policy(obs))[0]
+    cpu = wall = 0.0
+    s = seed
+    for _ in range(steps):
+        action = policy(obs)
+        with Clock() as c:
+            obs, _, term, trunc, _ = env.step(action)
+        cpu += c.cpu
+        wall += c.wall
+        if term or trunc:
+            s += 1
+            obs, _ = env.reset(seed=s)
+    return steps / cpu, steps / wall
+
+
+class RandomPolicy:
+    """Uniform random discrete actions from a seeded generator (what early RL does)."""
+
+    def __init__(self, seed: int) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, obs) -> int:
+        return int(self.rng.integers(0, 4))
+
+
+def bench_env(args: Args) -> list[Row]:
+    """Single ``SemReloc-v1`` at its defaults (lab, mapped map, map-sized particle set with KLD, 60 + 32
+    beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
+    code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
+    explorer and under random actions (a spread belief: 10,000-20,000 particles)."""
+    from filters import _blas
+
+    rows = []
+    for label, make_policy in (("explorer", lambda: None), ("random", lambda: RandomPolicy(args.seed))):
+        fast = ref = (0.0, 0.0)
+        for _ in range(2):  # interleaved rounds: the load changes over minutes; best of each
+            f = _steps_per_s(_env(), args.steps // 2, args.seed, make_policy())
+            r = _steps_per_s(_env(relocalizer={"fast_path": False}), args.steps // 2, args.seed, make_policy())
+            fast = max(fast, f)
+            ref = max(ref, r)
+        rows += [
+            Row(f"SemReloc-v1 step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
+            Row(f"SemReloc-v1 step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
+            Row("  fast / reference", fast[0] / ref[0], fast[1] / ref[1], "x", "target >= 3"),
+        ]
+    rows.append(
+        Row("NumPy's OpenBLAS threads", float(_blas.openblas_threads() or 0), float("nan"), "", "0 = not OpenBLAS")
+    )
+    return rows
+
+
+def bench_belief(args: Args) -> list[Row]:
+    """Belief summary of real particle sets (a spread global belief after the first update, and a
+    converged one): the numba kernels against the NumPy reference (same Belief bit for bit)."""
+    from filters.localization.belief import summarize
+
+    env = _env()
+    env.reset(seed=args.seed)
+    mcl = env.mcl
+    sets = [("spread", mcl.poses.copy(), mcl.weights)]
+    env_t = _env()
+    env_t.reset(seed=args.seed, options={"tracking": True})
+    sets.append(("tracking", env_t.mcl.poses.copy(), env_t.mcl.weights))
+    rows = []
+    for name, p, w in sets:
+        f_cpu, f_wall = _median_time(lambda p=p, w=w: summarize(p, w, backend="numba"), args.repeats)
+        r_cpu, r_wall = _median_time(lambda p=p, w=w: summarize(p, w, backend="numpy"), max(5, args.repeats // 3))
+        n = p.shape[0]
+        rows += [
+            Row(f"belief summary, {name} (N={n}), numba", f_cpu * 1e3, f_wall * 1e3, "ms", ""),
+            Row(f"belief summary, {name} (N={n}), reference", r_cpu * 1e3, r_wall * 1e3, "ms", ""),
+            Row("  reference / numba", r_cpu / f_cpu, r_wall / f_wall, "x", ""),
+        ]
+    return rows
+
+
+def bench_batched(args: Args) -> list[Row]:
+    """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64."""
+    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+    rows = []
+    for r in (1, 16, 64):
+        venv = SemRelocLoopVectorEnv(num_envs=r)
+        venv.reset(seed=args.seed)
+        rng = np.random.default_rng(args.seed)
+        n = max(5, args.steps // r)
+        venv.step(rng.integers(0, 4, r))
+        with Clock() as c:
+            for _ in range(n):
+                venv.step(rng.integers(0, 4, r))
+        venv.close()
+        rows.append(
+            Row(
+                f"batched env R={r}",
+                n * r / c.cpu,
+                n * r / c.wall,
+                "robot-steps/s",
+                "random actions; target 5000 at R=64",
+            )
+        )
+    return rows
+
+
+def bench_stages(args: Args) -> list[Row]:
+    """Per-stage CPU time of a default step (cProfile, process clock; inflates short calls)."""
+    from profile_step import stage_breakdown
+
+    from agents.baselines import WallFollowExplorer
+
+    stages, total, _ = stage_breakdown(_env(), WallFollowExplorer(), max(200, args.steps // 2), args.seed)
+    rows = [Row("step under cProfile", total * 1e3, float("nan"), "ms CPU", "stages below")]
+    for k, v in stages.items():
+        rows.append(Row(f"  {k}", v * 1e3, 100 * v / total, "ms CPU | %", ""))
+    return rows
+
+
+def bench_scaling(args: Args) -> list[Row]:
+    """time(10000 particles, 180 beams) / time(2000, 60) per env step (all lidar beams used)."""
+    out = {}
+    for n, b in ((2000, 60), (10000, 180)):
+        env = _env(lidar={"n_beams": b}, relocalizer={"n_particles": n, "lidar_field": {"max_beams": b}})
+        out[(n, b)] = _steps_per_s(env, max(100, args.steps // 3), args.seed)
+    r_cpu = out[(2000, 60)][0] / out[(10000, 180)][0]
+    r_wall = out[(2000, 60)][1] / out[(10000, 180)][1]
+    note = f"{1e3 / out[(10000, 180)][0]:.2f} vs {1e3 / out[(2000, 60)][0]:.2f} ms CPU per step"
+    return [Row("time(10000, 180) / time(2000, 60)", r_cpu, r_wall, "x", note + "; target <= 12")]
+
+
+def bench_reset(args: Args) -> list[Row]:
+    """reset() with a cached map, gym.make with a cached map, and a new layout (no disk cache)."""
+    import os
+
+    env = _env()
+    env.reset(seed=0)
+    seeds = iter(range(1, 10**6))
+    r_cpu, r_wall = _median_time(lambda: env.reset(seed=next(seeds)), max(20, args.repeats))
+    n_spread = env.mcl.global_particle_count()
+    t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), max(20, args.repeats))
+    small = _env(relocalizer={"n_particles": 2000})
+    small.reset(seed=0)
+    s_cpu, s_wall = _median_time(lambda: small.reset(seed=next(seeds)), max(20, args.repeats))
+    m_cpu, m_wall = _median_time(_env, 5)
+    old = os.environ.get("SEMRELOC_CACHE_DIR")
+    os.environ["SEMRELOC_CACHE_DIR"] = ""
+    try:
+        rows = []
+        for name, seed in (("procedural", 1001), ("procedural", 1002)):
+            with Clock() as c:
+                e = _env(layout=name, layout_seed=seed)
+                e.reset(seed=0)
+            rows.append((c.cpu, c.wall, e.layout.bounds()))
+    finally:
+        if old is None:
+            del os.environ["SEMRELOC_CACHE_DIR"]
+        else:
+            os.environ["SEMRELOC_CACHE_DIR"] = old
+    n_cpu = statistics.median(r[0] for r in rows)
+    n_wall = statistics.median(r[1] for r in rows)
+    x0, x1, y0, y1 = rows[0][2]
+    return [
+        Row("reset() (cached map)", r_cpu * 1e3, r_wall * 1e3, "ms", f"global, {n_spread} particles; target <= 2 ms"),
+        Row("reset() (cached map), tracking", t_cpu * 1e3, t_wall * 1e3, "ms", "500 particles around the pose"),
+        Row("reset() (cached map), n_particles=2000", s_cpu * 1e3, s_wall * 1e3, "ms", "global, 2000 particles"),
+        Row("gym.make (cached map)", m_cpu * 1e3, m_wall * 1e3, "ms", ""),
+        Row(
+            "new layout: gym.make + reset",
+            n_cpu,
+            n_wall,
+            "s",
+            f"procedural ~{x1 - x0:.0f} x {y1 - y0:.0f} m, mapping run; target <= 0.3 s",
+        ),
+    ]
+
+
+_READY_CHILD = r"""
+import json, os, resource, sys, time
+os.environ["SEMRELOC_CACHE_DIR"] = ""
+import gymnasium as gym, numpy as np
+import semreloc_env
+from semreloc_env.layouts import get_layout
+from semreloc_env.layouts.tiling import tiled_layout
+from semreloc_env.mapping_run import build_maps, mapping_drive
+build_maps(get_layout("twin_rooms"))  # warm numba caches (not counted)
+gym.make("SemReloc-v1", layout="twin_rooms").reset(seed=0)
+base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+nx, ny = int(sys.argv[1]), int(sys.argv[2])
+layout = tiled_layout(get_layout("lab"), nx, ny)
+n_poses = len(mapping_drive(layout)[0])
+c0, w0 = time.process_time(), time.perf_counter()
+env = gym.make("SemReloc-v1", layout=layout)
+env.reset(seed=0)
+c1, w1 = time.process_time(), time.perf_counter()
+x0, x1, y0, y1 = layout.bounds()
+print(json.dumps({"area": (x1 - x0) * (y1 - y0), "w": x1 - x0, "h": y1 - y0, "poses": n_poses,
+                  "cpu": c1 - c0, "wall": w1 - w0, "base_rss_mb": base_rss,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def _child_env() -> dict[str, str]:
+    """This process's environment with the folder holding the imported packages first on ``PYTHONPATH``,
+    so a child process imports the same code (a checkout or worktree, not another installed copy)."""
+    import os
+
+    import semreloc_env
+
+    root = str(Path(semreloc_env.__file__).resolve().parents[1])
+    paths = [root, *(p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p)]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+
+
+def bench_mapping(args: Args) -> list[Row]:
+    """New layout ready (gym.make: mapping run + likelihood field, then reset) against area: copies of
+    the lab, each in a fresh process (so peak RSS is that of the run; imports and numba warm-up excluded)."""
+    import json
+    import subprocess
+
+    tiles = [(1, 1), (2, 2), (4, 4)] + ([] if args.quick else [(7, 6)])
+    rows = []
+    for nx, ny in tiles:
+        out = subprocess.run(
+            [sys.executable, "-c", _READY_CHILD, str(nx), str(ny)],
+            capture_output=True,
+            text=True,
+            check=True,
+            env=_child_env(),
+        )
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        note = (
+            f"{r['w']:.0f} x {r['h']:.0f} m, {r['poses']} poses; peak RSS {r['peak_rss_mb']:.0f} MB "
+            f"(after imports {r['base_rss_mb']:.0f} MB)"
+        )
+        rows.append(Row(f"ready: {r['area']:.0f} m^2 ({nx}x{ny} labs)", r["cpu"], r["wall"], "s", note))
+    return rows
+
+
+def bench_ppo(args: Args) -> list[Row]:
+    """PPO training steps/s vs raw steps/s of the same vec env (``agents.train``: BeliefObservation,
+    metrics callback, rollout 1024 steps): DummyVecEnv x4 and the batched env (SB3 adapter) x16."""
+    if args.quick:
+        return []
+    from agents.train import TrainConfig, make_venv, train
+
+    rows = []
+    for vec_env, n_envs in (("dummy", 4), ("batched", 16)):
+        cfg = TrainConfig(
+            n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, total_timesteps=args.ppo_steps,
+            seed=args.seed,
+        )  # fmt: skip
+        venv = make_venv(cfg)
+        venv.reset()
+        rng = np.random.default_rng(args.seed)
+        n_raw = args.ppo_steps // n_envs
+        with Clock() as raw:
+            for _ in range(n_raw):
+                venv.step(rng.integers(0, 4, n_envs))
+        venv.close()
+        warm = dataclasses.replace(cfg, total_timesteps=1024)
+        train(warm).get_env().close()  # warm-up: torch, numba
+        with Clock() as ppo:
+            model = train(cfg)
+        model.get_env().close()
+        raw_cpu, raw_wall = n_raw * n_envs / raw.cpu, n_raw * n_envs / raw.wall
+        ppo_cpu, ppo_wall = args.ppo_steps / ppo.cpu, args.ppo_steps / ppo.wall
+        rows += [
+            Row(f"{vec_env} x{n_envs}: raw vec env", raw_cpu, raw_wall, "steps/s", "random actions"),
+            Row(
+                f"{vec_env} x{n_envs}: PPO training", ppo_cpu, ppo_wall, "steps/s", f"{args.ppo_steps} steps, 4 epochs"
+            ),
+            Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
+        ]
+    return rows
+
+
+def bench_mappers(args: Args) -> list[Row]:
+    """Occupancy + semantic mapping of a lab-sized run: 1000 poses x 60 beams into a 15 m x 10 m grid."""
+    from filters.mapping.occupancy import OccupancyMapper, SemanticMapper
+    from filters.robot_data.scans import LaserScan, SemanticScan
+
+    rng = np.random.default_rng(args.seed)
+    n, b = 1000, 60
+    poses = np.column_stack([rng.uniform(0.5, 14.5, n), rng.uniform(0.5, 9.5, n), rng.uniform(-np.pi, np.pi, n)])
+    angles = np.linspace(-np.pi, np.pi, b, endpoint=False)
+    lidar = [LaserScan(rng.uniform(0.2, 12.0, b), angles, 10.0) for _ in range(n)]
+    camera = [SemanticScan(rng.uniform(0.2, 5.0, b), angles, rng.integers(0, 5, b), 4.0) for _ in range(n)]
+
+    def run():
+        occ, sem = OccupancyMapper((200, 300), 0.05), SemanticMapper((200, 300), 0.05)
+        for p, s in zip(poses, lidar, strict=True):
+            occ.update(p, s)
+        sem.update_many(poses, camera)
+        return occ.to_grid(sem)
+
+    cpu, wall = _median_time(run, max(1, min(args.repeats, 5)))
+    return [Row("mappers: lab-sized run", cpu, wall, "s", "1000 poses x 60 beams, 200 x 300 cells (was a < 3 s test)")]
+
+
+BENCHMARKS: list[Callable[[Args], list[Row]]] = [
+    bench_likelihood,
+    bench_env,
+    bench_belief,
+    bench_batched,
+    bench_stages,
+    bench_scaling,
+    bench_reset,
+    bench_mapping,
+    bench_mappers,
+    bench_ppo,
+]
+
+
+def print_table(rows: list[Row]) -> None:
+    w = max(len(r.name) for r in rows)
+    print(f"{'':<{w}}  {'CPU':>12}  {'wall':>12}")
+    for r in rows:
+        wall = "" if r.wall != r.wall else f"{r.wall:12.3f}"
+        cpu = f"{r.cpu:12.3g}" if abs(r.cpu) < 1e-3 and r.cpu else f"{r.cpu:12.3f}"
+        print(f"{r.name:<{w}}  {cpu}  {wall:>12}  {r.unit:<20} {r.note}")
+
+
+def run(args: Args) -> list[Row]:
+    """Run the benchmarks ``args`` selects and print their table; returns the rows."""
+    import os
+
+    print(f"# semreloc bench: {args}")
+    print(f"# {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start")
+    wanted = set(args.only)
+    rows: list[Row] = []
+    for bench in BENCHMARKS:
+        if wanted and bench.__name__.removeprefix("bench_") not in wanted:
+            continue
+        print(f"... {bench.__name__}", file=sys.stderr, flush=True)
+        rows.extend(bench(args))
+    print_table(rows)
+    print(f"# load average {os.getloadavg()[0]:.2f} at the end")
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command: parse ``argv`` (default ``sys.argv[1:]``), run the benchmarks, print the table."""
+    run(parse(Args, argv, __doc__))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
