@@ -1,6 +1,6 @@
-"""A CNN + MLP features extractor for :class:`semreloc_env.observations.ActiveObservation`.
+"""A CNN + MLP features extractor for `semreloc_env.observations.ActiveObservation`.
 
-:class:`ActiveExtractor` encodes every image entry (3-D ``Box``, channels first: ``ego``,
+`ActiveExtractor` encodes every image entry (3-D ``Box``, channels first: ``ego``,
 ``global``) with its own small CNN, and every other entry (``hypotheses``, ``belief``, ``lidar``,
 ``semantic_range``, the one-hot ``semantic_class`` that SB3 makes of a ``MultiDiscrete``,
 ``odometry``, ``last_action``) through one shared MLP over their concatenation; the parts are
@@ -8,7 +8,7 @@ concatenated and mapped to ``features_dim`` features. Use it with ``"MultiInputP
 ``policy_kwargs={"features_extractor_class": ActiveExtractor}``.
 
 The images are in ``[0, 1]`` already (float32, so SB3 does not rescale them); vectors are scaled
-to ``[0, 1]`` by their space bounds, as :mod:`agents.features` does. Nothing here depends on the
+to ``[0, 1]`` by their space bounds, as `agents.features` does. Nothing here depends on the
 particle count or the layout's size: the observation's bounds do not.
 """
 

@@ -1,8 +1,8 @@
 """stable-baselines3 callback: relocalization metrics in the training log (progress: SB3's ``progress_bar``).
 
-:class:`RelocalizationMetricsCallback` reads ``info["belief"]`` and ``info["pose_error"]`` of
+`RelocalizationMetricsCallback` reads ``info["belief"]`` and ``info["pose_error"]`` of
 every env step (works with any VecEnv: the ``info`` of a step that ends an episode is that
-episode's last step), scores finished episodes with :mod:`agents.metrics` and, at the end of
+episode's last step), scores finished episodes with `agents.metrics` and, at the end of
 every rollout, records over the last ``window`` episodes:
 
 | logger key | meaning |
@@ -33,14 +33,14 @@ METRIC_KEYS = (
 
 
 class RelocalizationMetricsCallback(BaseCallback):
-    """Log relocalization metrics of finished training episodes (keys: :data:`METRIC_KEYS`).
+    """Log relocalization metrics of finished training episodes (keys: `METRIC_KEYS`).
 
     Args:
         window: number of most recent episodes the rates and medians are taken over.
         verbose: SB3 verbosity.
 
     Attributes:
-        results: every finished :class:`~agents.metrics.EpisodeResult`, in order of finishing.
+        results: every finished `EpisodeResult`, in order of finishing.
     """
 
     def __init__(self, window: int = 100, verbose: int = 0):

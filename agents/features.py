@@ -1,6 +1,6 @@
 """A stable-baselines3 features extractor for the semreloc Dict observation.
 
-:class:`SemRelocExtractor` turns ``{"lidar", "semantic", "odometry", "belief", ...}`` into one
+`SemRelocExtractor` turns ``{"lidar", "semantic", "odometry", "belief", ...}`` into one
 feature vector:
 
 * every Box entry is first scaled to ``[0, 1]`` by its own space bounds (``(x - low) / (high - low)``),

@@ -1,6 +1,6 @@
 """An information-gain planner: move where the filter's own sensor model expects to learn most.
 
-Every ``replan_every`` steps :class:`InfoGainPlanner` scores a few motion primitives (short
+Every ``replan_every`` steps `InfoGainPlanner` scores a few motion primitives (short
 fixed action sequences: drive ahead, turn and drive, turn in place, turn around) by the
 expected entropy reduction of the belief, predicted with the filter's own models:
 
@@ -10,15 +10,15 @@ expected entropy reduction of the belief, predicted with the filter's own models
    comes within the robot radius of an occupied cell of the filter's map stops there and counts
    as a collision;
 3. at ``n_views`` poses along the path, ray-cast the lidar and the semantic camera on the
-   filter's map (:mod:`filters.simulators.grid_raycast`) from every particle ``j``: the scans
+   filter's map (`filters.simulators.grid_raycast`) from every particle ``j``: the scans
    ``z_j`` the robot would get if ``j`` were the truth;
 4. weight every particle ``i`` by the filter's measurement model
-   (``mcl.measurement_model``, :class:`filters.localization.likelihood_field.LikelihoodFieldModel`):
+   (``mcl.measurement_model``, `filters.localization.likelihood_field.LikelihoodFieldModel`):
    ``log w_ij = s * sum_views log p(z_j | x_i)``, with ``s`` the filter's ``likelihood_scale``
    times the number of filter updates the primitive triggers per view (the motion gate's
    ``update_min_d_m`` / ``update_min_a_rad``);
 5. the expected posterior entropy ``E_j[H(hypothesis masses of w_.j)]``, the hypotheses being
-   the connected clusters of the drawn particles (see :meth:`InfoGainPlanner._bins`), so the
+   the connected clusters of the drawn particles (see `InfoGainPlanner._bins`), so the
    spread within one hypothesis does not count as uncertainty; score = prior entropy - expected posterior entropy
    - ``collision_penalty_nats`` x the share of particles that collide.
 
@@ -73,7 +73,7 @@ class InfoGainPlanner(Policy):
     """Pick the motion primitive with the largest expected entropy reduction (see the module doc).
 
     Args:
-        seed: seeds the particle subsampling (restarted at every :meth:`reset`).
+        seed: seeds the particle subsampling (restarted at every `reset`).
         n_particles: particles drawn from the belief per plan.
         replan_every: actions executed between plans.
         n_views: poses along a primitive at which the scans are predicted.
@@ -190,7 +190,7 @@ class InfoGainPlanner(Policy):
         return 2 * comp + flipped
 
     def plan(self) -> Primitive:
-        """Score every primitive on the current belief (sets :attr:`last_scores`); the best one."""
+        """Score every primitive on the current belief (sets `last_scores`); the best one."""
         base = self.env.unwrapped
         mcl, grid = base.mcl, base.grid
         model = mcl.measurement_model

@@ -1,15 +1,15 @@
 """Trained active-relocalization policies behind the baselines' interface.
 
-* :func:`save_policy` writes an SB3 model zip with one more member, ``semreloc_policy.json``:
-  what the policy needs around it (the :class:`~semreloc_env.observations.ActiveObservation`
+* `save_policy` writes an SB3 model zip with one more member, ``semreloc_policy.json``:
+  what the policy needs around it (the `ActiveObservation`
   settings and the action repeat it was trained with).
-* :func:`load_policy` reads such a file and returns a :class:`LearnedPolicy` with
+* `load_policy` reads such a file and returns a `LearnedPolicy` with
   ``wrap(env) -> env`` (applies the same observation wrapper to any ``SemReloc`` env, any layout
   and particle count), ``reset()`` and ``act(obs) -> action`` (deterministic), exactly as the
-  baselines of :mod:`agents.policies`.
+  baselines of `agents.policies`.
 
-A policy trained through :class:`semreloc_env.wrappers.ActionRepeat` decides every ``repeat``
-env steps; :meth:`LearnedPolicy.act` is called every step and holds its last decision in
+A policy trained through `semreloc_env.wrappers.ActionRepeat` decides every ``repeat``
+env steps; `LearnedPolicy.act` is called every step and holds its last decision in
 between, so an evaluation loop drives it like any other policy and sees the same observations
 at the decision steps as training did.
 """
@@ -48,9 +48,9 @@ def save_policy(
     """Save ``model`` (an SB3 algorithm) to ``path`` (``.zip`` added if missing) with its metadata.
 
     Args:
-        observation: keyword arguments of :class:`ActiveObservation` the model was trained with.
-        repeat: env steps per decision (:class:`semreloc_env.wrappers.ActionRepeat`).
-        explorer_option: whether it acts through :class:`agents.options.ExplorerOption`.
+        observation: keyword arguments of `ActiveObservation` the model was trained with.
+        repeat: env steps per decision (`semreloc_env.wrappers.ActionRepeat`).
+        explorer_option: whether it acts through `agents.options.ExplorerOption`.
         extra: anything else worth keeping beside it (training config, env id, ...): JSON-able.
 
     Returns:
@@ -75,12 +75,12 @@ def save_policy(
 
 
 def read_metadata(path: str | Path) -> dict[str, Any]:
-    """The metadata of a policy saved by :func:`save_policy`.
+    """The metadata of a policy saved by `save_policy`.
 
     Raises:
         FileNotFoundError: no such file.
         ValueError: not a zip, or a zip without the metadata member (e.g. a bare SB3 checkpoint:
-            pass ``observation`` and ``repeat`` to :func:`load_policy` then).
+            pass ``observation`` and ``repeat`` to `load_policy` then).
     """
     path = Path(path)
     if not path.is_file():
@@ -98,15 +98,15 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
 
 
 class LearnedPolicy:
-    """A trained SB3 model with the interface of :mod:`agents.policies`.
+    """A trained SB3 model with the interface of `agents.policies`.
 
     Args:
-        model: an SB3 algorithm whose observation space is :class:`ActiveObservation`'s.
-        observation: the :class:`ActiveObservation` keyword arguments it was trained with.
+        model: an SB3 algorithm whose observation space is `ActiveObservation`'s.
+        observation: the `ActiveObservation` keyword arguments it was trained with.
         repeat: env steps per decision.
         deterministic: act on the mode of the action distribution (default) or sample from it.
-        explorer_option: the model's actions are :class:`agents.options.ExplorerOption`'s (the env's
-            four and "explore"); :meth:`wrap` adds that wrapper.
+        explorer_option: the model's actions are `agents.options.ExplorerOption`'s (the env's
+            four and "explore"); `wrap` adds that wrapper.
     """
 
     def __init__(
@@ -128,7 +128,7 @@ class LearnedPolicy:
         self._action = None
 
     def wrap(self, env: gym.Env) -> gym.Env:
-        """``ActiveObservation(env, **observation)`` (over :class:`agents.options.ExplorerOption` when
+        """``ActiveObservation(env, **observation)`` (over `agents.options.ExplorerOption` when
         the policy uses it), checked against the model's spaces.
 
         Raises:
@@ -154,7 +154,7 @@ class LearnedPolicy:
         return wrapped
 
     def reset(self) -> None:
-        """Start an episode: the next :meth:`act` decides afresh."""
+        """Start an episode: the next `act` decides afresh."""
         self._t = 0
         self._action = None
 
@@ -175,20 +175,20 @@ def load_policy(
     repeat: int | None = None,
     explorer_option: bool | None = None,
 ) -> LearnedPolicy:
-    """Load a policy saved by :func:`save_policy` (or a bare SB3 PPO checkpoint, given its settings).
+    """Load a policy saved by `save_policy` (or a bare SB3 PPO checkpoint, given its settings).
 
     Args:
         path: the ``.zip``.
         device: torch device to load onto.
-        deterministic: see :class:`LearnedPolicy`.
+        deterministic: see `LearnedPolicy`.
         observation: override (or, for a checkpoint without metadata, supply) the
             `ActiveObservation` settings.
         repeat: the same for the action repeat.
-        explorer_option: the same for :class:`agents.options.ExplorerOption` (default False
+        explorer_option: the same for `agents.options.ExplorerOption` (default False
             without metadata).
 
     Raises:
-        FileNotFoundError, ValueError: see :func:`read_metadata`.
+        FileNotFoundError, ValueError: see `read_metadata`.
     """
     from stable_baselines3 import PPO
 

@@ -1,6 +1,6 @@
 """Relocalization metrics of episodes, from the env's ``info`` alone (no torch, no SB3).
 
-Shared by :mod:`agents.callbacks` (training logs) and :func:`agents.train.evaluate`, so
+Shared by `agents.callbacks` (training logs) and `agents.train.evaluate`, so
 both count the same way. Definitions, per episode, from the ``info`` of its last step:
 
 * **success**: the belief is converged (``info["belief"]["converged"]``) and its mean is
@@ -53,9 +53,9 @@ class EpisodeResult:
 
 
 class EpisodeTracker:
-    """Accumulates one episode's steps; :meth:`finish` returns its :class:`EpisodeResult`.
+    """Accumulates one episode's steps; `finish` returns its `EpisodeResult`.
 
-    Call :meth:`observe` with the ``info`` and reward of every step (the reset ``info`` may be
+    Call `observe` with the ``info`` and reward of every step (the reset ``info`` may be
     observed too, with ``reward=0`` and ``is_step=False``: it counts for first convergence but
     not for the length).
     """

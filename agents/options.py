@@ -1,8 +1,8 @@
 """An extra discrete action for learned policies: one step of the reactive explorer.
 
-:class:`ExplorerOption` wraps a ``SemReloc`` env with ``Discrete(4)`` actions (0 forward, 1 left,
+`ExplorerOption` wraps a ``SemReloc`` env with ``Discrete(4)`` actions (0 forward, 1 left,
 2 right, 3 stop) and adds action 4, *explore*: the action that
-:class:`agents.baselines.WallFollowExplorer` (drive forward; when the front is blocked, turn toward
+`agents.baselines.WallFollowExplorer` (drive forward; when the front is blocked, turn toward
 the freer side) picks from the latest raw lidar scan. A policy over these five actions can follow
 the explorer where that is good and leave it (turn toward a hypothesis-telling object, head for a
 door) where it is not: the learned part is *when to do what*, the explorer is one of its motions.

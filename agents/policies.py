@@ -6,16 +6,16 @@ episode's actions do not depend on the episodes before it) and ``act(obs) -> act
 env's raw observation dict. They work with ``action_type="discrete"`` and ``"continuous"``
 (``wrap`` reads which; a discrete forward / turn is sent as ``(1, 0)`` / ``(0, +-1)``).
 
-* :class:`RandomPolicy` — uniformly random discrete actions.
-* :class:`SpinPolicy` — turn left in place forever.
-* :class:`SpinThenBackUp` — Nav2's old recovery: a full turn in place, then back up 0.5 m
+* `RandomPolicy` — uniformly random discrete actions.
+* `SpinPolicy` — turn left in place forever.
+* `SpinThenBackUp` — Nav2's old recovery: a full turn in place, then back up 0.5 m
   (continuous actions; with discrete ones, which cannot reverse, a half turn and 0.5 m forward),
   and again.
-* :class:`WallFollowPolicy` — :class:`agents.baselines.WallFollowExplorer`.
-* :class:`~agents.info_gain.InfoGainPlanner` — the strongest: picks motion primitives by the
+* `WallFollowPolicy` — `agents.baselines.WallFollowExplorer`.
+* `InfoGainPlanner` — the strongest: picks motion primitives by the
   expected entropy reduction of the filter's belief.
 
-:data:`POLICIES` maps names to constructors ``f(seed) -> policy``.
+`POLICIES` maps names to constructors ``f(seed) -> policy``.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ class Policy:
         self.rng = np.random.default_rng(self.seed)
 
     def encode(self, a: int):
-        """The env action for a discrete action (or :data:`BACKWARD`)."""
+        """The env action for a discrete action (or `BACKWARD`)."""
         if not self.continuous:
             if a == BACKWARD:
                 raise ValueError("discrete actions cannot reverse")
@@ -130,7 +130,7 @@ class SpinThenBackUp(Policy):
 
 
 class WallFollowPolicy(Policy):
-    """:class:`agents.baselines.WallFollowExplorer` behind the common interface."""
+    """`agents.baselines.WallFollowExplorer` behind the common interface."""
 
     def __init__(self, seed: int = 0, **kwargs):
         super().__init__(seed)

@@ -8,17 +8,17 @@ stopping at success, so the belief is watched after it claims convergence. Per e
   15 deg of the truth (what ``SemReloc`` terminates on); ``steps`` is the first such step.
   In a kidnap episode only steps after the kidnap count, and ``steps`` counts from it.
 * **wrong**: no success, and the last step's belief is converged elsewhere.
-* **unconverged**: neither. (The three partition the episodes, as in :mod:`agents.metrics`.)
+* **unconverged**: neither. (The three partition the episodes, as in `agents.metrics`.)
 * **ever_wrong**: some step before the first success had a converged, wrong belief.
 * **calibration counts**: ``converged_steps`` and ``converged_correct_steps`` over all steps
   (post-kidnap steps only, in a kidnap episode): calibration = correct / converged.
 * **cpu_s_per_step**: process CPU time per env step (the machine may be shared).
 * **median_error_m**: median position error of the estimate over the scored steps.
 
-Each episode's result depends only on its :class:`EpisodeSpec`, so many of them run with
-:func:`filters.experiments.runner.run_jobs` (``run_jobs(run_episode, specs, runner)``) give the
-same results sequentially, in a process pool or on Ray. :func:`log_trial` and :func:`log_tracking`
-are the jobs of the ACES-log rows. The command is :mod:`agents.experiments.evaluate_relocalizer`.
+Each episode's result depends only on its `EpisodeSpec`, so many of them run with
+`filters.experiments.runner.run_jobs` (``run_jobs(run_episode, specs, runner)``) give the
+same results sequentially, in a process pool or on Ray. `log_trial` and `log_tracking`
+are the jobs of the ACES-log rows. The command is `agents.experiments.evaluate_relocalizer`.
 """
 
 from __future__ import annotations

@@ -1,16 +1,16 @@
 """Train PPO on ``SemReloc-v2`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
 
-* :class:`TrainConfig` — every knob of a training run (env keyword arguments, vectorisation,
+* `TrainConfig` — every knob of a training run (env keyword arguments, vectorisation,
   PPO hyper-parameters, network sizes, seed).
-* :func:`make_env` — ``gym.make("SemReloc-v2", **env_kwargs)`` wrapped in
-  :class:`~semreloc_env.wrappers.BeliefObservation` (the policy sees the belief summary, not the pose).
-* :func:`train` — builds the vectorised envs and PPO (``MultiInputPolicy`` with
-  :class:`~agents.features.SemRelocExtractor`), learns, returns the model. With a ``log_dir`` it
+* `make_env` — ``gym.make("SemReloc-v2", **env_kwargs)`` wrapped in
+  `BeliefObservation` (the policy sees the belief summary, not the pose).
+* `train` — builds the vectorised envs and PPO (``MultiInputPolicy`` with
+  `SemRelocExtractor`), learns, returns the model. With a ``log_dir`` it
   writes there, and only there: ``progress.csv``, TensorBoard event files (``tensorboard --logdir
   LOG_DIR``), checkpoints (``checkpoints/``) and the periodic evaluation (``eval/evaluations.npz``,
   ``eval/best_model.zip``; its ``eval/success_rate`` comes from the env's ``info["is_success"]``).
-* :func:`evaluate` — runs ``n_episodes`` episodes, episode ``i`` reset with seed ``seed + i``, and
-  returns :func:`agents.metrics.summarize_episodes` of them. The same seeds give the same start
+* `evaluate` — runs ``n_episodes`` episodes, episode ``i`` reset with seed ``seed + i``, and
+  returns `agents.metrics.summarize_episodes` of them. The same seeds give the same start
   poses, sensor noise and filter draws for every policy evaluated, so policies are compared on
   identical episodes.
 
@@ -46,7 +46,7 @@ from .metrics import EpisodeTracker, summarize_episodes
 ENV_ID = "SemReloc-v2"
 """The env id training and evaluation use unless told otherwise (``TrainConfig.env_id``, ``env_id=``)."""
 VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv, "batched": None}
-"""``"batched"``: :class:`agents.vec_env.SB3VecEnvAdapter` over the batched env (R robots in one process)."""
+"""``"batched"``: `agents.vec_env.SB3VecEnvAdapter` over the batched env (R robots in one process)."""
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class TrainConfig:
             ``max_episode_steps``); unknown ones are errors, as in the env.
         n_envs: parallel envs.
         vec_env: ``"dummy"`` (one process), ``"subproc"`` (one process per env) or ``"batched"``
-            (:class:`semreloc_env.envs.batched.SemRelocLoopVectorEnv` through :class:`agents.vec_env.SB3VecEnvAdapter`:
+            (`semreloc_env.envs.batched.SemRelocLoopVectorEnv` through `agents.vec_env.SB3VecEnvAdapter`:
             one process, the same episodes as ``"dummy"``).
         total_timesteps: env steps to train for (summed over envs).
         seed: seeds PPO (network init, action sampling, minibatches) and the envs (``seed + k``).
@@ -72,7 +72,7 @@ class TrainConfig:
         gae_lambda: GAE lambda.
         ent_coef: entropy bonus weight.
         clip_range: PPO ratio clip.
-        features_dim: output size of :class:`~agents.features.SemRelocExtractor`.
+        features_dim: output size of `SemRelocExtractor`.
         net_arch: hidden sizes of the policy and value heads after the extractor.
         torch_threads: ``torch.set_num_threads`` (small nets are fastest on 1 thread).
         device: torch device of the policy (``"cpu"``, ``"cuda"``, ``"auto"``; PPO with small MLPs
@@ -144,7 +144,7 @@ class TrainConfig:
 
 
 def make_env(env_kwargs: dict[str, Any] | None = None, belief: bool = True, env_id: str = ENV_ID) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)``, wrapped in :class:`BeliefObservation` when ``belief``."""
+    """``gym.make(env_id, **env_kwargs)``, wrapped in `BeliefObservation` when ``belief``."""
     env = gym.make(env_id, **dict(env_kwargs or {}))
     return BeliefObservation(env) if belief else env
 
@@ -180,7 +180,7 @@ def make_venv(config: TrainConfig):
 def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
     """Train PPO as ``config`` says and return the model.
 
-    A :class:`~agents.callbacks.RelocalizationMetricsCallback` always runs (its keys appear in the
+    A `RelocalizationMetricsCallback` always runs (its keys appear in the
     log, ``log_dir/progress.csv`` and TensorBoard), plus SB3's ``CheckpointCallback`` and
     ``EvalCallback`` when ``config.checkpoint_every`` / ``config.eval_every`` are set, plus
     ``callbacks``. The logger is closed when learning ends (or fails); the model's env is left open,
@@ -276,18 +276,18 @@ def evaluate(
 
     Args:
         model_or_policy: an SB3 model (``BaseAlgorithm``; acts with ``predict``) or a callable
-            ``obs dict -> action`` such as :class:`agents.baselines.WallFollowExplorer` (its ``reset()``
+            ``obs dict -> action`` such as `agents.baselines.WallFollowExplorer` (its ``reset()``
             is called at every episode start, if it has one). Callables see the same observation
             as models, including the ``belief`` key.
         env_kwargs: ``gym.make(env_id, ...)`` keyword arguments (``max_episode_steps`` too).
         n_episodes: episodes; episode ``i`` starts with ``reset(seed=seed + i)``.
         seed: first episode seed.
         deterministic: SB3 models act greedily (ignored for callables).
-        return_episodes: add ``"per_episode"``: the list of :meth:`EpisodeResult.as_dict`.
+        return_episodes: add ``"per_episode"``: the list of `EpisodeResult.as_dict`.
         env_id: the env to run (a model trained on ``SemReloc-v1``'s flat observation needs ``"SemReloc-v1"``).
 
     Returns:
-        :func:`agents.metrics.summarize_episodes` of the episodes: ``success_rate``,
+        `agents.metrics.summarize_episodes` of the episodes: ``success_rate``,
         ``wrong_convergence_rate``, ``unconverged_rate``, ``first_convergence_wrong_rate`` in
         ``[0, 1]``, ``median_steps_to_converge`` (steps, None if nothing succeeded), median final
         errors (m, rad), mean length and return. Equal inputs (and a policy in the same state) give

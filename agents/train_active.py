@@ -1,14 +1,14 @@
 """PPO for active relocalization: a new procedural layout every episode, spatial belief observations.
 
-:func:`make_active_env` builds one training env:
+`make_active_env` builds one training env:
 ``SemReloc-v1`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
-:class:`~semreloc_env.layout_sampling.RandomLayout` (a new layout per reset, never a held-out
-seed) -> :class:`~semreloc_env.rewards.BeliefMassReward` (``mode="gain"``) ->
-:class:`~semreloc_env.wrappers.ActionRepeat` -> :class:`~semreloc_env.observations.ActiveObservation`
--> SB3's ``Monitor``. :func:`train_active` trains SB3 PPO with :class:`~agents.active_features.ActiveExtractor`
+`RandomLayout` (a new layout per reset, never a held-out
+seed) -> `BeliefMassReward` (``mode="gain"``) ->
+`ActionRepeat` -> `ActiveObservation`
+-> SB3's ``Monitor``. `train_active` trains SB3 PPO with `ActiveExtractor`
 on ``n_envs`` of them, logs csv + TensorBoard, shows SB3's progress bar, writes checkpoints,
-resumes from one, and saves the final policy with :func:`agents.learned.save_policy` (load it back
-with :func:`agents.learned.load_policy`). Everything a run writes goes under ``out``.
+resumes from one, and saves the final policy with `agents.learned.save_policy` (load it back
+with `agents.learned.load_policy`). Everything a run writes goes under ``out``.
 """
 
 from __future__ import annotations
@@ -271,7 +271,7 @@ def train_active(
     """Train as ``config`` says; write everything under ``out``; return the saved policy's path.
 
     ``out`` receives ``config.json``, ``progress.csv`` and TensorBoard events, ``checkpoints/``
-    (``ppo_<decisions>_steps.zip``), ``policy.zip`` (:func:`agents.learned.save_policy`) and
+    (``ppo_<decisions>_steps.zip``), ``policy.zip`` (`agents.learned.save_policy`) and
     ``timing.json`` (wall and CPU seconds, decisions and env steps) and ``learning_curve.png``.
     ``resume``: a checkpoint of this run to continue from (its step count carries on;
     ``total_timesteps`` counts from 0).

@@ -1,4 +1,4 @@
-"""stable-baselines3 ``VecEnv`` over the batched env (:class:`semreloc_env.envs.batched.SemRelocLoopVectorEnv`).
+"""stable-baselines3 ``VecEnv`` over the batched env (`semreloc_env.envs.batched.SemRelocLoopVectorEnv`).
 
 SB3 resets a finished env inside the same ``step`` (its ``terminal_observation`` goes to the
 info, ``TimeLimit.truncated`` marks time-outs), Gymnasium's vector envs reset on the next
@@ -20,7 +20,7 @@ from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
 
 class SB3VecEnvAdapter(VecEnv):
-    """SB3 ``VecEnv`` view of a :class:`SemRelocLoopVectorEnv` (``venv``); seeds via :meth:`seed` as in SB3."""
+    """SB3 ``VecEnv`` view of a `SemRelocLoopVectorEnv` (``venv``); seeds via `seed` as in SB3."""
 
     def __init__(self, venv: SemRelocLoopVectorEnv):
         if not isinstance(venv, SemRelocLoopVectorEnv):

@@ -1,22 +1,22 @@
 """Estimators for 2D robot localization and SLAM: numpy + scipy (+ numba kernels) only.
 
 No simulator, gymnasium, pymunk or torch here: every filter runs on data from a
-real robot as well as from :mod:`semreloc_env`. One subpackage per concept:
+real robot as well as from `semreloc_env`. One subpackage per concept:
 
-* :mod:`filters.localization` -- Monte Carlo localization: likelihood fields (and their NumPy
+* `filters.localization` -- Monte Carlo localization: likelihood fields (and their NumPy
   reference), the MCL filter, the belief summary.
-* :mod:`filters.motion` -- the motion models: odometry (sampling), its linearised form for SLAM,
+* `filters.motion` -- the motion models: odometry (sampling), its linearised form for SLAM,
   velocity-controlled car-like / unicycle models.
-* :mod:`filters.mapping` -- grids, occupancy + semantic mapping, ROS map files, map metrics.
-* :mod:`filters.smc` -- generic sequential Monte Carlo: weights and resampling, the bootstrap PF,
+* `filters.mapping` -- grids, occupancy + semantic mapping, ROS map files, map metrics.
+* `filters.smc` -- generic sequential Monte Carlo: weights and resampling, the bootstrap PF,
   the firefly PFs, benchmark state-space models.
-* :mod:`filters.slam` -- landmark SLAM: FastSLAM 1.0/2.0 (+ WOC), EKF-SLAM, IFA-FastSLAM.
-* :mod:`filters.robot_data` -- sensor data containers (laser and semantic scans).
-* :mod:`filters.simulators` -- simulators that serve only experiments and tests (car-like SLAM
+* `filters.slam` -- landmark SLAM: FastSLAM 1.0/2.0 (+ WOC), EKF-SLAM, IFA-FastSLAM.
+* `filters.robot_data` -- sensor data containers (laser and semantic scans).
+* `filters.simulators` -- simulators that serve only experiments and tests (car-like SLAM
   simulator, grid ray caster).
-* :mod:`filters.experiments` -- what every experiment shares: the runner (sequential, process pool or
+* `filters.experiments` -- what every experiment shares: the runner (sequential, process pool or
   Ray), confidence intervals (``scipy.stats``), report writers, typed command lines (tyro); and the
   paper 000 / 001 reproductions, which need nothing above this package.
-* :mod:`filters.tools` -- commands over the filters alone (replaying a robot log).
-* :mod:`filters.pose` -- pose algebra shared by all of the above.
+* `filters.tools` -- commands over the filters alone (replaying a robot log).
+* `filters.pose` -- pose algebra shared by all of the above.
 """

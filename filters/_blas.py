@@ -7,7 +7,7 @@ the partial results in thread order to ``0.0``. The result therefore depends on 
 count, and on a busy machine waking the threads costs far more than the arithmetic (measured
 on the shared 2-core VM: ~35 us of CPU instead of ~8 us, several ms under heavy load).
 
-:func:`dot` computes the same chunks itself, each one single-threaded (a chunk has at most
+`dot` computes the same chunks itself, each one single-threaded (a chunk has at most
 10,000 elements, so OpenBLAS does not split it again), and adds them in the same order: the
 same bits as ``a @ b`` with the process's current OpenBLAS thread count. It checks that claim
 once per thread count on fixed vectors and falls back to ``a @ b`` when the check fails, when

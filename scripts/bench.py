@@ -1,6 +1,6 @@
 """Speed of semreloc, in one run: kernels, env steps, stages, resets, maps, scaling, PPO.
 
-The command lives in :mod:`agents.tools.bench` (also installed as ``semreloc-bench``);
+The command lives in `agents.tools.bench` (also installed as ``semreloc-bench``);
 ``python scripts/bench.py --help`` lists every option.
 """
 

@@ -1,6 +1,6 @@
 """Build the maps of a layout from a simulated mapping run and save them as ROS map_server files.
 
-The command lives in :mod:`semreloc_env.tools.build_maps` (also installed as ``semreloc-build-maps``);
+The command lives in `semreloc_env.tools.build_maps` (also installed as ``semreloc-build-maps``);
 ``python scripts/build_maps.py --help`` lists every option.
 """
 

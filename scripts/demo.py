@@ -1,6 +1,6 @@
 """Main demo: a global relocalization on the lab, drawn and plotted (out/demo/).
 
-The command lives in :mod:`agents.tools.demo` (also installed as ``semreloc-demo``);
+The command lives in `agents.tools.demo` (also installed as ``semreloc-demo``);
 ``python scripts/demo.py --help`` lists every option.
 """
 

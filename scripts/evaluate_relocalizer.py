@@ -1,6 +1,6 @@
 """Evaluate the relocalizer (before/after, global relocalization, kidnapping, tracking, the ACES log).
 
-The command lives in :mod:`agents.experiments.evaluate_relocalizer` (also installed as
+The command lives in `agents.experiments.evaluate_relocalizer` (also installed as
 ``semreloc-evaluate-relocalizer``); ``python scripts/evaluate_relocalizer.py --help`` lists every option.
 """
 

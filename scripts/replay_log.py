@@ -1,6 +1,6 @@
 """Replay a robot log (CARMEN) through the Monte Carlo localizer against its corrected poses.
 
-The command lives in :mod:`filters.tools.replay_log` (also installed as ``semreloc-replay-log``);
+The command lives in `filters.tools.replay_log` (also installed as ``semreloc-replay-log``);
 ``python scripts/replay_log.py --help`` lists every option.
 """
 

@@ -1,6 +1,6 @@
 """Reproduce paper 004: global relocalization, lidar-only vs lidar + semantic -> docs/paper004.md.
 
-The command lives in :mod:`agents.experiments.paper004` (also installed as ``semreloc-repro-paper004``);
+The command lives in `agents.experiments.paper004` (also installed as ``semreloc-repro-paper004``);
 ``python scripts/repro_paper004.py --help`` lists every option.
 """
 

@@ -1,6 +1,6 @@
 """Long random soak of both envs, every step checked; exit status 1 if anything failed.
 
-The command lives in :mod:`semreloc_env.tools.soak` (also installed as ``semreloc-soak``);
+The command lives in `semreloc_env.tools.soak` (also installed as ``semreloc-soak``);
 ``python scripts/soak.py --help`` lists every option.
 """
 

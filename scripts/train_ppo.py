@@ -1,6 +1,6 @@
 """Train PPO for active relocalization and compare it with the hand-written explorers (out/ppo/).
 
-The command lives in :mod:`agents.tools.train_ppo` (also installed as ``semreloc-train-ppo``);
+The command lives in `agents.tools.train_ppo` (also installed as ``semreloc-train-ppo``);
 ``python scripts/train_ppo.py --help`` lists every option.
 """
 

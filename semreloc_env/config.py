@@ -2,7 +2,7 @@
 
 Each reaches an env as a ``gym.make`` keyword argument, as a dict or an instance:
 ``gym.make("SemReloc-v1", lidar={"n_beams": 90})``. Unknown keys are an error, and types
-are strict (:func:`coerce_config`): ``True`` is not an int, ``1.5`` or ``2.0`` is not an int,
+are strict (`coerce_config`): ``True`` is not an int, ``1.5`` or ``2.0`` is not an int,
 ``"no"`` is not a bool, NaN and infinite floats are rejected.
 """
 
@@ -115,7 +115,7 @@ def _check_value(cls: type, name: str, v, ann, what: str):
 
 
 def check_config(obj, what: str | None = None) -> None:
-    """Check every field of a config dataclass instance against its annotation (see :func:`coerce_config`).
+    """Check every field of a config dataclass instance against its annotation (see `coerce_config`).
 
     Raises:
         ValueError: naming the field, for a value of the wrong type or a NaN / infinite float.

@@ -1,11 +1,11 @@
 """Range-bearing landmark observations from the semantic pseudo-laser (for landmark SLAM, paper 000).
 
 Each detected object is a *labelled contiguous run* of the camera's beams (the
-:class:`~semreloc_env.sensors.SemanticCamera` labels the nearest run of every object it
+`SemanticCamera` labels the nearest run of every object it
 detects). One run gives one observation ``(range m, bearing rad)`` in the robot frame, its class
 label, and -- for tests and known-association SLAM -- the index of the true object hit.
 
-How a run becomes a point (:class:`LandmarkSensorParams`):
+How a run becomes a point (`LandmarkSensorParams`):
 
 1. Runs are split where the label changes or where consecutive ranges jump by more than
    ``split_jump_m`` (two same-class objects side by side in the image are two detections).
@@ -47,7 +47,7 @@ class LandmarkSensorParams:
     Attributes:
         point: ``"mean"`` of the run's end points or ``"middle"`` beam's end point.
         class_depth_m: metres added to the range along the viewing ray, per class in
-            :data:`~semreloc_env.layouts.CLASS_NAMES` order (door, chair, trash_bin, cabinet).
+            `CLASS_NAMES` order (door, chair, trash_bin, cabinet).
         split_jump_m: a range jump above this between neighbouring beams splits a run.
         min_beams: runs with fewer beams are dropped.
         skip_fov_edges: drop runs that touch the first or last beam of the field of view.
@@ -104,7 +104,7 @@ def extract_landmarks(
 
     Args:
         scan: the camera's labelled scan (robot-frame beam angles, ranges in m).
-        params: extraction settings (default :class:`LandmarkSensorParams`).
+        params: extraction settings (default `LandmarkSensorParams`).
         beam_objects: optional ``(B,)`` true object index per beam (``SemanticCamera.true_hits``; -1 none).
 
     Returns:
@@ -150,7 +150,7 @@ class LandmarkSensor:
     """The semantic camera read as landmark observations: ``z, classes, true_ids = sensor.read(world, pose, scan)``.
 
     ``scan`` is the camera's reading at ``pose``; the true object per beam comes from the camera's
-    noise-free :meth:`~semreloc_env.sensors.SemanticCamera.true_hits` (no random draws).
+    noise-free `true_hits` (no random draws).
     """
 
     def __init__(self, camera: SemanticCamera, params: LandmarkSensorParams | None = None):

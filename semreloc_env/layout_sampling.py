@@ -1,15 +1,15 @@
 """A new layout at every reset: a seeded sampler over layout kinds and seeds, and its wrapper.
 
-* :data:`HELD_OUT_LAYOUT_SEEDS` — the procedural seeds kept for evaluation. A
-  :class:`LayoutSampler` never draws them, whatever seed range it is given, so a policy trained
+* `HELD_OUT_LAYOUT_SEEDS` — the procedural seeds kept for evaluation. A
+  `LayoutSampler` never draws them, whatever seed range it is given, so a policy trained
   through it has never seen the evaluation layouts of ``scripts/evaluate_active.py``.
-* :class:`LayoutSampler` — draws ``(kind, seed)`` from a seeded generator: a kind (a procedural
+* `LayoutSampler` — draws ``(kind, seed)`` from a seeded generator: a kind (a procedural
   generator, a built-in, or a layout file) by weight, then for procedural kinds a seed uniformly
   from the training range without the held-out ones. Layouts are built once per ``(kind, seed)``
   and cached.
-* :class:`RandomLayout` — a wrapper that gives a ``SemReloc`` env the next drawn layout before
-  every reset (:meth:`~semreloc_env.envs.semreloc.SemRelocEnv.set_layout`), the filter's maps
-  from :func:`semreloc_env.maps.maps_for` (built once per layout, cached).
+* `RandomLayout` — a wrapper that gives a ``SemReloc`` env the next drawn layout before
+  every reset (`set_layout`), the filter's maps
+  from `semreloc_env.maps.maps_for` (built once per layout, cached).
 
 The same reset seed gives the same layout, bit for bit; ``info["layout"]`` says which.
 """
@@ -32,7 +32,7 @@ HELD_OUT_LAYOUT_SEEDS: range = range(1_000_000, 1_000_500)
 """Procedural layout seeds for evaluation only (500 per procedural kind): never drawn for training."""
 
 DEFAULT_TRAIN_SEEDS: range = range(0, 100_000)
-"""Seed range a :class:`LayoutSampler` draws procedural layouts from by default."""
+"""Seed range a `LayoutSampler` draws procedural layouts from by default."""
 
 DEFAULT_KINDS = ("procedural", "procedural_sym", "procedural_lookalike", "lab", "twin_rooms")
 
@@ -60,7 +60,7 @@ def _layout(kind: str, seed: int) -> Layout:
 
 
 def is_held_out(seed: int) -> bool:
-    """Whether a procedural seed is one of :data:`HELD_OUT_LAYOUT_SEEDS`."""
+    """Whether a procedural seed is one of `HELD_OUT_LAYOUT_SEEDS`."""
     return int(seed) in HELD_OUT_LAYOUT_SEEDS
 
 
@@ -143,13 +143,13 @@ class RandomLayout(gym.Wrapper):
     ``reset(seed=s)`` reseeds the layout stream (``np.random.default_rng([s, salt])``), so the
     same seed gives the same layout and then the same episode; resets without a seed continue
     the stream (started from ``seed`` here). The env's ``map_source`` must be ``"mapping"``
-    or ``"perfect"``; each layout's map is built once (:func:`~semreloc_env.maps.maps_for`, its
+    or ``"perfect"``; each layout's map is built once (`maps_for`, its
     cache) and kept here for the last ``cache_size`` layouts. ``info["layout"]`` is
-    :meth:`LayoutDraw.as_dict` of the episode's layout.
+    `LayoutDraw.as_dict` of the episode's layout.
 
     Args:
         env: a ``SemReloc-v1`` env.
-        sampler: the layouts to draw (default :class:`LayoutSampler` with its defaults).
+        sampler: the layouts to draw (default `LayoutSampler` with its defaults).
         seed: seed of the layout stream until a reset passes one.
         cache_size: maps kept in memory.
     """

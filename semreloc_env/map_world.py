@@ -1,8 +1,8 @@
 """Worlds from occupancy maps, and the check that a map and a world agree.
 
-:func:`layout_from_map` turns a :class:`~filters.mapping.grid.GridMap` (e.g. a ROS map
-loaded with :func:`filters.mapping.ros_map.load_map`) into a :class:`MapLayout`, which
-:func:`semreloc_env.world.build_world` builds like any layout:
+`layout_from_map` turns a `GridMap` (e.g. a ROS map
+loaded with `filters.mapping.ros_map.load_map`) into a `MapLayout`, which
+`semreloc_env.world.build_world` builds like any layout:
 
 * **walls**: the boundaries of the occupied cells (``grid.occupied_mask()``, minus the cells of
   semantic classes), traced along cell edges into closed rings (occupied side on the left)
@@ -11,13 +11,13 @@ loaded with :func:`filters.mapping.ros_map.load_map`) into a :class:`MapLayout`,
 * **outer wall**: the map's extent (the robot cannot leave the raster);
 * **objects**: if the map has semantic classes, the outer boundary of each connected
   component of a class mask (4-connected), simplified the same way, as a
-  :class:`~semreloc_env.layouts.SemanticObject` of that class. Components whose traced
+  `SemanticObject` of that class. Components whose traced
   outline is not a simple polygon after simplification are traced again unsimplified;
 * **placement**: a robot pose is free only on a known-free cell of the map
-  (:meth:`MapLayout.solid_at`), so start poses are not drawn inside thick walls or in unknown
+  (`MapLayout.solid_at`), so start poses are not drawn inside thick walls or in unknown
   space; unknown cells are not solid for physics and sensing (only occupied cells are).
 
-:func:`check_map_matches_world` raises ``ValueError`` when a map's extent or frame does not
+`check_map_matches_world` raises ``ValueError`` when a map's extent or frame does not
 fit a layout (see its docstring): a map paired with the wrong world is an error, not a 4 m
 pose error after 30 steps.
 """
@@ -42,7 +42,7 @@ __all__ = ["MapLayout", "layout_from_map", "trace_boundaries", "check_map_matche
 
 @dataclass(frozen=True, eq=False)
 class MapLayout(Layout):
-    """A :class:`Layout` built from a map; ``grid`` is the map it came from."""
+    """A `Layout` built from a map; ``grid`` is the map it came from."""
 
     grid: GridMap | None = None
 
@@ -150,7 +150,7 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
 
     Raises:
         ValueError: the map has no free cell, or semantic classes other than the env's
-            (:data:`~semreloc_env.layouts.CLASS_NAMES`).
+            (`CLASS_NAMES`).
     """
     if not isinstance(grid, GridMap):
         raise TypeError(f"grid must be a GridMap, got {type(grid).__name__}")

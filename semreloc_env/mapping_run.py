@@ -10,7 +10,7 @@ layout's area), not its square: no all-pairs shortest paths.
 
 At every pose the simulated lidar and semantic camera (with their noise, misses and false
 detections) feed the log-odds occupancy and Bayesian semantic mappers of
-:mod:`filters.mapping.occupancy`, in chunks of poses so memory stays bounded. The result
+`filters.mapping.occupancy`, in chunks of poses so memory stays bounded. The result
 disagrees with the layout as a map built on a robot does.
 """
 
@@ -34,7 +34,7 @@ MAPPING_RUN_VERSION = "2"
 """Bump when the mapping run's output changes for the same inputs (keys the on-disk map cache)."""
 
 CHUNK_POSES = 2048
-"""Poses sensed and integrated per batch by :func:`build_maps` (bounds its memory)."""
+"""Poses sensed and integrated per batch by `build_maps` (bounds its memory)."""
 
 
 @numba.njit(cache=True, nogil=True)
@@ -181,8 +181,8 @@ sees the same surfaces from every heading, so more scans would only cost time (t
 def mapping_drive(
     layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(poses (P, 3), lidar_due (P,) bool)``: :func:`mapping_path` and where the lidar is integrated
-    (every pose except the turn headings between each :data:`LIDAR_TURN_STRIDE`-th)."""
+    """``(poses (P, 3), lidar_due (P,) bool)``: `mapping_path` and where the lidar is integrated
+    (every pose except the turn headings between each `LIDAR_TURN_STRIDE`-th)."""
     if not (isinstance(turns, int) and turns >= 1) or not (spacing_m > 0 and step_m > 0):
         raise ValueError(f"need spacing_m > 0, step_m > 0 and an int turns >= 1, got {spacing_m}, {step_m}, {turns}")
     pts, indptr, indices = _lattice(layout, spacing_m)
@@ -222,7 +222,7 @@ def build_maps(
 
     Sensors are simulated with their configured noise; ``rng`` (default: seed 0)
     drives that noise, so the same generator gives the same map. The raster is that of
-    :func:`~semreloc_env.rasterize.rasterize`.
+    `rasterize`.
     """
     rng = rng if rng is not None else np.random.default_rng(0)
     lidar_s = Lidar(lidar or LidarParams())

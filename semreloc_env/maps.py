@@ -1,7 +1,7 @@
 """Where an env's map comes from: a mapping run (default), the rasterised layout, a map file, or another layout.
 
 Mapping-run maps are cached in memory (per process) and on disk, keyed by the layout's
-content, the sensor parameters, the resolution and :data:`~semreloc_env.mapping_run.MAPPING_RUN_VERSION`,
+content, the sensor parameters, the resolution and `MAPPING_RUN_VERSION`,
 so a process that meets a layout again loads its map in milliseconds. The disk cache lives
 in ``$SEMRELOC_CACHE_DIR/maps`` (default ``~/.cache/semreloc/maps``); set
 ``SEMRELOC_CACHE_DIR`` to an empty string to switch it off. Files are written atomically;
@@ -167,7 +167,7 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
     Args:
         source: ``"mapping"`` (a mapping run with these sensors, seed 0; cached in memory
             and on disk, see the module docstring), ``"perfect"`` (the
-            rasterised layout), a ROS map ``.yaml`` / ``.yml`` path (:func:`filters.mapping.ros_map.load_map`),
+            rasterised layout), a ROS map ``.yaml`` / ``.yml`` path (`filters.mapping.ros_map.load_map`),
             a GridMap, or a *layout* (a name such as ``"lab"``, or a layout file): the mapping run
             of that layout, so the world can differ from the map ("the map is the lab, the world
             is the lab with furniture moved"). A map's classes must be those of the layouts, in
@@ -176,7 +176,7 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
 
     Raises:
         ValueError: classes that do not fit, or a map (file, GridMap or other layout) whose extent
-            or frame does not fit the world (:func:`semreloc_env.map_world.check_map_matches_world`).
+            or frame does not fit the world (`semreloc_env.map_world.check_map_matches_world`).
     """
     from .map_world import MapLayout, check_map_matches_world
 

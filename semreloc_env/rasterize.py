@@ -1,7 +1,7 @@
-"""Rasterise a layout into the grids a perfect map would hold (:class:`filters.mapping.grid.GridMap`).
+"""Rasterise a layout into the grids a perfect map would hold (`filters.mapping.grid.GridMap`).
 
 Time and memory are linear in the number of cells plus ``rows x vertices`` (a scanline fill);
-a grid of more than :data:`MAX_RASTER_CELLS` cells is refused before anything is allocated.
+a grid of more than `MAX_RASTER_CELLS` cells is refused before anything is allocated.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from filters.mapping.grid import GridMap
 from .layouts import CLASS_NAMES, Layout
 
 MAX_RASTER_CELLS = 25_000_000
-"""Largest grid :func:`rasterize` builds (about 22 bytes a cell, so ~550 MB): e.g. 250 m x 100 m at 5 cm."""
+"""Largest grid `rasterize` builds (about 22 bytes a cell, so ~550 MB): e.g. 250 m x 100 m at 5 cm."""
 
 
 def _mark_segments(
@@ -40,7 +40,7 @@ def fill_polygon(
     """Bool ``shape`` mask of the cells whose centres lie inside ``poly`` (even-odd rule).
 
     ``mask[0, 0]`` is cell ``offset`` (row, col) of the grid whose corner is ``origin``.
-    The same rule as :func:`semreloc_env.layouts.point_in_polygon` at every cell centre, by
+    The same rule as `semreloc_env.layouts.point_in_polygon` at every cell centre, by
     scanlines: ``O(rows x vertices + cells)`` time instead of ``O(cells x vertices)``.
     """
     h, w = shape
@@ -65,7 +65,7 @@ def fill_polygon(
 
 
 def grid_shape(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5) -> tuple[int, int]:
-    """``(rows, cols)`` of :func:`rasterize`'s grid; ValueError past :data:`MAX_RASTER_CELLS`."""
+    """``(rows, cols)`` of `rasterize`'s grid; ValueError past `MAX_RASTER_CELLS`."""
     if not (isinstance(resolution_m, (int, float)) and np.isfinite(resolution_m) and resolution_m > 0):
         raise ValueError(f"resolution_m must be a positive finite number, got {resolution_m!r}")
     if not (isinstance(margin_m, (int, float)) and np.isfinite(margin_m) and margin_m >= 0):
@@ -83,7 +83,7 @@ def grid_shape(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5
 
 
 def raster_geometry(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5):
-    """``((rows, cols), origin_xy_m)`` of :func:`rasterize`'s grid (checked as :func:`grid_shape` does)."""
+    """``((rows, cols), origin_xy_m)`` of `rasterize`'s grid (checked as `grid_shape` does)."""
     h, w = grid_shape(layout, resolution_m, margin_m)
     x0, _, y0, _ = layout.bounds()
     return (h, w), (x0 - margin_m, y0 - margin_m)
@@ -98,7 +98,7 @@ def rasterize(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5)
     The grid covers the outer wall's bounds plus ``margin_m`` on each side.
 
     Raises:
-        ValueError: a bad resolution or margin, or a grid of more than :data:`MAX_RASTER_CELLS`
+        ValueError: a bad resolution or margin, or a grid of more than `MAX_RASTER_CELLS`
             cells (checked before any allocation).
     """
     h, w = grid_shape(layout, resolution_m, margin_m)

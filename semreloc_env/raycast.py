@@ -1,15 +1,15 @@
 """Ray casting against line segments: the geometry pymunk collides with.
 
 The world hands its static segments (wall segments and object polygon edges,
-read back from the pymunk shapes) to :class:`SegmentScene`; every sensor casts
+read back from the pymunk shapes) to `SegmentScene`; every sensor casts
 against that one scene, so lidar, camera and collisions cannot drift apart.
 
 Two implementations of the same intersection test:
 
-* :meth:`SegmentScene.cast` / :meth:`SegmentScene.cast_many` — compiled (numba): each ray walks
+* `SegmentScene.cast` / `SegmentScene.cast_many` — compiled (numba): each ray walks
   a uniform grid of segment buckets and tests only the segments of the cells it crosses, so a
   scan in a large layout costs about as much as one in a small layout. Used by the sensors.
-* :meth:`SegmentScene.cast_reference` — the plain NumPy ``(B, M)`` broadcast, kept as the
+* `SegmentScene.cast_reference` — the plain NumPy ``(B, M)`` broadcast, kept as the
   reference the compiled path is tested against (same formulas, same tie-breaking).
 
 Both use, for ray ``o + t d`` and segment ``a + s e``: ``denom = cross(d, e)``,
@@ -238,7 +238,7 @@ class SegmentScene:
         return ranges[0], hit[0]
 
     def cast_many(self, origins: np.ndarray, angles: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`cast` for ``R`` origins ``(R, 2)`` at once, angles ``(R, B)``; returns ``(R, B)`` arrays."""
+        """`cast` for ``R`` origins ``(R, 2)`` at once, angles ``(R, B)``; returns ``(R, B)`` arrays."""
         o = np.asarray(origins, dtype=np.float64)
         ang = np.asarray(angles, dtype=np.float64)
         if o.ndim != 2 or o.shape[1] != 2 or ang.ndim != 2 or ang.shape[0] != o.shape[0]:
@@ -260,7 +260,7 @@ class SegmentScene:
         return out_r, out_hit
 
     def cast_reference(self, origin: np.ndarray, angles: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`cast` as plain NumPy broadcasting over ``(B, M)`` (the reference; slower)."""
+        """`cast` as plain NumPy broadcasting over ``(B, M)`` (the reference; slower)."""
         angles = np.asarray(angles, dtype=np.float64)
         d = np.stack([np.cos(angles), np.sin(angles)], axis=1)  # (B, 2)
         ao = self._a - np.asarray(origin, dtype=np.float64)[:2]  # (M, 2)
@@ -291,7 +291,7 @@ class SegmentScene:
 
     def near(self, point: np.ndarray, reach_m: float) -> np.ndarray:
         """Indices of the segments within ``reach_m`` of ``point`` ``(2,)``, ascending (compiled:
-        only the bucket cells within ``reach_m`` are looked at; :meth:`near_reference` tests all)."""
+        only the bucket cells within ``reach_m`` are looked at; `near_reference` tests all)."""
         start, items, gx0, gy0, cell, nx, ny = self._grid
         p = np.asarray(point, dtype=np.float64)
         seen = np.zeros(self._a.shape[0], dtype=np.bool_)
@@ -301,7 +301,7 @@ class SegmentScene:
         return np.flatnonzero(seen) if n else np.zeros(0, np.int64)
 
     def near_reference(self, point: np.ndarray, reach_m: float) -> np.ndarray:
-        """:meth:`near` by the distance to every segment (NumPy)."""
+        """`near` by the distance to every segment (NumPy)."""
         return np.flatnonzero(self.distance_to(point) <= reach_m)
 
     def distance_to(self, point: np.ndarray) -> np.ndarray:

@@ -96,7 +96,7 @@ class Renderer:
         layout: the world drawn.
         human: draw into a pyplot window (paced to ``fps``) instead of an off-screen canvas.
         dpi: pixels per inch of the figure (8 in on its longer side).
-        fps: frames per second in ``human`` mode: :meth:`draw` sleeps until ``1 / fps`` s have passed
+        fps: frames per second in ``human`` mode: `draw` sleeps until ``1 / fps`` s have passed
             since the previous frame (None: no pacing).
     """
 

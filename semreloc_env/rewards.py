@@ -1,9 +1,9 @@
 """Extra reward terms for ``SemReloc-v1``, kept out of the env (its reward logic is fixed there).
 
-* :func:`belief_mass_near` — the share of the belief within ``radius_m`` of a pose: Active
+* `belief_mass_near` — the share of the belief within ``radius_m`` of a pose: Active
   Neural Localization's reward (Chaplot et al., ICLR 2018: the belief's probability at the
   true pose), for a particle belief.
-* :class:`BeliefMassReward` — a wrapper adding it as the named term ``belief_mass`` to
+* `BeliefMassReward` — a wrapper adding it as the named term ``belief_mass`` to
   ``info["rewards"]`` and to the reward.
 
 A reward may use the truth (it is the training signal, not an observation); the policy's
@@ -20,7 +20,7 @@ import numpy as np
 from filters.pose import wrap_angle
 
 BELIEF_MASS_RADIUS_M = 0.5
-"""Default radius of :func:`belief_mass_near`: the env's success radius."""
+"""Default radius of `belief_mass_near`: the env's success radius."""
 
 
 def belief_mass_near(
@@ -67,8 +67,8 @@ class BeliefMassReward(gym.Wrapper):
     Args:
         env: a ``SemReloc-v1`` env (``unwrapped.mcl`` and ``unwrapped.world``).
         weight: scale of the term (reward units per unit of mass).
-        radius_m: see :func:`belief_mass_near`.
-        heading_tol_rad: see :func:`belief_mass_near`.
+        radius_m: see `belief_mass_near`.
+        heading_tol_rad: see `belief_mass_near`.
         mode: ``"level"`` or ``"gain"``.
     """
 

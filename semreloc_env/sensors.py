@@ -1,12 +1,12 @@
 """Simulated sensors, each a small class: ``reading = sensor.read(world, pose, rng)``.
 
-* :class:`Lidar` — ranges with Gaussian noise and dropouts, cast against the world's segments.
-* :class:`SemanticCamera` — the semantic pseudo-laser of paper 004 §2: per beam in
+* `Lidar` — ranges with Gaussian noise and dropouts, cast against the world's segments.
+* `SemanticCamera` — the semantic pseudo-laser of paper 004 §2: per beam in
   the camera's field of view, the range to the nearest surface and the class of
   the object hit, through a detector with misses, wrong classes and false positives.
-* :class:`Odometry` — the true motion increment through the rot1-trans-rot2 noise model.
+* `Odometry` — the true motion increment through the rot1-trans-rot2 noise model.
 
-All return :mod:`filters.robot_data.scans` containers or plain arrays, so filters never see the simulator.
+All return `filters.robot_data.scans` containers or plain arrays, so filters never see the simulator.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def beam_angles(n_beams: int, fov_rad: float) -> np.ndarray:
 
 
 class Lidar:
-    """A planar lidar at the robot centre (see :class:`~semreloc_env.config.LidarParams`)."""
+    """A planar lidar at the robot centre (see `LidarParams`)."""
 
     def __init__(self, params: LidarParams):
         self.params = params
@@ -60,10 +60,10 @@ class Lidar:
         return LaserScan(noisy, self.angles, p.range_max_m)
 
     def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Noisy ranges ``(P, B)`` from ``poses (P, 3)`` in one pass (beam angles: :attr:`angles`).
+        """Noisy ranges ``(P, B)`` from ``poses (P, 3)`` in one pass (beam angles: `angles`).
 
-        The same model as :meth:`read`; draws ``(P, B)`` normals, then ``(P, B)`` uniforms (so
-        for ``P = 1`` exactly the draws of :meth:`read`).
+        The same model as `read`; draws ``(P, B)`` normals, then ``(P, B)`` uniforms (so
+        for ``P = 1`` exactly the draws of `read`).
         """
         p = self.params
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
@@ -81,7 +81,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 class SemanticCamera:
-    """The semantic pseudo-laser (see :class:`~semreloc_env.config.CameraParams`).
+    """The semantic pseudo-laser (see `CameraParams`).
 
     Per frame: cast the beams; group beams by the object they hit first; each
     object seen is detected with probability ``1 - miss_rate`` and then given a
@@ -149,11 +149,11 @@ class SemanticCamera:
     def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Noisy ranges and labels ``(P, S)`` from ``poses (P, 3)`` in one pass (for mapping runs).
 
-        The detector model of :meth:`read` (misses, wrong classes, false positives, nearest run
+        The detector model of `read` (misses, wrong classes, false positives, nearest run
         per object), with the draws made up front: ``(P, S)`` normals (noise), then ``(P, S, 2)``
         uniforms (miss and wrong class of the k-th visible object of each frame, ascending
         index), ``(P, S)`` class shifts, ``(P, 4)`` uniforms for the false positive (occurs,
-        run, length, class). Not the draw order of :meth:`read`, so frames differ from it.
+        run, length, class). Not the draw order of `read`, so frames differ from it.
         """
         p = self.params
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
@@ -181,7 +181,7 @@ class SemanticCamera:
 def _detector_kernel(
     obj, ranges, hit, obj_label, u_obj, shift, u_fp, miss, wrong_rate, fp_rate, n_classes, labels
 ):  # pragma: no cover - compiled
-    """Labels ``(P, S)`` of :meth:`SemanticCamera.read_many` from its pre-drawn random numbers."""
+    """Labels ``(P, S)`` of `SemanticCamera.read_many` from its pre-drawn random numbers."""
     n_frames, n_beams = obj.shape
     for f in range(n_frames):
         k = 0  # index of the visible object, ascending object index
@@ -254,7 +254,7 @@ class Odometry:
     """Wheel odometry: the true increment between two poses, corrupted by the rot1-trans-rot2 model.
 
     The noise is drawn with the very model the filters assume
-    (:class:`filters.motion.odometry.OdometryMotionModel`), applied to one pose at the origin,
+    (`filters.motion.odometry.OdometryMotionModel`), applied to one pose at the origin,
     so simulator and filter cannot disagree on its form, only on its alphas.
     """
 
@@ -266,13 +266,13 @@ class Odometry:
     def read(self, prev_pose: np.ndarray, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``.
 
-        Draws 3 normals (:meth:`~filters.motion.odometry.OdometryMotionModel.sample_pose`).
+        Draws 3 normals (`sample_pose`).
         """
         return self._model.sample_pose(self._origin, _relative(prev_pose, pose), rng)
 
 
 def _relative(pose_from: np.ndarray, pose_to: np.ndarray) -> tuple[float, float, float]:
-    """:func:`filters.pose.relative` of two ``(3,)`` poses in scalar arithmetic (the same numbers)."""
+    """`filters.pose.relative` of two ``(3,)`` poses in scalar arithmetic (the same numbers)."""
     ax, ay, ath = (float(v) for v in pose_from)
     bx, by, bth = (float(v) for v in pose_to)
     dx, dy = bx - ax, by - ay

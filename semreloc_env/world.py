@@ -1,8 +1,8 @@
 """The pymunk simulation of a layout: static walls and objects, a differential-drive robot.
 
-Build a fresh world on every reset with :func:`build_world` (leftover bodies make
-pymunk runs nondeterministic). Sensors cast rays against :attr:`World.scene`, the
-segments of the very shapes in the pymunk space; the robot's motion (:meth:`World.drive`)
+Build a fresh world on every reset with `build_world` (leftover bodies make
+pymunk runs nondeterministic). Sensors cast rays against `World.scene`, the
+segments of the very shapes in the pymunk space; the robot's motion (`World.drive`)
 is resolved against the same segments by projection, so its state is its pose alone:
 no solver cache, copies that never diverge, and a clearance never below the radius.
 """
@@ -92,7 +92,7 @@ _geometry_cache: OrderedDict[tuple, StaticGeometry] = OrderedDict()
 
 
 def static_geometry(layout: Layout, extra_obstacles=()) -> StaticGeometry:
-    """The :class:`StaticGeometry` of ``layout`` plus ``extra_obstacles`` (cached, 32 entries)."""
+    """The `StaticGeometry` of ``layout`` plus ``extra_obstacles`` (cached, 32 entries)."""
     key = (layout, _polygon_key(extra_obstacles))
     hit = _geometry_cache.get(key)
     if hit is not None:
@@ -176,7 +176,7 @@ def _free_kernel(
 ):  # pragma: no cover - compiled
     """``out[p]``: point ``p`` inside ring 0, outside every obstacle ring, at least ``clearance``
     from every segment. The even-odd and distance formulas of
-    :func:`~semreloc_env.layouts.point_in_polygon` and :meth:`SegmentScene.distances`; only the
+    `point_in_polygon` and `SegmentScene.distances`; only the
     obstacles and segments listed in the bucket cells near ``p`` are tested."""
     for p in range(xy.shape[0]):
         x = xy[p, 0]
@@ -239,8 +239,8 @@ def _array_like(value) -> bool:
 class World:
     """A layout in pymunk plus the robot. Poses are ``(x, y, theta)``, metres and radians.
 
-    Use :func:`build_world`; then :meth:`set_pose` and :meth:`drive`. The static geometry
-    (segments, convex pieces) comes from :func:`static_geometry`, the pymunk space is new.
+    Use `build_world`; then `set_pose` and `drive`. The static geometry
+    (segments, convex pieces) comes from `static_geometry`, the pymunk space is new.
     """
 
     def __init__(self, layout: Layout, robot: RobotParams, physics: PhysicsParams, extra_obstacles=()):
@@ -288,7 +288,7 @@ class World:
         return bool(self.free_points(np.asarray(xy, dtype=np.float64)[None], margin_m)[0])
 
     def free_points(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
-        """Vectorised :meth:`is_free`: bool ``(P,)`` for points ``(P, 2)``; compiled (:meth:`free_points_reference`)."""
+        """Vectorised `is_free`: bool ``(P,)`` for points ``(P, 2)``; compiled (`free_points_reference`)."""
         xy = np.ascontiguousarray(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
         g = self.geometry
         out = np.empty(xy.shape[0], dtype=np.bool_)
@@ -305,7 +305,7 @@ class World:
         return out
 
     def free_points_reference(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
-        """:meth:`free_points` in plain NumPy (the reference the compiled test is checked against)."""
+        """`free_points` in plain NumPy (the reference the compiled test is checked against)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         ok = point_in_polygon(xy, np.asarray(self.layout.outer))
         solid_at = getattr(self.layout, "solid_at", None)  # worlds built from maps: occupied cells are solid

@@ -1,16 +1,16 @@
 """Observation variants of the semreloc envs, as wrappers (Minigrid ``FlatObsWrapper`` style).
 
-* :class:`BeliefObservation` adds a ``belief`` key: a few numbers summarising what the
+* `BeliefObservation` adds a ``belief`` key: a few numbers summarising what the
   relocalizer *believes* (spread, entropy, hypotheses, degeneracy, converged), read from
-  ``info["belief"]`` (:meth:`filters.localization.belief.Belief.as_dict`). It never exposes the true pose
+  ``info["belief"]`` (`filters.localization.belief.Belief.as_dict`). It never exposes the true pose
   nor the pose error: a policy that sees them would be cheating.
-* :class:`ActiveObservation` (from :mod:`semreloc_env.observations`) replaces the observation
+* `ActiveObservation` (from `semreloc_env.observations`) replaces the observation
   by what an active-relocalization policy needs: egocentric and whole-map images of the belief,
   the map and its classes, the hypothesis list, normalised scans and the last action, with
   bounds independent of the particle count and the layout size.
-* :class:`FlatObservation` concatenates every key of a Dict observation into one float32 Box,
+* `FlatObservation` concatenates every key of a Dict observation into one float32 Box,
   for algorithms and networks that want a flat vector.
-* :class:`CheckedReset` is the outermost wrapper of the registered envs: it checks the reset
+* `CheckedReset` is the outermost wrapper of the registered envs: it checks the reset
   arguments before Gymnasium's ``TimeLimit`` (which zeroes its step counter first) sees them.
 
 Typical use::
@@ -28,7 +28,7 @@ import numpy as np
 from gymnasium import spaces
 
 BELIEF_FEATURES = ("pos_std_m", "theta_std_rad", "entropy_nats", "n_clusters", "ess_frac", "converged")
-"""Order of the entries of the ``belief`` observation (see :class:`BeliefObservation`)."""
+"""Order of the entries of the ``belief`` observation (see `BeliefObservation`)."""
 
 
 class BeliefObservation(gym.Wrapper):
@@ -101,7 +101,7 @@ class BeliefObservation(gym.Wrapper):
         )
 
     def belief_features(self, belief: dict) -> np.ndarray:
-        """The ``(6,)`` float32 feature vector of an ``info["belief"]`` dict (order: :data:`BELIEF_FEATURES`)."""
+        """The ``(6,)`` float32 feature vector of an ``info["belief"]`` dict (order: `BELIEF_FEATURES`)."""
         n = max(int(belief["n_particles"]), 1)
         raw = np.array(
             [
@@ -137,7 +137,7 @@ class FlatObservation(gym.ObservationWrapper):
     gymnasium sorts: ``belief, lidar, odometry, semantic_class, semantic_range`` for
     ``BeliefObservation(gym.make("SemReloc-v2"))``). A Box entry is flattened C-order with its own
     bounds, so units and ranges are those of the Dict entry (see the env docstring and
-    :class:`BeliefObservation`); a ``MultiDiscrete`` entry (the class labels) is one-hot encoded,
+    `BeliefObservation`); a ``MultiDiscrete`` entry (the class labels) is one-hot encoded,
     ``nvec[i]`` entries in ``[0, 1]`` per element, element-major, as stable-baselines3 encodes it.
     ``self.slices[key]`` is where a key sits in the vector.
 
@@ -224,7 +224,7 @@ class ActionRepeat(gym.Wrapper):
     inner step; the reward is the sum over the inner steps, and ``info["rewards"]`` the sum of each
     named term. ``info["inner_steps"]`` is how many env steps the call took. A policy trained
     through this wrapper acts on an unwrapped env by holding each action for ``repeat`` steps
-    (:class:`agents.learned.LearnedPolicy` does).
+    (`agents.learned.LearnedPolicy` does).
 
     Args:
         env: any env.

@@ -3,7 +3,7 @@
 Random valid layouts are built valid by construction: a rectangular (or L-shaped) outer wall
 cut into 2 m cells, interior walls along cell lines, at most one furniture polygon strictly
 inside each cell (so nothing overlaps or crosses a wall). Runtime is kept to a few tens of
-seconds; ``scripts/soak.py`` (:mod:`semreloc_env.tools.soak`) runs the same checks for millions of steps.
+seconds; ``scripts/soak.py`` (`semreloc_env.tools.soak`) runs the same checks for millions of steps.
 """
 
 import copy

@@ -1,7 +1,7 @@
 """Evaluate active-relocalization policies on the same held-out (layout, start) pairs.
 
 Layouts: the first ``--layouts-per-kind`` held-out seeds
-(:data:`semreloc_env.layout_sampling.HELD_OUT_LAYOUT_SEEDS`, never drawn for training) of
+(`semreloc_env.layout_sampling.HELD_OUT_LAYOUT_SEEDS`, never drawn for training) of
 ``procedural``, ``procedural_sym`` and ``procedural_lookalike``, then ``twin_rooms``, ``lab``,
 the changed lab (``scenario="changed"``) and every ``--layout-files`` entry. Each layout gets
 ``--starts`` start poses, drawn from a generator seeded by the layout's index and the start's;
@@ -15,7 +15,7 @@ room; spinning in place cannot tell them apart, only moving out can. These are f
 ``uninformative`` and summarised on their own.
 
 Per policy (overall, per layout kind, and on the uninformative starts): success within the
-step limit (the env's own test, :mod:`agents.metrics`), wrong convergence (converged, wrong
+step limit (the env's own test, `agents.metrics`), wrong convergence (converged, wrong
 place, at the end), unconverged, each with a Wilson 95 % interval
 (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the successes,
 mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode),

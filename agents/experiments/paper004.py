@@ -3,7 +3,7 @@
 For each case (``twin_rooms``, ``lab``, ``lab`` with obstacles added after mapping)
 and each seed, a global relocalization runs from a belief uniform over free
 space while the robot follows a fixed, documented exploration motion
-(:class:`agents.baselines.WallFollowExplorer`: forward; when the +-0.5 rad front
+(`agents.baselines.WallFollowExplorer`: forward; when the +-0.5 rad front
 sector is closer than 0.7 m, turn toward the side with more room until clear).
 The same seed gives the same start pose, sensor noise and drive for both filter
 variants up to the point where their (different) beliefs stop the episode.

@@ -1,6 +1,6 @@
 """Measure SemSlam-v0: SLAM pose and landmark error over seeds with the wall-following explorer.
 
-For every seed one episode is driven by :class:`agents.baselines.WallFollowExplorer` (deterministic
+For every seed one episode is driven by `agents.baselines.WallFollowExplorer` (deterministic
 given the observations); every filter variant runs on its own env with the same seed. Because the
 filter draws from its own generator, the drive (world, sensors, odometry) is identical across
 variants as long as the policy only reads the observations -- so differences are paired.
@@ -112,7 +112,7 @@ def run(args: Args, seed: int, slam: dict, figure: str = "") -> dict[str, float]
 
 
 def episode_job(job: tuple[Args, int, dict, str]) -> dict[str, float]:
-    """:func:`run` for the job ``(args, seed, slam overrides, figure path)``."""
+    """`run` for the job ``(args, seed, slam overrides, figure path)``."""
     return run(*job)
 
 

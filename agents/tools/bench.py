@@ -10,7 +10,7 @@ Usage::
 
 Every figure is given twice: per CPU-second of this process (``time.process_time``; what
 counts on a machine shared with other jobs) and per wall-clock second. Each benchmark is a
-function ``bench_*(args) -> list[Row]`` listed in :data:`BENCHMARKS`. Numba compile time is
+function ``bench_*(args) -> list[Row]`` listed in `BENCHMARKS`. Numba compile time is
 excluded (warm-up calls before timing); repeated timings report the median.
 """
 

@@ -1,12 +1,12 @@
 """Train PPO for active relocalization and compare it with the hand-written explorers.
 
-Trains a ``MultiInputPolicy`` PPO (:func:`agents.train.train`; observation = lidar, semantic
+Trains a ``MultiInputPolicy`` PPO (`agents.train.train`; observation = lidar, semantic
 pseudo-laser, odometry and the filter's belief summary, never the true pose), saves it, then
-evaluates PPO, :class:`agents.baselines.WallFollowExplorer` and :class:`agents.baselines.RandomWalk`
+evaluates PPO, `agents.baselines.WallFollowExplorer` and `agents.baselines.RandomWalk`
 on the *same* episode seeds (same start poses, noise and filter draws) and prints a table of
 success rate, wrong-convergence rate, median steps to converge and median final error.
 
-The training options are the fields of :class:`agents.train.TrainConfig` (``--config.<field>``);
+The training options are the fields of `agents.train.TrainConfig` (``--config.<field>``);
 the env options (``--layout``, ``--lidar-only``, ``--map-source``, ``--n-particles``,
 ``--max-episode-steps``) make its ``env_kwargs``. Everything is written under ``--config.log-dir``
 (default ``out/ppo``): ``model.zip``, ``progress.csv``, TensorBoard events
@@ -117,7 +117,7 @@ def _fmt(v, pct: bool = False, digits: int = 2) -> str:
 
 
 def results_table(rows: dict[str, dict]) -> str:
-    """Markdown table of :func:`agents.train.evaluate` summaries, one row per policy."""
+    """Markdown table of `agents.train.evaluate` summaries, one row per policy."""
     head = (
         "| policy | success | wrong convergence | unconverged | median steps to converge "
         "| median final error (m) | mean return |\n|---|---|---|---|---|---|---|\n"

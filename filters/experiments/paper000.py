@@ -1,6 +1,6 @@
 """Reproduce paper 000 (Wang & Wang 2022, Monocular SLAM_WOCPF): Tables 1 and 2 plus a sweep over K.
 
-Everything runs on Bailey's car-like SLAM simulator (:mod:`filters.simulators.car_sim`) over our
+Everything runs on Bailey's car-like SLAM simulator (`filters.simulators.car_sim`) over our
 built-in 100 m x 80 m course (31 landmarks, 15 waypoints, clockwise). One Monte Carlo run simulates
 one drive (seeded) and runs every compared filter on the *same* drive (paired comparison).
 

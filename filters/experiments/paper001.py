@@ -4,7 +4,7 @@ Table 1: RMSE and run time of PF, FA-PF and IFA-PF on the univariate nonstationa
 model (Q = R = 1, x_0 = 0, 100 steps) for N = 50 / 100 / 150 particles over many seeded runs,
 with 95 % confidence intervals and a few ablations of the IFA-PF pieces.
 Table 3: FastSLAM vs FA-FastSLAM vs IFA-FastSLAM on the 100 m x 80 m car-like course
-(:mod:`filters.simulators.car_sim`), RMSE mean and variance over runs, and run time.
+(`filters.simulators.car_sim`), RMSE mean and variance over runs, and run time.
 
 Writes a Markdown report (our figures beside the paper's, the command, a plain verdict on
 the paper's claims) and PNG figures. Every number comes from a seeded run; rerunning the
@@ -203,11 +203,11 @@ def ewa_diagnostics(args: Args, n_runs: int = 20) -> dict:
 
 
 def table1_job(job: tuple[Args, int, int]) -> dict:
-    """One Table 1 run ``(args, n, r)``: every filter of :func:`table1_filters` with ``n`` particles on run
+    """One Table 1 run ``(args, n, r)``: every filter of `table1_filters` with ``n`` particles on run
     ``r``'s trajectory (generator ``(seed, r)``), filter ``k`` drawing from ``(seed, r, n, k + 1)``.
 
     Returns ``{"rmse": {name: float}, "time": {name: seconds}, "estimates": {name: array} or None}``; the
-    estimates are kept for the example figure (run 0 at :func:`example_n` particles) only.
+    estimates are kept for the example figure (run 0 at `example_n` particles) only.
     """
     args, n, r = job
     model = GrowthModel()
@@ -244,7 +244,7 @@ def run_table1(args: Args) -> dict:
 
 
 def reference_job(job: tuple[Args, int]) -> float:
-    """RMSE of the reference bootstrap PF on run ``r`` (job ``(args, r)``); see :func:`run_reference`."""
+    """RMSE of the reference bootstrap PF on run ``r`` (job ``(args, r)``); see `run_reference`."""
     args, r = job
     model = GrowthModel()
     n = args.reference_particles
@@ -255,7 +255,7 @@ def reference_job(job: tuple[Args, int]) -> float:
 def run_reference(args: Args) -> np.ndarray:
     """Per-run RMSE of a bootstrap PF with ``args.reference_particles`` particles over Table 1's runs.
 
-    Same true trajectories and observations as :func:`run_table1` (generator ``(seed, r)``); the filter's
+    Same true trajectories and observations as `run_table1` (generator ``(seed, r)``); the filter's
     own draws come from ``(seed, r, reference_particles, 0)``, a stream no Table 1 filter uses. With
     enough particles its estimate is the posterior mean, so its RMSE is the level no filter of these
     observations can beat on average (the Bayes level).

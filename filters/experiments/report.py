@@ -1,8 +1,8 @@
 """Report writers shared by the reproduction and evaluation commands: Markdown tables, number
 formats, generated blocks inside hand-written documents, and figure files.
 
-Nothing here computes a statistic (that is :mod:`filters.experiments.stats`) or runs an
-experiment (:mod:`filters.experiments.runner`).
+Nothing here computes a statistic (that is `filters.experiments.stats`) or runs an
+experiment (`filters.experiments.runner`).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ Contract of a job function ``fn(job) -> result``:
 * ``job`` and ``result`` are picklable plain data (tuples, dicts, dataclasses, NumPy arrays);
 * every random draw inside comes from generators seeded from ``job`` alone (for example
   ``np.random.default_rng([seed, run, ...])``), never from global state or from the order in which
-  jobs run. Then :func:`run_jobs` returns the same list with every executor and any worker count
+  jobs run. Then `run_jobs` returns the same list with every executor and any worker count
   (wall-clock and CPU times measured inside a job aside).
 
 Use::
@@ -18,12 +18,12 @@ Use::
 
 A command line gets the runner's options by holding a ``runner: filters.experiments.cli.Runner`` field in its tyro
 ``Args`` dataclass (``--executor``, ``--workers``, ``--address``, ``--progress/--no-progress``;
-see :mod:`filters.experiments.cli`).
+see `filters.experiments.cli`).
 
 Executors (``RunnerConfig.executor``):
 
 * ``"sequential"``: ``[fn(j) for j in jobs]`` in this process.
-* ``"process"``: a :class:`concurrent.futures.ProcessPoolExecutor` of ``workers`` processes.
+* ``"process"``: a `concurrent.futures.ProcessPoolExecutor` of ``workers`` processes.
 * ``"ray"``: one Ray task per job (``num_cpus=1`` each). If Ray is not initialised yet, the runner
   calls ``ray.init(address=address)`` for a cluster (``"auto"``, ``"ray://head:10001"``, ...) or,
   with no address, ``ray.init(num_cpus=workers, include_dashboard=False)`` on this machine, and

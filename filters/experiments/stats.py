@@ -1,12 +1,12 @@
-"""Confidence intervals used by the evaluation and reproduction scripts, all from :mod:`scipy.stats`.
+"""Confidence intervals used by the evaluation and reproduction scripts, all from `scipy.stats`.
 
-* :func:`wilson_interval` -- Wilson interval of a binomial rate ``k / n``.
-* :func:`t_mean_interval` -- mean and Student-t half-width of a sample mean.
-* :func:`normal_mean_interval` -- mean and normal-approximation half-width (``z * s / sqrt(n)``).
-* :func:`paired_bootstrap_interval` -- percentile bootstrap interval of a statistic of paired samples.
+* `wilson_interval` -- Wilson interval of a binomial rate ``k / n``.
+* `t_mean_interval` -- mean and Student-t half-width of a sample mean.
+* `normal_mean_interval` -- mean and normal-approximation half-width (``z * s / sqrt(n)``).
+* `paired_bootstrap_interval` -- percentile bootstrap interval of a statistic of paired samples.
 
 Effective sample size lives with the weights it describes:
-:func:`filters.smc.resampling.effective_sample_size`.
+`filters.smc.resampling.effective_sample_size`.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Belief summary of a weighted particle set: what a filter currently holds, honestly.
 
-:func:`summarize` turns ``(N, 3)`` poses and ``(N,)`` weights into a frozen
-:class:`Belief` whose :meth:`Belief.as_dict` is plain Python (floats, ints,
-lists), ready for a Gymnasium ``info`` dict. :func:`cluster_labels` is the
+`summarize` turns ``(N, 3)`` poses and ``(N,)`` weights into a frozen
+`Belief` whose `Belief.as_dict` is plain Python (floats, ints,
+lists), ready for a Gymnasium ``info`` dict. `cluster_labels` is the
 clustering it uses, shared with the filter's clustered resampling.
 
 Definitions (all weights normalised to sum 1):
@@ -23,7 +23,7 @@ Definitions (all weights normalised to sum 1):
   particles (26-neighbourhood, across the ``±pi`` seam too); particles in lighter bins
   belong to no hypothesis. Each cluster whose total weight is
   at least ``cluster_min_weight`` (default 0.02, so stray particles are no
-  hypothesis) is a :class:`Hypothesis` — weight, mean, covariance, particle count —
+  hypothesis) is a `Hypothesis` — weight, mean, covariance, particle count —
   and ``hypotheses`` lists them by weight, heaviest first. ``n_clusters`` is their number.
 * ``converged``: *one hypothesis holds nearly all the mass and is tight*: the heaviest
   hypothesis has weight ``>= converged_min_weight`` (default 0.95), position std
@@ -36,11 +36,11 @@ Definitions (all weights normalised to sum 1):
 Cost: O(N) plus the raster (the particles' bounding box), every step.
 
 Backends: every function here takes ``backend="numba"`` (default; the kernels of
-:mod:`filters.localization.belief_kernels`) or ``backend="numpy"`` (the reference, kept as the
+`filters.localization.belief_kernels`) or ``backend="numpy"`` (the reference, kept as the
 specification). Both give the same results *bit for bit* — labels, counts and every float —
 because the kernels repeat the reference's floating-point operations in the same order and
 leave BLAS dot products, pairwise sums and transcendental functions to NumPy
-(``tests/test_belief_kernels.py``); the long dot products go through :func:`filters._blas.dot`,
+(``tests/test_belief_kernels.py``); the long dot products go through `filters._blas.dot`,
 which gives ``w @ x``'s bits without waking OpenBLAS's threads.
 """
 
@@ -81,7 +81,7 @@ def _raster(poses: np.ndarray, bin_xy_m: float, bin_theta_rad: float):
 
 @dataclass(frozen=True)
 class BeliefConfig:
-    """Bin sizes and thresholds of :func:`summarize` (see the module docstring)."""
+    """Bin sizes and thresholds of `summarize` (see the module docstring)."""
 
     entropy_bin_xy_m: float = 0.5
     entropy_bin_theta_rad: float = math.pi / 8

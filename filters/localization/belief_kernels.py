@@ -1,6 +1,6 @@
-"""Numba kernels of the belief summary (:mod:`filters.localization.belief`), one pass per stage.
+"""Numba kernels of the belief summary (`filters.localization.belief`), one pass per stage.
 
-Contract: every kernel reproduces the NumPy reference in :mod:`filters.localization.belief`
+Contract: every kernel reproduces the NumPy reference in `filters.localization.belief`
 *bit for bit*, not just closely. That is possible because the reference's float results come
 from operations whose order is fixed and reproducible here without fastmath:
 

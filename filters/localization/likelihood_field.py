@@ -31,7 +31,7 @@ occupied / class masks, ``scipy.ndimage.distance_transform_edt``), in metres.
 Speed: per ``(lidar range_max, semantic range_max)`` pair the model precomputes
 one table of ``log p`` per cell for the occupancy field and every class field, so
 an update is one table look-up per particle and beam, done by the numba kernel
-:func:`log_likelihood_kernel`. :mod:`filters.localization.likelihood_reference` holds a pure
+`log_likelihood_kernel`. `filters.localization.likelihood_reference` holds a pure
 NumPy implementation of the same model, computed from the distance fields
 without the tables, used to test the kernel.
 """
@@ -147,7 +147,7 @@ class BeamSet:
         table: ``(B,)`` int64 field index per beam: 0 = occupancy, ``k + 1`` = class ``k``.
         n_lidar: number of lidar beams (the first ``n_lidar`` entries).
         n_semantic: number of labelled semantic beams (the rest).
-        n_detections: objects seen in the semantic scan (see :func:`count_detections`).
+        n_detections: objects seen in the semantic scan (see `count_detections`).
         lidar_range_max_m, semantic_range_max_m: range limits the log tables use.
     """
 
@@ -195,7 +195,7 @@ def log_likelihood_kernel(
     off the ``h x w`` map. Beams ``j < n_lidar`` add to ``out_l[i]``, the others to ``out_s[i]``.
 
     Two phases per particle: the cell indices in exact arithmetic (so every end point lands in
-    the same cell as in :mod:`filters.localization.likelihood_reference`), then a gather-sum under
+    the same cell as in `filters.localization.likelihood_reference`), then a gather-sum under
     fastmath (the only difference from the reference is the order of the additions, ~1e-13).
     ``cos_t``/``sin_t`` are passed in so kernel and reference share them bit for bit.
     """
@@ -213,7 +213,7 @@ class LikelihoodFieldModel:
     """Measurement model ``log p(lidar, semantic | pose, map)`` over an ``(N, 3)`` pose array.
 
     Model only, no filter state (``nchopin/particles`` style): the filter calls
-    :meth:`log_likelihood` and owns the weights.
+    `log_likelihood` and owns the weights.
 
     Args:
         grid: the map; its occupied mask gives the lidar field, ``class_mask(k)`` the
@@ -221,7 +221,7 @@ class LikelihoodFieldModel:
         lidar: parameters of the lidar field.
         semantic: parameters of the semantic fields (shared by all classes).
         backend: ``"numba"`` (the fast kernel) or ``"numpy"`` (the reference in
-            :mod:`filters.localization.likelihood_reference`; same numbers, slower).
+            `filters.localization.likelihood_reference`; same numbers, slower).
     """
 
     def __init__(
@@ -290,7 +290,7 @@ class LikelihoodFieldModel:
 
         Raises:
             ValueError: a semantic label has no class in the map.
-            TypeError: the scans are not :class:`LaserScan` / :class:`SemanticScan`.
+            TypeError: the scans are not `LaserScan` / `SemanticScan`.
         """
         lxs, lys, tabs = [], [], []
         n_l = n_s = n_det = 0
@@ -394,7 +394,7 @@ class LikelihoodFieldModel:
 
 # ------------------------------------------------------------------------------------------ model cache
 MODEL_CACHE_SIZE = 4
-"""Likelihood-field models kept by :func:`cached_model` (least recently used dropped first)."""
+"""Likelihood-field models kept by `cached_model` (least recently used dropped first)."""
 
 _models: OrderedDict[tuple, LikelihoodFieldModel] = OrderedDict()
 _content_keys: weakref.WeakKeyDictionary[GridMap, str] = weakref.WeakKeyDictionary()
@@ -423,10 +423,10 @@ def cached_model(
     semantic: LikelihoodFieldConfig | None = None,
     backend: str = "numba",
 ) -> LikelihoodFieldModel:
-    """A :class:`LikelihoodFieldModel` for ``(grid, lidar, semantic, backend)``, built once per process.
+    """A `LikelihoodFieldModel` for ``(grid, lidar, semantic, backend)``, built once per process.
 
-    Keyed on the map's *content* (:func:`grid_content_key`) and the configs, so two GridMap
-    objects holding the same map share one model; at most :data:`MODEL_CACHE_SIZE` models are
+    Keyed on the map's *content* (`grid_content_key`) and the configs, so two GridMap
+    objects holding the same map share one model; at most `MODEL_CACHE_SIZE` models are
     kept. The model is stateless apart from its own caches, so sharing it between filters is safe.
     """
     if not isinstance(grid, GridMap):

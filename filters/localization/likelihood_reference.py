@@ -1,12 +1,12 @@
 """Pure-NumPy reference of the likelihood-field measurement model.
 
-The same model as :mod:`filters.localization.likelihood_field` (read its docstring for the
+The same model as `filters.localization.likelihood_field` (read its docstring for the
 maths), written as plain array code and computed from the *distance fields*
 rather than from the precomputed ``log p`` tables, so it checks the tables as
 well as the numba kernel. It is slow (it builds ``(N, B)`` temporaries and
 evaluates ``log p`` per end point) and exists for tests and the benchmark.
 
-Beam selection (:meth:`LikelihoodFieldModel.beams`) is shared with the fast path:
+Beam selection (`LikelihoodFieldModel.beams`) is shared with the fast path:
 it is part of the model's definition, not of the hot loop.
 """
 
@@ -57,6 +57,6 @@ def log_likelihood_terms_reference(
 def log_likelihood_reference(
     model: LikelihoodFieldModel, poses: np.ndarray, lidar: LaserScan | None, semantic: SemanticScan | None = None
 ) -> np.ndarray:
-    """``(N,)`` total log-likelihood, as :meth:`LikelihoodFieldModel.log_likelihood`."""
+    """``(N,)`` total log-likelihood, as `LikelihoodFieldModel.log_likelihood`."""
     ll_l, ll_s = log_likelihood_terms_reference(model, poses, model.beams(lidar, semantic))
     return ll_l + ll_s

@@ -2,16 +2,16 @@
 
 Model and algorithm are separate (``nchopin/particles`` style):
 
-* motion model: :class:`filters.motion.odometry.OdometryMotionModel` (``sample(poses, delta, rng)``),
-* measurement model: :class:`filters.localization.likelihood_field.LikelihoodFieldModel`
+* motion model: `filters.motion.odometry.OdometryMotionModel` (``sample(poses, delta, rng)``),
+* measurement model: `filters.localization.likelihood_field.LikelihoodFieldModel`
   (``log_likelihood(poses, lidar, semantic) -> (N,)``; lidar field x per-class
   semantic field, paper 004 Eq. 8),
-* the filter loop: :class:`MonteCarloLocalizer` below, which owns an ``(N, 3)``
+* the filter loop: `MonteCarloLocalizer` below, which owns an ``(N, 3)``
   pose array and ``(N,)`` log-weights (normalised with log-sum-exp).
 
-Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
+Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
 
-1. **Motion gate (AMCL).** :meth:`~MonteCarloLocalizer.predict` moves the particles
+1. **Motion gate (AMCL).** `predict` moves the particles
    on every call and accumulates the odometry since the last measurement update.
    The measurement update itself is *skipped* (returns diagnostics with
    ``updated=False``) unless the robot moved more than ``update_min_d_m`` or turned
@@ -31,7 +31,7 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
 4. **Resampling**, with the scheme named ``resampler``, when ``ESS < resample_ess_frac * N``
    and the semantic hold-off is over: with ``use_semantic`` and
    ``holdoff_min_detections > 0``, no resampling until that many object detections
-   (runs of equally-labelled beams, :func:`filters.localization.likelihood_field.count_detections`)
+   (runs of equally-labelled beams, `filters.localization.likelihood_field.count_detections`)
    were seen since the last ``init_*`` (paper 004 §3: keep diversity until several
    objects were seen). Since updates only run after enough motion, resampling also
    only happens after motion (paper 004's threshold).
@@ -40,13 +40,13 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
    one by one until ``n >= n_chi(k)`` where ``k`` is the number of occupied
    ``kld_bin_xy_m x kld_bin_xy_m x kld_bin_theta_rad`` bins so far and
    ``n_chi(k) = (k - 1) / (2 eps) * (1 - 2/(9(k-1)) + sqrt(2/(9(k-1))) z)^3``,
-   clipped to :attr:`MonteCarloLocalizer.kld_bounds` (``[min_particles, max_particles]``; an
+   clipped to `MonteCarloLocalizer.kld_bounds` (``[min_particles, max_particles]``; an
    explicit ``n_particles`` is the upper bound instead). Vectorised: ``max(2 N, 4 min_particles)``
    draws (all ``max_particles`` if the bound is not met within them), then the first prefix
    length that satisfies the bound.
 6. **Clustered resampling** (after the clustered particle filter of Milstein et al. 2002),
    if ``resample_mode == "clustered"``: the particles are split into the clusters of
-   :func:`filters.localization.belief.cluster_labels`; every cluster whose weight is at least
+   `filters.localization.belief.cluster_labels`; every cluster whose weight is at least
    ``cluster_keep_weight`` keeps its weight and gets
    ``max(floor, round(n_new * weight))`` particles (``floor = min(cluster_min_particles,
    n_new // kept clusters)``), drawn from its own
@@ -61,7 +61,7 @@ Semantics of one :meth:`MonteCarloLocalizer.update` (see ``docs/relocalizer.md``
    particle, with probability ``max(0, 1 - w_fast / w_slow)``, by an injected one (weight
    ``1 / N`` before renormalising), and resets both averages after an injection.
    Injected particles come from ``injection``: ``"uniform"`` (free space) or ``"scan"``
-   (:mod:`filters.localization.proposals`: ``proposal_candidates`` candidates, about
+   (`filters.localization.proposals`: ``proposal_candidates`` candidates, about
    ``proposal_semantic_frac`` of them from the current semantic detections, the rest
    uniform, drawn in proportion to their tempered likelihood of the current scans).
 8. **Evidence limits.** ``max_update_log_ratio`` caps how far below the best particle one
@@ -124,7 +124,7 @@ _SUBCONFIGS = {
 
 @dataclass(frozen=True)
 class MCLConfig:
-    """Configuration of :class:`MonteCarloLocalizer` (units in the names).
+    """Configuration of `MonteCarloLocalizer` (units in the names).
 
     Sub-configs may be given as dicts (e.g. from ``gym.make`` keyword arguments);
     unknown keys raise ``TypeError`` there as here.
@@ -135,14 +135,14 @@ class MCLConfig:
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
         motion: odometry motion noise.
-        belief: bins and thresholds of :meth:`MonteCarloLocalizer.belief`.
+        belief: bins and thresholds of `MonteCarloLocalizer.belief`.
         use_semantic: multiply in the semantic factor (False = lidar-only MCL).
         likelihood_scale: exponent on the measurement likelihood (1 = plain Bayes). The
             default 0.1 tempers 60 beams that are far from independent (AMCL's ``p^3``
             sum is another fix for the same problem): with plain Bayes one scan decides
             between look-alike places before the semantic factor can, see docs/relocalizer.md.
         update_min_d_m, update_min_a_rad: motion gate of the measurement update (AMCL).
-        resampler: name in :data:`filters.smc.resampling.RESAMPLERS`.
+        resampler: name in `filters.smc.resampling.RESAMPLERS`.
         resample_ess_frac: resample when ESS < this fraction of N (1.0 = every update).
         holdoff_min_detections: semantic hold-off (0 = off).
         kld: KLD-sampling (Fox 2003): the particle count adapts to the belief's spread.
@@ -272,7 +272,7 @@ class MCLConfig:
 
 @dataclass(frozen=True)
 class UpdateDiagnostics:
-    """What one :meth:`MonteCarloLocalizer.update` did.
+    """What one `MonteCarloLocalizer.update` did.
 
     Attributes:
         updated: the measurement update ran (False: skipped by the motion gate).
@@ -319,14 +319,14 @@ class MonteCarloLocalizer:
 
     Args:
         grid: the map (occupancy + semantic grids).
-        config: an :class:`MCLConfig` (or a dict of its fields); None = defaults.
+        config: an `MCLConfig` (or a dict of its fields); None = defaults.
         rng: the ``numpy.random.Generator`` every random draw comes from.
         measurement_model: optional object with ``log_likelihood_terms(poses, lidar, semantic)
             -> (lidar_ll, semantic_ll, beams)`` replacing the likelihood-field model (for tests
-            and experiments); None = :class:`LikelihoodFieldModel` from the config.
+            and experiments); None = `LikelihoodFieldModel` from the config.
 
-    The particle set is empty until :meth:`init_global` or :meth:`init_around`;
-    :meth:`predict` and :meth:`update` raise ``ValueError`` on an empty set.
+    The particle set is empty until `init_global` or `init_around`;
+    `predict` and `update` raise ``ValueError`` on an empty set.
     """
 
     def __init__(
@@ -446,7 +446,7 @@ class MonteCarloLocalizer:
         return int(min(max(n, c.min_particles), c.max_particles))
 
     def init_global(self, n: int | None = None) -> None:
-        """Spread ``n`` particles uniformly over free space (default :meth:`global_particle_count`).
+        """Spread ``n`` particles uniformly over free space (default `global_particle_count`).
 
         Raises:
             ValueError: ``n < 1`` or the map has no free cell.
@@ -483,7 +483,7 @@ class MonteCarloLocalizer:
     # ------------------------------------------------------------ filter steps
     def predict(self, delta) -> None:
         """Move every particle by a noisy copy of the odometry increment ``delta = (dx, dy, dtheta)``
-        (metres / radians, previous robot frame, as :func:`filters.pose.relative` gives)."""
+        (metres / radians, previous robot frame, as `filters.pose.relative` gives)."""
         self._require_particles()
         d = np.asarray(delta, dtype=np.float64).reshape(-1)
         if d.shape != (3,) or not np.all(np.isfinite(d)):
@@ -742,6 +742,6 @@ class MonteCarloLocalizer:
 
     # ------------------------------------------------------------ summary
     def belief(self) -> Belief:
-        """Summary of the current particle set (see :mod:`filters.localization.belief`)."""
+        """Summary of the current particle set (see `filters.localization.belief`)."""
         self._require_particles()
         return summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)

@@ -1,11 +1,11 @@
 """Sensor-based pose proposals: candidate robot poses drawn from the current scan.
 
-Used by :class:`filters.localization.mcl.MonteCarloLocalizer` to inject particles where
+Used by `filters.localization.mcl.MonteCarloLocalizer` to inject particles where
 the sensors say the robot could be (sensor resetting, Lenser & Veloso 2000; Mixture MCL,
 Thrun et al. 2001), instead of uniformly over free space:
 
 * **From a semantic detection.** A detection is a maximal run of adjacent labelled beams
-  with one label (:func:`detection_runs`); its middle beam gives a range ``r`` and a bearing
+  with one label (`detection_runs`); its middle beam gives a range ``r`` and a bearing
   ``a`` in the robot frame. A candidate takes a map cell ``c`` of the detected class at
   random, a heading ``theta`` uniform in ``[-pi, pi)``, and puts the robot at
   ``c - r (cos(theta + a), sin(theta + a))``. A class with few instances in the map
@@ -14,7 +14,7 @@ Thrun et al. 2001), instead of uniformly over free space:
 
 Candidates that fall outside free space are replaced by uniform ones. The caller weights
 the candidates with its own measurement model and draws the injected particles from them
-(:meth:`ScanProposal.draw`).
+(`ScanProposal.draw`).
 """
 
 from __future__ import annotations

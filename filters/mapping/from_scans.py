@@ -1,11 +1,11 @@
 """One call from scans at known poses (a robot log with SLAM-corrected poses) to a ROS map.
 
-:func:`raster_for` sizes the raster from the data: the bounding box of every sensor
+`raster_for` sizes the raster from the data: the bounding box of every sensor
 position and every *returned* beam end point (no-return beams do not widen it; the
 mapper skips the part of a beam that leaves the raster), grown by ``margin_m`` and
-snapped outwards to whole cells. :func:`map_from_scans` runs
-:class:`~filters.mapping.occupancy.OccupancyMapper` on that raster and optionally
-writes the result with :func:`filters.mapping.ros_map.save_map`.
+snapped outwards to whole cells. `map_from_scans` runs
+`OccupancyMapper` on that raster and optionally
+writes the result with `filters.mapping.ros_map.save_map`.
 """
 
 from __future__ import annotations
@@ -96,13 +96,13 @@ def map_from_scans(
     """Occupancy map of ``scans`` taken at the known robot ``poses``, on a raster sized from the data.
 
     Args:
-        poses: see :func:`raster_for`.
-        scans: see :func:`raster_for`.
-        resolution_m: see :func:`raster_for`.
-        margin_m: see :func:`raster_for`.
-        params: log-odds increments and no-return policy; default :data:`LOG_OCCUPANCY_PARAMS`.
+        poses: see `raster_for`.
+        scans: see `raster_for`.
+        resolution_m: see `raster_for`.
+        margin_m: see `raster_for`.
+        params: log-odds increments and no-return policy; default `LOG_OCCUPANCY_PARAMS`.
         save_to: if given, a ``.yaml`` / ``.yml`` path: the map is written there as a ROS map
-            (:func:`~filters.mapping.ros_map.save_map` with ``mode``).
+            (`save_map` with ``mode``).
         occupied_thresh: occupancy threshold of the returned map (and of the file).
         free_thresh: free threshold of the returned map (and of the file).
 

@@ -2,20 +2,20 @@
 
 This is the map a filter holds. It is plain data (numpy arrays + metadata) and
 knows nothing of the simulator, so maps from a real robot (ROS ``map_server``
-files, see :mod:`filters.mapping.ros_map`) work the same as maps built in simulation.
+files, see `filters.mapping.ros_map`) work the same as maps built in simulation.
 
 Conventions
 -----------
 * Cell ``(row, col)`` covers ``x in [ox + col*res, ox + (col+1)*res)`` and
   ``y in [oy + row*res, oy + (row+1)*res)``: row 0 is the *bottom* row (smallest
   y), as in ROS ``nav_msgs/OccupancyGrid``. Image files store the top row first;
-  :mod:`filters.mapping.ros_map` flips on read and write.
+  `filters.mapping.ros_map` flips on read and write.
 * ``occupancy`` holds the probability that a cell is occupied, in ``[0, 1]``;
   ``0.5`` means unknown. A cell is *occupied* above ``occupied_thresh`` and
   *free* below ``free_thresh`` (the map_server defaults 0.65 / 0.196).
 * ``semantic[k]`` holds the probability that an object of class
   ``class_names[k]`` occupies the cell. In scans, label ``k + 1`` means
-  ``class_names[k]`` and label ``0`` means "no object" (see :data:`NO_CLASS`).
+  ``class_names[k]`` and label ``0`` means "no object" (see `NO_CLASS`).
 """
 
 from __future__ import annotations
@@ -127,7 +127,7 @@ class GridMap:
         """Map world points ``(..., 2)`` in metres to integer ``(row, col)`` arrays.
 
         Points outside the grid give indices outside ``[0, H) x [0, W)``; check
-        with :meth:`in_bounds`.
+        with `in_bounds`.
         """
         xy = np.asarray(xy, dtype=np.float64)
         ox, oy = self.origin_xy_m

@@ -1,13 +1,13 @@
 """Agreement between maps: intersection over union of boolean grids and of GridMap layers.
 
-Used to check a mapping run (:mod:`filters.mapping.occupancy`) against the rasterised truth of a layout
+Used to check a mapping run (`filters.mapping.occupancy`) against the rasterised truth of a layout
 (or two maps of the same place against each other). Both maps must share one raster: same
 shape, resolution and origin, else ``ValueError`` — no resampling is done here.
 
 A mapping run only ever sees the *surfaces* of walls and objects, and with noisy ranges and
 geometry that does not sit on cell faces its marks scatter by about a cell. Two helpers make
-the comparison fair: :func:`surface_mask` (truth cells a beam from free space can reach) and
-:func:`tolerant_precision_recall` (agreement within ``k`` cells).
+the comparison fair: `surface_mask` (truth cells a beam from free space can reach) and
+`tolerant_precision_recall` (agreement within ``k`` cells).
 """
 
 from __future__ import annotations
@@ -149,7 +149,7 @@ def semantic_surface_quality(mapped: GridMap, truth: GridMap, tolerance_cells: i
     A mapping run only sees object surfaces, so the truth per class is
     ``surface_mask(truth.class_mask(k), truth.free_mask())``. Per class name:
     ``iou`` (plain IoU with that surface), ``precision`` and ``recall`` (with a
-    tolerance of ``tolerance_cells``, :func:`tolerant_precision_recall`).
+    tolerance of ``tolerance_cells``, `tolerant_precision_recall`).
     """
     check_same_raster(mapped, truth)
     free = truth.free_mask()

@@ -6,11 +6,11 @@ per-cell log-odds (paper 004 Eq. 5: the map posterior factorises over cells; Eq.
 cell's Bayes update, which in log-odds form is a sum of per-frame increments
 ``l <- clip(l + delta, l_min, l_max)``, prior ``l = 0``, i.e. ``p = 0.5``).
 
-* :class:`OccupancyMapper` (lidar, :class:`~filters.robot_data.scans.LaserScan`): every cell a beam
+* `OccupancyMapper` (lidar, `LaserScan`): every cell a beam
   passes through gets ``l_free``, the cell its return lies in gets ``l_occ``. A beam
   without a return (``range >= range_max_m``) clears cells up to ``range_max_m`` and marks
   nothing.
-* :class:`SemanticMapper` (semantic pseudo-laser, :class:`~filters.robot_data.scans.SemanticScan`), one
+* `SemanticMapper` (semantic pseudo-laser, `SemanticScan`), one
   log-odds grid per class. A beam labelled ``k + 1`` ("inside a detection") raises class
   ``k`` at its end cell by ``l_hit`` and lowers every other class there by ``l_other_hit``;
   the cells on its way get the small decrement ``l_free_inside`` (paper 004 Fig. 4,
@@ -24,14 +24,14 @@ centre); beam ``i`` of a scan at robot pose ``P`` runs from the sensor's world p
 ``(sx, sy, sth) = P ⊕ sensor_pose`` at world angle ``sth + angles[i]``. Lidar beams below the
 scan's ``range_min_m`` are invalid and update nothing. Its cells are the exact
 4-connected traversal of the segment (Amanatides & Woo DDA, compiled with numba; see
-:func:`beam_cells`); a cell is listed once per beam, so a beam updates a cell at most once.
+`beam_cells`); a cell is listed once per beam, so a beam updates a cell at most once.
 Several beams of one scan do update a cell several times. A range that ends exactly on
 a cell face counts the cell being entered (tolerance ``1e-6`` cell), so ranges reported
-as "distance to the boundary of the hit cell" (e.g. :mod:`filters.simulators.grid_raycast`) mark that cell.
+as "distance to the boundary of the hit cell" (e.g. `filters.simulators.grid_raycast`) mark that cell.
 Beams and cells outside the raster are skipped.
 
 The mappers own a raster fixed up front (shape, resolution, origin, as in
-:class:`~filters.mapping.grid.GridMap`); :meth:`to_grid` turns the log-odds into a ``GridMap``.
+`GridMap`); `to_grid` turns the log-odds into a ``GridMap``.
 No randomness anywhere.
 """
 
@@ -114,7 +114,7 @@ class SemanticParams:
     """Log-odds increments of the semantic mapper (paper 004 §2, Eq. 5-6, Fig. 4).
 
     The paper gives no numbers, only the order ``l_free_outside < l_free_inside < 0 < l_hit``;
-    the defaults match :class:`OccupancyParams` for hits.
+    the defaults match `OccupancyParams` for hits.
 
     Attributes:
         l_hit: added to class ``k`` at the end cell of a beam labelled ``k + 1``; ``> 0``.
@@ -128,7 +128,7 @@ class SemanticParams:
             (a surface seen and not detected as an object); ``<= 0``. Default ``-0.6``; use a
             smaller magnitude if detections are often narrower than the objects.
         l_min, l_max: clamp after every cell update, ``l_min < 0 < l_max``. Defaults ``-2.0``, ``3.5``.
-        max_range_m: beams are used up to this length, metres (see :class:`OccupancyParams`);
+        max_range_m: beams are used up to this length, metres (see `OccupancyParams`);
             default ``inf``: the scan's own ``range_max_m``.
     """
 
@@ -364,7 +364,7 @@ class _RasterMapper:
         return u0, v0, np.cos(th), np.sin(th), t_end, returned, no_return
 
     def _beam_arrays(self, poses, ranges, angles, range_max_m: float, max_range_m: float):
-        """:meth:`_beams` for scans given as arrays: ``ranges (N, B)``, ``angles (B,)`` or ``(N, B)``
+        """`_beams` for scans given as arrays: ``ranges (N, B)``, ``angles (B,)`` or ``(N, B)``
         (sensor at the robot centre, no minimum range)."""
         poses = np.asarray(poses, dtype=np.float64)
         r = np.asarray(ranges, dtype=np.float64)
@@ -406,7 +406,7 @@ class OccupancyMapper(_RasterMapper):
         shape: ``(H, W)`` cells of the raster, row 0 = bottom.
         resolution_m: cell edge, metres.
         origin_xy_m: world ``(x, y)`` of the lower-left corner of cell ``(0, 0)``, metres.
-        params: log-odds increments, see :class:`OccupancyParams`.
+        params: log-odds increments, see `OccupancyParams`.
 
     Example (a real robot's log)::
 
@@ -443,7 +443,7 @@ class OccupancyMapper(_RasterMapper):
         self._integrate(self._beams(poses, scans, self.params.max_range_m))
 
     def update_arrays(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, range_max_m: float) -> None:
-        """:meth:`update_many` for scans held as arrays (no scan objects): ``ranges (N, B)`` metres taken at
+        """`update_many` for scans held as arrays (no scan objects): ``ranges (N, B)`` metres taken at
         ``poses (N, 3)``, beam angles ``(B,)`` (or ``(N, B)``) in the robot frame, one ``range_max_m``."""
         self._integrate(self._beam_arrays(poses, ranges, angles, range_max_m, self.params.max_range_m))
 
@@ -466,7 +466,7 @@ class OccupancyMapper(_RasterMapper):
         free_thresh: float = 0.196,
         semantic_thresh: float = 0.5,
     ) -> GridMap:
-        """The current map as a :class:`GridMap` (unobserved cells ``0.5``).
+        """The current map as a `GridMap` (unobserved cells ``0.5``).
 
         ``semantic`` (on the same raster, else ``ValueError``) supplies the class grids;
         without it the map has no classes. Thresholds are passed to the ``GridMap``.
@@ -487,11 +487,11 @@ class SemanticMapper(_RasterMapper):
     """Per-class Bayesian (log-odds) semantic grids from semantic pseudo-laser scans at known poses.
 
     Args:
-        shape: ``(H, W)`` cells of the raster, row 0 = bottom (as :class:`OccupancyMapper`).
+        shape: ``(H, W)`` cells of the raster, row 0 = bottom (as `OccupancyMapper`).
         resolution_m: cell edge, metres.
         origin_xy_m: world ``(x, y)`` of the lower-left corner of cell ``(0, 0)``, metres.
         class_names: class of label ``k + 1`` is ``class_names[k]``; default the paper's four.
-        params: log-odds increments, see :class:`SemanticParams`.
+        params: log-odds increments, see `SemanticParams`.
 
     Scans with a label greater than ``len(class_names)`` raise ``ValueError``.
     """
@@ -542,7 +542,7 @@ class SemanticMapper(_RasterMapper):
     def update_arrays(
         self, poses: np.ndarray, ranges: np.ndarray, labels: np.ndarray, angles: np.ndarray, range_max_m: float
     ) -> None:
-        """:meth:`update_many` for scans held as arrays: ``ranges`` and integer ``labels`` ``(N, B)``
+        """`update_many` for scans held as arrays: ``ranges`` and integer ``labels`` ``(N, B)``
         (0 = none, ``k + 1`` = class ``k``) at ``poses (N, 3)``, angles ``(B,)`` or ``(N, B)``."""
         lab = np.asarray(labels)
         if lab.shape != np.shape(ranges) or (lab.size and not np.issubdtype(lab.dtype, np.integer)):
@@ -568,9 +568,9 @@ class SemanticMapper(_RasterMapper):
         free_thresh: float = 0.196,
         semantic_thresh: float = 0.5,
     ) -> GridMap:
-        """The semantic grids as a :class:`GridMap`.
+        """The semantic grids as a `GridMap`.
 
-        ``occupancy`` (an :class:`OccupancyMapper` or a ``GridMap`` on the same raster, else
+        ``occupancy`` (an `OccupancyMapper` or a ``GridMap`` on the same raster, else
         ``ValueError``) supplies the occupancy grid; without it every cell is unknown (0.5).
         """
         if occupancy is None:

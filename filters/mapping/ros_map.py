@@ -6,14 +6,14 @@ A map on disk is
   ``map_server`` / ``map_saver`` (ROS 1) and ``nav2_map_server`` (ROS 2) read and
   write it, so maps built on a real robot load unchanged;
 * optionally ``<name>.semantic.yaml`` + one 8-bit PGM per class: the semantic
-  grids of :class:`filters.mapping.grid.GridMap` on the same raster.
+  grids of `filters.mapping.grid.GridMap` on the same raster.
 
 The full specification, with a worked example, is ``docs/maps.md``. In short:
 
 Occupancy YAML (``.yaml`` or ``.yml``) keys: ``image`` (path, relative to the YAML's folder
 unless absolute), ``resolution`` (metres per cell, > 0), ``origin`` (``[x, y, yaw]``: world pose
 of the lower-left pixel's lower-left corner; a non-zero ``yaw`` is refused with an error, since
-a :class:`GridMap` is axis-aligned), ``occupied_thresh``, ``free_thresh`` (in ``[0, 1]``), all
+a `GridMap` is axis-aligned), ``occupied_thresh``, ``free_thresh`` (in ``[0, 1]``), all
 required; ``negate`` (0/1, default 0) and ``mode`` (``trinary`` (default), ``scale`` or ``raw``)
 optional, as in map_server.
 
@@ -25,13 +25,13 @@ itself (its class under the same thresholds is what map_server reports); a fully
 pixel between the thresholds is unknown. ``raw``: ``round(v)`` is the occupancy in percent,
 ``p = round(v) / 100``; values above 100 are unknown (0.5), as in nav2.
 
-The image's first row is the *top* of the map (largest y); :class:`GridMap` row 0
+The image's first row is the *top* of the map (largest y); `GridMap` row 0
 is the bottom, so rows are flipped on read and write.
 
 Images: binary ``P5`` and ASCII ``P2`` greymaps with ``#`` comments, 8 or 16 bit
 (``maxval`` up to 65535, rescaled to 0..255), read here; any other format (PNG, BMP, TIFF, ...)
-through Pillow (:func:`read_map_image`). Maps are written as 8-bit ``P5``. Anything wrong with the files raises
-:class:`MapFormatError`, naming the file and the problem.
+through Pillow (`read_map_image`). Maps are written as 8-bit ``P5``. Anything wrong with the files raises
+`MapFormatError`, naming the file and the problem.
 """
 
 from __future__ import annotations
@@ -167,7 +167,7 @@ def read_pgm(path: str | os.PathLike) -> np.ndarray:
     """Read an 8-bit greymap (``P5`` binary or ``P2`` ASCII) as ``(H, W)`` uint8, first row = top of the picture.
 
     ``maxval`` must be in ``1..255``; values are rescaled to ``0..255`` (``round(v * 255 / maxval)``).
-    (16-bit greymaps: :func:`read_map_image`.)
+    (16-bit greymaps: `read_map_image`.)
 
     Raises:
         MapFormatError: the file is missing, is not a P5/P2 PGM, has a bad header, a 16-bit
@@ -197,7 +197,7 @@ def read_map_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | No
       (alpha left out). ``alpha`` is ``True`` where an alpha channel is fully transparent
       (``None`` without alpha channel).
 
-    First row = top of the picture. Raises :class:`MapFormatError` naming the file.
+    First row = top of the picture. Raises `MapFormatError` naming the file.
     """
     path = Path(path)
     data = _read_bytes(path)
@@ -487,7 +487,7 @@ def _load_semantic(sem_path: Path, shape: tuple[int, int], res: float, origin: t
 
 
 def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | None = None) -> GridMap:
-    """Load a map_server map (and its semantic sidecar, if any) as a :class:`GridMap`.
+    """Load a map_server map (and its semantic sidecar, if any) as a `GridMap`.
 
     Args:
         path_yaml: the occupancy YAML.

@@ -140,7 +140,7 @@ class OdometryMotionModel:
         return out
 
     def sample_reference(self, poses: np.ndarray, delta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """:meth:`sample` as plain NumPy array code (the reference the compiled kernel is tested against)."""
+        """`sample` as plain NumPy array code (the reference the compiled kernel is tested against)."""
         p = np.asarray(poses, dtype=np.float64)
         rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
         s_r1, s_t, s_r2 = self.stds(delta)
@@ -157,7 +157,7 @@ class OdometryMotionModel:
         return out
 
     def sample_pose(self, pose, delta, rng: np.random.Generator) -> np.ndarray:
-        """:meth:`sample` for a single pose ``(3,)``, without the particle-array overhead.
+        """`sample` for a single pose ``(3,)``, without the particle-array overhead.
 
         Draws the same 3 normals in the same order and returns the same numbers bit for bit
         as ``sample(pose[None], delta, rng)[0]`` (scalar arithmetic with NumPy's ``arctan2`` /

@@ -1,30 +1,30 @@
-"""Odometry-driven motion model for the SLAM filters: :class:`filters.motion.odometry.OdometryMotionModel` behind
-the :class:`filters.motion.velocity.MotionModel` protocol.
+"""Odometry-driven motion model for the SLAM filters: `filters.motion.odometry.OdometryMotionModel` behind
+the `filters.motion.velocity.MotionModel` protocol.
 
 The control is the odometry increment ``u = (dx m, dy m, dtheta rad)`` in the frame of the *previous*
 robot pose (``filters.pose.relative(prev, now)``), as wheel odometry reports it; ``dt`` is accepted for
 the protocol and ignored (the increment already covers one step). The increment is decomposed into
-``(rot1, trans, rot2)`` exactly as :func:`filters.motion.odometry.decompose` does::
+``(rot1, trans, rot2)`` exactly as `filters.motion.odometry.decompose` does::
 
     heading = theta + rot1
     x' = x + trans cos(heading);  y' = y + trans sin(heading);  theta' = wrap(heading + rot2)
 
 Noise (Thrun et al., Table 5.6): ``rot1, trans, rot2`` are perturbed by independent zero-mean Gaussians
 whose standard deviations ``(s_r1, s_t, s_r2)`` depend on the increment itself
-(:meth:`filters.motion.odometry.OdometryMotionModel.stds`). The protocol's ``control_cov`` is a constant, so the
+(`filters.motion.odometry.OdometryMotionModel.stds`). The protocol's ``control_cov`` is a constant, so the
 noise is written in *standardised* form: ``(rot1, trans, rot2) + diag(s_r1, s_t, s_r2) @ eps`` with
 ``eps ~ N(0, I_3)``. Hence
 
 * ``control_cov`` is ``I_3`` (the covariance of ``eps``, dimensionless), and
-* ``F_u`` returned by :meth:`jacobians` is the derivative of the mean wrt ``eps``:
+* ``F_u`` returned by `jacobians` is the derivative of the mean wrt ``eps``:
   ``d mean / d(rot1, trans, rot2) @ diag(s_r1, s_t, s_r2)``, so ``F_u control_cov F_u^T`` is the
   first-order pose covariance of one odometry step -- what FastSLAM 2.0's predict needs.
 
-Shapes differ from the car-like models of :mod:`filters.motion.velocity` (their controls and ``control_cov``
+Shapes differ from the car-like models of `filters.motion.velocity` (their controls and ``control_cov``
 are 2D): here ``u`` is ``(3,)``, ``F_u`` is ``(N, 3, 3)`` and ``control_cov`` ``(3, 3)``. FastSLAM only
 forms ``F_u Q F_u^T`` and passes ``u`` through, so it works unchanged.
 
-:meth:`sample` delegates to :meth:`filters.motion.odometry.OdometryMotionModel.sample` (FastSLAM 1.0's predict),
+`sample` delegates to `filters.motion.odometry.OdometryMotionModel.sample` (FastSLAM 1.0's predict),
 so a particle filter and the simulator's odometry share one noise model.
 """
 
@@ -56,10 +56,10 @@ class OdometryIncrementModel:
     """Odometry increments as SLAM controls (see the module docstring for the contract).
 
     Args:
-        config: noise alphas of the rot1-trans-rot2 model (:class:`filters.motion.odometry.OdometryMotionConfig`);
+        config: noise alphas of the rot1-trans-rot2 model (`filters.motion.odometry.OdometryMotionConfig`);
             default the model's defaults. ``min_trans_m`` decides when ``rot1`` is taken as 0.
 
-    Stateless apart from the config; randomness only in :meth:`sample`, from the ``rng`` passed in.
+    Stateless apart from the config; randomness only in `sample`, from the ``rng`` passed in.
     """
 
     def __init__(self, config: OdometryMotionConfig | None = None) -> None:
@@ -83,7 +83,7 @@ class OdometryIncrementModel:
         return out
 
     def jacobians(self, poses, u, dt: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """``(F_x (N, 3, 3), F_u (N, 3, 3))``: of :meth:`mean` wrt the pose and the standardised noise."""
+        """``(F_x (N, 3, 3), F_u (N, 3, 3))``: of `mean` wrt the pose and the standardised noise."""
         p = _poses(poses)
         delta = _increment(u)
         rot1, trans, _ = decompose(delta, self.config.min_trans_m)

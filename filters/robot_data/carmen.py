@@ -2,32 +2,32 @@
 
 One line per message, fields separated by white space:
 
-* ``# ...``: a comment (kept in :attr:`CarmenLog.comments`).
-* ``PARAM name value [host timestamp]``: a parameter (kept in :attr:`CarmenLog.params`).
+* ``# ...``: a comment (kept in `CarmenLog.comments`).
+* ``PARAM name value [host timestamp]``: a parameter (kept in `CarmenLog.params`).
 * ``ODOM x y theta tv rv accel timestamp host logger_timestamp``: the odometry pose.
 * ``FLASER n r_1 .. r_n x y theta odom_x odom_y odom_theta timestamp host logger_timestamp``:
   a front-laser scan; ``x y theta`` is the laser's pose, ``odom_*`` the robot's odometry pose.
-  Beam angles are not in the message (see ``flaser_angles`` of :func:`read_carmen`).
+  Beam angles are not in the message (see ``flaser_angles`` of `read_carmen`).
 * ``ROBOTLASER1 type start_angle fov resolution max_range accuracy remission_mode n r_1 .. r_n
   n_rem rem_1 .. rem_m laser_x laser_y laser_theta robot_x robot_y robot_theta tv rv fwd side
   turn_axis timestamp host logger_timestamp``: a scan with its geometry.
 * Any other message (``RLASER``, ``TRUEPOS``, ``SYNC``, ``NEFF``, ...) is counted in
-  :attr:`CarmenLog.skipped` and otherwise ignored.
+  `CarmenLog.skipped` and otherwise ignored.
 
 Messages are taken in **file order**: the timestamps of many Radish logs are broken (zero,
-repeated or going backwards), so they are kept (:attr:`CarmenLog.timestamps`) but never used
+repeated or going backwards), so they are kept (`CarmenLog.timestamps`) but never used
 to sort.
 
 Scans. Only one laser message type is read (``laser="FLASER"`` or ``"ROBOTLASER1"``; the
 default ``"auto"`` takes whichever comes first in the file). The sensor's mounting pose in the
-robot frame (:attr:`CarmenLog.sensor_pose`) is ``(robot_frontlaser_offset, 0, 0)`` from the
+robot frame (`CarmenLog.sensor_pose`) is ``(robot_frontlaser_offset, 0, 0)`` from the
 ``PARAM`` lines for ``FLASER`` (0 if absent) and, for ``ROBOTLASER1``, the laser pose
-relative to the robot pose of the first scan. :attr:`CarmenLog.poses` are *robot* poses: the
+relative to the robot pose of the first scan. `CarmenLog.poses` are *robot* poses: the
 logged laser pose with that offset removed.
 
-Odometry (:attr:`CarmenLog.odometry`, ``(K, 3)`` increments ``(dx, dy, dtheta)`` in the frame
-of the previous scan's robot pose, as :func:`filters.pose.relative` gives; row 0 is zero).
-Three conventions, ``odometry=`` of :func:`read_carmen`:
+Odometry (`CarmenLog.odometry`, ``(K, 3)`` increments ``(dx, dy, dtheta)`` in the frame
+of the previous scan's robot pose, as `filters.pose.relative` gives; row 0 is zero).
+Three conventions, ``odometry=`` of `read_carmen`:
 
 * ``"anchored"`` — *corrected* logs (e.g. Radish ``*-corrected.log``): the scan poses are the
   scan-matched ones, the ``odom_*`` fields equal them, and the raw odometry lives in the
@@ -41,7 +41,7 @@ Three conventions, ``odometry=`` of :func:`read_carmen`:
 * ``"auto"`` (default): ``"anchored"`` if the first ``ODOM`` after at least 90 % of the scans
   repeats the scan's pose (within 1e-6), else ``"scan"``.
 
-Malformed lines raise :class:`CarmenLogError` naming the file, the line number and the problem.
+Malformed lines raise `CarmenLogError` naming the file, the line number and the problem.
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ class CarmenLog:
         return int(self.ranges.shape[1])
 
     def scan(self, k: int) -> LaserScan:
-        """Scan ``k`` as a :class:`~filters.robot_data.scans.LaserScan` (with the mounting pose)."""
+        """Scan ``k`` as a `LaserScan` (with the mounting pose)."""
         if not -len(self) <= k < len(self):
             raise IndexError(f"scan index {k} out of range for {len(self)} scans")
         return LaserScan(self.ranges[k], self.angles, self.range_max_m, sensor_pose=self.sensor_pose)
@@ -256,7 +256,7 @@ def read_carmen(
             else the largest reading in the log (clipped no-return readings, e.g. 50.0 m
             in the ACES log, then count as no return).
         angles: ``(B,)`` beam angles in the laser frame (radians) overriding the default
-            (:func:`flaser_angles` for ``FLASER``, ``start + i * resolution`` for ``ROBOTLASER1``).
+            (`flaser_angles` for ``FLASER``, ``start + i * resolution`` for ``ROBOTLASER1``).
 
     Raises:
         CarmenLogError: a malformed line, no scan at all, or scans of different beam counts.

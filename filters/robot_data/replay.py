@@ -1,20 +1,20 @@
-"""Replay a robot log through :class:`~filters.localization.mcl.MonteCarloLocalizer` against its corrected poses.
+"""Replay a robot log through `MonteCarloLocalizer` against its corrected poses.
 
 A *log* here is anything with ``poses (K, 3)`` (reference robot poses, e.g. the
 scan-matched poses of a corrected CARMEN log), ``odometry (K, 3)`` (raw increments, row
 ``k`` from scan ``k - 1`` to scan ``k``), ``scan(k) -> LaserScan`` and ``len()``:
-:class:`filters.robot_data.carmen.CarmenLog` is one.
+`filters.robot_data.carmen.CarmenLog` is one.
 
 Step ``k`` of a replay: ``predict(odometry[k])`` (not for the first scan of a run), then
 ``update(scan(k))`` (the localizer's motion gate applies), then the belief's *estimate*
-(:attr:`~filters.localization.belief.Belief.estimate`: the mean of its heaviest hypothesis,
+(`estimate`: the mean of its heaviest hypothesis,
 what the env scores) is compared with ``poses[k]``: position error ``|est_xy - pose_xy|`` (m)
 and heading error ``|wrap(est_theta - pose_theta)|`` (rad).
 
-* :func:`track`: tracking from a Gaussian cloud around the first reference pose.
-* :func:`global_localization_trials`: global localization (uniform over free space) from
+* `track`: tracking from a Gaussian cloud around the first reference pose.
+* `global_localization_trials`: global localization (uniform over free space) from
   several start scans. A trial's outcome is decided at the first step whose belief is
-  ``converged`` (:meth:`MonteCarloLocalizer.belief`): ``"correct"`` if then the estimate is
+  ``converged`` (`MonteCarloLocalizer.belief`): ``"correct"`` if then the estimate is
   within ``pos_tol_m`` and ``theta_tol_rad`` of the reference pose, else ``"wrong"``;
   ``"unconverged"`` if no step within ``n_steps`` converges.
 """
@@ -181,7 +181,7 @@ def global_localization_trials(
     other trials. A trial that reaches the end of the log stops there.
 
     Returns:
-        One :class:`TrialResult` per start, in order.
+        One `TrialResult` per start, in order.
     """
     n = _check_log(log)
     cfg = _config(mcl_config)

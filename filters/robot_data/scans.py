@@ -9,10 +9,10 @@ Per beam:
 
 * ``range_min_m <= r < range_max_m``: a return (used by the measurement models and mapping);
 * ``r >= range_max_m``: no return: skipped by the measurement models; mapping clears
-  the cells up to the limit (see :class:`filters.mapping.occupancy.OccupancyParams`);
+  the cells up to the limit (see `filters.mapping.occupancy.OccupancyParams`);
 * ``r < range_min_m``: invalid, skipped everywhere.
 
-:meth:`LaserScan.from_ros` builds a scan from the fields of a ROS ``sensor_msgs/LaserScan``.
+`LaserScan.from_ros` builds a scan from the fields of a ROS ``sensor_msgs/LaserScan``.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ class LaserScan:
         return (self.ranges < self.range_max_m) & (self.ranges >= self.range_min_m)
 
     def endpoints(self) -> tuple[np.ndarray, np.ndarray]:
-        """Robot-frame end points ``(x (B,), y (B,))`` of all beams, metres (see :func:`beam_endpoints`)."""
+        """Robot-frame end points ``(x (B,), y (B,))`` of all beams, metres (see `beam_endpoints`)."""
         return beam_endpoints(self.ranges, self.angles, self.sensor_pose)
 
 
@@ -192,5 +192,5 @@ class SemanticScan:
         return (self.labels > 0) & (self.ranges < self.range_max_m)
 
     def endpoints(self) -> tuple[np.ndarray, np.ndarray]:
-        """Robot-frame end points ``(x (B,), y (B,))`` of all beams, metres (see :func:`beam_endpoints`)."""
+        """Robot-frame end points ``(x (B,), y (B,))`` of all beams, metres (see `beam_endpoints`)."""
         return beam_endpoints(self.ranges, self.angles, self.sensor_pose)

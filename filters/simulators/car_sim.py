@@ -13,10 +13,10 @@ Vehicle model (Bailey's ``vehicle_model.m``)::
 
     x += V dt cos(G + theta);  y += V dt sin(G + theta);  theta += V dt sin(G) / L
 
-Defaults follow Bailey's ``configfile.m``. The built-in course (:func:`default_course`)
+Defaults follow Bailey's ``configfile.m``. The built-in course (`default_course`)
 is ours: a 100 m x 80 m area, 15 waypoints, 31 landmarks, start at (0, 0) heading
 east, driven clockwise (the layout paper 001 describes); it has no randomness.
-All random draws come from the ``rng`` passed to :func:`simulate`.
+All random draws come from the ``rng`` passed to `simulate`.
 """
 
 from __future__ import annotations

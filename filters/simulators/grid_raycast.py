@@ -1,4 +1,4 @@
-"""A small grid ray caster: simulated lidar and semantic scans from a :class:`GridMap`.
+"""A small grid ray caster: simulated lidar and semantic scans from a `GridMap`.
 
 For tests, benchmarks and offline experiments with nothing but a map (the
 simulator has its own, geometric, sensors). Rays are traversed cell by cell
@@ -108,7 +108,7 @@ def simulate_lidar(
     noise_std_m: float = 0.0,
     rng: np.random.Generator | None = None,
 ) -> LaserScan:
-    """A :class:`LaserScan` from ``pose``; Gaussian range noise (``rng`` required if > 0)."""
+    """A `LaserScan` from ``pose``; Gaussian range noise (``rng`` required if > 0)."""
     r, _, _ = cast_rays(grid, pose, angles, range_max_m)
     r = _add_noise(r, range_max_m, noise_std_m, rng)
     return LaserScan(r, np.asarray(angles, dtype=np.float64), range_max_m)
@@ -122,7 +122,7 @@ def simulate_semantic(
     noise_std_m: float = 0.0,
     rng: np.random.Generator | None = None,
 ) -> SemanticScan:
-    """A :class:`SemanticScan` from ``pose``: label ``k + 1`` where the hit cell is of class ``k``."""
+    """A `SemanticScan` from ``pose``: label ``k + 1`` where the hit cell is of class ``k``."""
     r, row, col = cast_rays(grid, pose, angles, range_max_m)
     labels = np.zeros(r.size, np.int64)
     hit = row >= 0

@@ -14,7 +14,7 @@ from filters.slam.fastslam import Association, FastSLAM
 
 
 class ClassVotingFastSLAM(FastSLAM):
-    """:class:`~filters.slam.fastslam.FastSLAM` plus class votes.
+    """`FastSLAM` plus class votes.
 
     Args (beyond FastSLAM's):
         n_classes: class labels are ``1..n_classes`` (``0`` means "no class" and is never voted).

@@ -27,7 +27,7 @@ from filters.slam.landmarks import (
 
 @dataclass(frozen=True)
 class EKFSLAMConfig:
-    """Settings of :class:`EKFSLAM`: the association mode and gates (:class:`AssociationConfig`)."""
+    """Settings of `EKFSLAM`: the association mode and gates (`AssociationConfig`)."""
 
     association: AssociationConfig = field(default_factory=AssociationConfig)
 

@@ -18,7 +18,7 @@ With known association slot ``j`` is landmark id ``j`` (so ids should be small i
 arrays get ``max id + 1`` slots); with ML association each particle fills its slots in the
 order it creates landmarks. Capacity grows as needed.
 
-The weight step can be transformed before resampling (:mod:`filters.slam.weight_transforms`;
+The weight step can be transformed before resampling (`filters.slam.weight_transforms`;
 paper 000's WOC is ``weight_transform=WOC(K)``).
 """
 
@@ -45,17 +45,17 @@ from filters.smc.resampling import effective_sample_size, get_resampler
 
 @dataclass(frozen=True)
 class FastSLAMConfig:
-    """Settings of :class:`FastSLAM`.
+    """Settings of `FastSLAM`.
 
     n_particles: number of particles ``N >= 1``.
     version: 1 (sample the motion model; weight = observation likelihood) or 2 (Gaussian proposal
         refined by the observations, weight = marginal likelihood; Montemerlo 2003).
-    association: :class:`AssociationConfig` (ML with gates, or known ids).
-    resampler: name for :func:`filters.smc.resampling.get_resampler` (default systematic).
+    association: `AssociationConfig` (ML with gates, or known ids).
+    resampler: name for `filters.smc.resampling.get_resampler` (default systematic).
     resample_ess_fraction: resample when ESS of the transformed weights ``< fraction * N``;
         ``1.0`` (default) resamples after every update with observations, as both papers do.
     weight_transform: callable ``weights -> weights`` applied before resampling
-        (:func:`~filters.slam.weight_transforms.identity` or :class:`~filters.slam.weight_transforms.WOC`).
+        (`identity` or `WOC`).
     initial_capacity: landmark slots allocated up front (grows on demand).
     """
 
@@ -311,7 +311,7 @@ class FastSLAM:
     def _propose(self, z: np.ndarray, assoc: Association) -> np.ndarray:
         """Draw the particles' poses for this update; return a log-weight increment ``(N,)``.
 
-        Version 1: poses were sampled from the motion model in :meth:`predict`; returns zeros.
+        Version 1: poses were sampled from the motion model in `predict`; returns zeros.
         Version 2: refine each particle's predicted Gaussian ``N(pose, pose_cov)`` with its
         matched observations (sequential EKF steps), accumulate the marginal log-likelihood
         ``log N(v; 0, H_x P H_x^T + H_l P_l H_l^T + R)``, sample a pose from the refined

@@ -1,13 +1,13 @@
 """FA-FastSLAM and IFA-FastSLAM (paper 001, section 3): FastSLAM with a firefly move of the particle poses.
 
-Both subclass :class:`filters.slam.fastslam.FastSLAM` and use its hooks:
+Both subclass `filters.slam.fastslam.FastSLAM` and use its hooks:
 
 * ``_move_particles(z, assoc)`` (after pose sampling, before weighting): one firefly generation on
-  the poses ``(N, 3)`` (:func:`filters.smc.firefly.firefly_move`). In FastSLAM 1.0 (the setting of the
+  the poses ``(N, 3)`` (`filters.smc.firefly.firefly_move`). In FastSLAM 1.0 (the setting of the
   reproduction) the moved poses are the ones weighted and used for the landmark EKF updates; in
   FastSLAM 2.0 a move changes the pose but not the weight (see the FastSLAM docstring).
 * ``_resample(psi)`` / ``_mutate(mask)``: IFA-FastSLAM replaces systematic resampling by the
-  step-wise EWA scheme (:func:`filters.smc.firefly.ewa_resample`) and mutates the filler copies'
+  step-wise EWA scheme (`filters.smc.firefly.ewa_resample`) and mutates the filler copies'
   poses with ``x' = x + x * mu * N(0, 1)`` (Eq. 8; relative to the coordinates, so origin-dependent,
   as the paper writes it), heading re-wrapped.
 
@@ -58,11 +58,11 @@ from filters.smc.firefly import (
 
 @dataclass(frozen=True)
 class FireflySLAMConfig:
-    """Firefly settings of :class:`FireflyFastSLAM`.
+    """Firefly settings of `FireflyFastSLAM`.
 
     alpha0: random step in units of the observation noise, ``alpha0 * (sigma_r, sigma_r, sigma_b)``.
     beta0, gamma: attraction at zero distance and absorption (1/m^2; paper 1, 1).
-    move_mode, pairwise_max_n: see :func:`filters.smc.firefly.firefly_move`.
+    move_mode, pairwise_max_n: see `filters.smc.firefly.firefly_move`.
     use_ewa: EWA step-wise resampling + pose mutation instead of ``FastSLAMConfig.resampler``.
     ewa_beta, mutation_mu: paper 0.8 and 0.01.
     """
@@ -88,9 +88,9 @@ class FireflySLAMConfig:
 class FireflyFastSLAM(FastSLAM):
     """FastSLAM with a firefly pose move before weighting (see the module docstring).
 
-    Same usage as :class:`FastSLAM` (``predict``, ``update``, ``estimate``); extra arguments:
-    ``firefly`` settings, ``log_brightness`` (:data:`filters.smc.firefly.LogBrightnessFn`, called with
-    noise-normalised distances and unit variances) and ``step_factor`` (:data:`filters.smc.firefly.StepFactorFn`).
+    Same usage as `FastSLAM` (``predict``, ``update``, ``estimate``); extra arguments:
+    ``firefly`` settings, ``log_brightness`` (`filters.smc.firefly.LogBrightnessFn`, called with
+    noise-normalised distances and unit variances) and ``step_factor`` (`filters.smc.firefly.StepFactorFn`).
     """
 
     def __init__(

@@ -2,10 +2,10 @@
 
 Two directions, because the two questions differ:
 
-* :func:`map_landmark_errors` -- for each landmark *in the estimated map*, how far it is from the true
+* `map_landmark_errors` -- for each landmark *in the estimated map*, how far it is from the true
   landmark it stands for (by id under known association, else the nearest true landmark). Spurious map
   landmarks count; true landmarks never mapped do not.
-* :func:`true_landmark_errors` -- for each *true* landmark asked about (e.g. those seen so far), how far
+* `true_landmark_errors` -- for each *true* landmark asked about (e.g. those seen so far), how far
   the map's estimate of it is (by id, ``inf`` when it has none; else the nearest map landmark, ``inf``
   for an empty map). Unmapped landmarks count; spurious ones do not.
 """

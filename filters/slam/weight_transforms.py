@@ -3,8 +3,8 @@
 A transform maps normalised weights ``(N,)`` to normalised weights ``(N,)``.
 The resampler then draws ancestors from the transformed weights.
 
-* :func:`identity` -- plain particle filter.
-* :func:`woc` -- the weight-optimisation-combination step of paper 000 (Eq. 7)::
+* `identity` -- plain particle filter.
+* `woc` -- the weight-optimisation-combination step of paper 000 (Eq. 7)::
 
       psi_i = (K - 1) / K * w_i + mean(w) / K,     1 <= K <= inf
 
@@ -46,7 +46,7 @@ def woc(weights, K: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class WOC:
-    """:func:`woc` with a fixed ``K`` as a callable ``weights -> weights`` (a filter config value)."""
+    """`woc` with a fixed ``K`` as a callable ``weights -> weights`` (a filter config value)."""
 
     K: float = 5.0
 

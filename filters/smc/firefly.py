@@ -1,7 +1,7 @@
 """Firefly-improved particle filters: FA-PF and IFA-PF (paper 001, Cui et al. 2021).
 
 Both insert a firefly-algorithm move between prediction and weighting of the
-bootstrap filter (:class:`filters.smc.pf.BootstrapPF`): each predicted particle is a
+bootstrap filter (`filters.smc.pf.BootstrapPF`): each predicted particle is a
 firefly whose *brightness* says how well it explains the newest data, and dim
 fireflies move toward brighter ones::
 
@@ -20,7 +20,7 @@ a heuristic, not a proper importance weight for the moved proposal.
 
   adaptive step ``alpha_i = alpha0 * exp(-I_i / I_j)`` with ``alpha0`` scaled by the
   observation noise standard deviation ``sqrt(R)`` (Eq. 3, **reconstructed**), and the
-  step-wise EWA resampling with Gaussian mutation (Eq. 7-8, :func:`ewa_resample`).
+  step-wise EWA resampling with Gaussian mutation (Eq. 7-8, `ewa_resample`).
 
 The paper's Eq. 2 and 3 are images lost from the text; the forms above are the
 project digest's reconstructions. Both are parameters here (``log_brightness``,
@@ -30,7 +30,7 @@ through the noise-free transition, ``f(xhat_{t-1}, t)``; ``state_reference="post
 uses instead the likelihood-weighted mean of the predicted particles at time ``t``.
 
 **Who moves toward whom (vectorisation choice).** The textbook firefly loop moves every
-``i`` toward every brighter ``j`` in turn, O(N^2) per generation. :func:`firefly_move`
+``i`` toward every brighter ``j`` in turn, O(N^2) per generation. `firefly_move`
 offers three array versions:
 
 * ``"pairwise"``: the sequential loop over all brighter ``j`` in ascending brightness,
@@ -179,12 +179,12 @@ def ewa_threshold(weights_ascending: np.ndarray, beta: float = 0.8) -> float:
 def ewa_resample(weights: np.ndarray, beta: float = 0.8, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
     """Step-wise resampling of paper 001 (Eq. 7-8); deterministic, returns ``(indices, mutate_mask)``.
 
-    1. Sort the normalised weights ascending; threshold ``dbar`` = :func:`ewa_threshold`.
+    1. Sort the normalised weights ascending; threshold ``dbar`` = `ewa_threshold`.
     2. Keep particles with ``w_i >= dbar`` (the heaviest is always kept).
     3. Copy each kept particle ``ceil(w_i / dbar)`` times, heaviest first; trim to ``N``.
     4. If fewer than ``N``, fill with mutants of the kept particles taken in descending
        weight order (cycling if needed): those slots have ``mutate_mask = True`` and should
-       become ``x' = x + x * mu * N(0, 1)`` (:func:`apply_mutation`).
+       become ``x' = x + x * mu * N(0, 1)`` (`apply_mutation`).
 
     ``indices`` ``(N,)`` int64 point into the input; ``mutate_mask`` ``(N,)`` bool.
     ``tol`` absorbs rounding (equal weights all survive with one copy each).
@@ -231,13 +231,13 @@ def apply_mutation(
 # ---- the filters ----------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FireflyConfig(PFConfig):
-    """Configuration of :class:`FireflyPF` (adds to :class:`filters.smc.pf.PFConfig`).
+    """Configuration of `FireflyPF` (adds to `filters.smc.pf.PFConfig`).
 
     alpha0: random-step scale (state units); IFA-PF multiplies it by ``sqrt(R)`` when
         ``scale_alpha_by_obs_noise`` is set.
     beta0, gamma: attractiveness at zero distance and light absorption (paper: 1, 1).
     n_moves: firefly generations per filter step.
-    move_mode, pairwise_max_n: see :func:`firefly_move`.
+    move_mode, pairwise_max_n: see `firefly_move`.
     state_reference: ``x_new`` in the brightness, ``"propagated"`` = ``f(xhat_{t-1}, t)`` or
         ``"posterior"`` = likelihood-weighted mean of the predicted particles.
     scale_alpha_by_obs_noise: ``alpha0 <- alpha0 * sqrt(mean diag R)``.
@@ -282,8 +282,8 @@ def ifa_config(n_particles: int = 100, **kw) -> FireflyConfig:
 class FireflyPF(BootstrapPF):
     """Bootstrap PF with a firefly move before weighting; brightness and step rule are parameters.
 
-    ``log_brightness``: a :data:`LogBrightnessFn`; ``step_factor``: a :data:`StepFactorFn`.
-    ``run(model, ys, rng)`` returns filtered means ``(T, d)`` (see :class:`filters.smc.pf.BootstrapPF`).
+    ``log_brightness``: a `LogBrightnessFn`; ``step_factor``: a `StepFactorFn`.
+    ``run(model, ys, rng)`` returns filtered means ``(T, d)`` (see `filters.smc.pf.BootstrapPF`).
     """
 
     name = "FireflyPF"
@@ -350,7 +350,7 @@ class FAPF(FireflyPF):
 class IFAPF(FireflyPF):
     """IFA-PF (paper 001): reconstructed Eq. 2 brightness, adaptive Eq. 3 step, EWA resampling (Eq. 7-8).
 
-    Build the config with :func:`ifa_config` (``alpha0`` scaled by ``sqrt(R)``, EWA on).
+    Build the config with `ifa_config` (``alpha0`` scaled by ``sqrt(R)``, EWA on).
     """
 
     name = "IFA-PF"

@@ -4,7 +4,7 @@ SciPy's ``logsumexp`` (1.15 and later) takes the maximum ``a_max``, counts the e
 it (``m``), sums ``exp(a - a_max)`` over the *other* elements (``s``, NumPy's pairwise sum,
 divided by ``m`` when non-zero) and returns ``log1p(s) + log(m) + a_max``; it also computes
 ``log(sum(exp(a)))`` as a fallback for non-finite results, and wraps everything in array-API
-dispatch. For a filter's log-weights with a finite maximum, :func:`logsumexp` does the same
+dispatch. For a filter's log-weights with a finite maximum, `logsumexp` does the same
 floating-point operations (the maximum, the shift and the count in one numba pass; ``np.exp``,
 ``np.sum``, ``np.log1p``, ``np.log`` from NumPy as SciPy calls them) and skips the rest.
 

@@ -1,4 +1,4 @@
-"""Generic bootstrap (SIR) particle filter over any :class:`filters.smc.models.base.StateSpaceModel`.
+"""Generic bootstrap (SIR) particle filter over any `filters.smc.models.base.StateSpaceModel`.
 
 One step for ``t = 1..T`` (Gordon, Salmond & Smith 1993)::
 
@@ -24,10 +24,10 @@ from filters.smc.resampling import effective_sample_size, get_resampler
 
 @dataclass(frozen=True)
 class PFConfig:
-    """Configuration of :class:`BootstrapPF`.
+    """Configuration of `BootstrapPF`.
 
     n_particles: ``N >= 1``.
-    resampler: a name in :data:`filters.smc.resampling.RESAMPLERS`.
+    resampler: a name in `filters.smc.resampling.RESAMPLERS`.
     resample_threshold: resample when ``ESS < resample_threshold * N``; any value ``>= 1``
         resamples at every step (plain SIR, the paper-001 setting).
     """
@@ -66,7 +66,7 @@ def normalise_log_weights(logw: np.ndarray) -> np.ndarray:
 
 
 class BootstrapPF:
-    """Bootstrap SIR particle filter; subclasses override :meth:`move` and :meth:`resample`.
+    """Bootstrap SIR particle filter; subclasses override `move` and `resample`.
 
     ``run(model, ys, rng)`` returns the filtered means ``(T, d)``; row ``k`` estimates
     ``x_{k+1}`` from ``y_1..y_{k+1}``. The same ``rng`` state gives bit-identical output.

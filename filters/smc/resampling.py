@@ -2,7 +2,7 @@
 
 Each takes normalised weights ``(N,)`` (non-negative, summing to 1) and a
 ``np.random.Generator`` and returns ``N`` int64 ancestor indices, sorted
-ascending. Schemes are looked up by name in :data:`RESAMPLERS`.
+ascending. Schemes are looked up by name in `RESAMPLERS`.
 (Douc, Cappé & Moulines 2005 compare them; systematic has the lowest variance
 in practice and is the default everywhere here.)
 """

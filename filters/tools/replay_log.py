@@ -11,7 +11,7 @@ Prints error statistics and writes into ``--out`` (default ``out/replay``):
 * ``error.png``: position error of the belief mean and particle spread against scan;
 * ``particles.gif``: particles on the map, reference pose (green) and estimate (magenta).
 
-``--trials N`` (global mode) also runs :func:`filters.robot_data.replay.global_localization_trials`
+``--trials N`` (global mode) also runs `filters.robot_data.replay.global_localization_trials`
 from N evenly spaced start scans (``--trial-steps`` scans each) and prints the outcome counts.
 
 Example: ``python scripts/replay_log.py --mode global --particles 10000 --trials 44`` (``semreloc-replay-log``
@@ -183,7 +183,7 @@ def run(args: Args) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The command: parse ``argv`` (default ``sys.argv[1:]``) and :func:`run`."""
+    """The command: parse ``argv`` (default ``sys.argv[1:]``) and `run`."""
     run(parse(Args, argv, __doc__))
     return 0
 

@@ -30,18 +30,18 @@ def check_layout_seed(value) -> int:
 
 
 class SemRelocBase(gym.Env):
-    """Base class; see :class:`~semreloc_env.envs.semreloc.SemRelocEnv` for the spec."""
+    """Base class; see `SemRelocEnv` for the spec."""
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
     _reset_option_keys: frozenset[str] = frozenset({"pose"})
     observation_layout: ClassVar[str] = "typed"
     """``"typed"`` (semantic ranges and class labels in separate entries, the labels ``MultiDiscrete``) or
-    ``"flat"`` (one float32 ``semantic`` Box, kept by the older env ids): :func:`.spaces.make_observation_space`."""
+    ``"flat"`` (one float32 ``semantic`` Box, kept by the older env ids): `.spaces.make_observation_space`."""
     info_missing: ClassVar[str] = "drop"
     """How ``info`` shows a value not computed in a step: ``"drop"`` leaves its key out (so vector envs batch
     the rest as typed arrays, with ``_key`` masks marking who has it); ``"none"`` (older env ids) puts None."""
     _world_option_keys: frozenset[str] = frozenset({"pose"})
-    """Reset options whose check needs the world (:meth:`check_reset` builds one only for them)."""
+    """Reset options whose check needs the world (`check_reset` builds one only for them)."""
 
     def __init__(
         self,
@@ -83,7 +83,7 @@ class SemRelocBase(gym.Env):
 
     def _validate_options(self, options: dict, world: World | None) -> None:
         """Raise ValueError for bad reset options, before any state changes (``world`` is None when
-        no option in :attr:`_world_option_keys` is set and the caller is :meth:`check_reset`)."""
+        no option in `_world_option_keys` is set and the caller is `check_reset`)."""
 
     def _reset_estimator(self, options: dict) -> None:  # pragma: no cover - overridden
         pass
@@ -105,7 +105,7 @@ class SemRelocBase(gym.Env):
         """Raise ValueError if ``reset(seed=seed, options=options)`` would reject its arguments.
 
         Changes nothing. The registered envs run it in their outermost wrapper
-        (:class:`semreloc_env.wrappers.CheckedReset`) so that a rejected reset never reaches
+        (`semreloc_env.wrappers.CheckedReset`) so that a rejected reset never reaches
         Gymnasium's ``TimeLimit``, which zeroes its step counter before passing ``reset`` on.
         """
         self._prepare_reset(seed, options, need_world=False)
@@ -113,9 +113,9 @@ class SemRelocBase(gym.Env):
     def _prepare_reset(self, seed, options, need_world: bool = True) -> tuple[dict, World | None]:
         """Validated ``(options, fresh world)`` for a reset; ValueError naming the bad argument.
 
-        With ``need_world=False`` (:meth:`check_reset`) the pymunk world is only built when an
-        option in :attr:`_world_option_keys` needs it for its check; otherwise ``world`` is None
-        (and :meth:`_validate_options` gets None). The checks are the same either way.
+        With ``need_world=False`` (`check_reset`) the pymunk world is only built when an
+        option in `_world_option_keys` needs it for its check; otherwise ``world`` is None
+        (and `_validate_options` gets None). The checks are the same either way.
         """
         if seed is not None and not (
             isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)) and seed >= 0

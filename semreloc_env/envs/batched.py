@@ -1,16 +1,16 @@
 """R robots in one process as a Gymnasium ``VectorEnv``: a loop over R ``SemReloc`` envs.
 
-:class:`SemRelocLoopVectorEnv` steps ``num_envs`` independent :class:`~semreloc_env.envs.semreloc.SemRelocEnv`
+`SemRelocLoopVectorEnv` steps ``num_envs`` independent `SemRelocEnv`
 instances (each its own world, sensors and particle filter) one after the other. What it
-shares is what the process caches anyway: the map (:func:`semreloc_env.maps.maps_for`), the
-likelihood field (:func:`filters.localization.likelihood_field.cached_model`) and the static
+shares is what the process caches anyway: the map (`semreloc_env.maps.maps_for`), the
+likelihood field (`filters.localization.likelihood_field.cached_model`) and the static
 geometry of the world. It is *not* a fused kernel over robots: the per-robot cost is that of
 one env (see ``docs/performance.md``). What it gives today is the Gymnasium vector API with
 next-step autoreset, per-robot results equal bit for bit to R separate envs seeded
 ``seed + i``, and no subprocesses.
 
 Create it with ``gym.make_vec("SemRelocVec-v1", num_envs=R)`` (vector entry point) or
-directly; :func:`agents.vec_env.SB3VecEnvAdapter` turns it into a stable-baselines3 ``VecEnv``.
+directly; `agents.vec_env.SB3VecEnvAdapter` turns it into a stable-baselines3 ``VecEnv``.
 
 Autoreset follows Gymnasium's ``NEXT_STEP`` mode: a robot whose episode ended
 (terminated or truncated) in one ``step`` is reset by the *next* ``step`` call, which
@@ -40,7 +40,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
             made with ``gym.make`` so it carries the same wrappers (``CheckedReset``, ``TimeLimit``).
         max_episode_steps: time limit per robot (default: the single env's registration).
         wrapper: optional callable applied to each robot's env (e.g.
-            :class:`semreloc_env.wrappers.BeliefObservation`); the spaces are the wrapped env's.
+            `semreloc_env.wrappers.BeliefObservation`); the spaces are the wrapped env's.
         **kwargs: ``gym.make`` keyword arguments of the single env (layout, relocalizer, ...).
     """
 
@@ -116,7 +116,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
     def _add_info(self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int) -> dict[str, Any]:
         """Gymnasium's info batching (arrays per key plus ``_key`` masks), but lossless: an array whose
         dtype cannot hold a later robot's value exactly (None in a float array, a float in an int
-        array, another shape) becomes an object array, so :meth:`robot_info` returns every value as given."""
+        array, another shape) becomes an object array, so `robot_info` returns every value as given."""
         n = self.num_envs
         for key, value in env_info.items():
             if isinstance(value, dict):

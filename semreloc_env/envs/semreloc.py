@@ -33,7 +33,7 @@ DEFAULT_RELOCALIZER = MCLConfig(
     lidar_on_rotation=False,
     likelihood_scale=0.06,
 )
-"""The relocalizer of SemReloc-v1 and -v2 (:class:`filters.localization.mcl.MCLConfig` with these overrides):
+"""The relocalizer of SemReloc-v1 and -v2 (`filters.localization.mcl.MCLConfig` with these overrides):
 50 particles per m^2 of free space (500 to 20,000) with KLD sampling, clustered resampling,
 5 % of the particles replaced every update by poses drawn from the current scan (semantic
 detections first) plus augmented-MCL recovery, the lidar factor left out of turn-in-place
@@ -41,12 +41,12 @@ updates, tempering 0.06. Chosen on tuning seeds 5000+ and procedural_sym layouts
 (docs/relocalizer_eval.md, "Choosing the defaults"); evaluated on other seeds and layouts."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
-"""SemReloc-v0's relocalizer: the plain :class:`MCLConfig` (2000 particles, global systematic
+"""SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
 resampling, no KLD, no injection of any kind) tempered with 0.03, and "converged" = small
 spread of the whole set."""
 
 LEGACY_RELOCALIZER_OVERRIDES = LEGACY_RELOCALIZER.as_dict()
-"""Every field of :data:`LEGACY_RELOCALIZER` as ``relocalizer=`` overrides (for before/after
+"""Every field of `LEGACY_RELOCALIZER` as ``relocalizer=`` overrides (for before/after
 comparisons in one env id)."""
 
 SUCCESS_POSITION_M = 0.5
@@ -71,7 +71,7 @@ class SemRelocEnv(SemRelocBase):
     A pymunk world built from a *layout* (walls, doors, chairs, trash bins,
     cabinets) holds a disc robot with a 360 deg lidar, a forward semantic camera
     (paper 004's semantic pseudo-laser) and wheel odometry. Inside the env runs a
-    Monte Carlo relocalizer (:class:`filters.localization.mcl.MonteCarloLocalizer`) whose
+    Monte Carlo relocalizer (`filters.localization.mcl.MonteCarloLocalizer`) whose
     weights multiply a lidar likelihood field with a per-class semantic
     likelihood field. By default every episode is a *global* relocalization:
     the belief starts uniform over the map's free space, and the policy should
@@ -95,13 +95,13 @@ class SemRelocEnv(SemRelocBase):
 
     ``SemReloc-v1`` and ``-v0`` (``observation_layout = "flat"``) have one float32 Box ``semantic`` of
     shape ``(2 * camera.n_beams,)`` instead of the last two: the ranges, then the labels as floats.
-    :func:`semreloc_env.envs.spaces.semantic_parts` reads either.
+    `semreloc_env.envs.spaces.semantic_parts` reads either.
 
-    Belief features for a policy: wrap with :class:`semreloc_env.wrappers.BeliefObservation`.
+    Belief features for a policy: wrap with `semreloc_env.wrappers.BeliefObservation`.
 
     ## Rewards
     A dict of named terms in ``info["rewards"]``, weighted by ``reward_weights``
-    (:class:`RewardWeights`); the reward is their sum:
+    (`RewardWeights`); the reward is their sum:
     ``time`` (constant per step), ``collision`` (robot touched an obstacle),
     ``entropy`` (drop of the belief's pose-histogram entropy, nats),
     ``success`` (once, when the belief converges within 0.5 m and 15 deg of the truth;
@@ -120,23 +120,23 @@ class SemRelocEnv(SemRelocBase):
 
     ## Info
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
-    (:meth:`filters.localization.belief.Belief.as_dict`: ``converged`` — one tight hypothesis
+    (`filters.localization.belief.Belief.as_dict`: ``converged`` — one tight hypothesis
     holds >= 95 % of the mass —, ``hypotheses`` by weight, ``estimate``, spread, entropy, ESS);
     ``pose_error`` ``{"position": m, "heading": rad}`` of the belief's estimate (its heaviest
-    hypothesis); ``is_success`` (the success test below has been met in this episode); ``mcl`` the last update's diagnostics (:class:`filters.localization.mcl.UpdateDiagnostics`;
+    hypothesis); ``is_success`` (the success test below has been met in this episode); ``mcl`` the last update's diagnostics (`filters.localization.mcl.UpdateDiagnostics`;
     a value not computed in this step, such as ``ess`` when the motion gate skipped the update, is left
     out; ``SemReloc-v1``/``-v0`` put None there instead); ``rewards``;
     ``collided``; ``kidnapped`` (True from the kidnap step on).
 
     ## Arguments
     * ``layout``: ``"lab"`` (default, unless ``map_source`` is a map), ``"twin_rooms"``, ``"procedural"``,
-      ``"procedural_sym"``, a ``.json``/``.yaml`` path, a dict, a :class:`~semreloc_env.layouts.Layout`,
+      ``"procedural_sym"``, a ``.json``/``.yaml`` path, a dict, a `Layout`,
       or a ROS map ``.yaml`` / GridMap (the world it shows); ``layout_seed`` seeds procedural ones.
     * ``action_type``: ``"discrete"`` or ``"continuous"``.
     * ``robot``, ``physics``, ``lidar``, ``camera``, ``odometry``: dicts of overrides of
-      :class:`~semreloc_env.config.RobotParams`, ``PhysicsParams``, ``LidarParams``,
-      ``CameraParams`` and :class:`filters.motion.odometry.OdometryMotionConfig` (the simulator's noise).
-    * ``relocalizer``: dict of overrides of :data:`DEFAULT_RELOCALIZER`, a :class:`filters.localization.mcl.MCLConfig`
+      `RobotParams`, ``PhysicsParams``, ``LidarParams``,
+      ``CameraParams`` and `filters.motion.odometry.OdometryMotionConfig` (the simulator's noise).
+    * ``relocalizer``: dict of overrides of `DEFAULT_RELOCALIZER`, a `filters.localization.mcl.MCLConfig`
       (e.g. ``n_particles``); an MCLConfig instance replaces it whole.
     * ``semantic``: False runs the relocalizer lidar-only (the comparison of paper 004); None
       (default) keeps the relocalizer's ``use_semantic`` (True unless overridden there).
@@ -144,9 +144,9 @@ class SemRelocEnv(SemRelocBase):
       world disagree as on a robot), ``"perfect"`` (rasterised layout), a ROS map ``.yaml`` / ``.yml``
       path, a GridMap, or another layout (name or file; its mapping run is the map). With
       ``layout`` unset, a map file or GridMap also gives the world (traced from its occupied
-      cells, :mod:`semreloc_env.map_world`); a map whose extent or frame does not fit the world is an error.
+      cells, `semreloc_env.map_world`); a map whose extent or frame does not fit the world is an error.
     * ``scenario``: ``"nominal"`` or ``"changed"`` (obstacles in the world that the map lacks, paper 004).
-    * ``reward_weights``: dict of overrides of :class:`RewardWeights`.
+    * ``reward_weights``: dict of overrides of `RewardWeights`.
     * ``render_mode``: ``"rgb_array"`` or ``"human"`` (a matplotlib window, paced to ``metadata["render_fps"]``).
       ``metadata["render_fps"]`` is the control rate ``physics.control_hz`` (one frame per step), so
       ``gymnasium.wrappers.RecordVideo`` (extra ``video``: moviepy) plays in real time.
@@ -156,7 +156,7 @@ class SemRelocEnv(SemRelocBase):
     ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1: at that step the robot is
     teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
     A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
-    checks them in its outermost wrapper (:class:`semreloc_env.wrappers.CheckedReset`), so the
+    checks them in its outermost wrapper (`semreloc_env.wrappers.CheckedReset`), so the
     time limit keeps counting the old episode.
 
     ## Version History
@@ -164,8 +164,8 @@ class SemRelocEnv(SemRelocBase):
       and the ranges a Box ``semantic_range``, replacing the float32 ``semantic`` Box that held both;
       ``info["mcl"]`` leaves out the diagnostics not computed in a step (v1: None), so vector envs
       batch them as float arrays. Dynamics, relocalizer, rewards and episode end are v1's: the same
-      seed gives the same episode (:class:`SemRelocEnvV1` is v1).
-    * v1: the relocalizer of the relocalizer issue (:data:`DEFAULT_RELOCALIZER`): particle count
+      seed gives the same episode (`SemRelocEnvV1` is v1).
+    * v1: the relocalizer of the relocalizer issue (`DEFAULT_RELOCALIZER`): particle count
       sized by the map's free area with KLD sampling, clustered resampling, scan-based
       (semantic) proposals with Mixture-MCL and augmented-MCL injection; ``converged`` needs
       one tight hypothesis with >= 95 % of the mass; ``pose_error`` is that of the heaviest
@@ -173,7 +173,7 @@ class SemRelocEnv(SemRelocBase):
       ``mcl.p_inject`` / ``mcl.lidar_used``; strict argument types and a ``CheckedReset``
       wrapper (see CHANGELOG.md). Layouts ``three_rooms`` and ``open_hall``.
     * v0: initial release (still registered, with the first release's relocalizer:
-      :class:`SemRelocEnvV0`). Over the first release it changed too: mapping-run map, reward
+      `SemRelocEnvV0`). Over the first release it changed too: mapping-run map, reward
       term ``wrong_convergence``, tempering 0.03 (docs/paper004.md) — all before v1 existed.
     """
 
@@ -233,13 +233,13 @@ class SemRelocEnv(SemRelocBase):
         self.mcl: MonteCarloLocalizer | None = None
 
     def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None) -> None:
-        """Use another layout from the next :meth:`reset` on (the running episode keeps its world).
+        """Use another layout from the next `reset` on (the running episode keeps its world).
 
         Args:
             layout: anything ``get_layout`` takes (name, path, dict, Layout).
             layout_seed: seeds procedural layouts and the ``"changed"`` scenario's obstacles.
             grid: the filter's map for it; None builds it from the env's ``map_source`` with
-                :func:`semreloc_env.maps.maps_for` (cached there).
+                `semreloc_env.maps.maps_for` (cached there).
 
         Raises:
             ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
@@ -381,7 +381,7 @@ class SemRelocEnv(SemRelocBase):
 
 
 class SemRelocEnvV1(SemRelocEnv):
-    """``SemReloc-v1``: :class:`SemRelocEnv` with the flat observation (one float32 ``semantic`` Box:
+    """``SemReloc-v1``: `SemRelocEnv` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
     v1 keep working; new work should use ``SemReloc-v2``."""
@@ -391,7 +391,7 @@ class SemRelocEnvV1(SemRelocEnv):
 
 
 class SemRelocEnvV0(SemRelocEnvV1):
-    """``SemReloc-v0``: :class:`SemRelocEnvV1` with the first release's relocalizer
-    (:data:`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v2``."""
+    """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v2``."""
 
     default_relocalizer = LEGACY_RELOCALIZER

@@ -41,11 +41,11 @@ class SlamParams:
         known_association: True: observations carry the true object index (landmark id = object index;
             detections on no object, i.e. false positives, are then dropped). False (default): maximum
             likelihood association with the NIS gates below.
-        gate_associate, gate_new: NIS gates of :class:`filters.slam.association.AssociationConfig`.
-        resampler: resampling scheme name (:func:`filters.smc.resampling.get_resampler`).
+        gate_associate, gate_new: NIS gates of `filters.slam.association.AssociationConfig`.
+        resampler: resampling scheme name (`filters.smc.resampling.get_resampler`).
         resample_ess_fraction: resample when the ESS of the WOC weights falls below this fraction of N
             (1.0: after every update with observations, as the paper does).
-        motion_noise: dict of :class:`filters.motion.odometry.OdometryMotionConfig` overrides for the filter's
+        motion_noise: dict of `filters.motion.odometry.OdometryMotionConfig` overrides for the filter's
             odometry noise; ``None`` (default) uses the simulator's ``odometry`` noise (a matched model).
     """
 
@@ -67,7 +67,7 @@ class SlamParams:
             raise ValueError(f"slam.woc_k must be a number with 1 <= K <= inf, got {self.woc_k!r}")
 
     def fastslam_config(self) -> FastSLAMConfig:
-        """The :class:`~filters.slam.fastslam.FastSLAMConfig` these settings stand for (ValueError if invalid)."""
+        """The `FastSLAMConfig` these settings stand for (ValueError if invalid)."""
         assoc = AssociationConfig(
             mode="known" if self.known_association else "ml",
             gate_associate=float(self.gate_associate),
@@ -99,12 +99,12 @@ class SemSlamEnv(SemRelocBase):
     ## Description
     The world, robot and sensors of ``SemReloc-v2`` (a pymunk world built from a *layout*, a 360 deg
     lidar, a forward semantic camera, wheel odometry). Inside the env runs **WOCPF SLAM** (paper 000):
-    FastSLAM (:class:`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
+    FastSLAM (`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
     through the WOC step ``psi = (K-1)/K w + mean(w)/K`` before resampling. Its controls are the noisy
-    odometry increments (:class:`filters.motion.odometry_slam.OdometryIncrementModel`); its observations
+    odometry increments (`filters.motion.odometry_slam.OdometryIncrementModel`); its observations
     are range-bearing *landmarks*: each object the semantic camera labels is one observation to a point
-    near the object's centre (:mod:`semreloc_env.landmark_sensor`). Landmarks also collect class votes
-    (:class:`filters.slam.class_votes.ClassVotingFastSLAM`), so the map is semantic. No map is given:
+    near the object's centre (`semreloc_env.landmark_sensor`). Landmarks also collect class votes
+    (`filters.slam.class_votes.ClassVotingFastSLAM`), so the map is semantic. No map is given:
     the policy should drive so that the robot sees many objects and its pose stays well estimated.
 
     ## Action Space
@@ -128,7 +128,7 @@ class SemSlamEnv(SemRelocBase):
 
     ## Rewards
     A dict of named terms in ``info["rewards"]``, weighted by ``reward_weights``
-    (:class:`SlamRewardWeights`); the reward is their sum: ``time`` (constant per step),
+    (`SlamRewardWeights`); the reward is their sum: ``time`` (constant per step),
     ``collision`` (robot touched an obstacle), ``pose_error`` (weight times the SLAM position error in m,
     so negative by default), ``discovery`` (weight times the number of objects observed for the first time
     in this step).
@@ -159,22 +159,22 @@ class SemSlamEnv(SemRelocBase):
     ## Arguments
     * ``layout``, ``layout_seed``, ``action_type``, ``robot``, ``physics``, ``lidar``, ``camera``,
       ``odometry``, ``render_mode``: as in ``SemReloc-v1``.
-    * ``slam``: dict of overrides of :class:`SlamParams` (``n_particles`` 100, ``version`` 2, ``woc_k`` 2.0,
+    * ``slam``: dict of overrides of `SlamParams` (``n_particles`` 100, ``version`` 2, ``woc_k`` 2.0,
       ``known_association`` False, gates, resampler, ``motion_noise``).
-    * ``obs_noise``: dict of overrides of the filter's :class:`filters.slam.landmarks.RangeBearingNoise`
+    * ``obs_noise``: dict of overrides of the filter's `filters.slam.landmarks.RangeBearingNoise`
       (``sigma_r_m`` 0.15, ``sigma_b_rad`` 0.05).
-    * ``landmark_sensor``: dict of overrides of :class:`semreloc_env.landmark_sensor.LandmarkSensorParams`.
-    * ``reward_weights``: dict of overrides of :class:`SlamRewardWeights`.
+    * ``landmark_sensor``: dict of overrides of `semreloc_env.landmark_sensor.LandmarkSensorParams`.
+    * ``reward_weights``: dict of overrides of `SlamRewardWeights`.
     Unknown arguments or keys raise ``TypeError`` / ``ValueError``.
 
     ## Reset options
     ``pose`` only; anything else raises ``ValueError`` and leaves the episode as it was
-    (checked outside the time limit, see :class:`semreloc_env.wrappers.CheckedReset`).
+    (checked outside the time limit, see `semreloc_env.wrappers.CheckedReset`).
 
     ## Version History
     * v1: typed observations as in ``SemReloc-v2`` (``semantic_class`` MultiDiscrete and ``semantic_range``
       Box instead of the float32 ``semantic`` Box); ``info["slam_error"]`` leaves ``landmark`` out while no
-      object has been observed (v0: None). Dynamics, filter and rewards unchanged (:class:`SemSlamEnvV0` is v0).
+      object has been observed (v0: None). Dynamics, filter and rewards unchanged (`SemSlamEnvV0` is v0).
     * v0: initial release.
     """
 
@@ -303,7 +303,7 @@ class SemSlamEnv(SemRelocBase):
 
 
 class SemSlamEnvV0(SemSlamEnv):
-    """``SemSlam-v0``: :class:`SemSlamEnv` with the flat observation (one float32 ``semantic`` Box) and
+    """``SemSlam-v0``: `SemSlamEnv` with the flat observation (one float32 ``semantic`` Box) and
     ``info["slam_error"]["landmark"] = None`` before the first object is seen. Otherwise identical to
     ``SemSlam-v1`` (same seed, same episode); new work should use ``SemSlam-v1``."""
 

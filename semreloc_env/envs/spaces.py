@@ -81,7 +81,7 @@ def make_observation_space(lidar: LidarParams, camera: CameraParams, layout: str
 
 
 def make_observation(lidar_scan, semantic_scan, odom: np.ndarray, layout: str = "typed") -> dict[str, np.ndarray]:
-    """One observation in ``layout`` (see :func:`make_observation_space`)."""
+    """One observation in ``layout`` (see `make_observation_space`)."""
     obs = {"lidar": lidar_scan.ranges.astype(np.float32)}
     if layout == "typed":
         obs["semantic_range"] = np.asarray(semantic_scan.ranges, dtype=np.float32)

@@ -7,7 +7,7 @@ from .batched import SemRelocLoopVectorEnv
 
 def semreloc_vec_v2(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
     """``SemRelocVec-v2``: ``num_envs`` ``SemReloc-v2`` robots in one process
-    (:class:`~semreloc_env.envs.batched.SemRelocLoopVectorEnv` with ``env_id="SemReloc-v2"``).
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v2"``).
     ``SemRelocVec-v1`` is the class itself, whose ``env_id`` defaults to ``"SemReloc-v1"``."""
     if "env_id" in kwargs:
         raise TypeError("SemRelocVec-v2 runs SemReloc-v2; for another single env use SemRelocLoopVectorEnv(env_id=...)")

@@ -60,16 +60,16 @@ def _is_ros_map(spec) -> bool:
 
 
 def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
-    """Resolve a layout spec to a validated :class:`Layout`.
+    """Resolve a layout spec to a validated `Layout`.
 
     Args:
         spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"``,
             ``"procedural_sym"`` or ``"procedural_lookalike"`` (generated from ``seed``), the name of a
-            layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (:func:`find_layout_file`), a path
+            layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (`find_layout_file`), a path
             to a ``.json`` / ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a
             map: a ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
-            :class:`~filters.mapping.grid.GridMap`, whose world is traced from its occupied
-            cells (:func:`semreloc_env.map_world.layout_from_map`).
+            `GridMap`, whose world is traced from its occupied
+            cells (`semreloc_env.map_world.layout_from_map`).
         seed: seed of the procedural generator (ignored otherwise).
     """
     if isinstance(spec, Layout):

@@ -1,7 +1,7 @@
 """Built-in layouts: ``lab``, ``twin_rooms``, ``three_rooms`` and ``open_hall``, as plain dicts.
 
-Each builder returns the dict form (see :mod:`.layout`) so users can copy, edit
-and save it; :func:`semreloc_env.layouts.get_layout` validates it into a Layout.
+Each builder returns the dict form (see `.layout`) so users can copy, edit
+and save it; `semreloc_env.layouts.get_layout` validates it into a Layout.
 """
 
 from __future__ import annotations

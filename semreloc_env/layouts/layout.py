@@ -1,8 +1,8 @@
 """Layouts: the geometry of a world as plain, validated data.
 
 A layout is the single source of truth for one environment: it builds the pymunk
-space (physics and true sensing, :mod:`semreloc_env.world`) and rasterises to the
-grids a perfect map would hold (:mod:`semreloc_env.rasterize`).
+space (physics and true sensing, `semreloc_env.world`) and rasterises to the
+grids a perfect map would hold (`semreloc_env.rasterize`).
 
 File / dict format (JSON or YAML), all lengths in metres::
 
@@ -15,7 +15,7 @@ File / dict format (JSON or YAML), all lengths in metres::
       - {class: cabinet, center: [3, 0.3], size: [1.0, 0.5], angle_rad: 0.0}  # box shorthand
 
 Classes: ``door``, ``chair``, ``trash_bin``, ``cabinet`` (paper 004).
-Every problem found raises :class:`LayoutError` naming the offending entry.
+Every problem found raises `LayoutError` naming the offending entry.
 """
 
 from __future__ import annotations
@@ -104,7 +104,7 @@ class Layout:
         return float(p[:, 0].min()), float(p[:, 0].max()), float(p[:, 1].min()), float(p[:, 1].max())
 
     def to_dict(self) -> dict:
-        """The plain-dict form accepted by :func:`layout_from_dict` (round-trips)."""
+        """The plain-dict form accepted by `layout_from_dict` (round-trips)."""
         return {
             "name": self.name,
             "outer": [list(p) for p in self.outer],
@@ -314,13 +314,13 @@ def _optional_list(data: Mapping, key: str) -> list:
 
 
 def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
-    """Validate a plain dict (see the module docstring) and build a :class:`Layout`.
+    """Validate a plain dict (see the module docstring) and build a `Layout`.
 
-    Checks, in ``O(n log n)`` time for ``n`` vertices in all (limit :data:`MAX_VERTICES`):
+    Checks, in ``O(n log n)`` time for ``n`` vertices in all (limit `MAX_VERTICES`):
     known keys; coordinates real numbers (not strings or bools), finite, within
-    :data:`MAX_COORDINATE_M`; polygons simple (not self-intersecting) with non-zero area;
+    `MAX_COORDINATE_M`; polygons simple (not self-intersecting) with non-zero area;
     whole walls and objects inside the outer wall; objects not overlapping each other
-    and no interior wall through an object (touching, within :data:`TOLERANCE_M`, is fine).
+    and no interior wall through an object (touching, within `TOLERANCE_M`, is fine).
 
     Raises:
         LayoutError: the first problem found; the message names the entry.

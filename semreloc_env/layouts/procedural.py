@@ -13,7 +13,7 @@ _TWIN_CLASS = {"door": "cabinet", "cabinet": "door", "chair": "trash_bin", "tras
 
 @dataclass(frozen=True)
 class ProceduralParams:
-    """Knobs of :func:`procedural_layout` (metres).
+    """Knobs of `procedural_layout` (metres).
 
     Attributes:
         rooms_per_side: inclusive range of the number of rooms on each corridor side.
@@ -29,7 +29,7 @@ class ProceduralParams:
             are half-turned copies of the south ones), told apart only by
             ``corridor_objects`` objects against the corridor walls: from inside a room
             the sensors cannot tell which room it is, only moving out can
-            (:func:`lookalike_layout`).
+            (`lookalike_layout`).
         corridor_objects: inclusive range of the number of corridor objects (lookalike only).
     """
 
@@ -93,7 +93,7 @@ def procedural_layout(rng: np.random.Generator, params: ProceduralParams | None 
     """Generate a furnished corridor-and-rooms layout (dict form) from ``rng``.
 
     The same generator state gives the same layout. Validate it with
-    :func:`semreloc_env.layouts.layout_from_dict` (``get_layout`` does).
+    `semreloc_env.layouts.layout_from_dict` (``get_layout`` does).
     """
     p = params or ProceduralParams()
     if p.lookalike:

@@ -1,9 +1,9 @@
 """Observations for active-relocalization policies: spatial belief images, hypotheses, scans.
 
-* :class:`~.active.ActiveObservation` — the wrapper (egocentric crop, whole-map view,
+* `ActiveObservation` — the wrapper (egocentric crop, whole-map view,
   hypothesis vector, belief summary, normalised scans, last action); never the true pose.
-* :mod:`.rasters` — the top-down images of the filter's map and particles.
-* :mod:`.hypotheses` — the belief's hypothesis list (the filter's, or clustered here).
+* `.rasters` — the top-down images of the filter's map and particles.
+* `.hypotheses` — the belief's hypothesis list (the filter's, or clustered here).
 """
 
 from .active import BELIEF_SUMMARY, HYPOTHESIS_FEATURES, OBSERVATION_KEYS, ActiveObservation

@@ -29,7 +29,7 @@ HYPOTHESIS_FEATURES = (
     "theta_std_norm",
     "particle_share",
 )
-"""Columns of ``obs["hypotheses"]`` (see :class:`ActiveObservation`)."""
+"""Columns of ``obs["hypotheses"]`` (see `ActiveObservation`)."""
 
 BELIEF_SUMMARY = (
     "entropy_norm",
@@ -40,7 +40,7 @@ BELIEF_SUMMARY = (
     "hypotheses_norm",
     "ego_mass",
 )
-"""Entries of ``obs["belief"]`` (see :class:`ActiveObservation`)."""
+"""Entries of ``obs["belief"]`` (see `ActiveObservation`)."""
 
 OBSERVATION_KEYS = (
     "ego",
@@ -65,25 +65,25 @@ class ActiveObservation(gym.Wrapper):
     ``info["pose"]``, ``info["pose_error"]`` or the simulator's world. Every bound is
     independent of the particle count and of the layout's size, so one policy runs on any
     layout and filter. The *anchor* is the mean pose of the belief's top hypothesis (the
-    heaviest, :func:`~semreloc_env.observations.hypotheses.hypotheses_of`): where the robot
+    heaviest, `hypotheses_of`): where the robot
     most probably is, as far as the filter knows. ``L`` is the side of the square that holds
     the map (its larger extent), the unit of normalised lengths.
 
     Keys (``B = n_heading_bins``, ``C`` = number of classes, ``K = max_hypotheses``):
 
     * ``ego``: ``Box(0, 1, (B + 2 + C, ego_size, ego_size))``, the egocentric crop around the
-      anchor, heading-aligned (:mod:`~semreloc_env.observations.rasters`): B particle-mass
+      anchor, heading-aligned (`rasters`): B particle-mass
       channels by heading relative to the anchor, occupied, free, one-hot classes;
       ``ego_cell_m`` metres per cell.
     * ``global``: ``Box(0, 1, (B + 2 + C, global_size, global_size))``, the same channels over
       the whole map (headings absolute).
     * ``hypotheses``: ``Box((K, 13))``, the top K hypotheses by weight, rows of
-      :data:`HYPOTHESIS_FEATURES`: present 0/1; weight; mean in map-normalised coordinates
+      `HYPOTHESIS_FEATURES`: present 0/1; weight; mean in map-normalised coordinates
       ``[0, 1]``; cos/sin of its heading; its offset from the top hypothesis, in the top
       hypothesis's frame, / ``L`` (``[-sqrt 2, sqrt 2]``); cos/sin of its heading relative to the
       top one; position std / ``L`` (clipped to 1); heading std / pi; share of the particles.
       Absent rows are 0.
-    * ``belief``: ``Box(0, 1, (7,))``, :data:`BELIEF_SUMMARY`: entropy / log N, ESS / N, position
+    * ``belief``: ``Box(0, 1, (7,))``, `BELIEF_SUMMARY`: entropy / log N, ESS / N, position
       std / ``L``, heading std / pi, converged, hypothesis count / K (clipped), belief mass
       inside the ego crop.
     * ``lidar``: ``Box(0, 1, (lidar beams,))``, ranges / ``range_max_m``.
@@ -97,7 +97,7 @@ class ActiveObservation(gym.Wrapper):
     Args:
         env: a ``SemReloc-v2`` env, or ``-v1`` / ``-v0`` (either raw observation layout; anything with
             ``unwrapped.mcl``, ``unwrapped.grid``, ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
-        keys: which keys to keep, in order (default :data:`OBSERVATION_KEYS`, all of them).
+        keys: which keys to keep, in order (default `OBSERVATION_KEYS`, all of them).
         ego_size: side of the ego crop in cells (default 32: with ``ego_cell_m`` 8 m, the lidar's reach).
         ego_cell_m: cell size of the ego crop (m).
         global_size: side of the allocentric image in cells.
@@ -181,7 +181,7 @@ class ActiveObservation(gym.Wrapper):
         return r
 
     def hypothesis_features(self, hyps: list[dict], rasters: MapRasters) -> np.ndarray:
-        """``(K, 13)`` rows of :data:`HYPOTHESIS_FEATURES` for hypotheses sorted by weight."""
+        """``(K, 13)`` rows of `HYPOTHESIS_FEATURES` for hypotheses sorted by weight."""
         out = np.zeros((self.max_hypotheses, len(HYPOTHESIS_FEATURES)), np.float32)
         if not hyps:
             return out

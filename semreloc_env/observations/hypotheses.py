@@ -1,7 +1,7 @@
 """Where a wrapper gets the belief's hypotheses from.
 
 The relocalizer publishes its hypotheses in ``info["belief"]["hypotheses"]``
-(:class:`filters.localization.belief.Belief`): a list sorted by weight of
+(`filters.localization.belief.Belief`): a list sorted by weight of
 ``{"weight": float, "mean": [x, y, theta], "cov": 3x3 list, "n_particles": int}``.
 """
 

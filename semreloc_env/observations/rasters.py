@@ -13,10 +13,10 @@ Both images are ``float32 (channels, S, S)`` in ``[0, 1]``, channels in this ord
 
 Cells outside the map read 0 in every channel (unknown, nothing believed there).
 
-Frames: in :func:`egocentric_raster` the anchor pose ``(ax, ay, atheta)`` sits at the image
+Frames: in `egocentric_raster` the anchor pose ``(ax, ay, atheta)`` sits at the image
 centre; column index grows along the anchor's heading (x forward), row index along its left
 (y left), so cell ``(r, c)`` covers the anchor-frame point
-``((c + 0.5 - S/2) * cell_m, (r + 0.5 - S/2) * cell_m)``. In :func:`allocentric_raster` the
+``((c + 0.5 - S/2) * cell_m, (r + 0.5 - S/2) * cell_m)``. In `allocentric_raster` the
 map's bounding box is fitted into a square of side ``max(width, height)`` (lower-left corner
 at the map's), row ``r`` along +y, column ``c`` along +x.
 """

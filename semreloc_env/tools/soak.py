@@ -104,7 +104,7 @@ def mutate(data: dict, rng: np.random.Generator) -> tuple[dict, str, str]:
 
 
 def check_mutation(data: dict, rng: np.random.Generator, c: Counter) -> None:
-    """Mutate the valid layout ``data`` into an invalid one (:func:`mutate`) and count in ``c`` whether
+    """Mutate the valid layout ``data`` into an invalid one (`mutate`) and count in ``c`` whether
     ``layout_from_dict`` rejects it (``FAIL_mutation_accepted``) naming the entry (``FAIL_mutation_unnamed``)."""
     bad, entry, what = mutate(data, rng)
     c["mutations"] += 1

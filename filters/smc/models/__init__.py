@@ -1,4 +1,4 @@
-"""State-space models for the generic particle filters (:mod:`filters.smc.pf`, :mod:`filters.smc.firefly`)."""
+"""State-space models for the generic particle filters (`filters.smc.pf`, `filters.smc.firefly`)."""
 
 from filters.smc.models.base import StateSpaceModel
 from filters.smc.models.growth import GrowthModel, GrowthModelParams

@@ -1,4 +1,4 @@
-"""The state-space model protocol every particle filter in :mod:`filters` runs on.
+"""The state-space model protocol every particle filter in `filters` runs on.
 
 Time convention: the hidden state starts at ``x_0`` (time 0, never observed);
 for ``t = 1, 2, ..., T`` the state moves ``x_{t-1} -> x_t`` and is observed as
@@ -25,7 +25,7 @@ class StateSpaceModel(Protocol):
     Q, R:
         Process and observation noise covariances, ``(d, d)`` and ``(m, m)``, in the
         squared units of state and observation. Filters use them as scales (e.g. the
-        firefly brightness); exact likelihoods come from :meth:`log_likelihood`.
+        firefly brightness); exact likelihoods come from `log_likelihood`.
     """
 
     state_dim: int

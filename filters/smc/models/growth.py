@@ -19,10 +19,10 @@ import numpy as np
 
 @dataclass(frozen=True)
 class GrowthModelParams:
-    """Parameters of :class:`GrowthModel`.
+    """Parameters of `GrowthModel`.
 
     q_var: process noise variance ``Q``.  r_var: observation noise variance ``R``.
-    x0: true initial state used by :meth:`GrowthModel.simulate`.
+    x0: true initial state used by `GrowthModel.simulate`.
     init_var: variance of the filter prior ``x_0 ~ N(x0, init_var)`` (0 = known exactly).
     """
 
@@ -37,7 +37,7 @@ class GrowthModelParams:
 
 
 class GrowthModel:
-    """The UNGM as a :class:`filters.smc.models.base.StateSpaceModel` (``d = m = 1``)."""
+    """The UNGM as a `filters.smc.models.base.StateSpaceModel` (``d = m = 1``)."""
 
     state_dim = 1
     obs_dim = 1
