@@ -201,24 +201,13 @@ def build_cases(args: Args) -> list[dict]:
 # ---------------------------------------------------------------------- episodes
 def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
     """Every policy on one (layout, start) pair."""
-    import gymnasium as gym
-
-    import semreloc_env  # noqa: F401
     from agents.metrics import EpisodeTracker
 
     case, policies, args = job
     rows = []
     for spec in policies:
         name = spec.partition("=")[0]
-        env = gym.make(
-            ENV_ID,
-            layout=case["layout"],
-            layout_seed=case["layout_seed"],
-            scenario=case["scenario"],
-            map_source=args.map_source,
-            relocalizer={"n_particles": args.particles},
-            max_episode_steps=args.max_steps,
-        )
+        env = case_env(case, args)
         policy = make_policy(spec, case["episode_seed"])
         env = policy.wrap(env)
         policy.reset()
@@ -262,14 +251,13 @@ def make_policy(spec: str, seed: int):
     return POLICIES[name](seed)
 
 
-def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) -> None:
-    """One episode of ``spec`` on ``case`` as a GIF (every ``every``-th frame, 10 fps)."""
+def case_env(case: dict, args: Args, render_mode: str | None = None):
+    """The env of one (layout, start) pair: its layout, scenario, map, particle count and step limit."""
     import gymnasium as gym
-    from PIL import Image
 
     import semreloc_env  # noqa: F401
 
-    env = gym.make(
+    return gym.make(
         ENV_ID,
         layout=case["layout"],
         layout_seed=case["layout_seed"],
@@ -277,8 +265,15 @@ def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) ->
         map_source=args.map_source,
         relocalizer={"n_particles": args.particles},
         max_episode_steps=args.max_steps,
-        render_mode="rgb_array",
+        render_mode=render_mode,
     )
+
+
+def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) -> None:
+    """One episode of ``spec`` on ``case`` as a GIF (every ``every``-th frame, 10 fps)."""
+    from PIL import Image
+
+    env = case_env(case, args, render_mode="rgb_array")
     policy = make_policy(spec, case["episode_seed"])
     env = policy.wrap(env)
     policy.reset()
