@@ -107,6 +107,10 @@ class LearnedPolicy:
         deterministic: act on the mode of the action distribution (default) or sample from it.
         explorer_option: the model's actions are `agents.options.ExplorerOption`'s (the env's
             four and "explore"); `wrap` adds that wrapper.
+        seed: with ``deterministic=False``, `reset` reseeds the model's sampling with it, so an
+            episode's actions do not depend on the episodes before it.
+
+    Call `reset` at every episode start: it also drops the decision being held.
     """
 
     def __init__(
@@ -116,6 +120,7 @@ class LearnedPolicy:
         repeat: int = 1,
         deterministic: bool = True,
         explorer_option: bool = False,
+        seed: int = 0,
     ):
         if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
             raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
@@ -124,6 +129,7 @@ class LearnedPolicy:
         self.repeat = int(repeat)
         self.deterministic = bool(deterministic)
         self.explorer_option = bool(explorer_option)
+        self.seed = int(seed)
         self._t = 0
         self._action = None
 
@@ -157,6 +163,8 @@ class LearnedPolicy:
         """Start an episode: the next `act` decides afresh."""
         self._t = 0
         self._action = None
+        if not self.deterministic:
+            self.model.set_random_seed(self.seed)
 
     def act(self, obs: dict):
         """The action for this step: a new decision every ``repeat`` steps, else the held one."""
@@ -174,6 +182,7 @@ def load_policy(
     observation: dict[str, Any] | None = None,
     repeat: int | None = None,
     explorer_option: bool | None = None,
+    seed: int = 0,
 ) -> LearnedPolicy:
     """Load a policy saved by `save_policy` (or a bare SB3 PPO checkpoint, given its settings).
 
@@ -184,8 +193,9 @@ def load_policy(
         observation: override (or, for a checkpoint without metadata, supply) the
             `ActiveObservation` settings.
         repeat: the same for the action repeat.
-        explorer_option: the same for `agents.options.ExplorerOption` (default False
-            without metadata).
+        explorer_option: the same for `agents.options.ExplorerOption` (without metadata:
+            True when the model has five discrete actions, as `train_active`'s checkpoints do).
+        seed: see `LearnedPolicy`.
 
     Raises:
         FileNotFoundError, ValueError: see `read_metadata`.
@@ -202,8 +212,11 @@ def load_policy(
             meta = {}
         observation = meta["observation"] if observation is None else observation
         repeat = meta["repeat"] if repeat is None else repeat
-        explorer_option = bool(meta.get("explorer_option", False)) if explorer_option is None else explorer_option
+        if explorer_option is None and "explorer_option" in meta:
+            explorer_option = bool(meta["explorer_option"])
     if not Path(path).is_file():
         raise FileNotFoundError(f"no policy file {path}")
     model = PPO.load(path, device=device)
-    return LearnedPolicy(model, observation, repeat, deterministic, explorer_option)
+    if explorer_option is None:
+        explorer_option = model.action_space == spaces.Discrete(5)
+    return LearnedPolicy(model, observation, repeat, deterministic, explorer_option, seed)

@@ -1,9 +1,9 @@
 """PPO for active relocalization: a new procedural layout every episode, spatial belief observations.
 
 `make_active_env` builds one training env:
-``SemReloc-v1`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
+``SemReloc-v2`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
 `RandomLayout` (a new layout per reset, never a held-out
-seed) -> `BeliefMassReward` (``mode="gain"``) ->
+seed) -> `BeliefMassReward` (``mode="gain"``) -> `ExplorerOption` (if ``explorer_option``) ->
 `ActionRepeat` -> `ActiveObservation`
 -> SB3's ``Monitor``. `train_active` trains SB3 PPO with `ActiveExtractor`
 on ``n_envs`` of them, logs csv + TensorBoard, shows SB3's progress bar, writes checkpoints,
@@ -273,12 +273,18 @@ def train_active(
     ``out`` receives ``config.json``, ``progress.csv`` and TensorBoard events, ``checkpoints/``
     (``ppo_<decisions>_steps.zip``), ``policy.zip`` (`agents.learned.save_policy`) and
     ``timing.json`` (wall and CPU seconds, decisions and env steps) and ``learning_curve.png``.
-    ``resume``: a checkpoint of this run to continue from (its step count carries on;
-    ``total_timesteps`` counts from 0).
+    ``resume``: a checkpoint to continue from; ``total_timesteps`` more decisions are trained (the
+    step count carries on), and the earlier run's ``progress.csv`` / ``timing.json`` in ``out`` are
+    kept as ``*_before_<decisions>.*`` (SB3 would overwrite them).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(int(config.torch_threads))
+    if resume is not None:
+        done = PPO.load(resume, device="cpu").num_timesteps
+        for name in ("progress.csv", "timing.json", "config.json"):
+            if (out / name).exists():
+                (out / name).rename(out / f"{Path(name).stem}_before_{done}{Path(name).suffix}")
     (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
     venv = make_active_venv(config)
     if resume is not None:

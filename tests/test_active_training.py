@@ -154,7 +154,9 @@ def test_load_policy_errors(smoke_run, tmp_path):
                 dst.writestr(name, src.read(name))
     with pytest.raises(ValueError, match="no semreloc_policy.json"):
         load_policy(bare)
-    assert load_policy(bare, observation={}, repeat=3).repeat == 3
+    from_bare = load_policy(bare, observation={}, repeat=3)  # explore action inferred from Discrete(5)
+    assert from_bare.repeat == 3 and from_bare.explorer_option
+    from_bare.wrap(_env())
     policy = load_policy(path)
     with pytest.raises(ValueError, match="observation space differs"):
         policy.wrap(_env(camera={"n_beams": 16}))
@@ -174,6 +176,14 @@ def test_evaluate_active_runs_a_learned_policy_and_reuses_earlier_rows(smoke_run
     b = json.loads((tmp_path / "b" / "episodes.json").read_text())
     assert [r for r in b if r["policy"] == "spin"] == a
     assert sum(r["policy"] == "ppo" for r in b) == len(a) == 3
+    (cmp,) = json.loads((tmp_path / "b" / "summary.json").read_text())["paired"]
+    assert cmp["policy"] == "ppo" and cmp["against"] == "spin" and 0 <= cmp["mcnemar_p"] <= 1
+    assert "paired" in (tmp_path / "b" / "table.md").read_text()
+    # rows made with other settings are run again, not reused
+    other = [x if x != "100" else "120" for x in common]
+    ev.main([*other, "--policies", "spin", "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")])
+    c = json.loads((tmp_path / "c" / "episodes.json").read_text())
+    assert {r["settings"]["particles"] for r in c} == {120}
     with pytest.raises(SystemExit):
         ev.main(["--policies", f"ppo={tmp_path / 'nope.zip'}"])
 

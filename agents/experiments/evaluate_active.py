@@ -233,10 +233,16 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
                 "collisions": collisions,
                 "final_position_error_m": res.final_position_error_m,
                 "seconds": time.perf_counter() - t0,
+                "settings": settings(args, spec),
             }
         )
         env.close()
     return rows
+
+
+def settings(args: Args, spec: str) -> dict:
+    """What an episode row depends on besides its case: checked before ``--reuse`` keeps a row."""
+    return {"particles": args.particles, "max_steps": args.max_steps, "map_source": args.map_source, "spec": spec}
 
 
 def make_policy(spec: str, seed: int):
@@ -247,7 +253,7 @@ def make_policy(spec: str, seed: int):
     if path:
         from agents.learned import load_policy
 
-        return load_policy(path)
+        return load_policy(path, seed=seed)
     return POLICIES[name](seed)
 
 
@@ -438,6 +444,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.reuse:
         old = [r for d in args.reuse for r in json.loads((Path(d) / "episodes.json").read_text())]
         keep = {c["case"]: c for c in cases}
+        spec_of = dict(zip(policies, specs))
+        unverified = 0
         for r in old:
             c = keep.get(r["case"])
             seen = {(x["case"], x["policy"]) for x in rows}
@@ -446,8 +454,12 @@ def main(argv: list[str] | None = None) -> int:
                 and c is not None
                 and all(r[k] == v for k, v in c.items())
                 and (r["case"], r["policy"]) not in seen
+                and r.get("settings", settings(args, spec_of[r["policy"]])) == settings(args, spec_of[r["policy"]])
             ):
+                unverified += "settings" not in r
                 rows.append(r)
+        if unverified:
+            print(f"warning: {unverified} reused rows predate the settings check (particles, steps, map, policy file)")
         done = {(r["case"], r["policy"]) for r in rows}
         print(f"reused {len(rows)} episodes from {', '.join(args.reuse)}", flush=True)
     else:
