@@ -60,7 +60,7 @@ class BeliefMassReward(gym.Wrapper):
     """Add ``weight * belief_mass_near(particles, truth)`` as the reward term ``belief_mass``.
 
     ``mode="level"`` pays the mass every step (as Active Neural Localization); ``mode="gain"``
-    pays its change since the last step (0 on the first step), so a policy is not paid for
+    pays its change since the last step (since the reset, on the first step), so a policy is not paid for
     lingering once the belief is right. The term is added to ``info["rewards"]`` and to the
     reward; everything else passes through.
 

@@ -222,7 +222,9 @@ class ActionRepeat(gym.Wrapper):
 
     The returned observation, ``terminated``, ``truncated`` and ``info`` are those of the last
     inner step; the reward is the sum over the inner steps, and ``info["rewards"]`` the sum of each
-    named term. ``info["inner_steps"]`` is how many env steps the call took. A policy trained
+    named term. ``info["inner_steps"]`` is how many env steps the call took. Everything else in
+    ``info`` (``collided``, ``belief``, ...) is the last inner step's, so per-step counters outside
+    (SB3's ``Monitor``, `agents.callbacks`) count decisions, not env steps. A policy trained
     through this wrapper acts on an unwrapped env by holding each action for ``repeat`` steps
     (`agents.learned.LearnedPolicy` does).
 

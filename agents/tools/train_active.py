@@ -6,7 +6,7 @@ run writes goes under `--out`: config.json, progress.csv, TensorBoard events
 result with `python scripts/evaluate_active.py --policies info_gain wall_follow ppo=<out>/policy.zip`.
 
 The documented run (docs/active.md):
-    python scripts/train_active.py --out out/active --config.time-budget-s 3000 --config.layout-seeds 0 100
+    python scripts/train_active.py --out out/active --config.time-budget-s 3000 --config.total-timesteps 400000
 """
 
 from __future__ import annotations
