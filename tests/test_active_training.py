@@ -184,6 +184,13 @@ def test_evaluate_active_runs_a_learned_policy_and_reuses_earlier_rows(smoke_run
     ev.main([*other, "--policies", "spin", "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")])
     c = json.loads((tmp_path / "c" / "episodes.json").read_text())
     assert {r["settings"]["particles"] for r in c} == {120}
+    # sampled actions are seeded per episode: two runs give the same rows
+    sampled = [[*common, "--policies", f"ppo={path}", "--sample-learned", "--out", str(tmp_path / d)] for d in "de"]
+    for argv in sampled:
+        ev.main(argv)
+    d, e = (json.loads((tmp_path / x / "episodes.json").read_text()) for x in "de")
+    strip = [[{k: v for k, v in r.items() if k != "seconds"} for r in rows] for rows in (d, e)]
+    assert strip[0] == strip[1] and all(r["settings"]["sample_learned"] for r in d)
     with pytest.raises(SystemExit):
         ev.main(["--policies", f"ppo={tmp_path / 'nope.zip'}"])
 

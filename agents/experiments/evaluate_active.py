@@ -73,6 +73,8 @@ class Args:
     """the filter's map: mapping (a simulated mapping run) or perfect"""
     gif_case: int = -1
     """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases)"""
+    sample_learned: bool = False
+    """learned policies sample their actions (seeded by the episode) instead of taking the most likely"""
     out: str = "out/evaluate_active"
     """output folder"""
     runner: Runner = RunnerConfig(workers=2)
@@ -208,7 +210,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
     for spec in policies:
         name = spec.partition("=")[0]
         env = case_env(case, args)
-        policy = make_policy(spec, case["episode_seed"])
+        policy = make_policy(spec, case["episode_seed"], args.sample_learned)
         env = policy.wrap(env)
         policy.reset()
         tracker = EpisodeTracker()
@@ -242,18 +244,25 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
 
 def settings(args: Args, spec: str) -> dict:
     """What an episode row depends on besides its case: checked before ``--reuse`` keeps a row."""
-    return {"particles": args.particles, "max_steps": args.max_steps, "map_source": args.map_source, "spec": spec}
+    return {
+        "particles": args.particles,
+        "max_steps": args.max_steps,
+        "map_source": args.map_source,
+        "spec": spec,
+        "sample_learned": args.sample_learned and "=" in spec,
+    }
 
 
-def make_policy(spec: str, seed: int):
-    """The policy named by ``spec``: a baseline name of agents.policies.POLICIES or NAME=PATH."""
+def make_policy(spec: str, seed: int, sample: bool = False):
+    """The policy named by ``spec``: a baseline name of agents.policies.POLICIES or NAME=PATH (a learned
+    policy, sampling its actions from a generator seeded with ``seed`` if ``sample``)."""
     from agents.policies import POLICIES
 
     name, _, path = spec.partition("=")
     if path:
         from agents.learned import load_policy
 
-        return load_policy(path, seed=seed)
+        return load_policy(path, seed=seed, deterministic=not sample)
     return POLICIES[name](seed)
 
 
@@ -280,7 +289,7 @@ def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) ->
     from PIL import Image
 
     env = case_env(case, args, render_mode="rgb_array")
-    policy = make_policy(spec, case["episode_seed"])
+    policy = make_policy(spec, case["episode_seed"], args.sample_learned)
     env = policy.wrap(env)
     policy.reset()
     obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
