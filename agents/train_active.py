@@ -186,14 +186,10 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0) -> gym.Env:
     return Monitor(env, info_keywords=("is_success",))
 
 
-def _env_fn(config: ActiveTrainConfig, seed: int) -> gym.Env:
-    return make_active_env(config, seed)
-
-
 def make_active_venv(config: ActiveTrainConfig):
     """``n_envs`` training envs, env ``k`` seeded ``seed + k``."""
     return make_vec_env(
-        functools.partial(_env_fn, config, config.seed),
+        functools.partial(make_active_env, config, config.seed),
         n_envs=config.n_envs,
         seed=config.seed,
         vec_env_cls=SubprocVecEnv if config.vec_env == "subproc" else DummyVecEnv,
@@ -280,17 +276,15 @@ def train_active(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(int(config.torch_threads))
-    if resume is not None:
-        done = PPO.load(resume, device="cpu").num_timesteps
-        for name in ("progress.csv", "timing.json", "config.json"):
-            if (out / name).exists():
-                (out / name).rename(out / f"{Path(name).stem}_before_{done}{Path(name).suffix}")
-    (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
     venv = make_active_venv(config)
     if resume is not None:
         model = PPO.load(resume, env=venv, device=config.device)
+        for name in ("progress.csv", "timing.json", "config.json"):
+            if (out / name).exists():
+                (out / name).rename(out / f"{Path(name).stem}_before_{model.num_timesteps}{Path(name).suffix}")
     else:
         model = build_model(config, venv)
+    (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
     logger = configure(str(out), (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
     model.set_logger(logger)
     cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=100)]

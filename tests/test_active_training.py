@@ -120,6 +120,25 @@ def test_ppo_smoke_run_writes_logs_checkpoints_and_a_loadable_policy(smoke_run):
     assert meta["repeat"] == 3 and meta["explorer_option"] and meta["extra"]["config"]["particles"] == 200
 
 
+def test_resume_continues_the_step_count_and_keeps_the_earlier_logs(smoke_run, tmp_path):
+    import dataclasses
+    import shutil
+
+    out, _ = smoke_run
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    ckpt = sorted((run / "checkpoints").glob("ppo_*_steps.zip"))[0]
+    config = ActiveTrainConfig(**json.loads((run / "config.json").read_text()))
+    before = json.loads((run / "timing.json").read_text())["decisions"]
+    train_active(dataclasses.replace(config, total_timesteps=64, checkpoint_every=None), run, resume=ckpt)
+    from stable_baselines3 import PPO
+
+    done = PPO.load(ckpt).num_timesteps
+    assert (run / f"progress_before_{done}.csv").is_file() and (run / f"timing_before_{done}.json").is_file()
+    assert json.loads((run / f"timing_before_{done}.json").read_text())["decisions"] == before
+    assert json.loads((run / "timing.json").read_text())["decisions"] >= done + 64
+
+
 def test_loaded_policy_acts_deterministically_on_another_layout_and_particle_count(smoke_run):
     _, path = smoke_run
     runs = []

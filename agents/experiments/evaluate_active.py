@@ -110,8 +110,6 @@ class Args:
 
 ENV_ID = "SemReloc-v2"
 """The env every episode runs in (v2 and v1 give the same episodes; v2 has typed observations)."""
-POLICY_NAMES = ("random", "spin", "spin_backup", "wall_follow", "info_gain")
-"""The baselines' names (agents.policies.POLICIES); any other name in a table is a learned policy."""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
@@ -453,19 +451,20 @@ def main(argv: list[str] | None = None) -> int:
     if args.reuse:
         old = [r for d in args.reuse for r in json.loads((Path(d) / "episodes.json").read_text())]
         keep = {c["case"]: c for c in cases}
-        spec_of = dict(zip(policies, specs))
+        wanted = {p: settings(args, s) for p, s in zip(policies, specs)}
+        seen: set[tuple[int, str]] = set()
         unverified = 0
         for r in old:
             c = keep.get(r["case"])
-            seen = {(x["case"], x["policy"]) for x in rows}
             if (
-                r["policy"] in policies
+                r["policy"] in wanted
                 and c is not None
                 and all(r[k] == v for k, v in c.items())
                 and (r["case"], r["policy"]) not in seen
-                and r.get("settings", settings(args, spec_of[r["policy"]])) == settings(args, spec_of[r["policy"]])
+                and r.get("settings", wanted[r["policy"]]) == wanted[r["policy"]]
             ):
                 unverified += "settings" not in r
+                seen.add((r["case"], r["policy"]))
                 rows.append(r)
         if unverified:
             print(f"warning: {unverified} reused rows predate the settings check (particles, steps, map, policy file)")
@@ -489,7 +488,6 @@ def main(argv: list[str] | None = None) -> int:
     }
     (out / "episodes.json").write_text(json.dumps(rows, indent=1))
     learned = [s.partition("=")[0] for s in specs if "=" in s]
-    learned += [p for p in policies if p not in POLICY_NAMES and p not in learned]  # reused learned rows
     comparisons = paired(rows, learned, policies) if learned and len(policies) > 1 else []
     summary_out = {**summary, "paired": comparisons} if comparisons else summary
     (out / "summary.json").write_text(json.dumps(summary_out, indent=1))
