@@ -18,7 +18,7 @@ expected entropy reduction of the belief, predicted with the filter's own models
    times the number of filter updates the primitive triggers per view (the motion gate's
    ``update_min_d_m`` / ``update_min_a_rad``);
 5. the expected posterior entropy ``E_j[H(hypothesis masses of w_.j)]``, the hypotheses being
-   the connected clusters of the drawn particles (see `InfoGainPlanner._bins`), so the
+   the connected clusters of the drawn particles (see `hypothesis_bins`), so the
    spread within one hypothesis does not count as uncertainty; score = prior entropy - expected posterior entropy
    - ``collision_penalty_nats`` x the share of particles that collide.
 
@@ -67,6 +67,24 @@ turn ~180 deg and drive 0.5 m (at the default 0.5 m/s, 1 rad/s, 10 Hz)."""
 def entropy(mass: np.ndarray) -> float:
     m = mass[mass > 0]
     return float(-(m * np.log(m)).sum())
+
+
+def hypothesis_bins(poses: np.ndarray, bin_m: float) -> np.ndarray:
+    """Hypothesis label per particle of ``poses`` ``(M, 3)``: 8-connected components of occupied
+    ``bin_m`` position bins, each split in two by heading when its particles point more than
+    90 deg away from the component's circular mean (a place seen from opposite sides)."""
+    ix = np.floor(poses[:, 0] / bin_m).astype(np.int64)
+    iy = np.floor(poses[:, 1] / bin_m).astype(np.int64)
+    ix -= ix.min()
+    iy -= iy.min()
+    occ = np.zeros((int(iy.max()) + 1, int(ix.max()) + 1), dtype=bool)
+    occ[iy, ix] = True
+    labels, _ = ndimage.label(occ, structure=np.ones((3, 3), dtype=bool))
+    comp = labels[iy, ix] - 1
+    n_comp = int(comp.max()) + 1
+    mean = np.arctan2(np.bincount(comp, np.sin(poses[:, 2]), n_comp), np.bincount(comp, np.cos(poses[:, 2]), n_comp))
+    flipped = np.abs(wrap_angle(poses[:, 2] - mean[comp])) > math.pi / 2
+    return 2 * comp + flipped
 
 
 class InfoGainPlanner(Policy):
@@ -170,25 +188,6 @@ class InfoGainPlanner(Policy):
             labels[hit] = np.where(grid.class_mask(k)[row[hit], col[hit]], k + 1, labels[hit])
         return lidar, SemanticScan(rs, cam_angles, labels, cam_max)
 
-    def _bins(self, poses: np.ndarray) -> np.ndarray:
-        """Hypothesis label per particle: 8-connected components of occupied ``cluster_bin_m``
-        position bins, each split in two by heading when its particles point more than 90 deg
-        away from the component's circular mean (a place seen from opposite sides)."""
-        ix = np.floor(poses[:, 0] / self.cluster_bin_m).astype(np.int64)
-        iy = np.floor(poses[:, 1] / self.cluster_bin_m).astype(np.int64)
-        ix -= ix.min()
-        iy -= iy.min()
-        occ = np.zeros((int(iy.max()) + 1, int(ix.max()) + 1), dtype=bool)
-        occ[iy, ix] = True
-        labels, _ = ndimage.label(occ, structure=np.ones((3, 3), dtype=bool))
-        comp = labels[iy, ix] - 1
-        n_comp = int(comp.max()) + 1
-        mean = np.arctan2(
-            np.bincount(comp, np.sin(poses[:, 2]), n_comp), np.bincount(comp, np.cos(poses[:, 2]), n_comp)
-        )
-        flipped = np.abs(wrap_angle(poses[:, 2] - mean[comp])) > math.pi / 2
-        return 2 * comp + flipped
-
     def plan(self) -> Primitive:
         """Score every primitive on the current belief (sets `last_scores`); the best one."""
         base = self.env.unwrapped
@@ -199,7 +198,7 @@ class InfoGainPlanner(Policy):
         idx = idx[np.linspace(0, idx.size - 1, min(self.n_particles, idx.size)).astype(np.int64)]
         sample = np.asarray(mcl.poses)[idx]
         m = sample.shape[0]
-        bins = self._bins(sample)
+        bins = hypothesis_bins(sample, self.cluster_bin_m)
         n_bins = int(bins.max()) + 1
         prior = entropy(np.bincount(bins, minlength=n_bins) / m)
         lidar_all = base.lidar.angles

@@ -12,8 +12,10 @@ env's raw observation dict. They work with ``action_type="discrete"`` and ``"con
   (continuous actions; with discrete ones, which cannot reverse, a half turn and 0.5 m forward),
   and again.
 * `WallFollowPolicy` — `agents.baselines.WallFollowExplorer`.
-* `InfoGainPlanner` — the strongest: picks motion primitives by the
-  expected entropy reduction of the filter's belief.
+* `InfoGainPlanner` — picks short motion primitives by the expected entropy reduction of the
+  filter's belief.
+* `ViewpointPlanner` — drives up to 8 m to the viewpoint that best tells the belief's
+  hypotheses apart (`agents.viewpoint`).
 
 `POLICIES` maps names to constructors ``f(seed) -> policy``.
 """
@@ -150,11 +152,18 @@ def _info_gain(seed: int = 0):
     return InfoGainPlanner(seed=seed)
 
 
+def _viewpoint(seed: int = 0):
+    from .viewpoint import ViewpointPlanner
+
+    return ViewpointPlanner(seed=seed)
+
+
 POLICIES = {
     "random": RandomPolicy,
     "spin": SpinPolicy,
     "spin_backup": SpinThenBackUp,
     "wall_follow": WallFollowPolicy,
     "info_gain": _info_gain,
+    "viewpoint": _viewpoint,
 }
 """Baseline name -> constructor ``f(seed) -> policy``."""

@@ -319,6 +319,12 @@ class SemRelocEnv(SemRelocBase):
             "heading": float(abs(wrap_angle(mean[2] - truth[2]))),
         }
 
+    @property
+    def belief(self):
+        """The filter's summary after the last reset or step (`filters.localization.belief.Belief`),
+        the same object ``info["belief"]`` is made from (None before the first reset); never the true pose."""
+        return getattr(self, "_belief", None)
+
     def pose_error(self) -> dict[str, float]:
         """Position (m) and heading (rad) error of the belief's estimate (its heaviest hypothesis)
         against the true pose (this step)."""

@@ -1,0 +1,566 @@
+"""A viewpoint planner: drive to the nearest place from which the belief's hypotheses look different.
+
+`agents.info_gain.InfoGainPlanner` looks 0.6 m ahead: in a room that looks exactly like
+another, no short motion tells them apart, so it turns on the spot. `ViewpointPlanner` looks
+as far as ``horizon_m`` of driving (a shortest path on the filter's map), from the belief
+alone (never the true pose):
+
+1. **Hypotheses.** The filter's clusters (``env.unwrapped.belief.hypotheses``, heaviest
+   first, at most ``max_hypotheses``); when they hold less than half the mass, or are one
+   cluster of a belief that has not converged (spread too wide to be one place), a systematic
+   sample of ``n_particles`` particles grouped into ``cluster_bin_m`` clusters
+   (`agents.info_gain.hypothesis_bins`). The heaviest is the *reference*.
+2. **Candidate viewpoints.** Places reachable from the reference on a ``plan_cell_m`` grid of
+   the map's free space with ``radius + clearance_m`` of clearance (`scipy.sparse.csgraph`
+   Dijkstra, 8-connected), within ``horizon_m``, every ``candidate_stride``-th cell, each with
+   ``n_headings`` headings.
+3. **What each hypothesis would see there.** Driving the reference to a viewpoint ``v`` is the
+   motion ``u = ref^-1 * v`` in the robot's own frame; hypothesis ``k`` would then be at
+   ``h_k * u``. From every such pose, ``n_rays`` rays all around are cast on the filter's map
+   (the lidar's range, and the class of the cell hit within the camera's range).
+4. **Score: the expected entropy reduction, with the filter's own sensor model.** For every
+   viewpoint, heading and pair ``(k, l)``, the rays of the scan ``k`` would get are scored at
+   ``l``'s pose in the filter's likelihood fields (lidar field for every ray that hits,
+   the class field for the labelled rays in the camera's field of view; the per-ray mean times
+   the number of beams the filter uses). Raised to ``likelihood_scale * views`` (``views``
+   filter updates at the viewpoint) and times the prior weights, that is the posterior over the
+   hypotheses if ``k`` is the truth; a hypothesis whose predicted pose is not free is ruled out
+   by the others. The score is the expected entropy removed, as a share of the prior entropy
+   (in ``[0, 1]``), minus ``cost_per_m`` times the path length (plus the final turn at its
+   driving equivalent); the best viewpoint and heading are the goal.
+5. **Driving.** The path is stored in the robot's frame at planning time and followed with the
+   odometry observation (so it survives the hypotheses being re-ordered): turn toward the farthest path
+   point within ``lookahead_m`` in straight line of sight when it is more than ``turn_tol_rad``
+   off, else drive;
+   at the goal, turn to its heading. A plan is made again at the goal, after ``replan_every``
+   steps, and when the lidar sees an obstacle closer than ``clearance_stop_m`` ahead (then the
+   step turns toward the freer side instead).
+
+When one hypothesis is left (nothing to tell apart), no viewpoint resolves anything within the
+horizon, or a goal where the robot already stands did not settle the belief twice in a row, it
+drives as `agents.baselines.WallFollowExplorer` for ``explore_steps`` steps, then plans again.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from scipy import ndimage, sparse
+from scipy.sparse import csgraph
+
+from filters.pose import wrap_angle
+from filters.simulators.grid_raycast import _cast
+from filters.smc.resampling import get_resampler
+
+from .baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
+from .info_gain import hypothesis_bins
+from .policies import Policy, _sector_min
+
+
+@numba.njit(cache=True)
+def _cast_many(occ, labels, ox, oy, res, xy, angles, range_max, class_max, out_r, out_lab):
+    """All-round casts from every position ``xy[p]``: ranges ``out_r[p]`` and the class label
+    (0 = none) of the cell hit within ``class_max`` metres ``out_lab[p]``."""
+    b = angles.shape[0]
+    r = np.empty(b)
+    row = np.empty(b, np.int64)
+    col = np.empty(b, np.int64)
+    for p in range(xy.shape[0]):
+        _cast(occ, ox, oy, res, xy[p, 0], xy[p, 1], angles, range_max, r, row, col)
+        for j in range(b):
+            out_r[p, j] = r[j]
+            if row[j] >= 0 and r[j] < class_max:
+                out_lab[p, j] = labels[row[j], col[j]]
+            else:
+                out_lab[p, j] = 0
+
+
+@numba.njit(cache=True)
+def _cross_ll(
+    ranges,
+    labels,
+    xy,
+    phi0,
+    headings,
+    angles,
+    fov_half,
+    lidar_max,
+    cam_min,
+    cam_max,
+    flat,
+    ox,
+    oy,
+    inv_res,
+    w,
+    h,
+    out_l,
+    out_s,
+):
+    """Per-ray mean ``log p`` of the scan hypothesis ``k`` would get at every viewpoint, scored at
+    hypothesis ``l``'s pose there: ``out_l[p, i, k, l]`` (lidar rays), ``out_s`` (labelled rays in
+    the camera's field of view).
+
+    ``ranges``/``labels`` ``(K, P, B)``: all-round casts from ``xy`` ``(K, P, 2)`` along absolute
+    ray angles ``angles`` ``(B,)``; hypothesis ``k``'s heading at viewpoint heading ``headings[i]``
+    is ``phi0[k] + headings[i]``. ``flat`` is the model's ``log p`` tables then floors (field 0 =
+    occupancy, ``c`` = class ``c - 1``).
+    """
+    n_k, n_p, n_b = ranges.shape
+    n_cells = w * h
+    n_t = flat.shape[0] // (n_cells + 1)
+    floor0 = n_t * n_cells
+    for p in range(n_p):
+        for i in range(headings.shape[0]):
+            for k in range(n_k):
+                phi_k = phi0[k] + headings[i]
+                for m in range(n_k):
+                    phi_l = phi0[m] + headings[i]
+                    bx = (xy[m, p, 0] - ox) * inv_res
+                    by = (xy[m, p, 1] - oy) * inv_res
+                    acc_l = 0.0
+                    acc_s = 0.0
+                    n_l = 0
+                    n_s = 0
+                    for j in range(n_b):
+                        r = ranges[k, p, j]
+                        beta = angles[j] - phi_k  # robot-frame angle of the ray
+                        a = beta + phi_l
+                        ex = bx + r * math.cos(a) * inv_res
+                        ey = by + r * math.sin(a) * inv_res
+                        inside = ex >= 0.0 and ex < w and ey >= 0.0 and ey < h
+                        cell = int(ey) * w + int(ex) if inside else 0
+                        if r < lidar_max:
+                            acc_l += flat[cell] if inside else flat[floor0]
+                            n_l += 1
+                        t = labels[k, p, j]
+                        if t > 0 and r >= cam_min and r < cam_max:
+                            bw = beta - 2.0 * math.pi * math.floor((beta + math.pi) / (2.0 * math.pi))
+                            if abs(bw) <= fov_half:
+                                acc_s += flat[t * n_cells + cell] if inside else flat[floor0 + t]
+                                n_s += 1
+                    out_l[p, i, k, m] = acc_l / n_l if n_l > 0 else 0.0
+                    out_s[p, i, k, m] = acc_s / n_s if n_s > 0 else 0.0
+
+
+class _PlanMap:
+    """What the planner derives once per filter map: label raster, clearance and the grid graph."""
+
+    def __init__(self, grid, radius_m: float, clearance_m: float, cell_m: float):
+        self.grid = grid
+        self.log_table: np.ndarray | None = None
+        res = grid.resolution_m
+        self.occ = np.ascontiguousarray(grid.occupied_mask())
+        free = grid.free_mask()
+        self.free = free
+        labels = np.zeros(grid.shape, np.int64)
+        for k in range(len(grid.class_names) - 1, -1, -1):
+            labels[grid.class_mask(k)] = k + 1
+        self.labels = labels
+        clear = ndimage.distance_transform_edt(free) * res  # metres to the nearest non-free cell
+        f = max(1, int(round(cell_m / res)))
+        self.cell_m = f * res
+        h, w = grid.shape[0] // f, grid.shape[1] // f
+        rows = np.arange(h) * f + f // 2
+        cols = np.arange(w) * f + f // 2
+        ok = clear[np.ix_(rows, cols)] >= radius_m + clearance_m
+        self.shape = (h, w)
+        self.node = -np.ones((h, w), np.int64)
+        self.node[ok] = np.arange(int(ok.sum()))
+        rr, cc = np.nonzero(ok)
+        self.rc = np.stack([rr, cc], axis=1)
+        ox, oy = grid.origin_xy_m
+        self.xy = np.stack([ox + (cols[cc] + 0.5) * res, oy + (rows[rr] + 0.5) * res], axis=1)
+        src, dst, wt = [], [], []
+        for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+            r2, c2 = rr + dr, cc + dc
+            inside = (r2 >= 0) & (r2 < h) & (c2 >= 0) & (c2 < w)
+            j = np.full(rr.size, -1)
+            j[inside] = self.node[r2[inside], c2[inside]]
+            m = j >= 0
+            src.append(self.node[rr[m], cc[m]])
+            dst.append(j[m])
+            wt.append(np.full(int(m.sum()), self.cell_m * math.hypot(dr, dc)))
+        n = self.xy.shape[0]
+        src, dst, wt = np.concatenate(src), np.concatenate(dst), np.concatenate(wt)
+        self.graph = sparse.csr_matrix((wt, (src, dst)), shape=(n, n))
+        _, comp = csgraph.connected_components(self.graph, directed=False)
+        size = np.bincount(comp) if n else np.zeros(0, np.int64)
+        # nodes of pockets too small to plan in (a corner the robot squeezed into) are not starts
+        self.start_ok = size[comp] >= min(30, int(size.max()) if n else 0)
+
+    def nearest_node(self, xy: np.ndarray, max_m: float) -> int:
+        """The graph node nearest to ``xy`` (metres) within ``max_m``, or -1."""
+        if self.xy.shape[0] == 0:
+            return -1
+        d = np.hypot(self.xy[:, 0] - xy[0], self.xy[:, 1] - xy[1])
+        d = np.where(self.start_ok, d, np.inf)
+        i = int(np.argmin(d))
+        return i if d[i] <= max_m else -1
+
+    def is_free(self, xy: np.ndarray) -> np.ndarray:
+        return self.grid.is_free(xy)
+
+    def clear_segment(self, a, b) -> bool:
+        """Whether the straight segment ``a -> b`` (metres) runs through planning cells only."""
+        n = max(2, int(math.hypot(b[0] - a[0], b[1] - a[1]) / (self.cell_m / 2)) + 1)
+        t = np.linspace(0.0, 1.0, n)
+        ox, oy = self.grid.origin_xy_m
+        col = np.floor((a[0] + t * (b[0] - a[0]) - ox) / self.cell_m).astype(np.int64)
+        row = np.floor((a[1] + t * (b[1] - a[1]) - oy) / self.cell_m).astype(np.int64)
+        h, w = self.shape
+        if (row < 0).any() or (row >= h).any() or (col < 0).any() or (col >= w).any():
+            return False
+        return bool((self.node[row, col] >= 0).all())
+
+
+class ViewpointPlanner(Policy):
+    """Drive to the viewpoint that best tells the belief's hypotheses apart (see the module doc).
+
+    Args:
+        seed: seeds the particle subsampling (restarted at every `reset`).
+        horizon_m: longest path to a viewpoint (metres of driving).
+        plan_cell_m: cell of the planning grid (metres).
+        clearance_m: free space kept beyond the robot's radius on planned paths (metres).
+        candidate_stride: every ``candidate_stride``-th planning cell (both axes) is a viewpoint.
+        n_headings: headings per viewpoint.
+        n_rays: rays cast all around from every predicted pose.
+        max_hypotheses: hypotheses compared (the heaviest).
+        n_particles: particles drawn when the clusters hold less than half the mass.
+        cluster_bin_m: position bin grouping those particles.
+        range_tol_m: a lidar ray differs when the ranges differ by more than this.
+        lidar_frac: share of differing lidar rays that tells two hypotheses apart.
+        semantic_frac: share of differing class labels in the camera's view that does.
+        cost_per_m: score lost per metre of driving (and per turn, at its driving equivalent).
+        min_score: below this best score, drive as the explorer instead.
+        views: filter updates counted at a viewpoint (the likelihood is raised to this times the
+            filter's ``likelihood_scale``).
+        replan_every: steps after which a plan is made again even if its goal was not reached.
+        explore_steps: steps driven as the explorer before planning again.
+        stay_m, max_stays: after ``max_stays`` plans in a row whose goal is closer than ``stay_m``
+            (the belief did not settle where the model said it would), explore instead.
+        min_reachable: a hypothesis is the reference only if at least this many planning cells
+            are reachable from it (else the next heaviest of the first three is tried).
+        lookahead_m: the robot steers to the farthest path point it sees in a straight line within
+            this distance.
+        turn_tol_rad: heading error above which the robot turns in place.
+        clearance_stop_m: a forward step with an obstacle closer than this ahead turns instead.
+    """
+
+    def __init__(
+        self,
+        seed: int = 0,
+        horizon_m: float = 8.0,
+        plan_cell_m: float = 0.15,
+        clearance_m: float = 0.1,
+        candidate_stride: int = 2,
+        n_headings: int = 8,
+        n_rays: int = 48,
+        max_hypotheses: int = 8,
+        n_particles: int = 24,
+        cluster_bin_m: float = 0.5,
+        range_tol_m: float = 0.4,
+        lidar_frac: float = 0.1,
+        semantic_frac: float = 0.2,
+        cost_per_m: float = 0.05,
+        min_score: float = 0.05,
+        views: float = 3.0,
+        replan_every: int = 150,
+        min_reachable: int = 60,
+        explore_steps: int = 10,
+        stay_m: float = 0.5,
+        max_stays: int = 2,
+        lookahead_m: float = 2.0,
+        turn_tol_rad: float = 0.3,
+        clearance_stop_m: float = 0.3,
+    ):
+        super().__init__(seed)
+        ints = {
+            "candidate_stride": candidate_stride,
+            "n_headings": n_headings,
+            "n_rays": n_rays,
+            "max_hypotheses": max_hypotheses,
+            "n_particles": n_particles,
+            "replan_every": replan_every,
+        }
+        for name, v in ints.items():
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        floats = {
+            "horizon_m": horizon_m,
+            "plan_cell_m": plan_cell_m,
+            "cluster_bin_m": cluster_bin_m,
+            "range_tol_m": range_tol_m,
+            "lidar_frac": lidar_frac,
+            "semantic_frac": semantic_frac,
+            "lookahead_m": lookahead_m,
+            "turn_tol_rad": turn_tol_rad,
+        }
+        for name, v in {**floats, "clearance_m": clearance_m, "cost_per_m": cost_per_m}.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        for name, v in floats.items():
+            if v == 0:
+                raise ValueError(f"{name} must be > 0, got {v!r}")
+        self.horizon_m, self.plan_cell_m, self.clearance_m = float(horizon_m), float(plan_cell_m), float(clearance_m)
+        self.candidate_stride, self.n_headings, self.n_rays = candidate_stride, n_headings, n_rays
+        self.max_hypotheses, self.n_particles, self.cluster_bin_m = max_hypotheses, n_particles, float(cluster_bin_m)
+        self.range_tol_m, self.lidar_frac, self.semantic_frac = (
+            float(range_tol_m),
+            float(lidar_frac),
+            float(semantic_frac),
+        )
+        self.cost_per_m, self.min_score, self.views = float(cost_per_m), float(min_score), float(views)
+        self.replan_every, self.lookahead_m, self.turn_tol_rad = replan_every, float(lookahead_m), float(turn_tol_rad)
+        self.clearance_stop_m = float(clearance_stop_m)
+        self.min_reachable = int(min_reachable)
+        self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
+        self._systematic = get_resampler("systematic")
+        self._maps: dict[int, _PlanMap] = {}
+        self.explorer = WallFollowExplorer()
+        self.last_plan: dict = {}
+        """What the last plan found (``score``, ``goal`` in the reference's map frame, ``path_m``,
+        ``n_hypotheses``, ``fallback``), for inspection."""
+        self.reset()
+
+    def wrap(self, env):
+        env = super().wrap(env)
+        base = env.unwrapped
+        for attr in ("belief", "mcl", "grid", "lidar", "camera", "robot_params"):
+            if not hasattr(base, attr):
+                raise TypeError(f"ViewpointPlanner needs a SemReloc env; {type(base).__name__} has no {attr!r}")
+        self.explorer = WallFollowExplorer(beam_angles=np.asarray(base.lidar.angles))
+        return env
+
+    def reset(self) -> None:
+        super().reset()
+        self.explorer.reset()
+        self._path = np.zeros((0, 2))  # remaining path, robot frame at planning time (metres)
+        self._goal_heading = 0.0
+        self._pose = np.zeros(3)  # the robot's pose in that frame, from the odometry
+        self._since_plan = 0
+        self._stays = 0
+        self._exploring = True
+        self._first = True
+
+    # ------------------------------------------------------------------ planning
+    def _plan_map(self) -> _PlanMap:
+        base = self.env.unwrapped
+        pm = self._maps.get(id(base.grid))
+        if pm is None or pm.grid is not base.grid:
+            pm = _PlanMap(base.grid, base.robot_params.radius_m, self.clearance_m, self.plan_cell_m)
+            self._maps = {id(base.grid): pm}
+        return pm
+
+    def hypotheses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Poses ``(K, 3)`` and weights ``(K,)`` (summing to 1) of the hypotheses compared, heaviest first."""
+        base = self.env.unwrapped
+        belief = base.belief
+        hyps = belief.hypotheses[: self.max_hypotheses]
+        if sum(h.weight for h in hyps) >= 0.5 and (len(hyps) > 1 or belief.converged):
+            poses = np.array([h.mean for h in hyps], dtype=np.float64)
+            w = np.array([h.weight for h in hyps], dtype=np.float64)
+        else:
+            mcl = base.mcl
+            idx = self._systematic(mcl.weights, self.rng)
+            idx = idx[np.linspace(0, idx.size - 1, min(self.n_particles, idx.size)).astype(np.int64)]
+            sample = np.asarray(mcl.poses)[idx]
+            bins = hypothesis_bins(sample, self.cluster_bin_m)
+            first = np.unique(bins, return_index=True)[1]
+            counts = np.bincount(bins)[bins[first]]
+            order = np.argsort(-counts, kind="stable")[: self.max_hypotheses]
+            poses, w = sample[first[order]], counts[order].astype(np.float64)
+        return poses, w / w.sum()
+
+    def plan(self) -> bool:
+        """Plan from the current belief; False when the explorer should drive instead."""
+        pm = self._plan_map()
+        poses, w = self.hypotheses()
+        self.last_plan = {"n_hypotheses": int(poses.shape[0]), "fallback": True, "score": 0.0}
+        if poses.shape[0] < 2:
+            return False
+        # the reference: the heaviest hypothesis from which the map offers room to plan (a
+        # hypothesis in a badly mapped corner would give a handful of candidates)
+        chosen = None
+        for r in range(min(3, poses.shape[0])):
+            s = pm.nearest_node(poses[r, :2], 1.0)
+            if s < 0:
+                continue
+            dist, pred = csgraph.dijkstra(pm.graph, indices=s, limit=self.horizon_m, return_predecessors=True)
+            reach = np.isfinite(dist)
+            if chosen is None or reach.sum() > chosen[3].sum():
+                chosen = (r, s, dist, reach, pred)
+            if reach.sum() >= self.min_reachable:
+                break
+        if chosen is None:
+            return False
+        r, s, dist, reach, pred = chosen
+        order = np.r_[r, np.delete(np.arange(poses.shape[0]), r)]
+        poses, w = poses[order], w[order]
+        ref = poses[0]
+        rc = pm.rc
+        lattice = (rc[:, 0] % self.candidate_stride == 0) & (rc[:, 1] % self.candidate_stride == 0)
+        cand = np.nonzero(reach & lattice)[0]
+        cand = np.union1d(cand, [s])
+        score, goal_h = self._score(pm, poses, w, cand)
+        turn_m = self._turn_cost_m(pm, pred, s, cand, goal_h)
+        util = score - self.cost_per_m * (dist[cand] + turn_m)
+        best = int(np.argmax(util))
+        self.last_plan.update(score=float(score[best]), n_candidates=int(cand.size))
+        if score[best] < self.min_score:
+            return False
+        goal = int(cand[best])
+        path = [goal]
+        while path[-1] != s:
+            path.append(int(pred[path[-1]]))
+        pts = pm.xy[np.array(path[::-1])]
+        c, sn = math.cos(ref[2]), math.sin(ref[2])
+        d = pts - ref[:2]
+        self._path = np.stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1]], axis=1)[1:]
+        self._goal_heading = float(wrap_angle(goal_h[best] - ref[2]))
+        self._pose = np.zeros(3)
+        self._ref, self._pm = ref.copy(), pm
+        self.last_plan.update(
+            fallback=False,
+            goal=[float(pm.xy[goal, 0]), float(pm.xy[goal, 1]), float(goal_h[best])],
+            path_m=float(dist[goal]),
+        )
+        return True
+
+    def _turn_cost_m(self, pm, pred, s, cand, goal_h) -> np.ndarray:
+        """Driving-equivalent metres of the final turn from the last path segment to the goal heading."""
+        prev = pred[cand]
+        prev = np.where(prev < 0, s, prev)
+        d = pm.xy[cand] - pm.xy[prev]
+        arrive = np.arctan2(d[:, 1], d[:, 0])
+        turn = np.abs(wrap_angle(goal_h - arrive))
+        turn = np.where(cand == s, 0.0, turn)
+        return turn / max(self.step_rad, 1e-9) * self.step_m
+
+    def _score(self, pm: _PlanMap, poses: np.ndarray, w: np.ndarray, cand: np.ndarray):
+        """Expected share of the hypothesis entropy removed at every candidate ``(P,)``, at its best
+        heading, and that heading (absolute, the reference's map frame) ``(P,)``."""
+        base = self.env.unwrapped
+        grid, model, cfg = base.grid, base.mcl.measurement_model, base.mcl_config
+        ref = poses[0]
+        k_n, p_n, b = poses.shape[0], cand.size, self.n_rays
+        # motion u = ref^-1 * v in the robot frame; hypothesis k ends at h_k * u (position part)
+        c0, s0 = math.cos(ref[2]), math.sin(ref[2])
+        d = pm.xy[cand] - ref[:2]
+        u = np.stack([c0 * d[:, 0] + s0 * d[:, 1], -s0 * d[:, 0] + c0 * d[:, 1]], axis=1)
+        ck, sk = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        xy = np.empty((k_n, p_n, 2))
+        xy[:, :, 0] = poses[:, None, 0] + ck[:, None] * u[None, :, 0] - sk[:, None] * u[None, :, 1]
+        xy[:, :, 1] = poses[:, None, 1] + sk[:, None] * u[None, :, 0] + ck[:, None] * u[None, :, 1]
+        invalid = ~pm.is_free(xy)  # (K, P): if k were the truth, the robot could not be there
+        angles = 2 * math.pi * np.arange(b) / b
+        lidar, cam = base.lidar.params, base.camera.params
+        ranges = np.empty((k_n * p_n, b))
+        labels = np.empty((k_n * p_n, b), np.int64)
+        ox, oy = (float(v) for v in grid.origin_xy_m)
+        flat_xy = np.ascontiguousarray(xy.reshape(-1, 2))
+        res = grid.resolution_m
+        _cast_many(pm.occ, pm.labels, ox, oy, res, flat_xy, angles, lidar.range_max_m, cam.range_max_m, ranges, labels)
+        headings = 2 * math.pi * np.arange(self.n_headings) / self.n_headings  # relative to the reference
+        if pm.log_table is None:  # the model's log p tables then floors, as the kernel reads them
+            tables, floors = model.log_tables(lidar.range_max_m, cam.range_max_m)
+            pm.log_table = np.concatenate([tables.ravel(), floors])
+        table = pm.log_table
+        h_cells, w_cells = grid.shape
+        out_l = np.empty((p_n, headings.size, k_n, k_n))
+        out_s = np.empty_like(out_l)
+        _cross_ll(
+            ranges.reshape(k_n, p_n, b), labels.reshape(k_n, p_n, b), xy, poses[:, 2].copy(), headings,
+            angles, cam.fov_rad / 2, lidar.range_max_m, cam.range_min_m, cam.range_max_m, table,
+            float(ox), float(oy), 1.0 / grid.resolution_m, w_cells, h_cells, out_l, out_s,
+        )  # fmt: skip
+        n_lidar = min(lidar.n_beams // cfg.lidar_field.beam_stride, cfg.lidar_field.max_beams or lidar.n_beams)
+        n_cam = min(cam.n_beams // cfg.semantic_field.beam_stride, cfg.semantic_field.max_beams or cam.n_beams)
+        ll = n_lidar * out_l + (n_cam * out_s if cfg.use_semantic else 0.0)
+        # log posterior of hypothesis l when k is the truth, after `views` updates at the viewpoint
+        logit = cfg.likelihood_scale * self.views * (ll - np.diagonal(ll, axis1=2, axis2=3)[..., :, None])
+        bad = invalid.T[:, None, :, None] | invalid.T[:, None, None, :]
+        logit = np.where(bad & ~np.eye(k_n, dtype=bool), -np.inf, logit) + np.log(w)
+        logit -= logit.max(axis=3, keepdims=True)
+        post = np.exp(logit)
+        post /= post.sum(axis=3, keepdims=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ent = -np.where(post > 0, post * np.log(post), 0.0).sum(axis=3)  # (P, H, K)
+        prior = float(-(w * np.log(w)).sum())
+        gain = (prior - ent @ w) / max(prior, 1e-12)  # (P, H)
+        best = np.argmax(gain, axis=1)
+        return gain[np.arange(p_n), best], wrap_angle(ref[2] + headings[best])
+
+    # ------------------------------------------------------------------ acting
+    def _integrate(self, odom: np.ndarray) -> None:
+        dx, dy, dth = (float(v) for v in odom[:3])
+        c, s = math.cos(self._pose[2]), math.sin(self._pose[2])
+        self._pose = np.array(
+            [self._pose[0] + c * dx - s * dy, self._pose[1] + s * dx + c * dy, wrap_angle(self._pose[2] + dth)]
+        )
+
+    def _follow(self) -> int | None:
+        """The next action along the stored path; None when the goal is reached.
+
+        Steers to the farthest path point within ``lookahead_m`` that the robot sees in a straight
+        line through planning cells (so it cuts the grid path's zigzags)."""
+        x, y, th = self._pose
+        if self._path.shape[0] > 1:  # progress: drop the points before the nearest one
+            near = int(np.argmin(np.hypot(self._path[:, 0] - x, self._path[:, 1] - y)))
+            passed = near + 1 < self._path.shape[0] and math.hypot(*(self._path[near] - (x, y))) < 0.3
+            self._path = self._path[near + passed :]
+        if self._path.shape[0] == 1 and math.hypot(*(self._path[0] - (x, y))) < 0.15:
+            self._path = self._path[:0]
+        if self._path.shape[0]:
+            target = self._path[0]
+            c, s = math.cos(self._ref[2]), math.sin(self._ref[2])
+            here = self._ref[:2] + (c * x - s * y, s * x + c * y)
+            for pt in self._path[1:]:
+                if math.hypot(*(pt - (x, y))) > self.lookahead_m:
+                    break
+                there = self._ref[:2] + (c * pt[0] - s * pt[1], s * pt[0] + c * pt[1])
+                if not self._pm.clear_segment(here, there):
+                    break
+                target = pt
+            err = float(wrap_angle(math.atan2(target[1] - y, target[0] - x) - th))
+            if abs(err) > self.turn_tol_rad:
+                return TURN_LEFT if err > 0 else TURN_RIGHT
+            return FORWARD
+        err = float(wrap_angle(self._goal_heading - th))
+        if abs(err) > self.step_rad:
+            return TURN_LEFT if err > 0 else TURN_RIGHT
+        return None
+
+    def _replan(self) -> None:
+        ok = self.plan()
+        # a goal where the robot already is that did not settle the belief: the model promised
+        # more than the filter delivers there, so move on instead of turning on the spot again
+        self._stays = self._stays + 1 if ok and self.last_plan["path_m"] < self.stay_m else 0
+        if self._stays > self.max_stays:
+            ok, self._stays = False, 0
+            self.last_plan["fallback"] = True
+        self._exploring = not ok
+        self._since_plan = 0
+
+    def act(self, obs: dict):
+        if not self._first:
+            self._integrate(np.asarray(obs["odometry"], dtype=np.float64))
+        if self._first or self._since_plan >= (self.explore_steps if self._exploring else self.replan_every):
+            self._replan()
+        self._first = False
+        a = None
+        if not self._exploring:
+            a = self._follow()
+            if a is None:  # goal reached with its heading
+                self._replan()
+                a = None if self._exploring else self._follow()
+        if a is None:
+            a = self.explorer(obs)
+        self._since_plan += 1
+        ranges = np.asarray(obs["lidar"], dtype=np.float64)
+        if a == FORWARD and _sector_min(ranges, 0.0, 0.5) < self.clearance_stop_m:
+            left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
+            a = TURN_LEFT if left >= right else TURN_RIGHT
+            self._since_plan = self.replan_every  # plan again next step
+        return self.encode(a)

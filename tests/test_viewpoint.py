@@ -1,0 +1,115 @@
+"""The viewpoint planner: it reads the belief (never the truth), finds nothing to gain between
+twins at a place where they look the same, and drives out to where they do not."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env  # noqa: F401
+from agents.viewpoint import ViewpointPlanner
+from semreloc_env.layouts import ProceduralParams, lookalike_layout
+
+SEED = 3  # a lookalike layout seed of the training range
+
+
+def _env(pol, **kw):
+    kw = {"layout": "procedural_lookalike", "layout_seed": SEED, "map_source": "perfect", **kw}
+    kw.setdefault("relocalizer", {"n_particles": 300})
+    env = pol.wrap(gym.make("SemReloc-v2", max_episode_steps=60, **kw))
+    pol.reset()
+    return env
+
+
+def _twins():
+    """A pose in the middle of south room 0 and its image in room 1: they see the same room."""
+    _, frames = lookalike_layout(np.random.default_rng(SEED), ProceduralParams(lookalike=True))
+    u, v, phi = 1.2, 1.2, 0.3
+    out = []
+    for fx, fy, ft in frames[:2]:
+        c, s = math.cos(ft), math.sin(ft)
+        out.append([fx + c * u - s * v, fy + s * u + c * v, ft + phi])
+    return np.array(out)
+
+
+class _NoTruth:
+    def __getattr__(self, name):
+        raise AssertionError(f"the planner read the simulator's world ({name})")
+
+
+def test_twins_look_alike_here_and_differ_at_the_goal(monkeypatch):
+    pol = ViewpointPlanner(seed=0)
+    env = _env(pol)
+    twins = _twins()
+    env.reset(seed=0, options={"pose": twins[0].tolist()})
+    monkeypatch.setattr(pol, "hypotheses", lambda: (twins, np.array([0.5, 0.5])))
+    base = env.unwrapped
+    world, base.world = base.world, _NoTruth()
+    try:
+        assert pol.plan()
+    finally:
+        base.world = world
+    plan = pol.last_plan
+    assert plan["n_hypotheses"] == 2 and not plan["fallback"]
+    # the twins are told apart at the goal, which lies out of the room (a path of metres) ...
+    assert plan["score"] > 0.5 and plan["path_m"] > 1.0, plan
+    assert np.hypot(*(np.array(plan["goal"][:2]) - twins[0, :2])) > 1.0
+    # ... while where the robot stands, whichever way it looks, they look the same
+    pm = pol._plan_map()
+    here = pm.nearest_node(twins[0, :2], 0.3)
+    score_here, _ = pol._score(pm, twins, np.array([0.5, 0.5]), np.array([here]))
+    assert score_here[0] < 0.1, score_here
+    # the stored path starts near the robot and ends at the goal, in the robot's frame
+    assert pol._path.shape[0] >= 2 and np.hypot(*pol._path[0]) < 0.5
+
+
+def test_one_hypothesis_means_explore():
+    pol = ViewpointPlanner(seed=0)
+    env = _env(pol, relocalizer={"n_particles": 300, "proposal_frac": 0.0, "augmented": False})
+    obs, _ = env.reset(seed=0, options={"pose": _twins()[0].tolist(), "tracking": True})
+    assert not pol.plan() and pol.last_plan["fallback"]
+    assert pol.act(obs) == pol.explorer(obs)  # the explorer's action (fresh explorer state: same)
+
+
+def test_an_episode_reads_no_truth_and_repeats_bit_for_bit():
+    def run():
+        pol = ViewpointPlanner(seed=4)
+        env = _env(pol)
+        obs, _ = env.reset(seed=5, options={"pose": _twins()[0].tolist()})
+        base = env.unwrapped
+        actions = []
+        for _ in range(40):
+            world, base.world = base.world, _NoTruth()
+            try:
+                a = pol.act(obs)
+            finally:
+                base.world = world
+            actions.append(int(a))
+            obs, _, term, trunc, _ = env.step(a)
+            if term or trunc:
+                break
+        return actions
+
+    first = run()
+    assert first == run() and set(first) <= {0, 1, 2}
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"horizon_m": 0}, "horizon_m"),
+        ({"n_rays": 0}, "n_rays"),
+        ({"cost_per_m": -1.0}, "cost_per_m"),
+        ({"plan_cell_m": float("nan")}, "plan_cell_m"),
+        ({"n_headings": 2.5}, "n_headings"),
+    ],
+)
+def test_bad_settings_are_refused(kw, match):
+    with pytest.raises(ValueError, match=match):
+        ViewpointPlanner(**kw)
+
+
+def test_needs_a_semreloc_env():
+    with pytest.raises(TypeError, match="SemReloc"):
+        ViewpointPlanner().wrap(gym.make("CartPole-v1"))
