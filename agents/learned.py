@@ -2,7 +2,7 @@
 
 * `save_policy` writes an SB3 model zip with one more member, ``semreloc_policy.json``:
   what the policy needs around it (the `ActiveObservation`
-  settings and the action repeat it was trained with).
+  settings, the action repeat and the motion options it was trained with).
 * `load_policy` reads such a file and returns a `LearnedPolicy` with
   ``wrap(env) -> env`` (applies the same observation wrapper to any ``SemReloc`` env, any layout
   and particle count), ``reset()`` and ``act(obs) -> action`` (deterministic), exactly as the
@@ -44,14 +44,18 @@ def save_policy(
     repeat: int,
     explorer_option: bool = False,
     extra: dict | None = None,
+    options: tuple[str, ...] | None = None,
 ) -> Path:
     """Save ``model`` (an SB3 algorithm) to ``path`` (``.zip`` added if missing) with its metadata.
 
     Args:
         observation: keyword arguments of `ActiveObservation` the model was trained with.
         repeat: env steps per decision (`semreloc_env.wrappers.ActionRepeat`).
-        explorer_option: whether it acts through `agents.options.ExplorerOption`.
+        explorer_option: whether it acts through `agents.options.ExplorerOption` (the same as
+            ``options=("explore",)``).
         extra: anything else worth keeping beside it (training config, env id, ...): JSON-able.
+        options: the `agents.options.MotionOptions` it acts through (None: none, or the explorer
+            with ``explorer_option``).
 
     Returns:
         The path written.
@@ -61,12 +65,14 @@ def save_policy(
         path = path.with_suffix(".zip")
     path.parent.mkdir(parents=True, exist_ok=True)
     model.save(path)
+    options = _options(options, explorer_option)
     meta = {
         "format": FORMAT_VERSION,
         "algorithm": type(model).__name__,
         "observation": dict(observation),
         "repeat": int(repeat),
-        "explorer_option": bool(explorer_option),
+        "explorer_option": options == ("explore",),
+        "options": list(options),
         "extra": extra or {},
     }
     with zipfile.ZipFile(path, "a") as z:
@@ -97,6 +103,13 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     return meta
 
 
+def _options(options, explorer_option: bool) -> tuple[str, ...]:
+    """The option names: ``options`` if given, else the explorer alone if ``explorer_option``."""
+    if options is None:
+        return ("explore",) if explorer_option else ()
+    return tuple(str(o) for o in options)
+
+
 class LearnedPolicy:
     """A trained SB3 model with the interface of `agents.policies`.
 
@@ -109,6 +122,8 @@ class LearnedPolicy:
             four and "explore"); `wrap` adds that wrapper.
         seed: with ``deterministic=False``, `reset` reseeds the model's sampling with it, so an
             episode's actions do not depend on the episodes before it.
+        options: the model's actions are `agents.options.MotionOptions` over these names
+            (overrides ``explorer_option``); `wrap` adds that wrapper.
 
     Call `reset` at every episode start: it also drops the decision being held.
     """
@@ -121,6 +136,7 @@ class LearnedPolicy:
         deterministic: bool = True,
         explorer_option: bool = False,
         seed: int = 0,
+        options: tuple[str, ...] | None = None,
     ):
         if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
             raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
@@ -128,27 +144,28 @@ class LearnedPolicy:
         self.observation = dict(observation)
         self.repeat = int(repeat)
         self.deterministic = bool(deterministic)
-        self.explorer_option = bool(explorer_option)
+        self.options = _options(options, explorer_option)
+        self.explorer_option = self.options == ("explore",)
         self.seed = int(seed)
         self._t = 0
         self._action = None
 
     def wrap(self, env: gym.Env) -> gym.Env:
-        """``ActiveObservation(env, **observation)`` (over `agents.options.ExplorerOption` when
-        the policy uses it), checked against the model's spaces.
+        """``ActiveObservation(env, **observation)`` (over `agents.options.MotionOptions` when
+        the policy uses options), checked against the model's spaces.
 
         Raises:
             ValueError: the env's action space or the wrapped observation space differs from the
                 model's (another action type, camera or lidar beam count, ...).
         """
-        if self.explorer_option:
-            from .options import ExplorerOption
+        if self.options:
+            from .options import MotionOptions
 
             if env.action_space != gym.spaces.Discrete(4):
                 raise ValueError(
                     f"the env's action space {env.action_space} is not Discrete(4), which the policy needs"
                 )
-            env = ExplorerOption(env)
+            env = MotionOptions(env, self.options)
         if env.action_space != self.model.action_space:
             raise ValueError(f"the env's action space {env.action_space} is not the policy's {self.model.action_space}")
         wrapped = ActiveObservation(env, **self.observation)
@@ -183,6 +200,7 @@ def load_policy(
     repeat: int | None = None,
     explorer_option: bool | None = None,
     seed: int = 0,
+    options: tuple[str, ...] | None = None,
 ) -> LearnedPolicy:
     """Load a policy saved by `save_policy` (or a bare SB3 PPO checkpoint, given its settings).
 
@@ -196,6 +214,9 @@ def load_policy(
         explorer_option: the same for `agents.options.ExplorerOption` (without metadata:
             True when the model has five discrete actions, as `train_active`'s checkpoints do).
         seed: see `LearnedPolicy`.
+        options: the same for `agents.options.MotionOptions` (overrides ``explorer_option``;
+            without metadata: the first ``n - 4`` names of `agents.options.OPTIONS` for a model
+            with ``n > 4`` discrete actions).
 
     Raises:
         FileNotFoundError, ValueError: see `read_metadata`.
@@ -203,7 +224,7 @@ def load_policy(
     from stable_baselines3 import PPO
 
     path = Path(path)
-    if observation is None or repeat is None or explorer_option is None:
+    if observation is None or repeat is None or (explorer_option is None and options is None):
         try:
             meta = read_metadata(path)
         except ValueError:
@@ -212,11 +233,16 @@ def load_policy(
             meta = {}
         observation = meta["observation"] if observation is None else observation
         repeat = meta["repeat"] if repeat is None else repeat
+        if options is None and explorer_option is None and "options" in meta:
+            options = tuple(meta["options"])
         if explorer_option is None and "explorer_option" in meta:
             explorer_option = bool(meta["explorer_option"])
     if not Path(path).is_file():
         raise FileNotFoundError(f"no policy file {path}")
     model = PPO.load(path, device=device)
-    if explorer_option is None:
-        explorer_option = model.action_space == spaces.Discrete(5)
-    return LearnedPolicy(model, observation, repeat, deterministic, explorer_option, seed)
+    if options is None and explorer_option is None:
+        from .options import OPTIONS
+
+        n = int(model.action_space.n) if isinstance(model.action_space, spaces.Discrete) else 4
+        options = OPTIONS[: max(0, n - 4)]
+    return LearnedPolicy(model, observation, repeat, deterministic, bool(explorer_option), seed, options)

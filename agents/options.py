@@ -1,14 +1,20 @@
-"""An extra discrete action for learned policies: one step of the reactive explorer.
+"""Extra discrete actions for learned policies: one step of a hand-written motion.
 
-`ExplorerOption` wraps a ``SemReloc`` env with ``Discrete(4)`` actions (0 forward, 1 left,
-2 right, 3 stop) and adds action 4, *explore*: the action that
-`agents.baselines.WallFollowExplorer` (drive forward; when the front is blocked, turn toward
-the freer side) picks from the latest raw lidar scan. A policy over these five actions can follow
-the explorer where that is good and leave it (turn toward a hypothesis-telling object, head for a
-door) where it is not: the learned part is *when to do what*, the explorer is one of its motions.
+`MotionOptions` wraps a ``SemReloc`` env with ``Discrete(4)`` actions (0 forward, 1 left,
+2 right, 3 stop) and adds one action per named option, numbered from 4 in the order given:
 
-The explorer reads only the robot's own lidar (never the true pose); its state (the side it turns
-to while blocked) is reset with the env.
+* ``"explore"`` — the action `agents.baselines.WallFollowExplorer` (drive forward; when the
+  front is blocked, turn toward the freer side) picks from the latest lidar scan;
+* ``"viewpoint"`` — the action `agents.viewpoint.ViewpointPlanner` (drive to the place where
+  the belief's hypotheses look most different) picks. The planner sees every observation, also
+  of the steps other actions drove, so its path stays anchored to the robot.
+
+A policy over these actions can follow a motion where it is good and leave it where it is not:
+the learned part is *when to do what*, the motions are among its actions. `ExplorerOption` is
+``MotionOptions(env, ("explore",))``, the five actions of the first trained policy.
+
+The options read only the robot's observations and the filter's belief (never the true pose);
+their state is reset with the env, and the planner's subsampling is seeded by the reset seed.
 """
 
 from __future__ import annotations
@@ -19,47 +25,83 @@ from gymnasium import spaces
 
 from .baselines import WallFollowExplorer
 
+OPTIONS = ("explore", "viewpoint")
+"""The motions that can be added, by name."""
+
 EXPLORE = 4
-"""The added action."""
+"""The action of ``"explore"`` in `ExplorerOption`."""
 
 
-class ExplorerOption(gym.Wrapper):
-    """``Discrete(5)``: the env's four discrete actions, and 4 = one step of the explorer.
+class MotionOptions(gym.Wrapper):
+    """``Discrete(4 + len(options))``: the env's four discrete actions, then one step of each option.
 
-    ``info["explore_action"]`` is the env action the explorer chose (only on explore steps).
+    ``info["option_action"]`` is the env action an option chose (only on option steps).
 
     Args:
         env: a ``SemReloc`` env with ``action_type="discrete"`` (``Discrete(4)``) and a ``lidar``
             observation entry.
+        options: names from `OPTIONS`, each at most once.
 
     Raises:
         TypeError: another action space.
+        ValueError: unknown or repeated option names.
     """
 
-    def __init__(self, env: gym.Env):
+    def __init__(self, env: gym.Env, options: tuple[str, ...] = ("explore",)):
         super().__init__(env)
         if not (isinstance(env.action_space, spaces.Discrete) and env.action_space.n == 4):
-            raise TypeError(f"ExplorerOption needs the Discrete(4) action space, got {env.action_space}")
-        self.action_space = spaces.Discrete(5)
+            raise TypeError(f"{type(self).__name__} needs the Discrete(4) action space, got {env.action_space}")
+        options = tuple(options)
+        bad = [o for o in options if o not in OPTIONS]
+        if bad or len(set(options)) < len(options) or not options:
+            raise ValueError(f"options must be distinct names from {OPTIONS}, got {options}")
+        self.options = options
+        self.action_space = spaces.Discrete(4 + len(options))
         self.explorer = WallFollowExplorer()
+        self.planner = None
+        if "viewpoint" in options:
+            from .viewpoint import ViewpointPlanner
+
+            self.planner = ViewpointPlanner()
+            self.planner.wrap(env)
         self._obs: dict | None = None
 
     def reset(self, **kwargs):
         obs, info = self.env.reset(**kwargs)
         self.explorer.reset()
+        if self.planner is not None:
+            if kwargs.get("seed") is not None:
+                self.planner.seed = int(kwargs["seed"])
+            self.planner.reset()
+            self.planner.observe(obs)
         self._obs = obs
         return obs, info
+
+    def _option_action(self, name: str) -> int:
+        if name == "explore":
+            return int(self.explorer(self._obs))
+        return self.planner.decide(self._obs)
 
     def step(self, action):
         if isinstance(action, (bool, np.bool_)) or not self.action_space.contains(action):
             raise ValueError(f"action {action!r} is not in {self.action_space}")
+        if self._obs is None:
+            raise RuntimeError("step() before reset()")
         a = int(action)
-        if a == EXPLORE:
-            if self._obs is None:
-                raise RuntimeError("step() before reset()")
-            a = int(self.explorer(self._obs))
+        option = a >= 4
+        if option:
+            a = self._option_action(self.options[a - 4])
         obs, reward, terminated, truncated, info = self.env.step(a)
-        if int(action) == EXPLORE:
-            info = {**info, "explore_action": a}
+        if option:
+            info = {**info, "option_action": a}
+        if self.planner is not None:
+            self.planner.observe(obs)
         self._obs = obs
         return obs, reward, terminated, truncated, info
+
+
+class ExplorerOption(MotionOptions):
+    """``Discrete(5)``: the env's four discrete actions, and 4 = one step of the explorer."""
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env, ("explore",))

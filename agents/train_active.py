@@ -3,7 +3,7 @@
 `make_active_env` builds one training env:
 ``SemReloc-v2`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
 `RandomLayout` (a new layout per reset, never a held-out
-seed) -> `BeliefMassReward` (``mode="gain"``) -> `ExplorerOption` (if ``explorer_option``) ->
+seed) -> `BeliefMassReward` (``mode="gain"``) -> `MotionOptions` (if ``options``) ->
 `ActionRepeat` -> `ActiveObservation`
 -> SB3's ``Monitor``. `train_active` trains SB3 PPO with `ActiveExtractor`
 on ``n_envs`` of them, logs csv + TensorBoard, shows SB3's progress bar, writes checkpoints,
@@ -40,7 +40,7 @@ from semreloc_env.wrappers import ActionRepeat
 from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
 from .learned import save_policy
-from .options import ExplorerOption
+from .options import MotionOptions
 
 ENV_ID = "SemReloc-v2"
 TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
@@ -65,9 +65,10 @@ class ActiveTrainConfig:
     """env steps per episode (the evaluation's success limit is 200)"""
     repeat: int = 4
     """env steps per decision (`semreloc_env.wrappers.ActionRepeat`)"""
-    explorer_option: bool = True
-    """add action 4, one step of the reactive explorer (`agents.options.ExplorerOption`), to the env's
-    four"""
+    options: tuple[str, ...] = ("explore",)
+    """motions added to the env's four actions as actions 4, 5, ... (`agents.options.MotionOptions`):
+    explore (one step of the reactive explorer), viewpoint (one step of the viewpoint planner);
+    empty: the four primitive actions only"""
     belief_mass_weight: float = 0.5
     """weight of the belief_mass reward term (gain mode: change of the belief mass within 0.5 m of the
     truth, a potential-based shaping); 0 turns it off"""
@@ -139,6 +140,10 @@ class ActiveTrainConfig:
             raise ValueError(f"time_budget_s must be None or > 0, got {self.time_budget_s!r}")
         if self.checkpoint_every is not None and self.checkpoint_every < 1:
             raise ValueError("checkpoint_every must be None or >= 1")
+        from .options import OPTIONS
+
+        if any(o not in OPTIONS for o in self.options) or len(set(self.options)) < len(self.options):
+            raise ValueError(f"options must be distinct names from {OPTIONS}, got {self.options!r}")
         allowed = set(inspect.signature(ActiveObservation.__init__).parameters) - {"self", "env"}
         unknown = sorted(set(self.observation) - allowed)
         if unknown:
@@ -179,8 +184,8 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0) -> gym.Env:
     env = RandomLayout(env, sampler, seed=seed)
     if config.belief_mass_weight:
         env = BeliefMassReward(env, weight=config.belief_mass_weight, mode="gain")
-    if config.explorer_option:
-        env = ExplorerOption(env)
+    if config.options:
+        env = MotionOptions(env, config.options)
     env = ActionRepeat(env, config.repeat)
     env = ActiveObservation(env, **config.observation)
     return Monitor(env, info_keywords=("is_success",))
@@ -327,6 +332,6 @@ def train_active(
         out / "policy.zip",
         observation=config.observation,
         repeat=config.repeat,
-        explorer_option=config.explorer_option,
+        options=config.options,
         extra={"env_id": ENV_ID, "config": config.as_dict(), "timing": timing},
     )

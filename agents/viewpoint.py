@@ -9,7 +9,8 @@ alone (never the true pose):
    first, at most ``max_hypotheses``); when they hold less than half the mass, or are one
    cluster of a belief that has not converged (spread too wide to be one place), a systematic
    sample of ``n_particles`` particles grouped into ``cluster_bin_m`` clusters
-   (`agents.info_gain.hypothesis_bins`). The heaviest is the *reference*.
+   (`agents.info_gain.hypothesis_bins`). The *reference* is the heaviest of them from which
+   the map leaves room to plan (``min_reachable``; else the next of the first three).
 2. **Candidate viewpoints.** Places reachable from the reference on a ``plan_cell_m`` grid of
    the map's free space with ``radius + clearance_m`` of clearance (`scipy.sparse.csgraph`
    Dijkstra, 8-connected), within ``horizon_m``, every ``candidate_stride``-th cell, each with
@@ -97,10 +98,13 @@ def _cross_ll(
     h,
     out_l,
     out_s,
+    cnt_l,
+    cnt_s,
 ):
     """Per-ray mean ``log p`` of the scan hypothesis ``k`` would get at every viewpoint, scored at
     hypothesis ``l``'s pose there: ``out_l[p, i, k, l]`` (lidar rays), ``out_s`` (labelled rays in
-    the camera's field of view).
+    the camera's field of view); ``cnt_l[p, i, k]``, ``cnt_s``: how many rays of ``k``'s scan each
+    mean is over.
 
     ``ranges``/``labels`` ``(K, P, B)``: all-round casts from ``xy`` ``(K, P, 2)`` along absolute
     ray angles ``angles`` ``(B,)``; hypothesis ``k``'s heading at viewpoint heading ``headings[i]``
@@ -142,6 +146,8 @@ def _cross_ll(
                                 n_s += 1
                     out_l[p, i, k, m] = acc_l / n_l if n_l > 0 else 0.0
                     out_s[p, i, k, m] = acc_s / n_s if n_s > 0 else 0.0
+                    cnt_l[p, i, k] = n_l
+                    cnt_s[p, i, k] = n_s
 
 
 class _PlanMap:
@@ -229,19 +235,19 @@ class ViewpointPlanner(Policy):
         max_hypotheses: hypotheses compared (the heaviest).
         n_particles: particles drawn when the clusters hold less than half the mass.
         cluster_bin_m: position bin grouping those particles.
-        range_tol_m: a lidar ray differs when the ranges differ by more than this.
-        lidar_frac: share of differing lidar rays that tells two hypotheses apart.
-        semantic_frac: share of differing class labels in the camera's view that does.
         cost_per_m: score lost per metre of driving (and per turn, at its driving equivalent).
-        min_score: below this best score, drive as the explorer instead.
+        min_score: viewpoints scoring below this are not goals; with none left, drive as the
+            explorer instead.
         views: filter updates counted at a viewpoint (the likelihood is raised to this times the
             filter's ``likelihood_scale``).
-        replan_every: steps after which a plan is made again even if its goal was not reached.
+        replan_every: steps (observations the planner took in) after which a plan is made again
+            even if its goal was not reached.
         explore_steps: steps driven as the explorer before planning again.
         stay_m, max_stays: after ``max_stays`` plans in a row whose goal is closer than ``stay_m``
             (the belief did not settle where the model said it would), explore instead.
         min_reachable: a hypothesis is the reference only if at least this many planning cells
-            are reachable from it (else the next heaviest of the first three is tried).
+            are reachable from it; else the next heaviest of the first three is tried, and if none
+            has as many, the one of them with the most.
         lookahead_m: the robot steers to the farthest path point it sees in a straight line within
             this distance.
         turn_tol_rad: heading error above which the robot turns in place.
@@ -260,9 +266,6 @@ class ViewpointPlanner(Policy):
         max_hypotheses: int = 8,
         n_particles: int = 24,
         cluster_bin_m: float = 0.5,
-        range_tol_m: float = 0.4,
-        lidar_frac: float = 0.1,
-        semantic_frac: float = 0.2,
         cost_per_m: float = 0.05,
         min_score: float = 0.05,
         views: float = 3.0,
@@ -283,37 +286,39 @@ class ViewpointPlanner(Policy):
             "max_hypotheses": max_hypotheses,
             "n_particles": n_particles,
             "replan_every": replan_every,
+            "min_reachable": min_reachable,
+            "explore_steps": explore_steps,
+            "max_stays": max_stays,
         }
         for name, v in ints.items():
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
-        floats = {
+        positive = {
             "horizon_m": horizon_m,
             "plan_cell_m": plan_cell_m,
             "cluster_bin_m": cluster_bin_m,
-            "range_tol_m": range_tol_m,
-            "lidar_frac": lidar_frac,
-            "semantic_frac": semantic_frac,
+            "views": views,
             "lookahead_m": lookahead_m,
             "turn_tol_rad": turn_tol_rad,
         }
-        for name, v in {**floats, "clearance_m": clearance_m, "cost_per_m": cost_per_m}.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
-        for name, v in floats.items():
-            if v == 0:
-                raise ValueError(f"{name} must be > 0, got {v!r}")
+        non_negative = {
+            "clearance_m": clearance_m,
+            "cost_per_m": cost_per_m,
+            "min_score": min_score,
+            "stay_m": stay_m,
+            "clearance_stop_m": clearance_stop_m,
+        }
+        for name, v in {**positive, **non_negative}.items():
+            ok = not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.integer, np.floating))
+            if not (ok and math.isfinite(v) and v >= 0 and (v > 0 or name in non_negative)):
+                raise ValueError(f"{name} must be a finite number {'>' if name in positive else '>='} 0, got {v!r}")
         self.horizon_m, self.plan_cell_m, self.clearance_m = float(horizon_m), float(plan_cell_m), float(clearance_m)
-        self.candidate_stride, self.n_headings, self.n_rays = candidate_stride, n_headings, n_rays
-        self.max_hypotheses, self.n_particles, self.cluster_bin_m = max_hypotheses, n_particles, float(cluster_bin_m)
-        self.range_tol_m, self.lidar_frac, self.semantic_frac = (
-            float(range_tol_m),
-            float(lidar_frac),
-            float(semantic_frac),
-        )
+        self.candidate_stride, self.n_headings, self.n_rays = int(candidate_stride), int(n_headings), int(n_rays)
+        self.max_hypotheses, self.n_particles = int(max_hypotheses), int(n_particles)
+        self.cluster_bin_m = float(cluster_bin_m)
         self.cost_per_m, self.min_score, self.views = float(cost_per_m), float(min_score), float(views)
-        self.replan_every, self.lookahead_m, self.turn_tol_rad = replan_every, float(lookahead_m), float(turn_tol_rad)
-        self.clearance_stop_m = float(clearance_stop_m)
+        self.replan_every, self.lookahead_m = int(replan_every), float(lookahead_m)
+        self.turn_tol_rad, self.clearance_stop_m = float(turn_tol_rad), float(clearance_stop_m)
         self.min_reachable = int(min_reachable)
         self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
         self._systematic = get_resampler("systematic")
@@ -341,8 +346,10 @@ class ViewpointPlanner(Policy):
         self._pose = np.zeros(3)  # the robot's pose in that frame, from the odometry
         self._since_plan = 0
         self._stays = 0
+        self._progress_window = max(2, int(1.5 / self.plan_cell_m))
         self._exploring = True
         self._first = True
+        self._seen = False
 
     # ------------------------------------------------------------------ planning
     def _plan_map(self) -> _PlanMap:
@@ -404,11 +411,11 @@ class ViewpointPlanner(Policy):
         cand = np.nonzero(reach & lattice)[0]
         cand = np.union1d(cand, [s])
         score, goal_h = self._score(pm, poses, w, cand)
-        turn_m = self._turn_cost_m(pm, pred, s, cand, goal_h)
-        util = score - self.cost_per_m * (dist[cand] + turn_m)
+        turn_m = self._turn_cost_m(pm, pred, s, cand, goal_h, ref[2])
+        util = np.where(score >= self.min_score, score - self.cost_per_m * (dist[cand] + turn_m), -np.inf)
         best = int(np.argmax(util))
         self.last_plan.update(score=float(score[best]), n_candidates=int(cand.size))
-        if score[best] < self.min_score:
+        if not np.isfinite(util[best]):
             return False
         goal = int(cand[best])
         path = [goal]
@@ -428,14 +435,14 @@ class ViewpointPlanner(Policy):
         )
         return True
 
-    def _turn_cost_m(self, pm, pred, s, cand, goal_h) -> np.ndarray:
-        """Driving-equivalent metres of the final turn from the last path segment to the goal heading."""
+    def _turn_cost_m(self, pm, pred, s, cand, goal_h, heading) -> np.ndarray:
+        """Driving-equivalent metres of the final turn to the goal heading: from the last path
+        segment's direction, or from the current ``heading`` at the start node."""
         prev = pred[cand]
         prev = np.where(prev < 0, s, prev)
         d = pm.xy[cand] - pm.xy[prev]
-        arrive = np.arctan2(d[:, 1], d[:, 0])
+        arrive = np.where(cand == s, heading, np.arctan2(d[:, 1], d[:, 0]))
         turn = np.abs(wrap_angle(goal_h - arrive))
-        turn = np.where(cand == s, 0.0, turn)
         return turn / max(self.step_rad, 1e-9) * self.step_m
 
     def _score(self, pm: _PlanMap, poses: np.ndarray, w: np.ndarray, cand: np.ndarray):
@@ -470,14 +477,20 @@ class ViewpointPlanner(Policy):
         h_cells, w_cells = grid.shape
         out_l = np.empty((p_n, headings.size, k_n, k_n))
         out_s = np.empty_like(out_l)
+        cnt_l = np.zeros((p_n, headings.size, k_n))
+        cnt_s = np.zeros_like(cnt_l)
         _cross_ll(
             ranges.reshape(k_n, p_n, b), labels.reshape(k_n, p_n, b), xy, poses[:, 2].copy(), headings,
             angles, cam.fov_rad / 2, lidar.range_max_m, cam.range_min_m, cam.range_max_m, table,
-            float(ox), float(oy), 1.0 / grid.resolution_m, w_cells, h_cells, out_l, out_s,
+            float(ox), float(oy), 1.0 / grid.resolution_m, w_cells, h_cells, out_l, out_s, cnt_l, cnt_s,
         )  # fmt: skip
-        n_lidar = min(lidar.n_beams // cfg.lidar_field.beam_stride, cfg.lidar_field.max_beams or lidar.n_beams)
-        n_cam = min(cam.n_beams // cfg.semantic_field.beam_stride, cfg.semantic_field.max_beams or cam.n_beams)
-        ll = n_lidar * out_l + (n_cam * out_s if cfg.use_semantic else 0.0)
+        # beams the filter would use: its sensors' beams in the same share as the rays that return
+        # (lidar) or see a class (camera), after its stride and cap
+        n_fov = max(int(np.sum(np.abs(wrap_angle(angles)) <= cam.fov_rad / 2)), 1)
+        lf, sf = cfg.lidar_field, cfg.semantic_field
+        n_lidar = np.minimum(cnt_l / b * lidar.n_beams / lf.beam_stride, lf.max_beams or np.inf)
+        n_cam = np.minimum(cnt_s / n_fov * cam.n_beams / sf.beam_stride, sf.max_beams or np.inf)
+        ll = n_lidar[..., None] * out_l + (n_cam[..., None] * out_s if cfg.use_semantic else 0.0)
         # log posterior of hypothesis l when k is the truth, after `views` updates at the viewpoint
         logit = cfg.likelihood_scale * self.views * (ll - np.diagonal(ll, axis1=2, axis2=3)[..., :, None])
         bad = invalid.T[:, None, :, None] | invalid.T[:, None, None, :]
@@ -488,6 +501,9 @@ class ViewpointPlanner(Policy):
         with np.errstate(divide="ignore", invalid="ignore"):
             ent = -np.where(post > 0, post * np.log(post), 0.0).sum(axis=3)  # (P, H, K)
         prior = float(-(w * np.log(w)).sum())
+        # if k is the truth and its image of the viewpoint is not free, the robot does not get there:
+        # that row tells nothing (the prior), rather than the certainty its ruled-out rivals suggest
+        ent = np.where(invalid.T[:, None, :], prior, ent)
         gain = (prior - ent @ w) / max(prior, 1e-12)  # (P, H)
         best = np.argmax(gain, axis=1)
         return gain[np.arange(p_n), best], wrap_angle(ref[2] + headings[best])
@@ -506,21 +522,24 @@ class ViewpointPlanner(Policy):
         Steers to the farthest path point within ``lookahead_m`` that the robot sees in a straight
         line through planning cells (so it cuts the grid path's zigzags)."""
         x, y, th = self._pose
-        if self._path.shape[0] > 1:  # progress: drop the points before the nearest one
-            near = int(np.argmin(np.hypot(self._path[:, 0] - x, self._path[:, 1] - y)))
-            passed = near + 1 < self._path.shape[0] and math.hypot(*(self._path[near] - (x, y))) < 0.3
+        c, s = math.cos(self._ref[2]), math.sin(self._ref[2])
+        here = self._ref[:2] + (c * x - s * y, s * x + c * y)
+
+        def seen(pt) -> bool:  # in straight line of sight through planning cells
+            return self._pm.clear_segment(here, self._ref[:2] + (c * pt[0] - s * pt[1], s * pt[0] + c * pt[1]))
+
+        if self._path.shape[0] > 1:  # progress: drop the points before the nearest one ahead in sight
+            ahead = self._path[: self._progress_window]
+            d = np.hypot(ahead[:, 0] - x, ahead[:, 1] - y)
+            near = next((int(i) for i in np.argsort(d, kind="stable") if seen(ahead[i])), 0)
+            passed = near + 1 < self._path.shape[0] and d[near] < 0.3
             self._path = self._path[near + passed :]
         if self._path.shape[0] == 1 and math.hypot(*(self._path[0] - (x, y))) < 0.15:
             self._path = self._path[:0]
         if self._path.shape[0]:
             target = self._path[0]
-            c, s = math.cos(self._ref[2]), math.sin(self._ref[2])
-            here = self._ref[:2] + (c * x - s * y, s * x + c * y)
             for pt in self._path[1:]:
-                if math.hypot(*(pt - (x, y))) > self.lookahead_m:
-                    break
-                there = self._ref[:2] + (c * pt[0] - s * pt[1], s * pt[0] + c * pt[1])
-                if not self._pm.clear_segment(here, there):
+                if math.hypot(*(pt - (x, y))) > self.lookahead_m or not seen(pt):
                     break
                 target = pt
             err = float(wrap_angle(math.atan2(target[1] - y, target[0] - x) - th))
@@ -543,9 +562,17 @@ class ViewpointPlanner(Policy):
         self._exploring = not ok
         self._since_plan = 0
 
-    def act(self, obs: dict):
-        if not self._first:
+    def observe(self, obs: dict) -> None:
+        """Take in an observation of the env (its odometry) without acting. `act` calls it; call it
+        yourself on the observations of steps something else drove (`agents.options`), so the
+        stored path stays anchored to the robot."""
+        if self._seen:
             self._integrate(np.asarray(obs["odometry"], dtype=np.float64))
+            self._since_plan += 1
+        self._seen = True
+
+    def decide(self, obs: dict) -> int:
+        """The discrete action (0 forward, 1 left, 2 right) for the latest observed ``obs``."""
         if self._first or self._since_plan >= (self.explore_steps if self._exploring else self.replan_every):
             self._replan()
         self._first = False
@@ -557,10 +584,13 @@ class ViewpointPlanner(Policy):
                 a = None if self._exploring else self._follow()
         if a is None:
             a = self.explorer(obs)
-        self._since_plan += 1
         ranges = np.asarray(obs["lidar"], dtype=np.float64)
         if a == FORWARD and _sector_min(ranges, 0.0, 0.5) < self.clearance_stop_m:
             left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
             a = TURN_LEFT if left >= right else TURN_RIGHT
             self._since_plan = self.replan_every  # plan again next step
-        return self.encode(a)
+        return int(a)
+
+    def act(self, obs: dict):
+        self.observe(obs)
+        return self.encode(self.decide(obs))

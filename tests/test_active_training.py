@@ -239,10 +239,41 @@ def test_explorer_option_steps_as_the_explorer_and_checks_its_actions():
         a = explorer(ref_obs)
         ref_obs, *_ = ref.step(a)
         obs, _, _, _, info = env.step(EXPLORE)
-        assert info["explore_action"] == a
+        assert info["option_action"] == a
         np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
     for bad in (5, -1, 1.5, True, "0"):
         with pytest.raises(ValueError):
             env.step(bad)
     with pytest.raises(TypeError):
         ExplorerOption(_env(action_type="continuous"))
+
+
+def test_viewpoint_option_steps_as_the_planner_even_between_other_actions():
+    from agents.options import MotionOptions
+    from agents.viewpoint import ViewpointPlanner
+
+    env = MotionOptions(_env(max_episode_steps=60), ("explore", "viewpoint"))
+    assert env.action_space.n == 6
+    ref, planner = _env(max_episode_steps=60), ViewpointPlanner(seed=2)
+    planner.wrap(ref)
+    planner.reset()
+    obs, _ = env.reset(seed=2)
+    ref_obs, _ = ref.reset(seed=2)
+    planner.observe(ref_obs)
+    # the policy turns left twice, then hands over to the planner: the planner must have seen the turns
+    for t in range(30):
+        if t < 2:
+            a, action = 1, 1
+        else:
+            a, action = planner.decide(ref_obs), 5
+        ref_obs, *_ = ref.step(a)
+        planner.observe(ref_obs)
+        obs, _, term, trunc, info = env.step(action)
+        assert info.get("option_action", a) == a
+        np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
+        if term or trunc:
+            break
+    with pytest.raises(ValueError, match="options"):
+        MotionOptions(_env(), ("explore", "explore"))
+    with pytest.raises(ValueError, match="options"):
+        MotionOptions(_env(), ("teleport",))
