@@ -192,6 +192,28 @@ class LearnedPolicy:
         return self._action
 
 
+def _checkpoint_options(path: Path, action_space) -> tuple[str, ...]:
+    """The motion options of a bare SB3 checkpoint: from its run's ``config.json`` (``train_active``
+    writes checkpoints to ``<out>/checkpoints/``), else by its action count (5: the explorer)."""
+    n = int(action_space.n) if isinstance(action_space, spaces.Discrete) else 4
+    config = path.parent.parent / "config.json"
+    if path.parent.name == "checkpoints" and config.is_file():
+        saved = json.loads(config.read_text())
+        saved = saved.get("config", saved)
+        if "options" in saved:
+            found = tuple(saved["options"])
+        else:
+            found = ("explore",) if saved.get("explorer_option") else ()
+        if 4 + len(found) == n:
+            return found
+    if n <= 5:
+        return ("explore",) * (n - 4)
+    raise ValueError(
+        f"{path}: a checkpoint with {n} actions and no record of its motion options; "
+        "pass options=(...) in the order the run used (see its config.json)"
+    )
+
+
 def load_policy(
     path: str | Path,
     device: str = "cpu",
@@ -215,11 +237,12 @@ def load_policy(
             True when the model has five discrete actions, as `train_active`'s checkpoints do).
         seed: see `LearnedPolicy`.
         options: the same for `agents.options.MotionOptions` (overrides ``explorer_option``;
-            without metadata: the first ``n - 4`` names of `agents.options.OPTIONS` for a model
-            with ``n > 4`` discrete actions).
+            without metadata: from the training run's ``config.json`` when ``path`` is one of its
+            ``checkpoints/``, else the explorer for a model with five discrete actions).
 
     Raises:
-        FileNotFoundError, ValueError: see `read_metadata`.
+        FileNotFoundError, ValueError: see `read_metadata`; ValueError also when the options of a
+            bare checkpoint with more than five actions cannot be known (pass ``options``).
     """
     from stable_baselines3 import PPO
 
@@ -241,8 +264,5 @@ def load_policy(
         raise FileNotFoundError(f"no policy file {path}")
     model = PPO.load(path, device=device)
     if options is None and explorer_option is None:
-        from .options import OPTIONS
-
-        n = int(model.action_space.n) if isinstance(model.action_space, spaces.Discrete) else 4
-        options = OPTIONS[: max(0, n - 4)]
+        options = _checkpoint_options(path, model.action_space)
     return LearnedPolicy(model, observation, repeat, deterministic, bool(explorer_option), seed, options)

@@ -243,8 +243,9 @@ class ViewpointPlanner(Policy):
         replan_every: steps (observations the planner took in) after which a plan is made again
             even if its goal was not reached.
         explore_steps: steps driven as the explorer before planning again.
-        stay_m, max_stays: after ``max_stays`` plans in a row whose goal is closer than ``stay_m``
-            (the belief did not settle where the model said it would), explore instead.
+        stay_m: a goal closer than this counts as staying where the robot is.
+        max_stays: after this many such plans in a row (the belief did not settle where the model
+            said it would), explore instead.
         min_reachable: a hypothesis is the reference only if at least this many planning cells
             are reachable from it; else the next heaviest of the first three is tried, and if none
             has as many, the one of them with the most.

@@ -252,28 +252,53 @@ def test_viewpoint_option_steps_as_the_planner_even_between_other_actions():
     from agents.options import MotionOptions
     from agents.viewpoint import ViewpointPlanner
 
-    env = MotionOptions(_env(max_episode_steps=60), ("explore", "viewpoint"))
+    env = MotionOptions(_env(max_episode_steps=80), ("explore", "viewpoint"))
     assert env.action_space.n == 6
-    ref, planner = _env(max_episode_steps=60), ViewpointPlanner(seed=2)
+    ref, planner = _env(max_episode_steps=80), ViewpointPlanner(seed=2)
     planner.wrap(ref)
     planner.reset()
     obs, _ = env.reset(seed=2)
     ref_obs, _ = ref.reset(seed=2)
     planner.observe(ref_obs)
-    # the policy turns left twice, then hands over to the planner: the planner must have seen the turns
-    for t in range(30):
-        if t < 2:
-            a, action = 1, 1
+    # the planner drives until it follows a path, the policy then turns twice, the planner resumes:
+    # it must have seen the turns in its odometry (same pose along its path as the reference's)
+    turns, steps = 0, 0
+    while steps < 60:
+        following = env.planner._path.shape[0] > 0 and not env.planner._exploring
+        if following and turns < 2:
+            a, action, turns = 1, 1, turns + 1
         else:
             a, action = planner.decide(ref_obs), 5
         ref_obs, *_ = ref.step(a)
         planner.observe(ref_obs)
         obs, _, term, trunc, info = env.step(action)
+        steps += 1
         assert info.get("option_action", a) == a
         np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
+        np.testing.assert_array_equal(env.planner._pose, planner._pose)
         if term or trunc:
             break
+    assert turns == 2, "the planner never followed a path: the test did not test anything"
     with pytest.raises(ValueError, match="options"):
         MotionOptions(_env(), ("explore", "explore"))
     with pytest.raises(ValueError, match="options"):
         MotionOptions(_env(), ("teleport",))
+
+
+def test_bare_checkpoints_take_their_options_from_the_run(tmp_path):
+    import json
+
+    from gymnasium import spaces
+
+    from agents.learned import _checkpoint_options
+
+    ckpt = tmp_path / "run" / "checkpoints" / "ppo_512_steps.zip"
+    ckpt.parent.mkdir(parents=True)
+    assert _checkpoint_options(ckpt, spaces.Discrete(5)) == ("explore",)  # old runs: the explorer
+    assert _checkpoint_options(ckpt, spaces.Discrete(4)) == ()
+    with pytest.raises(ValueError, match="options"):
+        _checkpoint_options(ckpt, spaces.Discrete(6))  # no record: refuse to guess the order
+    (tmp_path / "run" / "config.json").write_text(json.dumps({"options": ["viewpoint", "explore"]}))
+    assert _checkpoint_options(ckpt, spaces.Discrete(6)) == ("viewpoint", "explore")
+    (tmp_path / "run" / "config.json").write_text(json.dumps({"explorer_option": True}))
+    assert _checkpoint_options(ckpt, spaces.Discrete(5)) == ("explore",)
