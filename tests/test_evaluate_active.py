@@ -34,6 +34,11 @@ def test_cases_are_held_out_fixed_and_include_uninformative_starts():
         ev.Args(policies=("spin,random",))
     with pytest.raises(ValueError, match="episodes.json"):
         ev.Args(reuse=("/nonexistent/run",))
+    tuning = ev.build_cases(parse(ev.Args, ["--layouts-per-kind", "2", "--starts", "2", "--seed-set", "tuning"]))
+    assert len(tuning) == 3 * 2 * 2 and not any(is_held_out(c["layout_seed"]) for c in tuning)
+    assert {c["episode_seed"] for c in tuning}.isdisjoint(c["episode_seed"] for c in cases)
+    with pytest.raises(SystemExit):
+        ev.main(["--seed-set", "train"])
 
 
 def test_evaluation_runs_writes_its_outputs_and_does_not_depend_on_workers(tmp_path, capsys):
@@ -44,6 +49,9 @@ def test_evaluation_runs_writes_its_outputs_and_does_not_depend_on_workers(tmp_p
     rows = [json.loads((tmp_path / d / "episodes.json").read_text()) for d in "ab"]
     strip = [[{k: v for k, v in r.items() if k != "seconds"} for r in rs] for rs in rows]
     assert strip[0] == strip[1] and len(strip[0]) == 3 * 1 * 2
+    for r in rows[0]:  # every step's discrete action is counted; spin only ever turns left
+        assert sum(r["actions"].values()) == r["length"]
+        assert r["policy"] != "spin" or set(r["actions"]) == {"1"}
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
     s = summary["all"]["spin"]
     assert s["episodes"] == 3

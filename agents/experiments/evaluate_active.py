@@ -18,7 +18,8 @@ Per policy (overall, per layout kind, and on the uninformative starts): success 
 step limit (the env's own test, `agents.metrics`), wrong convergence (converged, wrong
 place, at the end), unconverged, each with a Wilson 95 % interval
 (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the successes,
-mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode),
+mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode, with
+the count of every discrete action taken),
 ``summary.json``, ``table.md`` and ``success.png`` (bar plot with the intervals).
 
 The same arguments give the same numbers whatever the runner (``--executor``, ``--workers``,
@@ -224,8 +225,12 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
         tracker.observe(info, is_step=False)
         collisions = 0
         t0 = time.perf_counter()
+        actions: dict[str, int] = {}  # discrete actions taken (for learned policies: options included)
         while True:
-            obs, reward, term, trunc, info = env.step(policy.act(obs))
+            action = policy.act(obs)
+            if isinstance(action, (int, np.integer)):
+                actions[str(int(action))] = actions.get(str(int(action)), 0) + 1
+            obs, reward, term, trunc, info = env.step(action)
             tracker.observe(info, reward)
             collisions += bool(info["collided"])
             if term or trunc:
@@ -241,6 +246,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
                 "collisions": collisions,
                 "final_position_error_m": res.final_position_error_m,
                 "seconds": time.perf_counter() - t0,
+                "actions": actions,
                 "settings": settings(args, spec),
             }
         )
