@@ -38,7 +38,7 @@ from scipy import ndimage
 from filters.pose import wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.simulators.grid_raycast import cast_rays
-from filters.smc.resampling import get_resampler
+from filters.smc.resampling import systematic
 
 from .baselines import FORWARD, TURN_LEFT, TURN_RIGHT
 from .policies import Policy, _sector_min
@@ -67,6 +67,14 @@ turn ~180 deg and drive 0.5 m (at the default 0.5 m/s, 1 rad/s, 10 Hz)."""
 def entropy(mass: np.ndarray) -> float:
     m = mass[mass > 0]
     return float(-(m * np.log(m)).sum())
+
+
+def belief_sample(mcl, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``(min(n, N), 3)`` poses drawn from the filter ``mcl``'s weighted particles: systematic
+    resampling with ``rng``, then ``n`` of the draws evenly spaced (so heavy particles repeat)."""
+    idx = systematic(mcl.weights, rng)
+    idx = idx[np.linspace(0, idx.size - 1, min(n, idx.size)).astype(np.int64)]
+    return np.asarray(mcl.poses)[idx]
 
 
 def hypothesis_bins(poses: np.ndarray, bin_m: float) -> np.ndarray:
@@ -126,7 +134,6 @@ class InfoGainPlanner(Policy):
         self.collision_penalty_nats = float(collision_penalty_nats)
         self.cluster_bin_m = float(cluster_bin_m)
         self.clearance_m = float(clearance_m)
-        self._systematic = get_resampler("systematic")
         self._queue: list[int] = []
         self.last_scores: dict[str, float] = {}
         """Score (nats) of every primitive at the last plan, for inspection."""
@@ -194,9 +201,7 @@ class InfoGainPlanner(Policy):
         mcl, grid = base.mcl, base.grid
         model = mcl.measurement_model
         cfg = base.mcl_config
-        idx = self._systematic(mcl.weights, self.rng)
-        idx = idx[np.linspace(0, idx.size - 1, min(self.n_particles, idx.size)).astype(np.int64)]
-        sample = np.asarray(mcl.poses)[idx]
+        sample = belief_sample(mcl, self.n_particles, self.rng)
         m = sample.shape[0]
         bins = hypothesis_bins(sample, self.cluster_bin_m)
         n_bins = int(bins.max()) + 1

@@ -28,6 +28,19 @@ from .baselines import WallFollowExplorer
 OPTIONS = ("explore", "viewpoint")
 """The motions that can be added, by name."""
 
+
+def check_options(options) -> tuple[str, ...]:
+    """``options`` as a tuple, checked: names from `OPTIONS`, each at most once (empty is fine).
+
+    Raises:
+        ValueError: an unknown or repeated name.
+    """
+    options = tuple(options)
+    if any(o not in OPTIONS for o in options) or len(set(options)) < len(options):
+        raise ValueError(f"options must be distinct names from {OPTIONS}, got {options!r}")
+    return options
+
+
 EXPLORE = 4
 """The action of ``"explore"`` in `ExplorerOption`."""
 
@@ -51,10 +64,9 @@ class MotionOptions(gym.Wrapper):
         super().__init__(env)
         if not (isinstance(env.action_space, spaces.Discrete) and env.action_space.n == 4):
             raise TypeError(f"{type(self).__name__} needs the Discrete(4) action space, got {env.action_space}")
-        options = tuple(options)
-        bad = [o for o in options if o not in OPTIONS]
-        if bad or len(set(options)) < len(options) or not options:
-            raise ValueError(f"options must be distinct names from {OPTIONS}, got {options}")
+        options = check_options(options)
+        if not options:
+            raise ValueError(f"options must name at least one of {OPTIONS}")
         self.options = options
         self.action_space = spaces.Discrete(4 + len(options))
         self.explorer = WallFollowExplorer()

@@ -40,7 +40,7 @@ from semreloc_env.wrappers import ActionRepeat
 from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
 from .learned import save_policy
-from .options import MotionOptions
+from .options import MotionOptions, check_options
 
 ENV_ID = "SemReloc-v2"
 TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
@@ -140,10 +140,7 @@ class ActiveTrainConfig:
             raise ValueError(f"time_budget_s must be None or > 0, got {self.time_budget_s!r}")
         if self.checkpoint_every is not None and self.checkpoint_every < 1:
             raise ValueError("checkpoint_every must be None or >= 1")
-        from .options import OPTIONS
-
-        if any(o not in OPTIONS for o in self.options) or len(set(self.options)) < len(self.options):
-            raise ValueError(f"options must be distinct names from {OPTIONS}, got {self.options!r}")
+        check_options(self.options)
         allowed = set(inspect.signature(ActiveObservation.__init__).parameters) - {"self", "env"}
         unknown = sorted(set(self.observation) - allowed)
         if unknown:

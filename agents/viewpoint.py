@@ -53,10 +53,9 @@ from scipy.sparse import csgraph
 
 from filters.pose import wrap_angle
 from filters.simulators.grid_raycast import _cast
-from filters.smc.resampling import get_resampler
 
 from .baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
-from .info_gain import hypothesis_bins
+from .info_gain import belief_sample, hypothesis_bins
 from .policies import Policy, _sector_min
 
 
@@ -205,9 +204,6 @@ class _PlanMap:
         i = int(np.argmin(d))
         return i if d[i] <= max_m else -1
 
-    def is_free(self, xy: np.ndarray) -> np.ndarray:
-        return self.grid.is_free(xy)
-
     def clear_segment(self, a, b) -> bool:
         """Whether the straight segment ``a -> b`` (metres) runs through planning cells only."""
         n = max(2, int(math.hypot(b[0] - a[0], b[1] - a[1]) / (self.cell_m / 2)) + 1)
@@ -322,8 +318,7 @@ class ViewpointPlanner(Policy):
         self.turn_tol_rad, self.clearance_stop_m = float(turn_tol_rad), float(clearance_stop_m)
         self.min_reachable = int(min_reachable)
         self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
-        self._systematic = get_resampler("systematic")
-        self._maps: dict[int, _PlanMap] = {}
+        self._map: _PlanMap | None = None  # of the filter map planned on last
         self.explorer = WallFollowExplorer()
         self.last_plan: dict = {}
         """What the last plan found (``score``, ``goal`` in the reference's map frame, ``path_m``,
@@ -355,11 +350,9 @@ class ViewpointPlanner(Policy):
     # ------------------------------------------------------------------ planning
     def _plan_map(self) -> _PlanMap:
         base = self.env.unwrapped
-        pm = self._maps.get(id(base.grid))
-        if pm is None or pm.grid is not base.grid:
-            pm = _PlanMap(base.grid, base.robot_params.radius_m, self.clearance_m, self.plan_cell_m)
-            self._maps = {id(base.grid): pm}
-        return pm
+        if self._map is None or self._map.grid is not base.grid:
+            self._map = _PlanMap(base.grid, base.robot_params.radius_m, self.clearance_m, self.plan_cell_m)
+        return self._map
 
     def hypotheses(self) -> tuple[np.ndarray, np.ndarray]:
         """Poses ``(K, 3)`` and weights ``(K,)`` (summing to 1) of the hypotheses compared, heaviest first."""
@@ -370,10 +363,7 @@ class ViewpointPlanner(Policy):
             poses = np.array([h.mean for h in hyps], dtype=np.float64)
             w = np.array([h.weight for h in hyps], dtype=np.float64)
         else:
-            mcl = base.mcl
-            idx = self._systematic(mcl.weights, self.rng)
-            idx = idx[np.linspace(0, idx.size - 1, min(self.n_particles, idx.size)).astype(np.int64)]
-            sample = np.asarray(mcl.poses)[idx]
+            sample = belief_sample(base.mcl, self.n_particles, self.rng)
             bins = hypothesis_bins(sample, self.cluster_bin_m)
             first = np.unique(bins, return_index=True)[1]
             counts = np.bincount(bins)[bins[first]]
@@ -428,7 +418,7 @@ class ViewpointPlanner(Policy):
         self._path = np.stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1]], axis=1)[1:]
         self._goal_heading = float(wrap_angle(goal_h[best] - ref[2]))
         self._pose = np.zeros(3)
-        self._ref, self._pm = ref.copy(), pm
+        self._ref = ref.copy()
         self.last_plan.update(
             fallback=False,
             goal=[float(pm.xy[goal, 0]), float(pm.xy[goal, 1]), float(goal_h[best])],
@@ -461,7 +451,7 @@ class ViewpointPlanner(Policy):
         xy = np.empty((k_n, p_n, 2))
         xy[:, :, 0] = poses[:, None, 0] + ck[:, None] * u[None, :, 0] - sk[:, None] * u[None, :, 1]
         xy[:, :, 1] = poses[:, None, 1] + sk[:, None] * u[None, :, 0] + ck[:, None] * u[None, :, 1]
-        invalid = ~pm.is_free(xy)  # (K, P): if k were the truth, the robot could not be there
+        invalid = ~grid.is_free(xy)  # (K, P): if k were the truth, the robot could not be there
         angles = 2 * math.pi * np.arange(b) / b
         lidar, cam = base.lidar.params, base.camera.params
         ranges = np.empty((k_n * p_n, b))
@@ -527,7 +517,7 @@ class ViewpointPlanner(Policy):
         here = self._ref[:2] + (c * x - s * y, s * x + c * y)
 
         def seen(pt) -> bool:  # in straight line of sight through planning cells
-            return self._pm.clear_segment(here, self._ref[:2] + (c * pt[0] - s * pt[1], s * pt[0] + c * pt[1]))
+            return self._map.clear_segment(here, self._ref[:2] + (c * pt[0] - s * pt[1], s * pt[0] + c * pt[1]))
 
         if self._path.shape[0] > 1:  # progress: drop the points before the nearest one ahead in sight
             ahead = self._path[: self._progress_window]
