@@ -189,7 +189,8 @@ class _PlanMap:
             wt.append(np.full(int(m.sum()), self.cell_m * math.hypot(dr, dc)))
         n = self.xy.shape[0]
         src, dst, wt = np.concatenate(src), np.concatenate(dst), np.concatenate(wt)
-        self.graph = sparse.csr_matrix((wt, (src, dst)), shape=(n, n))
+        # every edge both ways: csgraph's Dijkstra follows stored edges only (directed)
+        self.graph = sparse.csr_matrix((np.r_[wt, wt], (np.r_[src, dst], np.r_[dst, src])), shape=(n, n))
         _, comp = csgraph.connected_components(self.graph, directed=False)
         size = np.bincount(comp) if n else np.zeros(0, np.int64)
         # nodes of pockets too small to plan in (a corner the robot squeezed into) are not starts

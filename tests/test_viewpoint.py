@@ -113,3 +113,20 @@ def test_bad_settings_are_refused(kw, match):
 def test_needs_a_semreloc_env():
     with pytest.raises(TypeError, match="SemReloc"):
         ViewpointPlanner().wrap(gym.make("CartPole-v1"))
+
+
+def test_paths_run_every_way_from_every_room():
+    """The planning graph holds each edge both ways: from the top right corner of the map a
+    horizon of 100 m reaches its whole component (a one-way graph reached 95 cells from a north
+    room, so the planner never planned out of one)."""
+    from scipy.sparse import csgraph
+
+    pol = ViewpointPlanner(seed=0)
+    env = _env(pol)
+    env.reset(seed=0)
+    pm = pol._plan_map()
+    assert (pm.graph != pm.graph.T).nnz == 0
+    corner = int(np.argmax(pm.xy[:, 0] + pm.xy[:, 1]))
+    _, comp = csgraph.connected_components(pm.graph, directed=False)
+    dist = csgraph.dijkstra(pm.graph, indices=corner, limit=100.0)
+    assert np.isfinite(dist).sum() == (comp == comp[corner]).sum() > 1000
