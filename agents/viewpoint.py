@@ -27,8 +27,9 @@ alone (never the true pose):
    filter updates at the viewpoint) and times the prior weights, that is the posterior over the
    hypotheses if ``k`` is the truth; a hypothesis whose predicted pose is not free is ruled out
    by the others. The score is the expected entropy removed, as a share of the prior entropy
-   (in ``[0, 1]``), minus ``cost_per_m`` times the path length (plus the final turn at its
-   driving equivalent); the best viewpoint and heading are the goal.
+   (in ``[0, 1]``), minus ``cost_per_m`` times the path length (plus, at their driving
+   equivalent, the turn onto the path and the final turn); the best viewpoint and heading are
+   the goal.
 5. **Driving.** The path is stored in the robot's frame at planning time and followed with the
    odometry observation (so it survives the hypotheses being re-ordered): turn toward the farthest path
    point within ``lookahead_m`` in straight line of sight when it is more than ``turn_tol_rad``
@@ -250,6 +251,7 @@ class ViewpointPlanner(Policy):
             this distance.
         turn_tol_rad: heading error above which the robot turns in place.
         clearance_stop_m: a forward step with an obstacle closer than this ahead turns instead.
+        start_turn: also charge the turn from the current heading onto the path.
     """
 
     def __init__(
@@ -266,8 +268,8 @@ class ViewpointPlanner(Policy):
         cluster_bin_m: float = 0.5,
         cost_per_m: float = 0.05,
         min_score: float = 0.05,
-        views: float = 3.0,
-        replan_every: int = 150,
+        views: float = 6.0,
+        replan_every: int = 40,
         min_reachable: int = 60,
         explore_steps: int = 10,
         stay_m: float = 0.5,
@@ -275,6 +277,7 @@ class ViewpointPlanner(Policy):
         lookahead_m: float = 2.0,
         turn_tol_rad: float = 0.3,
         clearance_stop_m: float = 0.3,
+        start_turn: bool = True,
     ):
         super().__init__(seed)
         ints = {
@@ -318,6 +321,7 @@ class ViewpointPlanner(Policy):
         self.replan_every, self.lookahead_m = int(replan_every), float(lookahead_m)
         self.turn_tol_rad, self.clearance_stop_m = float(turn_tol_rad), float(clearance_stop_m)
         self.min_reachable = int(min_reachable)
+        self.start_turn = bool(start_turn)
         self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
         self._map: _PlanMap | None = None  # of the filter map planned on last
         self.explorer = WallFollowExplorer()
@@ -403,7 +407,7 @@ class ViewpointPlanner(Policy):
         cand = np.nonzero(reach & lattice)[0]
         cand = np.union1d(cand, [s])
         score, goal_h = self._score(pm, poses, w, cand)
-        turn_m = self._turn_cost_m(pm, pred, s, cand, goal_h, ref[2])
+        turn_m = self._turn_cost_m(pm, pred, dist, s, cand, goal_h, ref[2])
         util = np.where(score >= self.min_score, score - self.cost_per_m * (dist[cand] + turn_m), -np.inf)
         best = int(np.argmax(util))
         self.last_plan.update(score=float(score[best]), n_candidates=int(cand.size))
@@ -427,14 +431,27 @@ class ViewpointPlanner(Policy):
         )
         return True
 
-    def _turn_cost_m(self, pm, pred, s, cand, goal_h, heading) -> np.ndarray:
-        """Driving-equivalent metres of the final turn to the goal heading: from the last path
-        segment's direction, or from the current ``heading`` at the start node."""
+    def _turn_cost_m(self, pm, pred, dist, s, cand, goal_h, heading) -> np.ndarray:
+        """Driving-equivalent metres of the turns a goal asks for: the final turn to the goal
+        heading (from the last path segment's direction, or from the current ``heading`` at the
+        start node) and, if ``start_turn``, the first turn from ``heading`` toward the path point
+        about a metre out."""
         prev = pred[cand]
         prev = np.where(prev < 0, s, prev)
         d = pm.xy[cand] - pm.xy[prev]
         arrive = np.where(cand == s, heading, np.arctan2(d[:, 1], d[:, 0]))
         turn = np.abs(wrap_angle(goal_h - arrive))
+        if self.start_turn:
+            out = cand.copy()  # walk each path back to its point about 1 m from the start
+            while True:
+                up = pred[out]
+                move = (up >= 0) & (dist[out] > 1.0)
+                if not move.any():
+                    break
+                out = np.where(move, up, out)
+            d0 = pm.xy[out] - pm.xy[s]
+            leave = np.where(out == s, heading, np.arctan2(d0[:, 1], d0[:, 0]))
+            turn = turn + np.abs(wrap_angle(leave - heading))
         return turn / max(self.step_rad, 1e-9) * self.step_m
 
     def _score(self, pm: _PlanMap, poses: np.ndarray, w: np.ndarray, cand: np.ndarray):
