@@ -130,3 +130,29 @@ def test_paths_run_every_way_from_every_room():
     _, comp = csgraph.connected_components(pm.graph, directed=False)
     dist = csgraph.dijkstra(pm.graph, indices=corner, limit=100.0)
     assert np.isfinite(dist).sum() == (comp == comp[corner]).sum() > 1000
+
+
+def test_start_turn_charges_turning_onto_the_path():
+    """A goal behind the robot costs the half turn onto its path (at its driving equivalent); a
+    goal straight ahead costs no such turn."""
+    from scipy.sparse import csgraph
+
+    pol = ViewpointPlanner(seed=0)
+    env = _env(pol)
+    twin = _twins()[0]
+    env.reset(seed=0, options={"pose": twin.tolist()})
+    pm = pol._plan_map()
+    s = pm.nearest_node(twin[:2], 0.3)
+    dist, pred = csgraph.dijkstra(pm.graph, indices=s, limit=8.0, return_predecessors=True)
+    heading = float(twin[2])
+    way = np.array([math.cos(heading), math.sin(heading)])
+    ahead = pm.nearest_node(pm.xy[s] + 0.8 * way, 0.2)
+    behind = pm.nearest_node(pm.xy[s] - 0.8 * way, 0.2)
+    cand = np.array([ahead, behind])
+    goal_h = np.zeros(2)
+    with_turn = pol._turn_cost_m(pm, pred, dist, s, cand, goal_h, heading)
+    pol.start_turn = False
+    without = pol._turn_cost_m(pm, pred, dist, s, cand, goal_h, heading)
+    half_turn_m = math.pi / pol.step_rad * pol.step_m
+    extra = with_turn - without
+    assert extra[0] < 0.25 * half_turn_m and abs(extra[1] - half_turn_m) < 0.25 * half_turn_m, (extra, half_turn_m)
