@@ -60,7 +60,8 @@ class Args:
     agents.learned.save_policy (loaded with agents.load_policy); space-separated"""
     reuse: tuple[str, ...] = ()
     """folders of earlier runs with the same cases: their episodes.json rows are kept for the policies
-    listed here, and only the other policies are run"""
+    listed here, and only the other policies are run (it trusts that the code behind a policy's name
+    did not change since: leave out the folders holding a policy you changed)"""
     layouts_per_kind: int = 10
     """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
     seed_set: Literal["held_out", "tuning"] = "held_out"
