@@ -250,7 +250,8 @@ class ViewpointPlanner(Policy):
         lookahead_m: the robot steers to the farthest path point it sees in a straight line within
             this distance.
         turn_tol_rad: heading error above which the robot turns in place.
-        clearance_stop_m: a forward step with an obstacle closer than this ahead turns instead.
+        clearance_stop_m: a forward step with a lidar return less than this ahead of the robot's
+            centre and within its radius (+ 5 cm) sideways turns instead.
         start_turn: also charge the turn from the current heading onto the path.
     """
 
@@ -324,6 +325,7 @@ class ViewpointPlanner(Policy):
         self.start_turn = bool(start_turn)
         self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
         self._map: _PlanMap | None = None  # of the filter map planned on last
+        self._beam_angles, self._radius_m = np.zeros(0), 0.2  # the env's lidar and robot, at `wrap`
         self.explorer = WallFollowExplorer()
         self.last_plan: dict = {}
         """What the last plan found (``score``, ``goal`` in the reference's map frame, ``path_m``,
@@ -337,6 +339,8 @@ class ViewpointPlanner(Policy):
             if not hasattr(base, attr):
                 raise TypeError(f"ViewpointPlanner needs a SemReloc env; {type(base).__name__} has no {attr!r}")
         self.explorer = WallFollowExplorer(beam_angles=np.asarray(base.lidar.angles))
+        self._beam_angles = np.asarray(base.lidar.angles, dtype=np.float64)
+        self._radius_m = float(base.robot_params.radius_m)
         return env
 
     def reset(self) -> None:
@@ -406,10 +410,14 @@ class ViewpointPlanner(Policy):
         lattice = (rc[:, 0] % self.candidate_stride == 0) & (rc[:, 1] % self.candidate_stride == 0)
         cand = np.nonzero(reach & lattice)[0]
         cand = np.union1d(cand, [s])
-        score, goal_h = self._score(pm, poses, w, cand)
+        stay = dist[cand] < self.env.unwrapped.mcl_config.update_min_d_m  # turning on the spot only
+        gain, heads = self._gains(pm, poses, w, cand, stay=stay)  # (P, H), (H,)
+        goal_h = np.broadcast_to(heads, gain.shape)
         turn_m = self._turn_cost_m(pm, pred, dist, s, cand, goal_h, ref[2])
-        util = np.where(score >= self.min_score, score - self.cost_per_m * (dist[cand] + turn_m), -np.inf)
-        best = int(np.argmax(util))
+        util = np.where(gain >= self.min_score, gain - self.cost_per_m * (dist[cand, None] + turn_m), -np.inf)
+        best, bh = np.unravel_index(int(np.argmax(util)), util.shape)
+        score, goal_h = gain[:, bh], goal_h[:, bh]
+        util = util[:, bh]
         self.last_plan.update(score=float(score[best]), n_candidates=int(cand.size))
         if not np.isfinite(util[best]):
             return False
@@ -440,7 +448,9 @@ class ViewpointPlanner(Policy):
         prev = np.where(prev < 0, s, prev)
         d = pm.xy[cand] - pm.xy[prev]
         arrive = np.where(cand == s, heading, np.arctan2(d[:, 1], d[:, 0]))
-        turn = np.abs(wrap_angle(goal_h - arrive))
+        goal_h = np.asarray(goal_h)
+        extra = (1,) * (goal_h.ndim - 1)  # goal headings (P,) or (P, H)
+        turn = np.abs(wrap_angle(goal_h - arrive.reshape(arrive.shape + extra)))
         if self.start_turn:
             out = cand.copy()  # walk each path back to its point about 1 m from the start
             while True:
@@ -451,12 +461,21 @@ class ViewpointPlanner(Policy):
                 out = np.where(move, up, out)
             d0 = pm.xy[out] - pm.xy[s]
             leave = np.where(out == s, heading, np.arctan2(d0[:, 1], d0[:, 0]))
-            turn = turn + np.abs(wrap_angle(leave - heading))
+            turn = turn + np.abs(wrap_angle(leave - heading)).reshape(leave.shape + extra)
         return turn / max(self.step_rad, 1e-9) * self.step_m
 
     def _score(self, pm: _PlanMap, poses: np.ndarray, w: np.ndarray, cand: np.ndarray):
         """Expected share of the hypothesis entropy removed at every candidate ``(P,)``, at its best
         heading, and that heading (absolute, the reference's map frame) ``(P,)``."""
+        gain, heads = self._gains(pm, poses, w, cand)
+        best = np.argmax(gain, axis=1)
+        return gain[np.arange(cand.size), best], heads[best]
+
+    def _gains(self, pm: _PlanMap, poses: np.ndarray, w: np.ndarray, cand: np.ndarray, stay=None):
+        """Expected share of the hypothesis entropy removed at every candidate and heading ``(P, H)``,
+        and the headings (absolute, the reference's map frame) ``(H,)``. Where ``stay`` ``(P,)`` is
+        set the robot would only turn on the spot: the lidar counts only if the filter uses it in
+        updates triggered by rotation alone (``lidar_on_rotation``)."""
         base = self.env.unwrapped
         grid, model, cfg = base.grid, base.mcl.measurement_model, base.mcl_config
         ref = poses[0]
@@ -499,6 +518,8 @@ class ViewpointPlanner(Policy):
         lf, sf = cfg.lidar_field, cfg.semantic_field
         n_lidar = np.minimum(cnt_l / b * lidar.n_beams / lf.beam_stride, lf.max_beams or np.inf)
         n_cam = np.minimum(cnt_s / n_fov * cam.n_beams / sf.beam_stride, sf.max_beams or np.inf)
+        if stay is not None and not cfg.lidar_on_rotation:
+            n_lidar = np.where(np.asarray(stay)[:, None, None], 0.0, n_lidar)
         ll = n_lidar[..., None] * out_l + (n_cam[..., None] * out_s if cfg.use_semantic else 0.0)
         # log posterior of hypothesis l when k is the truth, after `views` updates at the viewpoint
         logit = cfg.likelihood_scale * self.views * (ll - np.diagonal(ll, axis1=2, axis2=3)[..., :, None])
@@ -514,8 +535,7 @@ class ViewpointPlanner(Policy):
         # that row tells nothing (the prior), rather than the certainty its ruled-out rivals suggest
         ent = np.where(invalid.T[:, None, :], prior, ent)
         gain = (prior - ent @ w) / max(prior, 1e-12)  # (P, H)
-        best = np.argmax(gain, axis=1)
-        return gain[np.arange(p_n), best], wrap_angle(ref[2] + headings[best])
+        return gain, wrap_angle(ref[2] + headings)
 
     # ------------------------------------------------------------------ acting
     def _integrate(self, odom: np.ndarray) -> None:
@@ -594,11 +614,20 @@ class ViewpointPlanner(Policy):
         if a is None:
             a = self.explorer(obs)
         ranges = np.asarray(obs["lidar"], dtype=np.float64)
-        if a == FORWARD and _sector_min(ranges, 0.0, 0.5) < self.clearance_stop_m:
+        if a == FORWARD and self._blocked(ranges):
             left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
             a = TURN_LEFT if left >= right else TURN_RIGHT
             self._since_plan = self.replan_every  # plan again next step
         return int(a)
+
+    def _blocked(self, ranges: np.ndarray) -> bool:
+        """Whether a lidar return ahead lies within ``clearance_stop_m`` forward of the robot's
+        centre and within its radius (+ 5 cm) sideways: the disc would touch it driving on."""
+        b = self._beam_angles
+        if b.size != ranges.size:  # not wrapped on this env's lidar: beams all round from -pi
+            b = -np.pi + 2 * np.pi * np.arange(ranges.size) / ranges.size
+        x, y = ranges * np.cos(b), np.abs(ranges * np.sin(b))
+        return bool(np.any((x > 0) & (x < self.clearance_stop_m) & (y < self._radius_m + 0.05)))
 
     def act(self, obs: dict):
         self.observe(obs)

@@ -156,3 +156,56 @@ def test_start_turn_charges_turning_onto_the_path():
     half_turn_m = math.pi / pol.step_rad * pol.step_m
     extra = with_turn - without
     assert extra[0] < 0.25 * half_turn_m and abs(extra[1] - half_turn_m) < 0.25 * half_turn_m, (extra, half_turn_m)
+
+
+def test_forward_is_blocked_by_what_the_disc_would_touch():
+    """The safety check covers the robot's width: a return beside the front (bearing -1.26 rad,
+    0.22 m) blocks a forward step; one 0.5 m to the side or 0.5 m ahead does not."""
+    pol = ViewpointPlanner(seed=0)
+    env = _env(pol)
+    env.reset(seed=0)
+    angles = np.asarray(env.unwrapped.lidar.angles)
+
+    def scan(bearing, r):
+        ranges = np.full(angles.size, 8.0)
+        ranges[int(np.argmin(np.abs(wrap(angles - bearing))))] = r
+        return ranges
+
+    def wrap(a):
+        return (a + np.pi) % (2 * np.pi) - np.pi
+
+    assert pol._blocked(scan(-1.26, 0.22))
+    assert pol._blocked(scan(0.0, 0.25))
+    assert not pol._blocked(scan(1.4, 0.5))
+    assert not pol._blocked(scan(0.0, 0.5))
+    assert not pol._blocked(scan(math.pi, 0.1))
+
+
+def test_turning_on_the_spot_earns_no_lidar_gain_without_lidar_on_rotation():
+    """With the camera off and the relocalizer leaving the lidar out of rotation-only updates
+    (SemReloc-v2's default), turning where the robot stands cannot tell hypotheses apart: the
+    planner predicts no gain for it, though driving to the same places would."""
+    pol = ViewpointPlanner(seed=0)
+    env = _env(pol, relocalizer={"n_particles": 300, "use_semantic": False})
+    assert not env.unwrapped.mcl_config.lidar_on_rotation
+    twins = _twins()
+    env.reset(seed=0, options={"pose": twins[0].tolist()})
+    pm = pol._plan_map()
+    cand = np.nonzero(pm.rc[:, 0] % 4 == 0)[0][::7]
+    w = np.array([0.5, 0.5])
+    moving, _ = pol._gains(pm, twins, w, cand, stay=np.zeros(cand.size, bool))
+    turning, _ = pol._gains(pm, twins, w, cand, stay=np.ones(cand.size, bool))
+    # where both twins' images of a place are free: nothing rules either out, so no gain
+    ref = twins[0]
+    c0, s0 = math.cos(ref[2]), math.sin(ref[2])
+    d = pm.xy[cand] - ref[:2]
+    u = np.stack([c0 * d[:, 0] + s0 * d[:, 1], -s0 * d[:, 0] + c0 * d[:, 1]], axis=1)
+    free = np.ones(cand.size, bool)
+    for x, y, th in twins:
+        img = np.stack(
+            [x + math.cos(th) * u[:, 0] - math.sin(th) * u[:, 1], y + math.sin(th) * u[:, 0] + math.cos(th) * u[:, 1]],
+            1,
+        )
+        free &= env.unwrapped.grid.is_free(img)
+    assert free.sum() > 20 and moving[free].max() > 0.5
+    assert np.all(turning[free] == 0.0)
