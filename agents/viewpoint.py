@@ -26,17 +26,19 @@ alone (never the true pose):
    the number of beams the filter uses). Raised to ``likelihood_scale * views`` (``views``
    filter updates at the viewpoint) and times the prior weights, that is the posterior over the
    hypotheses if ``k`` is the truth; a hypothesis whose predicted pose is not free is ruled out
-   by the others. The score is the expected entropy removed, as a share of the prior entropy
-   (in ``[0, 1]``), minus ``cost_per_m`` times the path length (plus, at their driving
-   equivalent, the turn onto the path and the final turn); the best viewpoint and heading are
+   by the others. A viewpoint the robot reaches by turning on the spot is scored without the
+   lidar when the relocalizer leaves it out of rotation-only updates (``lidar_on_rotation``).
+   The score is the expected entropy removed, as a share of the prior entropy (in ``[0, 1]``),
+   minus ``cost_per_m`` times the path length (plus, at their driving
+   equivalent, the turn onto the path and the final turn); the best (viewpoint, heading) pair is
    the goal.
 5. **Driving.** The path is stored in the robot's frame at planning time and followed with the
    odometry observation (so it survives the hypotheses being re-ordered): turn toward the farthest path
    point within ``lookahead_m`` in straight line of sight when it is more than ``turn_tol_rad``
    off, else drive;
    at the goal, turn to its heading. A plan is made again at the goal, after ``replan_every``
-   steps, and when the lidar sees an obstacle closer than ``clearance_stop_m`` ahead (then the
-   step turns toward the freer side instead).
+   steps, and when the lidar sees an obstacle in the robot's way closer than ``clearance_stop_m``
+   (then the step turns toward the freer side instead).
 
 When one hypothesis is left (nothing to tell apart), no viewpoint resolves anything within the
 horizon, or a goal where the robot already stands did not settle the belief twice in a row, it
