@@ -58,3 +58,24 @@ def test_evaluation_runs_writes_its_outputs_and_does_not_depend_on_workers(tmp_p
     assert s["success"]["count"] + s["wrong"]["count"] + s["unconverged"]["count"] == 3
     assert (tmp_path / "a" / "success.png").stat().st_size > 0
     assert "| spin |" in (tmp_path / "a" / "table.md").read_text()
+
+
+def test_reuse_keeps_rows_only_of_the_same_policy_code(tmp_path, capsys, monkeypatch):
+    common = ["--policies", "spin", "--layouts-per-kind", "0", "--starts", "1", "--max-steps", "3"]
+    common += ["--particles", "100", "--map-source", "perfect", "--no-progress", "--workers", "1"]
+    assert ev.main([*common, "--out", str(tmp_path / "a")]) == 0
+    capsys.readouterr()
+    assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")]) == 0
+    assert "reused 3 episodes" in capsys.readouterr().out
+    monkeypatch.setattr(ev, "policy_code", lambda spec: "changed")
+    assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")]) == 0
+    assert "reused 0 episodes" in capsys.readouterr().out
+
+
+def test_policy_code_follows_the_modules_a_policy_draws_on():
+    vp = ev.policy_modules("viewpoint")
+    assert {"agents.viewpoint", "agents.info_gain", "agents.baselines", "agents.policies"} <= set(vp)
+    assert "agents.viewpoint" not in ev.policy_modules("spin")
+    assert "agents.viewpoint" in ev.policy_modules("ppo=agents/data/active_ppo.zip")
+    assert ev.policy_code("viewpoint") != ev.policy_code("spin")
+    assert ev.policy_code("ppo=agents/data/active_ppo.zip") != ev.policy_code("viewpoint")

@@ -34,10 +34,13 @@ The same arguments give the same numbers whatever the runner (``--executor``, ``
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import json
 import math
 import sys
 import time
+import types
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -60,8 +63,8 @@ class Args:
     agents.learned.save_policy (loaded with agents.load_policy); space-separated"""
     reuse: tuple[str, ...] = ()
     """folders of earlier runs with the same cases: their episodes.json rows are kept for the policies
-    listed here, and only the other policies are run (it trusts that the code behind a policy's name
-    did not change since: leave out the folders holding a policy you changed)"""
+    listed here, and only the other policies are run (a row is kept only if it was made with the same
+    settings and the same code, `policy_code`)"""
     layouts_per_kind: int = 10
     """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
     seed_set: Literal["held_out", "tuning"] = "held_out"
@@ -262,9 +265,53 @@ def settings(args: Args, spec: str) -> dict:
         "max_steps": args.max_steps,
         "map_source": args.map_source,
         "spec": spec,
+        "code": policy_code(spec),
         "sample_learned": args.sample_learned and "=" in spec,
         **({"seed_set": args.seed_set} if args.seed_set != "held_out" else {}),
     }
+
+
+def policy_modules(spec: str) -> list[str]:
+    """The `agents` modules the policy of ``spec`` draws on: its class's module and, transitively,
+    those its module-level imports come from (for a learned policy, from `agents.learned` and the
+    motion options, which it imports when wrapping)."""
+    import importlib
+
+    name, _, path = spec.partition("=")
+    if path:
+        todo = ["agents.learned", "agents.options", "agents.viewpoint"]
+    else:
+        from agents.policies import POLICIES
+
+        todo = [type(POLICIES[name](0)).__module__]
+    seen: set[str] = set()
+    while todo:
+        mod = todo.pop()
+        if mod in seen or not mod.startswith("agents"):
+            continue
+        seen.add(mod)
+        for v in vars(importlib.import_module(mod)).values():
+            m = v.__name__ if isinstance(v, types.ModuleType) else getattr(v, "__module__", None)
+            if isinstance(m, str) and m.startswith("agents") and m not in seen:
+                todo.append(m)
+    return sorted(seen)
+
+
+@functools.cache
+def policy_code(spec: str) -> str:
+    """A fingerprint (16 hex digits) of the code behind ``spec``: the source files of
+    `policy_modules` and, for ``NAME=PATH``, the policy file's bytes. A row kept by ``--reuse`` must
+    carry the same fingerprint, so changing a policy's code reruns it (a change to the env is a
+    new env version, see ``ENV_ID``)."""
+    import importlib
+
+    h = hashlib.sha256()
+    for mod in policy_modules(spec):
+        h.update(mod.encode() + b"\0" + Path(importlib.import_module(mod).__file__).read_bytes())
+    path = spec.partition("=")[2]
+    if path:
+        h.update(Path(path).read_bytes())
+    return h.hexdigest()[:16]
 
 
 def make_policy(spec: str, seed: int, sample: bool = False):
@@ -483,7 +530,7 @@ def main(argv: list[str] | None = None) -> int:
                 seen.add((r["case"], r["policy"]))
                 rows.append(r)
         if unverified:
-            print(f"warning: {unverified} reused rows predate the settings check (particles, steps, map, policy file)")
+            print(f"warning: {unverified} reused rows predate the settings check (particles, steps, map, policy code)")
         done = {(r["case"], r["policy"]) for r in rows}
         print(f"reused {len(rows)} episodes from {', '.join(args.reuse)}", flush=True)
     else:
