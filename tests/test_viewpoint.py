@@ -146,9 +146,10 @@ def test_start_turn_charges_turning_onto_the_path():
     dist, pred = csgraph.dijkstra(pm.graph, indices=s, limit=8.0, return_predecessors=True)
     heading = float(twin[2])
     way = np.array([math.cos(heading), math.sin(heading)])
-    ahead = pm.nearest_node(pm.xy[s] + 0.8 * way, 0.2)
-    behind = pm.nearest_node(pm.xy[s] - 0.8 * way, 0.2)
+    ahead = pm.nearest_node(pm.xy[s] + 1.5 * way, 0.3)  # over 1 m of path: the walk back runs
+    behind = pm.nearest_node(pm.xy[s] - 0.8 * way, 0.3)
     cand = np.array([ahead, behind])
+    assert (cand >= 0).all() and np.isfinite(dist[cand]).all() and dist[ahead] > 1.0
     goal_h = np.zeros(2)
     with_turn = pol._turn_cost_m(pm, pred, dist, s, cand, goal_h, heading)
     pol.start_turn = False

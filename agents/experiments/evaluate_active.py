@@ -271,15 +271,19 @@ def settings(args: Args, spec: str) -> dict:
     }
 
 
+_PROJECT = ("agents", "filters", "semreloc_env")
+
+
 def policy_modules(spec: str) -> list[str]:
-    """The `agents` modules the policy of ``spec`` draws on: its class's module and, transitively,
-    those its module-level imports come from (for a learned policy, from `agents.learned` and the
-    motion options, which it imports when wrapping)."""
+    """The project modules (`agents`, `filters`, `semreloc_env`) the policy of ``spec`` draws on: its
+    class's module and, transitively, those its module-level imports come from (for a learned
+    policy: `agents.learned`, the motion options and the feature extractor, which it imports when
+    loading and wrapping)."""
     import importlib
 
     name, _, path = spec.partition("=")
     if path:
-        todo = ["agents.learned", "agents.options", "agents.viewpoint"]
+        todo = ["agents.learned", "agents.options", "agents.viewpoint", "agents.active_features"]
     else:
         from agents.policies import POLICIES
 
@@ -287,12 +291,12 @@ def policy_modules(spec: str) -> list[str]:
     seen: set[str] = set()
     while todo:
         mod = todo.pop()
-        if mod in seen or not mod.startswith("agents"):
+        if mod in seen or not mod.startswith(_PROJECT):
             continue
         seen.add(mod)
         for v in vars(importlib.import_module(mod)).values():
             m = v.__name__ if isinstance(v, types.ModuleType) else getattr(v, "__module__", None)
-            if isinstance(m, str) and m.startswith("agents") and m not in seen:
+            if isinstance(m, str) and m.startswith(_PROJECT) and m not in seen:
                 todo.append(m)
     return sorted(seen)
 
@@ -301,8 +305,8 @@ def policy_modules(spec: str) -> list[str]:
 def policy_code(spec: str) -> str:
     """A fingerprint (16 hex digits) of the code behind ``spec``: the source files of
     `policy_modules` and, for ``NAME=PATH``, the policy file's bytes. A row kept by ``--reuse`` must
-    carry the same fingerprint, so changing a policy's code reruns it (a change to the env is a
-    new env version, see ``ENV_ID``)."""
+    carry the same fingerprint, so changing a policy's code (or code it calls) reruns it. Read once
+    per process."""
     import importlib
 
     h = hashlib.sha256()
