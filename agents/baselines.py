@@ -11,6 +11,11 @@ import numpy as np
 FORWARD, TURN_LEFT, TURN_RIGHT, STOP = 0, 1, 2, 3
 
 
+def all_round_angles(n: int) -> np.ndarray:
+    """Robot-frame angles of ``n`` lidar beams spread over 360 deg from -pi (the env's default lidar)."""
+    return -np.pi + 2 * np.pi * np.arange(n) / n
+
+
 class WallFollowExplorer:
     """Drive forward; when the front sector is blocked, turn toward the freer side.
 
@@ -36,7 +41,7 @@ class WallFollowExplorer:
         ranges = np.asarray(obs["lidar"], dtype=np.float64)
         angles = self.beam_angles
         if angles is None:
-            angles = -np.pi + 2 * np.pi * np.arange(ranges.size) / ranges.size
+            angles = all_round_angles(ranges.size)
         front = np.abs(angles) <= self.front
         if ranges[front].min() >= self.clearance:
             self._turning = 0

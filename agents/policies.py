@@ -28,7 +28,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .baselines import FORWARD, STOP, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
+from .baselines import FORWARD, STOP, TURN_LEFT, TURN_RIGHT, WallFollowExplorer, all_round_angles
 
 BACKWARD = -1
 """A pseudo-action of the policies here: reverse at full speed (continuous actions only)."""
@@ -90,7 +90,7 @@ class SpinPolicy(Policy):
 
 def _sector_min(ranges: np.ndarray, centre_rad: float, half_rad: float) -> float:
     """Smallest lidar range in a sector (beams spread over 360 deg from -pi, the env's default)."""
-    angles = -np.pi + 2 * np.pi * np.arange(ranges.size) / ranges.size
+    angles = all_round_angles(ranges.size)
     d = np.abs((angles - centre_rad + np.pi) % (2 * np.pi) - np.pi)
     return float(np.min(ranges[d <= half_rad]))
 

@@ -57,7 +57,7 @@ from scipy.sparse import csgraph
 from filters.pose import wrap_angle
 from filters.simulators.grid_raycast import _cast
 
-from .baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
+from .baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer, all_round_angles
 from .info_gain import belief_sample, hypothesis_bins
 from .policies import Policy, _sector_min
 
@@ -327,7 +327,7 @@ class ViewpointPlanner(Policy):
         self.start_turn = bool(start_turn)
         self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
         self._map: _PlanMap | None = None  # of the filter map planned on last
-        self._beam_angles, self._radius_m = np.zeros(0), 0.2  # the env's lidar and robot, at `wrap`
+        self._radius_m = 0.2  # the env's robot, at `wrap`
         self.explorer = WallFollowExplorer()
         self.last_plan: dict = {}
         """What the last plan found (``score``, ``goal`` in the reference's map frame, ``path_m``,
@@ -341,7 +341,6 @@ class ViewpointPlanner(Policy):
             if not hasattr(base, attr):
                 raise TypeError(f"ViewpointPlanner needs a SemReloc env; {type(base).__name__} has no {attr!r}")
         self.explorer = WallFollowExplorer(beam_angles=np.asarray(base.lidar.angles))
-        self._beam_angles = np.asarray(base.lidar.angles, dtype=np.float64)
         self._radius_m = float(base.robot_params.radius_m)
         return env
 
@@ -414,15 +413,13 @@ class ViewpointPlanner(Policy):
         cand = np.union1d(cand, [s])
         stay = dist[cand] < self.env.unwrapped.mcl_config.update_min_d_m  # turning on the spot only
         gain, heads = self._gains(pm, poses, w, cand, stay=stay)  # (P, H), (H,)
-        goal_h = np.broadcast_to(heads, gain.shape)
-        turn_m = self._turn_cost_m(pm, pred, dist, s, cand, goal_h, ref[2])
+        turn_m = self._turn_cost_m(pm, pred, dist, s, cand, heads[None, :], ref[2])
         util = np.where(gain >= self.min_score, gain - self.cost_per_m * (dist[cand, None] + turn_m), -np.inf)
         best, bh = np.unravel_index(int(np.argmax(util)), util.shape)
-        score, goal_h = gain[:, bh], goal_h[:, bh]
-        util = util[:, bh]
-        self.last_plan.update(score=float(score[best]), n_candidates=int(cand.size))
-        if not np.isfinite(util[best]):
+        self.last_plan.update(score=float(gain[best, bh]), n_candidates=int(cand.size))
+        if not np.isfinite(util[best, bh]):
             return False
+        goal_h = float(heads[bh])
         goal = int(cand[best])
         path = [goal]
         while path[-1] != s:
@@ -431,12 +428,12 @@ class ViewpointPlanner(Policy):
         c, sn = math.cos(ref[2]), math.sin(ref[2])
         d = pts - ref[:2]
         self._path = np.stack([c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1]], axis=1)[1:]
-        self._goal_heading = float(wrap_angle(goal_h[best] - ref[2]))
+        self._goal_heading = float(wrap_angle(goal_h - ref[2]))
         self._pose = np.zeros(3)
         self._ref = ref.copy()
         self.last_plan.update(
             fallback=False,
-            goal=[float(pm.xy[goal, 0]), float(pm.xy[goal, 1]), float(goal_h[best])],
+            goal=[float(pm.xy[goal, 0]), float(pm.xy[goal, 1]), goal_h],
             path_m=float(dist[goal]),
         )
         return True
@@ -451,7 +448,7 @@ class ViewpointPlanner(Policy):
         d = pm.xy[cand] - pm.xy[prev]
         arrive = np.where(cand == s, heading, np.arctan2(d[:, 1], d[:, 0]))
         goal_h = np.asarray(goal_h)
-        extra = (1,) * (goal_h.ndim - 1)  # goal headings (P,) or (P, H)
+        extra = (1,) * (goal_h.ndim - 1)  # goal headings (P,), or (P, H) / (1, H) per heading
         turn = np.abs(wrap_angle(goal_h - arrive.reshape(arrive.shape + extra)))
         if self.start_turn:
             out = cand.copy()  # walk each path back to its point about 1 m from the start
@@ -465,13 +462,6 @@ class ViewpointPlanner(Policy):
             leave = np.where(out == s, heading, np.arctan2(d0[:, 1], d0[:, 0]))
             turn = turn + np.abs(wrap_angle(leave - heading)).reshape(leave.shape + extra)
         return turn / max(self.step_rad, 1e-9) * self.step_m
-
-    def _score(self, pm: _PlanMap, poses: np.ndarray, w: np.ndarray, cand: np.ndarray):
-        """Expected share of the hypothesis entropy removed at every candidate ``(P,)``, at its best
-        heading, and that heading (absolute, the reference's map frame) ``(P,)``."""
-        gain, heads = self._gains(pm, poses, w, cand)
-        best = np.argmax(gain, axis=1)
-        return gain[np.arange(cand.size), best], heads[best]
 
     def _gains(self, pm: _PlanMap, poses: np.ndarray, w: np.ndarray, cand: np.ndarray, stay=None):
         """Expected share of the hypothesis entropy removed at every candidate and heading ``(P, H)``,
@@ -625,9 +615,9 @@ class ViewpointPlanner(Policy):
     def _blocked(self, ranges: np.ndarray) -> bool:
         """Whether a lidar return ahead lies within ``clearance_stop_m`` forward of the robot's
         centre and within its radius (+ 5 cm) sideways: the disc would touch it driving on."""
-        b = self._beam_angles
-        if b.size != ranges.size:  # not wrapped on this env's lidar: beams all round from -pi
-            b = -np.pi + 2 * np.pi * np.arange(ranges.size) / ranges.size
+        b = self.explorer.beam_angles  # the env's lidar, set at `wrap`
+        if b is None:
+            b = all_round_angles(ranges.size)
         x, y = ranges * np.cos(b), np.abs(ranges * np.sin(b))
         return bool(np.any((x > 0) & (x < self.clearance_stop_m) & (y < self._radius_m + 0.05)))
 

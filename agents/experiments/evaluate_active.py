@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib
 import json
 import math
 import sys
@@ -279,8 +280,6 @@ def policy_modules(spec: str) -> list[str]:
     class's module and, transitively, those its module-level imports come from (for a learned
     policy: `agents.learned`, the motion options and the feature extractor, which it imports when
     loading and wrapping)."""
-    import importlib
-
     name, _, path = spec.partition("=")
     if path:
         todo = ["agents.learned", "agents.options", "agents.viewpoint", "agents.active_features"]
@@ -307,8 +306,6 @@ def policy_code(spec: str) -> str:
     `policy_modules` and, for ``NAME=PATH``, the policy file's bytes. A row kept by ``--reuse`` must
     carry the same fingerprint, so changing a policy's code (or code it calls) reruns it. Read once
     per process."""
-    import importlib
-
     h = hashlib.sha256()
     for mod in policy_modules(spec):
         h.update(mod.encode() + b"\0" + Path(importlib.import_module(mod).__file__).read_bytes())
