@@ -240,7 +240,8 @@ class World:
     """A layout in pymunk plus the robot. Poses are ``(x, y, theta)``, metres and radians.
 
     Use `build_world`; then `set_pose` and `drive`. The static geometry
-    (segments, convex pieces) comes from `static_geometry`, the pymunk space is new.
+    (segments, convex pieces) comes from `static_geometry`, cached per layout; each world's
+    pymunk `space` is its own, built when first asked for.
     """
 
     def __init__(self, layout: Layout, robot: RobotParams, physics: PhysicsParams, extra_obstacles=()):
@@ -255,13 +256,6 @@ class World:
             )
         geo = static_geometry(layout, extra_obstacles)
         self.geometry = geo
-        self.space = pymunk.Space()
-        self.space.collision_slop = 0.002
-        self.space.iterations = 20
-        static = self.space.static_body
-        shapes = [pymunk.Segment(static, tuple(a), tuple(b), 0.0) for a, b in geo.walls]
-        shapes += [pymunk.Poly(static, part) for parts in geo.convex_parts for part in parts]
-        self.space.add(*shapes)
         self._obstacles = list(geo.obstacles)
         self.scene = geo.scene
         # pushed-out robots stop this far beyond their radius: a few ulps of the coordinates, at least 1 nm
@@ -270,7 +264,29 @@ class World:
         self.shape = pymunk.Circle(self.body, robot.radius_m)
         self.shape.collision_type = _ROBOT_TYPE
         self.shape.friction = 0.0
-        self.space.add(self.body, self.shape)
+        self._space: pymunk.Space | None = None
+
+    @property
+    def space(self) -> pymunk.Space:
+        """The pymunk space: the static geometry as segments and convex polygons, and the robot.
+
+        Built on first use: `drive` and the sensors work on the cached `geometry` (the same shapes),
+        so an episode that never queries pymunk does not pay ~1-3 ms per reset to build it.
+        """
+        if self._space is None:
+            space = pymunk.Space()
+            space.collision_slop = 0.002
+            space.iterations = 20
+            static = space.static_body
+            shapes = [pymunk.Segment(static, tuple(a), tuple(b), 0.0) for a, b in self.geometry.walls]
+            shapes += [pymunk.Poly(static, part) for parts in self.geometry.convex_parts for part in parts]
+            space.add(*shapes, self.body, self.shape)
+            self._space = space
+        return self._space
+
+    def _reindex(self) -> None:
+        if self._space is not None:
+            self._space.reindex_shapes_for_body(self.body)
 
     # ---------------------------------------------------------------- poses
     @property
@@ -328,7 +344,7 @@ class World:
         self.body.angle = float(wrap_angle(p[2]))
         self.body.velocity = (0.0, 0.0)
         self.body.angular_velocity = 0.0
-        self.space.reindex_shapes_for_body(self.body)
+        self._reindex()
 
     def sample_free_pose(self, rng: np.random.Generator, margin_m: float = 0.1, max_tries: int = 10000) -> np.ndarray:
         """A uniformly random free pose (rejection sampling inside the outer wall's bounds)."""
@@ -373,7 +389,7 @@ class World:
         self.body.angle = th
         self.body.velocity = (0.0, 0.0)
         self.body.angular_velocity = 0.0
-        self.space.reindex_shapes_for_body(self.body)
+        self._reindex()
         return collided
 
     def _resolve(self, prev: np.ndarray, p: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, bool]:

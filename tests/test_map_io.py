@@ -281,3 +281,24 @@ def test_explicit_semantic_yaml_must_exist(tmp_path):
     path = _saved_with_semantic(tmp_path)
     with pytest.raises(FileNotFoundError):
         load_map(path, semantic_yaml=tmp_path / "other.semantic.yaml")
+
+
+def test_derived_masks_are_computed_once_read_only_and_match_the_thresholds():
+    from filters.mapping.grid import DEFAULT_CLASS_NAMES
+
+    rng = np.random.default_rng(0)
+    occ = rng.random((30, 40)).astype(np.float32)
+    sem = (rng.random((len(DEFAULT_CLASS_NAMES), 30, 40)) < 0.1).astype(np.float32)
+    grid = GridMap(occ, 0.05, (1.0, -2.0), sem, DEFAULT_CLASS_NAMES)
+    assert grid.free_mask() is grid.free_mask() and not grid.free_mask().flags.writeable
+    np.testing.assert_array_equal(grid.free_mask(), occ < grid.free_thresh)
+    np.testing.assert_array_equal(grid.occupied_mask(), occ > grid.occupied_thresh)
+    np.testing.assert_array_equal(grid.free_cells(), np.flatnonzero(occ < grid.free_thresh))
+    for k in range(len(DEFAULT_CLASS_NAMES)):
+        np.testing.assert_array_equal(grid.class_mask(k), sem[k] > 0.5)
+        np.testing.assert_array_equal(grid.class_cells(k), np.flatnonzero(sem[k] > 0.5))
+    assert grid.class_mask(-1) is grid.class_mask(len(DEFAULT_CLASS_NAMES) - 1)
+    with pytest.raises(IndexError, match="class index"):
+        grid.class_mask(len(DEFAULT_CLASS_NAMES))
+    with pytest.raises(ValueError):
+        grid.free_mask()[0, 0] = True

@@ -145,6 +145,26 @@ def test_cast_agrees_with_pymunk_segment_queries_on_the_collision_shapes():
             assert (8.0 if q is None else q.alpha * 8.0) == pytest.approx(r, abs=1e-9)
 
 
+def test_lazily_built_space_holds_the_robot_where_it_is():
+    """The pymunk space, built after the robot moved or built before it moves, has the robot's
+    shape at the world's pose."""
+    import pymunk
+
+    lay = get_layout("lab")
+    for build_first in (False, True):
+        world = build_world(lay)
+        if build_first:
+            world.space  # noqa: B018
+        world.set_pose([3.0, 2.5, 0.0])
+        for _ in range(5):
+            world.drive(0.5, 0.2)
+        x, y, _ = world.pose
+        hit = world.space.point_query_nearest((x, y), 0.0, pymunk.ShapeFilter())
+        assert hit is not None and hit.shape is world.shape
+        bb = world.shape.bb
+        assert (bb.left + bb.right) / 2 == pytest.approx(x) and (bb.bottom + bb.top) / 2 == pytest.approx(y)
+
+
 @pytest.mark.parametrize("layout", ["lab", "procedural_sym"])
 def test_compiled_free_space_test_equals_the_numpy_reference(layout):
     from semreloc_env.scenarios import changed_obstacles
@@ -164,6 +184,7 @@ def test_worlds_share_cached_static_geometry_but_not_their_pymunk_space():
     lay = get_layout("lab")
     a, b = build_world(lay), build_world(lay)
     assert a.geometry is b.geometry and a.scene is b.scene
+    assert a._space is None  # built on first use
     assert a.space is not b.space
     before = b.pose
     a.set_pose([2.0, 2.0, 0.5])

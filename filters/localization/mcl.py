@@ -82,14 +82,15 @@ belief concentrates or spreads.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields
 
-import numba
 import numpy as np
 from scipy.special import logsumexp
 
 from filters import _blas
+from filters.localization import kld_kernels
 from filters.localization.belief import Belief, BeliefConfig, cluster_labels, linear_bin_keys, summarize
 from filters.localization.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
 from filters.localization.proposals import ScanProposal
@@ -101,17 +102,24 @@ from filters.smc.logsumexp import logsumexp as fast_logsumexp
 from filters.smc.resampling import RESAMPLERS, get_resampler, inverse_cdf
 
 _MAX_DENSE_KEYS = 8_000_000
-"""Largest KLD bin key for which the fast path marks first occurrences in a dense table."""
+"""Most KLD bins the fast path's dense table of occupied bins may span (else the reference runs)."""
 
 
-@numba.njit(cache=True, nogil=True)
-def _first_occurrence(keys, seen, out):  # pragma: no cover - compiled
-    """``out[i]``: ``keys[i]`` occurs at no index below ``i`` (``np.unique(..., return_index=True)``'s
-    first indices, as a mask); ``seen`` is a zeroed table of ``max(keys) + 1`` flags."""
-    for i in range(keys.shape[0]):
-        k = keys[i]
-        out[i] = not seen[k]
-        seen[k] = True
+def _fox_bound(k, epsilon: float, z: float) -> np.ndarray:
+    """Fox's KLD-sampling bound ``n_chi(k)`` (float array) for ``k`` occupied bins."""
+    k = np.asarray(k, dtype=np.float64)
+    km1 = np.maximum(k - 1.0, 1.0)
+    a = 2.0 / (9.0 * km1)
+    n = km1 / (2.0 * epsilon) * (1.0 - a + np.sqrt(a) * z) ** 3
+    return np.where(k > 1, n, 1.0)
+
+
+@functools.lru_cache(maxsize=8)
+def _fox_bound_table(epsilon: float, z: float, size: int) -> np.ndarray:
+    """``_fox_bound(k)`` for ``k = 0 .. size - 1``, read-only."""
+    table = _fox_bound(np.arange(size), epsilon, z)
+    table.setflags(write=False)
+    return table
 
 
 _SUBCONFIGS = {
@@ -357,7 +365,6 @@ class MonteCarloLocalizer:
         self._resample = get_resampler(c.resampler)
         self._belief_backend = "numba" if c.fast_path else "numpy"
         self._lse = fast_logsumexp if c.fast_path else logsumexp  # the same bits (filters.smc.logsumexp)
-        self._free_cells: np.ndarray | None = None
         self._proposal: ScanProposal | None = None
         self._poses = np.zeros((0, 3))
         self._logw = np.zeros(0)
@@ -400,11 +407,10 @@ class MonteCarloLocalizer:
 
     # ------------------------------------------------------------ init
     def _free_cell_index(self) -> np.ndarray:
-        if self._free_cells is None:
-            self._free_cells = np.flatnonzero(self.grid.free_mask())
-        if self._free_cells.size == 0:
+        cells = self.grid.free_cells()
+        if cells.size == 0:
             raise ValueError("the map has no free cell (occupancy < free_thresh): cannot spread particles")
-        return self._free_cells
+        return cells
 
     def sample_free(self, n: int) -> np.ndarray:
         """``(n, 3)`` poses uniform over free space (uniform cell, uniform inside it) and heading."""
@@ -623,12 +629,7 @@ class MonteCarloLocalizer:
     # ------------------------------------------------------------ resampling
     def kld_required(self, k: np.ndarray) -> np.ndarray:
         """Fox's bound ``n_chi(k)`` (float array) for ``k`` occupied bins."""
-        c = self.config
-        k = np.asarray(k, dtype=np.float64)
-        km1 = np.maximum(k - 1.0, 1.0)
-        a = 2.0 / (9.0 * km1)
-        n = km1 / (2.0 * c.kld_epsilon) * (1.0 - a + np.sqrt(a) * c.kld_z) ** 3
-        return np.where(k > 1, n, 1.0)
+        return _fox_bound(k, self.config.kld_epsilon, self.config.kld_z)
 
     @property
     def kld_bounds(self) -> tuple[int, int]:
@@ -646,8 +647,24 @@ class MonteCarloLocalizer:
             idx = self._kld_draw(w, hi, lo)
         return idx
 
+    def _kld_bound_table(self, k_max: int) -> np.ndarray:
+        """``kld_required(k)`` for ``k = 0 .. k_max`` at least (one table per process and bound)."""
+        _, hi = self.kld_bounds
+        return _fox_bound_table(self.config.kld_epsilon, self.config.kld_z, max(k_max, hi) + 1)
+
     def _kld_draw(self, w: np.ndarray, m: int, lo: int) -> np.ndarray:
         c = self.config
+        if c.fast_path:
+            extent = kld_kernels.bin_extent(self._poses, c.kld_bin_xy_m, c.kld_bin_theta_rad)
+            if extent[3] * extent[4] * extent[5] <= _MAX_DENSE_KEYS:
+                cdf = np.cumsum(w)
+                cdf[-1] = 1.0
+                idx = np.empty(m, dtype=np.int64)
+                n_new = kld_kernels.kld_draw(
+                    self._poses, cdf, self.rng.random(m), lo, self._kld_bound_table(m),
+                    c.kld_bin_xy_m, c.kld_bin_theta_rad, extent, idx,
+                )  # fmt: skip
+                return idx[:n_new]
         idx = inverse_cdf(w, self.rng.random(m))
         p = self._poses[idx]
         keys = linear_bin_keys(
@@ -655,13 +672,9 @@ class MonteCarloLocalizer:
             np.floor(p[:, 1] / c.kld_bin_xy_m).astype(np.int64),
             np.floor((p[:, 2] + np.pi) / c.kld_bin_theta_rad).astype(np.int64),
         )
-        if self.config.fast_path and keys.size and int(keys.max()) < _MAX_DENSE_KEYS:
-            new_bin = np.empty(m, dtype=bool)
-            _first_occurrence(keys, np.zeros(int(keys.max()) + 1, dtype=np.bool_), new_bin)
-        else:
-            _, first = np.unique(keys, return_index=True)
-            new_bin = np.zeros(m, dtype=bool)
-            new_bin[first] = True
+        _, first = np.unique(keys, return_index=True)
+        new_bin = np.zeros(m, dtype=bool)
+        new_bin[first] = True
         k = np.cumsum(new_bin)  # occupied bins after 1..m draws
         count = np.arange(1, m + 1)
         ok = (count >= self.kld_required(k)) & (count >= lo)

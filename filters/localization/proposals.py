@@ -66,7 +66,7 @@ class ScanProposal:
     def class_cells(self, label: int) -> np.ndarray:
         """``(M, 2)`` centres of the map cells of label ``label`` (class ``label - 1``)."""
         if label not in self._class_xy:
-            row, col = np.nonzero(self.grid.class_mask(label - 1))
+            row, col = np.divmod(self.grid.class_cells(label - 1), self.grid.shape[1])
             self._class_xy[label] = self.grid.cell_centers(row, col)
         return self._class_xy[label]
 

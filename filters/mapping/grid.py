@@ -103,17 +103,40 @@ class GridMap:
         return ox, ox + w * self.resolution_m, oy, oy + h * self.resolution_m
 
     # ------------------------------------------------------------------ masks
+    def _derived(self, key, make) -> np.ndarray:
+        """``make()``, computed once per map and read-only (the map's own arrays are read-only, so
+        what is derived from them never goes stale)."""
+        cache = self.__dict__.setdefault("_derived_arrays", {})  # frozen: bypass __setattr__
+        a = cache.get(key)
+        if a is None:
+            a = make()
+            a.setflags(write=False)
+            cache[key] = a
+        return a
+
     def occupied_mask(self) -> np.ndarray:
-        """``(H, W)`` bool: cells that are obstacles."""
-        return self.occupancy > self.occupied_thresh
+        """``(H, W)`` bool, read-only: cells that are obstacles."""
+        return self._derived("occupied", lambda: self.occupancy > self.occupied_thresh)
 
     def free_mask(self) -> np.ndarray:
-        """``(H, W)`` bool: cells that are known free space."""
-        return self.occupancy < self.free_thresh
+        """``(H, W)`` bool, read-only: cells that are known free space."""
+        return self._derived("free", lambda: self.occupancy < self.free_thresh)
+
+    def free_cells(self) -> np.ndarray:
+        """Flat (row-major) indices of the `free_mask` cells, ascending, read-only."""
+        return self._derived("free_cells", lambda: np.flatnonzero(self.free_mask()))
 
     def class_mask(self, k: int) -> np.ndarray:
-        """``(H, W)`` bool: cells labelled with class index ``k`` (label ``k + 1``)."""
-        return self.semantic[k] > self.semantic_thresh
+        """``(H, W)`` bool, read-only: cells labelled with class index ``k`` (label ``k + 1``)."""
+        if not -len(self.class_names) <= k < len(self.class_names):
+            raise IndexError(f"class index {k} out of range for {len(self.class_names)} classes")
+        k = int(k) % len(self.class_names)
+        return self._derived(("class", k), lambda: self.semantic[k] > self.semantic_thresh)
+
+    def class_cells(self, k: int) -> np.ndarray:
+        """Flat (row-major) indices of the `class_mask` ``k`` cells, ascending, read-only."""
+        mask = self.class_mask(k)
+        return self._derived(("class_cells", int(k) % len(self.class_names)), lambda: np.flatnonzero(mask))
 
     def class_index(self, name: str) -> int:
         """Index ``k`` of a class name (its scan label is ``k + 1``)."""

@@ -1,0 +1,103 @@
+"""KLD sampling's numba kernel against the NumPy reference: the same draws, bit for bit."""
+
+import math
+
+import numpy as np
+import pytest
+
+from filters.localization import kld_kernels
+from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
+from tests.test_mcl import symmetric_room
+
+
+def _localizer(fast: bool, seed: int, **kw) -> MonteCarloLocalizer:
+    cfg = MCLConfig(kld=True, fast_path=fast, global_particles_per_m2=50.0, **kw)
+    return MonteCarloLocalizer(symmetric_room(), cfg, rng=np.random.default_rng(seed))
+
+
+def _cloud(kind: str, rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Particle poses and normalised weights of a few shapes the filter meets."""
+    if kind == "uniform":
+        p = np.column_stack([rng.uniform(0, 10, n), rng.uniform(0, 5, n), rng.uniform(-np.pi, np.pi, n)])
+        w = rng.random(n)
+    elif kind == "peaked":  # one tight cluster holding nearly all the weight, some zero weights
+        p = np.column_stack([rng.normal(3, 0.2, n), rng.normal(2, 0.2, n), rng.normal(0, 0.1, n)])
+        w = np.exp(-20 * rng.random(n))
+        w[rng.random(n) < 0.2] = 0.0
+    elif kind == "seam":  # headings straddling +-pi, poses left of and below the origin, bin edges
+        p = np.column_stack([rng.normal(-0.5, 0.5, n), rng.normal(-0.25, 0.5, n), np.pi - rng.random(n) * 0.2])
+        p[::7, 2] = -np.pi
+        p[::5, 0] = 0.5 * rng.integers(-3, 3, p[::5].shape[0])
+        w = rng.random(n) ** 4
+    else:  # "two": two look-alike clusters, as in a symmetric room
+        half = n // 2
+        a = rng.normal([2.0, 1.0, 0.5], [0.3, 0.3, 0.2], (half, 3))
+        b = rng.normal([8.0, 4.0, 0.5 - np.pi], [0.3, 0.3, 0.2], (n - half, 3))
+        p = np.vstack([a, b])
+        w = rng.random(n)
+    return np.ascontiguousarray(p), w / w.sum()
+
+
+@pytest.mark.parametrize("kind", ["uniform", "peaked", "seam", "two"])
+@pytest.mark.parametrize("n", [1, 37, 2000])
+def test_kld_draw_equals_reference(kind, n):
+    for seed in range(4):
+        rng = np.random.default_rng(100 * seed + n)
+        poses, w = _cloud(kind, rng, n)
+        out = []
+        for fast in (True, False):
+            mcl = _localizer(fast, seed, n_particles=None, min_particles=50, max_particles=5000)
+            mcl._poses = poses
+            idx = mcl._kld_indices(w)
+            out.append((idx, mcl.rng.random()))  # the next draw: both consumed the same uniforms
+        assert out[0][0].dtype == out[1][0].dtype == np.int64
+        assert out[0][0].tobytes() == out[1][0].tobytes(), (kind, n, seed)
+        assert out[0][1] == out[1][1]
+
+
+def test_kld_draw_stops_at_the_bound_and_the_minimum():
+    """A single bin needs one particle by Fox's bound, so the minimum decides; a uniform cloud
+    over many bins needs more than the minimum."""
+    rng = np.random.default_rng(0)
+    for lo in (1, 30):
+        for fast in (True, False):
+            mcl = _localizer(fast, 0, n_particles=None, min_particles=lo, max_particles=4000)
+            mcl._poses = np.tile([[1.1, 1.1, 0.01]], (500, 1))
+            assert mcl._kld_indices(np.full(500, 1 / 500)).size == lo
+    mcl = _localizer(True, 0, n_particles=None, min_particles=30, max_particles=4000)
+    poses, w = _cloud("uniform", rng, 4000)
+    mcl._poses = poses
+    n = mcl._kld_indices(w).size
+    assert 30 < n <= 4000
+
+
+def test_bound_table_holds_the_reference_values():
+    """The kernel's table of Fox's bound equals the bound computed on any array of bin counts."""
+    mcl = _localizer(True, 0, n_particles=None, max_particles=20000)
+    table = mcl._kld_bound_table(20000)
+    rng = np.random.default_rng(1)
+    for size in (1, 7, 16, 17, 1000, 14001):
+        k = np.cumsum(rng.random(size) < 0.6)
+        assert mcl.kld_required(k).tobytes() == table[k].tobytes()
+    assert table[0] == table[1] == 1.0
+    assert math.isclose(table[2], mcl.kld_required(np.array([2]))[0])
+
+
+def test_cdf_search_equals_searchsorted_on_ties():
+    """Pointers that equal CDF entries exactly, repeated entries (zero weights) and the last entry
+    forced to 1 below a rounded-up sum: the kernel's search returns ``np.searchsorted``'s index."""
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        w = rng.random(50) * (rng.random(50) < 0.7)
+        w[0] = 1.0
+        w /= w.sum()
+        cdf = np.cumsum(w)
+        cdf[-1] = 1.0
+        u = np.concatenate([cdf[:-1], rng.random(50), [0.0, np.nextafter(1.0, 0.0)]])
+        want = np.minimum(np.searchsorted(cdf, u, side="right"), w.size - 1)
+        poses = np.zeros((w.size, 3))
+        idx = np.empty(u.size, dtype=np.int64)
+        bound = np.full(u.size + 1, np.inf)  # never met: every pointer is searched
+        extent = kld_kernels.bin_extent(poses, 0.5, 0.2)
+        assert kld_kernels.kld_draw(poses, cdf, u, 1, bound, 0.5, 0.2, extent, idx) == u.size
+        np.testing.assert_array_equal(idx, want)
