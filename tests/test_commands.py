@@ -56,3 +56,16 @@ def test_every_entry_point_has_its_script_and_each_script_calls_it():
         module = target.split(":")[0]
         assert re.search(rf"^from {re.escape(module)} import main$", text, re.M), script
         assert "sys.path" not in text
+
+
+@pytest.mark.parametrize("name", ["stages", "belief", "batched"])
+def test_cheap_benchmarks_run_and_print_finite_figures(name):
+    """The benchmarks import what they need and measure something (tiny sizes; no timing asserted)."""
+    import math
+
+    from agents.tools import bench
+
+    fn = getattr(bench, f"bench_{name}")
+    rows = fn(bench.Args(steps=20, repeats=2, only=(name,)))
+    assert rows
+    assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows

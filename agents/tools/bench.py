@@ -248,7 +248,7 @@ def bench_likelihood(args: Args) -> list[Row]:
     ]
 
 
-ENV_ID = "SemReloc-v1"
+ENV_ID = "SemReloc-v2"
 
 
 def _env(**kwargs):
@@ -293,7 +293,7 @@ class RandomPolicy:
 
 
 def bench_env(args: Args) -> list[Row]:
-    """Single ``SemReloc-v1`` at its defaults (lab, mapped map, map-sized particle set with KLD, 60 + 32
+    """Single ``SemReloc-v2`` at its defaults (lab, mapped map, map-sized particle set with KLD, 60 + 32
     beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
     code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
     explorer and under random actions (a spread belief: 10,000-20,000 particles)."""
@@ -308,8 +308,8 @@ def bench_env(args: Args) -> list[Row]:
             fast = max(fast, f)
             ref = max(ref, r)
         rows += [
-            Row(f"SemReloc-v1 step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
-            Row(f"SemReloc-v1 step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
+            Row(f"{ENV_ID} step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
+            Row(f"{ENV_ID} step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
             Row("  fast / reference", fast[0] / ref[0], fast[1] / ref[1], "x", "target >= 3"),
         ]
     rows.append(
@@ -344,16 +344,16 @@ def bench_belief(args: Args) -> list[Row]:
 
 
 def bench_batched(args: Args) -> list[Row]:
-    """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64."""
+    """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64,
+    each robot stepped the same number of times from its reset (so every R sees the same episode phases)."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
+    n = max(20, args.steps // 4)
     for r in (1, 16, 64):
-        venv = SemRelocLoopVectorEnv(num_envs=r)
+        venv = SemRelocLoopVectorEnv(num_envs=r, env_id=ENV_ID)
         venv.reset(seed=args.seed)
         rng = np.random.default_rng(args.seed)
-        n = max(5, args.steps // r)
-        venv.step(rng.integers(0, 4, r))
         with Clock() as c:
             for _ in range(n):
                 venv.step(rng.integers(0, 4, r))
@@ -364,7 +364,7 @@ def bench_batched(args: Args) -> list[Row]:
                 n * r / c.cpu,
                 n * r / c.wall,
                 "robot-steps/s",
-                "random actions; target 5000 at R=64",
+                f"random actions, {n} steps per robot; target 5000 at R=64",
             )
         )
     return rows
@@ -372,9 +372,8 @@ def bench_batched(args: Args) -> list[Row]:
 
 def bench_stages(args: Args) -> list[Row]:
     """Per-stage CPU time of a default step (cProfile, process clock; inflates short calls)."""
-    from profile_step import stage_breakdown
-
     from agents.baselines import WallFollowExplorer
+    from agents.tools.profile_step import stage_breakdown
 
     stages, total, _ = stage_breakdown(_env(), WallFollowExplorer(), max(200, args.steps // 2), args.seed)
     rows = [Row("step under cProfile", total * 1e3, float("nan"), "ms CPU", "stages below")]
@@ -450,13 +449,13 @@ from semreloc_env.layouts import get_layout
 from semreloc_env.layouts.tiling import tiled_layout
 from semreloc_env.mapping_run import build_maps, mapping_drive
 build_maps(get_layout("twin_rooms"))  # warm numba caches (not counted)
-gym.make("SemReloc-v1", layout="twin_rooms").reset(seed=0)
+gym.make("SemReloc-v2", layout="twin_rooms").reset(seed=0)
 base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 nx, ny = int(sys.argv[1]), int(sys.argv[2])
 layout = tiled_layout(get_layout("lab"), nx, ny)
 n_poses = len(mapping_drive(layout)[0])
 c0, w0 = time.process_time(), time.perf_counter()
-env = gym.make("SemReloc-v1", layout=layout)
+env = gym.make("SemReloc-v2", layout=layout)
 env.reset(seed=0)
 c1, w1 = time.process_time(), time.perf_counter()
 x0, x1, y0, y1 = layout.bounds()
