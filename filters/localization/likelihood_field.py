@@ -275,8 +275,12 @@ class LikelihoodFieldModel:
         for t in range(n_t):
             cfg = self.config_of(t)
             rmax = key[0] if t == 0 else key[1]
-            tables[t] = cfg.log_p(self.distance_fields_m[t], rmax)
             floors[t] = cfg.log_p(np.array(cfg.max_dist_m), rmax)
+            # log_p caps distances at max_dist_m, so every farther cell holds the floor: compute the near ones only
+            d = self.distance_fields_m[t]
+            near = d < cfg.max_dist_m
+            tables[t] = floors[t]
+            tables[t][near] = cfg.log_p(d[near], rmax)
         if len(self._tables) >= 4:
             self._tables.pop(next(iter(self._tables)))
         flat = np.concatenate([tables.ravel(), floors])

@@ -593,7 +593,7 @@ class SemanticMapper(_RasterMapper):
             occupancy=np.asarray(occ, np.float32),
             resolution_m=self._res,
             origin_xy_m=self._origin,
-            semantic=self.probabilities().astype(np.float32),
+            semantic=np.ascontiguousarray(expit(self._planes()), dtype=np.float32),
             class_names=self.class_names,
             occupied_thresh=occupied_thresh,
             free_thresh=free_thresh,
