@@ -80,7 +80,10 @@ def test_bound_table_holds_the_reference_values():
         k = np.cumsum(rng.random(size) < 0.6)
         assert mcl.kld_required(k).tobytes() == table[k].tobytes()
     assert table[0] == table[1] == 1.0
-    assert math.isclose(table[2], mcl.kld_required(np.array([2]))[0])
+    for k in (2, 10, 1000):  # Fox (2003), Eq. 12, written out independently
+        a = 2.0 / (9.0 * (k - 1))
+        want = (k - 1) / (2.0 * mcl.config.kld_epsilon) * (1.0 - a + math.sqrt(a) * mcl.config.kld_z) ** 3
+        assert math.isclose(table[k], want, rel_tol=1e-12)
 
 
 def test_cdf_search_equals_searchsorted_on_ties():
@@ -98,6 +101,30 @@ def test_cdf_search_equals_searchsorted_on_ties():
         poses = np.zeros((w.size, 3))
         idx = np.empty(u.size, dtype=np.int64)
         bound = np.full(u.size + 1, np.inf)  # never met: every pointer is searched
-        extent = kld_kernels.bin_extent(poses, 0.5, 0.2)
+        extent = kld_kernels.dense_extent(poses, 0.5, 0.2, 10**6)
         assert kld_kernels.kld_draw(poses, cdf, u, 1, bound, 0.5, 0.2, extent, idx) == u.size
         np.testing.assert_array_equal(idx, want)
+
+
+@pytest.mark.parametrize("spread", ["huge", "wide", "non-finite"])
+def test_absurd_clouds_fall_back_to_the_reference(spread):
+    """Clouds whose bins would not fit a dense table (coordinates near the int64 limit, or spanning
+    more bins than the table may hold) take the reference path: the same draws, no crash."""
+    rng = np.random.default_rng(3)
+    poses, w = _cloud("uniform", rng, 300)
+    if spread == "huge":
+        poses[::2, 0] = -(2.0**61)
+        poses[1::2, 0] = 2.0**61 + 512.0
+    elif spread == "wide":
+        poses[:, 0] = rng.uniform(-1e6, 1e6, 300)
+    assert kld_kernels.dense_extent(poses, 0.5, math.radians(10.0), 8_000_000) is None or spread == "non-finite"
+    if spread == "non-finite":
+        poses[5, 1] = np.nan
+        assert kld_kernels.dense_extent(poses, 0.5, math.radians(10.0), 8_000_000) is None
+        return  # the reference's np.floor(nan).astype(int) is undefined too: only the guard is checked
+    out = []
+    for fast in (True, False):
+        mcl = _localizer(fast, 7, n_particles=None, min_particles=50, max_particles=5000)
+        mcl._poses = poses
+        out.append(mcl._kld_indices(w))
+    assert out[0].tobytes() == out[1].tobytes()

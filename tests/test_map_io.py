@@ -302,3 +302,13 @@ def test_derived_masks_are_computed_once_read_only_and_match_the_thresholds():
         grid.class_mask(len(DEFAULT_CLASS_NAMES))
     with pytest.raises(ValueError):
         grid.free_mask()[0, 0] = True
+    with pytest.raises(TypeError, match="class index"):
+        grid.class_mask(1.5)
+    import copy
+    import pickle
+
+    for twin in (pickle.loads(pickle.dumps(grid)), copy.deepcopy(grid)):
+        assert "_derived_arrays" not in twin.__dict__  # the cache is not carried along
+        assert not twin.occupancy.flags.writeable and not twin.semantic.flags.writeable
+        assert not twin.free_mask().flags.writeable
+        np.testing.assert_array_equal(twin.free_mask(), grid.free_mask())

@@ -504,14 +504,16 @@ def bench_mapping(args: Args) -> list[Row]:
 
 class _EnvClock:
     """SB3 callback that times (CPU and wall) every ``step_wait`` of the training VecEnv: the env's
-    share of a PPO run, measured inside that run (same episodes, same actions)."""
+    share of a PPO run, measured inside that run (same episodes, same actions). In-process vec envs
+    only: a SubprocVecEnv's workers are other processes, whose CPU time this process does not see."""
 
     def __new__(cls):
         from stable_baselines3.common.callbacks import BaseCallback
 
         class EnvClock(BaseCallback):
+            cpu = wall = 0.0
+
             def _on_training_start(self) -> None:
-                self.cpu = self.wall = 0.0
                 env, orig = self.training_env, self.training_env.step_wait
 
                 def timed():
@@ -522,6 +524,9 @@ class _EnvClock:
                     return out
 
                 env.step_wait = timed  # an instance attribute: VecEnv.step calls it
+
+            def _on_training_end(self) -> None:
+                vars(self.training_env).pop("step_wait", None)  # the class's method again
 
             def _on_step(self) -> bool:
                 return True

@@ -40,19 +40,36 @@ def _search_right(cdf, u):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def bin_extent(poses, bin_xy_m, bin_theta_rad):  # pragma: no cover - compiled
-    """``(min_x, min_y, min_t, n_x, n_y, n_t)``: the smallest KLD bin index along each axis and the
-    number of bins spanned, over every pose (the reference's ``floor(x / bin)`` and
-    ``floor((theta + pi) / bin_theta)``)."""
-    mx = my = mt = np.iinfo(np.int64).max
-    ax = ay = at = np.iinfo(np.int64).min
+    """``(min_x, min_y, min_t, max_x, max_y, max_t)``: the smallest and largest KLD bin index along
+    each axis over every pose (the reference's ``floor(x / bin)`` and ``floor((theta + pi) / bin_theta)``),
+    as floats, so that spans of absurd clouds can be checked before any integer arithmetic (all NaN
+    if a pose is not finite)."""
+    mx = my = mt = np.inf
+    ax = ay = at = -np.inf
     for i in range(poses.shape[0]):
-        bx = np.int64(math.floor(poses[i, 0] / bin_xy_m))
-        by = np.int64(math.floor(poses[i, 1] / bin_xy_m))
-        bt = np.int64(math.floor((poses[i, 2] + np.pi) / bin_theta_rad))
+        bx = math.floor(poses[i, 0] / bin_xy_m)
+        by = math.floor(poses[i, 1] / bin_xy_m)
+        bt = math.floor((poses[i, 2] + np.pi) / bin_theta_rad)
+        if not (math.isfinite(bx) and math.isfinite(by) and math.isfinite(bt)):
+            return np.nan, np.nan, np.nan, np.nan, np.nan, np.nan
         mx, ax = min(mx, bx), max(ax, bx)
         my, ay = min(my, by), max(ay, by)
         mt, at = min(mt, bt), max(at, bt)
-    return mx, my, mt, ax - mx + 1, ay - my + 1, at - mt + 1
+    return mx, my, mt, ax, ay, at
+
+
+def dense_extent(poses, bin_xy_m: float, bin_theta_rad: float, max_cells: int):
+    """``(min_x, min_y, min_t, n_x, n_y, n_t)`` (ints) for `kld_draw`'s dense table of bins, or None
+    when the cloud spans more than ``max_cells`` bins or its bin indices do not fit comfortably in
+    int64 (the caller then runs the reference)."""
+    lo_hi = bin_extent(poses, bin_xy_m, bin_theta_rad)
+    if not all(math.isfinite(v) and abs(v) < 2.0**62 for v in lo_hi):
+        return None
+    mins = [int(v) for v in lo_hi[:3]]
+    spans = [int(hi) - lo + 1 for lo, hi in zip(mins, (int(v) for v in lo_hi[3:]))]
+    if spans[0] * spans[1] * spans[2] > max_cells:
+        return None
+    return (*mins, *spans)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -66,7 +83,7 @@ def kld_draw(poses, cdf, u, lo, bound, bin_xy_m, bin_theta_rad, extent, idx):  #
         lo: the smallest count accepted.
         bound: ``bound[k]`` = Fox's ``n_chi`` for ``k`` occupied bins, ``k = 0 .. m`` at least.
         bin_xy_m, bin_theta_rad: KLD bin sizes.
-        extent: `bin_extent` of ``poses``.
+        extent: `dense_extent` of ``poses``.
         idx: ``(m,)`` int64 out: the ancestor of each draw (only the first ``n`` are written).
 
     Returns:
@@ -82,7 +99,7 @@ def kld_draw(poses, cdf, u, lo, bound, bin_xy_m, bin_theta_rad, extent, idx):  #
         idx[j] = i
         bx = np.int64(math.floor(poses[i, 0] / bin_xy_m)) - mx
         by = np.int64(math.floor(poses[i, 1] / bin_xy_m)) - my
-        bt = np.int64(math.floor((poses[i, 2] + np.pi) / bin_theta_rad)) - mt
+        bt = np.int64(math.floor((poses[i, 2] + np.pi) / bin_theta_rad)) - mt  # each in [0, n) by dense_extent
         key = (bx * ny + by) * nt + bt
         if not seen[key]:
             seen[key] = True

@@ -655,8 +655,8 @@ class MonteCarloLocalizer:
     def _kld_draw(self, w: np.ndarray, m: int, lo: int) -> np.ndarray:
         c = self.config
         if c.fast_path:
-            extent = kld_kernels.bin_extent(self._poses, c.kld_bin_xy_m, c.kld_bin_theta_rad)
-            if extent[3] * extent[4] * extent[5] <= _MAX_DENSE_KEYS:
+            extent = kld_kernels.dense_extent(self._poses, c.kld_bin_xy_m, c.kld_bin_theta_rad, _MAX_DENSE_KEYS)
+            if extent is not None:
                 cdf = np.cumsum(w)
                 cdf[-1] = 1.0
                 idx = np.empty(m, dtype=np.int64)

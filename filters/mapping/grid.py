@@ -102,6 +102,16 @@ class GridMap:
         ox, oy = self.origin_xy_m
         return ox, ox + w * self.resolution_m, oy, oy + h * self.resolution_m
 
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state.pop("_derived_arrays", None)  # recomputed on demand; keeps pickles small
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        for name in ("occupancy", "semantic"):  # read-only again, as __post_init__ leaves them
+            getattr(self, name).setflags(write=False)
+
     # ------------------------------------------------------------------ masks
     def _derived(self, key, make) -> np.ndarray:
         """``make()``, computed once per map and read-only (the map's own arrays are read-only, so
@@ -128,6 +138,8 @@ class GridMap:
 
     def class_mask(self, k: int) -> np.ndarray:
         """``(H, W)`` bool, read-only: cells labelled with class index ``k`` (label ``k + 1``)."""
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
+            raise TypeError(f"class index must be an int, got {type(k).__name__} {k!r}")
         if not -len(self.class_names) <= k < len(self.class_names):
             raise IndexError(f"class index {k} out of range for {len(self.class_names)} classes")
         k = int(k) % len(self.class_names)

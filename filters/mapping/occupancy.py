@@ -316,7 +316,8 @@ class _RasterMapper:
 
     @property
     def logodds(self) -> np.ndarray:
-        """Log-odds, read-only view (0 = unknown): ``(H, W)`` occupancy or ``(C, H, W)`` per class."""
+        """Log-odds, read-only view (0 = unknown): ``(H, W)`` occupancy or ``(C, H, W)`` per class (the
+        semantic mapper stores classes innermost, so its view is not C-contiguous)."""
         v = self._planes().view()
         v.setflags(write=False)
         return v
