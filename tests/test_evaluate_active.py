@@ -79,3 +79,42 @@ def test_policy_code_follows_the_modules_a_policy_draws_on():
     assert "agents.viewpoint" in ev.policy_modules("ppo=agents/data/active_ppo.zip")
     assert ev.policy_code("viewpoint") != ev.policy_code("spin")
     assert ev.policy_code("ppo=agents/data/active_ppo.zip") != ev.policy_code("viewpoint")
+
+
+def test_learned_policy_is_loaded_once_per_file_version_and_acts_as_a_fresh_load(tmp_path):
+    """make_policy shares one loaded model between cases (a fresh LearnedPolicy each time, with the
+    case's seed), reloads when the file changes, and acts exactly as load_policy's own object."""
+    import shutil
+
+    from agents import SHIPPED_POLICY
+    from agents.learned import load_policy
+
+    path = tmp_path / "p.zip"
+    shutil.copy(SHIPPED_POLICY, path)
+    spec = f"ppo={path}"
+    a, b = ev.make_policy(spec, 3), ev.make_policy(spec, 4)
+    assert a is not b and a.model is b.model and (a.seed, b.seed) == (3, 4)
+    fresh = load_policy(path, seed=3)
+    assert (a.options, a.repeat, a.observation, a.deterministic) == (
+        fresh.options, fresh.repeat, fresh.observation, fresh.deterministic,
+    )  # fmt: skip
+    args = parse(ev.Args, ["--layouts-per-kind", "1", "--starts", "1"])
+    case = ev.build_cases(args)[0]
+    actions = []
+    for pol in (a, fresh):
+        env = pol.wrap(ev.case_env(case, args))
+        pol.reset()
+        obs, _ = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+        acts = []
+        for _ in range(12):
+            act = pol.act(obs)
+            acts.append(act)
+            obs = env.step(act)[0]
+        actions.append(acts)
+    assert actions[0] == actions[1]
+    shutil.copy(SHIPPED_POLICY, path)  # a new file version (mtime) is loaded again
+    path.touch()
+    import os
+
+    os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 10**9))
+    assert ev.make_policy(spec, 3).model is not a.model

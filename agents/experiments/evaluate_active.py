@@ -322,10 +322,28 @@ def make_policy(spec: str, seed: int, sample: bool = False):
 
     name, _, path = spec.partition("=")
     if path:
-        from agents.learned import load_policy
+        from agents.learned import LearnedPolicy
 
-        return load_policy(path, seed=seed, deterministic=not sample)
+        loaded = _loaded_policy(path)
+        return LearnedPolicy(
+            loaded.model, loaded.observation, loaded.repeat, deterministic=not sample, seed=seed, options=loaded.options
+        )
     return POLICIES[name](seed)
+
+
+_LOADED: dict[tuple, object] = {}
+
+
+def _loaded_policy(path: str):
+    """`agents.learned.load_policy` of ``path``, once per process and file version (loading the model
+    costs ~0.2 s, a sizeable share of an episode): every case gets a fresh `LearnedPolicy` around it."""
+    from agents.learned import load_policy
+
+    st = Path(path).stat()
+    key = (str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+    if key not in _LOADED:
+        _LOADED[key] = load_policy(path)
+    return _LOADED[key]
 
 
 def case_env(case: dict, args: Args, render_mode: str | None = None):
