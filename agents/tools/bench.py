@@ -502,36 +502,35 @@ def bench_mapping(args: Args) -> list[Row]:
     return rows
 
 
-class _EnvClock:
-    """SB3 callback that times (CPU and wall) every ``step_wait`` of the training VecEnv: the env's
-    share of a PPO run, measured inside that run (same episodes, same actions). In-process vec envs
-    only: a SubprocVecEnv's workers are other processes, whose CPU time this process does not see."""
+def _env_clock():
+    """An SB3 callback that times (CPU and wall: its ``cpu``, ``wall``) every ``step_wait`` of the
+    training VecEnv: the env's share of a PPO run, measured inside that run (same episodes, same
+    actions). In-process vec envs only: a SubprocVecEnv's workers are other processes, whose CPU
+    time this process does not see. (SB3 is imported here, when the PPO benchmark runs.)"""
+    from stable_baselines3.common.callbacks import BaseCallback
 
-    def __new__(cls):
-        from stable_baselines3.common.callbacks import BaseCallback
+    class EnvClock(BaseCallback):
+        cpu = wall = 0.0
 
-        class EnvClock(BaseCallback):
-            cpu = wall = 0.0
+        def _on_training_start(self) -> None:
+            env, orig = self.training_env, self.training_env.step_wait
 
-            def _on_training_start(self) -> None:
-                env, orig = self.training_env, self.training_env.step_wait
+            def timed():
+                with Clock() as c:
+                    out = orig()
+                self.cpu += c.cpu
+                self.wall += c.wall
+                return out
 
-                def timed():
-                    with Clock() as c:
-                        out = orig()
-                    self.cpu += c.cpu
-                    self.wall += c.wall
-                    return out
+            env.step_wait = timed  # an instance attribute: VecEnv.step calls it
 
-                env.step_wait = timed  # an instance attribute: VecEnv.step calls it
+        def _on_training_end(self) -> None:
+            vars(self.training_env).pop("step_wait", None)  # the class's method again
 
-            def _on_training_end(self) -> None:
-                vars(self.training_env).pop("step_wait", None)  # the class's method again
+        def _on_step(self) -> bool:
+            return True
 
-            def _on_step(self) -> bool:
-                return True
-
-        return EnvClock()
+    return EnvClock()
 
 
 def bench_ppo(args: Args) -> list[Row]:
@@ -561,7 +560,7 @@ def bench_ppo(args: Args) -> list[Row]:
         venv.close()
         warm = dataclasses.replace(cfg, total_timesteps=1024)
         train(warm).get_env().close()  # warm-up: torch, numba
-        env_clock = _EnvClock()
+        env_clock = _env_clock()
         with Clock() as ppo:
             model = train(cfg, callbacks=[env_clock])
         model.get_env().close()

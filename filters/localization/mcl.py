@@ -99,7 +99,7 @@ from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import compose, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.smc.logsumexp import logsumexp as fast_logsumexp
-from filters.smc.resampling import RESAMPLERS, get_resampler, inverse_cdf
+from filters.smc.resampling import RESAMPLERS, closed_cdf, get_resampler, inverse_cdf
 
 _MAX_DENSE_KEYS = 8_000_000
 """Most KLD bins the fast path's dense table of occupied bins may span (else the reference runs)."""
@@ -657,11 +657,9 @@ class MonteCarloLocalizer:
         if c.fast_path:
             extent = kld_kernels.dense_extent(self._poses, c.kld_bin_xy_m, c.kld_bin_theta_rad, _MAX_DENSE_KEYS)
             if extent is not None:
-                cdf = np.cumsum(w)
-                cdf[-1] = 1.0
                 idx = np.empty(m, dtype=np.int64)
                 n_new = kld_kernels.kld_draw(
-                    self._poses, cdf, self.rng.random(m), lo, self._kld_bound_table(m),
+                    self._poses, closed_cdf(w), self.rng.random(m), lo, self._kld_bound_table(m),
                     c.kld_bin_xy_m, c.kld_bin_theta_rad, extent, idx,
                 )  # fmt: skip
                 return idx[:n_new]

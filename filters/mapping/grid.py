@@ -136,19 +136,23 @@ class GridMap:
         """Flat (row-major) indices of the `free_mask` cells, ascending, read-only."""
         return self._derived("free_cells", lambda: np.flatnonzero(self.free_mask()))
 
-    def class_mask(self, k: int) -> np.ndarray:
-        """``(H, W)`` bool, read-only: cells labelled with class index ``k`` (label ``k + 1``)."""
+    def _class(self, k) -> int:
+        """Class index ``k`` checked (an int in ``[-C, C)``) and made non-negative."""
         if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
             raise TypeError(f"class index must be an int, got {type(k).__name__} {k!r}")
         if not -len(self.class_names) <= k < len(self.class_names):
             raise IndexError(f"class index {k} out of range for {len(self.class_names)} classes")
-        k = int(k) % len(self.class_names)
+        return int(k) % len(self.class_names)
+
+    def class_mask(self, k: int) -> np.ndarray:
+        """``(H, W)`` bool, read-only: cells labelled with class index ``k`` (label ``k + 1``)."""
+        k = self._class(k)
         return self._derived(("class", k), lambda: self.semantic[k] > self.semantic_thresh)
 
     def class_cells(self, k: int) -> np.ndarray:
         """Flat (row-major) indices of the `class_mask` ``k`` cells, ascending, read-only."""
-        mask = self.class_mask(k)
-        return self._derived(("class_cells", int(k) % len(self.class_names)), lambda: np.flatnonzero(mask))
+        k = self._class(k)
+        return self._derived(("class_cells", k), lambda: np.flatnonzero(self.class_mask(k)))
 
     def class_index(self, name: str) -> int:
         """Index ``k`` of a class name (its scan label is ``k + 1``)."""

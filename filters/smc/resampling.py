@@ -27,11 +27,17 @@ def normalise_weights(weights: np.ndarray) -> np.ndarray:
     return w / total
 
 
-def inverse_cdf(w: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Indices ``i`` with ``cdf[i-1] <= u < cdf[i]`` for normalised weights ``w`` and pointers ``u`` in [0, 1)."""
+def closed_cdf(w: np.ndarray) -> np.ndarray:
+    """``np.cumsum(w)`` of normalised weights with the last entry set to exactly 1 (above every pointer
+    in [0, 1), whatever the rounding of the sum)."""
     cdf = np.cumsum(w)
     cdf[-1] = 1.0
-    return np.minimum(np.searchsorted(cdf, u, side="right"), w.size - 1).astype(np.int64)
+    return cdf
+
+
+def inverse_cdf(w: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Indices ``i`` with ``cdf[i-1] <= u < cdf[i]`` for normalised weights ``w`` and pointers ``u`` in [0, 1)."""
+    return np.minimum(np.searchsorted(closed_cdf(w), u, side="right"), w.size - 1).astype(np.int64)
 
 
 def multinomial(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
