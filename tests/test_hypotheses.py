@@ -196,3 +196,20 @@ def test_global_particle_count_follows_the_free_area_and_kld_bounds_hold():
 def test_bad_relocalizer_options_are_rejected(bad):
     with pytest.raises((ValueError, TypeError)):
         MCLConfig(**bad)
+
+
+@pytest.mark.parametrize("recovery", [False, True])
+def test_routine_proposals_carry_proposal_weight_and_recoveries_a_full_share(recovery):
+    grid = symmetric_room()
+    cfg = MCLConfig(n_particles=400, injection="uniform", proposal_frac=0.2, proposal_weight=0.25)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(3))
+    mcl.init_global()
+    before = mcl.poses.copy()
+    m = mcl._inject(0.2, None, None, recovery=recovery)
+    w = mcl.weights
+    fresh = np.any(mcl.poses != before, axis=1)
+    assert 0 < m == fresh.sum() < 400 and w.sum() == pytest.approx(1.0)
+    ratio = w[fresh].mean() / w[~fresh].mean()
+    assert ratio == pytest.approx(1.0 if recovery else 0.25)
+    with pytest.raises(ValueError, match="proposal_weight"):
+        MCLConfig(proposal_weight=0.0)

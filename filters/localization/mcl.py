@@ -168,6 +168,9 @@ class MCLConfig:
             the fraction drawn from semantic detections.
         proposal_frac: at least this fraction of the particles is replaced by injected ones at
             every update (Mixture MCL; 0 = only augmented MCL injects).
+        proposal_weight: weight of each such routine injected particle, as a fraction of ``1 / N``
+            (before renormalising); recovery injections always get ``1 / N``. Below 1 the fresh
+            particles start lighter than an average one (docs/relocalizer.md: 0.2 was worse).
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -207,6 +210,7 @@ class MCLConfig:
     proposal_candidates: int = 2000
     proposal_semantic_frac: float = 0.5
     proposal_frac: float = 0.0
+    proposal_weight: float = 1.0
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
@@ -257,6 +261,9 @@ class MCLConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
                 raise ValueError(f"MCLConfig.{name} must be in [0, 1], got {v!r}")
+        v = self.proposal_weight
+        if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0.0 < v <= 1.0):
+            raise ValueError(f"MCLConfig.proposal_weight must be in (0, 1], got {v!r}")
         v = self.global_particles_per_m2
         if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
             raise ValueError(f"MCLConfig.global_particles_per_m2 must be a finite number >= 0, got {v!r}")
@@ -747,7 +754,7 @@ class MonteCarloLocalizer:
         self._poses = self._poses.copy()
         self._poses[mask] = new
         logw = self._logw.copy()
-        logw[mask] = -math.log(self.n_particles)
+        logw[mask] = -math.log(self.n_particles) + (0.0 if recovery else math.log(c.proposal_weight))
         self._logw = logw - self._lse(logw)
         return m
 
