@@ -8,6 +8,7 @@ from filters.localization.likelihood_field import (
     LikelihoodFieldModel,
     count_detections,
     distance_field,
+    log_likelihood_kernel,
     select_beams,
 )
 from filters.mapping.grid import GridMap
@@ -168,3 +169,62 @@ def test_cached_model_is_shared_by_equal_maps_and_keyed_on_configs():
         lf.cached_model(np.zeros((5, 5)), CFG, CFG)
     with pytest.raises(ValueError, match="backend"):
         lf.cached_model(grid, CFG, CFG, backend="cuda")
+
+
+def _fixed_order_sum(v: np.ndarray) -> float:
+    """The kernel's documented summation order (`likelihood_field._gather_sum`), in Python."""
+    n, r = v.size, 0.0
+    m = (n // 16) * 16
+    if m:
+        acc = np.zeros(16)
+        for j in range(0, m, 16):
+            acc = acc + v[j : j + 16]
+        s = (acc[0:4] + acc[4:8]) + (acc[8:12] + acc[12:16])
+        r = float((s[0] + s[2]) + (s[1] + s[3]))
+    e = m + ((n - m) // 4) * 4
+    if e > m:
+        b = np.array([r, 0.0, 0.0, 0.0])
+        for j in range(m, e, 4):
+            b = b + v[j : j + 4]
+        r = float((b[0] + b[2]) + (b[1] + b[3]))
+    for j in range(e, n):
+        r += float(v[j])
+    return r
+
+
+def test_kernel_sums_beams_in_one_fixed_order_whatever_the_compilation():
+    # Under fastmath, a freshly compiled kernel and the same kernel loaded from numba's cache
+    # summed in different orders (the first process on a machine differed in the last bits).
+    # The kernel now writes its order out; this pins it exactly, for every split and length.
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        nb = int(rng.integers(1, 130))
+        n_lidar = int(rng.integers(0, nb + 1))
+        vals = rng.normal(-3.0, 2.0, nb)
+        flat = vals.copy()
+        flat.setflags(write=False)
+        one = np.zeros(1)
+        lu, lv = np.arange(nb) + 0.5, np.full(nb, 0.5)  # beam j ends in cell j of a 1-row map
+        zeros = np.zeros(nb, np.int64)
+        out_l, out_s = np.zeros(1), np.zeros(1)
+        log_likelihood_kernel(
+            one,
+            one.copy(),
+            np.ones(1),
+            np.zeros(1),
+            lu,
+            lv,
+            zeros,
+            zeros,
+            n_lidar,
+            flat,
+            0.0,
+            0.0,
+            1.0,
+            nb,
+            1,
+            out_l,
+            out_s,
+        )
+        assert out_l[0] == _fixed_order_sum(vals[:n_lidar])
+        assert out_s[0] == _fixed_order_sum(vals[n_lidar:])

@@ -173,13 +173,57 @@ def _beam_cells(pu, pv, c, s, lu, lv, offset, outside, w, h, idx):  # pragma: no
             idx[j] = outside[j]
 
 
-@numba.njit(cache=True, nogil=True, fastmath=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _gather_sum(flat, idx, lo, hi):  # pragma: no cover - compiled
-    """``sum(flat[idx[lo:hi]])``; fastmath lets the compiler reorder (and vectorise) the sum."""
-    acc = 0.0
-    for j in range(lo, hi):
-        acc += flat[idx[j]]
-    return acc
+    """``sum(flat[idx[lo:hi]])`` in one fixed order, exact IEEE arithmetic (no fastmath).
+
+    The order is the one LLVM chose for a fastmath loop on x86-64 (4 lanes x 4 accumulators,
+    a 4-lane epilogue, then one by one), written out so that every compilation gives the same
+    bits: under fastmath a freshly compiled kernel and the same kernel loaded from numba's cache
+    summed in different orders, so the first process on a machine differed in the last bits from
+    later ones. Sixteen independent partial sums keep the loads overlapped as fastmath did.
+    """
+    n = hi - lo
+    m = lo + (n // 16) * 16
+    r = 0.0
+    if m > lo:
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+        a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
+        for j in range(lo, m, 16):
+            a0 += flat[idx[j]]
+            a1 += flat[idx[j + 1]]
+            a2 += flat[idx[j + 2]]
+            a3 += flat[idx[j + 3]]
+            a4 += flat[idx[j + 4]]
+            a5 += flat[idx[j + 5]]
+            a6 += flat[idx[j + 6]]
+            a7 += flat[idx[j + 7]]
+            a8 += flat[idx[j + 8]]
+            a9 += flat[idx[j + 9]]
+            a10 += flat[idx[j + 10]]
+            a11 += flat[idx[j + 11]]
+            a12 += flat[idx[j + 12]]
+            a13 += flat[idx[j + 13]]
+            a14 += flat[idx[j + 14]]
+            a15 += flat[idx[j + 15]]
+        s0 = (a0 + a4) + (a8 + a12)
+        s1 = (a1 + a5) + (a9 + a13)
+        s2 = (a2 + a6) + (a10 + a14)
+        s3 = (a3 + a7) + (a11 + a15)
+        r = (s0 + s2) + (s1 + s3)
+    e = m + ((hi - m) // 4) * 4
+    if e > m:
+        b0 = r
+        b1 = b2 = b3 = 0.0
+        for j in range(m, e, 4):
+            b0 += flat[idx[j]]
+            b1 += flat[idx[j + 1]]
+            b2 += flat[idx[j + 2]]
+            b3 += flat[idx[j + 3]]
+        r = (b0 + b2) + (b1 + b3)
+    for j in range(e, hi):
+        r += flat[idx[j]]
+    return r
 
 
 @numba.njit(cache=True, nogil=True)
@@ -195,8 +239,9 @@ def log_likelihood_kernel(
     off the ``h x w`` map. Beams ``j < n_lidar`` add to ``out_l[i]``, the others to ``out_s[i]``.
 
     Two phases per particle: the cell indices in exact arithmetic (so every end point lands in
-    the same cell as in `filters.localization.likelihood_reference`), then a gather-sum under
-    fastmath (the only difference from the reference is the order of the additions, ~1e-13).
+    the same cell as in `filters.localization.likelihood_reference`), then a gather-sum in a
+    fixed order (`_gather_sum`; the only difference from the reference is the order of the
+    additions, ~1e-13).
     ``cos_t``/``sin_t`` are passed in so kernel and reference share them bit for bit.
     """
     nb = lu.shape[0]
