@@ -184,6 +184,12 @@ def test_global_particle_count_follows_the_free_area_and_kld_bounds_hold():
         {"resample_mode": "nope"},
         {"injection": "gps"},
         {"proposal_frac": 1.5},
+        {"proposal_weight": 0.0},
+        {"proposal_weight": 1.5},
+        {"proposal_weight": -1},
+        {"proposal_weight": float("nan")},
+        {"proposal_weight": True},
+        {"proposal_weight": "0.5"},
         {"global_particles_per_m2": -1},
         {"global_particles_per_m2": float("nan")},
         {"max_update_log_ratio": 0},
@@ -211,5 +217,26 @@ def test_routine_proposals_carry_proposal_weight_and_recoveries_a_full_share(rec
     assert 0 < m == fresh.sum() < 400 and w.sum() == pytest.approx(1.0)
     ratio = w[fresh].mean() / w[~fresh].mean()
     assert ratio == pytest.approx(1.0 if recovery else 0.25)
-    with pytest.raises(ValueError, match="proposal_weight"):
-        MCLConfig(proposal_weight=0.0)
+
+
+def test_update_gives_routine_proposals_their_weight():
+    # Through `update`: two filters alike but for proposal_weight draw the same particles; the
+    # injected ones weigh 0.25 of their counterparts relative to the rest (no augmented MCL, so
+    # every injection is routine).
+    grid = symmetric_room()
+    pose = np.array([4.0, 1.5, np.pi])
+    lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
+    sem = simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0)
+    w = {}
+    for pw in (1.0, 0.25):
+        cfg = MCLConfig(n_particles=400, injection="scan", proposal_frac=0.1, proposal_weight=pw, resample_ess_frac=0.0)
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
+        mcl.init_global()
+        d = mcl.update(lidar, sem, force=True)
+        assert d.n_injected > 0 and not d.resampled
+        w[pw] = (mcl.poses.copy(), mcl.weights)
+    np.testing.assert_array_equal(w[1.0][0], w[0.25][0])
+    ratio = w[0.25][1] / w[1.0][1]
+    low = ratio < ratio.max() * 0.5
+    assert low.sum() == d.n_injected
+    np.testing.assert_allclose(ratio[low] / ratio[~low].mean(), 0.25, rtol=1e-9)

@@ -168,9 +168,11 @@ class MCLConfig:
             the fraction drawn from semantic detections.
         proposal_frac: at least this fraction of the particles is replaced by injected ones at
             every update (Mixture MCL; 0 = only augmented MCL injects).
-        proposal_weight: weight of each such routine injected particle, as a fraction of ``1 / N``
-            (before renormalising); recovery injections always get ``1 / N``. Below 1 the fresh
-            particles start lighter than an average one (docs/relocalizer.md: 0.2 was worse).
+        proposal_weight: weight of each routine injected particle, as a fraction of ``1 / N``
+            (before renormalising). An update whose augmented-MCL probability exceeds
+            ``proposal_frac`` is a recovery and gives all its injected particles ``1 / N``; a
+            smaller one is absorbed into the routine injection. Below 1 the fresh particles start
+            lighter than an average one (docs/relocalizer.md: 0.2 did not help).
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
