@@ -55,29 +55,11 @@ from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
 from filters.pose import wrap_angle
-from filters.simulators.grid_raycast import _cast
+from filters.simulators.grid_raycast import cast_many_labelled
 
 from .baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer, all_round_angles
 from .info_gain import belief_sample, hypothesis_bins
 from .policies import Policy, _sector_min
-
-
-@numba.njit(cache=True)
-def _cast_many(occ, labels, ox, oy, res, xy, angles, range_max, class_max, out_r, out_lab):
-    """All-round casts from every position ``xy[p]``: ranges ``out_r[p]`` and the class label
-    (0 = none) of the cell hit within ``class_max`` metres ``out_lab[p]``."""
-    b = angles.shape[0]
-    r = np.empty(b)
-    row = np.empty(b, np.int64)
-    col = np.empty(b, np.int64)
-    for p in range(xy.shape[0]):
-        _cast(occ, ox, oy, res, xy[p, 0], xy[p, 1], angles, range_max, r, row, col)
-        for j in range(b):
-            out_r[p, j] = r[j]
-            if row[j] >= 0 and r[j] < class_max:
-                out_lab[p, j] = labels[row[j], col[j]]
-            else:
-                out_lab[p, j] = 0
 
 
 @numba.njit(cache=True)
@@ -488,7 +470,9 @@ class ViewpointPlanner(Policy):
         ox, oy = (float(v) for v in grid.origin_xy_m)
         flat_xy = np.ascontiguousarray(xy.reshape(-1, 2))
         res = grid.resolution_m
-        _cast_many(pm.occ, pm.labels, ox, oy, res, flat_xy, angles, lidar.range_max_m, cam.range_max_m, ranges, labels)
+        cast_many_labelled(
+            pm.occ, pm.labels, ox, oy, res, flat_xy, angles, lidar.range_max_m, cam.range_max_m, ranges, labels
+        )
         headings = 2 * math.pi * np.arange(self.n_headings) / self.n_headings  # relative to the reference
         if pm.log_table is None:  # the model's log p tables then floors, as the kernel reads them
             tables, floors = model.log_tables(lidar.range_max_m, cam.range_max_m)

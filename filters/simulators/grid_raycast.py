@@ -131,3 +131,25 @@ def simulate_semantic(
         labels[hit] = np.where(m[row[hit], col[hit]], k + 1, labels[hit])
     r = _add_noise(r, range_max_m, noise_std_m, rng)
     return SemanticScan(r, np.asarray(angles, dtype=np.float64), labels, range_max_m)
+
+
+@numba.njit(cache=True)
+def cast_many_labelled(occ, labels, ox, oy, res, xy, angles, range_max, class_max, out_r, out_lab):
+    """Casts along ``angles`` (absolute, rad) from every position ``xy[p]`` (metres) on the
+    occupancy grid ``occ``: ranges ``out_r[p]`` and the class label of the cell hit (``labels``,
+    0 = none) when it lies within ``class_max`` metres, else 0, in ``out_lab[p]``.
+
+    It lives beside `_cast`, which it calls: numba checks only a cached function's own file
+    for changes, so a cached kernel calling a kernel of another file could run a stale copy."""
+    b = angles.shape[0]
+    r = np.empty(b)
+    row = np.empty(b, np.int64)
+    col = np.empty(b, np.int64)
+    for p in range(xy.shape[0]):
+        _cast(occ, ox, oy, res, xy[p, 0], xy[p, 1], angles, range_max, r, row, col)
+        for j in range(b):
+            out_r[p, j] = r[j]
+            if row[j] >= 0 and r[j] < class_max:
+                out_lab[p, j] = labels[row[j], col[j]]
+            else:
+                out_lab[p, j] = 0

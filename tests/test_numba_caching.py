@@ -1,0 +1,59 @@
+"""Cached numba kernels call only kernels of their own file.
+
+numba decides whether a cached kernel is stale by its own source file alone: a cached kernel that
+calls a compiled kernel of another file keeps running the old callee after that file changes, so
+machines with and without a warm cache would behave differently (found in an audit: the
+viewpoint planner's ray caster called `grid_raycast._cast`)."""
+
+import importlib
+import pkgutil
+import types
+
+import pytest
+from numba.core.registry import CPUDispatcher
+
+import agents
+import filters
+import semreloc_env
+
+
+def _modules():
+    for pkg in (filters, semreloc_env, agents):
+        for info in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."):
+            yield info.name
+
+
+def _names(code: types.CodeType) -> set[str]:
+    out = set(code.co_names)
+    for c in code.co_consts:
+        if isinstance(c, types.CodeType):
+            out |= _names(c)
+    return out
+
+
+def _cached_kernels():
+    for name in _modules():
+        mod = importlib.import_module(name)
+        for attr, obj in vars(mod).items():
+            cached = isinstance(obj, CPUDispatcher) and type(obj._cache).__name__ != "NullCache"  # cache=True
+            if cached and obj.__module__ == name:
+                yield name, attr, obj
+
+
+def test_the_scan_finds_the_cached_kernels():
+    found = {(m, a) for m, a, _ in _cached_kernels()}
+    assert ("filters.localization.likelihood_field", "log_likelihood_kernel") in found
+    assert ("filters.simulators.grid_raycast", "cast_many_labelled") in found
+    assert len(found) >= 10
+
+
+@pytest.mark.parametrize("module, name, kernel", list(_cached_kernels()), ids=lambda v: v if isinstance(v, str) else "")
+def test_cached_kernel_calls_no_kernel_of_another_file(module, name, kernel):
+    g = kernel.py_func.__globals__
+    foreign = [
+        n
+        for n in sorted(_names(kernel.py_func.__code__))
+        if isinstance(g.get(n), CPUDispatcher)
+        and g[n].py_func.__code__.co_filename != kernel.py_func.__code__.co_filename
+    ]
+    assert not foreign, f"{module}.{name} calls compiled kernels of other files: {foreign}"
