@@ -6,6 +6,7 @@ Subclasses add their estimator (``_reset_estimator`` / ``_step_estimator``), the
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
@@ -143,6 +144,8 @@ class SemRelocBase(gym.Env):
         options, world = self._prepare_reset(seed, options)
         seed = None if seed is None else int(seed)
         saved = dict(self.__dict__)  # a reset that fails below must leave the old episode intact
+        # spawning child streams advances the generator's seed sequence in place: keep a copy
+        saved["_np_random"] = copy.deepcopy(self.__dict__.get("_np_random"))
         try:
             super().reset(seed=seed)
             # independent streams: world/start pose, sensors, odometry, estimator
