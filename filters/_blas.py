@@ -1,19 +1,20 @@
-"""``a @ b`` for long float64 vectors with the same bits, without waking OpenBLAS's threads.
+"""Dot products of long float64 vectors in one fixed order, whatever NumPy's OpenBLAS thread count.
 
 NumPy's OpenBLAS splits a dot product of more than 10,000 elements over its threads
 (``kernel/x86_64/ddot.c``): thread ``k`` of ``t`` computes the dot of the ``k``-th chunk
 (``ceil(remaining / threads left)`` elements) with the single-thread kernel, and the caller adds
-the partial results in thread order to ``0.0``. The result therefore depends on the thread
-count, and on a busy machine waking the threads costs far more than the arithmetic (measured
-on the shared 2-core VM: ~35 us of CPU instead of ~8 us, several ms under heavy load).
+the partial results in thread order to ``0.0``. ``a @ b`` therefore gives other bits on a machine
+with another core count (or under ``OPENBLAS_NUM_THREADS``), and on a busy machine waking the
+threads costs far more than the arithmetic (measured on the shared 2-core VM: ~35 us of CPU
+instead of ~8 us, several ms under heavy load).
 
-`dot` computes the same chunks itself, each one single-threaded (a chunk has at most
-10,000 elements, so OpenBLAS does not split it again), and adds them in the same order: the
-same bits as ``a @ b`` with the process's current OpenBLAS thread count. It checks that claim
-once per thread count on fixed vectors and falls back to ``a @ b`` when the check fails, when
-the OpenBLAS thread count cannot be read (another BLAS), or when a chunk would be longer than
-10,000 elements; so it is never *less* exact than ``a @ b``, only sometimes not faster.
-(tests/test_blas_dot.py)
+`dot` splits the same way for a *fixed* count, ``t = max(2, ceil(n / 10,000))`` chunks, computes
+each chunk with ``@`` (at most 10,000 elements, so OpenBLAS keeps it on one thread) and adds the
+partial results in order to ``0.0``; vectors of at most 10,000 elements are one ``@``. So the
+result does not depend on the thread count, and for ``n <= 20,000`` it is the bits of ``a @ b``
+under OpenBLAS with 2 threads (the machines the project's figures were made on), which is what
+``a @ b`` gave there before. What still differs between machines is OpenBLAS's single-thread
+kernel itself, chosen per CPU architecture. (tests/test_blas_dot.py)
 """
 
 from __future__ import annotations
@@ -51,7 +52,6 @@ def _find_openblas():
 
 
 _lib, _get_threads = _find_openblas()
-_verified: dict[int, bool] = {}
 
 
 def openblas_threads() -> int | None:
@@ -60,6 +60,8 @@ def openblas_threads() -> int | None:
 
 
 def _chunked(a: np.ndarray, b: np.ndarray, t: int) -> float | None:
+    """OpenBLAS's split over ``t`` threads, each chunk with ``@``; None if a chunk would be longer
+    than 10,000 elements (OpenBLAS would split it again)."""
     n = a.shape[0]
     if t <= 1 or n <= _SPLIT_ABOVE:
         return a @ b
@@ -74,24 +76,12 @@ def _chunked(a: np.ndarray, b: np.ndarray, t: int) -> float | None:
     return acc
 
 
-def _check(t: int) -> bool:
-    if t not in _verified:
-        rng = np.random.default_rng(12345)
-        ok = True
-        for n in (10_001, 10_002, 13_337, 15_000, 19_999, 20_000):
-            a, b = rng.random(n), rng.normal(0.0, 3.0, n)
-            r = _chunked(a, b, t)
-            ok &= r is None or bool(np.float64(r).tobytes() == np.float64(a @ b).tobytes())
-        _verified[t] = ok
-    return _verified[t]
+def chunks_for(n: int) -> int:
+    """The fixed chunk count of `dot` for ``n`` elements."""
+    return 1 if n <= _SPLIT_ABOVE else max(2, -(-n // _SPLIT_ABOVE))
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> float:
-    """``a @ b`` of two contiguous float64 vectors of equal length, bit for bit (module docstring)."""
-    if a.shape[0] <= _SPLIT_ABOVE:
-        return a @ b
-    t = openblas_threads()
-    if t is None or not _check(t):
-        return a @ b
-    r = _chunked(a, b, t)
-    return a @ b if r is None else r
+    """The dot product of two contiguous float64 vectors of equal length in the fixed order of the
+    module docstring (independent of the OpenBLAS thread count)."""
+    return _chunked(a, b, chunks_for(a.shape[0]))

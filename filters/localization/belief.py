@@ -40,8 +40,8 @@ Backends: every function here takes ``backend="numba"`` (default; the kernels of
 specification). Both give the same results *bit for bit* — labels, counts and every float —
 because the kernels repeat the reference's floating-point operations in the same order and
 leave BLAS dot products, pairwise sums and transcendental functions to NumPy
-(``tests/test_belief_kernels.py``); the long dot products go through `filters._blas.dot`,
-which gives ``w @ x``'s bits without waking OpenBLAS's threads.
+(``tests/test_belief_kernels.py``); the weighted means are `filters._blas.dot` in both, a fixed
+order that does not depend on OpenBLAS's thread count.
 """
 
 from __future__ import annotations
@@ -426,7 +426,7 @@ def summarize(
     w = _normalised(weights, n)
     x, y, th = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
 
-    dot = _blas.dot if backend == "numba" else np.dot  # the same bits (filters._blas)
+    dot = _blas.dot  # both backends: one order whatever the BLAS thread count
     mx, my = float(dot(w, x)), float(dot(w, y))
     sin_th, cos_th = np.sin(th), np.cos(th)
     mth = float(wrap_angle(np.arctan2(dot(w, sin_th), dot(w, cos_th))))

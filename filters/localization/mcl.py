@@ -591,7 +591,7 @@ class MonteCarloLocalizer:
         if c.augmented and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
             prior = np.exp(self._logw)
-            w_avg = float(_blas.dot(prior, per_beam) if c.fast_path else prior @ per_beam)
+            w_avg = float(_blas.dot(prior, per_beam))  # one order whatever the BLAS thread count
             if self._w_slow == 0.0:  # pf.c: the averages start at the first average
                 self._w_slow = self._w_fast = w_avg
             else:
