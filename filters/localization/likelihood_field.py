@@ -174,43 +174,28 @@ def _beam_cells(pu, pv, c, s, lu, lv, offset, outside, w, h, idx):  # pragma: no
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _gather_sum(flat, idx, lo, hi):  # pragma: no cover - compiled
+def _gather_sum(flat, idx, lo, hi, acc):  # pragma: no cover - compiled
     """``sum(flat[idx[lo:hi]])`` in one fixed order, exact IEEE arithmetic (no fastmath).
 
     The order is the one LLVM chose for a fastmath loop on x86-64 (4 lanes x 4 accumulators,
     a 4-lane epilogue, then one by one), written out so that every compilation gives the same
     bits: under fastmath a freshly compiled kernel and the same kernel loaded from numba's cache
     summed in different orders, so the first process on a machine differed in the last bits from
-    later ones. Sixteen independent partial sums keep the loads overlapped as fastmath did.
+    later ones. The sixteen partial sums live in ``acc`` (scratch, 16 floats) so that LLVM can
+    keep them in vector registers without reassociating anything: no slower than fastmath was.
     """
     n = hi - lo
     m = lo + (n // 16) * 16
     r = 0.0
     if m > lo:
-        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
-        a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
+        for k in range(16):
+            acc[k] = 0.0
         for j in range(lo, m, 16):
-            a0 += flat[idx[j]]
-            a1 += flat[idx[j + 1]]
-            a2 += flat[idx[j + 2]]
-            a3 += flat[idx[j + 3]]
-            a4 += flat[idx[j + 4]]
-            a5 += flat[idx[j + 5]]
-            a6 += flat[idx[j + 6]]
-            a7 += flat[idx[j + 7]]
-            a8 += flat[idx[j + 8]]
-            a9 += flat[idx[j + 9]]
-            a10 += flat[idx[j + 10]]
-            a11 += flat[idx[j + 11]]
-            a12 += flat[idx[j + 12]]
-            a13 += flat[idx[j + 13]]
-            a14 += flat[idx[j + 14]]
-            a15 += flat[idx[j + 15]]
-        s0 = (a0 + a4) + (a8 + a12)
-        s1 = (a1 + a5) + (a9 + a13)
-        s2 = (a2 + a6) + (a10 + a14)
-        s3 = (a3 + a7) + (a11 + a15)
-        r = (s0 + s2) + (s1 + s3)
+            for k in range(16):
+                acc[k] += flat[idx[j + k]]
+        r = ((acc[0] + acc[4]) + (acc[8] + acc[12]) + ((acc[2] + acc[6]) + (acc[10] + acc[14]))) + (
+            ((acc[1] + acc[5]) + (acc[9] + acc[13])) + ((acc[3] + acc[7]) + (acc[11] + acc[15]))
+        )
     e = m + ((hi - m) // 4) * 4
     if e > m:
         b0 = r
@@ -246,12 +231,13 @@ def log_likelihood_kernel(
     """
     nb = lu.shape[0]
     idx = np.empty(nb, np.int64)
+    acc = np.empty(16)
     for i in range(x.shape[0]):
         _beam_cells(
             (x[i] - ox) * inv_res, (y[i] - oy) * inv_res, cos_t[i], sin_t[i], lu, lv, offset, outside, w, h, idx
         )
-        out_l[i] = _gather_sum(flat, idx, 0, n_lidar)
-        out_s[i] = _gather_sum(flat, idx, n_lidar, nb)
+        out_l[i] = _gather_sum(flat, idx, 0, n_lidar, acc)
+        out_s[i] = _gather_sum(flat, idx, n_lidar, nb, acc)
 
 
 class LikelihoodFieldModel:
