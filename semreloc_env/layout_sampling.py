@@ -16,6 +16,7 @@ The same reset seed gives the same layout, bit for bit; ``info["layout"]`` says 
 
 from __future__ import annotations
 
+import copy
 import functools
 from collections import OrderedDict
 from collections.abc import Sequence
@@ -181,12 +182,23 @@ class RandomLayout(gym.Wrapper):
         return grid
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        if seed is not None:
-            self._rng = np.random.default_rng([int(seed), _SALT])
-        draw = self.sampler.draw(self._rng)
-        self.env.unwrapped.set_layout(draw.layout, draw.seed, grid=self._grid(draw))
-        self.current = draw
-        obs, info = self.env.reset(seed=seed, options=options)
+        """Draw the next layout, then reset on it. A rejected reset (bad seed or options, raised
+        by the env) changes nothing: the layout stream, the env's layout and map stay as they were."""
+        base = self.env.unwrapped
+        base.check_reset(seed=seed)  # the seed before it re-seeds the layout stream
+        saved = (self._rng, self.current, base.layout, base.layout_seed, base.grid, base._obstacles)
+        try:
+            if seed is not None:
+                self._rng = np.random.default_rng([int(seed), _SALT])
+            else:
+                self._rng = copy.deepcopy(self._rng)  # drawing advances it in place
+            draw = self.sampler.draw(self._rng)
+            base.set_layout(draw.layout, draw.seed, grid=self._grid(draw))
+            self.current = draw
+            obs, info = self.env.reset(seed=seed, options=options)
+        except Exception:
+            self._rng, self.current, base.layout, base.layout_seed, base.grid, base._obstacles = saved
+            raise
         info["layout"] = draw.as_dict()
         return obs, info
 

@@ -145,3 +145,41 @@ def test_set_layout_changes_the_next_episode_only():
     _, info = env.reset(seed=0)
     assert env.unwrapped.world.layout.name == "twin_rooms"
     assert 0 <= info["pose"][0] <= 12
+
+
+def test_a_rejected_random_layout_reset_changes_nothing():
+    # The wrapper drew the next layout and swapped the env's map before the env rejected the reset,
+    # so the running episode reported (and observed) another layout's map (found in an audit).
+    def make():
+        return RandomLayout(
+            gym.make("SemReloc-v2", map_source="perfect", relocalizer={"n_particles": 200}),
+            LayoutSampler(kinds=("lab", "twin_rooms", "procedural"), seeds=range(20)),
+        )
+
+    a, b = make(), make()
+    for env in (a, b):
+        env.reset(seed=3)
+        env.step(0)
+    base = a.unwrapped
+    layout, grid = base.layout, base.grid
+    for bad in ({"seed": 2.5}, {"seed": -1}, {"options": {"bogus": 1}}, {"options": {"pose": [np.nan, 0.0, 0.0]}}):
+        with pytest.raises(ValueError):
+            a.reset(**bad)
+        assert base.layout is layout and base.grid is grid
+    _, _, _, _, info_a = a.step(0)
+    _, _, _, _, info_b = b.step(0)
+    assert info_a["layout"] == info_b["layout"]
+    np.testing.assert_array_equal(info_a["pose"], info_b["pose"])
+    (_, ia), (_, ib) = a.reset(), b.reset()  # the layout stream was not advanced by the failures
+    assert ia["layout"] == ib["layout"]
+
+
+def test_set_layout_rejects_a_map_of_another_place():
+    env = gym.make("SemReloc-v2", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
+    lab_grid = env.unwrapped.grid
+    twin_grid = gym.make("SemReloc-v2", layout="twin_rooms", map_source="perfect").unwrapped.grid
+    with pytest.raises(ValueError):
+        env.unwrapped.set_layout("twin_rooms", grid=lab_grid)
+    assert env.unwrapped.layout.name == "lab" and env.unwrapped.grid is lab_grid
+    env.unwrapped.set_layout("twin_rooms", grid=twin_grid)  # the right map is taken
+    assert env.unwrapped.grid is twin_grid

@@ -15,6 +15,7 @@ from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
 from ..layouts import CLASS_NAMES, LAYOUT_NAMES, get_layout
+from ..map_world import check_map_matches_world
 from ..maps import MAP_SOURCES, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
@@ -230,6 +231,7 @@ class SemRelocEnv(SemRelocBase):
         self.map_source = map_source
         self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
+        self._matched_maps: dict = {}  # layout -> the grid `set_layout` last found to match it
         self.mcl: MonteCarloLocalizer | None = None
 
     def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None) -> None:
@@ -243,7 +245,9 @@ class SemRelocEnv(SemRelocBase):
 
         Raises:
             ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
-                to one layout), or the grid's classes differ; nothing changes then.
+                to one layout), or the grid's classes differ, or it is not a map of the layout
+                (`semreloc_env.map_world.check_map_matches_world`: another place, shifted or
+                rotated); nothing changes then.
         """
         layout_seed = check_layout_seed(layout_seed)
         new_layout = get_layout(layout, seed=layout_seed)
@@ -257,6 +261,11 @@ class SemRelocEnv(SemRelocBase):
             raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
         elif grid.class_names != CLASS_NAMES:
             raise ValueError(f"grid classes {grid.class_names} differ from the env's {CLASS_NAMES}")
+        elif self._matched_maps.get(new_layout) is not grid:  # ~5 ms: once per (layout, grid)
+            check_map_matches_world(grid, new_layout)
+            self._matched_maps[new_layout] = grid
+            while len(self._matched_maps) > 256:
+                self._matched_maps.pop(next(iter(self._matched_maps)))
         obstacles = changed_obstacles(new_layout, layout_seed) if self.scenario == "changed" else []
         self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, layout_seed, grid, obstacles
         if self._renderer is not None:  # drawn for the old layout
