@@ -46,7 +46,7 @@ class SB3VecEnvAdapter(VecEnv):
         return self._stack(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = actions
+        self._actions = self.venv.check_actions(actions)  # all checked before any robot moves
 
     def step_wait(self) -> VecEnvStepReturn:
         obs, infos = [], []

@@ -74,6 +74,32 @@ def test_bad_arguments():
         venv.step([0])
 
 
+def test_rejected_steps_and_resets_move_no_robot():
+    # Before an input audit, robots 0 and 1 stepped (or reset) before robot 2's bad action (or
+    # seed) raised, and a scalar action gave "'int' object is not iterable".
+    from agents.vec_env import SB3VecEnvAdapter
+
+    venv = SemRelocLoopVectorEnv(num_envs=3, **KW)
+    venv.reset(seed=0)
+    poses = [e.unwrapped.world.pose.copy() for e in venv.envs]
+    particles = [e.unwrapped.mcl.poses.copy() for e in venv.envs]
+    for bad, match in [([0, 0, 7], "robot 2"), ([0, np.nan, 0], "robot 1"), (0, "sequence"), ([0, 0], "actions")]:
+        with pytest.raises(ValueError, match=match):
+            venv.step(bad)
+    for seed, match in [([5, -1, 3], "robot 1"), (1.5, "seed"), (True, "seed")]:
+        with pytest.raises(ValueError, match=match):
+            venv.reset(seed=seed)
+    with pytest.raises(ValueError, match="robot 0"):
+        venv.reset(seed=0, options={"bogus": 1})
+    adapter = SB3VecEnvAdapter(venv)
+    with pytest.raises(ValueError, match="robot 2"):
+        adapter.step(np.array([0, 0, 9]))
+    for env, pose, p in zip(venv.envs, poses, particles):
+        np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
+        np.testing.assert_array_equal(env.unwrapped.mcl.poses, p)
+    venv.step([0, 1, 2])  # the episode goes on
+
+
 def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():
     from stable_baselines3.common.vec_env import DummyVecEnv
 

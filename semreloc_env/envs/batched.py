@@ -28,6 +28,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
+from .spaces import decode_action
+
 SINGLE_ENV_ID = "SemReloc-v1"
 
 
@@ -71,15 +73,50 @@ class SemRelocLoopVectorEnv(VectorEnv):
         self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
         self._done = np.zeros(self.num_envs, dtype=np.bool_)
 
-    # ------------------------------------------------------------------ API
-    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
-        """Reset every robot: ``seed`` int gives robot ``i`` the seed ``seed + i``; a list gives each its own."""
-        if seed is None or isinstance(seed, (int, np.integer)):
+    # ------------------------------------------------------------------ checks
+    def check_actions(self, actions) -> list:
+        """The per-robot actions of ``actions``; ValueError naming the robot if any is invalid.
+
+        Checks all of them before any robot moves, so a rejected call changes nothing."""
+        if isinstance(actions, (str, bytes)) or np.ndim(actions) == 0:
+            raise ValueError(f"actions must be a sequence of {self.num_envs} actions, got {actions!r:.80}")
+        acts = list(actions)
+        if len(acts) != self.num_envs:
+            raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
+        for i, (env, a) in enumerate(zip(self.envs, acts)):
+            base = env.unwrapped
+            try:
+                if env.action_space is base.action_space:
+                    decode_action(a, base.action_type, base.action_space, base.robot_params)
+                elif not env.action_space.contains(a):
+                    raise ValueError(f"invalid action {a!r:.80} for {env.action_space}")
+            except ValueError as e:
+                raise ValueError(f"robot {i}: {e}") from None
+        return acts
+
+    def check_seeds(self, seed, options: dict | None = None) -> list[int | None]:
+        """Per-robot seeds of ``seed`` (see `reset`), every robot's seed and ``options`` checked first."""
+        if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_))):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
-        else:
+        elif isinstance(seed, (list, tuple, np.ndarray)):
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(f"got {len(seeds)} seeds for {self.num_envs} robots")
+        else:
+            raise ValueError(f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r:.80}")
+        for i, (env, s) in enumerate(zip(self.envs, seeds)):
+            try:
+                env.unwrapped.check_reset(seed=s, options=options)
+            except ValueError as e:
+                raise ValueError(f"robot {i}: {e}") from None
+        return seeds
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Reset every robot: ``seed`` int gives robot ``i`` the seed ``seed + i``; a list gives each its own.
+
+        Seeds and options are checked for every robot before any is reset (ValueError)."""
+        seeds = self.check_seeds(seed, options)
         super().reset(seed=seeds[0])
         obs_list, infos = [], {}
         for i, (env, s) in enumerate(zip(self.envs, seeds)):
@@ -90,10 +127,10 @@ class SemRelocLoopVectorEnv(VectorEnv):
         return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), infos
 
     def step(self, actions):
-        """Step every robot with its action (a robot that ended last step is reset instead)."""
-        acts = list(actions) if not isinstance(actions, np.ndarray) else list(actions)
-        if len(acts) != self.num_envs:
-            raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
+        """Step every robot with its action (a robot that ended last step is reset instead).
+
+        Every action is checked before any robot moves (ValueError naming the robot)."""
+        acts = self.check_actions(actions)
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terms = np.zeros(self.num_envs, dtype=np.bool_)
         truncs = np.zeros(self.num_envs, dtype=np.bool_)
