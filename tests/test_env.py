@@ -147,6 +147,16 @@ def test_a_reset_that_fails_midway_leaves_the_random_streams_as_they_were():
     assert run(True) == run(False)
 
 
+def test_kidnap_pose_is_taken_as_checked_at_reset():
+    kp = np.array([1.0, 1.0, 0.0])
+    env = make()
+    env.reset(seed=0, options={"kidnap_at_step": 2, "kidnap_pose": kp})
+    kp[:] = np.nan  # the caller's array changes afterwards: the episode keeps the checked copy
+    for _ in range(3):
+        _, _, _, _, info = env.step(3)
+    np.testing.assert_allclose(info["pose"][:2], [1.0, 1.0], atol=1e-6)
+
+
 def test_unknown_constructor_arguments_are_errors():
     with pytest.raises(TypeError):
         gym.make("SemReloc-v2", map_source="perfect", lidar_beams=30)

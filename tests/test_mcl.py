@@ -346,3 +346,31 @@ def test_same_seed_is_bit_identical():
     a, b, c = run(3), run(3), run(4)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
     assert a[0].shape != c[0].shape or not np.array_equal(a[0], c[0])
+
+
+def test_predict_that_would_make_particles_non_finite_is_rejected_and_changes_nothing():
+    # A finite but absurd odometry delta (1e300 m) turned every particle into NaN for good
+    # (found in an input audit); now it raises and the filter, its generator included, is as before.
+    def make():
+        m = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=200), np.random.default_rng(4))
+        m.init_global()
+        return m
+
+    a, b = make(), make()
+    before = a.poses.copy()
+    with pytest.raises(ValueError, match="non-finite"):
+        a.predict([1e300, 0.0, 0.0])
+    np.testing.assert_array_equal(a.poses, before)
+    a.predict([0.1, 0.0, 0.05])
+    b.predict([0.1, 0.0, 0.05])
+    np.testing.assert_array_equal(a.poses, b.poses)
+
+
+@pytest.mark.parametrize(
+    "pose, std, match",
+    [([1.0, 1.0, 0.0], [0.1, 0.1], "std"), ([1.0, 1.0, 0.0], "a", "std"), ("xy", 0.1, "pose"), ([1, 1], 0.1, "pose")],
+)
+def test_init_around_names_its_bad_argument(pose, std, match):
+    m = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=100), np.random.default_rng(0))
+    with pytest.raises(ValueError, match=match):
+        m.init_around(pose, std)

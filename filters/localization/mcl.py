@@ -480,12 +480,18 @@ class MonteCarloLocalizer:
         if n is None:
             n = self.config.n_particles if self.config.n_particles is not None else self.config.min_particles
         n = self._check_n(n)
-        p = np.asarray(pose, dtype=np.float64).reshape(-1)
-        s = np.broadcast_to(np.asarray(std, dtype=np.float64), (3,))
-        if p.shape != (3,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"pose must be 3 finite numbers, got {pose!r}")
-        if not np.all(np.isfinite(s)) or np.any(s < 0):
-            raise ValueError(f"std must be finite and >= 0, got {std!r}")
+        try:
+            p = np.asarray(pose, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            p = None
+        if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"pose must be 3 finite numbers, got {pose!r:.80}")
+        try:
+            s = np.broadcast_to(np.asarray(std, dtype=np.float64), (3,))
+        except (TypeError, ValueError):
+            s = None
+        if s is None or not np.all(np.isfinite(s)) or np.any(s < 0):
+            raise ValueError(f"std must be a number or 3 numbers, finite and >= 0, got {std!r:.80}")
         poses = p + self.rng.standard_normal((n, 3)) * s
         poses[:, 2] = wrap_angle(poses[:, 2])
         self._set(poses)
@@ -503,7 +509,12 @@ class MonteCarloLocalizer:
         d = np.asarray(delta, dtype=np.float64).reshape(-1)
         if d.shape != (3,) or not np.all(np.isfinite(d)):
             raise ValueError(f"odometry delta must be 3 finite numbers, got {delta!r}")
-        self._poses = self.motion_model.sample(self._poses, d, self.rng)
+        rng_state = self.rng.bit_generator.state
+        poses = self.motion_model.sample(self._poses, d, self.rng)
+        if not np.all(np.isfinite(poses)):  # e.g. a delta of 1e300 m: keep the filter as it was
+            self.rng.bit_generator.state = rng_state
+            raise ValueError(f"odometry delta {delta!r} moves particles to non-finite poses")
+        self._poses = poses
         self._since_update = compose(self._since_update, d)
 
     def moved_enough(self) -> bool:

@@ -300,7 +300,8 @@ class SemRelocEnv(SemRelocBase):
         else:
             self.mcl.init_global()
         self._kidnap_at = options.get("kidnap_at_step")
-        self._kidnap_pose = options.get("kidnap_pose")
+        kp = options.get("kidnap_pose")  # the checked copy: the caller may change its array later
+        self._kidnap_pose = None if kp is None else as_pose(kp, "kidnap_pose")
         self._kidnapped = False
         self._tracking = bool(options.get("tracking"))
         self._succeeded = False
