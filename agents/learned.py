@@ -98,8 +98,15 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
             meta = json.loads(z.read(META_NAME))
     except zipfile.BadZipFile as e:
         raise ValueError(f"{path} is not a policy zip: {e}") from e
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path}: {META_NAME} is not valid JSON: {e}") from e
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path}: {META_NAME} must hold a JSON object, got {type(meta).__name__}")
     if meta.get("format") != FORMAT_VERSION:
         raise ValueError(f"{path}: policy format {meta.get('format')!r}, this code reads {FORMAT_VERSION}")
+    missing = [k for k in ("observation", "repeat") if k not in meta]
+    if missing:
+        raise ValueError(f"{path}: {META_NAME} lacks {missing}")
     return meta
 
 
@@ -262,7 +269,13 @@ def load_policy(
             explorer_option = bool(meta["explorer_option"])
     if not Path(path).is_file():
         raise FileNotFoundError(f"no policy file {path}")
-    model = PPO.load(path, device=device)
+    from .train import check_device  # imported here, as PPO is: torch only when a policy is loaded
+
+    check_device(device)
+    try:
+        model = PPO.load(path, device=device)
+    except (AssertionError, KeyError, ValueError, RuntimeError, zipfile.BadZipFile) as e:
+        raise ValueError(f"{path}: not a loadable stable-baselines3 PPO model ({type(e).__name__}: {e})") from e
     if options is None and explorer_option is None:
         options = _checkpoint_options(path, model.action_space)
     return LearnedPolicy(model, observation, repeat, deterministic, bool(explorer_option), seed, options)

@@ -21,6 +21,7 @@ from ``seed + k`` (SB3 ``make_vec_env``), evaluation episodes from their own see
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,6 +48,36 @@ ENV_ID = "SemReloc-v2"
 """The env id training and evaluation use unless told otherwise (``TrainConfig.env_id``, ``env_id=``)."""
 VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv, "batched": None}
 """``"batched"``: `agents.vec_env.SB3VecEnvAdapter` over the batched env (R robots in one process)."""
+
+
+def check_ppo_settings(config) -> None:
+    """ValueError naming the field unless ``config``'s PPO numbers are usable: ``learning_rate`` and
+    ``clip_range`` finite and > 0, ``gamma`` in (0, 1], ``gae_lambda`` in [0, 1], ``ent_coef`` and
+    ``vf_coef`` (where present) finite and >= 0, ``device`` ``"auto"`` or a torch device."""
+    checks = {
+        "learning_rate": (lambda v: v > 0, "> 0"),
+        "clip_range": (lambda v: v > 0, "> 0"),
+        "gamma": (lambda v: 0 < v <= 1, "in (0, 1]"),
+        "gae_lambda": (lambda v: 0 <= v <= 1, "in [0, 1]"),
+        "ent_coef": (lambda v: v >= 0, ">= 0"),
+        "vf_coef": (lambda v: v >= 0, ">= 0"),
+    }
+    for name, (ok, what) in checks.items():
+        if not hasattr(config, name):
+            continue
+        v = getattr(config, name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not ok(v):
+            raise ValueError(f"{name} must be a finite number {what}, got {v!r}")
+    check_device(config.device)
+
+
+def check_device(device) -> None:
+    """ValueError unless ``device`` is ``"auto"`` or names a torch device (``"cpu"``, ``"cuda:0"``, ...)."""
+    try:
+        if device != "auto":
+            torch.device(device)
+    except (RuntimeError, TypeError) as e:
+        raise ValueError(f"device must be 'auto' or a torch device such as 'cpu', got {device!r}") from e
 
 
 @dataclass(frozen=True)
@@ -133,11 +164,7 @@ class TrainConfig:
                 raise ValueError(f"{name} must be None or an int >= 1, got {every!r}")
             if self.log_dir is None:
                 raise ValueError(f"{name} needs a log_dir to write to")
-        try:
-            if self.device != "auto":
-                torch.device(self.device)
-        except (RuntimeError, TypeError) as e:
-            raise ValueError(f"device must be 'auto' or a torch device such as 'cpu', got {self.device!r}") from e
+        check_ppo_settings(self)
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

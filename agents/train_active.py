@@ -41,6 +41,7 @@ from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
 from .learned import save_policy
 from .options import MotionOptions, check_options
+from .train import check_ppo_settings
 
 ENV_ID = "SemReloc-v2"
 TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
@@ -141,6 +142,13 @@ class ActiveTrainConfig:
         if self.checkpoint_every is not None and self.checkpoint_every < 1:
             raise ValueError("checkpoint_every must be None or >= 1")
         check_options(self.options)
+        check_ppo_settings(self)
+        # the layout stream's arguments, checked here rather than in the env workers
+        LayoutSampler(
+            kinds=self.kinds,
+            seeds=range(*self.layout_seeds),
+            weights=None if self.kind_weights is None else list(self.kind_weights),
+        )
         allowed = set(inspect.signature(ActiveObservation.__init__).parameters) - {"self", "env"}
         unknown = sorted(set(self.observation) - allowed)
         if unknown:

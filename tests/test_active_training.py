@@ -80,6 +80,16 @@ def test_config_rejects_bad_values():
         ActiveTrainConfig(kind_weights=(1.0,))
     with pytest.raises(ValueError, match="unknown ActiveObservation"):
         ActiveTrainConfig(observation={"ego_pixels": 3})
+    # caught here, not as a torch error after the logs are written or inside the env workers
+    for bad, match in [
+        ({"gamma": float("nan")}, "gamma"),
+        ({"learning_rate": -1.0}, "learning_rate"),
+        ({"vf_coef": float("inf")}, "vf_coef"),
+        ({"device": "bogus"}, "device"),
+        ({"kinds": ("nosuch",), "kind_weights": (1.0,)}, "kinds"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            ActiveTrainConfig(**bad)
 
 
 @pytest.fixture(scope="module")
@@ -173,6 +183,23 @@ def test_load_policy_errors(smoke_run, tmp_path):
                 dst.writestr(name, src.read(name))
     with pytest.raises(ValueError, match="no semreloc_policy.json"):
         load_policy(bare)
+    for name, meta, keep_model, match in [
+        ("badjson.zip", "{nope", True, "not valid JSON"),
+        ("list.zip", "[1]", True, "JSON object"),
+        ("fmtonly.zip", '{"format": 1}', True, "lacks"),
+        ("nomodel.zip", None, False, "not a loadable"),
+    ]:
+        broken = tmp_path / name
+        with zipfile.ZipFile(path) as src, zipfile.ZipFile(broken, "w") as dst:
+            for member in src.namelist():
+                if member == META_NAME:
+                    dst.writestr(member, src.read(member) if meta is None else meta)
+                elif keep_model:
+                    dst.writestr(member, src.read(member))
+        with pytest.raises(ValueError, match=match):
+            load_policy(broken)
+    with pytest.raises(ValueError, match="device"):
+        load_policy(path, device="bogus")
     from_bare = load_policy(bare, observation={}, repeat=3)  # explore action inferred from Discrete(5)
     assert from_bare.repeat == 3 and from_bare.explorer_option
     from_bare.wrap(_env())
