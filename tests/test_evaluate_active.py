@@ -118,3 +118,20 @@ def test_learned_policy_is_loaded_once_per_file_version_and_acts_as_a_fresh_load
 
     os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 10**9))
     assert ev.make_policy(spec, 3).model is not a.model
+
+
+def test_bad_arguments_are_caught_before_any_episode(tmp_path):
+    junk = tmp_path / "junk.zip"
+    junk.write_text("not a zip")
+    for kw, match in [
+        ({"layouts_per_kind": 501}, "held-out"),
+        ({"seed_set": "tuning", "layouts_per_kind": 0}, "tuning"),
+        ({"layout_files": (str(tmp_path / "missing.json"),)}, "layout_files"),
+        ({"policies": (f"ppo={junk}",)}, "not a policy zip"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            ev.Args(**kw)
+    out = tmp_path / "out"
+    with pytest.raises(ValueError, match="gif_case"):
+        ev.main(["--policies", "spin", "--layouts-per-kind", "0", "--gif-case", "999", "--out", str(out)])
+    assert not out.exists()

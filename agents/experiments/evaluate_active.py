@@ -117,6 +117,27 @@ class Args:
                 )
         if self.map_source not in ("mapping", "perfect"):
             raise ValueError(f"map_source must be mapping or perfect, got {self.map_source!r}")
+        from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
+
+        if self.seed_set == "held_out" and self.layouts_per_kind > len(HELD_OUT_LAYOUT_SEEDS):
+            raise ValueError(
+                f"layouts_per_kind: at most {len(HELD_OUT_LAYOUT_SEEDS)} held-out seeds per kind, "
+                f"got {self.layouts_per_kind}"
+            )
+        if self.seed_set == "tuning" and self.layouts_per_kind < 1:
+            raise ValueError("layouts_per_kind must be >= 1 with seed_set tuning (it has no fixed layouts)")
+        missing_layouts = [f for f in self.layout_files if not Path(f).is_file()]
+        if missing_layouts:
+            raise ValueError(f"layout_files: no such file {missing_layouts}")
+        for spec in self.policies:
+            if "=" in spec:
+                from agents.learned import read_metadata
+
+                try:
+                    read_metadata(spec.split("=", 1)[1])
+                except ValueError as e:
+                    if "has no semreloc_policy.json" not in str(e):  # a bare checkpoint of a run is fine
+                        raise ValueError(f"policies: {spec}: {e}") from None
 
 
 ENV_ID = "SemReloc-v2"
@@ -523,10 +544,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(Args, argv, __doc__)
     specs = list(args.policies)
     policies = [s.partition("=")[0] for s in specs]
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     cases = build_cases(args)
+    if args.gif_case >= len(cases):
+        raise ValueError(f"gif_case: {args.gif_case} is not a case (there are {len(cases)}, 0-{len(cases) - 1})")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
     n_unin = sum(c["uninformative"] for c in cases)
     print(f"{len(cases)} (layout, start) pairs ({n_unin} uninformative starts) x {len(policies)} policies", flush=True)
     rows: list[dict] = []
