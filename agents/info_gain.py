@@ -237,6 +237,7 @@ class InfoGainPlanner(Policy):
         return best
 
     def act(self, obs: dict):
+        self.require_wrapped()
         if not self._queue:
             self._queue = list(self.plan().actions[: self.replan_every])
         a = self._queue.pop(0)

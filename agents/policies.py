@@ -38,6 +38,8 @@ class Policy:
     """Base class: action encoding for the env's action type, and the interface."""
 
     def __init__(self, seed: int = 0):
+        if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"{type(self).__name__}: seed must be an integer >= 0, got {seed!r:.60}")
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
         self.env: gym.Env | None = None
@@ -45,8 +47,12 @@ class Policy:
 
     def wrap(self, env: gym.Env) -> gym.Env:
         space = env.action_space
-        if not isinstance(space, (spaces.Discrete, spaces.Box)):
-            raise TypeError(f"{type(self).__name__} needs a Discrete or Box action space, got {space}")
+        discrete_ok = isinstance(space, spaces.Discrete) and space.n >= 4 and space.start == 0
+        if not (discrete_ok or (isinstance(space, spaces.Box) and space.shape == (2,))):
+            raise TypeError(
+                f"{type(self).__name__} needs a SemReloc action space: Discrete(>= 4) (forward, left, right, "
+                f"stop, ...) or a Box of (v, omega); got {space}"
+            )
         self.env = env
         self.continuous = isinstance(space, spaces.Box)
         base = env.unwrapped
@@ -59,8 +65,14 @@ class Policy:
     def reset(self) -> None:
         self.rng = np.random.default_rng(self.seed)
 
+    def require_wrapped(self) -> None:
+        """RuntimeError unless `wrap` has been called (``act`` needs the env's action type)."""
+        if self.env is None:
+            raise RuntimeError(f"{type(self).__name__}: call wrap(env) before act(obs)")
+
     def encode(self, a: int):
         """The env action for a discrete action (or `BACKWARD`)."""
+        self.require_wrapped()
         if not self.continuous:
             if a == BACKWARD:
                 raise ValueError("discrete actions cannot reverse")
@@ -105,6 +117,9 @@ class SpinThenBackUp(Policy):
 
     def __init__(self, seed: int = 0, backup_m: float = 0.5, clearance_m: float = 0.45):
         super().__init__(seed)
+        for name, v in (("backup_m", backup_m), ("clearance_m", clearance_m)):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not 0 < v < 1e3:
+                raise ValueError(f"SpinThenBackUp: {name} must be a number in (0, 1000) m, got {v!r:.60}")
         self.backup_m, self.clearance_m = float(backup_m), float(clearance_m)
         self._plan: list[int] = []
 
@@ -120,6 +135,7 @@ class SpinThenBackUp(Policy):
         return spin + [TURN_LEFT] * math.ceil(math.pi / self.step_rad) + [FORWARD] * drive
 
     def act(self, obs: dict):
+        self.require_wrapped()
         if not self._plan:
             self._plan = self._cycle()
         a = self._plan.pop(0)

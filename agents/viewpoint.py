@@ -606,5 +606,6 @@ class ViewpointPlanner(Policy):
         return bool(np.any((x > 0) & (x < self.clearance_stop_m) & (y < self._radius_m + 0.05)))
 
     def act(self, obs: dict):
+        self.require_wrapped()
         self.observe(obs)
         return self.encode(self.decide(obs))

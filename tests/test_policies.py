@@ -81,3 +81,22 @@ def test_info_gain_planner_expects_nothing_from_a_tight_belief():
     assert max(pol.last_scores.values()) < 1e-6, (tight, pol.last_scores)
     with pytest.raises(ValueError, match="n_particles"):
         InfoGainPlanner(n_particles=0)
+
+
+@pytest.mark.parametrize("name", sorted(POLICIES))
+def test_baselines_reject_bad_seeds_other_envs_and_act_before_wrap(name):
+    for seed in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="seed"):
+            POLICIES[name](seed)
+    pol = POLICIES[name](0)
+    obs, _ = gym.make("SemReloc-v2", **KW).reset(seed=0)
+    with pytest.raises(RuntimeError, match="wrap"):
+        pol.act(obs)
+    with pytest.raises(TypeError, match="action space"):
+        pol.wrap(gym.make("CartPole-v1"))  # Discrete(2): the baselines' actions would not fit
+
+
+def test_spin_then_back_up_checks_its_distances():
+    for bad in ({"backup_m": float("nan")}, {"backup_m": 0.0}, {"clearance_m": -1.0}):
+        with pytest.raises(ValueError):
+            SpinThenBackUp(0, **bad)
