@@ -140,10 +140,16 @@ def test_keys_select_entries_and_bad_arguments_raise():
         ({"keys": ("pose",)}, "keys"),
         ({"ego_size": 0}, "ego_size"),
         ({"ego_cell_m": -1.0}, "ego_cell_m"),
+        ({"ego_size": 10**5}, "ego_size"),
+        ({"global_size": 1000}, "global_size"),
+        ({"ego_cell_m": 1e-9}, "ego_cell_m"),
     ):
         with pytest.raises(ValueError, match=name):
             _env("twin_rooms", 100, **kw)
     assert len(BELIEF_SUMMARY) == 7
+    _env("twin_rooms", 100, ego_cell_m=np.float32(0.25))  # a NumPy float is a number too
+    with pytest.raises(TypeError, match="mcl"):  # a SLAM env has no relocalizer to read
+        ActiveObservation(gym.make("SemSlam-v1"))
 
 
 def test_hypotheses_of_prefers_the_filters_list():

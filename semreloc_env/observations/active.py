@@ -98,9 +98,10 @@ class ActiveObservation(gym.Wrapper):
         env: a ``SemReloc-v2`` env, or ``-v1`` / ``-v0`` (either raw observation layout; anything with
             ``unwrapped.mcl``, ``unwrapped.grid``, ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
         keys: which keys to keep, in order (default `OBSERVATION_KEYS`, all of them).
-        ego_size: side of the ego crop in cells (default 32: with ``ego_cell_m`` 8 m, the lidar's reach).
-        ego_cell_m: cell size of the ego crop (m).
-        global_size: side of the allocentric image in cells.
+        ego_size: side of the ego crop in cells, 1-512 (default 32: with ``ego_cell_m`` 8 m, the
+            lidar's reach).
+        ego_cell_m: cell size of the ego crop (m), 0.01-10.
+        global_size: side of the allocentric image in cells, 1-512.
         n_heading_bins: particle-mass channels per image.
         max_hypotheses: rows of ``hypotheses``.
 
@@ -126,14 +127,18 @@ class ActiveObservation(gym.Wrapper):
         ):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
-        if not (isinstance(ego_cell_m, (int, float)) and math.isfinite(ego_cell_m) and ego_cell_m > 0):
-            raise ValueError(f"ego_cell_m must be a positive number, got {ego_cell_m!r}")
+        for name, v in (("ego_size", ego_size), ("global_size", global_size)):
+            if v > 512:  # the images are (channels, size, size) per step
+                raise ValueError(f"{name} must be at most 512 cells, got {v!r}")
+        real = isinstance(ego_cell_m, (int, float, np.integer, np.floating)) and not isinstance(ego_cell_m, bool)
+        if not (real and math.isfinite(ego_cell_m) and 0.01 <= ego_cell_m <= 10.0):
+            raise ValueError(f"ego_cell_m must be a number in [0.01, 10] m, got {ego_cell_m!r}")
         self.keys = OBSERVATION_KEYS if keys is None else tuple(keys)
         unknown = [k for k in self.keys if k not in OBSERVATION_KEYS]
         if unknown or not self.keys:
             raise ValueError(f"keys {unknown or list(self.keys)} invalid; choose from {list(OBSERVATION_KEYS)}")
         base = env.unwrapped
-        for attr in ("lidar", "camera", "action_space"):
+        for attr in ("lidar", "camera", "action_space", "mcl", "grid"):
             if not hasattr(base, attr):
                 raise TypeError(f"ActiveObservation needs a SemReloc env; {type(base).__name__} has no {attr!r}")
         self.ego_size, self.ego_cell_m, self.global_size = int(ego_size), float(ego_cell_m), int(global_size)
