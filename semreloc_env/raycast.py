@@ -27,6 +27,8 @@ import numba
 import numpy as np
 
 _PAD_M = 1e-6
+_MAX_BUCKETS_PER_SIDE = 2048
+"""At most this many bucket cells along either side of a `SegmentScene` (~4 M cells, 34 MB)."""
 """Segments are listed in every bucket cell they pass within this distance of (round-off margin)."""
 
 
@@ -216,9 +218,12 @@ class SegmentScene:
             hi = seg.reshape(-1, 2).max(axis=0) + 2 * _PAD_M
         else:
             lo, hi = np.zeros(2), np.ones(2)
-        nx, ny = (max(1, int(np.ceil(v))) for v in (hi - lo) / self.cell_m)
-        start, items = _build_buckets(a, e, float(lo[0]), float(lo[1]), float(self.cell_m), nx, ny)
-        object.__setattr__(self, "_grid", (start, items, float(lo[0]), float(lo[1]), float(self.cell_m), nx, ny))
+        # buckets of cell_m, coarser where a layout is so large that the grid would pass
+        # _MAX_BUCKETS_PER_SIDE per side (a bucket grid is an index: it changes no result)
+        cell = max(float(self.cell_m), float(np.max(hi - lo)) / _MAX_BUCKETS_PER_SIDE)
+        nx, ny = (max(1, int(np.ceil(v))) for v in (hi - lo) / cell)
+        start, items = _build_buckets(a, e, float(lo[0]), float(lo[1]), cell, nx, ny)
+        object.__setattr__(self, "_grid", (start, items, float(lo[0]), float(lo[1]), cell, nx, ny))
 
     @property
     def bucket_grid(self) -> tuple:

@@ -374,3 +374,14 @@ def test_init_around_names_its_bad_argument(pose, std, match):
     m = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=100), np.random.default_rng(0))
     with pytest.raises(ValueError, match=match):
         m.init_around(pose, std)
+
+
+def test_particle_counts_have_an_upper_bound():
+    from filters.localization.mcl import MAX_PARTICLES
+
+    for field in ("n_particles", "max_particles"):
+        with pytest.raises(ValueError, match=field):
+            MCLConfig(**{field: MAX_PARTICLES + 1})
+    m = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=100), np.random.default_rng(0))
+    with pytest.raises(ValueError, match="particle count"):
+        m.init_global(10**12)

@@ -233,3 +233,16 @@ def test_compiled_near_equals_the_distance_to_every_segment():
         p = rng.uniform((x0 - 1, y0 - 1), (x1 + 1, y1 + 1))
         reach = float(rng.uniform(0.0, 3.0))
         assert np.array_equal(world.scene.near(p, reach), world.scene.near_reference(p, reach))
+
+
+def test_a_huge_scene_gets_coarser_buckets_not_a_memory_error():
+    # 1 m buckets over 1e6 m would be 10^12 cells (an input audit found the MemoryError)
+    from semreloc_env.raycast import _MAX_BUCKETS_PER_SIDE
+
+    segs = np.array([[[0.0, -1.0], [0.0, 1.0]], [[1e6, -1.0], [1e6, 1.0]]])
+    scene = SegmentScene(segs, np.array([0, 1]))
+    _, _, _, _, cell, nx, ny = scene.bucket_grid
+    assert nx <= _MAX_BUCKETS_PER_SIDE and ny <= _MAX_BUCKETS_PER_SIDE and cell > 400
+    r, hit = scene.cast(np.array([10.0, 0.0]), np.array([np.pi, 0.0]), 2e6)
+    np.testing.assert_allclose(r, [10.0, 1e6 - 10.0])
+    assert hit.tolist() == [0, 1]

@@ -298,6 +298,7 @@ def test_unknown_or_bad_constructor_arguments_are_errors():
     for kw, match in [
         ({"slam": {"particles": 10}}, "unknown keys"),
         ({"slam": {"woc_k": 0.5}}, "woc_k"),
+        ({"slam": {"n_particles": 10**9}}, "n_particles"),
         ({"slam": {"version": 3}}, "version"),
         ({"slam": {"n_particles": 0}}, "n_particles"),
         ({"slam": {"known_association": "yes"}}, "known_association"),

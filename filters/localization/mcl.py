@@ -130,6 +130,11 @@ _SUBCONFIGS = {
 }
 
 
+MAX_PARTICLES = 10_000_000
+"""Upper bound of every particle count (a filter of 10 million particles holds ~320 MB of poses
+and weights before any per-beam work): larger counts are refused, not left to a MemoryError."""
+
+
 @dataclass(frozen=True)
 class MCLConfig:
     """Configuration of `MonteCarloLocalizer` (units in the names).
@@ -231,8 +236,8 @@ class MCLConfig:
                 if not self.global_particles_per_m2 > 0:
                     raise ValueError("MCLConfig: n_particles=None needs global_particles_per_m2 > 0")
                 continue
-            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
-                raise ValueError(f"MCLConfig.{name} must be an int >= 1, got {v!r}")
+            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 1 <= v <= MAX_PARTICLES):
+                raise ValueError(f"MCLConfig.{name} must be an int in [1, {MAX_PARTICLES:,}], got {v!r}")
         if self.min_particles > self.max_particles:
             raise ValueError("MCLConfig: min_particles must be <= max_particles")
         if not (isinstance(self.holdoff_min_detections, int) and self.holdoff_min_detections >= 0):
@@ -439,8 +444,8 @@ class MonteCarloLocalizer:
     def _check_n(n: int) -> int:
         if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool)):
             raise TypeError(f"particle count must be an int, got {n!r}")
-        if n < 1:
-            raise ValueError(f"need at least one particle, got {n}")
+        if not 1 <= n <= MAX_PARTICLES:
+            raise ValueError(f"particle count must be in [1, {MAX_PARTICLES:,}], got {n}")
         return int(n)
 
     def _set(self, poses: np.ndarray) -> None:

@@ -34,7 +34,7 @@ class SlamParams:
     """Settings of the WOCPF SLAM filter (FastSLAM + WOC weight step, paper 000).
 
     Attributes:
-        n_particles: particles ``N >= 1``.
+        n_particles: particles, ``1 <= N <= 100,000`` (each carries its own landmark map).
         version: FastSLAM 1 or 2 (2: Gaussian proposal refined by the observations, the paper's step 4).
         woc_k: WOC scaling factor ``K`` of paper 000 Eq. 7, ``1 <= K <= inf`` (``inf``: plain FastSLAM).
             The paper does not state its K; 2.0 is this env's choice.
@@ -65,6 +65,10 @@ class SlamParams:
             raise ValueError(f"slam.known_association must be a bool, got {self.known_association!r}")
         if not (isinstance(self.woc_k, (int, float)) and float(self.woc_k) >= 1.0):
             raise ValueError(f"slam.woc_k must be a number with 1 <= K <= inf, got {self.woc_k!r}")
+        n = self.n_particles
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 100_000:
+            # each FastSLAM particle carries its own landmark map
+            raise ValueError(f"slam.n_particles must be an int in [1, 100,000], got {n!r}")
 
     def fastslam_config(self) -> FastSLAMConfig:
         """The `FastSLAMConfig` these settings stand for (ValueError if invalid)."""
