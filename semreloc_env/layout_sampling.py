@@ -106,15 +106,21 @@ class LayoutSampler:
         if isinstance(seeds, range):
             if seeds.step != 1:
                 raise ValueError("seeds: a range must have step 1")
+            if seeds.stop <= seeds.start or seeds.start < 0 or seeds.stop > 2**63:
+                raise ValueError(f"seeds: need a non-empty range within [0, 2**63), got {seeds!r}")
             self._seeds: range | np.ndarray = seeds
             overlap = len(
                 range(max(seeds.start, HELD_OUT_LAYOUT_SEEDS.start), min(seeds.stop, HELD_OUT_LAYOUT_SEEDS.stop))
             )
             n_left = len(seeds) - overlap
         else:
-            arr = np.asarray(list(seeds), dtype=np.int64)
-            if arr.ndim != 1 or np.any(arr < 0):
-                raise ValueError("seeds must be non-negative integers")
+            items = list(seeds)
+            if not items or not all(
+                isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) and 0 <= v < 2**63
+                for v in items
+            ):
+                raise ValueError(f"seeds must be a non-empty list of integers in [0, 2**63), got {items!r:.80}")
+            arr = np.asarray(items, dtype=np.int64)
             self._seeds = np.array([s for s in arr if not is_held_out(s)], dtype=np.int64)
             n_left = self._seeds.size
         if any(k in PROCEDURAL_LAYOUTS for k in kinds) and n_left == 0:
@@ -163,6 +169,8 @@ class RandomLayout(gym.Wrapper):
         if not (isinstance(base.map_source, str) and base.map_source in ("mapping", "perfect")):
             raise ValueError(f"RandomLayout needs map_source 'mapping' or 'perfect', got {base.map_source!r}")
         self.sampler = sampler if sampler is not None else LayoutSampler()
+        if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"RandomLayout: seed must be an integer >= 0, got {seed!r:.60}")
         self._rng = np.random.default_rng([int(seed), _SALT])
         self._maps: OrderedDict[tuple, object] = OrderedDict()
         self.cache_size = int(cache_size)

@@ -46,6 +46,11 @@ def test_sampler_rejects_bad_input():
         LayoutSampler(kinds=("lab", "twin_rooms"), weights=[1.0, -1.0])
     with pytest.raises(ValueError, match="nothing"):
         LayoutSampler(kinds=())
+    for seeds in (range(-10, 0), range(5, 5), range(0, 2**70), [1.7], [True], [], [-3]):
+        with pytest.raises(ValueError, match="seeds"):
+            LayoutSampler(kinds=("procedural",), seeds=seeds)
+    with pytest.raises(ValueError, match="seed"):
+        RandomLayout(gym.make("SemReloc-v2", map_source="perfect"), seed=-1)
 
 
 def test_sampler_draws_layout_files(tmp_path):
