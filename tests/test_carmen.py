@@ -165,3 +165,35 @@ def test_bad_arguments(tmp_path):
 def test_flaser_angles():
     np.testing.assert_allclose(np.degrees(flaser_angles(181))[[0, -1]], [-90.0, 90.0])
     np.testing.assert_allclose(np.degrees(flaser_angles(360))[[0, 1]], [-90.0, -89.5])
+
+
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("PARAM robot_frontlaser_offset nan\n", "robot_frontlaser_offset"),
+        ("PARAM robot_front_laser_max inf\n", "robot_front_laser_max"),
+        ("FLASER 0  0 0 0 0 0 0 1.0 host 1.0\nFLASER 0  0 0 0 0 0 0 1.0 host 1.0\n", "no range readings"),
+        (
+            "ROBOTLASER1 0 -1.57 3.14 1e308 8.0 0.01 0 3 1 1 1 0 0 0 0 0 0 0 0 0 0 0 0 1.0 host 1.0\n",
+            "not angles",
+        ),
+    ],
+)
+def test_bad_values_are_refused_when_read_not_later(tmp_path, text, match):
+    # an input audit found these accepted, failing only when a scan was built (or never)
+    f = tmp_path / "bad.log"
+    scan = _flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 0.0) + "\n"
+    f.write_text(text + (scan if "LASER" not in text else ""))
+    with pytest.raises(CarmenLogError, match=match):
+        read_carmen(f)
+
+
+def test_a_corrupt_gzip_log_is_a_carmen_log_error(tmp_path):
+    import gzip
+
+    good = gzip.compress((_flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 0.0) + "\n").encode() * 50)
+    for name, data in (("cut.log.gz", good[: len(good) // 2]), ("header.log.gz", b"\x1f\x8b\x99" + good[3:])):
+        f = tmp_path / name
+        f.write_bytes(data)
+        with pytest.raises(CarmenLogError, match="cannot read"):
+            read_carmen(f)

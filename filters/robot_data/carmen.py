@@ -219,6 +219,8 @@ def _parse_robotlaser(tok, path, lineno):
     if len(head) != 5:
         raise CarmenLogError(path, lineno, "ROBOTLASER1: line ends inside the header")
     start, fov, res, max_range, _acc = head
+    if not (abs(start) <= 2 * math.pi and 0 <= res <= 2 * math.pi and 0 <= fov <= 2 * math.pi):
+        raise CarmenLogError(path, lineno, f"ROBOTLASER1: start {start}, fov {fov}, resolution {res} are not angles")
     n = _count(tok, 8, "ROBOTLASER1", path, lineno)
     i = 9 + n
     m = _count(tok, i, "ROBOTLASER1 remissions", path, lineno)
@@ -279,38 +281,43 @@ def read_carmen(
     odom: list[list[float]] = []  # every ODOM pose, in file order
     odom_before: list[int] = []  # per scan: count of ODOM lines before it
     chosen = None if laser == "auto" else laser
-    with _open_text(p) as f:
-        for lineno, line in enumerate(f, start=1):
-            s = line.strip()
-            if not s:
-                continue
-            if s.startswith("#"):
-                comments.append(s[1:].strip())
-                continue
-            tok = s.split()
-            kind = tok[0]
-            if kind == "PARAM":
-                if len(tok) < 3:
-                    raise CarmenLogError(spath, lineno, "PARAM: needs a name and a value")
-                params[tok[1]] = tok[2]
-            elif kind == "ODOM":
-                if len(tok) < 4:
-                    raise CarmenLogError(spath, lineno, f"ODOM: needs x y theta, got {len(tok) - 1} fields")
-                odom.append(_floats(tok[1:4], "ODOM pose", spath, lineno))
-            elif kind in _LASERS and (chosen is None or kind == chosen):
-                chosen = kind
-                rec = (_parse_flaser if kind == "FLASER" else _parse_robotlaser)(tok, spath, lineno)
-                rec["line"] = lineno
-                scans.append(rec)
-                odom_before.append(len(odom))
-            else:
-                skipped[kind] = skipped.get(kind, 0) + 1
+    try:
+        with _open_text(p) as f:
+            for lineno, line in enumerate(f, start=1):
+                s = line.strip()
+                if not s:
+                    continue
+                if s.startswith("#"):
+                    comments.append(s[1:].strip())
+                    continue
+                tok = s.split()
+                kind = tok[0]
+                if kind == "PARAM":
+                    if len(tok) < 3:
+                        raise CarmenLogError(spath, lineno, "PARAM: needs a name and a value")
+                    params[tok[1]] = tok[2]
+                elif kind == "ODOM":
+                    if len(tok) < 4:
+                        raise CarmenLogError(spath, lineno, f"ODOM: needs x y theta, got {len(tok) - 1} fields")
+                    odom.append(_floats(tok[1:4], "ODOM pose", spath, lineno))
+                elif kind in _LASERS and (chosen is None or kind == chosen):
+                    chosen = kind
+                    rec = (_parse_flaser if kind == "FLASER" else _parse_robotlaser)(tok, spath, lineno)
+                    rec["line"] = lineno
+                    scans.append(rec)
+                    odom_before.append(len(odom))
+                else:
+                    skipped[kind] = skipped.get(kind, 0) + 1
+    except (EOFError, OSError, gzip.BadGzipFile) as e:  # truncated or corrupt .gz, unreadable file
+        raise CarmenLogError(spath, 0, f"cannot read the log: {type(e).__name__}: {e}") from None
     if not scans:
         raise CarmenLogError(spath, 0, f"no {laser if laser != 'auto' else 'FLASER or ROBOTLASER1'} scan in the log")
     counts = {len(r["ranges"]) for r in scans}
     if len(counts) != 1:
         raise CarmenLogError(spath, scans[0]["line"], f"scans have different beam counts {sorted(counts)}")
     n_beams = counts.pop()
+    if n_beams == 0:
+        raise CarmenLogError(spath, scans[0]["line"], "scans have no range readings")
     ranges = np.array([r["ranges"] for r in scans], dtype=np.float64).reshape(len(scans), n_beams)
     if np.any(ranges < 0):
         k = int(np.flatnonzero((ranges < 0).any(axis=1))[0])
@@ -323,7 +330,9 @@ def read_carmen(
         try:
             off_x = float(params.get("robot_frontlaser_offset", 0.0))
         except ValueError:
-            raise CarmenLogError(spath, 0, "PARAM robot_frontlaser_offset is not a number") from None
+            off_x = math.nan
+        if not math.isfinite(off_x):
+            raise CarmenLogError(spath, 0, "PARAM robot_frontlaser_offset is not a finite number")
         sensor_pose = np.array([off_x, 0.0, 0.0])
         default_angles = flaser_angles(n_beams) if n_beams >= 2 else np.zeros(n_beams)
         geom_max = None
@@ -332,7 +341,9 @@ def read_carmen(
                 try:
                     geom_max = float(params[key])
                 except ValueError:
-                    raise CarmenLogError(spath, 0, f"PARAM {key} is not a number") from None
+                    geom_max = math.nan
+                if not math.isfinite(geom_max):
+                    raise CarmenLogError(spath, 0, f"PARAM {key} is not a finite number")
     else:
         start, _fov, res, geom_max = scans[0]["geometry"]
         sensor_pose = relative(robot_odom[0], laser_poses[0])
