@@ -215,6 +215,8 @@ def read_map_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | No
         raise MapFormatError(
             path, f"bad PGM header: magic number {data[:2]!r}, and not an image Pillow can read either"
         ) from None
+    except Image.DecompressionBombError as e:
+        raise MapFormatError(path, f"image too large to be a map ({e})") from None
     except (OSError, ValueError) as e:
         raise MapFormatError(path, f"cannot decode image ({e})") from None
     transparent = None
