@@ -125,3 +125,13 @@ def test_replay_script(tmp_path, aces_map):
     assert (out / "error.png").stat().st_size > 0
     assert (out / "particles.gif").stat().st_size > 0
     assert res["track"]["steps"] == 20 and res["track"]["pos_median_m"] < 0.3
+
+
+def test_a_map_of_another_place_is_refused(aces, aces_map):
+    # a map shifted by 500 m ran and reported a tiny tracking error (an input audit)
+    import dataclasses
+
+    x0, y0 = aces_map.origin_xy_m
+    shifted = dataclasses.replace(aces_map, origin_xy_m=(x0 + 500.0, y0 + 500.0))
+    with pytest.raises(ValueError, match="lie on the map"):
+        track(aces, shifted, MCLConfig(n_particles=100), rng_seed=0, start=0, stop=20)

@@ -141,6 +141,13 @@ def track(
     stop = n if stop is None else stop
     if not 0 <= start < stop <= n:
         raise ValueError(f"need 0 <= start < stop <= {n}, got start={start}, stop={stop}")
+    row, col = grid.world_to_cell(np.asarray(log.poses[start:stop])[:, :2])
+    inside = float(np.mean(grid.in_bounds(row, col)))
+    if inside < 0.9:
+        raise ValueError(
+            f"only {100 * inside:.0f} % of the log's poses (scans {start}-{stop - 1}) lie on the map: "
+            "is it a map of this place, in the log's frame?"
+        )
     mcl = MonteCarloLocalizer(grid, _config(mcl_config), np.random.default_rng(rng_seed))
     if global_init:
         mcl.init_global()
