@@ -194,6 +194,17 @@ def test_bad_parameters_and_inputs_raise():
         OccupancyMapper((4, 4), 0.1).update_many(np.zeros((2, 3)), [LaserScan([0.1], [0.0], 1.0)])
     with pytest.raises(ValueError, match="differs from the semantic raster"):
         m.to_grid(OccupancyMapper((4, 5), 0.1))
+    occ = np.zeros((3, 3))
+    for kw, match in [
+        ({"semantic_thresh": float("nan")}, "semantic_thresh"),
+        ({"semantic_thresh": 5.0}, "semantic_thresh"),
+        ({"origin_xy_m": 5}, "origin_xy_m"),
+        ({"class_names": "cab"}, "class_names"),
+        ({"free_thresh": "0.2"}, "free_thresh"),
+        ({"resolution_m": "0.1"}, "resolution_m"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            GridMap(**{"occupancy": occ, "resolution_m": 0.1, **kw})
 
 
 # ------------------------------------------------------------------------------------------- room end to end

@@ -62,11 +62,20 @@ class GridMap:
             raise ValueError(f"occupancy must be a non-empty 2D array, got shape {occ.shape}")
         if not np.all(np.isfinite(occ)) or occ.min() < 0.0 or occ.max() > 1.0:
             raise ValueError("occupancy values must be finite probabilities in [0, 1]")
+        for name in ("resolution_m", "occupied_thresh", "free_thresh", "semantic_thresh"):
+            v = getattr(self, name)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{name} must be a number, got {v!r:.60}")
         if not (np.isfinite(self.resolution_m) and self.resolution_m > 0):
             raise ValueError(f"resolution_m must be a positive number, got {self.resolution_m!r}")
-        origin = tuple(float(v) for v in self.origin_xy_m)
+        try:
+            origin = tuple(float(v) for v in self.origin_xy_m)
+        except (TypeError, ValueError):
+            origin = ()
         if len(origin) != 2 or not all(np.isfinite(origin)):
-            raise ValueError(f"origin_xy_m must be two finite numbers, got {self.origin_xy_m!r}")
+            raise ValueError(f"origin_xy_m must be two finite numbers, got {self.origin_xy_m!r:.60}")
+        if isinstance(self.class_names, (str, bytes)):
+            raise ValueError(f"class_names must be a sequence of names, got the string {self.class_names!r:.60}")
         names = tuple(str(n) for n in self.class_names)
         sem = np.asarray(self.semantic, dtype=np.float32)
         if sem.size == 0:
@@ -81,6 +90,8 @@ class GridMap:
             raise ValueError(f"class_names must be unique, got {names}")
         if not 0.0 <= self.free_thresh <= self.occupied_thresh <= 1.0:
             raise ValueError("need 0 <= free_thresh <= occupied_thresh <= 1")
+        if not 0.0 <= self.semantic_thresh < 1.0:
+            raise ValueError(f"semantic_thresh must be in [0, 1), got {self.semantic_thresh!r}")
         occ.setflags(write=False)
         sem.setflags(write=False)
         object.__setattr__(self, "occupancy", occ)
