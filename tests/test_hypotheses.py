@@ -190,6 +190,10 @@ def test_global_particle_count_follows_the_free_area_and_kld_bounds_hold():
         {"proposal_weight": float("nan")},
         {"proposal_weight": True},
         {"proposal_weight": "0.5"},
+        {"likelihood_scale": "a"},
+        {"update_min_d_m": None},
+        {"resampler": ["x"]},
+        {"alpha_fast": 0},
         {"global_particles_per_m2": -1},
         {"global_particles_per_m2": float("nan")},
         {"max_update_log_ratio": 0},
@@ -202,6 +206,12 @@ def test_global_particle_count_follows_the_free_area_and_kld_bounds_hold():
 def test_bad_relocalizer_options_are_rejected(bad):
     with pytest.raises((ValueError, TypeError)):
         MCLConfig(**bad)
+
+
+def test_numpy_numbers_are_accepted_as_plain_numbers():
+    c = MCLConfig(proposal_frac=np.float32(0.5), holdoff_min_detections=np.int64(3))
+    assert type(c.proposal_frac) is float and c.proposal_frac == 0.5
+    assert type(c.holdoff_min_detections) is int and c.holdoff_min_detections == 3
 
 
 @pytest.mark.parametrize("recovery", [False, True])

@@ -240,43 +240,44 @@ class MCLConfig:
                 raise ValueError(f"MCLConfig.{name} must be an int in [1, {MAX_PARTICLES:,}], got {v!r}")
         if self.min_particles > self.max_particles:
             raise ValueError("MCLConfig: min_particles must be <= max_particles")
-        if not (isinstance(self.holdoff_min_detections, int) and self.holdoff_min_detections >= 0):
-            raise ValueError(
-                f"MCLConfig.holdoff_min_detections must be an int >= 0, got {self.holdoff_min_detections!r}"
-            )
-        for name in ("update_min_d_m", "update_min_a_rad"):
+        h = self.holdoff_min_detections
+        if isinstance(h, (bool, np.bool_)) or not isinstance(h, (int, np.integer)) or h < 0:
+            raise ValueError(f"MCLConfig.holdoff_min_detections must be an int >= 0, got {h!r}")
+        numbers = {  # name: (test, what it must be)
+            "update_min_d_m": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            "update_min_a_rad": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            **{
+                n: (lambda v: math.isfinite(v) and v > 0, "a finite number > 0")
+                for n in ("likelihood_scale", "kld_bin_xy_m", "kld_bin_theta_rad", "kld_epsilon", "kld_z")
+            },
+            "resample_ess_frac": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
+            "alpha_slow": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            "alpha_fast": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            **{
+                n: (lambda v: 0.0 <= v <= 1.0, "in [0, 1]")
+                for n in ("cluster_keep_weight", "proposal_semantic_frac", "proposal_frac")
+            },
+            "proposal_weight": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            "global_particles_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            "max_update_log_ratio": (lambda v: v > 0 and not math.isnan(v), "> 0 (inf = no cap)"),
+        }
+        for name, (ok, what) in numbers.items():
             v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"MCLConfig.{name} must be >= 0, got {v!r}")
-        for name in ("likelihood_scale", "kld_bin_xy_m", "kld_bin_theta_rad", "kld_epsilon", "kld_z"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"MCLConfig.{name} must be > 0, got {v!r}")
-        if not 0.0 <= self.resample_ess_frac <= 1.0:
-            raise ValueError(f"MCLConfig.resample_ess_frac must be in [0, 1], got {self.resample_ess_frac!r}")
-        for name in ("alpha_slow", "alpha_fast"):
-            v = getattr(self, name)
-            if not 0.0 < v <= 1.0:
-                raise ValueError(f"MCLConfig.{name} must be in (0, 1], got {v!r}")
+            real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+            if not (real and ok(float(v))):
+                raise ValueError(f"MCLConfig.{name} must be {what}, got {v!r}")
+            if isinstance(v, np.generic):  # plain Python numbers: JSON-able, hash as the same value
+                object.__setattr__(self, name, v.item())
+        if isinstance(h, np.integer):
+            object.__setattr__(self, "holdoff_min_detections", int(h))
+        if not isinstance(self.resampler, str):
+            raise ValueError(f"MCLConfig.resampler must be a name (str), got {self.resampler!r:.60}")
         if self.resampler not in RESAMPLERS:
             get_resampler(self.resampler)  # raises with the list of names
         if self.resample_mode not in ("global", "clustered"):
             raise ValueError(f"MCLConfig.resample_mode must be 'global' or 'clustered', got {self.resample_mode!r}")
         if self.injection not in ("uniform", "scan"):
             raise ValueError(f"MCLConfig.injection must be 'uniform' or 'scan', got {self.injection!r}")
-        for name in ("cluster_keep_weight", "proposal_semantic_frac", "proposal_frac"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
-                raise ValueError(f"MCLConfig.{name} must be in [0, 1], got {v!r}")
-        v = self.proposal_weight
-        if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0.0 < v <= 1.0):
-            raise ValueError(f"MCLConfig.proposal_weight must be in (0, 1], got {v!r}")
-        v = self.global_particles_per_m2
-        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-            raise ValueError(f"MCLConfig.global_particles_per_m2 must be a finite number >= 0, got {v!r}")
-        v = self.max_update_log_ratio
-        if isinstance(v, bool) or not (isinstance(v, (int, float)) and v > 0 and not math.isnan(v)):
-            raise ValueError(f"MCLConfig.max_update_log_ratio must be > 0 (inf = no cap), got {v!r}")
         for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
