@@ -66,7 +66,8 @@ def check_ppo_settings(config) -> None:
         if not hasattr(config, name):
             continue
         v = getattr(config, name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not ok(v):
+        real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+        if not (real and math.isfinite(v) and ok(v)):
             raise ValueError(f"{name} must be a finite number {what}, got {v!r}")
     check_device(config.device)
 

@@ -35,6 +35,7 @@ class SB3VecEnvAdapter(VecEnv):
         return {k: np.stack([o[k] for o in obs_list]) for k in self._keys}
 
     def reset(self) -> VecEnvObs:
+        self.venv.check_seeds(list(self._seeds), [o or None for o in self._options])  # before any robot resets
         obs = []
         for i, env in enumerate(self.envs):
             o, self.reset_infos[i] = env.reset(

@@ -201,7 +201,7 @@ class RandomLayout(gym.Wrapper):
             else:
                 self._rng = copy.deepcopy(self._rng)  # drawing advances it in place
             draw = self.sampler.draw(self._rng)
-            base.set_layout(draw.layout, draw.seed, grid=self._grid(draw))
+            base.set_layout(draw.layout, draw.seed, grid=self._grid(draw), check_map=False)  # maps_for's
             self.current = draw
             obs, info = self.env.reset(seed=seed, options=options)
         except Exception:

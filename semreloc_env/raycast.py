@@ -27,9 +27,9 @@ import numba
 import numpy as np
 
 _PAD_M = 1e-6
+"""Segments are listed in every bucket cell they pass within this distance of (round-off margin)."""
 _MAX_BUCKETS_PER_SIDE = 2048
 """At most this many bucket cells along either side of a `SegmentScene` (~4 M cells, 34 MB)."""
-"""Segments are listed in every bucket cell they pass within this distance of (round-off margin)."""
 
 
 @numba.njit(cache=True, nogil=True)

@@ -91,13 +91,30 @@ def test_rejected_steps_and_resets_move_no_robot():
             venv.reset(seed=seed)
     with pytest.raises(ValueError, match="robot 0"):
         venv.reset(seed=0, options={"bogus": 1})
+    with pytest.raises(ValueError, match="robot 1"):
+        venv.step([0, [0, 1], [2]])  # ragged
     adapter = SB3VecEnvAdapter(venv)
     with pytest.raises(ValueError, match="robot 2"):
         adapter.step(np.array([0, 0, 9]))
+    steps = [e.unwrapped._steps for e in venv.envs]
+    adapter.set_options([{}, {}, {"bogus": 1}])
+    with pytest.raises(ValueError, match="robot 2"):
+        adapter.reset()
+    assert [e.unwrapped._steps for e in venv.envs] == steps  # no robot was reset
     for env, pose, p in zip(venv.envs, poses, particles):
         np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
         np.testing.assert_array_equal(env.unwrapped.mcl.poses, p)
     venv.step([0, 1, 2])  # the episode goes on
+    venv.reset(seed=range(3))  # any sequence of seeds
+
+
+def test_a_done_robots_action_is_ignored_not_checked():
+    venv = SemRelocLoopVectorEnv(num_envs=2, **{**KW, "max_episode_steps": 2})
+    venv.reset(seed=0)
+    for _ in range(2):
+        _, _, term, trunc, _ = venv.step([3, 3])
+    assert np.all(term | trunc)
+    venv.step([-1, -1])  # both robots are reset by this step: their actions are not used
 
 
 def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():

@@ -1,5 +1,6 @@
 """Hypotheses in the belief, the converged rule, clustered resampling, proposals and recovery."""
 
+import json
 import math
 
 import numpy as np
@@ -212,6 +213,9 @@ def test_numpy_numbers_are_accepted_as_plain_numbers():
     c = MCLConfig(proposal_frac=np.float32(0.5), holdoff_min_detections=np.int64(3))
     assert type(c.proposal_frac) is float and c.proposal_frac == 0.5
     assert type(c.holdoff_min_detections) is int and c.holdoff_min_detections == 3
+    c = MCLConfig(n_particles=np.int64(300), max_particles=np.int64(900))
+    assert type(c.n_particles) is int and type(c.max_particles) is int
+    json.dumps(c.as_dict())
 
 
 @pytest.mark.parametrize("recovery", [False, True])

@@ -126,18 +126,20 @@ class Args:
             )
         if self.seed_set == "tuning" and self.layouts_per_kind < 1:
             raise ValueError("layouts_per_kind must be >= 1 with seed_set tuning (it has no fixed layouts)")
-        missing_layouts = [f for f in self.layout_files if not Path(f).is_file()]
-        if missing_layouts:
-            raise ValueError(f"layout_files: no such file {missing_layouts}")
+        from semreloc_env.layouts import find_layout_file
+
+        # a path, or a name on $SEMRELOC_LAYOUT_PATH, as get_layout takes them
+        missing = [f for f in self.layout_files if not Path(f).is_file() and find_layout_file(f) is None]
+        if missing:
+            raise ValueError(f"layout_files: no such file (nor a name on $SEMRELOC_LAYOUT_PATH): {missing}")
         for spec in self.policies:
             if "=" in spec:
                 from agents.learned import read_metadata
 
-                try:
+                try:  # learned policies are loaded by their metadata (a bare SB3 checkpoint has none)
                     read_metadata(spec.split("=", 1)[1])
                 except ValueError as e:
-                    if "has no semreloc_policy.json" not in str(e):  # a bare checkpoint of a run is fine
-                        raise ValueError(f"policies: {spec}: {e}") from None
+                    raise ValueError(f"policies: {spec}: {e}") from None
 
 
 ENV_ID = "SemReloc-v2"

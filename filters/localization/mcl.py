@@ -238,6 +238,7 @@ class MCLConfig:
                 continue
             if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 1 <= v <= MAX_PARTICLES):
                 raise ValueError(f"MCLConfig.{name} must be an int in [1, {MAX_PARTICLES:,}], got {v!r}")
+            object.__setattr__(self, name, int(v))
         if self.min_particles > self.max_particles:
             raise ValueError("MCLConfig: min_particles must be <= max_particles")
         h = self.holdoff_min_detections

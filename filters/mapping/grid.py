@@ -90,8 +90,8 @@ class GridMap:
             raise ValueError(f"class_names must be unique, got {names}")
         if not 0.0 <= self.free_thresh <= self.occupied_thresh <= 1.0:
             raise ValueError("need 0 <= free_thresh <= occupied_thresh <= 1")
-        if not 0.0 <= self.semantic_thresh < 1.0:
-            raise ValueError(f"semantic_thresh must be in [0, 1), got {self.semantic_thresh!r}")
+        if not 0.0 <= self.semantic_thresh <= 1.0:
+            raise ValueError(f"semantic_thresh must be in [0, 1], got {self.semantic_thresh!r}")
         occ.setflags(write=False)
         sem.setflags(write=False)
         object.__setattr__(self, "occupancy", occ)

@@ -74,39 +74,55 @@ class SemRelocLoopVectorEnv(VectorEnv):
         self._done = np.zeros(self.num_envs, dtype=np.bool_)
 
     # ------------------------------------------------------------------ checks
-    def check_actions(self, actions) -> list:
+    def check_actions(self, actions, skip_done: bool = False) -> list:
         """The per-robot actions of ``actions``; ValueError naming the robot if any is invalid.
 
-        Checks all of them before any robot moves, so a rejected call changes nothing."""
-        if isinstance(actions, (str, bytes)) or np.ndim(actions) == 0:
+        Checks all of them before any robot moves, so a rejected call changes nothing. With
+        ``skip_done`` the robots that `step` will reset instead (their action is ignored) are not
+        checked."""
+        try:
+            scalar = isinstance(actions, (str, bytes)) or np.ndim(actions) == 0
+        except ValueError:  # a ragged nested sequence: each robot's action is checked below
+            scalar = False
+        if scalar:
             raise ValueError(f"actions must be a sequence of {self.num_envs} actions, got {actions!r:.80}")
         acts = list(actions)
         if len(acts) != self.num_envs:
             raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
         for i, (env, a) in enumerate(zip(self.envs, acts)):
+            if skip_done and self._done[i]:
+                continue
             base = env.unwrapped
             try:
                 if env.action_space is base.action_space:
                     decode_action(a, base.action_type, base.action_space, base.robot_params)
-                elif not env.action_space.contains(a):
+                elif isinstance(a, (bool, np.bool_)) or not env.action_space.contains(a):
                     raise ValueError(f"invalid action {a!r:.80} for {env.action_space}")
             except ValueError as e:
                 raise ValueError(f"robot {i}: {e}") from None
         return acts
 
-    def check_seeds(self, seed, options: dict | None = None) -> list[int | None]:
-        """Per-robot seeds of ``seed`` (see `reset`), every robot's seed and ``options`` checked first."""
+    def check_seeds(self, seed, options=None) -> list[int | None]:
+        """Per-robot seeds of ``seed`` (see `reset`), every robot's seed and options checked first.
+
+        ``options`` is one dict for all robots or a list of one per robot."""
         if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_))):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
-        elif isinstance(seed, (list, tuple, np.ndarray)):
-            seeds = list(seed)
+        elif isinstance(seed, (str, bytes, dict, float, bool, np.floating, np.bool_)):
+            raise ValueError(f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r:.80}")
+        else:
+            try:
+                seeds = list(seed)
+            except TypeError:
+                raise ValueError(
+                    f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r:.80}"
+                ) from None
             if len(seeds) != self.num_envs:
                 raise ValueError(f"got {len(seeds)} seeds for {self.num_envs} robots")
-        else:
-            raise ValueError(f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r:.80}")
-        for i, (env, s) in enumerate(zip(self.envs, seeds)):
+        per_robot = options if isinstance(options, list) else [options] * self.num_envs
+        for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
             try:
-                env.unwrapped.check_reset(seed=s, options=options)
+                env.unwrapped.check_reset(seed=s, options=o)
             except ValueError as e:
                 raise ValueError(f"robot {i}: {e}") from None
         return seeds
@@ -130,7 +146,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         """Step every robot with its action (a robot that ended last step is reset instead).
 
         Every action is checked before any robot moves (ValueError naming the robot)."""
-        acts = self.check_actions(actions)
+        acts = self.check_actions(actions, skip_done=True)
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terms = np.zeros(self.num_envs, dtype=np.bool_)
         truncs = np.zeros(self.num_envs, dtype=np.bool_)

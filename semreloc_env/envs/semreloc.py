@@ -231,10 +231,9 @@ class SemRelocEnv(SemRelocBase):
         self.map_source = map_source
         self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
-        self._matched_maps: dict = {}  # layout -> the grid `set_layout` last found to match it
         self.mcl: MonteCarloLocalizer | None = None
 
-    def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None) -> None:
+    def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None, *, check_map: bool = True) -> None:
         """Use another layout from the next `reset` on (the running episode keeps its world).
 
         Args:
@@ -242,6 +241,8 @@ class SemRelocEnv(SemRelocBase):
             layout_seed: seeds procedural layouts and the ``"changed"`` scenario's obstacles.
             grid: the filter's map for it; None builds it from the env's ``map_source`` with
                 `semreloc_env.maps.maps_for` (cached there).
+            check_map: check that a given ``grid`` is a map of the layout (~5 ms); False for
+                grids known to be, such as `maps_for`'s (as `RandomLayout` passes them).
 
         Raises:
             ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
@@ -261,11 +262,8 @@ class SemRelocEnv(SemRelocBase):
             raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
         elif grid.class_names != CLASS_NAMES:
             raise ValueError(f"grid classes {grid.class_names} differ from the env's {CLASS_NAMES}")
-        elif self._matched_maps.get(new_layout) is not grid:  # ~5 ms: once per (layout, grid)
+        elif check_map:  # ~5 ms
             check_map_matches_world(grid, new_layout)
-            self._matched_maps[new_layout] = grid
-            while len(self._matched_maps) > 256:
-                self._matched_maps.pop(next(iter(self._matched_maps)))
         obstacles = changed_obstacles(new_layout, layout_seed) if self.scenario == "changed" else []
         self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, layout_seed, grid, obstacles
         if self._renderer is not None:  # drawn for the old layout
