@@ -193,6 +193,12 @@ class LearnedPolicy:
     def act(self, obs: dict):
         """The action for this step: a new decision every ``repeat`` steps, else the held one."""
         if self._t % self.repeat == 0 or self._action is None:
+            space = self.model.observation_space
+            if isinstance(space, spaces.Dict) and not (isinstance(obs, dict) and set(space.spaces) <= set(obs)):
+                missing = sorted(set(space.spaces) - set(obs)) if isinstance(obs, dict) else list(space.spaces)
+                raise ValueError(
+                    f"observation lacks {missing}: act on the observations of the env policy.wrap(env) returned"
+                )
             action, _ = self.model.predict(obs, deterministic=self.deterministic)
             self._action = int(action) if isinstance(self.model.action_space, spaces.Discrete) else np.asarray(action)
         self._t += 1

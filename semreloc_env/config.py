@@ -28,6 +28,9 @@ MAX_SUBSTEPS = 1000
 MAX_BEAMS = 10_000
 """Most beams of a lidar or a camera."""
 
+MAX_RANGE_M = 10_000.0
+"""Largest sensor range accepted (m): beyond it the observation bounds stop being meaningful."""
+
 
 def _key_list(keys) -> list:
     """Keys sorted for a message even when they are of mixed types (``{"a", 7}``)."""
@@ -188,6 +191,12 @@ def _positive(obj, *names: str) -> None:
             raise ValueError(f"{type(obj).__name__}.{n} must be a positive finite number, got {v!r}")
 
 
+def _at_most(obj, name: str, hi: float) -> None:
+    v = getattr(obj, name)
+    if v > hi:
+        raise ValueError(f"{type(obj).__name__}.{name} must be at most {hi:g}, got {v!r}")
+
+
 def _non_negative(obj, *names: str) -> None:
     for n in names:
         v = getattr(obj, n)
@@ -274,6 +283,7 @@ class LidarParams:
         _int_range(self, "n_beams", 1, MAX_BEAMS)
         _fov(self)
         _positive(self, "range_max_m")
+        _at_most(self, "range_max_m", MAX_RANGE_M)
         _non_negative(self, "noise_std_m")
         _probability(self, "dropout_prob")
 
@@ -306,6 +316,7 @@ class CameraParams:
         _int_range(self, "n_beams", 1, MAX_BEAMS)
         _fov(self)
         _positive(self, "range_max_m")
+        _at_most(self, "range_max_m", MAX_RANGE_M)
         _non_negative(self, "range_min_m", "noise_std_m")
         if not self.range_min_m < self.range_max_m:
             raise ValueError("CameraParams needs 0 <= range_min_m < range_max_m")

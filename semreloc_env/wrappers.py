@@ -87,7 +87,8 @@ class BeliefObservation(gym.Wrapper):
             ("entropy_max_nats", entropy_max_nats),
             ("max_clusters", max_clusters),
         ):
-            if not (math.isfinite(v) and v > 0):
+            real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+            if not (real and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
         self.belief_low = np.zeros(len(BELIEF_FEATURES), dtype=np.float32)
         self.belief_high = np.array(
@@ -155,6 +156,8 @@ class FlatObservation(gym.ObservationWrapper):
         unknown = [k for k in self.keys if k not in space.spaces]
         if unknown:
             raise KeyError(f"keys {unknown} not in the observation; it has {list(space.spaces)}")
+        if not self.keys:
+            raise ValueError("keys: give at least one observation key to flatten")
         lows, highs, self.slices, start = [], [], {}, 0
         self._onehot: dict[str, np.ndarray] = {}  # key -> offset of each element's one-hot block
         for k in self.keys:

@@ -252,6 +252,9 @@ def test_shipped_policy_loads_and_acts():
         a = policy.act(obs)
         assert env.action_space.contains(a)
         obs, *_ = env.step(a)
+    raw, _ = _env().reset(seed=0)
+    with pytest.raises(ValueError, match="policy.wrap"):  # the raw env's observation, not the wrapped one
+        policy.act(raw)
 
 
 def test_explorer_option_steps_as_the_explorer_and_checks_its_actions():

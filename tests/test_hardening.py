@@ -118,6 +118,14 @@ def test_4_bad_reward_weight_is_rejected_at_construction(value):
         gym.make("SemSlam-v1", reward_weights={"time": value}, **SLAM_FAST)
 
 
+def test_4_reward_weights_and_sensor_ranges_far_beyond_any_robot_are_rejected():
+    with pytest.raises(ValueError, match="reward weight time"):
+        gym.make("SemReloc-v2", reward_weights={"time": 1e308}, **FAST)
+    for sensor in ("lidar", "camera"):
+        with pytest.raises(ValueError, match="range_max_m must be at most"):
+            gym.make("SemReloc-v2", **{**FAST, sensor: {"range_max_m": 1e300}})
+
+
 # ---------------------------------------------------------------- 5. sensor noise
 @pytest.mark.parametrize("sensor", ["lidar", "camera"])
 @pytest.mark.parametrize("value", [math.nan, math.inf, -0.1])

@@ -92,8 +92,9 @@ def test_belief_observation_rejects_bad_envs_and_bounds():
         BeliefObservation(BeliefObservation(gym.make("SemReloc-v2", **FAST)))
     with pytest.raises(TypeError):
         BeliefObservation(gym.make("CartPole-v1"))
-    with pytest.raises(ValueError):
-        BeliefObservation(gym.make("SemReloc-v2", **FAST), pos_std_max_m=0.0)
+    for bad in (0.0, True, "a"):
+        with pytest.raises(ValueError, match="pos_std_max_m"):
+            BeliefObservation(gym.make("SemReloc-v2", **FAST), pos_std_max_m=bad)
 
 
 def _check(env):
@@ -159,5 +160,7 @@ def test_flat_observation_key_subset_and_errors():
     assert flat.slices["odometry"] == slice(0, 3)
     with pytest.raises(KeyError):
         FlatObservation(gym.make("SemReloc-v2", **FAST), keys=["belief"])
+    with pytest.raises(ValueError, match="at least one"):
+        FlatObservation(gym.make("SemReloc-v2", **FAST), keys=())
     with pytest.raises(TypeError):
         FlatObservation(gym.make("CartPole-v1"))

@@ -64,6 +64,13 @@ class RewardWeights:
     success: float = 1.0
     wrong_convergence: float = -0.05
 
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            real = isinstance(v, (int, float)) and not isinstance(v, bool)
+            if not (real and math.isfinite(v) and abs(v) <= 1e6):
+                raise ValueError(f"reward weight {f.name} must be a finite number within +-1e6, got {v!r}")
+
 
 class SemRelocEnv(SemRelocBase):
     """Semantic active relocalization of a differential-drive robot in a 2D world.
