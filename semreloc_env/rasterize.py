@@ -13,7 +13,7 @@ from filters.mapping.grid import GridMap
 from .layouts import CLASS_NAMES, Layout
 
 MAX_RASTER_CELLS = 25_000_000
-"""Largest grid `rasterize` builds (about 22 bytes a cell, so ~550 MB): e.g. 250 m x 100 m at 5 cm."""
+"""Largest grid `rasterize` builds (about 22 bytes a cell, so ~550 MB): e.g. 250 m x 250 m at 5 cm is refused."""
 
 
 def _mark_segments(

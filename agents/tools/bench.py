@@ -2,7 +2,7 @@
 
 Usage::
 
-    python scripts/bench.py                 # everything (~3 min on 2 shared cores)
+    python scripts/bench.py                 # everything (~5 min on 2 shared cores)
     python scripts/bench.py --quick         # skip the building-size layout and PPO
     python scripts/bench.py --only env stages
 

@@ -2,7 +2,7 @@
 
 Usage (``semreloc-soak`` is the same command)::
 
-    python scripts/soak.py                 # 10^6 steps (about an hour on one core)
+    python scripts/soak.py                 # 10^6 steps (~25 min here)
     python scripts/soak.py --steps 20000   # a short run
     python scripts/soak.py --layouts 10000 # layouts only: validate, mutate, build
 
