@@ -252,7 +252,17 @@ def test_shipped_policy_loads_and_acts():
         a = policy.act(obs)
         assert env.action_space.contains(a)
         obs, *_ = env.step(a)
+    # and it localizes: the README's example episode (twin rooms, seed 0) succeeds
+    env = policy.wrap(_env(layout="twin_rooms", max_episode_steps=200))
+    policy.reset()
+    obs, info = env.reset(seed=0)
+    while True:
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        if terminated or truncated:
+            break
+    assert info["is_success"]
     raw, _ = _env().reset(seed=0)
+    policy.reset()  # a new decision is due: it reads the observation
     with pytest.raises(ValueError, match="policy.wrap"):  # the raw env's observation, not the wrapped one
         policy.act(raw)
 

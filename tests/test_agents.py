@@ -102,7 +102,7 @@ def test_callback_scores_episodes_and_logs_metric_keys(smoke):
     expect = summarize_episodes(cb.results[-cb.window :])
     assert float(last["reloc/success_rate"]) == pytest.approx(expect["success_rate"])
     assert float(last["reloc/wrong_convergence_rate"]) == pytest.approx(expect["wrong_convergence_rate"])
-    assert float(last["reloc/final_position_error_m"]) >= 0.0
+    assert float(last["reloc/final_position_error_m"]) == pytest.approx(expect["median_final_position_error_m"])
 
 
 def test_evaluate_baseline_rates_are_rates():

@@ -114,7 +114,9 @@ def test_a_done_robots_action_is_ignored_not_checked():
     for _ in range(2):
         _, _, term, trunc, _ = venv.step([3, 3])
     assert np.all(term | trunc)
-    venv.step([-1, -1])  # both robots are reset by this step: their actions are not used
+    _, reward, term, trunc, _ = venv.step([-1, -1])  # both robots are reset by this step: actions unused
+    assert not term.any() and not trunc.any() and np.all(reward == 0.0)
+    assert [e.unwrapped._steps for e in venv.envs] == [0, 0]
 
 
 def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():

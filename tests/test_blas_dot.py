@@ -25,6 +25,7 @@ def same_bits(a, b) -> bool:
     return np.float64(a).tobytes() == np.float64(b).tobytes()
 
 
+@pytest.mark.skipif(_blas.openblas_threads() is None, reason="NumPy's BLAS is not OpenBLAS: no thread count to vary")
 def test_dot_does_not_depend_on_the_thread_count_and_is_matmul_under_two_threads():
     rng = np.random.default_rng(0)
     sizes = [1, 7, 9999, 10_000, 10_001, 10_002, 12_345, 17_627, 19_999, 20_000, 20_001, 25_000, 40_000]

@@ -39,15 +39,16 @@ def test_tracking_from_the_true_pose_stays_within_20_cm_for_300_steps():
 
 
 def test_global_relocalization_on_lab_with_semantics_converges_correctly():
-    # a regression check on one seed (seed 2 since the linear-time mapping run changed the lab map;
-    # seed 1 now converges to a look-alike place); rates over many seeds are in docs/paper004.md
+    # ten seeds, not one picked: every episode must end converged at the true pose (rates over
+    # many more seeds and layouts are in docs/relocalizer_eval.md)
     env = gym.make("SemReloc-v2", layout="lab")
-    infos = drive(env, 400, seed=2)
-    final = infos[-1]
-    assert final["belief"]["converged"]
-    assert final["pose_error"]["position"] < 0.5 and final["pose_error"]["heading"] < math.radians(15)
-    assert final["rewards"]["success"] > 0
-    assert infos[0]["belief"]["pos_std_m"] > 1.0  # it started spread out over the map
+    for seed in range(10):
+        infos = drive(env, 400, seed=seed)
+        final = infos[-1]
+        assert final["belief"]["converged"], seed
+        assert final["pose_error"]["position"] < 0.5 and final["pose_error"]["heading"] < math.radians(15), seed
+        assert final["rewards"]["success"] > 0, seed
+        assert infos[0]["belief"]["pos_std_m"] > 1.0  # it started spread out over the map
 
 
 def test_lidar_only_switch_changes_the_weights():

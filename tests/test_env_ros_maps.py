@@ -45,5 +45,10 @@ def test_png_map_in_the_env(tmp_path):
     (tmp_path / "png.yml").write_text(path.read_text().replace("plain.pgm", "plain.png").replace("negate: 0\n", ""))
     env = gym.make("SemReloc-v2", layout="twin_rooms", map_source=str(tmp_path / "png.yml"), semantic=False,
                    relocalizer={"n_particles": 100})  # fmt: skip
+    pgm = gym.make("SemReloc-v2", layout="twin_rooms", map_source=str(path), semantic=False,
+                   relocalizer={"n_particles": 100})  # fmt: skip
+    a, b = env.unwrapped.grid, pgm.unwrapped.grid  # the PNG holds the PGM's pixels: the same map
+    np.testing.assert_array_equal(a.occupied_mask(), b.occupied_mask())
+    np.testing.assert_array_equal(a.free_mask(), b.free_mask())
     env.reset(seed=0)
     env.close()

@@ -135,3 +135,35 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path):
     with pytest.raises(ValueError, match="gif_case"):
         ev.main(["--policies", "spin", "--layouts-per-kind", "0", "--gif-case", "999", "--out", str(out)])
     assert not out.exists()
+
+
+def _row(case, policy, outcome, steps=None, uninformative=False, kind="procedural"):
+    return {
+        "case": case, "policy": policy, "outcome": outcome, "steps_to_success": steps, "collisions": case % 2,
+        "seconds": 1.0, "length": 10, "kind": kind, "uninformative": uninformative,
+    }  # fmt: skip
+
+
+def test_paired_comparison_counts_discordant_pairs_and_tests_them():
+    from scipy.stats import binomtest
+
+    # learned "a" against "b" on 8 cases: a alone solves 0, 1, 2; b alone solves 3; both solve 4, 5
+    a = ["success", "success", "success", "unconverged", "success", "success", "wrong", "unconverged"]
+    b = ["unconverged", "wrong", "unconverged", "success", "success", "success", "unconverged", "unconverged"]
+    rows = [_row(i, "a", o) for i, o in enumerate(a)] + [_row(i, "b", o) for i, o in enumerate(b)]
+    (cmp,) = ev.paired(rows, ["a"], ["a", "b"])
+    assert (cmp["policy"], cmp["against"], cmp["wins"], cmp["losses"]) == ("a", "b", 3, 1)
+    assert cmp["difference"] == pytest.approx((5 - 3) / 8)
+    assert cmp["mcnemar_p"] == pytest.approx(binomtest(3, 4).pvalue)
+    lo, hi = cmp["ci95"]
+    assert lo <= cmp["difference"] <= hi and lo < hi
+
+
+def test_summarise_counts_each_outcome_with_its_wilson_interval():
+    outcomes = ["success", "success", "wrong", "unconverged", "success"]
+    rows = [_row(i, "p", o, steps=10 + i if o == "success" else None) for i, o in enumerate(outcomes)]
+    s = ev.summarise(rows)
+    for outcome, k in (("success", 3), ("wrong", 1), ("unconverged", 1)):
+        assert s[outcome]["count"] == k and s[outcome]["rate"] == k / 5
+        assert s[outcome]["ci95"] == pytest.approx(ev.wilson(k, 5))
+    assert s["median_steps"] == 11.0 and s["collisions_per_episode"] == pytest.approx(2 / 5)

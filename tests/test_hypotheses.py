@@ -205,7 +205,10 @@ def test_global_particle_count_follows_the_free_area_and_kld_bounds_hold():
     ],
 )
 def test_bad_relocalizer_options_are_rejected(bad):
-    with pytest.raises((ValueError, TypeError)):
+    key = next(iter(bad))
+    if isinstance(bad[key], dict):  # a sub-config: its own field is named
+        key = next(iter(bad[key]))
+    with pytest.raises((ValueError, TypeError), match=key):
         MCLConfig(**bad)
 
 
