@@ -28,6 +28,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from filters.numbers import is_int, is_real
+
 from .baselines import FORWARD, STOP, TURN_LEFT, TURN_RIGHT, WallFollowExplorer, all_round_angles
 
 BACKWARD = -1
@@ -38,7 +40,7 @@ class Policy:
     """Base class: action encoding for the env's action type, and the interface."""
 
     def __init__(self, seed: int = 0):
-        if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        if not (is_int(seed) and seed >= 0):
             raise ValueError(f"{type(self).__name__}: seed must be an integer >= 0, got {seed!r:.60}")
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
@@ -118,7 +120,7 @@ class SpinThenBackUp(Policy):
     def __init__(self, seed: int = 0, backup_m: float = 0.5, clearance_m: float = 0.45):
         super().__init__(seed)
         for name, v in (("backup_m", backup_m), ("clearance_m", clearance_m)):
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not 0 < v < 1e3:
+            if not (is_real(v) and 0 < v < 1e3):
                 raise ValueError(f"SpinThenBackUp: {name} must be a number in (0, 1000) m, got {v!r:.60}")
         self.backup_m, self.clearance_m = float(backup_m), float(clearance_m)
         self._plan: list[int] = []

@@ -38,6 +38,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 import semreloc_env  # noqa: F401  (registers the envs)
+from filters.numbers import is_real
 from semreloc_env.wrappers import BeliefObservation
 
 from .callbacks import RelocalizationMetricsCallback
@@ -66,8 +67,7 @@ def check_ppo_settings(config) -> None:
         if not hasattr(config, name):
             continue
         v = getattr(config, name)
-        real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-        if not (real and math.isfinite(v) and ok(v)):
+        if not (is_real(v) and math.isfinite(v) and ok(v)):
             raise ValueError(f"{name} must be a finite number {what}, got {v!r}")
     check_device(config.device)
 

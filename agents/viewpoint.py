@@ -54,6 +54,7 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
+from filters.numbers import is_real
 from filters.pose import wrap_angle
 from filters.simulators.grid_raycast import cast_many_labelled
 
@@ -295,7 +296,7 @@ class ViewpointPlanner(Policy):
             "clearance_stop_m": clearance_stop_m,
         }
         for name, v in {**positive, **non_negative}.items():
-            ok = not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.integer, np.floating))
+            ok = is_real(v)
             if not (ok and math.isfinite(v) and v >= 0 and (v > 0 or name in non_negative)):
                 raise ValueError(f"{name} must be a finite number {'>' if name in positive else '>='} 0, got {v!r}")
         self.horizon_m, self.plan_cell_m, self.clearance_m = float(horizon_m), float(plan_cell_m), float(clearance_m)

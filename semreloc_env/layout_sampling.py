@@ -26,6 +26,8 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from filters.numbers import is_int
+
 from .layouts import BUILTIN_LAYOUTS_NAMES, PROCEDURAL_LAYOUTS, Layout, get_layout
 from .maps import maps_for
 
@@ -115,10 +117,7 @@ class LayoutSampler:
             n_left = len(seeds) - overlap
         else:
             items = list(seeds)
-            if not items or not all(
-                isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) and 0 <= v < 2**63
-                for v in items
-            ):
+            if not items or not all(is_int(v) and 0 <= v < 2**63 for v in items):
                 raise ValueError(f"seeds must be a non-empty list of integers in [0, 2**63), got {items!r:.80}")
             arr = np.asarray(items, dtype=np.int64)
             self._seeds = np.array([s for s in arr if not is_held_out(s)], dtype=np.int64)
@@ -169,7 +168,7 @@ class RandomLayout(gym.Wrapper):
         if not (isinstance(base.map_source, str) and base.map_source in ("mapping", "perfect")):
             raise ValueError(f"RandomLayout needs map_source 'mapping' or 'perfect', got {base.map_source!r}")
         self.sampler = sampler if sampler is not None else LayoutSampler()
-        if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        if not (is_int(seed) and seed >= 0):
             raise ValueError(f"RandomLayout: seed must be an integer >= 0, got {seed!r:.60}")
         self._rng = np.random.default_rng([int(seed), _SALT])
         self._maps: OrderedDict[tuple, object] = OrderedDict()
@@ -194,7 +193,7 @@ class RandomLayout(gym.Wrapper):
         by the env) changes nothing: the layout stream, the env's layout and map stay as they were."""
         base = self.env.unwrapped
         base.check_reset(seed=seed)  # the seed before it re-seeds the layout stream
-        saved = (self._rng, self.current, base.layout, base.layout_seed, base.grid, base._obstacles)
+        saved = (self._rng, self.current, base.layout, base.layout_seed, base.grid)
         try:
             if seed is not None:
                 self._rng = np.random.default_rng([int(seed), _SALT])
@@ -205,7 +204,8 @@ class RandomLayout(gym.Wrapper):
             self.current = draw
             obs, info = self.env.reset(seed=seed, options=options)
         except Exception:
-            self._rng, self.current, base.layout, base.layout_seed, base.grid, base._obstacles = saved
+            self._rng, self.current, layout, layout_seed, grid = saved
+            base.set_layout(layout, layout_seed, grid=grid, check_map=False)  # the map it had
             raise
         info["layout"] = draw.as_dict()
         return obs, info

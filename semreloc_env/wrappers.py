@@ -27,6 +27,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from filters.numbers import is_real
+
 BELIEF_FEATURES = ("pos_std_m", "theta_std_rad", "entropy_nats", "n_clusters", "ess_frac", "converged")
 """Order of the entries of the ``belief`` observation (see `BeliefObservation`)."""
 
@@ -87,8 +89,7 @@ class BeliefObservation(gym.Wrapper):
             ("entropy_max_nats", entropy_max_nats),
             ("max_clusters", max_clusters),
         ):
-            real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-            if not (real and math.isfinite(v) and v > 0):
+            if not (is_real(v) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
         self.belief_low = np.zeros(len(BELIEF_FEATURES), dtype=np.float32)
         self.belief_high = np.array(

@@ -96,6 +96,7 @@ from filters.localization.likelihood_field import DEFAULT_SEMANTIC_FIELD, Likeli
 from filters.localization.proposals import ScanProposal
 from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
+from filters.numbers import is_int, is_real
 from filters.pose import compose, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.smc.logsumexp import logsumexp as fast_logsumexp
@@ -236,14 +237,15 @@ class MCLConfig:
                 if not self.global_particles_per_m2 > 0:
                     raise ValueError("MCLConfig: n_particles=None needs global_particles_per_m2 > 0")
                 continue
-            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 1 <= v <= MAX_PARTICLES):
+            if not (is_int(v) and 1 <= v <= MAX_PARTICLES):
                 raise ValueError(f"MCLConfig.{name} must be an int in [1, {MAX_PARTICLES:,}], got {v!r}")
             object.__setattr__(self, name, int(v))
         if self.min_particles > self.max_particles:
             raise ValueError("MCLConfig: min_particles must be <= max_particles")
         h = self.holdoff_min_detections
-        if isinstance(h, (bool, np.bool_)) or not isinstance(h, (int, np.integer)) or h < 0:
+        if not (is_int(h) and h >= 0):
             raise ValueError(f"MCLConfig.holdoff_min_detections must be an int >= 0, got {h!r}")
+        object.__setattr__(self, "holdoff_min_detections", int(h))
         numbers = {  # name: (test, what it must be)
             "update_min_d_m": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "update_min_a_rad": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
@@ -264,13 +266,10 @@ class MCLConfig:
         }
         for name, (ok, what) in numbers.items():
             v = getattr(self, name)
-            real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-            if not (real and ok(float(v))):
+            if not (is_real(v) and ok(float(v))):
                 raise ValueError(f"MCLConfig.{name} must be {what}, got {v!r}")
             if isinstance(v, np.generic):  # plain Python numbers: JSON-able, hash as the same value
                 object.__setattr__(self, name, v.item())
-        if isinstance(h, np.integer):
-            object.__setattr__(self, "holdoff_min_detections", int(h))
         if not isinstance(self.resampler, str):
             raise ValueError(f"MCLConfig.resampler must be a name (str), got {self.resampler!r:.60}")
         if self.resampler not in RESAMPLERS:

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from filters.numbers import is_real
+
 NO_CLASS = 0
 """Label of a semantic beam that hit no object of a known class."""
 
@@ -64,7 +66,7 @@ class GridMap:
             raise ValueError("occupancy values must be finite probabilities in [0, 1]")
         for name in ("resolution_m", "occupied_thresh", "free_thresh", "semantic_thresh"):
             v = getattr(self, name)
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+            if not is_real(v):
                 raise ValueError(f"{name} must be a number, got {v!r:.60}")
         if not (np.isfinite(self.resolution_m) and self.resolution_m > 0):
             raise ValueError(f"resolution_m must be a positive number, got {self.resolution_m!r}")

@@ -28,6 +28,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
+from filters.numbers import is_int
+
 from .spaces import decode_action
 
 SINGLE_ENV_ID = "SemReloc-v1"
@@ -106,7 +108,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         """Per-robot seeds of ``seed`` (see `reset`), every robot's seed and options checked first.
 
         ``options`` is one dict for all robots or a list of one per robot."""
-        if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_))):
+        if seed is None or is_int(seed):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
         elif isinstance(seed, (str, bytes, dict, float, bool, np.floating, np.bool_)):
             raise ValueError(f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r:.80}")

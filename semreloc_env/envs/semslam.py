@@ -10,6 +10,7 @@ import numpy as np
 
 from filters.motion.odometry import OdometryMotionConfig
 from filters.motion.odometry_slam import OdometryIncrementModel
+from filters.numbers import is_int
 from filters.pose import wrap_angle
 from filters.slam.association import AssociationConfig
 from filters.slam.class_votes import ClassVotingFastSLAM
@@ -66,7 +67,7 @@ class SlamParams:
         if not (isinstance(self.woc_k, (int, float)) and float(self.woc_k) >= 1.0):
             raise ValueError(f"slam.woc_k must be a number with 1 <= K <= inf, got {self.woc_k!r}")
         n = self.n_particles
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 100_000:
+        if not (is_int(n) and 1 <= n <= 100_000):
             # each FastSLAM particle carries its own landmark map
             raise ValueError(f"slam.n_particles must be an int in [1, 100,000], got {n!r}")
 

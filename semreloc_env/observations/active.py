@@ -9,6 +9,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from filters.numbers import is_real
+
 from ..envs.spaces import ODOMETRY_BOUND, semantic_parts
 from ..layouts import CLASS_NAMES
 from .hypotheses import hypotheses_of
@@ -130,8 +132,7 @@ class ActiveObservation(gym.Wrapper):
         for name, v in (("ego_size", ego_size), ("global_size", global_size)):
             if v > 512:  # the images are (channels, size, size) per step
                 raise ValueError(f"{name} must be at most 512 cells, got {v!r}")
-        real = isinstance(ego_cell_m, (int, float, np.integer, np.floating)) and not isinstance(ego_cell_m, bool)
-        if not (real and math.isfinite(ego_cell_m) and 0.01 <= ego_cell_m <= 10.0):
+        if not (is_real(ego_cell_m) and math.isfinite(ego_cell_m) and 0.01 <= ego_cell_m <= 10.0):
             raise ValueError(f"ego_cell_m must be a number in [0.01, 10] m, got {ego_cell_m!r}")
         self.keys = OBSERVATION_KEYS if keys is None else tuple(keys)
         unknown = [k for k in self.keys if k not in OBSERVATION_KEYS]
