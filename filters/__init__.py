@@ -19,4 +19,5 @@ real robot as well as from `semreloc_env`. One subpackage per concept:
   paper 000 / 001 reproductions, which need nothing above this package.
 * `filters.tools` -- commands over the filters alone (replaying a robot log).
 * `filters.pose` -- pose algebra shared by all of the above.
+* `filters.numbers` -- what counts as a number in argument checks (`is_int`, `is_real`).
 """
