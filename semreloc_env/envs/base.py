@@ -144,8 +144,8 @@ class SemRelocBase(gym.Env):
         options, world = self._prepare_reset(seed, options)
         seed = None if seed is None else int(seed)
         saved = dict(self.__dict__)  # a reset that fails below must leave the old episode intact
-        # spawning child streams advances the generator's seed sequence in place: keep a copy
-        saved["_np_random"] = copy.deepcopy(self.__dict__.get("_np_random"))
+        if seed is None:  # the generator is kept, and spawning child streams advances its seed sequence in place
+            saved["_np_random"] = copy.deepcopy(self.__dict__.get("_np_random"))
         try:
             super().reset(seed=seed)
             # independent streams: world/start pose, sensors, odometry, estimator
