@@ -124,11 +124,26 @@ def _obj(cls="chair", poly=((1, 1), (2, 1), (2, 2), (1, 2)), **kw):
         ({"outer": SQUARE, "objects": [{**_obj(), "colour": "red"}]}, "unknown keys"),
         ({"walls": []}, "no 'outer'"),
         ({"outer": "square"}, "outer"),
+        (
+            {
+                "outer": SQUARE,
+                "objects": [_obj(name="bin"), _obj(poly=((2.5, 1), (3, 1), (3, 1.5), (2.5, 1.5)), name="bin")],
+            },
+            r"objects\[1\] \(bin\): name 'bin' already used by objects\[0\]",
+        ),
     ],
 )
 def test_malformed_layouts_name_the_entry(data, match):
     with pytest.raises(LayoutError, match=match):
         layout_from_dict(data)
+
+
+def test_unnamed_objects_get_names_no_other_object_has():
+    second = ((2.5, 1), (3, 1), (3, 1.5), (2.5, 1.5))
+    layout = layout_from_dict({"outer": SQUARE, "objects": [_obj(name="chair_1"), _obj(poly=second)]})
+    assert [o.name for o in layout.objects] == ["chair_1", "chair_1_2"]
+    plain = layout_from_dict({"outer": SQUARE, "objects": [_obj(), _obj(poly=second)]})
+    assert [o.name for o in plain.objects] == ["chair_0", "chair_1"]
 
 
 def test_malformed_files(tmp_path):

@@ -13,6 +13,7 @@ File / dict format (JSON or YAML), all lengths in metres::
     objects:                       # semantic objects, each one of the classes below
       - {class: chair, polygon: [[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]}
       - {class: cabinet, center: [3, 0.3], size: [1.0, 0.5], angle_rad: 0.0}  # box shorthand
+      - {class: door, name: entrance, center: [0.05, 5], size: [0.1, 1.0]}  # names: optional, unique
 
 Classes: ``door``, ``chair``, ``trash_bin``, ``cabinet`` (paper 004).
 Every problem found raises `LayoutError` naming the offending entry.
@@ -351,6 +352,7 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         walls.append(p)
         walls_what.append(what)
     objects, objects_what, classes, names = [], [], [], []
+    named: dict[str, int] = {}
     for i, o in enumerate(raw_objects):
         if not isinstance(o, Mapping):
             raise LayoutError(f"objects[{i}]: must be a mapping with 'class' and 'polygon' (or 'center' and 'size')")
@@ -358,6 +360,10 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         if obj_name is not None and not isinstance(obj_name, str):
             raise LayoutError(f"objects[{i}].name must be a string, got {type(obj_name).__name__}")
         what = f"objects[{i}]" + (f" ({obj_name})" if obj_name else "")
+        if obj_name:
+            if obj_name in named:
+                raise LayoutError(f"{what}: name {obj_name!r:.60} already used by objects[{named[obj_name]}]")
+            named[obj_name] = i
         unknown = set(o) - _OBJECT_KEYS
         if unknown:
             raise LayoutError(f"{what}: unknown keys {_key_list(unknown)}; allowed: {sorted(_OBJECT_KEYS)}")
@@ -375,8 +381,16 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         objects.append(poly)
         objects_what.append(what)
         classes.append(cls)
-        names.append(obj_name or f"{cls}_{i}")
+        names.append(obj_name or None)
     _check_geometry(outer, walls, walls_what, objects, objects_what)
+    for i, cls in enumerate(classes):  # unnamed objects: "<class>_<index>", or "_2", "_3", ... after a name taken
+        if names[i] is None:
+            base = name_i = f"{cls}_{i}"
+            k = 2
+            while name_i in named:
+                name_i, k = f"{base}_{k}", k + 1
+            names[i] = name_i
+            named[name_i] = i
     return Layout(
         name,
         tuple(map(tuple, outer.tolist())),
