@@ -38,7 +38,10 @@ alone (never the true pose):
    off, else drive;
    at the goal, turn to its heading. A plan is made again at the goal, after ``replan_every``
    steps, and when the lidar sees an obstacle in the robot's way closer than ``clearance_stop_m``
-   (then the step turns toward the freer side instead).
+   (then the step turns toward the freer side instead). With continuous actions
+   (``action_type="continuous"``) the path is followed with arcs, driving and turning at once
+   (`ViewpointPlanner._arc`: on the spot only beyond ``arc_max_rad``, the turn to the goal
+   heading begun within ``arc_final_m`` of the goal); discrete actions are unaffected.
 
 When one hypothesis is left (nothing to tell apart), no viewpoint resolves anything within the
 horizon, or a goal where the robot already stands did not settle the belief twice in a row, it
@@ -238,6 +241,13 @@ class ViewpointPlanner(Policy):
         clearance_stop_m: a forward step with a lidar return less than this ahead of the robot's
             centre and within its radius (+ 5 cm) sideways turns instead.
         start_turn: also charge the turn from the current heading onto the path.
+        arc_max_rad: with continuous actions, heading error toward the look-ahead point above
+            which the robot turns on the spot; below it, it drives at ``cos(error)`` of full speed
+            while turning (an arc). Discrete actions use ``turn_tol_rad`` instead.
+        arc_gain: with continuous actions, the share of the heading error turned per step while
+            driving (the turn rate is clipped to the robot's maximum).
+        arc_final_m: with continuous actions, within this distance of the goal the robot turns
+            toward the goal heading while closing in, and arrives once it faces it (0: off).
     """
 
     def __init__(
@@ -264,6 +274,9 @@ class ViewpointPlanner(Policy):
         turn_tol_rad: float = 0.3,
         clearance_stop_m: float = 0.3,
         start_turn: bool = True,
+        arc_max_rad: float = 1.0,
+        arc_gain: float = 1.0,
+        arc_final_m: float = 0.3,
     ):
         super().__init__(seed)
         ints = {
@@ -287,6 +300,8 @@ class ViewpointPlanner(Policy):
             "views": views,
             "lookahead_m": lookahead_m,
             "turn_tol_rad": turn_tol_rad,
+            "arc_max_rad": arc_max_rad,
+            "arc_gain": arc_gain,
         }
         non_negative = {
             "clearance_m": clearance_m,
@@ -294,6 +309,7 @@ class ViewpointPlanner(Policy):
             "min_score": min_score,
             "stay_m": stay_m,
             "clearance_stop_m": clearance_stop_m,
+            "arc_final_m": arc_final_m,
         }
         for name, v in {**positive, **non_negative}.items():
             ok = is_real(v)
@@ -308,6 +324,7 @@ class ViewpointPlanner(Policy):
         self.turn_tol_rad, self.clearance_stop_m = float(turn_tol_rad), float(clearance_stop_m)
         self.min_reachable = int(min_reachable)
         self.start_turn = bool(start_turn)
+        self.arc_max_rad, self.arc_gain, self.arc_final_m = float(arc_max_rad), float(arc_gain), float(arc_final_m)
         self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
         self._map: _PlanMap | None = None  # of the filter map planned on last
         self._radius_m = 0.2  # the env's robot, at `wrap`
@@ -523,10 +540,23 @@ class ViewpointPlanner(Policy):
         )
 
     def _follow(self) -> int | None:
-        """The next action along the stored path; None when the goal is reached.
+        """The next discrete action along the stored path; None when the goal is reached.
 
         Steers to the farthest path point within ``lookahead_m`` that the robot sees in a straight
         line through planning cells (so it cuts the grid path's zigzags)."""
+        step = self._track()
+        if step is None:
+            return None
+        err, target = step
+        if target is None or abs(err) > self.turn_tol_rad:  # (at the goal, `_track` leaves only turns)
+            return TURN_LEFT if err > 0 else TURN_RIGHT
+        return FORWARD
+
+    def _track(self) -> tuple[float, np.ndarray | None] | None:
+        """Where the path asks the robot to head: ``(heading error, target point)`` while on the
+        path (the farthest point within ``lookahead_m`` in straight line of sight, robot frame at
+        planning time), ``(error to the goal heading, None)`` at its end, None when the goal is
+        reached with its heading (within a turn step)."""
         x, y, th = self._pose
         c, s = math.cos(self._ref[2]), math.sin(self._ref[2])
         here = self._ref[:2] + (c * x - s * y, s * x + c * y)
@@ -548,14 +578,41 @@ class ViewpointPlanner(Policy):
                 if math.hypot(*(pt - (x, y))) > self.lookahead_m or not seen(pt):
                     break
                 target = pt
-            err = float(wrap_angle(math.atan2(target[1] - y, target[0] - x) - th))
-            if abs(err) > self.turn_tol_rad:
-                return TURN_LEFT if err > 0 else TURN_RIGHT
-            return FORWARD
+            return float(wrap_angle(math.atan2(target[1] - y, target[0] - x) - th)), target
         err = float(wrap_angle(self._goal_heading - th))
         if abs(err) > self.step_rad:
-            return TURN_LEFT if err > 0 else TURN_RIGHT
+            return err, None
         return None
+
+    def _arc(self) -> np.ndarray | None:
+        """The next continuous command ``(v, omega)`` in ``[-1, 1]`` along the stored path (arcs);
+        None when the goal is reached.
+
+        On the path: turn on the spot (as fast as the error asks, at most a turn step) when the
+        look-ahead point is more than ``arc_max_rad`` off; else drive at ``cos(error)`` of full
+        speed while turning toward it, ``arc_gain`` of the error per step. Within ``arc_final_m``
+        of the goal (the look-ahead point being the goal), turn toward the goal heading instead
+        while still closing in (speed ``cos`` of the error toward the goal point, none if it lies
+        behind); facing the goal heading there counts as arrived."""
+        step = self._track()
+        if step is None:
+            return None
+        err, target = step
+        turn = self.step_rad
+        if target is not None and self.arc_final_m > 0 and np.array_equal(target, self._path[-1]):
+            x, y, th = self._pose
+            if math.hypot(target[0] - x, target[1] - y) < self.arc_final_m:
+                err_h = float(wrap_angle(self._goal_heading - th))
+                if abs(err_h) <= self.step_rad:  # facing the goal heading, close enough: arrived
+                    self._path = self._path[:0]
+                    return self._arc()
+                v = max(0.0, math.cos(err))
+                return np.array([v, np.clip(err_h / turn, -1.0, 1.0)], dtype=np.float32)
+        omega = float(np.clip(err / turn, -1.0, 1.0))
+        if target is None or abs(err) > self.arc_max_rad:
+            return np.array([0.0, omega], dtype=np.float32)
+        omega = float(np.clip(self.arc_gain * err / turn, -1.0, 1.0))
+        return np.array([math.cos(err), omega], dtype=np.float32)
 
     def _replan(self) -> None:
         ok = self.plan()
@@ -579,23 +636,39 @@ class ViewpointPlanner(Policy):
 
     def decide(self, obs: dict) -> int:
         """The discrete action (0 forward, 1 left, 2 right) for the latest observed ``obs``."""
+        return int(self._decide(obs, self._follow))
+
+    def decide_continuous(self, obs: dict) -> np.ndarray:
+        """The continuous action ``(v, omega)`` (float32, in ``[-1, 1]``) for the latest observed
+        ``obs``: the path followed with arcs (`_arc`); the explorer's steps and the safety turn as
+        their discrete actions (forward ``(1, 0)``, turns ``(0, +-1)``)."""
+        a = self._decide(obs, self._arc)
+        if isinstance(a, np.ndarray):
+            return a
+        return np.array([1.0 if a == FORWARD else 0.0, {TURN_LEFT: 1.0, TURN_RIGHT: -1.0}.get(a, 0.0)], np.float32)
+
+    def _decide(self, obs: dict, follow):
+        """The next action: ``follow()``'s (a discrete action, or a continuous command) while a plan
+        is followed, else the explorer's; a forward motion the lidar says would touch something
+        becomes a discrete turn toward the freer side."""
         if self._first or self._since_plan >= (self.explore_steps if self._exploring else self.replan_every):
             self._replan()
         self._first = False
         a = None
         if not self._exploring:
-            a = self._follow()
+            a = follow()
             if a is None:  # goal reached with its heading
                 self._replan()
-                a = None if self._exploring else self._follow()
+                a = None if self._exploring else follow()
         if a is None:
             a = self.explorer(obs)
         ranges = np.asarray(obs["lidar"], dtype=np.float64)
-        if a == FORWARD and self._blocked(ranges):
+        forward = a[0] > 0 if isinstance(a, np.ndarray) else a == FORWARD
+        if forward and self._blocked(ranges):
             left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
             a = TURN_LEFT if left >= right else TURN_RIGHT
             self._since_plan = self.replan_every  # plan again next step
-        return int(a)
+        return a
 
     def _blocked(self, ranges: np.ndarray) -> bool:
         """Whether a lidar return ahead lies within ``clearance_stop_m`` forward of the robot's
@@ -609,4 +682,6 @@ class ViewpointPlanner(Policy):
     def act(self, obs: dict):
         self.require_wrapped()
         self.observe(obs)
+        if self.continuous:
+            return self.decide_continuous(obs)
         return self.encode(self.decide(obs))

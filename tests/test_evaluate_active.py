@@ -167,3 +167,35 @@ def test_summarise_counts_each_outcome_with_its_wilson_interval():
         assert s[outcome]["count"] == k and s[outcome]["rate"] == k / 5
         assert s[outcome]["ci95"] == pytest.approx(ev.wilson(k, 5))
     assert s["median_steps"] == 11.0 and s["collisions_per_episode"] == pytest.approx(2 / 5)
+
+
+def test_continuous_actions_run_and_are_counted_by_kind(tmp_path, capsys):
+    """``--action-type continuous`` makes continuous envs: the rows count motions by kind and carry the
+    action type in their settings (so ``--reuse`` never mixes them with discrete rows); discrete rows
+    are as before (no action_type in their settings)."""
+    common = ["--policies", "viewpoint", "spin", "--layouts-per-kind", "0", "--starts", "1", "--max-steps", "6"]
+    common += ["--particles", "100", "--map-source", "perfect", "--no-progress", "--workers", "1"]
+    assert ev.main([*common, "--action-type", "continuous", "--out", str(tmp_path / "c")]) == 0
+    rows = json.loads((tmp_path / "c" / "episodes.json").read_text())
+    assert len(rows) == 3 * 2
+    for r in rows:
+        assert sum(r["actions"].values()) == r["length"]
+        assert set(r["actions"]) <= {"turn", "arc", "straight", "reverse", "stop"}
+        assert r["settings"]["action_type"] == "continuous"
+        assert r["policy"] != "spin" or set(r["actions"]) == {"turn"}
+    assert "continuous actions" in (tmp_path / "c" / "table.md").read_text()
+    assert ev.main([*common, "--out", str(tmp_path / "d")]) == 0
+    capsys.readouterr()
+    assert ev.main([*common, "--reuse", str(tmp_path / "c"), "--out", str(tmp_path / "e")]) == 0
+    assert "reused 0 episodes" in capsys.readouterr().out
+    rows = json.loads((tmp_path / "d" / "episodes.json").read_text())
+    assert all("action_type" not in r["settings"] and set(r["actions"]) <= {"0", "1", "2", "3"} for r in rows)
+    with pytest.raises(ValueError, match="action_type"):
+        ev.Args(policies=("ppo=agents/data/active_ppo.zip",), action_type="continuous")
+    with pytest.raises(SystemExit):
+        ev.main(["--action-type", "diagonal"])
+
+
+def test_motion_kind_names_what_a_continuous_action_does():
+    kinds = [ev.motion_kind(a) for a in ([0, 1], [0, -0.2], [1, 0], [0.5, 0.1], [-1, 0], [-0.3, 0.4], [0, 0])]
+    assert kinds == ["turn", "turn", "straight", "arc", "reverse", "reverse", "stop"]

@@ -70,6 +70,15 @@ def test_one_hypothesis_means_explore():
     obs, _ = env.reset(seed=0, options={"pose": _twins()[0].tolist(), "tracking": True})
     assert not pol.plan() and pol.last_plan["fallback"]
     assert pol.act(obs) == pol.explorer(obs)  # the explorer's action (fresh explorer state: same)
+    # with continuous actions, the explorer's steps are sent as (1, 0) / (0, +-1)
+    pol = ViewpointPlanner(seed=0)
+    quiet = {"n_particles": 300, "proposal_frac": 0.0, "augmented": False}
+    env = _env(pol, relocalizer=quiet, action_type="continuous")
+    obs, _ = env.reset(seed=0, options={"pose": _twins()[0].tolist(), "tracking": True})
+    want = {0: [1.0, 0.0], 1: [0.0, 1.0], 2: [0.0, -1.0]}[pol.explorer(obs)]
+    pol.explorer.reset()
+    a = pol.act(obs)
+    assert pol.last_plan["fallback"] and env.action_space.contains(a) and a.tolist() == want
 
 
 def test_an_episode_reads_no_truth_and_repeats_bit_for_bit():
@@ -103,6 +112,8 @@ def test_an_episode_reads_no_truth_and_repeats_bit_for_bit():
         ({"cost_per_m": -1.0}, "cost_per_m"),
         ({"plan_cell_m": float("nan")}, "plan_cell_m"),
         ({"n_headings": 2.5}, "n_headings"),
+        ({"arc_max_rad": 0}, "arc_max_rad"),
+        ({"arc_final_m": -0.1}, "arc_final_m"),
     ],
 )
 def test_bad_settings_are_refused(kw, match):
@@ -210,3 +221,70 @@ def test_turning_on_the_spot_earns_no_lidar_gain_without_lidar_on_rotation():
         free &= env.unwrapped.grid.is_free(img)
     assert free.sum() > 20 and moving[free].max() > 0.5
     assert np.all(turning[free] == 0.0)
+
+
+def _drive(pol, steps=60, **kw):
+    """Actions of one episode from twin 0 (the world hidden while the planner acts)."""
+    env = _env(pol, **kw)
+    obs, _ = env.reset(seed=5, options={"pose": _twins()[0].tolist()})
+    base = env.unwrapped
+    actions = []
+    for _ in range(steps):
+        world, base.world = base.world, _NoTruth()
+        try:
+            a = pol.act(obs)
+        finally:
+            base.world = world
+        assert env.action_space.contains(a), a
+        actions.append(np.asarray(a).tolist())
+        obs, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            break
+    return actions
+
+
+def test_continuous_actions_follow_the_path_with_arcs():
+    """With continuous actions the planner drives and turns at once (arcs) and turns on the spot
+    only when far off; every action lies in the Box, it reads no truth and repeats bit for bit."""
+    first = _drive(ViewpointPlanner(seed=4), action_type="continuous")
+    assert first == _drive(ViewpointPlanner(seed=4), action_type="continuous")
+    a = np.array(first)
+    assert a.shape == (len(first), 2) and np.all(np.abs(a) <= 1.0)
+    arcs = (a[:, 0] > 0) & (a[:, 1] != 0)
+    assert arcs.sum() >= 10, a  # driving while turning ...
+    assert np.all(a[:, 0] >= 0)  # ... never backward
+    assert np.any((a[:, 0] == 0) & (a[:, 1] != 0))  # the first turn onto the path is on the spot
+
+
+def test_arc_controller_commands():
+    """The arc rule: speed cos(error) and the error turned per step below ``arc_max_rad``; on the
+    spot above it; at the path's end, the turn to the goal heading."""
+    pol = ViewpointPlanner(seed=0, arc_final_m=0.0)
+    _env(pol, action_type="continuous")
+    pol._ref, pol._pose, pol._goal_heading = np.zeros(3), np.zeros(3), 0.0
+
+    class _Open:
+        def clear_segment(self, a, b):
+            return True
+
+    pol._map = _Open()
+    for bearing, v, w in [(0.05, math.cos(0.05), 0.5), (0.5, math.cos(0.5), 1.0), (-1.5, 0.0, -1.0)]:
+        pol._path = np.array([[1.5 * math.cos(bearing), 1.5 * math.sin(bearing)]])
+        np.testing.assert_allclose(pol._arc(), [v, w], atol=1e-6)
+    pol._path, pol._goal_heading = np.zeros((0, 2)), -0.5
+    np.testing.assert_allclose(pol._arc(), [0.0, -1.0])
+    pol._goal_heading = 0.05
+    assert pol._arc() is None  # facing the goal heading (within a turn step): arrived
+    # close to the goal, it turns toward the goal heading while closing in, and arrives facing it
+    pol.arc_final_m = 0.3
+    pol._path, pol._goal_heading = np.array([[0.2, 0.0]]), 1.0
+    np.testing.assert_allclose(pol._arc(), [1.0, 1.0])
+    pol._pose = np.array([0.0, 0.0, 0.95])
+    assert pol._arc() is None and pol._path.shape[0] == 0
+
+
+def test_arc_settings_leave_discrete_actions_alone():
+    """The arc settings act only on continuous actions: the discrete episode is the same whatever they are."""
+    ref = _drive(ViewpointPlanner(seed=4))
+    assert ref == _drive(ViewpointPlanner(seed=4, arc_max_rad=0.2, arc_gain=0.3, arc_final_m=1.0))
+    assert set(map(int, ref)) <= {0, 1, 2}

@@ -19,7 +19,8 @@ step limit (the env's own test, `agents.metrics`), wrong convergence (converged,
 place, at the end), unconverged, each with a Wilson 95 % interval
 (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the successes,
 mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode, with
-the count of every discrete action taken),
+the count of every discrete action taken, or with ``--action-type continuous`` of every kind of
+motion, `motion_kind`),
 ``summary.json``, ``table.md`` and ``success.png`` (bar plot with the intervals).
 
 The same arguments give the same numbers whatever the runner (``--executor``, ``--workers``,
@@ -78,6 +79,10 @@ class Args:
     """layout files (.json / .yaml) to add"""
     max_steps: int = 200
     """steps per episode (success must come within them)"""
+    action_type: Literal["discrete", "continuous"] = "discrete"
+    """the env's actions: discrete (forward, left, right, stop) or continuous ((v, omega) in [-1, 1],
+    scaled by the robot's maximum speeds; the baselines send their discrete choices as such pairs, the
+    viewpoint planner drives arcs); learned policies need discrete"""
     particles: int = 2000
     """relocalizer particles"""
     map_source: str = "mapping"
@@ -132,6 +137,8 @@ class Args:
         missing = [f for f in self.layout_files if not Path(f).is_file() and find_layout_file(f) is None]
         if missing:
             raise ValueError(f"layout_files: no such file (nor a name on $SEMRELOC_LAYOUT_PATH): {missing}")
+        if self.action_type != "discrete" and any("=" in x for x in self.policies):
+            raise ValueError(f"action_type: learned policies act on discrete actions only, got {self.action_type!r}")
         for spec in self.policies:
             if "=" in spec:
                 from agents.learned import read_metadata
@@ -256,8 +263,8 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
         actions: dict[str, int] = {}  # discrete actions taken (for learned policies: options included)
         while True:
             action = policy.act(obs)
-            if isinstance(action, (int, np.integer)):
-                actions[str(int(action))] = actions.get(str(int(action)), 0) + 1
+            key = str(int(action)) if isinstance(action, (int, np.integer)) else motion_kind(action)
+            actions[key] = actions.get(key, 0) + 1
             obs, reward, term, trunc, info = env.step(action)
             tracker.observe(info, reward)
             collisions += bool(info["collided"])
@@ -282,6 +289,17 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
     return rows
 
 
+def motion_kind(action) -> str:
+    """What a continuous action ``(v, omega)`` does: ``"turn"`` on the spot, ``"arc"`` (drive and turn),
+    ``"straight"``, ``"reverse"`` (backward, turning or not) or ``"stop"``."""
+    v, w = (float(x) for x in np.asarray(action, dtype=np.float64).reshape(2))
+    if v < 0:
+        return "reverse"
+    if v == 0:
+        return "turn" if w != 0 else "stop"
+    return "arc" if w != 0 else "straight"
+
+
 def settings(args: Args, spec: str) -> dict:
     """What an episode row depends on besides its case: checked before ``--reuse`` keeps a row."""
     return {
@@ -292,6 +310,7 @@ def settings(args: Args, spec: str) -> dict:
         "code": policy_code(spec),
         "sample_learned": args.sample_learned and "=" in spec,
         **({"seed_set": args.seed_set} if args.seed_set != "held_out" else {}),
+        **({"action_type": args.action_type} if args.action_type != "discrete" else {}),
     }
 
 
@@ -383,6 +402,7 @@ def case_env(case: dict, args: Args, render_mode: str | None = None):
         map_source=args.map_source,
         relocalizer={"n_particles": args.particles},
         max_episode_steps=args.max_steps,
+        action_type=args.action_type,
         render_mode=render_mode,
     )
 
@@ -602,7 +622,8 @@ def main(argv: list[str] | None = None) -> int:
     header = (
         f"Command: `{cli}`"
         f"\n\n{len(cases)} (layout, start) pairs, {n_unin} uninformative; {args.particles} particles, map "
-        f"{args.map_source}, success within {args.max_steps} steps; wall time {time.time() - t0:.0f} s.\n\n"
+        f"{args.map_source}{', continuous actions' if args.action_type == 'continuous' else ''}, success within "
+        f"{args.max_steps} steps; wall time {time.time() - t0:.0f} s.\n\n"
     )
     (out / "table.md").write_text(
         header + table(summary, policies) + ("\n" + paired_table(comparisons) if comparisons else "")
