@@ -159,18 +159,21 @@ class LearnedPolicy:
 
     def wrap(self, env: gym.Env) -> gym.Env:
         """``ActiveObservation(env, **observation)`` (over `agents.options.MotionOptions` when
-        the policy uses options), checked against the model's spaces.
+        the policy uses options), checked against the model's spaces. A policy with options also
+        runs on an env with continuous actions (`agents.options.MotionOptions` sends its choices
+        as ``(v, omega)``; the planner's steps drive arcs).
 
         Raises:
             ValueError: the env's action space or the wrapped observation space differs from the
                 model's (another action type, camera or lidar beam count, ...).
         """
         if self.options:
-            from .options import MotionOptions
+            from .options import MotionOptions, has_semreloc_actions
 
-            if env.action_space != gym.spaces.Discrete(4):
+            if not has_semreloc_actions(env.action_space):
                 raise ValueError(
-                    f"the env's action space {env.action_space} is not Discrete(4), which the policy needs"
+                    f"the env's action space {env.action_space} is neither Discrete(4) nor Box(-1, 1, (2,)), "
+                    "one of which the policy needs"
                 )
             env = MotionOptions(env, self.options)
         if env.action_space != self.model.action_space:

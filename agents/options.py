@@ -9,6 +9,12 @@
   the belief's hypotheses look most different) picks. The planner sees every observation, also
   of the steps other actions drove, so its path stays anchored to the robot.
 
+Over an env with continuous actions (``Box(-1, 1, (2,))`` of ``(v, omega)``) the actions are the
+same: the four are sent as ``(1, 0)``, ``(0, 1)``, ``(0, -1)`` and ``(0, 0)``, the explorer's
+step likewise, and the planner's step is its continuous command (it drives arcs,
+`agents.viewpoint.ViewpointPlanner.decide_continuous`). So a policy trained with discrete
+actions runs on either env.
+
 A policy over these actions can follow a motion where it is good and leave it where it is not:
 the learned part is *when to do what*, the motions are among its actions. `ExplorerOption` is
 ``MotionOptions(env, ("explore",))``, the five actions of the first trained policy.
@@ -44,15 +50,31 @@ def check_options(options) -> tuple[str, ...]:
 EXPLORE = 4
 """The action of ``"explore"`` in `ExplorerOption`."""
 
+_AS_BOX = ((1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (0.0, 0.0))
+"""``(v, omega)`` of the discrete actions forward, left, right, stop."""
+
+
+def has_semreloc_actions(space: spaces.Space) -> bool:
+    """Whether ``space`` is a ``SemReloc`` action space: ``Discrete(4)`` or ``Box(-1, 1, (2,))``."""
+    if isinstance(space, spaces.Discrete):
+        return space.n == 4 and space.start == 0
+    return (
+        isinstance(space, spaces.Box)
+        and space.shape == (2,)
+        and bool(np.all(space.low == -1.0))
+        and bool(np.all(space.high == 1.0))
+    )
+
 
 class MotionOptions(gym.Wrapper):
     """``Discrete(4 + len(options))``: the env's four discrete actions, then one step of each option.
 
-    ``info["option_action"]`` is the env action an option chose (only on option steps).
+    ``info["option_action"]`` is the env action an option chose (only on option steps): an int,
+    or the ``(v, omega)`` array with continuous actions.
 
     Args:
-        env: a ``SemReloc`` env with ``action_type="discrete"`` (``Discrete(4)``) and a ``lidar``
-            observation entry.
+        env: a ``SemReloc`` env with ``action_type="discrete"`` (``Discrete(4)``) or
+            ``"continuous"`` (``Box(-1, 1, (2,))``) and a ``lidar`` observation entry.
         options: names from `OPTIONS`, each at most once.
 
     Raises:
@@ -62,8 +84,11 @@ class MotionOptions(gym.Wrapper):
 
     def __init__(self, env: gym.Env, options: tuple[str, ...] = ("explore",)):
         super().__init__(env)
-        if not (isinstance(env.action_space, spaces.Discrete) and env.action_space.n == 4):
-            raise TypeError(f"{type(self).__name__} needs the Discrete(4) action space, got {env.action_space}")
+        if not has_semreloc_actions(env.action_space):
+            raise TypeError(
+                f"{type(self).__name__} needs the Discrete(4) or Box(-1, 1, (2,)) action space, got {env.action_space}"
+            )
+        self.continuous = isinstance(env.action_space, spaces.Box)
         options = check_options(options)
         if not options:
             raise ValueError(f"options must name at least one of {OPTIONS}")
@@ -89,10 +114,18 @@ class MotionOptions(gym.Wrapper):
         self._obs = obs
         return obs, info
 
-    def _option_action(self, name: str) -> int:
+    def _option_action(self, name: str):
         if name == "explore":
-            return int(self.explorer(self._obs))
+            return self._env_action(int(self.explorer(self._obs)))
+        if self.continuous:
+            return self.planner.decide_continuous(self._obs)
         return self.planner.decide(self._obs)
+
+    def _env_action(self, a: int):
+        """The env's action for discrete action ``a`` (0 forward, 1 left, 2 right, 3 stop)."""
+        if not self.continuous:
+            return a
+        return np.array(_AS_BOX[a], dtype=np.float32)
 
     def step(self, action):
         if isinstance(action, (bool, np.bool_)) or not self.action_space.contains(action):
@@ -101,8 +134,7 @@ class MotionOptions(gym.Wrapper):
             raise RuntimeError("step() before reset()")
         a = int(action)
         option = a >= 4
-        if option:
-            a = self._option_action(self.options[a - 4])
+        a = self._option_action(self.options[a - 4]) if option else self._env_action(a)
         obs, reward, terminated, truncated, info = self.env.step(a)
         if option:
             info = {**info, "option_action": a}

@@ -261,6 +261,17 @@ def test_shipped_policy_loads_and_acts():
         if terminated or truncated:
             break
     assert info["is_success"]
+    # with continuous actions too (its options send (v, omega); the planner drives arcs)
+    env = policy.wrap(_env(layout="twin_rooms", action_type="continuous", max_episode_steps=200))
+    assert env.action_space == gym.spaces.Discrete(6)
+    policy.reset()
+    obs, info = env.reset(seed=0)
+    while True:
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        assert env.unwrapped.action_space.contains(info.get("option_action", np.zeros(2, np.float32)))
+        if terminated or truncated:
+            break
+    assert info["is_success"]
     raw, _ = _env().reset(seed=0)
     policy.reset()  # a new decision is due: it reads the observation
     with pytest.raises(ValueError, match="policy.wrap"):  # the raw env's observation, not the wrapped one
@@ -284,8 +295,50 @@ def test_explorer_option_steps_as_the_explorer_and_checks_its_actions():
     for bad in (5, -1, 1.5, True, "0"):
         with pytest.raises(ValueError):
             env.step(bad)
-    with pytest.raises(TypeError):
-        ExplorerOption(_env(action_type="continuous"))
+    with pytest.raises(TypeError, match="action space"):  # a Box of other bounds is not a SemReloc one
+        ExplorerOption(gym.wrappers.RescaleAction(_env(action_type="continuous"), np.float32(-2), np.float32(2)))
+
+
+def test_options_over_continuous_actions_send_the_same_motions():
+    # forward / turns as (1, 0) / (0, +-1) drive exactly as the discrete actions do, so the
+    # explorer's episode is the same bit for bit; stop is (0, 0)
+    from agents.options import EXPLORE, ExplorerOption
+
+    disc, cont = ExplorerOption(_env()), ExplorerOption(_env(action_type="continuous"))
+    assert disc.action_space == cont.action_space == gym.spaces.Discrete(5)
+    d_obs, _ = disc.reset(seed=4)
+    c_obs, _ = cont.reset(seed=4)
+    for a in [EXPLORE] * 20 + [0, 1, 2, 3] + [EXPLORE] * 10:
+        d_obs, _, _, _, d_info = disc.step(a)
+        c_obs, _, _, _, c_info = cont.step(a)
+        np.testing.assert_array_equal(d_obs["lidar"], c_obs["lidar"])
+        np.testing.assert_array_equal(d_info["pose"], c_info["pose"])
+        if a == EXPLORE:
+            expected = {0: [1, 0], 1: [0, 1], 2: [0, -1], 3: [0, 0]}[d_info["option_action"]]
+            np.testing.assert_array_equal(c_info["option_action"], expected)
+
+
+def test_viewpoint_option_over_continuous_actions_is_the_planner_driving_arcs():
+    from agents.options import MotionOptions
+    from agents.viewpoint import ViewpointPlanner
+
+    env = MotionOptions(_env(action_type="continuous", max_episode_steps=60), ("explore", "viewpoint"))
+    ref, planner = _env(action_type="continuous", max_episode_steps=60), ViewpointPlanner(seed=2)
+    planner.wrap(ref)
+    planner.reset()
+    obs, _ = env.reset(seed=2)
+    ref_obs, _ = ref.reset(seed=2)
+    arcs = 0
+    for _ in range(60):
+        a = planner.act(ref_obs)
+        ref_obs, _, term, trunc, _ = ref.step(a)
+        obs, _, _, _, info = env.step(5)
+        np.testing.assert_array_equal(info["option_action"], a)
+        np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
+        arcs += bool(a[0] > 0 and a[1] != 0)
+        if term or trunc:
+            break
+    assert arcs > 0, "the planner never drove an arc: the test did not test continuous actions"
 
 
 def test_viewpoint_option_steps_as_the_planner_even_between_other_actions():
