@@ -236,3 +236,26 @@ def test_v0_keeps_the_first_release_relocalizer():
     assert sum(i["mcl"]["n_injected"] for i in infos) == 0
     v1 = gym.make("SemReloc-v2", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
     assert v1.unwrapped.mcl_config.n_particles == 300 and v1.unwrapped.mcl_config.kld
+
+
+@pytest.mark.parametrize(
+    "reloc, limit",
+    [
+        ({"n_particles": 500, "kld": False}, 1000),  # clustered floors: at most ~2x, never compounding
+        ({"n_particles": 500, "resample_mode": "global"}, 500),  # exactly the count asked for
+    ],
+)
+def test_particle_count_stays_near_the_budget_with_many_look_alike_clusters(reloc, limit):
+    # Found by a new user's trial: without KLD, clustered resampling took the *current* count as
+    # its budget, so the per-cluster floors compounded (500 particles grew to 5,413 in 400 steps).
+    env = gym.make("SemReloc-v2", layout="procedural_lookalike", layout_seed=3, relocalizer=reloc)
+    env.reset(seed=0)
+    counts, resamplings = [], 0
+    for _ in range(300):
+        *_, terminated, truncated, info = env.step(1)  # turning in a room like five others: many clusters
+        counts.append(info["mcl"]["n_particles"])
+        resamplings += info["mcl"]["resampled"]
+        if terminated or truncated:
+            break
+    assert resamplings >= 10, "too few resamplings for the test to mean anything"
+    assert max(counts) <= limit, max(counts)

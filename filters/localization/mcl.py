@@ -41,7 +41,8 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    ``kld_bin_xy_m x kld_bin_xy_m x kld_bin_theta_rad`` bins so far and
    ``n_chi(k) = (k - 1) / (2 eps) * (1 - 2/(9(k-1)) + sqrt(2/(9(k-1))) z)^3``,
    clipped to `MonteCarloLocalizer.kld_bounds` (``[min_particles, max_particles]``; an
-   explicit ``n_particles`` is the upper bound instead). Vectorised: ``max(2 N, 4 min_particles)``
+   explicit ``n_particles`` is the upper bound instead; clustered resampling's floors, step 6, can
+   add to it). Vectorised: ``max(2 N, 4 min_particles)``
    draws (all ``max_particles`` if the bound is not met within them), then the first prefix
    length that satisfies the bound.
 6. **Clustered resampling** (after the clustered particle filter of Milstein et al. 2002),
@@ -51,7 +52,11 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    ``max(floor, round(n_new * weight))`` particles (``floor = min(cluster_min_particles,
    n_new // kept clusters)``), drawn from its own
    particles with ``resampler``; lighter clusters are dropped. A hypothesis that the
-   sensors still support is never lost to resampling noise; ``n_new`` is N (or the KLD count).
+   sensors still support is never lost to resampling noise; ``n_new`` is the count drawn at
+   the last init (or the KLD count). The floors come on top of the proportional shares, so a
+   resampled set can hold more than ``n_new``: at most ``n_new`` plus ``floor`` per kept
+   cluster (plus rounding), never more than about ``2 n_new``; it does not grow from one
+   resampling to the next. For an exact particle count use ``resample_mode="global"``.
 7. **Augmented MCL** (Thrun et al. Table 8.3, with AMCL ``pf.c``'s semantics), if
    ``augmented``: every update computes ``w_avg = sum_i W_i * exp(ll_i / n_beams)`` (prior
    weights ``W``, the per-beam geometric-mean likelihood, so it is scale-free in the beam
@@ -145,7 +150,9 @@ class MCLConfig:
 
     Attributes:
         n_particles: particles drawn by ``init_global`` / ``init_around``; None = sized by the map
-            (module docstring).
+            (module docstring). With KLD it is the upper bound of each KLD draw; clustered
+            resampling can add up to ``cluster_min_particles`` per kept cluster to a set (module
+            docstring, step 6).
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
         motion: odometry motion noise.
@@ -383,6 +390,7 @@ class MonteCarloLocalizer:
         self._proposal: ScanProposal | None = None
         self._poses = np.zeros((0, 3))
         self._logw = np.zeros(0)
+        self._budget = 0  # particles drawn by the last init: what a resampling without KLD draws
         self._reset_state()
         self.last_diagnostics = UpdateDiagnostics()
 
@@ -474,6 +482,7 @@ class MonteCarloLocalizer:
         """
         n = self._check_n(self.global_particle_count() if n is None else n)
         self._set(self.sample_free(n))
+        self._budget = n
         self._reset_state()
 
     def init_around(self, pose, std, n: int | None = None) -> None:
@@ -501,6 +510,7 @@ class MonteCarloLocalizer:
         poses = p + self.rng.standard_normal((n, 3)) * s
         poses[:, 2] = wrap_angle(poses[:, 2])
         self._set(poses)
+        self._budget = n
         self._reset_state()
 
     def _require_particles(self) -> None:
@@ -708,7 +718,9 @@ class MonteCarloLocalizer:
     def _resample_now(self, w: np.ndarray) -> None:
         c = self.config
         if c.resample_mode == "clustered":
-            n_new = self._kld_indices(w).size if c.kld else self.n_particles
+            # without KLD the budget is the count drawn at init, not the current count, which the
+            # cluster floors below can have raised (it would compound, resampling after resampling)
+            n_new = self._kld_indices(w).size if c.kld else self._budget
             poses, logw = self._clustered(w, n_new)
             self._poses = poses
             self._logw = logw
