@@ -70,6 +70,31 @@ def test_reuse_keeps_rows_only_of_the_same_policy_code(tmp_path, capsys, monkeyp
     monkeypatch.setattr(ev, "policy_code", lambda spec: "changed")
     assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")]) == 0
     assert "reused 0 episodes" in capsys.readouterr().out
+    # nor rows made with other env or filter code (a new user's trial: a changed relocalizer's
+    # episodes were reused before the fingerprint covered the code every episode runs)
+    monkeypatch.undo()
+    monkeypatch.setattr(ev, "env_code", lambda: "changed")
+    assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "d")]) == 0
+    assert "reused 0 episodes" in capsys.readouterr().out
+
+
+def test_reuse_reruns_the_cases_of_an_edited_layout_file(tmp_path, capsys):
+    from semreloc_env.layouts import get_layout
+
+    layout = get_layout("twin_rooms").to_dict()
+    path = tmp_path / "mine.json"
+    path.write_text(json.dumps(layout))
+    common = ["--policies", "spin", "--layouts-per-kind", "0", "--starts", "1", "--max-steps", "3"]
+    common += ["--particles", "100", "--map-source", "perfect", "--no-progress", "--workers", "1"]
+    common += ["--layout-files", str(path)]
+    assert ev.main([*common, "--out", str(tmp_path / "a")]) == 0
+    capsys.readouterr()
+    assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")]) == 0
+    assert "reused 4 episodes" in capsys.readouterr().out
+    layout["objects"][0]["class"] = "cabinet" if layout["objects"][0]["class"] != "cabinet" else "chair"
+    path.write_text(json.dumps(layout))  # the same path, another layout
+    assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")]) == 0
+    assert "reused 3 episodes" in capsys.readouterr().out  # all but the file's case: and spin is run whole
 
 
 def test_policy_code_follows_the_modules_a_policy_draws_on():

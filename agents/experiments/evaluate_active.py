@@ -66,7 +66,7 @@ class Args:
     reuse: tuple[str, ...] = ()
     """folders of earlier runs with the same cases: their episodes.json rows are kept for the policies
     listed here, and only the other policies are run (a row is kept only if it was made with the same
-    settings and the same code, `policy_code`)"""
+    settings and the same code: `policy_code` and `env_code`; a layout file's rows also need the same file bytes)"""
     layouts_per_kind: int = 10
     """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
     seed_set: Literal["held_out", "tuning"] = "held_out"
@@ -237,6 +237,7 @@ def build_cases(args: Args) -> list[dict]:
                     "start": [float(v) for v in pose],
                     "episode_seed": (60_000 if tuning else 50_000) + len(cases),
                     "uninformative": flag,
+                    **({"layout_digest": file_digest(spec)} if spec in args.layout_files else {}),
                 }
             )
     return cases
@@ -308,6 +309,7 @@ def settings(args: Args, spec: str) -> dict:
         "map_source": args.map_source,
         "spec": spec,
         "code": policy_code(spec),
+        "env_code": env_code(),
         "sample_learned": args.sample_learned and "=" in spec,
         **({"seed_set": args.seed_set} if args.seed_set != "held_out" else {}),
         **({"action_type": args.action_type} if args.action_type != "discrete" else {}),
@@ -340,6 +342,25 @@ def policy_modules(spec: str) -> list[str]:
             if isinstance(m, str) and m.startswith(_PROJECT) and m not in seen:
                 todo.append(m)
     return sorted(seen)
+
+
+@functools.cache
+def env_code() -> str:
+    """A fingerprint (16 hex digits) of the code every episode runs whatever the policy: the source
+    files of `filters` and `semreloc_env` and this module (the episode runner). Read once per process."""
+    h = hashlib.sha256()
+    roots = [Path(importlib.import_module(p).__file__).parent for p in ("filters", "semreloc_env")]
+    for f in sorted(f for root in roots for f in root.rglob("*.py")) + [Path(__file__)]:
+        h.update(f.relative_to(roots[0].parent).as_posix().encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def file_digest(path: str) -> str:
+    """A fingerprint (16 hex digits) of a layout file's bytes (found as `get_layout` finds it)."""
+    from semreloc_env.layouts import find_layout_file
+
+    found = Path(path) if Path(path).is_file() else find_layout_file(path)
+    return hashlib.sha256(Path(found).read_bytes()).hexdigest()[:16]
 
 
 @functools.cache
@@ -586,7 +607,7 @@ def main(argv: list[str] | None = None) -> int:
             if (
                 r["policy"] in wanted
                 and c is not None
-                and all(r[k] == v for k, v in c.items())
+                and all(r.get(k) == v for k, v in c.items())
                 and (r["case"], r["policy"]) not in seen
                 and r.get("settings", wanted[r["policy"]]) == wanted[r["policy"]]
             ):
