@@ -159,15 +159,15 @@ class LearnedPolicy:
 
     def wrap(self, env: gym.Env) -> gym.Env:
         """``ActiveObservation(env, **observation)`` (over `agents.options.MotionOptions` when
-        the policy uses options), checked against the model's spaces. A policy with options also
-        runs on an env with continuous actions (`agents.options.MotionOptions` sends its choices
-        as ``(v, omega)``; the planner's steps drive arcs).
+        the policy uses options), checked against the model's spaces. A policy of discrete actions
+        also runs on an env with continuous actions (`agents.options.MotionOptions` sends its
+        choices as ``(v, omega)``; the planner option's steps drive arcs).
 
         Raises:
             ValueError: the env's action space or the wrapped observation space differs from the
                 model's (another action type, camera or lidar beam count, ...).
         """
-        if self.options:
+        if self.options or isinstance(env.action_space, spaces.Box):
             from .options import MotionOptions, has_semreloc_actions
 
             if not has_semreloc_actions(env.action_space):
@@ -181,8 +181,8 @@ class LearnedPolicy:
         wrapped = ActiveObservation(env, **self.observation)
         if wrapped.observation_space != self.model.observation_space:
             raise ValueError(
-                "the wrapped env's observation space differs from the policy's (sensor beam counts?):\n"
-                f"  env:    {wrapped.observation_space}\n  policy: {self.model.observation_space}"
+                "the wrapped env's observation space differs from the policy's (sensor beam counts?): "
+                + _space_difference(wrapped.observation_space, self.model.observation_space)
             )
         return wrapped
 
@@ -206,6 +206,26 @@ class LearnedPolicy:
             self._action = int(action) if isinstance(self.model.action_space, spaces.Discrete) else np.asarray(action)
         self._t += 1
         return self._action
+
+
+def _space_difference(env_space: spaces.Space, policy_space: spaces.Space) -> str:
+    """What differs between two observation spaces, entry by entry for ``Dict`` spaces (short)."""
+
+    def brief(s) -> str:
+        shape = getattr(s, "shape", None)
+        return f"{type(s).__name__}{tuple(shape) if shape is not None else ''}"
+
+    if not (isinstance(env_space, spaces.Dict) and isinstance(policy_space, spaces.Dict)):
+        return f"env {brief(env_space)}, policy {brief(policy_space)}"
+    parts = []
+    for k in sorted(set(env_space.spaces) | set(policy_space.spaces)):
+        e, p = env_space.spaces.get(k), policy_space.spaces.get(k)
+        if e is None or p is None:
+            parts.append(f"'{k}' only in the {'policy' if e is None else 'env'}'s")
+        elif e != p:
+            same = brief(e) == brief(p)
+            parts.append(f"'{k}': env {brief(e)}, policy {brief(p)}" + (" (other bounds)" if same else ""))
+    return "; ".join(parts)
 
 
 def _checkpoint_options(path: Path, action_space) -> tuple[str, ...]:

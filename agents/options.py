@@ -75,7 +75,8 @@ class MotionOptions(gym.Wrapper):
     Args:
         env: a ``SemReloc`` env with ``action_type="discrete"`` (``Discrete(4)``) or
             ``"continuous"`` (``Box(-1, 1, (2,))``) and a ``lidar`` observation entry.
-        options: names from `OPTIONS`, each at most once.
+        options: names from `OPTIONS`, each at most once (none: the four actions alone, which
+            over a ``Box`` env lets a policy of the four discrete actions drive it).
 
     Raises:
         TypeError: another action space.
@@ -90,8 +91,6 @@ class MotionOptions(gym.Wrapper):
             )
         self.continuous = isinstance(env.action_space, spaces.Box)
         options = check_options(options)
-        if not options:
-            raise ValueError(f"options must name at least one of {OPTIONS}")
         self.options = options
         self.action_space = spaces.Discrete(4 + len(options))
         self.explorer = WallFollowExplorer()

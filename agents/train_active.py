@@ -173,8 +173,11 @@ class WallClockBudget(BaseCallback):
         return time.time() - self._t0 < self.budget_s
 
 
-def make_active_env(config: ActiveTrainConfig, seed: int = 0) -> gym.Env:
-    """One training env of ``config`` (see the module docstring); its layout stream starts at ``seed``."""
+def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str, Any] | None = None) -> gym.Env:
+    """One training env of ``config`` (see the module docstring); its layout stream starts at ``seed``.
+
+    ``teacher``: if not None, `agents.imitation.TeacherLabels` (the viewpoint planner with these
+    arguments) goes in before `ActionRepeat`, and every info carries ``teacher_action``."""
     env = gym.make(
         ENV_ID,
         relocalizer={"n_particles": config.particles},
@@ -191,6 +194,10 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0) -> gym.Env:
         env = BeliefMassReward(env, weight=config.belief_mass_weight, mode="gain")
     if config.options:
         env = MotionOptions(env, config.options)
+    if teacher is not None:
+        from .imitation import TeacherLabels
+
+        env = TeacherLabels(env, teacher)
     env = ActionRepeat(env, config.repeat)
     env = ActiveObservation(env, **config.observation)
     return Monitor(env, info_keywords=("is_success",))

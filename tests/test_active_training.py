@@ -204,10 +204,11 @@ def test_load_policy_errors(smoke_run, tmp_path):
     assert from_bare.repeat == 3 and from_bare.explorer_option
     from_bare.wrap(_env())
     policy = load_policy(path)
-    with pytest.raises(ValueError, match="observation space differs"):
-        policy.wrap(_env(camera={"n_beams": 16}))
+    with pytest.raises(ValueError, match=r"observation space differs.*'semantic_class': env MultiDiscrete\(16,\)"):
+        policy.wrap(_env(camera={"n_beams": 16}))  # says what differs, not the whole of both spaces
+    policy.wrap(_env(action_type="continuous"))  # its options send (v, omega)
     with pytest.raises(ValueError, match="action space"):
-        policy.wrap(_env(action_type="continuous"))
+        policy.wrap(gym.wrappers.RescaleAction(_env(action_type="continuous"), np.float32(-2), np.float32(2)))
 
 
 def test_evaluate_active_runs_a_learned_policy_and_reuses_earlier_rows(smoke_run, tmp_path):

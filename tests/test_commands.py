@@ -22,6 +22,7 @@ BAD = {  # one rejected value per command (checked in the Args dataclass or by t
     "semreloc-build-maps": ["--resolution", "0"],
     "semreloc-replay-log": ["--mode", "teleport"],
     "semreloc-train-active": ["--config.repeat", "0"],
+    "semreloc-imitate-active": ["--config.rounds", "0"],
     "semreloc-evaluate-active": ["--policies", "teleport"],
     "semreloc-bench": ["--only", "warp_drive"],
     "semreloc-profile-step": ["--policy", "teleport"],

@@ -215,8 +215,6 @@ def test_continuous_actions_run_and_are_counted_by_kind(tmp_path, capsys):
     assert "reused 0 episodes" in capsys.readouterr().out
     rows = json.loads((tmp_path / "d" / "episodes.json").read_text())
     assert all("action_type" not in r["settings"] and set(r["actions"]) <= {"0", "1", "2", "3"} for r in rows)
-    with pytest.raises(ValueError, match="action_type"):
-        ev.Args(policies=("ppo=agents/data/active_ppo.zip",), action_type="continuous")
     with pytest.raises(SystemExit):
         ev.main(["--action-type", "diagonal"])
 

@@ -81,8 +81,8 @@ class Args:
     """steps per episode (success must come within them)"""
     action_type: Literal["discrete", "continuous"] = "discrete"
     """the env's actions: discrete (forward, left, right, stop) or continuous ((v, omega) in [-1, 1],
-    scaled by the robot's maximum speeds; the baselines send their discrete choices as such pairs, the
-    viewpoint planner drives arcs); learned policies need discrete"""
+    scaled by the robot's maximum speeds; the baselines and learned policies send their discrete
+    choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
     map_source: str = "mapping"
@@ -137,8 +137,6 @@ class Args:
         missing = [f for f in self.layout_files if not Path(f).is_file() and find_layout_file(f) is None]
         if missing:
             raise ValueError(f"layout_files: no such file (nor a name on $SEMRELOC_LAYOUT_PATH): {missing}")
-        if self.action_type != "discrete" and any("=" in x for x in self.policies):
-            raise ValueError(f"action_type: learned policies act on discrete actions only, got {self.action_type!r}")
         for spec in self.policies:
             if "=" in spec:
                 from agents.learned import read_metadata

@@ -1,0 +1,116 @@
+"""Imitation of the viewpoint planner (agents.imitation): teacher labels, a tiny DAgger run saved and
+reloaded through agents.load_policy, and its configuration checks."""
+
+import csv
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import semreloc_env  # noqa: F401
+from agents.imitation import ImitationConfig, TeacherLabels, imitate
+from agents.learned import load_policy, read_metadata
+from agents.train_active import ActiveTrainConfig
+from agents.viewpoint import ViewpointPlanner
+
+
+def _env(**kw):
+    kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 40, **kw}
+    return gym.make("SemReloc-v2", **kw)
+
+
+def _tiny_train(**kw) -> ActiveTrainConfig:
+    kw = {
+        "options": (),
+        "repeat": 1,
+        "belief_mass_weight": 0.0,
+        "kinds": ("procedural_lookalike",),
+        "kind_weights": None,
+        "layout_seeds": (0, 2),
+        "particles": 200,
+        "max_episode_steps": 30,
+        "n_envs": 2,
+        "vec_env": "dummy",
+        "features_dim": 16,
+        "cnn_channels": (4, 4, 4),
+        "net_arch": (8,),
+        "progress_bar": False,
+        **kw,
+    }
+    return ActiveTrainConfig(**kw)
+
+
+def test_teacher_labels_are_the_planners_decisions_whatever_action_is_taken():
+    env = TeacherLabels(_env(), {"seed": 0})
+    ref, planner = _env(), ViewpointPlanner()
+    planner.wrap(ref)
+    obs, info = env.reset(seed=3)
+    ref_obs, _ = ref.reset(seed=3)
+    planner.seed = 3
+    planner.reset()
+    planner.observe(ref_obs)
+    rng = np.random.default_rng(0)
+    for _ in range(25):
+        label = planner.decide(ref_obs)
+        assert info["teacher_action"] == label
+        a = int(rng.integers(0, 4))  # not the teacher's: it must follow the robot all the same
+        obs, *_, info = env.step(a)
+        ref_obs, *_ = ref.step(a)
+        planner.observe(ref_obs)
+        np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
+    with pytest.raises(TypeError, match="Discrete"):
+        TeacherLabels(_env(action_type="continuous"))
+
+
+@pytest.fixture(scope="module")
+def dagger_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dagger")
+    config = ImitationConfig(train=_tiny_train(), rounds=2, episodes_per_round=2, epochs=2, batch_size=32)
+    return out, imitate(config, out)
+
+
+def test_dagger_smoke_run_writes_its_rounds_and_a_loadable_policy(dagger_run):
+    out, path = dagger_run
+    with open(out / "imitation.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["round"]) for r in rows] == [0, 1, 2]  # 2 rounds + the final network alone
+    assert [float(r["beta"]) for r in rows] == [1.0, 0.5, 0.0]
+    samples = [int(r["samples"]) for r in rows]
+    assert samples[0] > 0 and samples == sorted(samples)  # the data set grows
+    assert all(0.0 <= float(r["agreement"]) <= 1.0 for r in rows)
+    assert rows[-1]["loss"] == "nan" and float(rows[0]["loss"]) > 0  # the final round fits nothing
+    assert (out / "learning_curve.png").stat().st_size > 0
+    meta = read_metadata(path)
+    assert meta["options"] == [] and meta["repeat"] == 1
+    policy = load_policy(path)
+    for kw in ({}, {"action_type": "continuous"}, {"relocalizer": {"n_particles": 50}, "layout": "lab"}):
+        env = policy.wrap(_env(**kw))
+        policy.reset()
+        obs, _ = env.reset(seed=1)
+        for _ in range(5):
+            a = policy.act(obs)
+            assert env.action_space.contains(a)
+            obs, *_ = env.step(a)
+
+
+def test_dagger_is_seeded(dagger_run, tmp_path):
+    import torch
+
+    out, path = dagger_run
+    config = ImitationConfig(train=_tiny_train(), rounds=2, episodes_per_round=2, epochs=2, batch_size=32)
+    again = imitate(config, tmp_path)
+    a, b = load_policy(path).model.policy, load_policy(again).model.policy
+    for pa, pb in zip(a.parameters(), b.parameters()):
+        assert torch.equal(pa, pb)
+
+
+def test_imitation_config_errors():
+    with pytest.raises(ValueError, match="options must be empty"):
+        ImitationConfig(train=_tiny_train(options=("explore",)))
+    with pytest.raises(ValueError, match="repeat 1"):
+        ImitationConfig(train=_tiny_train(repeat=4))
+    for bad in ({"rounds": 0}, {"beta": 1.5}, {"beta_decay": -0.1}, {"learning_rate": 0.0}, {"epochs": True}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            ImitationConfig(train=_tiny_train(), **bad)
+    with pytest.raises(TypeError):
+        ImitationConfig(train=_tiny_train(), planner={"horizon": 3})  # ViewpointPlanner has no such argument
