@@ -14,6 +14,7 @@ import dataclasses
 import functools
 import hashlib
 import os
+import re
 import tempfile
 from collections import OrderedDict
 from pathlib import Path
@@ -142,9 +143,15 @@ def is_ros_map_file(path) -> bool:
     import yaml
 
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError):
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
         return True  # let load_map report what is wrong with it
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError:  # broken YAML: a ROS map if it has a top-level image key and no outer wall
+        key = re.compile(r"^(image|outer)\s*:", re.M)
+        keys = {m.group(1) for m in key.finditer(text)}
+        return "image" in keys and "outer" not in keys
     return isinstance(doc, dict) and "image" in doc and "outer" not in doc
 
 

@@ -52,3 +52,17 @@ def test_png_map_in_the_env(tmp_path):
     np.testing.assert_array_equal(a.free_mask(), b.free_mask())
     env.reset(seed=0)
     env.close()
+
+
+def test_a_broken_yaml_file_is_a_layout_error_unless_it_is_a_ros_map(tmp_path):
+    # a new user's trial: a layout file with a YAML syntax error raised MapFormatError (it was taken
+    # for a ROS map), so code catching the README's LayoutError missed it
+    from filters.mapping.ros_map import MapFormatError
+    from semreloc_env.layouts import LayoutError
+
+    (tmp_path / "office.yaml").write_text("outer: [[0, 0], [4, 0]\nwalls: []\n")
+    with pytest.raises(LayoutError, match="office.yaml: not valid YAML"):
+        gym.make("SemReloc-v2", layout=str(tmp_path / "office.yaml"))
+    (tmp_path / "map.yaml").write_text("image: plain.pgm\nresolution: [0.05\n")
+    with pytest.raises(MapFormatError, match="map.yaml"):
+        gym.make("SemReloc-v2", layout="twin_rooms", map_source=str(tmp_path / "map.yaml"), semantic=False)
