@@ -164,7 +164,7 @@ class _Dataset:
             v = np.asarray(v)
             small = v.astype(np.float16) if v.dtype.kind == "f" else v.astype(np.int8)
             self.obs.setdefault(k, []).append(small)
-        self.labels.append(np.asarray(labels, dtype=np.int64))
+        self.labels.append(np.array(labels, dtype=np.int64))  # a copy: the caller's array is reused
 
     def arrays(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
         obs = {k: np.concatenate(v)[-self.cap :] for k, v in self.obs.items()}
@@ -196,12 +196,14 @@ class _Rollouts:
             data.add(self.obs, self.labels)
             self.obs, _, dones, infos = venv.step(np.where(rng.random(n) < beta, self.labels, mine))
             steps += n
+            labels = []
             for i, info in enumerate(infos):
                 if dones[i]:  # the env was reset: its next label is in the reset's info
                     done_eps += 1
                     successes += bool(info.get("is_success", False))
                     info = venv.reset_infos[i]
-                self.labels[i] = info["teacher_action"]
+                labels.append(info["teacher_action"])
+            self.labels = np.array(labels, dtype=np.int64)
         return successes, done_eps, steps, agree / max(steps, 1)
 
 

@@ -55,8 +55,10 @@ class ActiveTrainConfig:
 
     kinds: tuple[str, ...] = TRAIN_KINDS
     """layout kinds drawn for training (`semreloc_env.layout_sampling.LayoutSampler`)"""
+    files: tuple[str, ...] = ()
+    """layout files (.json / .yaml) drawn as well, each one more entry after the kinds"""
     kind_weights: tuple[float, ...] | None = (1.0, 1.0, 2.0)
-    """one weight per kind (None: equal)"""
+    """one weight per entry, kinds then files (None: equal); the default fits the default kinds"""
     layout_seeds: tuple[int, int] = (0, 100)
     """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
     mapping-run cache serve repeats"""
@@ -135,8 +137,12 @@ class ActiveTrainConfig:
         lo, hi = self.layout_seeds
         if not (0 <= lo < hi):
             raise ValueError(f"layout_seeds must be (start, stop) with 0 <= start < stop, got {self.layout_seeds!r}")
-        if self.kind_weights is not None and len(self.kind_weights) != len(self.kinds):
-            raise ValueError(f"kind_weights needs one weight per kind ({len(self.kinds)}), got {self.kind_weights!r}")
+        entries = len(self.kinds) + len(self.files)
+        if self.kind_weights is not None and len(self.kind_weights) != entries:
+            raise ValueError(
+                f"kind_weights needs one weight per kind and file ({entries}), got {self.kind_weights!r}; "
+                "give as many (--config.kind-weights 1 1 ...) or None for equal weights (--config.kind-weights None)"
+            )
         if self.time_budget_s is not None and not self.time_budget_s > 0:
             raise ValueError(f"time_budget_s must be None or > 0, got {self.time_budget_s!r}")
         if self.checkpoint_every is not None and self.checkpoint_every < 1:
@@ -146,6 +152,7 @@ class ActiveTrainConfig:
         # the layout stream's arguments, checked here rather than in the env workers
         LayoutSampler(
             kinds=self.kinds,
+            files=self.files,
             seeds=range(*self.layout_seeds),
             weights=None if self.kind_weights is None else list(self.kind_weights),
         )
@@ -186,6 +193,7 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str,
     )
     sampler = LayoutSampler(
         kinds=config.kinds,
+        files=config.files,
         seeds=range(*config.layout_seeds),
         weights=None if config.kind_weights is None else list(config.kind_weights),
     )

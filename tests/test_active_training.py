@@ -76,7 +76,7 @@ def test_config_rejects_bad_values():
         ActiveTrainConfig(repeat=0)
     with pytest.raises(ValueError):
         ActiveTrainConfig(layout_seeds=(5, 5))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match=r"kind-weights None"):  # says how to fix it
         ActiveTrainConfig(kind_weights=(1.0,))
     with pytest.raises(ValueError, match="unknown ActiveObservation"):
         ActiveTrainConfig(observation={"ego_pixels": 3})
@@ -87,9 +87,24 @@ def test_config_rejects_bad_values():
         ({"vf_coef": float("inf")}, "vf_coef"),
         ({"device": "bogus"}, "device"),
         ({"kinds": ("nosuch",), "kind_weights": (1.0,)}, "kinds"),
+        ({"kinds": (), "files": ("/no/such/layout.json",), "kind_weights": None}, "layout"),
     ]:
-        with pytest.raises(ValueError, match=match):
+        with pytest.raises((ValueError, OSError), match=match):
             ActiveTrainConfig(**bad)
+
+
+def test_training_envs_draw_layout_files(tmp_path):
+    # a new user's trial: train_active could not train on one's own layout files
+    from agents.train_active import make_active_env
+    from semreloc_env.layouts import get_layout
+
+    layout = get_layout("twin_rooms").to_dict()
+    layout["name"] = "mine"
+    (tmp_path / "mine.json").write_text(json.dumps(layout))
+    config = ActiveTrainConfig(kinds=(), files=(str(tmp_path / "mine.json"),), kind_weights=None, particles=100)
+    env = make_active_env(config, seed=0)
+    env.reset(seed=0)
+    assert env.unwrapped.layout.name == "mine"
 
 
 @pytest.fixture(scope="module")

@@ -222,3 +222,23 @@ def test_continuous_actions_run_and_are_counted_by_kind(tmp_path, capsys):
 def test_motion_kind_names_what_a_continuous_action_does():
     kinds = [ev.motion_kind(a) for a in ([0, 1], [0, -0.2], [1, 0], [0.5, 0.1], [-1, 0], [-0.3, 0.4], [0, 0])]
     assert kinds == ["turn", "turn", "straight", "arc", "reverse", "reverse", "stop"]
+
+
+def test_own_layouts_alone_and_malformed_layout_files(tmp_path):
+    # a new user's trial: the built-in layouts could not be left out, and a malformed layout file
+    # crashed the run with a traceback instead of an argument error
+    from semreloc_env.layouts import get_layout
+
+    path = tmp_path / "mine.json"
+    path.write_text(json.dumps(get_layout("twin_rooms").to_dict()))
+    args = ev.Args(layouts_per_kind=0, starts=2, layout_files=(str(path),), builtin_layouts=False, policies=("spin",))
+    cases = ev.build_cases(args)
+    assert [c["kind"] for c in cases] == ["mine", "mine"]
+    with pytest.raises(ValueError, match="no layouts"):
+        ev.Args(layouts_per_kind=0, builtin_layouts=False)
+    (tmp_path / "bad.json").write_text(json.dumps({"outer": [[0, 0], [1, 0]]}))
+    with pytest.raises(ValueError, match=r"layout_files: .*bad.json"):
+        ev.Args(layout_files=(str(tmp_path / "bad.json"),))
+    with pytest.raises(SystemExit) as exit_:  # the command's tidy argument error, not a traceback
+        ev.main(["--layout-files", str(tmp_path / "bad.json"), "--policies", "spin"])
+    assert exit_.value.code == 2

@@ -114,3 +114,24 @@ def test_imitation_config_errors():
             ImitationConfig(train=_tiny_train(), **bad)
     with pytest.raises(TypeError):
         ImitationConfig(train=_tiny_train(), planner={"horizon": 3})  # ViewpointPlanner has no such argument
+
+
+def test_collected_pairs_hold_the_teachers_label_of_each_state():
+    # with beta = 1 the robot takes the teacher's action, so the stored labels are the actions taken
+    # (an early version stored one array object for every step, which later steps overwrote)
+    from agents.imitation import _Dataset, _Rollouts, make_teacher_venv
+    from agents.train_active import build_model
+
+    config = ImitationConfig(train=_tiny_train(n_envs=1), rounds=1, episodes_per_round=1)
+    venv = make_teacher_venv(config)
+    model = build_model(config.train, venv)
+    taken = []
+    step = venv.step
+    venv.step = lambda actions: (taken.append(np.array(actions)), step(actions))[1]
+    data = _Dataset(10_000)
+    _Rollouts(venv).collect(model, 2, 1.0, np.random.default_rng(0), data)
+    obs, labels = data.arrays()
+    np.testing.assert_array_equal(labels, np.concatenate(taken))
+    assert len(set(labels.tolist())) > 1  # a planner that only drives forward would test nothing
+    assert obs["ego"].shape[0] == labels.shape[0]
+    venv.close()

@@ -87,8 +87,13 @@ class Args:
     """relocalizer particles"""
     map_source: str = "mapping"
     """the filter's map: mapping (a simulated mapping run) or perfect"""
+    builtin_layouts: bool = True
+    """with the held-out seed set: also twin_rooms, the lab and the changed lab (--no-builtin-layouts:
+    only the procedural held-out layouts and --layout-files)"""
     gif_case: int = -1
-    """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases)"""
+    """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases, in this
+    order, --starts per layout: the procedural kinds' layouts, twin_rooms, lab, lab changed, then the
+    layout files; episodes.json lists every case with its index)"""
     sample_learned: bool = False
     """learned policies sample their actions (seeded by the episode) instead of taking the most likely"""
     out: str = "out/evaluate_active"
@@ -137,6 +142,15 @@ class Args:
         missing = [f for f in self.layout_files if not Path(f).is_file() and find_layout_file(f) is None]
         if missing:
             raise ValueError(f"layout_files: no such file (nor a name on $SEMRELOC_LAYOUT_PATH): {missing}")
+        from semreloc_env.layouts import LayoutError, get_layout
+
+        for f in self.layout_files:  # a malformed file fails here, not in a worker with a traceback
+            try:
+                get_layout(f)
+            except LayoutError as e:
+                raise ValueError(f"layout_files: {e}") from None
+        if self.layouts_per_kind == 0 and not self.layout_files and not self.builtin_layouts:
+            raise ValueError("no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files")
         for spec in self.policies:
             if "=" in spec:
                 from agents.learned import read_metadata
@@ -206,7 +220,7 @@ def build_cases(args: Args) -> list[dict]:
     tuning = args.seed_set == "tuning"
     seeds = range(args.layouts_per_kind) if tuning else HELD_OUT_LAYOUT_SEEDS[: args.layouts_per_kind]
     layouts = [(k, int(s), "nominal") for k in PROCEDURAL_KINDS for s in seeds]
-    if not tuning:
+    if not tuning and args.builtin_layouts:
         layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
     layouts += [(f, 0, "nominal") for f in args.layout_files]
     lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
