@@ -77,7 +77,8 @@ def grid_shape(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5
         raise ValueError(
             f"layout {layout.name!r} ({x1 - x0:.1f} m x {y1 - y0:.1f} m) needs a {w} x {h} grid at "
             f"{resolution_m} m: {h * w} cells, more than MAX_RASTER_CELLS = {MAX_RASTER_CELLS}; "
-            "use a coarser resolution_m or a smaller layout"
+            "is the layout in metres? (the envs map at 0.05 m; rasterize and scripts/build_maps.py take a "
+            "coarser resolution_m)"
         )
     return h, w
 
