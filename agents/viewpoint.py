@@ -41,7 +41,11 @@ alone (never the true pose):
    (then the step turns toward the freer side instead). With continuous actions
    (``action_type="continuous"``) the path is followed with arcs, driving and turning at once
    (`ViewpointPlanner._arc`: on the spot only beyond ``arc_max_rad``, the turn to the goal
-   heading begun within ``arc_final_m`` of the goal); discrete actions are unaffected.
+   heading begun within ``arc_final_m`` of the goal); discrete actions are unaffected. An
+   option of continuous actions, off by default (it did not help on the tuning set): backing up
+   along the path when its look-ahead point lies more than ``reverse_rad`` behind
+   (``reverse_max_m``; only when the lidar sees all round and shows nothing within
+   ``clearance_stop_m`` behind).
 
 When one hypothesis is left (nothing to tell apart), no viewpoint resolves anything within the
 horizon, or a goal where the robot already stands did not settle the belief twice in a row, it
@@ -221,7 +225,9 @@ class ViewpointPlanner(Policy):
         max_hypotheses: hypotheses compared (the heaviest).
         n_particles: particles drawn when the clusters hold less than half the mass.
         cluster_bin_m: position bin grouping those particles.
-        cost_per_m: score lost per metre of driving (and per turn, at its driving equivalent).
+        cost_per_m: score lost per metre of driving (and per turn, at its driving equivalent,
+            whatever the action type: charging turns less with continuous actions was tried on
+            the tuning set and lost pairs, docs/active.md).
         min_score: viewpoints scoring below this are not goals; with none left, drive as the
             explorer instead.
         views: filter updates counted at a viewpoint (the likelihood is raised to this times the
@@ -248,6 +254,15 @@ class ViewpointPlanner(Policy):
             driving (the turn rate is clipped to the robot's maximum).
         arc_final_m: with continuous actions, within this distance of the goal the robot turns
             toward the goal heading while closing in, and arrives once it faces it (0: off).
+        reverse_rad: with continuous actions, heading error toward the look-ahead point above
+            which the robot backs up along the path (speed ``-cos`` of its back's error, turning
+            its back toward the point) instead of turning on the spot, and keeps backing while its
+            back is within ``arc_max_rad`` of it; within ``arc_final_m`` of the goal it may close
+            in backward. Only when the env's lidar sees all round (beams at most 0.2 rad apart)
+            and no return lies within ``clearance_stop_m`` behind the centre and within the
+            radius (+ 5 cm) sideways. 0 (the default): never; else in ``(pi/2, pi]``.
+        reverse_max_m: back up only when the rest of the path is at most this long (metres;
+            ``inf``: any path).
     """
 
     def __init__(
@@ -277,6 +292,8 @@ class ViewpointPlanner(Policy):
         arc_max_rad: float = 1.0,
         arc_gain: float = 1.0,
         arc_final_m: float = 0.3,
+        reverse_rad: float = 0.0,
+        reverse_max_m: float = math.inf,
     ):
         super().__init__(seed)
         ints = {
@@ -325,9 +342,15 @@ class ViewpointPlanner(Policy):
         self.min_reachable = int(min_reachable)
         self.start_turn = bool(start_turn)
         self.arc_max_rad, self.arc_gain, self.arc_final_m = float(arc_max_rad), float(arc_gain), float(arc_final_m)
+        if not (is_real(reverse_rad) and (reverse_rad == 0 or math.pi / 2 < reverse_rad <= math.pi)):
+            raise ValueError(f"reverse_rad must be 0 (off) or in (pi/2, pi], got {reverse_rad!r}")
+        if not (is_real(reverse_max_m) and not math.isnan(reverse_max_m) and reverse_max_m > 0):
+            raise ValueError(f"reverse_max_m must be a number > 0 (inf: any path), got {reverse_max_m!r}")
+        self.reverse_rad, self.reverse_max_m = float(reverse_rad), float(reverse_max_m)
         self.explore_steps, self.stay_m, self.max_stays = int(explore_steps), float(stay_m), int(max_stays)
         self._map: _PlanMap | None = None  # of the filter map planned on last
         self._radius_m = 0.2  # the env's robot, at `wrap`
+        self._rear_seen = False  # whether the env's lidar sees behind the robot, at `wrap`
         self.explorer = WallFollowExplorer()
         self.last_plan: dict = {}
         """What the last plan found (``score``, ``goal`` in the reference's map frame, ``path_m``,
@@ -342,6 +365,9 @@ class ViewpointPlanner(Policy):
                 raise TypeError(f"ViewpointPlanner needs a SemReloc env; {type(base).__name__} has no {attr!r}")
         self.explorer = WallFollowExplorer(beam_angles=np.asarray(base.lidar.angles))
         self._radius_m = float(base.robot_params.radius_m)
+        # backing up needs the lidar to see behind: beams all around, none more than 0.2 rad apart
+        b = np.sort(np.mod(np.asarray(base.lidar.angles, dtype=np.float64), 2 * math.pi))
+        self._rear_seen = b.size > 1 and float(np.max(np.diff(np.r_[b, b[0] + 2 * math.pi]))) <= 0.2
         return env
 
     def reset(self) -> None:
@@ -356,6 +382,8 @@ class ViewpointPlanner(Policy):
         self._exploring = True
         self._first = True
         self._seen = False
+        self._reversing = False
+        self._ranges = np.zeros(0)
 
     # ------------------------------------------------------------------ planning
     def _plan_map(self) -> _PlanMap:
@@ -593,12 +621,20 @@ class ViewpointPlanner(Policy):
         speed while turning toward it, ``arc_gain`` of the error per step. Within ``arc_final_m``
         of the goal (the look-ahead point being the goal), turn toward the goal heading instead
         while still closing in (speed ``cos`` of the error toward the goal point, none if it lies
-        behind); facing the goal heading there counts as arrived."""
+        behind unless backing up is allowed); facing the goal heading there counts as arrived.
+        With ``reverse_rad`` set, a look-ahead point more than ``reverse_rad`` off (behind) is
+        backed up to, the same rule applied to the robot's back, while the lidar shows the way
+        back clear (`_blocked` ``behind=True``); else the turn on the spot."""
         step = self._track()
         if step is None:
+            self._reversing = False
             return None
         err, target = step
         turn = self.step_rad
+        back_ok = (  # no scan taken in yet (`_decide` sets it): no backing up
+            self.reverse_rad > 0 and self._rear_seen and self._ranges.size > 0
+            and not self._blocked(self._ranges, behind=True)
+        )  # fmt: skip
         if target is not None and self.arc_final_m > 0 and np.array_equal(target, self._path[-1]):
             x, y, th = self._pose
             if math.hypot(target[0] - x, target[1] - y) < self.arc_final_m:
@@ -606,13 +642,26 @@ class ViewpointPlanner(Policy):
                 if abs(err_h) <= self.step_rad:  # facing the goal heading, close enough: arrived
                     self._path = self._path[:0]
                     return self._arc()
-                v = max(0.0, math.cos(err))
+                v = math.cos(err) if back_ok else max(0.0, math.cos(err))
                 return np.array([v, np.clip(err_h / turn, -1.0, 1.0)], dtype=np.float32)
+        if target is not None and back_ok:
+            rear = float(wrap_angle(err - math.pi))  # how far the robot's back is off the target
+            keep = self._reversing and abs(rear) <= self.arc_max_rad
+            if (keep or abs(err) > self.reverse_rad) and self._path_left_m() <= self.reverse_max_m:
+                self._reversing = True
+                omega = float(np.clip(self.arc_gain * rear / turn, -1.0, 1.0))
+                return np.array([-math.cos(rear), omega], dtype=np.float32)
+        self._reversing = False
         omega = float(np.clip(err / turn, -1.0, 1.0))
         if target is None or abs(err) > self.arc_max_rad:
             return np.array([0.0, omega], dtype=np.float32)
         omega = float(np.clip(self.arc_gain * err / turn, -1.0, 1.0))
         return np.array([math.cos(err), omega], dtype=np.float32)
+
+    def _path_left_m(self) -> float:
+        """Metres from the robot along the rest of the stored path."""
+        pts = np.vstack([self._pose[None, :2], self._path])
+        return float(np.hypot(*np.diff(pts, axis=0).T).sum())
 
     def _replan(self) -> None:
         ok = self.plan()
@@ -654,6 +703,7 @@ class ViewpointPlanner(Policy):
         if self._first or self._since_plan >= (self.explore_steps if self._exploring else self.replan_every):
             self._replan()
         self._first = False
+        self._ranges = np.asarray(obs["lidar"], dtype=np.float64)
         a = None
         if not self._exploring:
             a = follow()
@@ -662,7 +712,7 @@ class ViewpointPlanner(Policy):
                 a = None if self._exploring else follow()
         if a is None:
             a = self.explorer(obs)
-        ranges = np.asarray(obs["lidar"], dtype=np.float64)
+        ranges = self._ranges
         forward = a[0] > 0 if isinstance(a, np.ndarray) else a == FORWARD
         if forward and self._blocked(ranges):
             left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
@@ -670,13 +720,16 @@ class ViewpointPlanner(Policy):
             self._since_plan = self.replan_every  # plan again next step
         return a
 
-    def _blocked(self, ranges: np.ndarray) -> bool:
+    def _blocked(self, ranges: np.ndarray, behind: bool = False) -> bool:
         """Whether a lidar return ahead lies within ``clearance_stop_m`` forward of the robot's
-        centre and within its radius (+ 5 cm) sideways: the disc would touch it driving on."""
+        centre and within its radius (+ 5 cm) sideways: the disc would touch it driving on. With
+        ``behind``, the same check behind the robot (backing up)."""
         b = self.explorer.beam_angles  # the env's lidar, set at `wrap`
         if b is None:
             b = all_round_angles(ranges.size)
         x, y = ranges * np.cos(b), np.abs(ranges * np.sin(b))
+        if behind:
+            x = -x
         return bool(np.any((x > 0) & (x < self.clearance_stop_m) & (y < self._radius_m + 0.05)))
 
     def act(self, obs: dict):

@@ -114,6 +114,11 @@ def test_an_episode_reads_no_truth_and_repeats_bit_for_bit():
         ({"n_headings": 2.5}, "n_headings"),
         ({"arc_max_rad": 0}, "arc_max_rad"),
         ({"arc_final_m": -0.1}, "arc_final_m"),
+        ({"reverse_rad": 1.5}, "reverse_rad"),
+        ({"reverse_rad": 3.5}, "reverse_rad"),
+        ({"reverse_rad": float("nan")}, "reverse_rad"),
+        ({"reverse_max_m": 0.0}, "reverse_max_m"),
+        ({"reverse_max_m": float("nan")}, "reverse_max_m"),
     ],
 )
 def test_bad_settings_are_refused(kw, match):
@@ -287,4 +292,103 @@ def test_arc_settings_leave_discrete_actions_alone():
     """The arc settings act only on continuous actions: the discrete episode is the same whatever they are."""
     ref = _drive(ViewpointPlanner(seed=4))
     assert ref == _drive(ViewpointPlanner(seed=4, arc_max_rad=0.2, arc_gain=0.3, arc_final_m=1.0))
+    assert ref == _drive(ViewpointPlanner(seed=4, reverse_rad=2.0, reverse_max_m=1.0))
     assert set(map(int, ref)) <= {0, 1, 2}
+
+
+class _Open:
+    def clear_segment(self, a, b):
+        return True
+
+
+def _scan(env, bearing=None, r=8.0):
+    """A lidar scan with nothing in range but, if ``bearing`` is given, one return there at ``r``."""
+    angles = np.asarray(env.unwrapped.lidar.angles)
+    ranges = np.full(angles.size, 8.0)
+    if bearing is not None:
+        ranges[int(np.argmin(np.abs((angles - bearing + np.pi) % (2 * np.pi) - np.pi)))] = r
+    return ranges
+
+
+def test_reverse_controller_commands():
+    """With ``reverse_rad`` set, a look-ahead point behind the robot is backed up to (speed
+    ``-cos`` of the back's error, the back turned toward it) unless a return behind lies within
+    the clearance; off by default; only on paths no longer than ``reverse_max_m``."""
+    pol = ViewpointPlanner(seed=0, arc_final_m=0.0, reverse_rad=2.3)
+    env = _env(pol, action_type="continuous")
+    pol._ref, pol._pose, pol._goal_heading, pol._map = np.zeros(3), np.zeros(3), 0.0, _Open()
+    pol._ranges = _scan(env)
+    assert pol._rear_seen  # the env's lidar is all round
+    for bearing in (math.pi - 0.05, -(math.pi - 0.5)):
+        pol._path, pol._reversing = np.array([[1.5 * math.cos(bearing), 1.5 * math.sin(bearing)]]), False
+        rear = (bearing % (2 * math.pi)) - math.pi
+        a = pol._arc()
+        assert env.action_space.contains(a)
+        np.testing.assert_allclose(a, [-math.cos(rear), np.clip(rear / pol.step_rad, -1, 1)], atol=1e-6)
+    # once backing up it keeps on while the back is within arc_max_rad of the target ...
+    pol._path = np.array([[1.5 * math.cos(2.2), 1.5 * math.sin(2.2)]])
+    assert pol._arc()[0] < 0
+    # ... but does not start to at that error: it turns on the spot as without reversing
+    pol._reversing = False
+    np.testing.assert_allclose(pol._arc(), [0.0, 1.0])
+    # a wall 0.25 m behind: no backing up, the turn on the spot instead
+    pol._path, pol._ranges = np.array([[-1.5, 0.05]]), _scan(env, math.pi, 0.25)
+    np.testing.assert_allclose(pol._arc(), [0.0, 1.0])
+    # ... one 0.5 m behind, or beside the robot, does not stop it
+    for bearing, r in ((math.pi, 0.5), (math.pi / 2, 0.22)):
+        pol._ranges = _scan(env, bearing, r)
+        assert pol._arc()[0] < 0
+    # a path longer than reverse_max_m is not backed along; reverse_rad = 0 (the default) never backs
+    pol.reverse_max_m = 1.0
+    assert pol._arc()[0] == 0.0
+    pol.reverse_max_m, pol.reverse_rad = math.inf, 0.0
+    assert pol._arc()[0] == 0.0
+
+
+def test_no_reversing_without_a_lidar_behind():
+    """A lidar that does not see all around (here 180 deg ahead) cannot clear the way back: never reverse."""
+    pol = ViewpointPlanner(seed=0, arc_final_m=0.0, reverse_rad=2.3)
+    env = _env(pol, action_type="continuous", lidar={"fov_rad": math.pi, "n_beams": 30})
+    assert not pol._rear_seen
+    pol._ref, pol._pose, pol._goal_heading, pol._map = np.zeros(3), np.zeros(3), 0.0, _Open()
+    pol._ranges, pol._path = np.full(30, 8.0), np.array([[-1.5, 0.05]])
+    assert env.action_space.contains(pol._arc()) and pol._arc()[0] == 0.0
+
+
+def test_backing_up_never_touches_the_wall_behind():
+    """Scripted: the robot faces away from a wall 0.6-1 m behind it and its path's next point lies
+    beyond that wall. It backs up, stops backing within the clearance and turns instead; no step
+    collides and the robot's disc stays clear of the wall."""
+    pol = ViewpointPlanner(seed=0, reverse_rad=2.3, replan_every=10_000)
+    env = _env(pol, action_type="continuous", relocalizer={"n_particles": 100})
+    base = env.unwrapped
+    env.reset(seed=0)
+    rng = np.random.default_rng(1)
+    angles = np.linspace(-math.pi, math.pi, 72, endpoint=False)
+    for _ in range(500):  # a free pose with a wall 0.6-1 m away in some direction
+        pose = base.world.sample_free_pose(rng, margin_m=0.3)
+        r, _ = base.world.scene.cast(np.asarray(pose[:2]), angles, 8.0)
+        j = int(np.argmin(np.abs(r - 0.8)))
+        if abs(r[j] - 0.8) < 0.2 and base.world.clearance(pose[:2]) > 0.3:
+            break
+    else:
+        pytest.fail("no pose with a wall behind")
+    start = [float(pose[0]), float(pose[1]), float(angles[j] + math.pi)]  # the wall straight behind
+    obs, _ = env.reset(seed=0, options={"pose": start})
+    pol.act(obs)  # first plan; then the scripted path: a point 2 m straight back, beyond the wall
+    pol._path, pol._pose, pol._ref = np.array([[-2.0, 0.0]]), np.zeros(3), np.zeros(3)
+    pol._map, pol._exploring, pol._since_plan = _Open(), False, 0
+    obs, *_ = env.step(np.zeros(2, np.float32))
+    kinds = []
+    for _ in range(40):
+        a = pol.act(obs)
+        assert env.action_space.contains(a)
+        kinds.append("back" if a[0] < 0 else "turn" if a[0] == 0 else "fwd")
+        obs, _, term, trunc, info = env.step(a)
+        assert not info["collided"], kinds
+        assert base.world.clearance(np.asarray(info["pose"][:2])) > base.robot_params.radius_m
+        if kinds[-1] == "turn" or term or trunc:
+            break
+    assert kinds.count("back") >= 3 and kinds[-1] == "turn", kinds
+    # it stopped backing close to the wall (the check, not something else, stopped it)
+    assert base.world.clearance(np.asarray(info["pose"][:2])) < base.robot_params.radius_m + 0.2
