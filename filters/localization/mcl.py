@@ -390,7 +390,7 @@ class MonteCarloLocalizer:
         self._proposal: ScanProposal | None = None
         self._poses = np.zeros((0, 3))
         self._logw = np.zeros(0)
-        self._budget = 0  # particles drawn by the last init: what a resampling without KLD draws
+        self._budget = 0  # size of the last set given (`_set`): what a resampling without KLD draws
         self._reset_state()
         self.last_diagnostics = UpdateDiagnostics()
 
@@ -458,8 +458,10 @@ class MonteCarloLocalizer:
         return int(n)
 
     def _set(self, poses: np.ndarray) -> None:
+        """A new particle set of equal weights; its size is what a resampling without KLD draws."""
         self._poses = np.ascontiguousarray(poses, dtype=np.float64)
         self._logw = np.full(self._poses.shape[0], -math.log(self._poses.shape[0]))
+        self._budget = self._poses.shape[0]
 
     @property
     def free_area_m2(self) -> float:
@@ -482,7 +484,6 @@ class MonteCarloLocalizer:
         """
         n = self._check_n(self.global_particle_count() if n is None else n)
         self._set(self.sample_free(n))
-        self._budget = n
         self._reset_state()
 
     def init_around(self, pose, std, n: int | None = None) -> None:
@@ -510,7 +511,6 @@ class MonteCarloLocalizer:
         poses = p + self.rng.standard_normal((n, 3)) * s
         poses[:, 2] = wrap_angle(poses[:, 2])
         self._set(poses)
-        self._budget = n
         self._reset_state()
 
     def _require_particles(self) -> None:
