@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 FORWARD, TURN_LEFT, TURN_RIGHT, STOP = 0, 1, 2, 3
+AS_BOX = {FORWARD: (1.0, 0.0), TURN_LEFT: (0.0, 1.0), TURN_RIGHT: (0.0, -1.0), STOP: (0.0, 0.0)}
+"""``(v, omega)`` of each discrete action on an env with continuous actions: the same motion."""
 
 
 def all_round_angles(n: int) -> np.ndarray:

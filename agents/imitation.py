@@ -11,7 +11,7 @@ action), without the planner's search, its path or its memory?
 procedural layout every episode, never a held-out seed):
 
 1. every round collects ``episodes_per_round`` episodes. Each step, the teacher
-   (`agents.viewpoint.ViewpointPlanner`, run beside the env by `TeacherLabels` and fed every
+   (`agents.viewpoint.ViewpointPlanner`, run beside the env by `agents.options.TeacherLabels` and fed every
    observation) says what it would do (``info["teacher_action"]``); the robot takes the teacher's
    action with probability ``beta`` (1 in the first round, times ``beta_decay`` each round after)
    and the network's otherwise, so later rounds visit the states the network drives into;
@@ -27,60 +27,20 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import functools
 import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import torch
-from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from filters.numbers import is_int, is_real
 
 from .learned import save_policy
-from .train_active import ENV_ID, ActiveTrainConfig, build_model, make_active_env
-
-
-class TeacherLabels(gym.Wrapper):
-    """``info["teacher_action"]``: the discrete action (0 forward, 1 left, 2 right) the viewpoint
-    planner would take from the current state, after `reset` and every `step`.
-
-    The planner sees every observation, whatever action was taken, so its odometry and path stay
-    anchored to the robot (as in `agents.options.MotionOptions`); it reads only the robot's
-    observations and the filter's belief. Its particle subsampling is seeded by the reset seed.
-
-    Args:
-        env: a ``SemReloc`` env with ``Discrete(4)`` actions (raw observations: put this wrapper
-            inside `ActiveObservation` and `ActionRepeat`).
-        planner: keyword arguments of `agents.viewpoint.ViewpointPlanner`.
-    """
-
-    def __init__(self, env: gym.Env, planner: dict[str, Any] | None = None):
-        super().__init__(env)
-        if env.action_space != gym.spaces.Discrete(4):
-            raise TypeError(f"TeacherLabels needs the Discrete(4) action space, got {env.action_space}")
-        from .viewpoint import ViewpointPlanner
-
-        self.teacher = ViewpointPlanner(**(planner or {}))
-        self.teacher.wrap(env)
-
-    def reset(self, **kwargs):
-        obs, info = self.env.reset(**kwargs)
-        if kwargs.get("seed") is not None:
-            self.teacher.seed = int(kwargs["seed"])
-        self.teacher.reset()
-        self.teacher.observe(obs)
-        return obs, {**info, "teacher_action": self.teacher.decide(obs)}
-
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        self.teacher.observe(obs)
-        return obs, reward, terminated, truncated, {**info, "teacher_action": self.teacher.decide(obs)}
+from .options import TeacherLabels  # noqa: F401  (documented here: agents.imitation.TeacherLabels)
+from .train_active import ENV_ID, ActiveTrainConfig, build_model, make_active_venv
 
 
 def _default_train() -> ActiveTrainConfig:
@@ -140,17 +100,6 @@ class ImitationConfig:
         return dataclasses.asdict(self)
 
 
-def make_teacher_venv(config: ImitationConfig):
-    """``n_envs`` training envs with `TeacherLabels` inside, env ``k`` seeded ``seed + k``."""
-    t = config.train
-    return make_vec_env(
-        functools.partial(make_active_env, t, t.seed, teacher=config.planner),
-        n_envs=t.n_envs,
-        seed=t.seed,
-        vec_env_cls=SubprocVecEnv if t.vec_env == "subproc" else DummyVecEnv,
-    )
-
-
 class _Dataset:
     """(observation, teacher action) pairs, stored compactly (float16 images, int8 labels), capped."""
 
@@ -182,18 +131,21 @@ class _Rollouts:
         self.obs = venv.reset()
         self.labels = np.array([info["teacher_action"] for info in venv.reset_infos])
 
-    def collect(self, model, episodes: int, beta: float, rng: np.random.Generator, data: _Dataset):
+    def collect(self, model, episodes: int, beta: float, rng: np.random.Generator, data: _Dataset | None):
         """Run until ``episodes`` episodes end (the teacher's action with probability ``beta``, else
-        the network's); add every step's pair to ``data``. Returns ``(successes, episodes, steps,
-        agreement)``: agreement is the share of steps at which the network's deterministic action
-        equals the teacher's."""
+        the network's); add every step's pair to ``data`` (None: keep none). Returns ``(successes,
+        episodes, steps, agreement)``: agreement is the share of steps at which the network's
+        deterministic action equals the teacher's. Episodes still running when it returns go on in
+        the next call (under its beta and network), so a round's figures include up to ``n_envs``
+        episodes begun in the round before."""
         venv, n = self.venv, self.venv.num_envs
         done_eps = successes = steps = agree = 0
         while done_eps < episodes:
             mine, _ = model.predict(self.obs, deterministic=True)
             mine = np.asarray(mine, dtype=np.int64).reshape(n)
             agree += int(np.sum(mine == self.labels))
-            data.add(self.obs, self.labels)
+            if data is not None:
+                data.add(self.obs, self.labels)
             self.obs, _, dones, infos = venv.step(np.where(rng.random(n) < beta, self.labels, mine))
             steps += n
             labels = []
@@ -278,7 +230,7 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
     torch.manual_seed(t.seed)
     rng = np.random.default_rng(t.seed)
     (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
-    venv = make_teacher_venv(config)
+    venv = make_active_venv(t, teacher=config.planner)
     t0, c0 = time.time(), time.process_time()
     rows: list[dict[str, Any]] = []
     try:
@@ -291,7 +243,9 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
             final = r == config.rounds
             beta = 0.0 if final else beta
             tr = time.time()
-            succ, eps, steps, agreement = rollouts.collect(model, config.episodes_per_round, beta, rng, data)
+            succ, eps, steps, agreement = rollouts.collect(
+                model, config.episodes_per_round, beta, rng, None if final else data
+            )
             obs, labels = data.arrays()
             loss = float("nan") if final else _fit(model, obs, labels, config, optimizer, rng)
             rows.append(

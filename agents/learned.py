@@ -167,7 +167,8 @@ class LearnedPolicy:
             ValueError: the env's action space or the wrapped observation space differs from the
                 model's (another action type, camera or lidar beam count, ...).
         """
-        if self.options or isinstance(env.action_space, spaces.Box):
+        discrete_model = isinstance(self.model.action_space, spaces.Discrete)
+        if self.options or (discrete_model and isinstance(env.action_space, spaces.Box)):
             from .options import MotionOptions, has_semreloc_actions
 
             if not has_semreloc_actions(env.action_space):

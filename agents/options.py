@@ -25,11 +25,13 @@ their state is reset with the env, and the planner's subsampling is seeded by th
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .baselines import WallFollowExplorer
+from .baselines import AS_BOX, WallFollowExplorer
 
 OPTIONS = ("explore", "viewpoint")
 """The motions that can be added, by name."""
@@ -50,9 +52,6 @@ def check_options(options) -> tuple[str, ...]:
 EXPLORE = 4
 """The action of ``"explore"`` in `ExplorerOption`."""
 
-_AS_BOX = ((1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (0.0, 0.0))
-"""``(v, omega)`` of the discrete actions forward, left, right, stop."""
-
 
 def has_semreloc_actions(space: spaces.Space) -> bool:
     """Whether ``space`` is a ``SemReloc`` action space: ``Discrete(4)`` or ``Box(-1, 1, (2,))``."""
@@ -64,6 +63,15 @@ def has_semreloc_actions(space: spaces.Space) -> bool:
         and bool(np.all(space.low == -1.0))
         and bool(np.all(space.high == 1.0))
     )
+
+
+def _restart(planner, seed, obs: dict) -> None:
+    """A planner run beside an env starts its episode: seeded by the reset seed (if given), reset,
+    fed the first observation."""
+    if seed is not None:
+        planner.seed = int(seed)
+    planner.reset()
+    planner.observe(obs)
 
 
 class MotionOptions(gym.Wrapper):
@@ -106,10 +114,7 @@ class MotionOptions(gym.Wrapper):
         obs, info = self.env.reset(**kwargs)
         self.explorer.reset()
         if self.planner is not None:
-            if kwargs.get("seed") is not None:
-                self.planner.seed = int(kwargs["seed"])
-            self.planner.reset()
-            self.planner.observe(obs)
+            _restart(self.planner, kwargs.get("seed"), obs)
         self._obs = obs
         return obs, info
 
@@ -124,7 +129,7 @@ class MotionOptions(gym.Wrapper):
         """The env's action for discrete action ``a`` (0 forward, 1 left, 2 right, 3 stop)."""
         if not self.continuous:
             return a
-        return np.array(_AS_BOX[a], dtype=np.float32)
+        return np.array(AS_BOX[a], dtype=np.float32)
 
     def step(self, action):
         if isinstance(action, (bool, np.bool_)) or not self.action_space.contains(action):
@@ -148,3 +153,38 @@ class ExplorerOption(MotionOptions):
 
     def __init__(self, env: gym.Env):
         super().__init__(env, ("explore",))
+
+
+class TeacherLabels(gym.Wrapper):
+    """``info["teacher_action"]``: the discrete action (0 forward, 1 left, 2 right) the viewpoint
+    planner would take from the current state, after `reset` and every `step` (the teacher of
+    `agents.imitation`).
+
+    The planner sees every observation, whatever action was taken, so its odometry and path stay
+    anchored to the robot (as in `MotionOptions`); it reads only the robot's observations and the
+    filter's belief. Its particle subsampling is seeded by the reset seed.
+
+    Args:
+        env: a ``SemReloc`` env with ``Discrete(4)`` actions (raw observations: put this wrapper
+            inside `ActiveObservation` and `ActionRepeat`).
+        planner: keyword arguments of `agents.viewpoint.ViewpointPlanner`.
+    """
+
+    def __init__(self, env: gym.Env, planner: dict[str, Any] | None = None):
+        super().__init__(env)
+        if env.action_space != gym.spaces.Discrete(4):
+            raise TypeError(f"TeacherLabels needs the Discrete(4) action space, got {env.action_space}")
+        from .viewpoint import ViewpointPlanner
+
+        self.teacher = ViewpointPlanner(**(planner or {}))
+        self.teacher.wrap(env)
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        _restart(self.teacher, kwargs.get("seed"), obs)
+        return obs, {**info, "teacher_action": self.teacher.decide(obs)}
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self.teacher.observe(obs)
+        return obs, reward, terminated, truncated, {**info, "teacher_action": self.teacher.decide(obs)}

@@ -30,7 +30,7 @@ from gymnasium import spaces
 
 from filters.numbers import is_int, is_real
 
-from .baselines import FORWARD, STOP, TURN_LEFT, TURN_RIGHT, WallFollowExplorer, all_round_angles
+from .baselines import AS_BOX, FORWARD, TURN_LEFT, WallFollowExplorer, all_round_angles
 
 BACKWARD = -1
 """A pseudo-action of the policies here: reverse at full speed (continuous actions only)."""
@@ -79,9 +79,7 @@ class Policy:
             if a == BACKWARD:
                 raise ValueError("discrete actions cannot reverse")
             return int(a)
-        v, w = {FORWARD: (1.0, 0.0), TURN_LEFT: (0.0, 1.0), TURN_RIGHT: (0.0, -1.0), STOP: (0.0, 0.0)}.get(
-            a, (-1.0, 0.0)
-        )
+        v, w = AS_BOX.get(a, (-1.0, 0.0))  # else BACKWARD
         return np.array([v, w], dtype=np.float32)
 
     def act(self, obs: dict):  # pragma: no cover - overridden

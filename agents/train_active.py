@@ -40,7 +40,7 @@ from semreloc_env.wrappers import ActionRepeat
 from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
 from .learned import save_policy
-from .options import MotionOptions, check_options
+from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
 
 ENV_ID = "SemReloc-v2"
@@ -183,7 +183,7 @@ class WallClockBudget(BaseCallback):
 def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str, Any] | None = None) -> gym.Env:
     """One training env of ``config`` (see the module docstring); its layout stream starts at ``seed``.
 
-    ``teacher``: if not None, `agents.imitation.TeacherLabels` (the viewpoint planner with these
+    ``teacher``: if not None, `agents.options.TeacherLabels` (the viewpoint planner with these
     arguments) goes in before `ActionRepeat`, and every info carries ``teacher_action``."""
     env = gym.make(
         ENV_ID,
@@ -203,18 +203,16 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str,
     if config.options:
         env = MotionOptions(env, config.options)
     if teacher is not None:
-        from .imitation import TeacherLabels
-
         env = TeacherLabels(env, teacher)
     env = ActionRepeat(env, config.repeat)
     env = ActiveObservation(env, **config.observation)
     return Monitor(env, info_keywords=("is_success",))
 
 
-def make_active_venv(config: ActiveTrainConfig):
-    """``n_envs`` training envs, env ``k`` seeded ``seed + k``."""
+def make_active_venv(config: ActiveTrainConfig, teacher: dict[str, Any] | None = None):
+    """``n_envs`` training envs, env ``k`` seeded ``seed + k`` (``teacher``: as `make_active_env`)."""
     return make_vec_env(
-        functools.partial(make_active_env, config, config.seed),
+        functools.partial(make_active_env, config, config.seed, teacher=teacher),
         n_envs=config.n_envs,
         seed=config.seed,
         vec_env_cls=SubprocVecEnv if config.vec_env == "subproc" else DummyVecEnv,

@@ -692,9 +692,7 @@ class ViewpointPlanner(Policy):
         ``obs``: the path followed with arcs (`_arc`); the explorer's steps and the safety turn as
         their discrete actions (forward ``(1, 0)``, turns ``(0, +-1)``)."""
         a = self._decide(obs, self._arc)
-        if isinstance(a, np.ndarray):
-            return a
-        return np.array([1.0 if a == FORWARD else 0.0, {TURN_LEFT: 1.0, TURN_RIGHT: -1.0}.get(a, 0.0)], np.float32)
+        return a if isinstance(a, np.ndarray) else self.encode(a)
 
     def _decide(self, obs: dict, follow):
         """The next action: ``follow()``'s (a discrete action, or a continuous command) while a plan

@@ -411,3 +411,26 @@ def test_bare_checkpoints_take_their_options_from_the_run(tmp_path):
     assert _checkpoint_options(ckpt, spaces.Discrete(6)) == ("viewpoint", "explore")
     (tmp_path / "run" / "config.json").write_text(json.dumps({"explorer_option": True}))
     assert _checkpoint_options(ckpt, spaces.Discrete(5)) == ("explore",)
+
+
+def test_a_policy_of_continuous_actions_wraps_a_continuous_env(tmp_path):
+    # a review found wrap putting the four-action mapping in front of every Box env, so a policy
+    # trained on continuous actions could no longer be wrapped on its own kind of env
+    from stable_baselines3 import PPO
+
+    from agents.learned import save_policy
+
+    train_env = ActiveObservation(_env(action_type="continuous"))
+    model = PPO("MultiInputPolicy", train_env, n_steps=16, batch_size=16, seed=0,
+                policy_kwargs={"features_extractor_class": ActiveExtractor,
+                               "features_extractor_kwargs": {"features_dim": 16, "cnn_channels": (4, 4, 4)},
+                               "net_arch": [8]})  # fmt: skip
+    path = save_policy(model, tmp_path / "box.zip", observation={}, repeat=1)
+    policy = load_policy(path)
+    env = policy.wrap(_env(action_type="continuous"))
+    assert isinstance(env.action_space, gym.spaces.Box)
+    policy.reset()
+    obs, _ = env.reset(seed=0)
+    a = np.asarray(policy.act(obs), dtype=np.float32)
+    assert env.action_space.contains(a)  # SB3 clips a Box policy's actions to the space
+    env.step(a)

@@ -40,9 +40,22 @@ def _tiny_train(**kw) -> ActiveTrainConfig:
     return ActiveTrainConfig(**kw)
 
 
-def test_teacher_labels_are_the_planners_decisions_whatever_action_is_taken():
-    env = TeacherLabels(_env(), {"seed": 0})
-    ref, planner = _env(), ViewpointPlanner()
+def test_teacher_labels_are_the_planners_decisions_whatever_action_is_taken(monkeypatch):
+    import agents.viewpoint as vp
+
+    calls = []
+    sample = vp.belief_sample
+    monkeypatch.setattr(vp, "belief_sample", lambda *a, **k: (calls.append(1), sample(*a, **k))[1])
+    # a look-alike layout: the belief is spread, so the planner subsamples it with its own generator,
+    # which the teacher must seed from the reset seed (3), not from its constructor's (0)
+    kw = {
+        "layout": "procedural_lookalike",
+        "layout_seed": 1,
+        "relocalizer": {"n_particles": 2000},
+        "max_episode_steps": 80,
+    }
+    env = TeacherLabels(_env(**kw), {"seed": 0})
+    ref, planner = _env(**kw), ViewpointPlanner()
     planner.wrap(ref)
     obs, info = env.reset(seed=3)
     ref_obs, _ = ref.reset(seed=3)
@@ -50,14 +63,16 @@ def test_teacher_labels_are_the_planners_decisions_whatever_action_is_taken():
     planner.reset()
     planner.observe(ref_obs)
     rng = np.random.default_rng(0)
-    for _ in range(25):
+    for t in range(70):
         label = planner.decide(ref_obs)
         assert info["teacher_action"] == label
-        a = int(rng.integers(0, 4))  # not the teacher's: it must follow the robot all the same
+        # first other actions than the teacher's (it must follow the robot all the same), then its own
+        a = int(rng.integers(0, 4)) if t < 10 else label
         obs, *_, info = env.step(a)
         ref_obs, *_ = ref.step(a)
         planner.observe(ref_obs)
         np.testing.assert_array_equal(obs["lidar"], ref_obs["lidar"])
+    assert calls, "the planner never subsampled the belief: the seed was not tested"
     with pytest.raises(TypeError, match="Discrete"):
         TeacherLabels(_env(action_type="continuous"))
 
@@ -119,11 +134,11 @@ def test_imitation_config_errors():
 def test_collected_pairs_hold_the_teachers_label_of_each_state():
     # with beta = 1 the robot takes the teacher's action, so the stored labels are the actions taken
     # (an early version stored one array object for every step, which later steps overwrote)
-    from agents.imitation import _Dataset, _Rollouts, make_teacher_venv
-    from agents.train_active import build_model
+    from agents.imitation import _Dataset, _Rollouts
+    from agents.train_active import build_model, make_active_venv
 
     config = ImitationConfig(train=_tiny_train(n_envs=1), rounds=1, episodes_per_round=1)
-    venv = make_teacher_venv(config)
+    venv = make_active_venv(config.train, teacher={})
     model = build_model(config.train, venv)
     taken = []
     step = venv.step
