@@ -149,13 +149,7 @@ class ActiveTrainConfig:
             raise ValueError("checkpoint_every must be None or >= 1")
         check_options(self.options)
         check_ppo_settings(self)
-        # the layout stream's arguments, checked here rather than in the env workers
-        LayoutSampler(
-            kinds=self.kinds,
-            files=self.files,
-            seeds=range(*self.layout_seeds),
-            weights=None if self.kind_weights is None else list(self.kind_weights),
-        )
+        self.layout_sampler()  # the layout stream's arguments, checked here rather than in the env workers
         allowed = set(inspect.signature(ActiveObservation.__init__).parameters) - {"self", "env"}
         unknown = sorted(set(self.observation) - allowed)
         if unknown:
@@ -163,6 +157,15 @@ class ActiveTrainConfig:
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+    def layout_sampler(self) -> LayoutSampler:
+        """The training layouts' sampler: ``kinds`` then ``files``, ``layout_seeds``, ``kind_weights``."""
+        return LayoutSampler(
+            kinds=self.kinds,
+            files=self.files,
+            seeds=range(*self.layout_seeds),
+            weights=None if self.kind_weights is None else list(self.kind_weights),
+        )
 
 
 class WallClockBudget(BaseCallback):
@@ -191,12 +194,7 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str,
         reward_weights=dict(config.reward_weights),
         max_episode_steps=config.max_episode_steps,
     )
-    sampler = LayoutSampler(
-        kinds=config.kinds,
-        files=config.files,
-        seeds=range(*config.layout_seeds),
-        weights=None if config.kind_weights is None else list(config.kind_weights),
-    )
+    sampler = config.layout_sampler()
     env = RandomLayout(env, sampler, seed=seed)
     if config.belief_mass_weight:
         env = BeliefMassReward(env, weight=config.belief_mass_weight, mode="gain")

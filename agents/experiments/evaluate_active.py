@@ -227,6 +227,7 @@ def build_cases(args: Args) -> list[dict]:
     cases = []
     for li, (spec, seed, scenario) in enumerate(layouts):
         layout = get_layout(spec, seed=seed)
+        digest = {"layout_digest": file_digest(spec)} if spec in args.layout_files else {}
         extra = changed_obstacles(layout, seed) if scenario == "changed" else []
         world = build_world(layout, extra_obstacles=extra)
         for si in range(args.starts):
@@ -249,7 +250,7 @@ def build_cases(args: Args) -> list[dict]:
                     "start": [float(v) for v in pose],
                     "episode_seed": (60_000 if tuning else 50_000) + len(cases),
                     "uninformative": flag,
-                    **({"layout_digest": file_digest(spec)} if spec in args.layout_files else {}),
+                    **digest,
                 }
             )
     return cases
