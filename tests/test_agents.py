@@ -150,7 +150,7 @@ def _preprocessed(space, raw: dict) -> dict:
     return preprocess_obs({k: torch.as_tensor(v) for k, v in raw.items()}, space, normalize_images=False)
 
 
-@pytest.mark.parametrize("env_id", ["SemReloc-v2", "SemReloc-v1"])
+@pytest.mark.parametrize("env_id", ["SemReloc-v3", "SemReloc-v1"])
 def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
     space = make_env(FAST, env_id=env_id).observation_space
     torch.manual_seed(0)
@@ -177,9 +177,9 @@ def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
 
 
 def test_features_extractor_gives_the_same_features_for_both_observation_layouts():
-    """SemReloc-v2's typed observation and v1's flat one of the same step give the same features
+    """SemReloc-v3's typed observation and v1's flat one of the same step give the same features
     (same seed, same weights): the one-hot of the MultiDiscrete equals the one-hot of the float labels."""
-    envs = {i: make_env(FAST, env_id=i) for i in ("SemReloc-v2", "SemReloc-v1")}
+    envs = {i: make_env(FAST, env_id=i) for i in ("SemReloc-v3", "SemReloc-v1")}
     ext = {}
     for i, env in envs.items():
         torch.manual_seed(0)
@@ -188,12 +188,12 @@ def test_features_extractor_gives_the_same_features_for_both_observation_layouts
     for a in (0, 0, 1, 1, 0):
         for i, env in envs.items():
             obs[i].append(env.step(a)[0])
-    assert any((o["semantic_class"] > 0).any() for o in obs["SemReloc-v2"])  # objects in view
+    assert any((o["semantic_class"] > 0).any() for o in obs["SemReloc-v3"])  # objects in view
     feats = {}
     for i, env in envs.items():
         batch = {k: np.stack([o[k] for o in obs[i]]) for k in env.observation_space.spaces}
         feats[i] = ext[i](_preprocessed(env.observation_space, batch))
-    torch.testing.assert_close(feats["SemReloc-v2"], feats["SemReloc-v1"], rtol=0, atol=0)
+    torch.testing.assert_close(feats["SemReloc-v3"], feats["SemReloc-v1"], rtol=0, atol=0)
 
 
 def _info(converged, pos, head=0.0):

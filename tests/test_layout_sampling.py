@@ -7,7 +7,7 @@ import pytest
 
 import semreloc_env  # noqa: F401
 from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS, LayoutSampler, RandomLayout, is_held_out
-from semreloc_env.layouts import ProceduralParams, get_layout, lookalike_layout
+from semreloc_env.layouts import ProceduralParams, get_layout, half_turn_asymmetry, lookalike_layout
 from semreloc_env.rasterize import rasterize
 from semreloc_env.world import build_world
 
@@ -50,7 +50,7 @@ def test_sampler_rejects_bad_input():
         with pytest.raises(ValueError, match="seeds"):
             LayoutSampler(kinds=("procedural",), seeds=seeds)
     with pytest.raises(ValueError, match="seed"):
-        RandomLayout(gym.make("SemReloc-v2", map_source="perfect"), seed=-1)
+        RandomLayout(gym.make("SemReloc-v3", map_source="perfect"), seed=-1)
 
 
 def test_sampler_draws_layout_files(tmp_path):
@@ -72,7 +72,7 @@ def _rollout(env, seeds):
 
 def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
     def make():
-        return RandomLayout(gym.make("SemReloc-v2", map_source="perfect", relocalizer={"n_particles": 200}))
+        return RandomLayout(gym.make("SemReloc-v3", map_source="perfect", relocalizer={"n_particles": 200}))
 
     a, b = _rollout(make(), range(6)), _rollout(make(), range(6))
     for (la, oa, ma), (lb, ob, mb) in zip(a, b):
@@ -87,9 +87,9 @@ def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
 
 
 def test_random_layout_needs_a_layout_free_map(tmp_path):
-    env = gym.make("SemReloc-v2", map_source="perfect")
+    env = gym.make("SemReloc-v3", map_source="perfect")
     grid = env.unwrapped.grid
-    fixed = gym.make("SemReloc-v2", map_source=grid)
+    fixed = gym.make("SemReloc-v3", map_source=grid)
     with pytest.raises(ValueError, match="map_source"):
         RandomLayout(fixed)
     with pytest.raises(ValueError, match="fixed"):
@@ -140,8 +140,75 @@ def test_lookalike_rooms_are_identical_and_only_the_corridor_tells_them_apart():
         ProceduralParams(symmetric=True, lookalike=True)
 
 
+def _corridor(layout_dict):
+    """The corridor objects of a lookalike layout dict (they follow the rooms' objects) and its size."""
+    (x0, y0), (x1, _), (_, y1) = layout_dict["outer"][:3]
+    depth = min(y for w in layout_dict["walls"] for _, y in w if y > 0)
+    objs = [o for o in layout_dict["objects"] if depth - 0.01 < o["center"][1] < y1 - depth + 0.01]
+    return objs, x1 - x0, y1 - y0
+
+
+@pytest.mark.parametrize("seeds", [range(0, 40), range(1_000_000, 1_000_040)])
+def test_lookalike_corridor_objects_break_the_half_turn(seeds):
+    """Every lookalike layout tells a pose from its half-turned image (the rest of it is symmetric)."""
+    default = ProceduralParams(lookalike=True)
+    legacy = ProceduralParams(lookalike=True, min_asymmetry_m=0.0)
+    changed = 0
+    for seed in seeds:
+        new, _ = lookalike_layout(np.random.default_rng(seed), default)
+        old, _ = lookalike_layout(np.random.default_rng(seed), legacy)
+        objs, length, height = _corridor(new)
+        assert half_turn_asymmetry(objs, length, height) >= default.min_asymmetry_m
+        assert half_turn_asymmetry(new["objects"], length, height) >= default.min_asymmetry_m
+        old_asym = half_turn_asymmetry(_corridor(old)[0], length, height)
+        if old_asym >= default.min_asymmetry_m:
+            assert new == old  # a layout that passed is drawn as before
+        else:
+            changed += 1
+            rooms = [[o for o in d["objects"] if o not in _corridor(d)[0]] for d in (new, old)]
+            assert new["walls"] == old["walls"] and rooms[0] == rooms[1]  # only the corridor objects differ
+        assert get_layout("procedural_lookalike", seed=seed, procedural_version=1) == get_layout(old)
+    assert changed > 0  # version 1 drew symmetric layouts in both ranges
+
+
+def test_half_turn_asymmetry():
+    cab = {"class": "cabinet", "size": [0.35, 0.9]}
+    # two cabinets, one the other's image in a 10 m x 6 m layout: symmetric
+    pair = [{**cab, "center": [0.2, 3.3]}, {**cab, "center": [9.8, 2.7]}]
+    assert half_turn_asymmetry(pair, 10.0, 6.0) == pytest.approx(0.0, abs=1e-12)
+    moved = [pair[0], {**cab, "center": [9.8, 2.0]}]
+    assert half_turn_asymmetry(moved, 10.0, 6.0) == pytest.approx(0.7)
+    other = [pair[0], {**pair[1], "class": "door"}]  # same place, other class: the camera tells them apart
+    assert half_turn_asymmetry(other, 10.0, 6.0) == pytest.approx(np.hypot(9.6, 0.6))
+    assert half_turn_asymmetry([], 10.0, 6.0) == 0.0
+    centre = [{**cab, "center": [5.0, 3.0]}]  # its own image
+    assert half_turn_asymmetry(centre, 10.0, 6.0) == 0.0
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"min_asymmetry_m": -1.0}, "min_asymmetry_m"),
+        ({"min_asymmetry_m": float("nan")}, "min_asymmetry_m"),
+        ({"min_asymmetry_m": True}, "min_asymmetry_m"),
+        ({"corridor_objects": (0, 0)}, "symmetric under a half turn"),
+    ],
+)
+def test_lookalike_params_refuse_what_cannot_break_the_half_turn(kw, match):
+    with pytest.raises(ValueError, match=match):
+        ProceduralParams(lookalike=True, **kw)
+    with pytest.raises(ValueError, match="procedural_version"):
+        get_layout("procedural_lookalike", seed=0, procedural_version=3)
+
+
+def test_lookalike_layout_gives_up_with_a_clear_error():
+    params = ProceduralParams(lookalike=True, min_asymmetry_m=1e6)
+    with pytest.raises(ValueError, match="no draw of corridor objects"):
+        lookalike_layout(np.random.default_rng(0), params)
+
+
 def test_set_layout_changes_the_next_episode_only():
-    env = gym.make("SemReloc-v2", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v3", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
     env.reset(seed=0)
     pose = env.unwrapped.world.pose.copy()
     env.unwrapped.set_layout("twin_rooms")
@@ -157,7 +224,7 @@ def test_a_rejected_random_layout_reset_changes_nothing():
     # so the running episode reported (and observed) another layout's map (found in an audit).
     def make():
         return RandomLayout(
-            gym.make("SemReloc-v2", map_source="perfect", relocalizer={"n_particles": 200}),
+            gym.make("SemReloc-v3", map_source="perfect", relocalizer={"n_particles": 200}),
             LayoutSampler(kinds=("lab", "twin_rooms", "procedural"), seeds=range(20)),
         )
 
@@ -180,9 +247,9 @@ def test_a_rejected_random_layout_reset_changes_nothing():
 
 
 def test_set_layout_rejects_a_map_of_another_place():
-    env = gym.make("SemReloc-v2", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v3", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
     lab_grid = env.unwrapped.grid
-    twin_grid = gym.make("SemReloc-v2", layout="twin_rooms", map_source="perfect").unwrapped.grid
+    twin_grid = gym.make("SemReloc-v3", layout="twin_rooms", map_source="perfect").unwrapped.grid
     with pytest.raises(ValueError):
         env.unwrapped.set_layout("twin_rooms", grid=lab_grid)
     assert env.unwrapped.layout.name == "lab" and env.unwrapped.grid is lab_grid

@@ -35,7 +35,7 @@ class _Recorder(gym.Wrapper):
 
 
 def _env(layout, n, **kw):
-    inner = gym.make("SemReloc-v2", layout=layout, map_source="perfect", relocalizer={"n_particles": n})
+    inner = gym.make("SemReloc-v3", layout=layout, map_source="perfect", relocalizer={"n_particles": n})
     return ActiveObservation(_Recorder(inner), **kw)
 
 
@@ -118,7 +118,7 @@ def test_last_action_and_scans_are_encoded():
     np.testing.assert_array_equal(obs["semantic_class"], raw["semantic_class"])
     cont = ActiveObservation(
         gym.make(
-            "SemReloc-v2",
+            "SemReloc-v3",
             layout="twin_rooms",
             map_source="perfect",
             action_type="continuous",
@@ -165,7 +165,7 @@ def test_hypotheses_of_prefers_the_filters_list():
 
 
 def test_egocentric_raster_frame():
-    grid = gym.make("SemReloc-v2", layout="twin_rooms", map_source="perfect").unwrapped.grid
+    grid = gym.make("SemReloc-v3", layout="twin_rooms", map_source="perfect").unwrapped.grid
     r = MapRasters(grid, 0.25, 32)
     anchor = np.array([3.0, 3.0, math.pi / 2])  # facing +y
     # one particle 1 m ahead of the anchor (4 cells along the columns), one 1 m to its left (rows)

@@ -34,12 +34,20 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 
 def test_registered_ids_and_versions():
-    assert semreloc_env.ENV_IDS == ("SemReloc-v2", "SemReloc-v1", "SemReloc-v0", "SemSlam-v1", "SemSlam-v0")
+    assert semreloc_env.ENV_IDS == (
+        "SemReloc-v3",
+        "SemReloc-v2",
+        "SemReloc-v1",
+        "SemReloc-v0",
+        "SemSlam-v1",
+        "SemSlam-v0",
+    )
     for env_id in (*semreloc_env.ENV_IDS, *semreloc_env.VECTOR_ENV_IDS):
         assert env_id in gym.registry
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v3", typed),
         ("SemReloc-v2", typed),
         ("SemReloc-v1", flat),
         ("SemReloc-v0", flat),
@@ -140,3 +148,48 @@ def test_active_observation_is_the_same_on_v1_and_v2():
         assert rest1[:3] == rest2[:3]
         seen |= bool((o2["semantic_class"] > 0).any())
     assert seen
+
+
+LOOKALIKE_CHANGED = 26  # a lookalike seed whose version-1 layout is symmetric to within 0.5 m (end-wall cabinets)
+LOOKALIKE_KEPT = 3  # a lookalike seed whose version-1 layout passes version 2's check
+
+
+def test_v3_differs_from_v2_only_in_the_lookalike_layouts_that_were_symmetric():
+    from semreloc_env.layouts import half_turn_asymmetry
+
+    def corridor_asymmetry(layout):
+        x0, x1, y0, y1 = layout.bounds()
+        objs = [{"class": o.cls, "center": list(o.centroid())} for o in layout.objects]
+        return half_turn_asymmetry(objs, x1 - x0, y1 - y0)
+
+    kw = dict(layout="procedural_lookalike", map_source="perfect", relocalizer={"n_particles": 200})
+    v2, v3 = (make(i, layout_seed=LOOKALIKE_CHANGED, **kw).unwrapped for i in ("SemReloc-v2", "SemReloc-v3"))
+    assert v2.layout != v3.layout
+    assert v2.layout.walls == v3.layout.walls  # only corridor objects are drawn again
+    assert corridor_asymmetry(v2.layout) < 0.5 <= 1.0 <= corridor_asymmetry(v3.layout)
+    assert (
+        make("SemSlam-v1", layout="procedural_lookalike", layout_seed=LOOKALIKE_CHANGED).unwrapped.layout == v2.layout
+    )
+    v2.set_layout("procedural_lookalike", LOOKALIKE_CHANGED)  # set_layout resolves names with the env's version
+    assert v2.layout != v3.layout
+    v3.set_layout("procedural_lookalike", LOOKALIKE_CHANGED)
+    assert v3.layout != v2.layout
+    kept = [make(i, layout_seed=LOOKALIKE_KEPT, **kw) for i in ("SemReloc-v2", "SemReloc-v3")]
+    assert kept[0].unwrapped.layout == kept[1].unwrapped.layout
+    for lay in ({"layout": "lab"}, {"layout_seed": LOOKALIKE_KEPT}):
+        a, b = (
+            rollout(make(i, **{**kw, **lay}), options=None, actions=ACTIONS) for i in ("SemReloc-v2", "SemReloc-v3")
+        )
+        np.testing.assert_equal(a, b)
+
+
+def test_vector_env_v3_runs_semreloc_v3():
+    kw = dict(layout="procedural_lookalike", layout_seed=LOOKALIKE_CHANGED, map_source="perfect",
+              relocalizer={"n_particles": 100})  # fmt: skip
+    venv = gym.make_vec("SemRelocVec-v3", num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    obs, _ = venv.reset(seed=5)
+    ref, _ = make("SemReloc-v3", **kw).reset(seed=5)
+    np.testing.assert_equal({k: v[0] for k, v in obs.items()}, ref)
+    venv.close()
+    with pytest.raises(TypeError, match="SemReloc-v3"):
+        gym.make_vec("SemRelocVec-v3", num_envs=1, vectorization_mode="vector_entry_point", env_id="SemReloc-v1")

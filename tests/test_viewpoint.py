@@ -17,7 +17,7 @@ SEED = 3  # a lookalike layout seed of the training range
 def _env(pol, **kw):
     kw = {"layout": "procedural_lookalike", "layout_seed": SEED, "map_source": "perfect", **kw}
     kw.setdefault("relocalizer", {"n_particles": 300})
-    env = pol.wrap(gym.make("SemReloc-v2", max_episode_steps=60, **kw))
+    env = pol.wrap(gym.make("SemReloc-v3", max_episode_steps=60, **kw))
     pol.reset()
     return env
 
@@ -200,7 +200,7 @@ def test_forward_is_blocked_by_what_the_disc_would_touch():
 
 def test_turning_on_the_spot_earns_no_lidar_gain_without_lidar_on_rotation():
     """With the camera off and the relocalizer leaving the lidar out of rotation-only updates
-    (SemReloc-v2's default), turning where the robot stands cannot tell hypotheses apart: the
+    (SemReloc-v3's default), turning where the robot stands cannot tell hypotheses apart: the
     planner predicts no gain for it, though driving to the same places would."""
     pol = ViewpointPlanner(seed=0)
     env = _env(pol, relocalizer={"n_particles": 300, "use_semantic": False})

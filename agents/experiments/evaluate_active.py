@@ -161,7 +161,7 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v2"
+ENV_ID = "SemReloc-v3"
 """The env every episode runs in (v2 and v1 give the same episodes; v2 has typed observations)."""
 
 # ---------------------------------------------------------------------- cases

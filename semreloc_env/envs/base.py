@@ -17,7 +17,7 @@ import numpy as np
 from filters.motion.odometry import OdometryMotionConfig
 
 from ..config import CameraParams, LidarParams, PhysicsParams, RobotParams, coerce_config, default_odometry_noise
-from ..layouts import Layout, get_layout
+from ..layouts import PROCEDURAL_VERSION, Layout, get_layout
 from ..sensors import Lidar, Odometry, SemanticCamera
 from ..world import World, build_world
 from .spaces import decode_action, make_action_space, make_observation, make_observation_space
@@ -41,6 +41,9 @@ class SemRelocBase(gym.Env):
     info_missing: ClassVar[str] = "drop"
     """How ``info`` shows a value not computed in a step: ``"drop"`` leaves its key out (so vector envs batch
     the rest as typed arrays, with ``_key`` masks marking who has it); ``"none"`` (older env ids) puts None."""
+    procedural_version: ClassVar[int] = PROCEDURAL_VERSION
+    """Which version of the procedural generator a layout *name* and ``layout_seed`` resolve with
+    (`semreloc_env.layouts.get_layout`); older env ids keep 1, so that their episodes stay as they were."""
     _world_option_keys: frozenset[str] = frozenset({"pose"})
     """Reset options whose check needs the world (`check_reset` builds one only for them)."""
 
@@ -61,7 +64,7 @@ class SemRelocBase(gym.Env):
         ):
             raise ValueError(f"unknown render_mode {render_mode!r}; choose one of {self.metadata['render_modes']}")
         self.layout_seed = check_layout_seed(layout_seed)
-        self.layout = get_layout(layout, seed=self.layout_seed)
+        self.layout = get_layout(layout, seed=self.layout_seed, procedural_version=self.procedural_version)
         self.robot_params = coerce_config(RobotParams, robot, "robot")
         self.physics_params = coerce_config(PhysicsParams, physics, "physics")
         # one frame per control step: videos (RecordVideo) and human mode play in real time

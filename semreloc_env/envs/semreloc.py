@@ -1,4 +1,4 @@
-"""``SemReloc-v2`` (and ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v3`` (and ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -168,6 +168,12 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v3: ``layout="procedural_lookalike"`` layouts come from the procedural generator's version 2
+      (`semreloc_env.layouts.PROCEDURAL_VERSION`): their corridor objects break the half turn that
+      maps the rest of the layout onto itself by at least 1 m. In version 1 about a quarter of them
+      did not (same-class objects on both end walls, for example), so no motion could tell a pose
+      from its half-turned image. Everything else is v2's, and so is every episode on another layout
+      or on a lookalike seed whose layout passed the check (`SemRelocEnvV2` is v2).
     * v2: typed observations: the class labels are a ``MultiDiscrete`` entry ``semantic_class`` (int64)
       and the ranges a Box ``semantic_range``, replacing the float32 ``semantic`` Box that held both;
       ``info["mcl"]`` leaves out the diagnostics not computed in a step (v1: None), so vector envs
@@ -258,7 +264,7 @@ class SemRelocEnv(SemRelocBase):
                 rotated); nothing changes then.
         """
         layout_seed = check_layout_seed(layout_seed)
-        new_layout = get_layout(layout, seed=layout_seed)
+        new_layout = get_layout(layout, seed=layout_seed, procedural_version=self.procedural_version)
         if grid is None:
             if not (isinstance(self.map_source, str) and self.map_source in MAP_SOURCES):
                 raise ValueError(
@@ -401,11 +407,19 @@ class SemRelocEnv(SemRelocBase):
         return state
 
 
-class SemRelocEnvV1(SemRelocEnv):
-    """``SemReloc-v1``: `SemRelocEnv` with the flat observation (one float32 ``semantic`` Box:
+class SemRelocEnvV2(SemRelocEnv):
+    """``SemReloc-v2``: `SemRelocEnv` with lookalike layouts from the procedural generator's version 1
+    (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v3``."""
+
+    procedural_version = 1
+
+
+class SemRelocEnvV1(SemRelocEnvV2):
+    """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v2``."""
+    v1 keep working; new work should use ``SemReloc-v3``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -413,6 +427,6 @@ class SemRelocEnvV1(SemRelocEnv):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v2``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v3``."""
 
     default_relocalizer = LEGACY_RELOCALIZER

@@ -5,10 +5,22 @@ from __future__ import annotations
 from .batched import SemRelocLoopVectorEnv
 
 
+def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
+    if "env_id" in kwargs:
+        raise TypeError(
+            f"{env_id.replace('-', 'Vec-')} runs {env_id}; for another single env use SemRelocLoopVectorEnv(env_id=...)"
+        )
+    return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
+
+
+def semreloc_vec_v3(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v3``: ``num_envs`` ``SemReloc-v3`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v3"``)."""
+    return _loop("SemReloc-v3", num_envs, kwargs)
+
+
 def semreloc_vec_v2(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
     """``SemRelocVec-v2``: ``num_envs`` ``SemReloc-v2`` robots in one process
     (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v2"``).
     ``SemRelocVec-v1`` is the class itself, whose ``env_id`` defaults to ``"SemReloc-v1"``."""
-    if "env_id" in kwargs:
-        raise TypeError("SemRelocVec-v2 runs SemReloc-v2; for another single env use SemRelocLoopVectorEnv(env_id=...)")
-    return SemRelocLoopVectorEnv(num_envs, env_id="SemReloc-v2", **kwargs)
+    return _loop("SemReloc-v2", num_envs, kwargs)

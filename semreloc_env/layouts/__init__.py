@@ -10,18 +10,20 @@ import numpy as np
 
 from .builtin import BUILTIN_LAYOUTS
 from .layout import CLASS_NAMES, Layout, LayoutError, SemanticObject, layout_from_dict, load_layout, point_in_polygon
-from .procedural import ProceduralParams, lookalike_layout, procedural_layout
+from .procedural import PROCEDURAL_VERSION, ProceduralParams, half_turn_asymmetry, lookalike_layout, procedural_layout
 
 __all__ = [
     "CLASS_NAMES",
     "LAYOUT_NAMES",
     "LAYOUT_PATH_ENV",
+    "PROCEDURAL_VERSION",
     "find_layout_file",
     "Layout",
     "LayoutError",
     "ProceduralParams",
     "SemanticObject",
     "get_layout",
+    "half_turn_asymmetry",
     "layout_from_dict",
     "load_layout",
     "lookalike_layout",
@@ -59,7 +61,9 @@ def _is_ros_map(spec) -> bool:
     return is_ros_map_file(spec)
 
 
-def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
+def get_layout(
+    spec: str | Path | Mapping | Layout, seed: int = 0, procedural_version: int = PROCEDURAL_VERSION
+) -> Layout:
     """Resolve a layout spec to a validated `Layout`.
 
     Args:
@@ -71,7 +75,12 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
             `GridMap`, whose world is traced from its occupied
             cells (`semreloc_env.map_world.layout_from_map`).
         seed: seed of the procedural generator (ignored otherwise).
+        procedural_version: the procedural generator's version (`PROCEDURAL_VERSION`, the newest,
+            or 1: lookalike layouts as ``SemReloc-v2`` and older draw them, without the check
+            that their corridor objects break the half turn; ignored for other specs).
     """
+    if procedural_version not in (1, 2) or isinstance(procedural_version, bool):
+        raise ValueError(f"procedural_version must be 1 or 2, got {procedural_version!r:.60}")
     if isinstance(spec, Layout):
         return spec
     from filters.mapping.grid import GridMap
@@ -89,7 +98,11 @@ def get_layout(spec: str | Path | Mapping | Layout, seed: int = 0) -> Layout:
     if isinstance(spec, str) and spec in BUILTIN_LAYOUTS:
         return layout_from_dict(BUILTIN_LAYOUTS[spec]())
     if isinstance(spec, str) and spec in PROCEDURAL_LAYOUTS:
-        params = ProceduralParams(symmetric=spec == "procedural_sym", lookalike=spec == "procedural_lookalike")
+        params = ProceduralParams(
+            symmetric=spec == "procedural_sym",
+            lookalike=spec == "procedural_lookalike",
+            min_asymmetry_m=ProceduralParams.min_asymmetry_m if procedural_version >= 2 else 0.0,
+        )
         return layout_from_dict(procedural_layout(np.random.default_rng(seed), params))
     if isinstance(spec, (str, Path)):
         path = Path(spec)

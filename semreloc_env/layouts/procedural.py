@@ -7,6 +7,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+PROCEDURAL_VERSION = 2
+"""The procedural generator's version, as `semreloc_env.layouts.get_layout` takes it: 2 checks that a
+lookalike layout's corridor objects break its half turn (`ProceduralParams.min_asymmetry_m`); 1 is the
+generator before that check (``SemReloc-v2`` and older, ``SemSlam-*``). Layouts that pass the check
+are the same in both; the others differ in their corridor objects only."""
+
+_MAX_CORRIDOR_DRAWS = 100
+"""Draws of the corridor objects before a lookalike layout gives up on `ProceduralParams.min_asymmetry_m`."""
+
 # A class swap that keeps footprints (used by symmetric layouts): same shape, other class.
 _TWIN_CLASS = {"door": "cabinet", "cabinet": "door", "chair": "trash_bin", "trash_bin": "chair"}
 
@@ -31,6 +40,12 @@ class ProceduralParams:
             the sensors cannot tell which room it is, only moving out can
             (`lookalike_layout`).
         corridor_objects: inclusive range of the number of corridor objects (lookalike only).
+        min_asymmetry_m: lookalike only: the corridor objects must break the half turn that maps
+            the rest of the layout onto itself by at least this much (`half_turn_asymmetry`);
+            a draw that does not is drawn again from the same generator. 0 switches the check
+            off, as generator version 1 (`PROCEDURAL_VERSION`) had it: there, about a quarter of
+            the layouts (same-class objects on both end walls, for example) were symmetric to
+            within centimetres, so no motion could tell a pose from its half-turned image.
     """
 
     rooms_per_side: tuple[int, int] = (2, 4)
@@ -42,6 +57,7 @@ class ProceduralParams:
     symmetric: bool = False
     lookalike: bool = False
     corridor_objects: tuple[int, int] = (2, 4)
+    min_asymmetry_m: float = 1.0
 
     def __post_init__(self) -> None:
         if self.symmetric and self.lookalike:
@@ -49,6 +65,14 @@ class ProceduralParams:
         lo, hi = self.corridor_objects
         if not (isinstance(lo, int) and isinstance(hi, int) and 0 <= lo <= hi):
             raise ValueError(f"ProceduralParams.corridor_objects must be 0 <= lo <= hi, got {self.corridor_objects!r}")
+        m = self.min_asymmetry_m
+        if isinstance(m, bool) or not isinstance(m, (int, float)) or not (math.isfinite(m) and m >= 0):
+            raise ValueError(f"ProceduralParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
+        if self.lookalike and m > 0 and hi == 0:
+            raise ValueError(
+                "ProceduralParams: corridor_objects=(0, 0) leaves a lookalike layout symmetric under a half turn; "
+                "allow corridor objects or set min_asymmetry_m=0"
+            )
 
 
 def _room_furniture(rng: np.random.Generator, x0: float, x1: float, depth: float, door_x: float, n: int) -> list:
@@ -205,7 +229,16 @@ def lookalike_layout(rng: np.random.Generator, params: ProceduralParams | None =
             u, v = o["center"]
             objects.append({**o, "center": [fx + c * u - s_ * v, fy + s_ * u + c * v]})
 
-    objects += _corridor_objects(rng, p, length, depth, corridor, south_doors, north_doors, half)
+    for _ in range(_MAX_CORRIDOR_DRAWS):
+        extra = _corridor_objects(rng, p, length, depth, corridor, south_doors, north_doors, half)
+        if p.min_asymmetry_m <= 0 or half_turn_asymmetry(extra, length, height) >= p.min_asymmetry_m:
+            break
+    else:
+        raise ValueError(
+            f"lookalike_layout: no draw of corridor objects in {_MAX_CORRIDOR_DRAWS} broke the half turn by "
+            f"min_asymmetry_m={p.min_asymmetry_m} m; lower it or allow more corridor objects"
+        )
+    objects += extra
     layout = {
         "name": "procedural_lookalike",
         "outer": [[0.0, 0.0], [length, 0.0], [length, height], [0.0, height]],
@@ -213,6 +246,26 @@ def lookalike_layout(rng: np.random.Generator, params: ProceduralParams | None =
         "objects": objects,
     }
     return layout, frames
+
+
+def half_turn_asymmetry(objects: list, length: float, height: float) -> float:
+    """How far ``objects`` (layout-dict objects) are from mapping onto themselves under the half turn
+    about the centre of a ``length`` x ``height`` layout, metres.
+
+    For each object, the distance from its half-turned centre to the nearest centre of an object of
+    the same class (itself included); the largest of these. 0 for no objects. An object whose
+    image lands far from any object of its class tells a pose from its half-turned image.
+    """
+    if not objects:
+        return 0.0
+    centres = np.array([o["center"] for o in objects], dtype=np.float64)
+    classes = np.array([o["class"] for o in objects])
+    images = np.array([length, height]) - centres
+    worst = 0.0
+    for i, cls in enumerate(classes):
+        same = centres[classes == cls]
+        worst = max(worst, float(np.min(np.hypot(*(same - images[i]).T))))
+    return worst
 
 
 def _corridor_objects(rng, p, length, depth, corridor, south_doors, north_doors, half) -> list:
