@@ -126,11 +126,17 @@ def test_robotlaser1(tmp_path):
 @pytest.mark.parametrize(
     "line, match",
     [
-        ("FLASER 3 1.0 2.0", "need"),
+        ("FLASER 3 1.0 2.0", "3 readings make 12 fields"),
         ("FLASER x 1.0", "not an integer"),
         ("FLASER 2 1.0 abc 0 0 0 0 0 0 1.0 h 1.0", "non-numeric"),
         ("FLASER 2 1.0 -2.0 0 0 0 0 0 0 1.0 h 1.0", "negative range"),
+        ("FLASER 2 1.0 2.0 3.3 0 0 0 0 0 0 1.0 h 1.0", "2 readings make 11 fields .* got 14"),  # one reading extra
+        ("FLASER 3 1.0 2.0 0 0 0 0 0 0 1.0 h 1.0", "3 readings make 12 fields .* got 13"),  # one reading short
+        ("FLASER 2 1.0 nan 0 0 0 0 0 0 1.0 h 1.0", "non-finite value 'nan' at position 1 of 2"),
         ("ODOM 1 2", "ODOM"),
+        ("ODOM 1 0 0 0 0 2.0 h 2.0", "ODOM: x y theta tv rv accel make 8 fields .* got 9"),  # y missing
+        ("ODOM 1 2 0 0 0 0 2.0 h", "got 9"),  # a line cut off at the end of a truncated file
+        ("ODOM 1 2 0 0 0 0 2.0 h 2.0 7", "got 11"),
     ],
 )
 def test_malformed_lines(tmp_path, line, match):
@@ -139,6 +145,31 @@ def test_malformed_lines(tmp_path, line, match):
     with pytest.raises(CarmenLogError, match=match) as e:
         read_carmen(f)
     assert e.value.line in (0, 3)
+
+
+def test_robotlaser_field_count(tmp_path):
+    head = "ROBOTLASER1 0 -1.5 3.1 0.01 80 0.01 0 2 1.0 2.0 0"  # 2 readings, no remissions
+    tail = " 0 0 0 0 0 0 0 0 0 0 0 1.0"  # laser and robot pose, tv rv fwd side turn_axis, timestamp
+    f = tmp_path / "rl.log"
+    for extra, ok in (("", True), (" h 1.0", True), (" h 1.0 9", False), (" h", False)):
+        f.write_text(head + tail + extra + "\n")
+        if ok:
+            assert read_carmen(f).ranges.shape == (1, 2)
+        else:
+            with pytest.raises(CarmenLogError, match="ROBOTLASER1: 2 readings and 0 remissions make 24 fields"):
+                read_carmen(f)
+
+
+def test_message_lengths_with_and_without_host_and_logger_timestamp(tmp_path):
+    """Both documented lengths read the same (older CARMEN logs end a message at its timestamp)."""
+    full = _flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 0.0)
+    short = " ".join(full.split()[:-2])
+    f, g = tmp_path / "full.log", tmp_path / "short.log"
+    f.write_text(f"{full}\nODOM 0.1 0 0 0 0 0 1.0 h 1.0\n{full}\n")
+    g.write_text(f"{short}\nODOM 0.1 0 0 0 0 0 1.0\n{short}\n")
+    a, b = read_carmen(f), read_carmen(g)
+    np.testing.assert_array_equal(a.ranges, b.ranges)
+    np.testing.assert_array_equal(a.odometry, b.odometry)
 
 
 def test_bad_arguments(tmp_path):

@@ -70,3 +70,24 @@ def test_cheap_benchmarks_run_and_print_finite_figures(name):
     rows = fn(bench.Args(steps=20, repeats=2, only=(name,)))
     assert rows
     assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows
+
+
+def test_quick_reproductions_write_under_build_not_docs():
+    """A smoke run must never overwrite the shipped reports and figures in docs/."""
+    from agents.experiments import paper004
+    from filters.experiments import paper000, paper001
+    from filters.experiments.cli import parse
+
+    for module, report, figures in (
+        (paper000, "out", "figures"),
+        (paper001, "doc", "fig_dir"),
+        (paper004, "out", None),
+    ):
+        quick = parse(module.Args, ["--quick"]).resolved()
+        full = parse(module.Args, []).resolved()
+        assert getattr(quick, report).startswith("build/"), module.__name__
+        assert getattr(full, report).startswith("docs"), module.__name__
+        if figures:
+            assert getattr(quick, figures).startswith("build/") and getattr(full, figures) == "docs/figures"
+    assert parse(paper004.Args, ["--quick"]).resolved().seeds == 5
+    assert parse(paper004.Args, ["--quick", "--out", "x"]).resolved().out == "x"

@@ -135,3 +135,27 @@ def test_a_map_of_another_place_is_refused(aces, aces_map):
     shifted = dataclasses.replace(aces_map, origin_xy_m=(x0 + 500.0, y0 + 500.0))
     with pytest.raises(ValueError, match="lie on the map"):
         track(aces, shifted, MCLConfig(n_particles=100), rng_seed=0, start=0, stop=20)
+
+
+def test_replay_command_reports_bad_input_without_a_traceback(tmp_path, capsys):
+    from filters.tools import replay_log
+
+    bad_log = tmp_path / "bad.log"
+    bad_log.write_text("FLASER 2 1.0 2.0 3.3 0 0 0 0 0 0 1.0 h 1.0\n")  # one reading too many
+    bad_map = tmp_path / "bad.yaml"
+    bad_map.write_text("image: missing.pgm\nresolution: 0.05\n")
+    out = ["--out", str(tmp_path / "out")]
+    for argv, match in [
+        (["--log", str(bad_log)], "bad.log:1: FLASER: 2 readings make 11 fields"),
+        (["--map", str(bad_map)], "bad.yaml"),
+        (["--log", str(tmp_path / "none.log")], "not found"),
+        (["--start", "500"], "--start 500 is beyond the log's 440 scans"),
+        (["--mode", "global", "--trials", "441"], "--trials 441 is more than the log's 440 scans"),
+    ]:
+        assert replay_log.main(argv + out) == 2, argv
+        err = capsys.readouterr().err
+        assert match in err and "Traceback" not in err, (argv, err)
+    with pytest.raises(SystemExit):  # an option that needs another: an argument error
+        replay_log.main(["--trials", "3", *out])
+    err = " ".join(capsys.readouterr().err.replace("│", " ").split())  # tyro's box, wrapped
+    assert "it needs --mode global" in err

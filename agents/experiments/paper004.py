@@ -11,9 +11,9 @@ variants up to the point where their (different) beliefs stop the episode.
 Per case and variant it reports the success rate (belief converged within 0.5 m
 and 15 deg of the truth before the time limit), the wrong-convergence rate
 (converged elsewhere at the end), the median and 90th-percentile steps to
-success, and writes into ``--out`` (default ``docs/``): ``paper004.md`` (table +
-command), ``figures/paper004_mean_weight.png`` (mean per-beam lidar likelihood
-against iteration: paper 004 Fig. 15/21) and ``figures/paper004_particles.png``
+success, and writes into ``--out`` (default ``docs/``; ``--quick``: 5 seeds, 200 steps,
+``build/paper004_quick/``): ``paper004.md`` (table + command), ``figures/paper004_mean_weight.png``
+(mean per-beam lidar likelihood against iteration: paper 004 Fig. 15/21) and ``figures/paper004_particles.png``
 (particle snapshots: Fig. 14).
 
 Run from the repository root: ``python scripts/repro_paper004.py`` (or ``semreloc-repro-paper004``);
@@ -22,6 +22,7 @@ Run from the repository root: ``python scripts/repro_paper004.py`` (or ``semrelo
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
@@ -64,8 +65,10 @@ class Args:
     """JSON dict of MCLConfig overrides (filters.localization.mcl), both variants, e.g. '{"likelihood_scale": 0.05}'"""
     env_id: str = "SemReloc-v0"
     """env id: docs/paper004.md was made with SemReloc-v0 (the first release's relocalizer)"""
-    out: str = "docs"
-    """folder for paper004.md and figures/"""
+    out: str = ""
+    """folder for paper004.md and figures/ (default docs, with --quick build/paper004_quick)"""
+    quick: bool = False
+    """smoke run: 5 seeds per row and at most 200 steps (overrides those), written into build/"""
     runner: Runner = RunnerConfig(workers=2)
 
     def __post_init__(self) -> None:
@@ -77,6 +80,13 @@ class Args:
             raise ValueError(f"mcl is not JSON: {e}") from None
         if not isinstance(mcl, dict):
             raise ValueError(f"mcl must be a JSON object of MCLConfig overrides, got {self.mcl!r}")
+
+    def resolved(self) -> Args:
+        """Apply ``--quick`` and the default output folder (relative to the working directory)."""
+        a = self
+        if a.quick:
+            a = dataclasses.replace(a, seeds=min(a.seeds, 5), max_steps=min(a.max_steps, 200))
+        return dataclasses.replace(a, out=a.out or ("build/paper004_quick" if a.quick else "docs"))
 
 
 def run_episode(job: tuple) -> dict:
@@ -149,7 +159,7 @@ def summarise(results: list[dict]) -> dict:
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run the episodes, write table and figures."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = parse(Args, argv, __doc__)
+    args = parse(Args, argv, __doc__).resolved()
     cases = list(args.cases)
     mcl = json.loads(args.mcl)
     jobs = [

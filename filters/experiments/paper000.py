@@ -11,11 +11,12 @@ one drive (seeded) and runs every compared filter on the *same* drive (paired co
   low observation noise.
 * K sweep: WOCPF pose and landmark error vs the WOC scaling factor K (K = inf is plain FastSLAM).
 
-Writes ``docs/paper000.md`` and PNG figures into ``docs/figures/`` (paths relative to the working
-directory: run it from the repository root). Example (``semreloc-repro-paper000`` is the same command)::
+Writes ``docs/paper000.md`` and PNG figures into ``docs/figures/`` (with ``--quick``:
+``build/paper000_quick/``; paths relative to the working directory: run it from the repository
+root). Example (``semreloc-repro-paper000`` is the same command)::
 
     python scripts/repro_paper000.py              # full default run (20 runs)
-    python scripts/repro_paper000.py --quick      # smoke run: 2 runs, 1 loop, small sweep
+    python scripts/repro_paper000.py --quick      # smoke run: 2 runs, 1 loop, small sweep, into build/
     python scripts/repro_paper000.py --workers 2  # the same numbers from 2 processes (--address: a Ray cluster)
 """
 
@@ -77,12 +78,12 @@ class Args:
     """data association for all filters: 'ml' (max likelihood + gates) or 'known' (ids)"""
     seed: int = 0
     """base seed; run r of noise setting s simulates with np.random.default_rng([seed, s, r])"""
-    out: str = "docs/paper000.md"
-    """Markdown report path"""
-    figures: str = "docs/figures"
-    """folder for the PNG figures"""
+    out: str = ""
+    """Markdown report path (default docs/paper000.md, with --quick build/paper000_quick/paper000.md)"""
+    figures: str = ""
+    """folder for the PNG figures (default docs/figures, with --quick build/paper000_quick/figures)"""
     quick: bool = False
-    """smoke run: 2 runs, 1 lap, Table 1 with N=10,20, K sweep 1,5,inf (overrides those)"""
+    """smoke run: 2 runs, 1 lap, Table 1 with N=10,20, K sweep 1,5,inf (overrides those); writes into build/"""
     runner: Runner = RunnerConfig()
 
     def __post_init__(self) -> None:
@@ -94,12 +95,12 @@ class Args:
             raise ValueError("runs, loops and particle counts must be >= 1 and k_sweep not empty")
 
     def resolved(self) -> Args:
-        """Apply ``--quick``."""
-        return (
-            replace(self, runs=2, loops=1, table1_particles=(10, 20), k_sweep=(1.0, 5.0, math.inf))
-            if self.quick
-            else self
-        )
+        """Apply ``--quick`` and the default output paths (relative to the working directory)."""
+        a = self
+        if a.quick:
+            a = replace(a, runs=2, loops=1, table1_particles=(10, 20), k_sweep=(1.0, 5.0, math.inf))
+        root = Path("build/paper000_quick" if a.quick else "docs")
+        return replace(a, out=a.out or str(root / "paper000.md"), figures=a.figures or str(root / "figures"))
 
 
 # ---------------------------------------------------------------------------- one filter on one drive

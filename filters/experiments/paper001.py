@@ -484,12 +484,12 @@ def write_report(args: Args, argv: list[str], t1: dict, t3: dict | None, figs: l
     L.append("\n(Positive = lower RMSE than PF.)\n")
 
     L.append("### Run time per run of 100 steps (mean, seconds)\n")
+    n_ref = 100 if 100 in ns else ns[-1]
     L.append(
-        "| filter | " + " | ".join(f"N={n}" for n in ns) + " | paper, N=100 | ratio to PF, ours N=100 "
+        "| filter | " + " | ".join(f"N={n}" for n in ns) + f" | paper, N=100 | ratio to PF, ours N={n_ref} "
         "| ratio to PF, paper |"
     )
     L.append("|" + "---|" * (4 + len(ns)))
-    n_ref = 100 if 100 in ns else ns[-1]
     pf_t = t1["time"][("PF", n_ref)].mean()
     for name in ["PF", "FA-PF", "IFA-PF"]:
         tt = [t1["time"][(name, n)].mean() for n in ns]

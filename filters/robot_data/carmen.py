@@ -14,6 +14,10 @@ One line per message, fields separated by white space:
 * Any other message (``RLASER``, ``TRUEPOS``, ``SYNC``, ``NEFF``, ...) is counted in
   `CarmenLog.skipped` and otherwise ignored.
 
+An ``ODOM``, ``FLASER`` or ``ROBOTLASER1`` line must have exactly its fields as above, or end at its
+``timestamp`` (older logs have no host and logger timestamp); any other count is a `CarmenLogError`
+naming the line, since one field more or less would shift every later field into the wrong place.
+
 Messages are taken in **file order**: the timestamps of many Radish logs are broken (zero,
 repeated or going backwards), so they are kept (`CarmenLog.timestamps`) but never used
 to sort.
@@ -186,8 +190,10 @@ def _floats(tokens: list[str], what: str, path: str, lineno: int) -> list[float]
         vals = [float(t) for t in tokens]
     except ValueError:
         raise CarmenLogError(path, lineno, f"{what}: non-numeric field in {tokens[:8]}") from None
-    if not all(math.isfinite(v) for v in vals):
-        raise CarmenLogError(path, lineno, f"{what}: non-finite field")
+    bad = [i for i, v in enumerate(vals) if not math.isfinite(v)]
+    if bad:
+        i = bad[0]
+        raise CarmenLogError(path, lineno, f"{what}: non-finite value {tokens[i]!r} at position {i} of {len(vals)}")
     return vals
 
 
@@ -203,10 +209,20 @@ def _count(tok: list[str], i: int, what: str, path: str, lineno: int) -> int:
     return n
 
 
+def _check_length(tok: list[str], short: int, what: str, detail: str, path: str, lineno: int) -> None:
+    """A message of ``short`` fields up to its timestamp, or ``short + 2`` with host and logger timestamp."""
+    if len(tok) not in (short, short + 2):
+        raise CarmenLogError(
+            path,
+            lineno,
+            f"{what}: {detail} make {short} fields up to the timestamp ({short + 2} with host and logger "
+            f"timestamp), got {len(tok)}: a field missing or extra (a reading count that does not match?)",
+        )
+
+
 def _parse_flaser(tok, path, lineno):
     n = _count(tok, 1, "FLASER", path, lineno)
-    if len(tok) < 2 + n + 7:
-        raise CarmenLogError(path, lineno, f"FLASER: {n} readings need {2 + n + 7} fields, got {len(tok)}")
+    _check_length(tok, 2 + n + 7, "FLASER", f"{n} readings", path, lineno)
     ranges = _floats(tok[2 : 2 + n], "FLASER ranges", path, lineno)
     pose = _floats(tok[2 + n : 5 + n], "FLASER pose", path, lineno)
     odom = _floats(tok[5 + n : 8 + n], "FLASER odometry", path, lineno)
@@ -225,8 +241,7 @@ def _parse_robotlaser(tok, path, lineno):
     i = 9 + n
     m = _count(tok, i, "ROBOTLASER1 remissions", path, lineno)
     i += 1 + m
-    if len(tok) < i + 12:
-        raise CarmenLogError(path, lineno, f"ROBOTLASER1: {n} readings, {m} remissions need {i + 12} fields")
+    _check_length(tok, i + 12, "ROBOTLASER1", f"{n} readings and {m} remissions", path, lineno)
     ranges = _floats(tok[9 : 9 + n], "ROBOTLASER1 ranges", path, lineno)
     laser_pose = _floats(tok[i : i + 3], "ROBOTLASER1 laser pose", path, lineno)
     robot_pose = _floats(tok[i + 3 : i + 6], "ROBOTLASER1 robot pose", path, lineno)
@@ -297,8 +312,7 @@ def read_carmen(
                         raise CarmenLogError(spath, lineno, "PARAM: needs a name and a value")
                     params[tok[1]] = tok[2]
                 elif kind == "ODOM":
-                    if len(tok) < 4:
-                        raise CarmenLogError(spath, lineno, f"ODOM: needs x y theta, got {len(tok) - 1} fields")
+                    _check_length(tok, 8, "ODOM", "x y theta tv rv accel", spath, lineno)
                     odom.append(_floats(tok[1:4], "ODOM pose", spath, lineno))
                 elif kind in _LASERS and (chosen is None or kind == chosen):
                     chosen = kind

@@ -157,7 +157,7 @@ class SemanticScan:
 
     Attributes:
         ranges: ``(B,)`` metres to the nearest surface; ``>= range_max_m`` means no return.
-        angles: ``(B,)`` beam angles in the robot frame, radians.
+        angles: ``(B,)`` beam angles in the *sensor* frame, radians (as for `LaserScan`).
         labels: ``(B,)`` int; ``0`` = no detected object, ``k + 1`` = class ``k`` of the map.
         range_max_m: the camera's maximum range in metres.
         sensor_pose: ``(3,)`` pose of the camera in the robot frame (angles are in its frame).

@@ -21,6 +21,7 @@ is the same command).
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,8 +34,8 @@ from filters.experiments.report import pyplot, save_figure
 from filters.localization.mcl import MCLConfig
 from filters.mapping.from_scans import map_from_scans
 from filters.mapping.grid import GridMap
-from filters.mapping.ros_map import load_map
-from filters.robot_data.carmen import read_carmen
+from filters.mapping.ros_map import MapFormatError, load_map
+from filters.robot_data.carmen import CarmenLogError, read_carmen
 from filters.robot_data.replay import Track, global_localization_trials, summarize_trials, track
 
 DEFAULT_LOG = Path(__file__).resolve().parents[2] / "tests" / "data" / "aces-corrected.log.gz"
@@ -77,6 +78,12 @@ class Args:
             raise ValueError("particles >= 1 and start, steps, trials, frame_every >= 0 are required")
         if not self.resolution > 0 or self.trial_steps < 1 or self.gif_px < 16:
             raise ValueError("resolution > 0, trial_steps >= 1 and gif_px >= 16 are required")
+        if self.trials and self.mode != "global":
+            raise ValueError("--trials runs global localization trials: it needs --mode global")
+
+
+class LogArgumentError(ValueError):
+    """An option that does not fit the log it is given (``--start`` or ``--trials`` beyond its scans)."""
 
 
 def _map(args: Args, log, out: Path) -> GridMap:
@@ -143,6 +150,10 @@ def run(args: Args) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     log = read_carmen(args.log)
+    if args.start >= len(log):
+        raise LogArgumentError(f"--start {args.start} is beyond the log's {len(log)} scans (0..{len(log) - 1})")
+    if args.trials > len(log):
+        raise LogArgumentError(f"--trials {args.trials} is more than the log's {len(log)} scans (one start scan each)")
     grid = _map(args, log, out)
     cfg = MCLConfig(n_particles=args.particles)
     stop = len(log) if args.steps <= 0 else min(len(log), args.start + args.steps)
@@ -183,8 +194,14 @@ def run(args: Args) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The command: parse ``argv`` (default ``sys.argv[1:]``) and `run`."""
-    run(parse(Args, argv, __doc__))
+    """The command: parse ``argv`` (default ``sys.argv[1:]``) and `run`. A log or map that cannot be read,
+    or an option beyond the log, prints the reason and returns 2 (no traceback)."""
+    args = parse(Args, argv, __doc__)
+    try:
+        run(args)
+    except (CarmenLogError, MapFormatError, FileNotFoundError, LogArgumentError) as e:
+        print(f"replay_log: error: {e}", file=sys.stderr)
+        return 2
     return 0
 
 
