@@ -84,3 +84,17 @@ def test_paired_bootstrap_bad_input():
         paired_bootstrap_interval(np.ones(3), np.ones(4), rng)
     with pytest.raises(ValueError, match="n_resamples"):
         paired_bootstrap_interval(np.ones(3), np.ones(3), rng, n_resamples=0)
+
+
+def test_holm_adjusted_by_hand():
+    from filters.experiments.stats import holm_adjusted
+
+    # sorted 0.01, 0.02, 0.04, 0.3 with m = 4: 0.04, 0.06, 0.08 -> running max, 0.3 (order restored)
+    np.testing.assert_allclose(holm_adjusted([0.04, 0.01, 0.3, 0.02]), [0.08, 0.04, 0.3, 0.06])
+    np.testing.assert_allclose(holm_adjusted([0.5, 0.5]), [1.0, 1.0])  # capped at 1
+    out = holm_adjusted([np.nan, 0.02, 0.03])  # NaN: not counted, stays NaN
+    assert np.isnan(out[0])
+    np.testing.assert_allclose(out[1:], [0.04, 0.04])
+    assert holm_adjusted([]).size == 0
+    with pytest.raises(ValueError, match="p-values"):
+        holm_adjusted([1.5])

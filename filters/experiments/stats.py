@@ -4,6 +4,7 @@
 * `t_mean_interval` -- mean and Student-t half-width of a sample mean.
 * `normal_mean_interval` -- mean and normal-approximation half-width (``z * s / sqrt(n)``).
 * `paired_bootstrap_interval` -- percentile bootstrap interval of a statistic of paired samples.
+* `holm_adjusted` -- Holm's step-down adjustment of p-values for a family of tests.
 
 Effective sample size lives with the weights it describes:
 `filters.smc.resampling.effective_sample_size`.
@@ -23,6 +24,7 @@ __all__ = [
     "normal_mean_interval",
     "paired_bootstrap_interval",
     "relative_reduction_pct",
+    "holm_adjusted",
 ]
 
 
@@ -119,3 +121,24 @@ def paired_bootstrap_interval(
     )
     ci = res.confidence_interval
     return (float(statistic(base, new)), float(ci.low), float(ci.high))
+
+
+def holm_adjusted(p_values) -> np.ndarray:
+    """Holm's step-down adjusted p-values of a family of tests (same order as given).
+
+    Rejecting every test whose adjusted p-value is below ``alpha`` keeps the family-wise error
+    rate at ``alpha``: with m tests, one of them "significant" at 0.05 by chance alone is likely
+    when m is large, and this correction accounts for it. NaN p-values stay NaN and are not counted.
+    """
+    p = np.asarray(p_values, dtype=np.float64).reshape(-1)
+    out = np.full(p.shape, np.nan)
+    ok = np.flatnonzero(np.isfinite(p))
+    if ok.size == 0:
+        return out
+    if np.any((p[ok] < 0) | (p[ok] > 1)):
+        raise ValueError(f"p-values must lie in [0, 1], got {p[ok].tolist()}")
+    order = ok[np.argsort(p[ok], kind="stable")]
+    m = order.size
+    adjusted = np.minimum(1.0, np.maximum.accumulate((m - np.arange(m)) * p[order]))
+    out[order] = adjusted
+    return out
