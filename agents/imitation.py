@@ -40,7 +40,7 @@ from filters.numbers import is_int, is_real
 
 from .learned import save_policy
 from .options import TeacherLabels  # noqa: F401  (documented here: agents.imitation.TeacherLabels)
-from .train_active import ENV_ID, ActiveTrainConfig, build_model, make_active_venv
+from .train_active import ENV_ID, ActiveTrainConfig, build_model, check_fresh_out, make_active_venv
 
 
 def _default_train() -> ActiveTrainConfig:
@@ -224,6 +224,7 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
     Seeded: the same config gives the same policy (on the same machine and library versions).
     """
     out = Path(out)
+    check_fresh_out(out)
     out.mkdir(parents=True, exist_ok=True)
     t = config.train
     torch.set_num_threads(int(t.torch_threads))

@@ -74,7 +74,7 @@ def _restart(planner, seed, obs: dict) -> None:
     planner.observe(obs)
 
 
-class MotionOptions(gym.Wrapper):
+class MotionOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """``Discrete(4 + len(options))``: the env's four discrete actions, then one step of each option.
 
     ``info["option_action"]`` is the env action an option chose (only on option steps): an int,
@@ -92,7 +92,8 @@ class MotionOptions(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, options: tuple[str, ...] = ("explore",)):
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, options=options)
+        gym.Wrapper.__init__(self, env)
         if not has_semreloc_actions(env.action_space):
             raise TypeError(
                 f"{type(self).__name__} needs the Discrete(4) or Box(-1, 1, (2,)) action space, got {env.action_space}"
@@ -152,10 +153,11 @@ class ExplorerOption(MotionOptions):
     """``Discrete(5)``: the env's four discrete actions, and 4 = one step of the explorer."""
 
     def __init__(self, env: gym.Env):
+        gym.utils.RecordConstructorArgs.__init__(self)  # before MotionOptions records its options
         super().__init__(env, ("explore",))
 
 
-class TeacherLabels(gym.Wrapper):
+class TeacherLabels(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """``info["teacher_action"]``: the discrete action (0 forward, 1 left, 2 right) the viewpoint
     planner would take from the current state, after `reset` and every `step` (the teacher of
     `agents.imitation`).
@@ -171,7 +173,8 @@ class TeacherLabels(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, planner: dict[str, Any] | None = None):
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, planner=planner)
+        gym.Wrapper.__init__(self, env)
         if env.action_space != gym.spaces.Discrete(4):
             raise TypeError(f"TeacherLabels needs the Discrete(4) action space, got {env.action_space}")
         from .viewpoint import ViewpointPlanner

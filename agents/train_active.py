@@ -58,7 +58,8 @@ class ActiveTrainConfig:
     files: tuple[str, ...] = ()
     """layout files (.json / .yaml) drawn as well, each one more entry after the kinds"""
     kind_weights: tuple[float, ...] | None = (1.0, 1.0, 2.0)
-    """one weight per entry, kinds then files (None: equal); the default fits the default kinds"""
+    """one weight per entry, kinds then files, or one per kind only (files then weigh 1 each);
+    None: equal. The default fits the default kinds"""
     layout_seeds: tuple[int, int] = (0, 100)
     """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
     mapping-run cache serve repeats"""
@@ -138,10 +139,11 @@ class ActiveTrainConfig:
         if not (0 <= lo < hi):
             raise ValueError(f"layout_seeds must be (start, stop) with 0 <= start < stop, got {self.layout_seeds!r}")
         entries = len(self.kinds) + len(self.files)
-        if self.kind_weights is not None and len(self.kind_weights) != entries:
+        if self.kind_weights is not None and len(self.kind_weights) not in (entries, len(self.kinds)):
             raise ValueError(
-                f"kind_weights needs one weight per kind and file ({entries}), got {self.kind_weights!r}; "
-                "give as many (--config.kind-weights 1 1 ...) or None for equal weights (--config.kind-weights None)"
+                f"kind_weights needs one weight per kind and file ({entries}) or per kind ({len(self.kinds)}), "
+                f"got {self.kind_weights!r}; give as many (--config.kind-weights 1 1 ...) or None for equal "
+                "weights (--config.kind-weights None)"
             )
         if self.time_budget_s is not None and not self.time_budget_s > 0:
             raise ValueError(f"time_budget_s must be None or > 0, got {self.time_budget_s!r}")
@@ -164,8 +166,12 @@ class ActiveTrainConfig:
             kinds=self.kinds,
             files=self.files,
             seeds=range(*self.layout_seeds),
-            weights=None if self.kind_weights is None else list(self.kind_weights),
+            weights=None if self.kind_weights is None else self._entry_weights(),
         )
+
+    def _entry_weights(self) -> list[float]:
+        weights = list(self.kind_weights)
+        return weights + [1.0] * (len(self.kinds) + len(self.files) - len(weights))
 
 
 class WallClockBudget(BaseCallback):
@@ -279,6 +285,74 @@ def plot_learning_curve(progress_csv: str | Path, path: str | Path, repeat: int 
     return path
 
 
+SPACE_FIELDS = ("options", "repeat", "observation")
+"""Fields of `ActiveTrainConfig` that shape the policy's spaces: a resumed run must keep them."""
+DISTRIBUTION_FIELDS = ("kinds", "files", "kind_weights", "layout_seeds", "particles", "max_episode_steps",
+                       "belief_mass_weight", "reward_weights")  # fmt: skip
+"""Fields that shape what a run trains on: a resumed run that changes them is told so."""
+
+
+class RunFolderError(ValueError):
+    """``--out`` or ``--resume`` does not fit: a run in the way, a missing checkpoint, other spaces."""
+
+
+def check_fresh_out(out: Path) -> None:
+    """RunFolderError if ``out`` holds a training run already (a new run would overwrite its policy and
+    config and leave its checkpoints and TensorBoard events beside the new ones)."""
+    held = [n for n in ("config.json", "policy.zip", "checkpoints") if (out / n).exists()]
+    if held:
+        raise RunFolderError(
+            f"{out} holds a training run already ({', '.join(held)}): choose a new --out, or continue that run "
+            f"with --resume {out}/checkpoints/<checkpoint>.zip"
+        )
+
+
+def run_config_of(checkpoint: Path) -> dict[str, Any] | None:
+    """The `ActiveTrainConfig` fields a checkpoint or saved policy was trained with, from its run's
+    ``config.json`` (``<out>/checkpoints/x.zip`` or ``<out>/policy.zip``; an imitation run's
+    ``train`` entry); None if there is none."""
+    folders = [checkpoint.parent.parent] if checkpoint.parent.name == "checkpoints" else [checkpoint.parent]
+    for folder in folders:
+        f = folder / "config.json"
+        if f.is_file():
+            saved = json.loads(f.read_text())
+            return saved.get("train", saved)
+    return None
+
+
+def check_resume(resume: str | Path, config: ActiveTrainConfig) -> Path:
+    """The checkpoint's path; RunFolderError if it is missing or if ``config`` changes a
+    field that shapes the policy's spaces (`SPACE_FIELDS`) from the run it continues; a changed field
+    of `DISTRIBUTION_FIELDS` is printed (continuing on other layouts can be meant). Checked before any
+    env is built."""
+    path = Path(resume)
+    if not path.is_file() and path.with_suffix(".zip").is_file():
+        path = path.with_suffix(".zip")
+    if not path.is_file():
+        raise RunFolderError(f"--resume {resume}: no such checkpoint")
+    saved = run_config_of(path)
+    if saved is None:
+        return path
+    now = json.loads(json.dumps(config.as_dict()))  # tuples as lists, as in the saved file
+    differ = [f for f in SPACE_FIELDS if f in saved and saved[f] != now[f]]
+    if differ:
+        raise RunFolderError(
+            f"--resume {resume}: its run used "
+            + ", ".join(f"{f}={saved[f]!r}" for f in differ)
+            + ", this one "
+            + ", ".join(f"{f}={now[f]!r}" for f in differ)
+            + ": pass the same --config.<field> values (see the run's config.json)"
+        )
+    changed = [f for f in DISTRIBUTION_FIELDS if f in saved and saved[f] != now[f]]
+    if changed:
+        print(
+            f"note: continuing {path} with other training settings than its run: "
+            + "; ".join(f"{f} {saved[f]!r} -> {now[f]!r}" for f in changed),
+            flush=True,
+        )
+    return path
+
+
 def train_active(
     config: ActiveTrainConfig,
     out: str | Path,
@@ -295,6 +369,10 @@ def train_active(
     kept as ``*_before_<decisions>.*`` (SB3 would overwrite them).
     """
     out = Path(out)
+    if resume is None:
+        check_fresh_out(out)
+    else:
+        resume = check_resume(resume, config)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(int(config.torch_threads))
     venv = make_active_venv(config)

@@ -143,7 +143,7 @@ class LayoutSampler:
         return LayoutDraw(kind, seed, _layout(kind, seed))
 
 
-class RandomLayout(gym.Wrapper):
+class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Give a ``SemReloc`` env a new layout, drawn from ``sampler``, before every reset.
 
     ``reset(seed=s)`` reseeds the layout stream (``np.random.default_rng([s, salt])``), so the
@@ -161,7 +161,8 @@ class RandomLayout(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, sampler: LayoutSampler | None = None, seed: int = 0, cache_size: int = 64):
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, sampler=sampler, seed=seed, cache_size=cache_size)
+        gym.Wrapper.__init__(self, env)
         base = env.unwrapped
         if not hasattr(base, "set_layout"):
             raise TypeError(f"RandomLayout needs an env with set_layout(); {type(base).__name__} has none")

@@ -56,7 +56,7 @@ def belief_mass_near(
     return float(np.clip(w[near].sum() / w.sum(), 0.0, 1.0))
 
 
-class BeliefMassReward(gym.Wrapper):
+class BeliefMassReward(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Add ``weight * belief_mass_near(particles, truth)`` as the reward term ``belief_mass``.
 
     ``mode="level"`` pays the mass every step (as Active Neural Localization); ``mode="gain"``
@@ -80,7 +80,10 @@ class BeliefMassReward(gym.Wrapper):
         heading_tol_rad: float | None = None,
         mode: str = "level",
     ):
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, weight=weight, radius_m=radius_m, heading_tol_rad=heading_tol_rad, mode=mode
+        )
+        gym.Wrapper.__init__(self, env)
         if mode not in ("level", "gain"):
             raise ValueError(f"mode must be 'level' or 'gain', got {mode!r}")
         if not math.isfinite(weight):

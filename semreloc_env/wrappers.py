@@ -33,7 +33,7 @@ BELIEF_FEATURES = ("pos_std_m", "theta_std_rad", "entropy_nats", "n_clusters", "
 """Order of the entries of the ``belief`` observation (see `BeliefObservation`)."""
 
 
-class BeliefObservation(gym.Wrapper):
+class BeliefObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Add the filter's belief summary to the Dict observation under the key ``belief``.
 
     ``obs["belief"]`` is a float32 vector of ``len(BELIEF_FEATURES)`` = 6 entries, each
@@ -73,7 +73,10 @@ class BeliefObservation(gym.Wrapper):
         entropy_max_nats: float | None = None,
         max_clusters: int = 20,
     ):
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, pos_std_max_m=pos_std_max_m, entropy_max_nats=entropy_max_nats, max_clusters=max_clusters
+        )
+        gym.Wrapper.__init__(self, env)
         if not isinstance(env.observation_space, spaces.Dict):
             raise TypeError(f"BeliefObservation needs a Dict observation space, got {env.observation_space}")
         if "belief" in env.observation_space.spaces:
@@ -132,7 +135,7 @@ class BeliefObservation(gym.Wrapper):
         return self._augment(obs, info), reward, terminated, truncated, info
 
 
-class FlatObservation(gym.ObservationWrapper):
+class FlatObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """Concatenate the entries of a Dict observation into one float32 Box.
 
     The flat vector holds the keys in ``keys`` order (default: the Dict's own key order, which
@@ -149,7 +152,8 @@ class FlatObservation(gym.ObservationWrapper):
     """
 
     def __init__(self, env: gym.Env, keys: Sequence[str] | None = None):
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, keys=keys)
+        gym.ObservationWrapper.__init__(self, env)
         space = env.observation_space
         if not isinstance(space, spaces.Dict):
             raise TypeError(f"FlatObservation needs a Dict observation space, got {space}")
@@ -221,7 +225,7 @@ __all__ = [
 ]
 
 
-class ActionRepeat(gym.Wrapper):
+class ActionRepeat(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Send each action ``repeat`` times (fewer if the episode ends): one decision per ``repeat`` steps.
 
     The returned observation, ``terminated``, ``truncated`` and ``info`` are those of the last
@@ -238,7 +242,8 @@ class ActionRepeat(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, repeat: int):
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, repeat=repeat)
+        gym.Wrapper.__init__(self, env)
         if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
             raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
         self.repeat = int(repeat)

@@ -164,6 +164,45 @@ def test_resume_continues_the_step_count_and_keeps_the_earlier_logs(smoke_run, t
     assert json.loads((run / "timing.json").read_text())["decisions"] >= done + 64
 
 
+def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsys):
+    """A new run into a used --out, a missing checkpoint, or a resume with other spaces are refused
+    before any env is built; other layouts are allowed but said (a new user's trial)."""
+    import dataclasses
+
+    from agents.tools import train_active as tool
+    from agents.train_active import RunFolderError, check_resume
+
+    out, policy = smoke_run
+    config = ActiveTrainConfig(**json.loads((out / "config.json").read_text()))
+    with pytest.raises(RunFolderError, match="holds a training run already"):
+        train_active(config, out)
+    with pytest.raises(RunFolderError, match="no such checkpoint"):
+        train_active(config, tmp_path / "new", resume=tmp_path / "none.zip")
+    ckpt = sorted((out / "checkpoints").glob("ppo_*_steps.zip"))[0]
+    assert check_resume(str(ckpt)[: -len(".zip")], config) == ckpt  # SB3 adds .zip too
+    with pytest.raises(RunFolderError, match=r"options=\['explore'\].*options=\['explore', 'viewpoint'\]"):
+        check_resume(ckpt, dataclasses.replace(config, options=("explore", "viewpoint")))
+    with pytest.raises(RunFolderError, match="repeat"):
+        check_resume(policy, dataclasses.replace(config, repeat=1))
+    capsys.readouterr()
+    check_resume(ckpt, dataclasses.replace(config, kinds=("procedural_sym",)))
+    assert "kinds ['procedural'] -> ['procedural_sym']" in capsys.readouterr().out
+    assert not (tmp_path / "new").exists()
+    assert tool.main(["--out", str(out), "--config.particles", "100"]) == 2
+    assert "holds a training run already" in capsys.readouterr().err
+
+
+def test_kind_weights_per_kind_give_files_weight_one(tmp_path):
+    from semreloc_env.layouts import get_layout
+
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.json").write_text(json.dumps({**get_layout("twin_rooms").to_dict(), "name": name}))
+    config = ActiveTrainConfig(files=(str(tmp_path / "a.json"), str(tmp_path / "b.json")))
+    assert config._entry_weights() == [1.0, 1.0, 2.0, 1.0, 1.0]
+    with pytest.raises(ValueError, match="per kind and file \\(5\\) or per kind \\(3\\)"):
+        ActiveTrainConfig(files=(str(tmp_path / "a.json"), str(tmp_path / "b.json")), kind_weights=(1.0, 2.0))
+
+
 def test_loaded_policy_acts_deterministically_on_another_layout_and_particle_count(smoke_run):
     _, path = smoke_run
     runs = []

@@ -145,7 +145,7 @@ def test_learned_policy_is_loaded_once_per_file_version_and_acts_as_a_fresh_load
     assert ev.make_policy(spec, 3).model is not a.model
 
 
-def test_bad_arguments_are_caught_before_any_episode(tmp_path):
+def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
     junk = tmp_path / "junk.zip"
     junk.write_text("not a zip")
     for kw, match in [
@@ -157,9 +157,9 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path):
         with pytest.raises(ValueError, match=match):
             ev.Args(**kw)
     out = tmp_path / "out"
-    with pytest.raises(ValueError, match="gif_case"):
-        ev.main(["--policies", "spin", "--layouts-per-kind", "0", "--gif-case", "999", "--out", str(out)])
+    assert ev.main(["--policies", "spin", "--layouts-per-kind", "0", "--gif-case", "999", "--out", str(out)]) == 2
     assert not out.exists()
+    assert "--gif-case 999 is not a case" in capsys.readouterr().err
 
 
 def _row(case, policy, outcome, steps=None, uninformative=False, kind="procedural"):

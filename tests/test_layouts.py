@@ -163,3 +163,11 @@ def test_malformed_files(tmp_path):
         load_layout(tmp_path / "missing.json")
     with pytest.raises(LayoutError, match="unknown layout"):
         get_layout("hall")
+
+
+def test_a_layout_path_may_start_with_a_tilde(tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    d = get_layout("twin_rooms").to_dict()
+    (tmp_path / "mine.json").write_text(json.dumps({**d, "name": "mine"}))
+    assert get_layout("~/mine.json").name == "mine"
+    assert load_layout("~/mine.json").name == "mine"

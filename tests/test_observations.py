@@ -175,3 +175,23 @@ def test_egocentric_raster_frame():
     assert img[0, 16, 20] == pytest.approx(1.0)  # heading equal to the anchor's: bin 0
     assert img[1, 20, 16] == pytest.approx(0.5)  # heading +90 deg relative: bin 1
     assert img[:4].sum() == pytest.approx(1.5)
+
+
+def test_what_reads_scans_in_metres_refuses_an_env_wrapped_by_active_observation():
+    """ActiveObservation keeps the names lidar / semantic_range but scales them to [0, 1]: applied twice,
+    or under a baseline, it would give wrong results silently (a new user's trial)."""
+    import agents
+    from agents.policies import POLICIES
+
+    once = _env("lab", 200)  # ActiveObservation over the raw env
+    with pytest.raises(ValueError, match="ActiveObservation needs the env's own observations.*already"):
+        ActiveObservation(once)
+    for name in ("wall_follow", "spin", "viewpoint"):
+        with pytest.raises(ValueError, match="own observations"):
+            POLICIES[name](0).wrap(once)
+    with pytest.raises(ValueError, match="own observations"):
+        agents.load_policy(agents.SHIPPED_POLICY).wrap(once)
+    raw = gym.make("SemReloc-v3", layout="lab", map_source="perfect", relocalizer={"n_particles": 200})
+    timed = gym.wrappers.TimeLimit(raw, 5)  # a wrapper that keeps the observations is fine
+    assert isinstance(ActiveObservation(timed).observation_space, gym.spaces.Dict)
+    assert POLICIES["spin"](0).wrap(timed) is timed

@@ -164,3 +164,43 @@ def test_flat_observation_key_subset_and_errors():
         FlatObservation(gym.make("SemReloc-v3", **FAST), keys=())
     with pytest.raises(TypeError):
         FlatObservation(gym.make("CartPole-v1"))
+
+
+def test_every_wrapper_records_its_arguments_so_check_env_and_specs_work():
+    """Gymnasium's convention (gymnasium.utils.RecordConstructorArgs): env.spec lists each wrapper with
+    its arguments, gym.make(env.spec) rebuilds the stack, and check_env accepts a wrapped env."""
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    from agents.options import ExplorerOption, MotionOptions, TeacherLabels
+    from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
+    from semreloc_env.observations import ActiveObservation
+    from semreloc_env.rewards import BeliefMassReward
+    from semreloc_env.wrappers import ActionRepeat, BeliefObservation, FlatObservation
+
+    def raw():
+        return gym.make("SemReloc-v3", map_source="perfect", relocalizer={"n_particles": 100})
+
+    stacks = [
+        (ActiveObservation(raw(), ego_size=16), {"ego_size": 16}),
+        (FlatObservation(BeliefObservation(raw(), max_clusters=7)), {"keys": None}),
+        (ActionRepeat(raw(), 3), {"repeat": 3}),
+        (BeliefMassReward(raw(), weight=0.2, mode="gain"), {"weight": 0.2, "mode": "gain"}),
+        (MotionOptions(raw(), ("explore", "viewpoint")), {"options": ("explore", "viewpoint")}),
+        (ExplorerOption(raw()), {}),
+        (TeacherLabels(raw(), {"replan_every": 5}), {"planner": {"replan_every": 5}}),
+        (RandomLayout(raw(), LayoutSampler(kinds=("twin_rooms",)), seed=4), {"seed": 4}),
+    ]
+    for env, kwargs in stacks:
+        spec = env.spec.additional_wrappers[-1]
+        assert spec.name == type(env).__name__
+        assert kwargs.items() <= spec.kwargs.items(), (spec.name, spec.kwargs)
+        again = gym.make(env.spec)
+        assert type(again) is type(env) and again.observation_space == env.observation_space
+        assert again.action_space == env.action_space
+    belief = BeliefObservation(raw(), max_clusters=7)
+    assert belief.spec.additional_wrappers[-1].kwargs["max_clusters"] == 7
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # check_env's advice to pass the unwrapped env
+        check_env(ActiveObservation(raw()), skip_render_check=True)

@@ -602,8 +602,13 @@ def main(argv: list[str] | None = None) -> int:
     policies = [s.partition("=")[0] for s in specs]
     t0 = time.time()
     cases = build_cases(args)
-    if args.gif_case >= len(cases):
-        raise ValueError(f"gif_case: {args.gif_case} is not a case (there are {len(cases)}, 0-{len(cases) - 1})")
+    if args.gif_case >= len(cases):  # known only once the cases are built: an argument error all the same
+        print(
+            f"evaluate_active: error: --gif-case {args.gif_case} is not a case (there are {len(cases)}, "
+            f"0-{len(cases) - 1})",
+            file=sys.stderr,
+        )
+        return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     n_unin = sum(c["uninformative"] for c in cases)

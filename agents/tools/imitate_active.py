@@ -11,11 +11,13 @@ The documented run (docs/active.md):
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 
 from filters.experiments.cli import parse
 
 from ..imitation import ImitationConfig, imitate
+from ..train_active import RunFolderError
 
 
 @dataclass(frozen=True)
@@ -29,6 +31,10 @@ class Args:
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), imitate, save; prints the policy's path."""
     args = parse(Args, argv, __doc__)
-    path = imitate(args.config, args.out)
+    try:
+        path = imitate(args.config, args.out)
+    except RunFolderError as e:  # raised before any env is built
+        print(f"imitate_active: error: {e}", file=sys.stderr)
+        return 2
     print(f"saved {path}")
     return 0

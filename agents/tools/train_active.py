@@ -11,11 +11,12 @@ The documented run (docs/active.md):
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 
 from filters.experiments.cli import parse
 
-from ..train_active import ActiveTrainConfig, train_active
+from ..train_active import ActiveTrainConfig, RunFolderError, train_active
 
 
 @dataclass(frozen=True)
@@ -25,12 +26,17 @@ class Args:
     out: str = "out/active"
     """output folder (created; nothing is written elsewhere)"""
     resume: str | None = None
-    """a checkpoint .zip of this run to continue from"""
+    """a checkpoint .zip (or policy.zip) to continue from; its run's options, repeat and observation must
+    be given again (they shape the policy's spaces); other changed settings are printed"""
 
 
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), train, save; prints the policy's path."""
     args = parse(Args, argv, __doc__)
-    path = train_active(args.config, args.out, resume=args.resume)
+    try:
+        path = train_active(args.config, args.out, resume=args.resume)
+    except RunFolderError as e:  # raised before any env is built
+        print(f"train_active: error: {e}", file=sys.stderr)
+        return 2
     print(f"saved {path}")
     return 0

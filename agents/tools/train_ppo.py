@@ -57,7 +57,8 @@ class Args:
     """the training run; log_dir is the run's folder (model.zip, progress.csv, TensorBoard events,
     checkpoints/, eval/, results.json/.md); eval_* are the periodic EvalCallback evaluations"""
     layout: str = "lab"
-    """layout: lab, twin_rooms, procedural, procedural_sym or a .json/.yaml file"""
+    """layout: a name of semreloc_env.layouts.LAYOUT_NAMES (lab, twin_rooms, three_rooms, open_hall,
+    procedural, procedural_sym, procedural_lookalike), a name on $SEMRELOC_LAYOUT_PATH or a .json/.yaml file"""
     lidar_only: bool = False
     """run the relocalizer without the semantic factor (semantic=False)"""
     map_source: Literal["mapping", "perfect"] = "mapping"

@@ -137,9 +137,11 @@ class SemRelocEnv(SemRelocBase):
     ``collided``; ``kidnapped`` (True from the kidnap step on).
 
     ## Arguments
-    * ``layout``: ``"lab"`` (default, unless ``map_source`` is a map), ``"twin_rooms"``, ``"procedural"``,
-      ``"procedural_sym"``, a ``.json``/``.yaml`` path, a dict, a `Layout`,
-      or a ROS map ``.yaml`` / GridMap (the world it shows); ``layout_seed`` seeds procedural ones.
+    * ``layout``: ``"lab"`` (default, unless ``map_source`` is a map), another built-in
+      (``"twin_rooms"``, ``"three_rooms"``, ``"open_hall"``), a procedural kind (``"procedural"``,
+      ``"procedural_sym"``, ``"procedural_lookalike"``; ``layout_seed`` seeds them), the name of a
+      layout file on ``$SEMRELOC_LAYOUT_PATH``, a ``.json``/``.yaml`` path, a dict, a `Layout`, or a
+      ROS map ``.yaml`` / GridMap (the world it shows). `semreloc_env.layouts.LAYOUT_NAMES` lists the names.
     * ``action_type``: ``"discrete"`` or ``"continuous"``.
     * ``robot``, ``physics``, ``lidar``, ``camera``, ``odometry``: dicts of overrides of
       `RobotParams`, ``PhysicsParams``, ``LidarParams``,

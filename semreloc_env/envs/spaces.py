@@ -101,3 +101,20 @@ def semantic_parts(obs: dict) -> tuple[np.ndarray, np.ndarray]:
     sem = np.asarray(obs["semantic"], dtype=np.float64)
     n = sem.shape[-1] // 2
     return sem[..., :n], np.rint(sem[..., n:]).astype(np.int64)
+
+
+def require_raw_observation(env, who: str) -> None:
+    """ValueError unless ``env`` hands out its SemReloc env's own observations (same space as
+    ``env.unwrapped``: wrappers that keep them, such as ``TimeLimit`` or ``RandomLayout``, are fine).
+
+    For what reads scans in metres from the observation (`ActiveObservation`, the baselines): on an
+    env already wrapped by `ActiveObservation` its ``lidar`` entry is the same name scaled to [0, 1],
+    and reading that as metres gives wrong results without any error."""
+    raw = env.unwrapped.observation_space
+    if env.observation_space != raw:
+        keys = getattr(env.observation_space, "spaces", {})
+        hint = " (is it wrapped by ActiveObservation already?)" if "ego" in keys or "global" in keys else ""
+        raise ValueError(
+            f"{who} needs the env's own observations (scans in metres){hint}; this env's observation space "
+            f"differs from {type(env.unwrapped).__name__}'s: wrap the raw env instead"
+        )

@@ -105,7 +105,7 @@ def get_layout(
         )
         return layout_from_dict(procedural_layout(np.random.default_rng(seed), params))
     if isinstance(spec, (str, Path)):
-        path = Path(spec)
+        path = Path(spec).expanduser()
         if path.suffix.lower() in (".json", ".yaml", ".yml") or path.exists():
             return load_layout(path)
         found = find_layout_file(str(spec))

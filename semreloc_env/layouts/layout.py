@@ -15,7 +15,10 @@ File / dict format (JSON or YAML), all lengths in metres::
       - {class: cabinet, center: [3, 0.3], size: [1.0, 0.5], angle_rad: 0.0}  # box shorthand
       - {class: door, name: entrance, center: [0.05, 5], size: [0.1, 1.0]}  # names: optional, unique
 
-Classes: ``door``, ``chair``, ``trash_bin``, ``cabinet`` (paper 004).
+Classes: ``door``, ``chair``, ``trash_bin``, ``cabinet`` (paper 004). Every object is a solid
+obstacle for the robot and the lidar, a ``door`` too: the built-in layouts' doors are thin panels
+against a wall (the sign a camera recognises), not openings; a door object placed across a
+doorway closes it. Openings are gaps between ``walls``.
 Every problem found raises `LayoutError` naming the offending entry.
 """
 
@@ -400,8 +403,8 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
 
 
 def load_layout(path: str | Path) -> Layout:
-    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text)."""
-    path = Path(path)
+    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text; ``~`` is expanded)."""
+    path = Path(path).expanduser()
     if not path.is_file():
         raise LayoutError(f"layout file not found: {path}")
     if path.suffix.lower() not in (".yaml", ".yml", ".json"):

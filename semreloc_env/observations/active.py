@@ -11,7 +11,7 @@ from gymnasium import spaces
 
 from filters.numbers import is_real
 
-from ..envs.spaces import ODOMETRY_BOUND, semantic_parts
+from ..envs.spaces import ODOMETRY_BOUND, require_raw_observation, semantic_parts
 from ..layouts import CLASS_NAMES
 from .hypotheses import hypotheses_of
 from .rasters import MapRasters, allocentric_raster, egocentric_raster
@@ -59,7 +59,7 @@ OBSERVATION_KEYS = (
 _SQRT2 = math.sqrt(2.0)
 
 
-class ActiveObservation(gym.Wrapper):
+class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Replace a ``SemReloc`` observation by spatial belief features for a policy.
 
     Everything comes from the filter (``env.unwrapped.mcl``'s particles and weights,
@@ -120,7 +120,12 @@ class ActiveObservation(gym.Wrapper):
         n_heading_bins: int = 4,
         max_hypotheses: int = 8,
     ):
-        super().__init__(env)
+        require_raw_observation(env, "ActiveObservation")
+        gym.utils.RecordConstructorArgs.__init__(
+            self, keys=keys, ego_size=ego_size, ego_cell_m=ego_cell_m, global_size=global_size,
+            n_heading_bins=n_heading_bins, max_hypotheses=max_hypotheses,
+        )  # fmt: skip
+        gym.Wrapper.__init__(self, env)
         for name, v in (
             ("ego_size", ego_size),
             ("global_size", global_size),
