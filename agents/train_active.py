@@ -307,41 +307,75 @@ def check_fresh_out(out: Path) -> None:
         )
 
 
+def run_folder_of(checkpoint: Path) -> Path:
+    """The run folder a checkpoint belongs to (``<out>/checkpoints/x.zip`` or ``<out>/policy.zip``)."""
+    return checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
+
+
 def run_config_of(checkpoint: Path) -> dict[str, Any] | None:
-    """The `ActiveTrainConfig` fields a checkpoint or saved policy was trained with, from its run's
-    ``config.json`` (``<out>/checkpoints/x.zip`` or ``<out>/policy.zip``; an imitation run's
-    ``train`` entry); None if there is none."""
-    folders = [checkpoint.parent.parent] if checkpoint.parent.name == "checkpoints" else [checkpoint.parent]
-    for folder in folders:
-        f = folder / "config.json"
-        if f.is_file():
-            saved = json.loads(f.read_text())
-            return saved.get("train", saved)
-    return None
+    """The `ActiveTrainConfig` fields a checkpoint or saved policy was trained with: its run's
+    ``config.json`` (an imitation run's ``train`` entry), else the training config in a saved
+    policy's metadata (`agents.learned.save_policy`), else what that metadata holds of the spaces
+    (``observation``, ``repeat``, ``options``); None if nothing is known."""
+    from .learned import read_metadata
+
+    f = run_folder_of(checkpoint) / "config.json"
+    if f.is_file():
+        saved = json.loads(f.read_text())
+        return saved.get("train", saved)
+    try:
+        meta = read_metadata(checkpoint)
+    except ValueError:  # a bare SB3 checkpoint
+        return None
+    config = (meta.get("extra") or {}).get("config")
+    if isinstance(config, dict):
+        return config.get("train", config)
+    known = {"observation": meta["observation"], "repeat": meta["repeat"]}
+    if meta.get("options") is not None:
+        known["options"] = list(meta["options"])
+    return known
 
 
-def check_resume(resume: str | Path, config: ActiveTrainConfig) -> Path:
-    """The checkpoint's path; RunFolderError if it is missing or if ``config`` changes a
-    field that shapes the policy's spaces (`SPACE_FIELDS`) from the run it continues; a changed field
-    of `DISTRIBUTION_FIELDS` is printed (continuing on other layouts can be meant). Checked before any
+def _comparable(config: dict[str, Any]) -> dict[str, Any]:
+    """``config`` with ``observation`` completed by `ActiveObservation`'s defaults (so ``{}`` equals the
+    defaults given explicitly) and tuples as lists, as ``config.json`` holds them."""
+    import inspect
+
+    from semreloc_env.observations import ActiveObservation
+
+    out = json.loads(json.dumps(config))
+    if isinstance(out.get("observation"), dict):
+        params = inspect.signature(ActiveObservation.__init__).parameters
+        defaults = {k: p.default for k, p in params.items() if k not in ("self", "env")}
+        out["observation"] = json.loads(json.dumps({**defaults, **out["observation"]}))
+    return out
+
+
+def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path | None = None) -> Path:
+    """The checkpoint's path; RunFolderError if it is missing, if ``out`` holds another run than the
+    checkpoint's (`check_fresh_out`), or if ``config`` changes a field that shapes the policy's spaces
+    (`SPACE_FIELDS`) from what the checkpoint was trained with (`run_config_of`); a changed field of
+    `DISTRIBUTION_FIELDS` is printed (continuing on other layouts can be meant). Checked before any
     env is built."""
     path = Path(resume)
     if not path.is_file() and path.with_suffix(".zip").is_file():
         path = path.with_suffix(".zip")
     if not path.is_file():
         raise RunFolderError(f"--resume {resume}: no such checkpoint")
+    if out is not None and Path(out).resolve() != run_folder_of(path).resolve():
+        check_fresh_out(Path(out))
     saved = run_config_of(path)
     if saved is None:
         return path
-    now = json.loads(json.dumps(config.as_dict()))  # tuples as lists, as in the saved file
+    saved, now = _comparable(saved), _comparable(config.as_dict())
     differ = [f for f in SPACE_FIELDS if f in saved and saved[f] != now[f]]
     if differ:
         raise RunFolderError(
-            f"--resume {resume}: its run used "
+            f"--resume {resume}: it was trained with "
             + ", ".join(f"{f}={saved[f]!r}" for f in differ)
-            + ", this one "
+            + ", this run has "
             + ", ".join(f"{f}={now[f]!r}" for f in differ)
-            + ": pass the same --config.<field> values (see the run's config.json)"
+            + ": pass the same --config.<field> values (see its run's config.json)"
         )
     changed = [f for f in DISTRIBUTION_FIELDS if f in saved and saved[f] != now[f]]
     if changed:
@@ -372,7 +406,7 @@ def train_active(
     if resume is None:
         check_fresh_out(out)
     else:
-        resume = check_resume(resume, config)
+        resume = check_resume(resume, config, out)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(int(config.torch_threads))
     venv = make_active_venv(config)

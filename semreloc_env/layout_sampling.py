@@ -28,7 +28,7 @@ import numpy as np
 
 from filters.numbers import is_int
 
-from .layouts import BUILTIN_LAYOUTS_NAMES, PROCEDURAL_LAYOUTS, Layout, get_layout
+from .layouts import BUILTIN_LAYOUTS_NAMES, PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, get_layout
 from .maps import maps_for
 
 HELD_OUT_LAYOUT_SEEDS: range = range(1_000_000, 1_000_500)
@@ -58,8 +58,8 @@ class LayoutDraw:
 
 
 @functools.lru_cache(maxsize=512)
-def _layout(kind: str, seed: int) -> Layout:
-    return get_layout(kind, seed=seed)
+def _layout(kind: str, seed: int, procedural_version: int = PROCEDURAL_VERSION) -> Layout:
+    return get_layout(kind, seed=seed, procedural_version=procedural_version)
 
 
 def is_held_out(seed: int) -> bool:
@@ -133,14 +133,16 @@ class LayoutSampler:
             if not is_held_out(s):
                 return s
 
-    def draw(self, rng: np.random.Generator) -> LayoutDraw:
-        """The next layout (one entry draw, then one seed draw for procedural kinds)."""
+    def draw(self, rng: np.random.Generator, procedural_version: int = PROCEDURAL_VERSION) -> LayoutDraw:
+        """The next layout (one entry draw, then one seed draw for procedural kinds), procedural ones
+        from that version of the generator (`semreloc_env.layouts.get_layout`; `RandomLayout` passes
+        its env's, so ``SemReloc-v2`` keeps its layouts)."""
         i = int(rng.choice(len(self.entries), p=self.weights))
         kind = self.entries[i]
         if kind in self._file_layouts:
             return LayoutDraw(kind, 0, self._file_layouts[kind])
         seed = self._seed(rng) if kind in PROCEDURAL_LAYOUTS else 0
-        return LayoutDraw(kind, seed, _layout(kind, seed))
+        return LayoutDraw(kind, seed, _layout(kind, seed, procedural_version))
 
 
 class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -177,7 +179,7 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.current: LayoutDraw | None = None
 
     def _grid(self, draw: LayoutDraw):
-        key = (draw.kind, draw.seed)
+        key = (draw.kind, draw.seed)  # one env, so one generator version
         grid = self._maps.get(key)
         if grid is None:
             base = self.env.unwrapped
@@ -200,7 +202,7 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 self._rng = np.random.default_rng([int(seed), _SALT])
             else:
                 self._rng = copy.deepcopy(self._rng)  # drawing advances it in place
-            draw = self.sampler.draw(self._rng)
+            draw = self.sampler.draw(self._rng, getattr(base, "procedural_version", PROCEDURAL_VERSION))
             base.set_layout(draw.layout, draw.seed, grid=self._grid(draw), check_map=False)  # maps_for's
             self.current = draw
             obs, info = self.env.reset(seed=seed, options=options)

@@ -137,7 +137,7 @@ def _perfect(layout: Layout) -> GridMap:
 
 def is_ros_map_file(path) -> bool:
     """True for a ``.yaml`` / ``.yml`` file that is a ROS map (has ``image``, no ``outer``), not a layout."""
-    p = Path(path)
+    p = Path(path).expanduser()
     if p.suffix.lower() not in (".yaml", ".yml") or not p.is_file():
         return False
     import yaml

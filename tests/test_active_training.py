@@ -184,6 +184,15 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
         check_resume(ckpt, dataclasses.replace(config, options=("explore", "viewpoint")))
     with pytest.raises(RunFolderError, match="repeat"):
         check_resume(policy, dataclasses.replace(config, repeat=1))
+    check_resume(ckpt, dataclasses.replace(config, observation={"ego_size": 32}))  # a default, given: the same
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    (lone / "policy.zip").write_bytes(policy.read_bytes())  # no config.json beside it: its metadata tells
+    with pytest.raises(RunFolderError, match="repeat"):
+        check_resume(lone / "policy.zip", dataclasses.replace(config, repeat=2))
+    with pytest.raises(RunFolderError, match="holds a training run already"):  # another run's folder
+        check_resume(lone / "policy.zip", config, out=out)
+    assert check_resume(ckpt, config, out=out) == ckpt  # its own run's folder
     capsys.readouterr()
     check_resume(ckpt, dataclasses.replace(config, kinds=("procedural_sym",)))
     assert "kinds ['procedural'] -> ['procedural_sym']" in capsys.readouterr().out

@@ -171,3 +171,16 @@ def test_a_layout_path_may_start_with_a_tilde(tmp_path, monkeypatch):
     (tmp_path / "mine.json").write_text(json.dumps({**d, "name": "mine"}))
     assert get_layout("~/mine.json").name == "mine"
     assert load_layout("~/mine.json").name == "mine"
+
+
+def test_a_ros_map_path_may_start_with_a_tilde(tmp_path, monkeypatch):
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from filters.mapping.ros_map import save_map
+
+    monkeypatch.setenv("HOME", str(tmp_path))
+    env = gym.make("SemReloc-v3", layout="twin_rooms", map_source="perfect").unwrapped
+    save_map(env.grid, tmp_path / "tw.yaml")
+    assert gym.make("SemReloc-v3", layout="~/tw.yaml").unwrapped.layout.name == "tw"
+    gym.make("SemReloc-v3", layout="twin_rooms", map_source="~/tw.yaml").reset(seed=0)

@@ -195,3 +195,10 @@ def test_what_reads_scans_in_metres_refuses_an_env_wrapped_by_active_observation
     timed = gym.wrappers.TimeLimit(raw, 5)  # a wrapper that keeps the observations is fine
     assert isinstance(ActiveObservation(timed).observation_space, gym.spaces.Dict)
     assert POLICIES["spin"](0).wrap(timed) is timed
+    from semreloc_env.wrappers import BeliefObservation
+
+    believed = BeliefObservation(
+        gym.make("SemReloc-v3", layout="lab", map_source="perfect", relocalizer={"n_particles": 200})
+    )
+    assert POLICIES["wall_follow"](0).wrap(believed) is believed  # an added entry keeps the scans in metres
+    assert "ego" in ActiveObservation(believed).observation_space.spaces

@@ -176,6 +176,14 @@ def test_v3_differs_from_v2_only_in_the_lookalike_layouts_that_were_symmetric():
     assert v3.layout != v2.layout
     kept = [make(i, layout_seed=LOOKALIKE_KEPT, **kw) for i in ("SemReloc-v2", "SemReloc-v3")]
     assert kept[0].unwrapped.layout == kept[1].unwrapped.layout
+    from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
+
+    for env_id, env in (("SemReloc-v2", v2), ("SemReloc-v3", v3)):  # RandomLayout draws with its env's version
+        drawn = RandomLayout(
+            make(env_id, **kw), LayoutSampler(kinds=("procedural_lookalike",), seeds=[LOOKALIKE_CHANGED])
+        )
+        drawn.reset(seed=0)
+        assert drawn.unwrapped.layout == env.layout, env_id
     for lay in ({"layout": "lab"}, {"layout_seed": LOOKALIKE_KEPT}):
         a, b = (
             rollout(make(i, **{**kw, **lay}), options=None, actions=ACTIONS) for i in ("SemReloc-v2", "SemReloc-v3")

@@ -190,15 +190,21 @@ def test_every_wrapper_records_its_arguments_so_check_env_and_specs_work():
         (MotionOptions(raw(), ("explore", "viewpoint")), {"options": ("explore", "viewpoint")}),
         (ExplorerOption(raw()), {}),
         (TeacherLabels(raw(), {"replan_every": 5}), {"planner": {"replan_every": 5}}),
-        (RandomLayout(raw(), LayoutSampler(kinds=("twin_rooms",)), seed=4), {"seed": 4}),
+        (RandomLayout(raw(), LayoutSampler(kinds=("twin_rooms", "lab", "three_rooms")), seed=4), {"seed": 4}),
     ]
     for env, kwargs in stacks:
         spec = env.spec.additional_wrappers[-1]
         assert spec.name == type(env).__name__
-        assert kwargs.items() <= spec.kwargs.items(), (spec.name, spec.kwargs)
+        assert kwargs.items() <= spec.kwargs.items() if kwargs else spec.kwargs == {}, (spec.name, spec.kwargs)
         again = gym.make(env.spec)
         assert type(again) is type(env) and again.observation_space == env.observation_space
         assert again.action_space == env.action_space
+    layouts = stacks[-1][0]
+    rebuilt = gym.make(layouts.spec)
+    names = []
+    for env in (layouts, rebuilt):
+        names.append([env.reset(seed=s)[1]["layout"]["name"] for s in range(6)])
+    assert names[0] == names[1] and len(set(names[0])) > 1  # the same sampler and stream
     belief = BeliefObservation(raw(), max_clusters=7)
     assert belief.spec.additional_wrappers[-1].kwargs["max_clusters"] == 7
     with warnings.catch_warnings():

@@ -162,7 +162,9 @@ class Args:
 
 
 ENV_ID = "SemReloc-v3"
-"""The env every episode runs in (v2 and v1 give the same episodes; v2 has typed observations)."""
+"""The env every episode runs in; its cases' procedural layouts come from the newest generator, as v3's do.
+(Until v3, this was ``SemReloc-v2``: the v2 tables of docs/active.md were made so; v3 gives the same
+episodes on every pair but those in the 30 look-alike pairs whose layouts it draws again.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")

@@ -506,7 +506,7 @@ def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | No
         MapFormatError: any file is malformed (missing key, bad value, bad or missing image,
             size mismatch, rotated origin...). The message names the file.
     """
-    path_yaml = Path(path_yaml)
+    path_yaml = Path(path_yaml).expanduser()
     if not path_yaml.is_file():
         raise FileNotFoundError(f"map YAML not found: {path_yaml}")
     doc = _read_yaml(path_yaml)

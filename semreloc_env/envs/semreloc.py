@@ -172,9 +172,9 @@ class SemRelocEnv(SemRelocBase):
     ## Version History
     * v3: ``layout="procedural_lookalike"`` layouts come from the procedural generator's version 2
       (`semreloc_env.layouts.PROCEDURAL_VERSION`): their corridor objects break the half turn that
-      maps the rest of the layout onto itself by at least 1 m. In version 1 about a quarter of them
-      did not (same-class objects on both end walls, for example), so no motion could tell a pose
-      from its half-turned image. Everything else is v2's, and so is every episode on another layout
+      maps the rest of the layout onto itself by at least 1 m. In version 1 about a fifth of them
+      did not (same-class objects on both end walls, for example), some by centimetres, where no
+      motion can tell a pose from its half-turned image. Everything else is v2's, and so is every episode on another layout
       or on a lookalike seed whose layout passed the check (`SemRelocEnvV2` is v2).
     * v2: typed observations: the class labels are a ``MultiDiscrete`` entry ``semantic_class`` (int64)
       and the ranges a Box ``semantic_range``, replacing the float32 ``semantic`` Box that held both;

@@ -104,17 +104,19 @@ def semantic_parts(obs: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def require_raw_observation(env, who: str) -> None:
-    """ValueError unless ``env`` hands out its SemReloc env's own observations (same space as
-    ``env.unwrapped``: wrappers that keep them, such as ``TimeLimit`` or ``RandomLayout``, are fine).
+    """ValueError unless ``env``'s observations hold its SemReloc env's own scan and odometry entries
+    (each raw entry present with the raw space; wrappers that keep them or add entries, such as
+    ``TimeLimit``, ``RandomLayout`` or `semreloc_env.wrappers.BeliefObservation`, are fine).
 
     For what reads scans in metres from the observation (`ActiveObservation`, the baselines): on an
     env already wrapped by `ActiveObservation` its ``lidar`` entry is the same name scaled to [0, 1],
     and reading that as metres gives wrong results without any error."""
     raw = env.unwrapped.observation_space
-    if env.observation_space != raw:
-        keys = getattr(env.observation_space, "spaces", {})
-        hint = " (is it wrapped by ActiveObservation already?)" if "ego" in keys or "global" in keys else ""
+    have = getattr(env.observation_space, "spaces", {})
+    differ = [k for k, space in raw.spaces.items() if have.get(k) != space]
+    if differ:
+        hint = " (is it wrapped by ActiveObservation already?)" if "ego" in have or "global" in have else ""
         raise ValueError(
-            f"{who} needs the env's own observations (scans in metres){hint}; this env's observation space "
-            f"differs from {type(env.unwrapped).__name__}'s: wrap the raw env instead"
+            f"{who} needs the env's own observations (scans in metres){hint}; this env's {differ} differ from "
+            f"{type(env.unwrapped).__name__}'s: wrap the raw env instead"
         )

@@ -81,6 +81,8 @@ def get_layout(
     """
     if procedural_version not in (1, 2) or isinstance(procedural_version, bool):
         raise ValueError(f"procedural_version must be 1 or 2, got {procedural_version!r:.60}")
+    if isinstance(spec, (str, Path)) and str(spec).startswith("~"):
+        spec = Path(spec).expanduser()
     if isinstance(spec, Layout):
         return spec
     from filters.mapping.grid import GridMap
