@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from filters.experiments.cli import JsonDict
 from filters.numbers import is_int, is_real
 
 from .learned import save_policy
@@ -71,8 +72,9 @@ class ImitationConfig:
     """Adam step size of the fit"""
     max_samples: int = 60_000
     """cap on the data set (the oldest pairs are dropped beyond it; ~41 KB each)"""
-    planner: dict[str, Any] = field(default_factory=dict)
-    """keyword arguments of the teacher `agents.viewpoint.ViewpointPlanner` (empty: its defaults)"""
+    planner: JsonDict = field(default_factory=dict)
+    """keyword arguments of the teacher `agents.viewpoint.ViewpointPlanner` (empty: its defaults); on the
+    command line one JSON object, e.g. '{"replan_every": 5}'"""
 
     def __post_init__(self) -> None:
         if self.train.options or self.train.repeat != 1:
@@ -94,7 +96,10 @@ class ImitationConfig:
             raise ValueError(f"planner must be a dict of ViewpointPlanner arguments, got {self.planner!r:.60}")
         from .viewpoint import ViewpointPlanner
 
-        ViewpointPlanner(**self.planner)  # unknown or bad planner arguments fail here, not in the workers
+        try:  # unknown or bad planner arguments fail here, not in the workers
+            ViewpointPlanner(**self.planner)
+        except TypeError as e:
+            raise ValueError(f"planner: {e}") from None
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

@@ -32,6 +32,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 import semreloc_env  # noqa: F401  (registers the env ids)
+from filters.experiments.cli import JsonDict
 from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
 from semreloc_env.observations import ActiveObservation
 from semreloc_env.rewards import BeliefMassReward
@@ -79,8 +80,8 @@ class ActiveTrainConfig:
     reward_weights: dict[str, float] = field(default_factory=lambda: {"collision": -0.1})
     """overrides of the env's `RewardWeights` (default: collisions cost -0.1 a step instead of -0.5, so
     that driving is not learned away before localizing is)"""
-    observation: dict[str, Any] = field(default_factory=dict)
-    """`ActiveObservation` keyword arguments"""
+    observation: JsonDict = field(default_factory=dict)
+    """`ActiveObservation` keyword arguments; on the command line one JSON object, e.g. '{"ego_size": 48}'"""
     n_envs: int = 4
     """parallel envs"""
     vec_env: str = "subproc"
@@ -339,10 +340,6 @@ def run_config_of(checkpoint: Path) -> dict[str, Any] | None:
 def _comparable(config: dict[str, Any]) -> dict[str, Any]:
     """``config`` with ``observation`` completed by `ActiveObservation`'s defaults (so ``{}`` equals the
     defaults given explicitly) and tuples as lists, as ``config.json`` holds them."""
-    import inspect
-
-    from semreloc_env.observations import ActiveObservation
-
     out = json.loads(json.dumps(config))
     if isinstance(out.get("observation"), dict):
         params = inspect.signature(ActiveObservation.__init__).parameters

@@ -19,20 +19,45 @@ Every command is a console entry point (``[project.scripts]`` in pyproject.toml)
 
 from __future__ import annotations
 
+import json
 import shlex
 from collections.abc import Sequence
-from typing import TypeVar
+from typing import Annotated, Any, TypeVar
 
 import tyro
 
 from filters.experiments.runner import RunnerConfig
 
-__all__ = ["Runner", "parse", "command_line"]
+__all__ = ["JsonDict", "Runner", "parse", "command_line"]
 
 T = TypeVar("T")
 
 Runner = tyro.conf.OmitArgPrefixes[RunnerConfig]
 """Annotation of an ``Args`` field holding the runner's options, flags without a ``runner.`` prefix."""
+
+
+def _json_object(args: list[str]) -> dict[str, Any]:
+    try:
+        value = json.loads(args[0])
+    except json.JSONDecodeError as e:
+        raise ValueError(f"not JSON: {e}") from None
+    if not isinstance(value, dict):
+        raise ValueError(f'expected a JSON object ({{"key": value, ...}}), got {args[0]!r}')
+    return value
+
+
+JsonDict = Annotated[
+    dict[str, Any],
+    tyro.constructors.PrimitiveConstructorSpec(
+        nargs=1,
+        metavar="JSON",
+        instance_from_str=_json_object,
+        is_instance=lambda x: isinstance(x, dict),
+        str_from_instance=lambda x: [json.dumps(x)],
+    ),
+]
+"""Annotation of an ``Args`` field holding keyword arguments of free form (a dict), given on the command
+line as one JSON object: ``--config.planner '{"replan_every": 5}'``."""
 
 
 def parse(cls: type[T], argv: Sequence[str] | None = None, description: str | None = None) -> T:
