@@ -1,4 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v2 / SemSlam-v1 (typed observation,
+"""The registered ids behave as their Version History says: SemReloc-v3 (v2 with lookalike layouts that break
+their half turn), SemReloc-v2 / SemSlam-v1 (typed observation,
 not-computed info values left out) against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
 
 import warnings

@@ -97,7 +97,7 @@ class SemRelocEnv(SemRelocBase):
     | key | space | shape | range | meaning |
     |---|---|---|---|---|
     | ``lidar`` | Box float32 | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
-    | ``odometry`` | Box float32 | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame |
+    | ``odometry`` | Box float32 | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame, clipped to the bounds (faster robots: the filter still gets it whole) |
     | ``semantic_class`` | MultiDiscrete int64 | ``(camera.n_beams,)`` | ``{0..4}`` | class label per pseudo-laser beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
     | ``semantic_range`` | Box float32 | ``(camera.n_beams,)`` | ``[0, camera.range_max_m]`` m | pseudo-laser range per beam (``range_max_m`` where no object) |
 
