@@ -77,9 +77,10 @@ class ActiveTrainConfig:
     belief_mass_weight: float = 0.5
     """weight of the belief_mass reward term (gain mode: change of the belief mass within 0.5 m of the
     truth, a potential-based shaping); 0 turns it off"""
-    reward_weights: dict[str, float] = field(default_factory=lambda: {"collision": -0.1})
+    reward_weights: JsonDict = field(default_factory=lambda: {"collision": -0.1})
     """overrides of the env's `RewardWeights` (default: collisions cost -0.1 a step instead of -0.5, so
-    that driving is not learned away before localizing is)"""
+    that driving is not learned away before localizing is); on the command line the whole dict as one
+    JSON object, e.g. '{"collision": -0.1, "success": 5}'"""
     observation: JsonDict = field(default_factory=dict)
     """`ActiveObservation` keyword arguments; on the command line one JSON object, e.g. '{"ego_size": 48}'"""
     n_envs: int = 4
@@ -157,6 +158,13 @@ class ActiveTrainConfig:
         unknown = sorted(set(self.observation) - allowed)
         if unknown:
             raise ValueError(f"observation: unknown ActiveObservation arguments {unknown}; known {sorted(allowed)}")
+        from semreloc_env.config import coerce_config
+        from semreloc_env.envs.semreloc import RewardWeights
+
+        try:  # unknown terms or bad values fail here, not in the workers
+            coerce_config(RewardWeights, dict(self.reward_weights), "reward_weights")
+        except TypeError as e:
+            raise ValueError(str(e)) from None
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -328,19 +336,25 @@ def run_config_of(checkpoint: Path) -> dict[str, Any] | None:
         meta = read_metadata(checkpoint)
     except ValueError:  # a bare SB3 checkpoint
         return None
-    config = (meta.get("extra") or {}).get("config")
+    extra = meta.get("extra") or {}
+    config = extra.get("config", extra.get("imitation"))
     if isinstance(config, dict):
         return config.get("train", config)
     known = {"observation": meta["observation"], "repeat": meta["repeat"]}
     if meta.get("options") is not None:
         known["options"] = list(meta["options"])
+    elif "explorer_option" in meta:
+        known["options"] = ["explore"] if meta["explorer_option"] else []
     return known
 
 
 def _comparable(config: dict[str, Any]) -> dict[str, Any]:
     """``config`` with ``observation`` completed by `ActiveObservation`'s defaults (so ``{}`` equals the
-    defaults given explicitly) and tuples as lists, as ``config.json`` holds them."""
+    defaults given explicitly), an older run's ``explorer_option`` as ``options``, and tuples as lists,
+    as ``config.json`` holds them."""
     out = json.loads(json.dumps(config))
+    if "options" not in out and "explorer_option" in out:  # runs saved before options existed
+        out["options"] = ["explore"] if out.pop("explorer_option") else []
     if isinstance(out.get("observation"), dict):
         params = inspect.signature(ActiveObservation.__init__).parameters
         defaults = {k: p.default for k, p in params.items() if k not in ("self", "env")}
@@ -396,8 +410,8 @@ def train_active(
     (``ppo_<decisions>_steps.zip``), ``policy.zip`` (`agents.learned.save_policy`) and
     ``timing.json`` (wall and CPU seconds, decisions and env steps) and ``learning_curve.png``.
     ``resume``: a checkpoint to continue from; ``total_timesteps`` more decisions are trained (the
-    step count carries on), and the earlier run's ``progress.csv`` / ``timing.json`` in ``out`` are
-    kept as ``*_before_<decisions>.*`` (SB3 would overwrite them).
+    step count carries on), and the earlier run's ``progress.csv``, ``timing.json``, ``config.json``,
+    ``policy.zip`` and ``learning_curve.png`` in ``out`` are kept as ``*_before_<decisions>.*``.
     """
     out = Path(out)
     if resume is None:
@@ -409,7 +423,7 @@ def train_active(
     venv = make_active_venv(config)
     if resume is not None:
         model = PPO.load(resume, env=venv, device=config.device)
-        for name in ("progress.csv", "timing.json", "config.json"):
+        for name in ("progress.csv", "timing.json", "config.json", "policy.zip", "learning_curve.png"):
             if (out / name).exists():
                 (out / name).rename(out / f"{Path(name).stem}_before_{model.num_timesteps}{Path(name).suffix}")
     else:

@@ -161,7 +161,7 @@ def names_a_layout(source) -> bool:
     if isinstance(source, str) and (source in LAYOUT_NAMES or find_layout_file(source) is not None):
         return True
     if isinstance(source, (str, Path)):
-        p = Path(source)
+        p = Path(source).expanduser()
         if p.suffix.lower() == ".json":
             return True
         return p.suffix.lower() in (".yaml", ".yml") and p.is_file() and not is_ros_map_file(p)

@@ -160,6 +160,7 @@ def test_resume_continues_the_step_count_and_keeps_the_earlier_logs(smoke_run, t
 
     done = PPO.load(ckpt).num_timesteps
     assert (run / f"progress_before_{done}.csv").is_file() and (run / f"timing_before_{done}.json").is_file()
+    assert (run / f"policy_before_{done}.zip").is_file() and (run / "policy.zip").is_file()  # both networks kept
     assert json.loads((run / f"timing_before_{done}.json").read_text())["decisions"] == before
     assert json.loads((run / "timing.json").read_text())["decisions"] >= done + 64
 
@@ -193,6 +194,14 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     with pytest.raises(RunFolderError, match="holds a training run already"):  # another run's folder
         check_resume(lone / "policy.zip", config, out=out)
     assert check_resume(ckpt, config, out=out) == ckpt  # its own run's folder
+    old = tmp_path / "old"  # a run saved before `options` existed: explorer_option stands for them
+    (old / "checkpoints").mkdir(parents=True)
+    (old / "checkpoints" / ckpt.name).write_bytes(ckpt.read_bytes())
+    saved = {k: v for k, v in json.loads((out / "config.json").read_text()).items() if k != "options"}
+    (old / "config.json").write_text(json.dumps({**saved, "explorer_option": True}))
+    assert check_resume(old / "checkpoints" / ckpt.name, config) is not None
+    with pytest.raises(RunFolderError, match="options"):
+        check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, options=()))
     capsys.readouterr()
     check_resume(ckpt, dataclasses.replace(config, kinds=("procedural_sym",)))
     assert "kinds ['procedural'] -> ['procedural_sym']" in capsys.readouterr().out

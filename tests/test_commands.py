@@ -103,6 +103,11 @@ def test_free_form_keyword_arguments_are_one_json_object_on_the_command_line():
     args = parse(train_active.Args, ["--config.observation", '{"ego_size": 48}'])
     assert args.config.observation == {"ego_size": 48}
     assert parse(train_active.Args, []).config.observation == {}
+    args = parse(train_active.Args, ["--config.reward-weights", '{"collision": -0.2, "success": 5}'])
+    assert args.config.reward_weights == {"collision": -0.2, "success": 5}
+    assert parse(train_active.Args, []).config.reward_weights == {"collision": -0.1}
+    with pytest.raises(SystemExit):  # a misspelt term: an argument error, not a worker's traceback
+        parse(train_active.Args, ["--config.reward-weights", '{"succes": 5}'])
     for bad in ("[1, 2]", "{oops"):
         with pytest.raises(SystemExit):
             parse(imitate_active.Args, ["--config.planner", bad])

@@ -184,3 +184,7 @@ def test_a_ros_map_path_may_start_with_a_tilde(tmp_path, monkeypatch):
     save_map(env.grid, tmp_path / "tw.yaml")
     assert gym.make("SemReloc-v3", layout="~/tw.yaml").unwrapped.layout.name == "tw"
     gym.make("SemReloc-v3", layout="twin_rooms", map_source="~/tw.yaml").reset(seed=0)
+    import yaml
+
+    (tmp_path / "tw_layout.yaml").write_text(yaml.safe_dump({**get_layout("twin_rooms").to_dict(), "name": "twl"}))
+    gym.make("SemReloc-v3", layout="twin_rooms", map_source="~/tw_layout.yaml").reset(seed=0)  # a layout as the map
