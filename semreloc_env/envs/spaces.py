@@ -112,6 +112,8 @@ def require_raw_observation(env, who: str) -> None:
     env already wrapped by `ActiveObservation` its ``lidar`` entry is the same name scaled to [0, 1],
     and reading that as metres gives wrong results without any error."""
     raw = env.unwrapped.observation_space
+    if not isinstance(raw, spaces.Dict):
+        return  # not a SemReloc env: the caller's own checks say so
     have = getattr(env.observation_space, "spaces", {})
     differ = [k for k, space in raw.spaces.items() if have.get(k) != space]
     if differ:
