@@ -65,7 +65,7 @@ def save_policy(
         path = path.with_suffix(".zip")
     path.parent.mkdir(parents=True, exist_ok=True)
     model.save(path)
-    options = _options(options, explorer_option)
+    options = option_names(options, explorer_option)
     meta = {
         "format": FORMAT_VERSION,
         "algorithm": type(model).__name__,
@@ -110,11 +110,28 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     return meta
 
 
-def _options(options, explorer_option: bool) -> tuple[str, ...]:
-    """The option names: ``options`` if given, else the explorer alone if ``explorer_option``."""
+def option_names(options, explorer_option: bool) -> tuple[str, ...]:
+    """The option names: ``options`` if given, else the explorer alone if ``explorer_option`` (how runs
+    saved before ``options`` existed record them)."""
     if options is None:
         return ("explore",) if explorer_option else ()
     return tuple(str(o) for o in options)
+
+
+def run_folder_of(checkpoint: Path) -> Path:
+    """The run folder a checkpoint belongs to (``<out>/checkpoints/x.zip`` or ``<out>/policy.zip``)."""
+    return checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
+
+
+def saved_run_config(checkpoint: Path) -> dict[str, Any] | None:
+    """The training config in the ``config.json`` of a checkpoint's run folder (`run_folder_of`): a
+    ``train_active`` run's, an imitation run's ``train`` entry or a ``train_ppo`` run's ``config``
+    entry; None without such a file."""
+    f = run_folder_of(checkpoint) / "config.json"
+    if not f.is_file():
+        return None
+    saved = json.loads(f.read_text())
+    return saved.get("train", saved.get("config", saved))
 
 
 class LearnedPolicy:
@@ -151,7 +168,7 @@ class LearnedPolicy:
         self.observation = dict(observation)
         self.repeat = int(repeat)
         self.deterministic = bool(deterministic)
-        self.options = _options(options, explorer_option)
+        self.options = option_names(options, explorer_option)
         self.explorer_option = self.options == ("explore",)
         self.seed = int(seed)
         self._t = 0
@@ -233,14 +250,9 @@ def _checkpoint_options(path: Path, action_space) -> tuple[str, ...]:
     """The motion options of a bare SB3 checkpoint: from its run's ``config.json`` (``train_active``
     writes checkpoints to ``<out>/checkpoints/``), else by its action count (5: the explorer)."""
     n = int(action_space.n) if isinstance(action_space, spaces.Discrete) else 4
-    config = path.parent.parent / "config.json"
-    if path.parent.name == "checkpoints" and config.is_file():
-        saved = json.loads(config.read_text())
-        saved = saved.get("config", saved)
-        if "options" in saved:
-            found = tuple(saved["options"])
-        else:
-            found = ("explore",) if saved.get("explorer_option") else ()
+    saved = saved_run_config(path) if path.parent.name == "checkpoints" else None
+    if saved is not None:
+        found = option_names(saved.get("options"), saved.get("explorer_option", False))
         if 4 + len(found) == n:
             return found
     if n <= 5:

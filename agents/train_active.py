@@ -40,7 +40,7 @@ from semreloc_env.wrappers import ActionRepeat
 
 from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
-from .learned import save_policy
+from .learned import option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
 
@@ -48,6 +48,12 @@ ENV_ID = "SemReloc-v3"
 TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
 """Layout kinds drawn for training: procedural only, so ``lab``, ``twin_rooms`` and the changed
 lab of the evaluation are layouts the policy has never seen (as are the held-out seeds)."""
+
+
+def observation_defaults() -> dict[str, Any]:
+    """`ActiveObservation`'s keyword arguments with their defaults (what ``observation`` may set)."""
+    params = inspect.signature(ActiveObservation.__init__).parameters
+    return {k: p.default for k, p in params.items() if k not in ("self", "env")}
 
 
 @dataclass(frozen=True)
@@ -154,7 +160,7 @@ class ActiveTrainConfig:
         check_options(self.options)
         check_ppo_settings(self)
         self.layout_sampler()  # the layout stream's arguments, checked here rather than in the env workers
-        allowed = set(inspect.signature(ActiveObservation.__init__).parameters) - {"self", "env"}
+        allowed = set(observation_defaults())
         unknown = sorted(set(self.observation) - allowed)
         if unknown:
             raise ValueError(f"observation: unknown ActiveObservation arguments {unknown}; known {sorted(allowed)}")
@@ -316,22 +322,14 @@ def check_fresh_out(out: Path) -> None:
         )
 
 
-def run_folder_of(checkpoint: Path) -> Path:
-    """The run folder a checkpoint belongs to (``<out>/checkpoints/x.zip`` or ``<out>/policy.zip``)."""
-    return checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
-
-
 def run_config_of(checkpoint: Path) -> dict[str, Any] | None:
     """The `ActiveTrainConfig` fields a checkpoint or saved policy was trained with: its run's
-    ``config.json`` (an imitation run's ``train`` entry), else the training config in a saved
+    ``config.json`` (`agents.learned.saved_run_config`), else the training config in a saved
     policy's metadata (`agents.learned.save_policy`), else what that metadata holds of the spaces
     (``observation``, ``repeat``, ``options``); None if nothing is known."""
-    from .learned import read_metadata
-
-    f = run_folder_of(checkpoint) / "config.json"
-    if f.is_file():
-        saved = json.loads(f.read_text())
-        return saved.get("train", saved)
+    saved = saved_run_config(checkpoint)
+    if saved is not None:
+        return saved
     try:
         meta = read_metadata(checkpoint)
     except ValueError:  # a bare SB3 checkpoint
@@ -341,10 +339,8 @@ def run_config_of(checkpoint: Path) -> dict[str, Any] | None:
     if isinstance(config, dict):
         return config.get("train", config)
     known = {"observation": meta["observation"], "repeat": meta["repeat"]}
-    if meta.get("options") is not None:
-        known["options"] = list(meta["options"])
-    elif "explorer_option" in meta:
-        known["options"] = ["explore"] if meta["explorer_option"] else []
+    if meta.get("options") is not None or "explorer_option" in meta:
+        known["options"] = list(option_names(meta.get("options"), meta.get("explorer_option", False)))
     return known
 
 
@@ -354,11 +350,9 @@ def _comparable(config: dict[str, Any]) -> dict[str, Any]:
     as ``config.json`` holds them."""
     out = json.loads(json.dumps(config))
     if "options" not in out and "explorer_option" in out:  # runs saved before options existed
-        out["options"] = ["explore"] if out.pop("explorer_option") else []
+        out["options"] = list(option_names(None, out.pop("explorer_option")))
     if isinstance(out.get("observation"), dict):
-        params = inspect.signature(ActiveObservation.__init__).parameters
-        defaults = {k: p.default for k, p in params.items() if k not in ("self", "env")}
-        out["observation"] = json.loads(json.dumps({**defaults, **out["observation"]}))
+        out["observation"] = json.loads(json.dumps({**observation_defaults(), **out["observation"]}))
     return out
 
 

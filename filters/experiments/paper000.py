@@ -484,28 +484,28 @@ def verdict(args, settings, t2, t1, tk, n1, ks) -> str:
     Every WOCPF comparison below is one test of a family: its p-value is Holm-adjusted over the whole
     family (`filters.experiments.stats.holm_adjusted`), so one "significant" result among a dozen is
     not read as a finding when chance alone would give it."""
-    tests = []  # (statement prefix, other filter's label, mean difference, raw p)
+    tests = []  # (key, statement prefix, other filter's label, mean difference, raw p)
     for si, st in enumerate(settings):
         for key, lab in (("pose_err", "pose error"), ("lm_err", "landmark error")):
             for other in ("FastSLAM", "EKF-SLAM"):
                 m, p = _paired(t2[(si, other)], t2[(si, "WOCPF")], key)
-                tests.append((f"{st.label()}: WOCPF {lab}", other, m, p))
+                tests.append(((si, key, other), f"{st.label()}: WOCPF {lab}", other, m, p))
     for n in n1:
         m, p = _paired(t1[(n, "FastSLAM")], t1[(n, "WOCPF")], "path_rmse")
-        tests.append((f"Table 1, N = {n}: WOCPF path RMSE", "FastSLAM", m, p))
-    adj = holm_adjusted([t[3] for t in tests])
+        tests.append((("table 1", n, "FastSLAM"), f"Table 1, N = {n}: WOCPF path RMSE", "FastSLAM", m, p))
+    adj = holm_adjusted([t[-1] for t in tests])
     lines = [
         f"Paired two-sided t-tests over the {args.runs} runs, {len(tests)} comparisons, p-values Holm-adjusted "
         "over all of them (significant: adjusted p < 0.05):",
         "",
     ]
     sig = {}
-    for (prefix, other, m, p), pa in zip(tests, adj, strict=True):
+    for (key, prefix, other, m, p), pa in zip(tests, adj, strict=True):
         word = "not significantly different from" if not pa < 0.05 else ("lower than" if m < 0 else "higher than")
-        sig[(prefix, other)] = 0 if not pa < 0.05 else (-1 if m < 0 else 1)
+        sig[key] = 0 if not pa < 0.05 else (-1 if m < 0 else 1)
         lines.append(f"* {prefix} is {word} {other}'s ({m:+.3f} m; p = {p:.3g}, adjusted {pa:.3g}).")
-    claim_ekf = all(sig[(f"{settings[si].label()}: WOCPF pose error", "EKF-SLAM")] < 0 for si in range(len(settings)))
-    claim_fs = all(sig[(f"{settings[si].label()}: WOCPF pose error", "FastSLAM")] < 0 for si in range(len(settings)))
+    claim_ekf = all(sig[(si, "pose_err", "EKF-SLAM")] < 0 for si in range(len(settings)))
+    claim_fs = all(sig[(si, "pose_err", "FastSLAM")] < 0 for si in range(len(settings)))
     lines.append("")
     lines.append(
         f"**Claim 'WOCPF has the best pose accuracy, better than EKF-SLAM' (Table 2):** "
