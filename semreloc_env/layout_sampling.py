@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import functools
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,6 +81,10 @@ class LayoutSampler:
     Raises:
         ValueError: an unknown kind, no entry, bad weights, or no seed left once the held-out
             ones are removed. Files are loaded here, so a bad file fails now.
+
+    `config` gives these arguments as a JSON-able dict and `from_config` takes it back (a seed
+    range is written ``{"start": a, "stop": b}``), so an env spec that holds a sampler can be
+    saved with ``env.spec.to_json()`` and made again.
     """
 
     def __init__(
@@ -96,6 +100,7 @@ class LayoutSampler:
             raise ValueError(
                 f"kinds: unknown {bad}; known: {[*PROCEDURAL_LAYOUTS, *BUILTIN_LAYOUTS_NAMES]}; files go in files="
             )
+        self.kinds = kinds
         self.files = tuple(str(f) for f in files)
         self.entries = kinds + self.files
         if not self.entries:
@@ -104,6 +109,7 @@ class LayoutSampler:
         w = np.ones(len(self.entries)) if weights is None else np.asarray(weights, dtype=np.float64)
         if w.shape != (len(self.entries),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
             raise ValueError(f"weights must be {len(self.entries)} non-negative numbers, not all 0; got {weights!r}")
+        self._weights_given = None if weights is None else w.tolist()
         self.weights = w / w.sum()
         if isinstance(seeds, range):
             if seeds.step != 1:
@@ -124,6 +130,36 @@ class LayoutSampler:
             n_left = self._seeds.size
         if any(k in PROCEDURAL_LAYOUTS for k in kinds) and n_left == 0:
             raise ValueError(f"seeds: none left after removing the held-out seeds {HELD_OUT_LAYOUT_SEEDS}")
+
+    def config(self) -> dict:
+        """The constructor's arguments as a JSON-able dict, for `from_config` (the same draws)."""
+        seeds = self._seeds
+        return {
+            "kinds": list(self.kinds),
+            "files": list(self.files),
+            "seeds": {"start": seeds.start, "stop": seeds.stop} if isinstance(seeds, range) else seeds.tolist(),
+            "weights": self._weights_given,
+        }
+
+    @classmethod
+    def from_config(cls, config: Mapping) -> LayoutSampler:
+        """A sampler from `config`'s dict (or any subset of the constructor's keyword arguments).
+
+        Raises:
+            ValueError: an unknown key, a malformed seed range, or what the constructor rejects.
+        """
+        if not isinstance(config, Mapping):
+            raise ValueError(f"a sampler config must be a dict, got {type(config).__name__}")
+        unknown = sorted(set(config) - {"kinds", "files", "seeds", "weights"})
+        if unknown:
+            raise ValueError(f"sampler config: unknown keys {unknown}; known: kinds, files, seeds, weights")
+        kwargs = dict(config)
+        seeds = kwargs.get("seeds")
+        if isinstance(seeds, Mapping):
+            if set(seeds) != {"start", "stop"} or not all(is_int(v) for v in seeds.values()):
+                raise ValueError(f"sampler config: a seed range is {{'start': int, 'stop': int}}, got {seeds!r:.80}")
+            kwargs["seeds"] = range(int(seeds["start"]), int(seeds["stop"]))
+        return cls(**kwargs)
 
     def _seed(self, rng: np.random.Generator) -> int:
         if isinstance(self._seeds, np.ndarray):
@@ -157,20 +193,34 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     Args:
         env: a ``SemReloc-v1`` env.
-        sampler: the layouts to draw (default `LayoutSampler` with its defaults).
+        sampler: the layouts to draw: a `LayoutSampler`, or its `LayoutSampler.config` dict
+            (default: `LayoutSampler` with its defaults). The env spec records the dict, so
+            ``gym.make(env.spec)`` and ``env.spec.to_json()`` work.
         seed: seed of the layout stream until a reset passes one.
         cache_size: maps kept in memory.
     """
 
-    def __init__(self, env: gym.Env, sampler: LayoutSampler | None = None, seed: int = 0, cache_size: int = 64):
-        gym.utils.RecordConstructorArgs.__init__(self, sampler=sampler, seed=seed, cache_size=cache_size)
+    def __init__(
+        self, env: gym.Env, sampler: LayoutSampler | Mapping | None = None, seed: int = 0, cache_size: int = 64
+    ):
+        if sampler is None:
+            sampler = LayoutSampler()
+        elif isinstance(sampler, Mapping):
+            sampler = LayoutSampler.from_config(sampler)
+        elif not isinstance(sampler, LayoutSampler):
+            raise TypeError(
+                f"RandomLayout: sampler must be a LayoutSampler or its config dict, got {type(sampler).__name__}"
+            )
+        if not (is_int(cache_size) and cache_size >= 1):
+            raise ValueError(f"RandomLayout: cache_size must be an integer >= 1, got {cache_size!r:.60}")
+        gym.utils.RecordConstructorArgs.__init__(self, sampler=sampler.config(), seed=seed, cache_size=cache_size)
         gym.Wrapper.__init__(self, env)
         base = env.unwrapped
         if not hasattr(base, "set_layout"):
             raise TypeError(f"RandomLayout needs an env with set_layout(); {type(base).__name__} has none")
         if not (isinstance(base.map_source, str) and base.map_source in ("mapping", "perfect")):
             raise ValueError(f"RandomLayout needs map_source 'mapping' or 'perfect', got {base.map_source!r}")
-        self.sampler = sampler if sampler is not None else LayoutSampler()
+        self.sampler = sampler
         if not (is_int(seed) and seed >= 0):
             raise ValueError(f"RandomLayout: seed must be an integer >= 0, got {seed!r:.60}")
         self._rng = np.random.default_rng([int(seed), _SALT])

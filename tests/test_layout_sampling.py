@@ -86,6 +86,42 @@ def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
     assert env.unwrapped.grid.shape == rasterize(env.current.layout).shape
 
 
+@pytest.mark.parametrize(
+    "sampler",
+    [
+        LayoutSampler(kinds=("procedural", "lab"), seeds=[3, 5, 1_000_001], weights=[2, 1]),
+        LayoutSampler(kinds=("procedural_sym",), seeds=range(10, 20)),
+        {"kinds": ["twin_rooms", "procedural"], "seeds": {"start": 7, "stop": 9}},
+    ],
+)
+def test_random_layout_spec_round_trips_through_json(sampler):
+    env = RandomLayout(gym.make("SemReloc-v3", map_source="perfect", relocalizer={"n_particles": 200}), sampler, seed=4)
+    spec = gym.envs.registration.EnvSpec.from_json(env.spec.to_json())
+    again = gym.make(spec)
+    assert again.sampler.config() == env.sampler.config()
+    for seed in (1, 2, 3):
+        (oa, ia), (ob, ib) = env.reset(seed=seed), again.reset(seed=seed)
+        assert ia["layout"] == ib["layout"]
+        for k in oa:
+            np.testing.assert_array_equal(oa[k], ob[k])
+
+
+def test_sampler_config_rejects_bad_input():
+    with pytest.raises(ValueError, match="unknown keys"):
+        LayoutSampler.from_config({"kinds": ["lab"], "seed": 3})
+    with pytest.raises(ValueError, match="seed range"):
+        LayoutSampler.from_config({"seeds": {"start": 0}})
+    with pytest.raises(ValueError, match="must be a dict"):
+        LayoutSampler.from_config([("kinds", ["lab"])])
+    env = gym.make("SemReloc-v3", map_source="perfect")
+    with pytest.raises(TypeError, match="LayoutSampler or its config"):
+        RandomLayout(env, sampler="lab")
+    with pytest.raises(ValueError, match="cache_size"):
+        RandomLayout(env, cache_size=0)
+    with pytest.raises(ValueError, match="unknown"):
+        RandomLayout(env, sampler={"kinds": ["nowhere"]})
+
+
 def test_random_layout_needs_a_layout_free_map(tmp_path):
     env = gym.make("SemReloc-v3", map_source="perfect")
     grid = env.unwrapped.grid
