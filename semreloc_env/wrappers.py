@@ -201,7 +201,9 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
     running with a fresh time limit. ``gym.make`` puts this wrapper outside ``TimeLimit``
     for every registered semreloc env (``additional_wrappers`` at registration); wrap your
     own stacks with it outermost if they hold counters that ``reset`` clears first.
-    A rejected reset raises ``ValueError`` and changes nothing in any wrapper.
+    A rejected reset raises ``ValueError`` and changes nothing in any wrapper. Besides the env's
+    own checks it refuses a ``kidnap_at_step`` beyond the time limit of a ``TimeLimit`` inside
+    it (the kidnap would never happen).
     """
 
     def __init__(self, env: gym.Env):
@@ -210,7 +212,22 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def reset(self, *, seed=None, options=None):
         self.env.unwrapped.check_reset(seed=seed, options=options)
+        k = (options or {}).get("kidnap_at_step")
+        limit = _time_limit(self.env)
+        if k is not None and limit is not None and k > limit:
+            raise ValueError(
+                f"kidnap_at_step {k} is beyond the episode's time limit of {limit} steps: the kidnap would never happen"
+            )
         return self.env.reset(seed=seed, options=options)
+
+
+def _time_limit(env: gym.Env) -> int | None:
+    """``max_episode_steps`` of the first ``TimeLimit`` in ``env``'s wrapper chain, or None."""
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, gym.wrappers.TimeLimit):
+            return env._max_episode_steps
+        env = env.env
+    return None
 
 
 from .observations import ActiveObservation  # noqa: E402  (the spatial observation for active relocalization)

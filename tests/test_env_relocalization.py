@@ -14,6 +14,7 @@ from filters.mapping.ros_map import save_map
 from semreloc_env.layouts import get_layout
 from semreloc_env.mapping_run import build_maps
 from semreloc_env.rasterize import rasterize
+from semreloc_env.wrappers import CheckedReset
 
 
 def drive(env, steps, seed, options=None):
@@ -159,6 +160,23 @@ def test_bad_kidnap_options():
     ]:
         with pytest.raises(ValueError, match=match):
             env.reset(seed=0, options=options)
+
+
+def test_kidnap_beyond_the_time_limit_is_refused():
+    env = gym.make("SemReloc-v3", map_source="perfect", relocalizer={"n_particles": 100}, max_episode_steps=5)
+    env.reset(seed=0)
+    env.step(0)
+    pose = env.unwrapped.world.pose.copy()
+    with pytest.raises(ValueError, match="time limit of 5"):
+        env.reset(seed=1, options={"kidnap_at_step": 6})
+    np.testing.assert_array_equal(env.unwrapped.world.pose, pose)  # the old episode goes on
+    env.step(0)
+    env.reset(seed=1, options={"kidnap_at_step": 5, "kidnap_pose": [2.5, 5.0, 0.0]})
+    for _ in range(5):
+        *_, truncated, info = env.step(3)
+    assert truncated and env.unwrapped._kidnapped
+    unlimited = CheckedReset(env.unwrapped)
+    unlimited.reset(seed=0, options={"kidnap_at_step": 10_000})  # no limit, nothing to refuse
 
 
 def test_map_file_source_round_trips(tmp_path):

@@ -163,8 +163,8 @@ class SemRelocEnv(SemRelocBase):
     Unknown arguments or keys raise ``TypeError`` / ``ValueError``.
 
     ## Reset options
-    ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1: at that step the robot is
-    teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
+    ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1, at most the time limit when
+    made by ``gym.make``: at that step the robot is teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
     A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
     checks them in its outermost wrapper (`semreloc_env.wrappers.CheckedReset`), so the
     time limit keeps counting the old episode.
