@@ -49,7 +49,7 @@ from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import Runner, command_line, parse
+from filters.experiments.cli import Runner, command_line, parse, usage_error
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import wilson_interval
 
@@ -605,12 +605,9 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.time()
     cases = build_cases(args)
     if args.gif_case >= len(cases):  # known only once the cases are built: an argument error all the same
-        print(
-            f"evaluate_active: error: --gif-case {args.gif_case} is not a case (there are {len(cases)}, "
-            f"0-{len(cases) - 1})",
-            file=sys.stderr,
+        return usage_error(
+            "evaluate_active", f"--gif-case {args.gif_case} is not a case (there are {len(cases)}, 0-{len(cases) - 1})"
         )
-        return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     n_unin = sum(c["uninformative"] for c in cases)

@@ -11,10 +11,9 @@ The documented run (docs/active.md):
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 
-from filters.experiments.cli import parse
+from filters.experiments.cli import parse, usage_error
 
 from ..imitation import ImitationConfig, imitate
 from ..train_active import RunFolderError
@@ -34,7 +33,6 @@ def main(argv: list[str] | None = None) -> int:
     try:
         path = imitate(args.config, args.out)
     except RunFolderError as e:  # raised before any env is built
-        print(f"imitate_active: error: {e}", file=sys.stderr)
-        return 2
+        return usage_error("imitate_active", e)
     print(f"saved {path}")
     return 0

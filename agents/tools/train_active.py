@@ -11,10 +11,9 @@ The documented run (docs/active.md):
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 
-from filters.experiments.cli import parse
+from filters.experiments.cli import parse, usage_error
 
 from ..train_active import ActiveTrainConfig, RunFolderError, train_active
 
@@ -36,7 +35,6 @@ def main(argv: list[str] | None = None) -> int:
     try:
         path = train_active(args.config, args.out, resume=args.resume)
     except RunFolderError as e:  # raised before any env is built
-        print(f"train_active: error: {e}", file=sys.stderr)
-        return 2
+        return usage_error("train_active", e)
     print(f"saved {path}")
     return 0

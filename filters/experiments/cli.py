@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import shlex
+import sys
 from collections.abc import Sequence
 from typing import Annotated, Any, TypeVar
 
@@ -28,7 +29,7 @@ import tyro
 
 from filters.experiments.runner import RunnerConfig
 
-__all__ = ["JsonDict", "Runner", "parse", "command_line"]
+__all__ = ["JsonDict", "Runner", "parse", "command_line", "usage_error"]
 
 T = TypeVar("T")
 
@@ -68,3 +69,12 @@ def parse(cls: type[T], argv: Sequence[str] | None = None, description: str | No
 def command_line(script: str, argv: Sequence[str]) -> str:
     """The shell command that reruns ``script`` (a path under ``scripts/``) with ``argv``, quoted."""
     return " ".join(["python", script, *(shlex.quote(a) for a in argv)])
+
+
+def usage_error(prog: str, message: object) -> int:
+    """Print ``prog: error: message`` to stderr as argparse does, and return its exit status, 2.
+
+    For input a command can only judge after parsing (a file that cannot be read, a value beyond
+    what the data holds): ``return usage_error("replay_log", e)`` instead of a traceback."""
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    return 2

@@ -21,7 +21,6 @@ is the same command).
 from __future__ import annotations
 
 import math
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,7 +28,7 @@ from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import parse
+from filters.experiments.cli import parse, usage_error
 from filters.experiments.report import pyplot, save_figure
 from filters.localization.mcl import MCLConfig
 from filters.mapping.from_scans import map_from_scans
@@ -200,8 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         run(args)
     except (CarmenLogError, MapFormatError, FileNotFoundError, LogArgumentError) as e:
-        print(f"replay_log: error: {e}", file=sys.stderr)
-        return 2
+        return usage_error("replay_log", e)
     return 0
 
 
