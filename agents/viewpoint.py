@@ -104,15 +104,30 @@ def _cross_ll(
     occupancy, ``c`` = class ``c - 1``).
     """
     n_k, n_p, n_b = ranges.shape
+    n_h = headings.shape[0]
     n_cells = w * h
     n_t = flat.shape[0] // (n_cells + 1)
     floor0 = n_t * n_cells
-    for p in range(n_p):
-        for i in range(headings.shape[0]):
-            for k in range(n_k):
-                phi_k = phi0[k] + headings[i]
+    # the ray directions and the camera's field of view do not depend on the viewpoint: once per
+    # call, with the very operations of the per-viewpoint loop below (so the same bits)
+    cos_a = np.empty((n_h, n_k, n_k, n_b))
+    sin_a = np.empty((n_h, n_k, n_k, n_b))
+    in_fov = np.empty((n_h, n_k, n_b), np.bool_)
+    for i in range(n_h):
+        for k in range(n_k):
+            phi_k = phi0[k] + headings[i]
+            for j in range(n_b):
+                beta = angles[j] - phi_k  # robot-frame angle of the ray
+                bw = beta - 2.0 * math.pi * math.floor((beta + math.pi) / (2.0 * math.pi))
+                in_fov[i, k, j] = abs(bw) <= fov_half
                 for m in range(n_k):
-                    phi_l = phi0[m] + headings[i]
+                    a = beta + (phi0[m] + headings[i])
+                    cos_a[i, k, m, j] = math.cos(a)
+                    sin_a[i, k, m, j] = math.sin(a)
+    for p in range(n_p):
+        for i in range(n_h):
+            for k in range(n_k):
+                for m in range(n_k):
                     bx = (xy[m, p, 0] - ox) * inv_res
                     by = (xy[m, p, 1] - oy) * inv_res
                     acc_l = 0.0
@@ -121,25 +136,36 @@ def _cross_ll(
                     n_s = 0
                     for j in range(n_b):
                         r = ranges[k, p, j]
-                        beta = angles[j] - phi_k  # robot-frame angle of the ray
-                        a = beta + phi_l
-                        ex = bx + r * math.cos(a) * inv_res
-                        ey = by + r * math.sin(a) * inv_res
+                        ex = bx + r * cos_a[i, k, m, j] * inv_res
+                        ey = by + r * sin_a[i, k, m, j] * inv_res
                         inside = ex >= 0.0 and ex < w and ey >= 0.0 and ey < h
                         cell = int(ey) * w + int(ex) if inside else 0
                         if r < lidar_max:
                             acc_l += flat[cell] if inside else flat[floor0]
                             n_l += 1
                         t = labels[k, p, j]
-                        if t > 0 and r >= cam_min and r < cam_max:
-                            bw = beta - 2.0 * math.pi * math.floor((beta + math.pi) / (2.0 * math.pi))
-                            if abs(bw) <= fov_half:
-                                acc_s += flat[t * n_cells + cell] if inside else flat[floor0 + t]
-                                n_s += 1
+                        if t > 0 and r >= cam_min and r < cam_max and in_fov[i, k, j]:
+                            acc_s += flat[t * n_cells + cell] if inside else flat[floor0 + t]
+                            n_s += 1
                     out_l[p, i, k, m] = acc_l / n_l if n_l > 0 else 0.0
                     out_s[p, i, k, m] = acc_s / n_s if n_s > 0 else 0.0
                     cnt_l[p, i, k] = n_l
                     cnt_s[p, i, k] = n_s
+
+
+@numba.njit(cache=True)
+def _clear_segment(ax, ay, bx, by, ox, oy, cell_m, n, node):
+    """`_PlanMap.clear_segment`'s test at ``n >= 2`` points ``t = i / (n - 1)`` (NumPy's
+    ``linspace`` arithmetic, so the same cells as ``np.linspace`` would give)."""
+    h, w = node.shape
+    step = 1.0 / (n - 1)
+    for i in range(n):
+        t = 1.0 if i == n - 1 else i * step
+        col = math.floor((ax + t * (bx - ax) - ox) / cell_m)
+        row = math.floor((ay + t * (by - ay) - oy) / cell_m)
+        if row < 0 or row >= h or col < 0 or col >= w or node[int(row), int(col)] < 0:
+            return False
+    return True
 
 
 class _PlanMap:
@@ -199,16 +225,13 @@ class _PlanMap:
         return i if d[i] <= max_m else -1
 
     def clear_segment(self, a, b) -> bool:
-        """Whether the straight segment ``a -> b`` (metres) runs through planning cells only."""
+        """Whether the straight segment ``a -> b`` (metres) runs through planning cells only:
+        ``n`` points evenly spaced from ``a`` to ``b`` (both included), half a cell apart."""
         n = max(2, int(math.hypot(b[0] - a[0], b[1] - a[1]) / (self.cell_m / 2)) + 1)
-        t = np.linspace(0.0, 1.0, n)
         ox, oy = self.grid.origin_xy_m
-        col = np.floor((a[0] + t * (b[0] - a[0]) - ox) / self.cell_m).astype(np.int64)
-        row = np.floor((a[1] + t * (b[1] - a[1]) - oy) / self.cell_m).astype(np.int64)
-        h, w = self.shape
-        if (row < 0).any() or (row >= h).any() or (col < 0).any() or (col >= w).any():
-            return False
-        return bool((self.node[row, col] >= 0).all())
+        return _clear_segment(
+            float(a[0]), float(a[1]), float(b[0]), float(b[1]), float(ox), float(oy), self.cell_m, n, self.node
+        )
 
 
 class ViewpointPlanner(Policy):

@@ -392,3 +392,86 @@ def test_backing_up_never_touches_the_wall_behind():
     assert kinds.count("back") >= 3 and kinds[-1] == "turn", kinds
     # it stopped backing close to the wall (the check, not something else, stopped it)
     assert base.world.clearance(np.asarray(info["pose"][:2])) < base.robot_params.radius_m + 0.2
+
+
+def _cross_ll_reference(*args):
+    """The planner's cross log-likelihoods written out ray by ray in plain Python (the kernel's contract)."""
+    ranges, labels, xy, phi0, headings, angles, fov_half, lidar_max, cam_min, cam_max, flat, ox, oy, inv_res, w, h = (
+        args
+    )
+    n_k, n_p, n_b = ranges.shape
+    n_cells = w * h
+    floor0 = (flat.shape[0] // (n_cells + 1)) * n_cells
+    out_l = np.zeros((n_p, headings.size, n_k, n_k))
+    out_s = np.zeros_like(out_l)
+    cnt_l = np.zeros((n_p, headings.size, n_k))
+    cnt_s = np.zeros_like(cnt_l)
+    for p, i, k, m in np.ndindex(n_p, headings.size, n_k, n_k):
+        bx, by = (xy[m, p, 0] - ox) * inv_res, (xy[m, p, 1] - oy) * inv_res
+        lid, cam = [], []
+        for j in range(n_b):
+            r = ranges[k, p, j]
+            beta = angles[j] - (phi0[k] + headings[i])  # the ray in hypothesis k's robot frame
+            a = beta + (phi0[m] + headings[i])  # the same ray from hypothesis m's pose
+            ex, ey = bx + r * math.cos(a) * inv_res, by + r * math.sin(a) * inv_res
+            inside = 0 <= ex < w and 0 <= ey < h
+            cell = int(ey) * w + int(ex) if inside else 0
+            if r < lidar_max:
+                lid.append(flat[cell] if inside else flat[floor0])
+            t = labels[k, p, j]
+            if t > 0 and cam_min <= r < cam_max and abs(math.remainder(beta, 2 * math.pi)) <= fov_half:
+                cam.append(flat[t * n_cells + cell] if inside else flat[floor0 + t])
+        out_l[p, i, k, m] = np.mean(lid) if lid else 0.0
+        out_s[p, i, k, m] = np.mean(cam) if cam else 0.0
+        cnt_l[p, i, k], cnt_s[p, i, k] = len(lid), len(cam)
+    return out_l, out_s, cnt_l, cnt_s
+
+
+def test_cross_likelihood_kernel_matches_a_plain_reference():
+    from agents.viewpoint import _cross_ll
+
+    rng = np.random.default_rng(3)
+    n_k, n_p, n_b, w, h, n_t = 3, 6, 16, 40, 30, 4
+    ranges = rng.uniform(0.0, 10.0, (n_k, n_p, n_b))
+    ranges[rng.random(ranges.shape) < 0.2] = 8.0  # no return
+    args = (
+        ranges, rng.integers(0, n_t, ranges.shape), rng.uniform(-1.0, 5.0, (n_k, n_p, 2)), rng.uniform(-4, 4, n_k),
+        2 * math.pi * np.arange(8) / 8, 2 * math.pi * np.arange(n_b) / n_b, math.radians(35), 8.0, 0.3, 4.5,
+        rng.normal(size=n_t * w * h + n_t), -0.5, -0.3, 10.0, w, h,
+    )  # fmt: skip
+    want = _cross_ll_reference(*args)
+    got = [np.empty((n_p, 8, n_k, n_k)), np.empty((n_p, 8, n_k, n_k)), np.zeros((n_p, 8, n_k)), np.zeros((n_p, 8, n_k))]
+    _cross_ll(*args, *got)
+    assert want[3].sum() > 0 and want[2].sum() > 0  # both kinds of ray were scored
+    for g, r in zip(got, want):
+        np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
+
+
+def test_clear_segment_matches_sampling_the_segment_with_numpy():
+    env = gym.make("SemReloc-v3", layout="twin_rooms", map_source="perfect")
+    from agents.viewpoint import _PlanMap
+
+    pm = _PlanMap(env.unwrapped.grid, 0.2, 0.1, 0.15)
+    ox, oy = pm.grid.origin_xy_m
+    h, w = pm.shape
+
+    def reference(a, b):
+        t = np.linspace(0.0, 1.0, max(2, int(math.hypot(*(b - a)) / (pm.cell_m / 2)) + 1))
+        col = np.floor((a[0] + t * (b[0] - a[0]) - ox) / pm.cell_m).astype(np.int64)
+        row = np.floor((a[1] + t * (b[1] - a[1]) - oy) / pm.cell_m).astype(np.int64)
+        if (row < 0).any() or (row >= h).any() or (col < 0).any() or (col >= w).any():
+            return False
+        return bool((pm.node[row, col] >= 0).all())
+
+    rng = np.random.default_rng(0)
+    lo = np.array([ox, oy]) - 1.0
+    hi = np.array([ox, oy]) + np.array([w, h]) * pm.cell_m + 1.0
+    outcomes = []
+    for _ in range(3000):
+        a = rng.uniform(lo, hi)
+        b = a + rng.normal(0.0, 1.5, 2)
+        if rng.random() < 0.3:  # on cell edges
+            a, b = np.round(a / 0.075) * 0.075, np.round(b / 0.075) * 0.075
+        outcomes.append(pm.clear_segment(a, b))
+        assert outcomes[-1] == reference(a, b), (a, b)
+    assert 0 < sum(outcomes) < len(outcomes)
