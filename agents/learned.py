@@ -25,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from semreloc_env.envs.spaces import require_single_env
 from semreloc_env.observations import ActiveObservation
 
 META_NAME = "semreloc_policy.json"
@@ -94,7 +95,11 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     try:
         with zipfile.ZipFile(path) as z:
             if META_NAME not in z.namelist():
-                raise ValueError(f"{path} has no {META_NAME}: not saved by agents.learned.save_policy")
+                raise ValueError(
+                    f"{path} has no {META_NAME}: not saved by agents.learned.save_policy; a bare checkpoint of a "
+                    "train_active run loads with its settings given: load_policy(path, observation={}, repeat=4) "
+                    "(the run's --config.observation and --config.repeat)"
+                )
             meta = json.loads(z.read(META_NAME))
     except zipfile.BadZipFile as e:
         raise ValueError(f"{path} is not a policy zip: {e}") from e
@@ -183,7 +188,9 @@ class LearnedPolicy:
         Raises:
             ValueError: the env's action space or the wrapped observation space differs from the
                 model's (another action type, camera or lidar beam count, ...).
+            TypeError: a vector env (one policy per env).
         """
+        require_single_env(env, "a learned policy")
         discrete_model = isinstance(self.model.action_space, spaces.Discrete)
         if self.options or (discrete_model and isinstance(env.action_space, spaces.Box)):
             from .options import MotionOptions, has_semreloc_actions

@@ -29,7 +29,7 @@ import numpy as np
 from gymnasium import spaces
 
 from filters.numbers import is_int, is_real
-from semreloc_env.envs.spaces import require_raw_observation
+from semreloc_env.envs.spaces import require_raw_observation, require_single_env
 
 from .baselines import AS_BOX, FORWARD, TURN_LEFT, WallFollowExplorer, all_round_angles
 
@@ -49,6 +49,7 @@ class Policy:
         self.continuous = False
 
     def wrap(self, env: gym.Env) -> gym.Env:
+        require_single_env(env, type(self).__name__)
         require_raw_observation(env, type(self).__name__)
         space = env.action_space
         discrete_ok = isinstance(space, spaces.Discrete) and space.n >= 4 and space.start == 0

@@ -83,8 +83,9 @@ class LayoutSampler:
             ones are removed. Files are loaded here, so a bad file fails now.
 
     `config` gives these arguments as a JSON-able dict and `from_config` takes it back (a seed
-    range is written ``{"start": a, "stop": b}``), so an env spec that holds a sampler can be
-    saved with ``env.spec.to_json()`` and made again.
+    range is written ``{"start": a, "stop": b}``, layout files as absolute paths), so an env spec
+    that holds a sampler can be saved with ``env.spec.to_json()`` and made again from any folder.
+    It holds the files' paths, not their contents: an edited file gives other layouts.
     """
 
     def __init__(
@@ -136,7 +137,7 @@ class LayoutSampler:
         seeds = self._seeds
         return {
             "kinds": list(self.kinds),
-            "files": list(self.files),
+            "files": [str(Path(f).expanduser().resolve()) for f in self.files],  # usable from any folder
             "seeds": {"start": seeds.start, "stop": seeds.stop} if isinstance(seeds, range) else seeds.tolist(),
             "weights": self._weights_given,
         }

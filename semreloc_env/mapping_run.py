@@ -25,7 +25,7 @@ from filters.mapping.grid import GridMap
 from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper
 
 from .config import CameraParams, LidarParams
-from .layouts import CLASS_NAMES, Layout
+from .layouts import CLASS_NAMES, Layout, LayoutError
 from .rasterize import raster_geometry
 from .sensors import Lidar, SemanticCamera
 from .world import build_world
@@ -131,7 +131,7 @@ def _lattice(layout: Layout, spacing_m: float):
     keep = free[jj, ii]
     jj, ii = jj[keep], ii[keep]
     if ii.size == 0:
-        raise ValueError(f"layout {layout.name!r} has no free space for a mapping run")
+        raise LayoutError(f"layout {layout.name!r} has no free space for a mapping run (the robot fits nowhere)")
     index = np.full(free.shape, -1, np.int64)
     index[jj, ii] = np.arange(ii.size)
     pts = np.stack([xs[ii], ys[jj]], axis=1)

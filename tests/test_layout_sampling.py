@@ -106,6 +106,17 @@ def test_random_layout_spec_round_trips_through_json(sampler):
             np.testing.assert_array_equal(oa[k], ob[k])
 
 
+def test_sampler_config_names_layout_files_from_anywhere(tmp_path, monkeypatch):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "room.json").write_text(json.dumps(get_layout("twin_rooms").to_dict()))
+    monkeypatch.chdir(tmp_path / "a")
+    config = LayoutSampler(kinds=(), files=["room.json"]).config()
+    assert config["files"] == [str((tmp_path / "a" / "room.json").resolve())]
+    monkeypatch.chdir(tmp_path)
+    draw = LayoutSampler.from_config(config).draw(np.random.default_rng(0))
+    assert draw.layout.to_dict() == get_layout("twin_rooms").to_dict()
+
+
 def test_sampler_config_rejects_bad_input():
     with pytest.raises(ValueError, match="unknown keys"):
         LayoutSampler.from_config({"kinds": ["lab"], "seed": 3})

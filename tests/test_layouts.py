@@ -1,10 +1,12 @@
 import json
 import math
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
 
+import semreloc_env  # noqa: F401
 from semreloc_env.layouts import (
     CLASS_NAMES,
     LayoutError,
@@ -176,7 +178,6 @@ def test_a_layout_path_may_start_with_a_tilde(tmp_path, monkeypatch):
 def test_a_ros_map_path_may_start_with_a_tilde(tmp_path, monkeypatch):
     import gymnasium as gym
 
-    import semreloc_env  # noqa: F401
     from filters.mapping.ros_map import save_map
 
     monkeypatch.setenv("HOME", str(tmp_path))
@@ -188,3 +189,10 @@ def test_a_ros_map_path_may_start_with_a_tilde(tmp_path, monkeypatch):
 
     (tmp_path / "tw_layout.yaml").write_text(yaml.safe_dump({**get_layout("twin_rooms").to_dict(), "name": "twl"}))
     gym.make("SemReloc-v3", layout="twin_rooms", map_source="~/tw_layout.yaml").reset(seed=0)  # a layout as the map
+
+
+def test_a_layout_too_small_for_the_robot_is_a_layout_error(tmp_path):
+    path = tmp_path / "tiny.json"
+    path.write_text('{"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]}')
+    with pytest.raises(LayoutError, match="no free space"):
+        gym.make("SemReloc-v3", layout=str(path))

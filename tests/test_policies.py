@@ -124,3 +124,16 @@ def test_spin_then_back_up_checks_its_distances():
     for bad in ({"backup_m": float("nan")}, {"backup_m": 0.0}, {"clearance_m": -1.0}):
         with pytest.raises(ValueError):
             SpinThenBackUp(0, **bad)
+
+
+def test_policies_refuse_vector_envs_by_name():
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    import agents
+
+    vec = gym.make_vec("SemRelocVec-v3", num_envs=2, vectorization_mode="vector_entry_point", layout="twin_rooms")
+    sb3 = DummyVecEnv([lambda: gym.make("SemReloc-v3", layout="twin_rooms")])
+    for policy in (POLICIES["wall_follow"](), POLICIES["viewpoint"](), agents.load_policy(agents.SHIPPED_POLICY)):
+        for env in (vec, sb3):
+            with pytest.raises(TypeError, match="one env at a time"):
+                policy.wrap(env)

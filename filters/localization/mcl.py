@@ -170,7 +170,10 @@ class MCLConfig:
         kld_bin_xy_m, kld_bin_theta_rad: its histogram bins (m, rad).
         kld_epsilon, kld_z: its error bound and the upper standard normal quantile (2.326 for
             1 - delta = 0.99).
-        min_particles, max_particles: the bounds of the particle count.
+        min_particles, max_particles: with ``n_particles`` None, the bounds of ``init_global``'s
+            map-sized count, ``init_around`` draws ``min_particles``, and KLD draws at most
+            ``max_particles`` (clustered resampling's per-cluster floors can add to a set, so
+            counts are not clipped to these bounds; see the module docstring).
         global_particles_per_m2: particles per m^2 of free space for ``init_global`` when
             ``n_particles`` is None (> 0 then).
         resample_mode: ``"global"`` (one draw over all particles) or ``"clustered"``.

@@ -122,3 +122,15 @@ def require_raw_observation(env, who: str) -> None:
             f"{who} needs the env's own observations (scans in metres){hint}; this env's {differ} differ from "
             f"{type(env.unwrapped).__name__}'s: wrap the raw env instead"
         )
+
+
+def require_single_env(env, who: str) -> None:
+    """TypeError if ``env`` is a vector env (Gymnasium's ``VectorEnv`` or SB3's ``VecEnv``): a policy
+    with the baselines' interface keeps per-episode state (a plan, a held option) for one robot."""
+    import gymnasium as gym
+
+    if isinstance(env, gym.vector.VectorEnv) or hasattr(env, "num_envs"):
+        raise TypeError(
+            f"{who} acts on one env at a time, not on a vector env of {getattr(env, 'num_envs', '?')}: make one "
+            "policy per env (gym.make each), or run many with scripts/evaluate_active.py --workers N"
+        )

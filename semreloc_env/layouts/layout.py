@@ -49,7 +49,8 @@ class LayoutError(ValueError):
 
 @dataclass(frozen=True)
 class SemanticObject:
-    """One object of a known class: a simple polygon, vertices counter-clockwise, metres."""
+    """One object of a known class: a simple polygon, vertices counter-clockwise (files may give
+    either orientation; they are reversed when clockwise), metres."""
 
     cls: str
     polygon: tuple[Point, ...]
@@ -76,7 +77,8 @@ class Layout:
 
     Attributes:
         name: a label for plots and logs.
-        outer: the closed outer wall polygon (counter-clockwise); the robot lives inside it.
+        outer: the closed outer wall polygon (counter-clockwise; a file may give it clockwise,
+            it is reversed); the robot lives inside it.
         walls: interior walls, each an open polyline of >= 2 points.
         objects: the semantic objects.
     """
@@ -214,7 +216,8 @@ def _points(raw, what: str, min_points: int) -> np.ndarray:
 
 
 def _ring(raw, what: str) -> np.ndarray:
-    """A simple polygon from its vertices: counter-clockwise, without repeated vertices."""
+    """A simple polygon from its vertices, in either orientation: returned counter-clockwise,
+    without repeated vertices."""
     p = _points(raw, what, 3)
     keep = np.ones(len(p), bool)
     keep[1:] = np.any(p[1:] != p[:-1], axis=1)  # exact duplicates only: large coordinates keep their corners
