@@ -402,7 +402,8 @@ def train_active(
 
     ``out`` receives ``config.json``, ``progress.csv`` and TensorBoard events, ``checkpoints/``
     (``ppo_<decisions>_steps.zip``), ``policy.zip`` (`agents.learned.save_policy`) and
-    ``timing.json`` (wall and CPU seconds, decisions and env steps) and ``learning_curve.png``.
+    ``timing.json`` (wall and CPU seconds of this run, its decisions and the total since the first
+    run, env steps) and ``learning_curve.png``.
     ``resume``: a checkpoint to continue from; ``total_timesteps`` more decisions are trained (the
     step count carries on), and the earlier run's ``progress.csv``, ``timing.json``, ``config.json``,
     ``policy.zip`` and ``learning_curve.png`` in ``out`` are kept as ``*_before_<decisions>.*``.
@@ -438,6 +439,7 @@ def train_active(
         cbs.append(WallClockBudget(config.time_budget_s))
     cbs += list(callbacks or [])
     t0, c0 = time.time(), time.process_time()
+    start_decisions = int(model.num_timesteps)  # > 0 when resumed
     try:
         model.learn(
             total_timesteps=config.total_timesteps,
@@ -451,7 +453,8 @@ def train_active(
     timing = {
         "wall_s": time.time() - t0,
         "learner_cpu_s": time.process_time() - c0,
-        "decisions": int(model.num_timesteps),
+        "decisions": int(model.num_timesteps),  # in all, the resumed runs' included
+        "decisions_this_run": int(model.num_timesteps) - start_decisions,  # those wall_s and learner_cpu_s paid
         "env_steps_max": int(model.num_timesteps) * config.repeat,
         "resumed_from": None if resume is None else str(resume),
     }

@@ -162,7 +162,9 @@ def test_resume_continues_the_step_count_and_keeps_the_earlier_logs(smoke_run, t
     assert (run / f"progress_before_{done}.csv").is_file() and (run / f"timing_before_{done}.json").is_file()
     assert (run / f"policy_before_{done}.zip").is_file() and (run / "policy.zip").is_file()  # both networks kept
     assert json.loads((run / f"timing_before_{done}.json").read_text())["decisions"] == before
-    assert json.loads((run / "timing.json").read_text())["decisions"] >= done + 64
+    timing = json.loads((run / "timing.json").read_text())
+    assert timing["decisions"] >= done + 64
+    assert timing["decisions_this_run"] == timing["decisions"] - done  # what this run's seconds paid for
 
 
 def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsys):
