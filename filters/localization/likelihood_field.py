@@ -20,6 +20,9 @@ paper 004 (Eq. 8-11):
   are skipped; semantic beams with
   label 0 (no object) contribute nothing.
 * A scan's log-likelihood is the sum over the selected beams.
+* Optionally (`NegativeEvidenceConfig`, off by default) unlabelled semantic beams count too: a
+  pose from which the map puts an object on such a beam's ray, before its return, loses up to
+  ``log(1 - p_detect)`` per beam (the object should have been detected), added to the semantic factor.
 
 A semantic class with no cell in the map has distance ``inf`` everywhere, capped
 to ``max_dist_m``: every particle gets the same floor value for such a beam, so
@@ -42,7 +45,7 @@ import hashlib
 import math
 import weakref
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -101,6 +104,80 @@ class LikelihoodFieldConfig:
         return np.logaddexp(log_hit, log_rand)
 
 
+@dataclass(frozen=True)
+class NegativeEvidenceConfig:
+    """Evidence from mapped objects the camera should have seen but did not (``p_detect = 0``: off).
+
+    A semantic beam that returns from a surface at range ``r`` without a label says that no
+    object lies on its ray before ``r``. The positive likelihood field takes nothing from such a
+    beam, so a pose from which the map predicts an object where the camera sees a bare wall
+    loses nothing (docs/relocalizer.md, "Negative evidence"). With ``p_detect > 0`` up to
+    ``max_beams`` such beams (evenly spread; beams next to a labelled one are skipped, as their
+    rays graze the detected object's edge) are each sampled at points ``margin_m`` short of the
+    return and then every ``step_m`` back towards the robot (down to ``step_m``). Each point is
+    looked up in a table of ``log(1 - p_detect * presence(d))``, ``d`` the distance (metres)
+    from the point's cell to the nearest mapped object cell of *any* class, ``presence(d) = 1``
+    for ``d <= radius_m`` and ``exp(-(d - radius_m)^2 / (2 sigma_m^2))`` beyond; off the map the
+    value is 0. A beam adds the lowest value of its points (one object on the ray suffices), so
+    a pose loses at most ``log(1 - p_detect)`` per beam, before the filter's tempering. The sum
+    is added to the semantic factor.
+
+    Attributes:
+        p_detect: chance the filter assumes that a mapped object on the ray is detected, in
+            ``[0, 1)``; 0 turns the evidence off (no beams are selected, nothing is computed).
+        radius_m: points this close to an object cell count as on it (metres, >= 0).
+        sigma_m: fall-off of ``presence`` beyond ``radius_m`` (metres, > 0).
+        step_m: spacing of the points along a beam (metres, > 0).
+        margin_m: the first point lies this far short of the return (metres, >= 0), so that a
+            beam ending on a wall beside an object does not count as passing through it.
+        max_beams: at most this many beams per scan (>= 1).
+    """
+
+    p_detect: float = 0.0
+    radius_m: float = 0.1
+    sigma_m: float = 0.1
+    step_m: float = 0.25
+    margin_m: float = 0.15
+    max_beams: int = 8
+
+    def __post_init__(self) -> None:
+        p = self.p_detect
+        if not (isinstance(p, (int, float)) and 0.0 <= p < 1.0):
+            raise ValueError(f"NegativeEvidenceConfig.p_detect must be a number in [0, 1), got {p!r}")
+        for name, low_ok in (("radius_m", True), ("sigma_m", False), ("step_m", False), ("margin_m", True)):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and (v >= 0 if low_ok else v > 0)):
+                what = "a finite number >= 0" if low_ok else "a positive finite number"
+                raise ValueError(f"NegativeEvidenceConfig.{name} must be {what}, got {v!r}")
+        if not (isinstance(self.max_beams, int) and not isinstance(self.max_beams, bool) and self.max_beams >= 1):
+            raise ValueError(f"NegativeEvidenceConfig.max_beams must be an int >= 1, got {self.max_beams!r}")
+
+    @property
+    def enabled(self) -> bool:
+        return self.p_detect > 0.0
+
+    def log_q(self, dist_m: np.ndarray) -> np.ndarray:
+        """``log(1 - p_detect * presence(d))`` for points ``dist_m`` from the nearest object cell."""
+        d = np.asarray(dist_m, dtype=np.float64)
+        over = np.maximum(d - self.radius_m, 0.0)
+        presence = np.exp(-(over * over) / (2.0 * self.sigma_m**2))
+        return np.log1p(-self.p_detect * presence)
+
+    def sample_ranges(self, ranges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points of beams returning at ``ranges`` ``(B,)`` (metres): ``(counts (B,), r (S,))``,
+        each beam's points ``r - margin_m``, then every ``step_m`` down to ``step_m`` (none if
+        ``r - margin_m < step_m``), beam after beam."""
+        first = np.asarray(ranges, dtype=np.float64) - self.margin_m
+        counts = np.where(first >= self.step_m, np.floor((first - self.step_m) / self.step_m) + 1, 0).astype(np.int64)
+        ends = np.cumsum(counts)
+        k = np.arange(int(ends[-1]) if counts.size else 0) - np.repeat(ends - counts, counts)
+        return counts, np.repeat(first, counts) - self.step_m * k
+
+
+NO_NEGATIVE_EVIDENCE = NegativeEvidenceConfig()
+"""The default: negative evidence off (the model of paper 004)."""
+
+
 DEFAULT_SEMANTIC_FIELD = LikelihoodFieldConfig(sigma_hit_m=0.3, z_hit=0.8, z_rand=0.2, max_dist_m=2.0, max_beams=40)
 """Semantic defaults: wider Gaussian and a higher random floor than lidar, because
 detections are less precise and false detections happen (paper 004 §3)."""
@@ -138,6 +215,22 @@ def count_detections(semantic: SemanticScan) -> int:
     return int(start.sum())
 
 
+_EMPTY_F = np.zeros(0)
+_EMPTY_F.setflags(write=False)
+_ZERO_START = np.zeros(1, np.int64)
+_ZERO_START.setflags(write=False)
+
+
+def negative_beams(labels: np.ndarray, ranges: np.ndarray, range_max_m: float, max_beams: int) -> np.ndarray:
+    """Indices of the beams `NegativeEvidenceConfig` samples: unlabelled returns (``ranges <
+    range_max_m``) whose neighbours carry no label either, at most ``max_beams`` evenly spread."""
+    lab = labels > 0
+    near = lab.copy()
+    near[1:] |= lab[:-1]
+    near[:-1] |= lab[1:]
+    return select_beams(~near & (ranges < range_max_m), 1, max_beams)
+
+
 @dataclass(frozen=True, eq=False)
 class BeamSet:
     """The beams of one update, in the robot frame, ready for the kernel.
@@ -149,6 +242,9 @@ class BeamSet:
         n_semantic: number of labelled semantic beams (the rest).
         n_detections: objects seen in the semantic scan (see `count_detections`).
         lidar_range_max_m, semantic_range_max_m: range limits the log tables use.
+        nx, ny: ``(S,)`` robot-frame points (metres) of the negative-evidence beams
+            (`NegativeEvidenceConfig`), beam after beam; empty when it is off.
+        n_starts: ``(n_negative + 1,)`` int64: beam ``b``'s points are ``nx[n_starts[b]:n_starts[b + 1]]``.
     """
 
     lx: np.ndarray
@@ -159,6 +255,14 @@ class BeamSet:
     n_detections: int
     lidar_range_max_m: float
     semantic_range_max_m: float
+    nx: np.ndarray = field(default_factory=lambda: _EMPTY_F)
+    ny: np.ndarray = field(default_factory=lambda: _EMPTY_F)
+    n_starts: np.ndarray = field(default_factory=lambda: _ZERO_START)
+
+    @property
+    def n_negative(self) -> int:
+        """Negative-evidence beams (unlabelled semantic returns sampled for missing objects)."""
+        return int(self.n_starts.size - 1)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -240,6 +344,37 @@ def log_likelihood_kernel(
         out_s[i] = _gather_sum(flat, idx, n_lidar, nb, acc)
 
 
+@numba.njit(cache=True, nogil=True)
+def negative_evidence_kernel(
+    x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out
+):  # pragma: no cover - compiled
+    """Add each particle's negative evidence to ``out`` (see `NegativeEvidenceConfig`).
+
+    Beam ``b``'s points (robot frame, cells) are ``nu/nv[starts[b]:starts[b + 1]]``; a point's
+    cell is found as in `log_likelihood_kernel` and its value is ``table[row * w + col]`` (0 off
+    the ``h x w`` map). A beam contributes the lowest value of its points (at most 0); beams are
+    summed in order.
+    """
+    nb = starts.shape[0] - 1
+    for i in range(x.shape[0]):
+        pu = (x[i] - ox) * inv_res
+        pv = (y[i] - oy) * inv_res
+        c = cos_t[i]
+        s = sin_t[i]
+        acc = 0.0
+        for b in range(nb):
+            low = 0.0
+            for j in range(starts[b], starts[b + 1]):
+                fx = pu + (c * nu[j] - s * nv[j])
+                fy = pv + (s * nu[j] + c * nv[j])
+                if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
+                    v = table[int(fy) * w + int(fx)]
+                    if v < low:
+                        low = v
+            acc += low
+        out[i] += acc
+
+
 class LikelihoodFieldModel:
     """Measurement model ``log p(lidar, semantic | pose, map)`` over an ``(N, 3)`` pose array.
 
@@ -251,6 +386,7 @@ class LikelihoodFieldModel:
             field of class ``k`` (scan label ``k + 1``).
         lidar: parameters of the lidar field.
         semantic: parameters of the semantic fields (shared by all classes).
+        negative: evidence from objects not seen (`NegativeEvidenceConfig`); None = off.
         backend: ``"numba"`` (the fast kernel) or ``"numpy"`` (the reference in
             `filters.localization.likelihood_reference`; same numbers, slower).
     """
@@ -261,6 +397,7 @@ class LikelihoodFieldModel:
         lidar: LikelihoodFieldConfig | None = None,
         semantic: LikelihoodFieldConfig | None = None,
         backend: str = "numba",
+        negative: NegativeEvidenceConfig | None = None,
     ) -> None:
         if not isinstance(grid, GridMap):
             raise TypeError(f"grid must be a filters.mapping.grid.GridMap, got {type(grid).__name__}")
@@ -269,6 +406,9 @@ class LikelihoodFieldModel:
         self.grid = grid
         self.lidar_config = lidar if lidar is not None else LikelihoodFieldConfig()
         self.semantic_config = semantic if semantic is not None else DEFAULT_SEMANTIC_FIELD
+        self.negative_config = negative if negative is not None else NO_NEGATIVE_EVIDENCE
+        if not isinstance(self.negative_config, NegativeEvidenceConfig):
+            raise TypeError(f"negative must be a NegativeEvidenceConfig, got {type(negative).__name__}")
         self.backend = backend
         res = grid.resolution_m
         n_cls = len(grid.class_names)
@@ -280,6 +420,21 @@ class LikelihoodFieldModel:
         self.distance_fields_m = fields
         """``(1 + C, H, W)`` uncapped distances in metres: ``[0]`` to occupied cells, ``[k + 1]`` to class ``k``."""
         self._tables: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._negative_table: np.ndarray | None = None
+
+    @property
+    def object_distance_m(self) -> np.ndarray:
+        """``(H, W)`` distance (metres) to the nearest cell of any class (``inf`` if the map has none)."""
+        f = self.distance_fields_m
+        return f[1:].min(axis=0) if f.shape[0] > 1 else np.full(f.shape[1:], np.inf)
+
+    def negative_table(self) -> np.ndarray:
+        """``(H * W,)`` ``log(1 - p_detect * presence)`` per cell (`NegativeEvidenceConfig.log_q`), read-only."""
+        if self._negative_table is None:
+            t = np.ascontiguousarray(self.negative_config.log_q(self.object_distance_m).ravel())
+            t.setflags(write=False)
+            self._negative_table = t
+        return self._negative_table
 
     @property
     def n_classes(self) -> int:
@@ -328,6 +483,7 @@ class LikelihoodFieldModel:
             TypeError: the scans are not `LaserScan` / `SemanticScan`.
         """
         lxs, lys, tabs = [], [], []
+        nx, ny, n_starts = _EMPTY_F, _EMPTY_F, _ZERO_START
         n_l = n_s = n_det = 0
         l_rmax = s_rmax = 1.0
         if lidar is not None:
@@ -358,6 +514,14 @@ class LikelihoodFieldModel:
             n_s = int(idx.size)
             n_det = count_detections(semantic)
             s_rmax = semantic.range_max_m
+            neg = self.negative_config
+            if neg.enabled:
+                nidx = negative_beams(semantic.labels, semantic.ranges, s_rmax, neg.max_beams)
+                counts, r = neg.sample_ranges(semantic.ranges[nidx])
+                keep = counts > 0
+                if keep.any():
+                    nx, ny = beam_endpoints(r, np.repeat(semantic.angles[nidx], counts), semantic.sensor_pose)
+                    n_starts = np.concatenate([[0], np.cumsum(counts[keep])]).astype(np.int64)
         cat = (lambda parts, dt: np.concatenate(parts).astype(dt)) if lxs else (lambda parts, dt: np.zeros(0, dt))
         return BeamSet(
             lx=cat(lxs, np.float64),
@@ -368,6 +532,9 @@ class LikelihoodFieldModel:
             n_detections=n_det,
             lidar_range_max_m=float(l_rmax),
             semantic_range_max_m=float(s_rmax),
+            nx=nx,
+            ny=ny,
+            n_starts=n_starts,
         )
 
     def log_likelihood_terms(
@@ -393,30 +560,49 @@ class LikelihoodFieldModel:
         n = p.shape[0]
         out_l = np.zeros(n)
         out_s = np.zeros(n)
-        if n and beams.lx.size:
+        if n and (beams.lx.size or beams.n_negative):
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
             inv_res = 1.0 / self.grid.resolution_m
-            offset = beams.table * (h * w)
-            log_likelihood_kernel(
-                p[:, 0].copy(),
-                p[:, 1].copy(),
-                np.cos(p[:, 2]),
-                np.sin(p[:, 2]),
-                beams.lx * inv_res,
-                beams.ly * inv_res,
-                offset,
-                beams.table + self.distance_fields_m.size,
-                beams.n_lidar,
-                flat,
-                float(ox),
-                float(oy),
-                inv_res,
-                w,
-                h,
-                out_l,
-                out_s,
-            )
+            x, y, cos_t, sin_t = p[:, 0].copy(), p[:, 1].copy(), np.cos(p[:, 2]), np.sin(p[:, 2])
+            if beams.lx.size:
+                offset = beams.table * (h * w)
+                log_likelihood_kernel(
+                    x,
+                    y,
+                    cos_t,
+                    sin_t,
+                    beams.lx * inv_res,
+                    beams.ly * inv_res,
+                    offset,
+                    beams.table + self.distance_fields_m.size,
+                    beams.n_lidar,
+                    flat,
+                    float(ox),
+                    float(oy),
+                    inv_res,
+                    w,
+                    h,
+                    out_l,
+                    out_s,
+                )
+            if beams.n_negative:
+                negative_evidence_kernel(
+                    x,
+                    y,
+                    cos_t,
+                    sin_t,
+                    beams.nx * inv_res,
+                    beams.ny * inv_res,
+                    beams.n_starts,
+                    self.negative_table(),
+                    float(ox),
+                    float(oy),
+                    inv_res,
+                    w,
+                    h,
+                    out_s,
+                )
         return out_l, out_s, beams
 
     def log_likelihood(
@@ -457,8 +643,9 @@ def cached_model(
     lidar: LikelihoodFieldConfig | None = None,
     semantic: LikelihoodFieldConfig | None = None,
     backend: str = "numba",
+    negative: NegativeEvidenceConfig | None = None,
 ) -> LikelihoodFieldModel:
-    """A `LikelihoodFieldModel` for ``(grid, lidar, semantic, backend)``, built once per process.
+    """A `LikelihoodFieldModel` for ``(grid, lidar, semantic, backend, negative)``, built once per process.
 
     Keyed on the map's *content* (`grid_content_key`) and the configs, so two GridMap
     objects holding the same map share one model; at most `MODEL_CACHE_SIZE` models are
@@ -468,10 +655,11 @@ def cached_model(
         raise TypeError(f"grid must be a filters.mapping.grid.GridMap, got {type(grid).__name__}")
     lidar = lidar if lidar is not None else LikelihoodFieldConfig()
     semantic = semantic if semantic is not None else DEFAULT_SEMANTIC_FIELD
-    key = (grid_content_key(grid), lidar, semantic, backend)
+    negative = negative if negative is not None else NO_NEGATIVE_EVIDENCE
+    key = (grid_content_key(grid), lidar, semantic, backend, negative)
     model = _models.get(key)
     if model is None:
-        model = LikelihoodFieldModel(grid, lidar, semantic, backend)  # validates the arguments
+        model = LikelihoodFieldModel(grid, lidar, semantic, backend, negative)  # validates the arguments
         _models[key] = model
         while len(_models) > MODEL_CACHE_SIZE:
             _models.popitem(last=False)

@@ -97,7 +97,13 @@ from scipy.special import logsumexp
 from filters import _blas
 from filters.localization import kld_kernels
 from filters.localization.belief import Belief, BeliefConfig, cluster_labels, linear_bin_keys, summarize
-from filters.localization.likelihood_field import DEFAULT_SEMANTIC_FIELD, LikelihoodFieldConfig, LikelihoodFieldModel
+from filters.localization.likelihood_field import (
+    DEFAULT_SEMANTIC_FIELD,
+    NO_NEGATIVE_EVIDENCE,
+    LikelihoodFieldConfig,
+    LikelihoodFieldModel,
+    NegativeEvidenceConfig,
+)
 from filters.localization.proposals import ScanProposal
 from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
@@ -131,6 +137,7 @@ def _fox_bound_table(epsilon: float, z: float, size: int) -> np.ndarray:
 _SUBCONFIGS = {
     "lidar_field": LikelihoodFieldConfig,
     "semantic_field": LikelihoodFieldConfig,
+    "negative_evidence": NegativeEvidenceConfig,
     "motion": OdometryMotionConfig,
     "belief": BeliefConfig,
 }
@@ -155,6 +162,8 @@ class MCLConfig:
             docstring, step 6).
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
+        negative_evidence: evidence from mapped objects the camera did not see
+            (`NegativeEvidenceConfig`; off by default, on in ``SemReloc-v4``).
         motion: odometry motion noise.
         belief: bins and thresholds of `MonteCarloLocalizer.belief`.
         use_semantic: multiply in the semantic factor (False = lidar-only MCL).
@@ -201,6 +210,7 @@ class MCLConfig:
     n_particles: int | None = 2000
     lidar_field: LikelihoodFieldConfig = LikelihoodFieldConfig()
     semantic_field: LikelihoodFieldConfig = DEFAULT_SEMANTIC_FIELD
+    negative_evidence: NegativeEvidenceConfig = NO_NEGATIVE_EVIDENCE
     motion: OdometryMotionConfig = OdometryMotionConfig()
     belief: BeliefConfig = BeliefConfig()
     use_semantic: bool = True
@@ -385,7 +395,7 @@ class MonteCarloLocalizer:
         self.measurement_model = (
             measurement_model
             if measurement_model is not None
-            else LikelihoodFieldModel(grid, c.lidar_field, c.semantic_field, backend=c.backend)
+            else LikelihoodFieldModel(grid, c.lidar_field, c.semantic_field, c.backend, c.negative_evidence)
         )
         self._resample = get_resampler(c.resampler)
         self._belief_backend = "numba" if c.fast_path else "numpy"
