@@ -20,13 +20,13 @@ from semreloc_env.wrappers import ActionRepeat
 
 def _env(**kw):
     kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 50, **kw}
-    return gym.make("SemReloc-v3", **kw)
+    return gym.make("SemReloc-v4", **kw)
 
 
 def test_action_repeat_sums_rewards_and_terms_and_stops_at_the_episode_end():
     plain, rep = _env(max_episode_steps=10), ActionRepeat(_env(max_episode_steps=10), 4)
-    plain.reset(seed=3)
-    rep.reset(seed=3)
+    plain.reset(seed=6)  # a start from which the filter does not converge within 10 steps
+    rep.reset(seed=6)
     total, terms = 0.0, {}
     for _ in range(4):
         _, r, _, _, info = plain.step(0)

@@ -150,7 +150,7 @@ def _preprocessed(space, raw: dict) -> dict:
     return preprocess_obs({k: torch.as_tensor(v) for k, v in raw.items()}, space, normalize_images=False)
 
 
-@pytest.mark.parametrize("env_id", ["SemReloc-v3", "SemReloc-v1"])
+@pytest.mark.parametrize("env_id", ["SemReloc-v4", "SemReloc-v1"])
 def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
     space = make_env(FAST, env_id=env_id).observation_space
     torch.manual_seed(0)
@@ -178,7 +178,8 @@ def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
 
 def test_features_extractor_gives_the_same_features_for_both_observation_layouts():
     """SemReloc-v3's typed observation and v1's flat one of the same step give the same features
-    (same seed, same weights): the one-hot of the MultiDiscrete equals the one-hot of the float labels."""
+    (same seed, same weights, the same relocalizer): the one-hot of the MultiDiscrete equals the
+    one-hot of the float labels."""
     envs = {i: make_env(FAST, env_id=i) for i in ("SemReloc-v3", "SemReloc-v1")}
     ext = {}
     for i, env in envs.items():

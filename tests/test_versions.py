@@ -1,4 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v3 (v2 with lookalike layouts that break
+"""The registered ids behave as their Version History says: SemReloc-v4 (v3's relocalizer with evidence from
+objects not seen), SemReloc-v3 (v2 with lookalike layouts that break
 their half turn), SemReloc-v2 / SemSlam-v1 (typed observation,
 not-computed info values left out) against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
 
@@ -36,6 +37,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v4",
         "SemReloc-v3",
         "SemReloc-v2",
         "SemReloc-v1",
@@ -48,6 +50,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v4", typed),
         ("SemReloc-v3", typed),
         ("SemReloc-v2", typed),
         ("SemReloc-v1", flat),
@@ -202,3 +205,25 @@ def test_vector_env_v3_runs_semreloc_v3():
     venv.close()
     with pytest.raises(TypeError, match="SemReloc-v3"):
         gym.make_vec("SemRelocVec-v3", num_envs=1, vectorization_mode="vector_entry_point", env_id="SemReloc-v1")
+
+
+def test_v4_is_v3_with_negative_evidence():
+    from filters.localization.likelihood_field import NegativeEvidenceConfig
+
+    v4, v3 = make("SemReloc-v4", **FAST).unwrapped, make("SemReloc-v3", **FAST).unwrapped
+    assert v4.mcl_config.negative_evidence.p_detect > 0
+    assert v3.mcl_config.negative_evidence == NegativeEvidenceConfig()
+    assert v4.mcl_config == v3.mcl_config.__class__(
+        **{**v3.mcl_config.as_dict(), "negative_evidence": v4.mcl_config.negative_evidence}
+    )
+    # turned off, v4 gives v3's episode bit for bit; on, another one (the same world and sensors)
+    off = {**FAST, "relocalizer": {**FAST["relocalizer"], "negative_evidence": {"p_detect": 0.0}}}
+    actions = ACTIONS + [1] * 20 + [0] * 10
+    a = rollout(make("SemReloc-v4", **off), actions=actions)
+    b = rollout(make("SemReloc-v3", **FAST), actions=actions)
+    c = rollout(make("SemReloc-v4", **FAST), actions=actions)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+    for x, z in zip(a, c):
+        np.testing.assert_equal(x[0], z[0])  # observations do not depend on the filter
+    assert any(x[4]["belief"] != z[4]["belief"] for x, z in zip(a, c))

@@ -161,10 +161,11 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v3"
-"""The env every episode runs in; its cases' procedural layouts come from the newest generator, as v3's do.
-(Until v3, this was ``SemReloc-v2``: the v2 tables of docs/active.md were made so; v3 gives the same
-episodes on every pair but those in the 30 look-alike pairs whose layouts it draws again.)"""
+ENV_ID = "SemReloc-v4"
+"""The env every episode runs in; its cases' procedural layouts come from the newest generator, as v3's and v4's do.
+(The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
+gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
+draws again; v4 changes the relocalizer, so every episode.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")

@@ -1,4 +1,4 @@
-"""``SemReloc-v3`` (and ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v4`` (and ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from filters.localization.likelihood_field import cached_model
+from filters.localization.likelihood_field import NegativeEvidenceConfig, cached_model
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
@@ -21,7 +21,7 @@ from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
 from .base import SemRelocBase, check_layout_seed
 
-DEFAULT_RELOCALIZER = MCLConfig(
+RELOCALIZER_V1 = MCLConfig(
     n_particles=None,
     global_particles_per_m2=50.0,
     min_particles=500,
@@ -40,6 +40,12 @@ DEFAULT_RELOCALIZER = MCLConfig(
 detections first) plus augmented-MCL recovery, the lidar factor left out of turn-in-place
 updates, tempering 0.06. Chosen on tuning seeds 5000+ and procedural_sym layouts 100-104
 (docs/relocalizer_eval.md, "Choosing the defaults"); evaluated on other seeds and layouts."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V1, negative_evidence=NegativeEvidenceConfig(p_detect=0.8))
+"""The relocalizer of SemReloc-v4: `RELOCALIZER_V1` plus evidence from mapped objects the camera
+did not see (`filters.localization.likelihood_field.NegativeEvidenceConfig`, ``p_detect=0.8``;
+docs/relocalizer.md, "Negative evidence"). Chosen on the tuning cases of
+``scripts/evaluate_active.py --seed-set tuning``; evaluated on the held-out ones."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -170,6 +176,11 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v4: the relocalizer takes evidence from objects its map puts in the camera's view that the
+      camera did not detect (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V1` with ``negative_evidence``
+      on). Up to 8 unlabelled camera returns per update are sampled along their rays; a pose from
+      which the map puts an object on such a ray loses weight. Worlds, sensors, observations,
+      rewards and episode end are v3's (`SemRelocEnvV3` is v3).
     * v3: ``layout="procedural_lookalike"`` layouts come from the procedural generator's version 2
       (`semreloc_env.layouts.PROCEDURAL_VERSION`): their corridor objects break the half turn that
       maps the rest of the layout onto itself by at least 1 m. In version 1 about a fifth of them
@@ -181,7 +192,7 @@ class SemRelocEnv(SemRelocBase):
       ``info["mcl"]`` leaves out the diagnostics not computed in a step (v1: None), so vector envs
       batch them as float arrays. Dynamics, relocalizer, rewards and episode end are v1's: the same
       seed gives the same episode (`SemRelocEnvV1` is v1).
-    * v1: the relocalizer of the relocalizer issue (`DEFAULT_RELOCALIZER`): particle count
+    * v1: the relocalizer of the relocalizer issue (`RELOCALIZER_V1`): particle count
       sized by the map's free area with KLD sampling, clustered resampling, scan-based
       (semantic) proposals with Mixture-MCL and augmented-MCL injection; ``converged`` needs
       one tight hypothesis with >= 95 % of the mass; ``pose_error`` is that of the heaviest
@@ -307,7 +318,7 @@ class SemRelocEnv(SemRelocBase):
             raise ValueError("the relocalizer's map has no free cell: nowhere to put particles")
 
     def _reset_estimator(self, options: dict) -> None:
-        self.mcl = MonteCarloLocalizer(self.grid, self.mcl_config, self._estimator_rng, measurement_model=cached_model(self.grid, self.mcl_config.lidar_field, self.mcl_config.semantic_field, self.mcl_config.backend))  # fmt: skip
+        self.mcl = MonteCarloLocalizer(self.grid, self.mcl_config, self._estimator_rng, measurement_model=cached_model(self.grid, self.mcl_config.lidar_field, self.mcl_config.semantic_field, self.mcl_config.backend, self.mcl_config.negative_evidence))  # fmt: skip
         if options.get("tracking"):
             self.mcl.init_around(self.world.pose, (0.1, 0.1, math.radians(5.0)))
         else:
@@ -409,10 +420,18 @@ class SemRelocEnv(SemRelocBase):
         return state
 
 
-class SemRelocEnvV2(SemRelocEnv):
-    """``SemReloc-v2``: `SemRelocEnv` with lookalike layouts from the procedural generator's version 1
+class SemRelocEnvV3(SemRelocEnv):
+    """``SemReloc-v3``: `SemRelocEnv` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
+    from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
+    v3 can be reproduced; new work should use ``SemReloc-v4``."""
+
+    default_relocalizer = RELOCALIZER_V1
+
+
+class SemRelocEnvV2(SemRelocEnvV3):
+    """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v3``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v4``."""
 
     procedural_version = 1
 
@@ -421,7 +440,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v3``."""
+    v1 keep working; new work should use ``SemReloc-v4``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -429,6 +448,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v3``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v4``."""
 
     default_relocalizer = LEGACY_RELOCALIZER
