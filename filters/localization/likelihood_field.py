@@ -351,26 +351,24 @@ def negative_evidence_kernel(
     """Add each particle's negative evidence to ``out`` (see `NegativeEvidenceConfig`).
 
     Beam ``b``'s points (robot frame, cells) are ``nu/nv[starts[b]:starts[b + 1]]``; a point's
-    cell is found as in `log_likelihood_kernel` and its value is ``table[row * w + col]`` (0 off
-    the ``h x w`` map). A beam contributes the lowest value of its points (at most 0); beams are
-    summed in order.
+    cell is found as in `log_likelihood_kernel` and its value is ``table[row * w + col]``, or
+    ``table[w * h]`` (0: no object) off the ``h x w`` map. A beam contributes the lowest value of
+    its points (at most 0); beams are summed in order. As in `log_likelihood_kernel`, the cell
+    indices of a particle's points come first, then the look-ups.
     """
+    ns = nu.shape[0]
     nb = starts.shape[0] - 1
+    offset = np.zeros(ns, np.int64)
+    outside = np.full(ns, w * h, np.int64)
+    idx = np.empty(ns, np.int64)
     for i in range(x.shape[0]):
-        pu = (x[i] - ox) * inv_res
-        pv = (y[i] - oy) * inv_res
-        c = cos_t[i]
-        s = sin_t[i]
+        pu, pv = (x[i] - ox) * inv_res, (y[i] - oy) * inv_res
+        _beam_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, offset, outside, w, h, idx)
         acc = 0.0
         for b in range(nb):
             low = 0.0
             for j in range(starts[b], starts[b + 1]):
-                fx = pu + (c * nu[j] - s * nv[j])
-                fy = pv + (s * nu[j] + c * nv[j])
-                if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
-                    v = table[int(fy) * w + int(fx)]
-                    if v < low:
-                        low = v
+                low = min(low, table[idx[j]])
             acc += low
         out[i] += acc
 
@@ -429,9 +427,10 @@ class LikelihoodFieldModel:
         return f[1:].min(axis=0) if f.shape[0] > 1 else np.full(f.shape[1:], np.inf)
 
     def negative_table(self) -> np.ndarray:
-        """``(H * W,)`` ``log(1 - p_detect * presence)`` per cell (`NegativeEvidenceConfig.log_q`), read-only."""
+        """``(H * W + 1,)`` ``log(1 - p_detect * presence)`` per cell (`NegativeEvidenceConfig.log_q`),
+        then 0 (the value off the map), read-only."""
         if self._negative_table is None:
-            t = np.ascontiguousarray(self.negative_config.log_q(self.object_distance_m).ravel())
+            t = np.concatenate([self.negative_config.log_q(self.object_distance_m).ravel(), [0.0]])
             t.setflags(write=False)
             self._negative_table = t
         return self._negative_table
