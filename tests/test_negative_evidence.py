@@ -121,11 +121,23 @@ def test_the_filter_keeps_its_particles_off_places_whose_object_it_did_not_see()
 
 
 def test_bad_configs_are_refused_and_models_are_cached_per_config():
-    for bad in ({"p_detect": 1.0}, {"p_detect": -0.1}, {"p_detect": float("nan")}, {"sigma_m": 0.0}, {"step_m": -1}):
+    bad_values = (
+        {"p_detect": 1.0},
+        {"p_detect": -0.1},
+        {"p_detect": float("nan")},
+        {"p_detect": True},
+        {"p_detect": "0.5"},
+    )
+    for bad in (*bad_values, {"sigma_m": 0.0}, {"step_m": -1}, {"radius_m": float("inf")}):
         with pytest.raises(ValueError, match="NegativeEvidenceConfig"):
             NegativeEvidenceConfig(**bad)
-    with pytest.raises(ValueError, match="max_beams"):
-        NegativeEvidenceConfig(max_beams=0)
+    for bad_n in (0, True, 2.0):
+        with pytest.raises(ValueError, match="max_beams"):
+            NegativeEvidenceConfig(max_beams=bad_n)
+    # NumPy numbers are numbers; a config equals the one made of Python numbers
+    assert NegativeEvidenceConfig(p_detect=np.float32(0.5), max_beams=np.int64(4)) == NegativeEvidenceConfig(
+        0.5, max_beams=4
+    )
     with pytest.raises(TypeError):
         NegativeEvidenceConfig(p=0.5)  # unknown key
     with pytest.raises(TypeError, match="NegativeEvidenceConfig"):

@@ -53,6 +53,7 @@ from scipy import ndimage
 
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.mapping.grid import GridMap
+from filters.numbers import is_int, is_real
 from filters.robot_data.scans import LaserScan, SemanticScan, beam_endpoints
 
 
@@ -142,15 +143,18 @@ class NegativeEvidenceConfig:
 
     def __post_init__(self) -> None:
         p = self.p_detect
-        if not (isinstance(p, (int, float)) and 0.0 <= p < 1.0):
+        if not (is_real(p) and 0.0 <= p < 1.0):
             raise ValueError(f"NegativeEvidenceConfig.p_detect must be a number in [0, 1), got {p!r}")
+        object.__setattr__(self, "p_detect", float(p))
         for name, low_ok in (("radius_m", True), ("sigma_m", False), ("step_m", False), ("margin_m", True)):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and (v >= 0 if low_ok else v > 0)):
+            if not (is_real(v) and math.isfinite(v) and (v >= 0 if low_ok else v > 0)):
                 what = "a finite number >= 0" if low_ok else "a positive finite number"
                 raise ValueError(f"NegativeEvidenceConfig.{name} must be {what}, got {v!r}")
-        if not (isinstance(self.max_beams, int) and not isinstance(self.max_beams, bool) and self.max_beams >= 1):
+            object.__setattr__(self, name, float(v))
+        if not (is_int(self.max_beams) and self.max_beams >= 1):
             raise ValueError(f"NegativeEvidenceConfig.max_beams must be an int >= 1, got {self.max_beams!r}")
+        object.__setattr__(self, "max_beams", int(self.max_beams))
 
     @property
     def enabled(self) -> bool:
