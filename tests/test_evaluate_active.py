@@ -153,6 +153,11 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
         ({"seed_set": "tuning", "layouts_per_kind": 0}, "tuning"),
         ({"layout_files": (str(tmp_path / "missing.json"),)}, "layout_files"),
         ({"policies": (f"ppo={junk}",)}, "not a policy zip"),
+        ({"relocalizer": "[1, 2]"}, "JSON object"),
+        ({"relocalizer": "{not json"}, "not a JSON object"),
+        ({"relocalizer": '{"bogus": 1}'}, "relocalizer"),
+        ({"relocalizer": '{"negative_evidence": {"p_detect": 2}}'}, "p_detect"),
+        ({"relocalizer": '{"n_particles": 10}'}, "--particles"),
     ]:
         with pytest.raises(ValueError, match=match):
             ev.Args(**kw)
@@ -242,3 +247,17 @@ def test_own_layouts_alone_and_malformed_layout_files(tmp_path):
     with pytest.raises(SystemExit) as exit_:  # the command's tidy argument error, not a traceback
         ev.main(["--layout-files", str(tmp_path / "bad.json"), "--policies", "spin"])
     assert exit_.value.code == 2
+
+
+def test_env_id_and_relocalizer_overrides_reach_the_env_and_the_rows_settings():
+    case = ev.build_cases(ev.Args(policies=("spin",), layouts_per_kind=1, starts=1))[0]
+    plain = ev.Args(policies=("spin",), particles=100)
+    v3 = ev.Args(policies=("spin",), particles=100, env_id="SemReloc-v3")
+    half = ev.Args(policies=("spin",), particles=100, relocalizer='{"negative_evidence": {"p_detect": 0.5}}')
+    for args, p_detect in ((plain, 0.8), (v3, 0.0), (half, 0.5)):
+        env = ev.case_env(case, args)
+        assert env.unwrapped.mcl_config.negative_evidence.p_detect == p_detect
+        assert env.unwrapped.mcl_config.n_particles == 100
+    assert "env_id" not in ev.settings(plain, "spin") and "relocalizer" not in ev.settings(plain, "spin")
+    assert ev.settings(v3, "spin")["env_id"] == "SemReloc-v3"  # so --reuse never mixes rows of two envs
+    assert ev.settings(half, "spin")["relocalizer"]["negative_evidence"] == {"p_detect": 0.5}

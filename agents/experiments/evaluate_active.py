@@ -85,6 +85,12 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
+    env_id: Literal["SemReloc-v4", "SemReloc-v3"] = "SemReloc-v4"
+    """the env the episodes run in: SemReloc-v4 (the newest) or SemReloc-v3 (to repeat the tables
+    made with it; the same worlds and sensors, the relocalizer without negative evidence)"""
+    relocalizer: str = "{}"
+    """JSON object of relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, e.g.
+    '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
     map_source: str = "mapping"
     """the filter's map: mapping (a simulated mapping run) or perfect"""
     builtin_layouts: bool = True
@@ -99,6 +105,27 @@ class Args:
     out: str = "out/evaluate_active"
     """output folder"""
     runner: Runner = RunnerConfig(workers=2)
+
+    def relocalizer_overrides(self) -> dict:
+        """``--relocalizer`` as a dict, with ``n_particles`` from ``--particles``; checked against `MCLConfig`."""
+        import json
+
+        from filters.localization.mcl import MCLConfig
+
+        try:
+            extra = json.loads(self.relocalizer)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"relocalizer: not a JSON object: {e}") from None
+        if not isinstance(extra, dict):
+            raise ValueError(f"relocalizer: a JSON object of MCLConfig fields, got {self.relocalizer!r}")
+        if "n_particles" in extra:
+            raise ValueError("relocalizer: set the particle count with --particles")
+        overrides = {**extra, "n_particles": self.particles}
+        try:
+            MCLConfig(**overrides)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"relocalizer: {e}") from None
+        return overrides
 
     def __post_init__(self) -> None:
         from agents.policies import POLICIES
@@ -125,6 +152,7 @@ class Args:
                 raise ValueError(
                     f"{name} must be >= {0 if name == 'layouts_per_kind' else 1}, got {getattr(self, name)}"
                 )
+        self.relocalizer_overrides()  # a bad JSON object or field is an error now, not in every worker
         if self.map_source not in ("mapping", "perfect"):
             raise ValueError(f"map_source must be mapping or perfect, got {self.map_source!r}")
         from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
@@ -162,7 +190,8 @@ class Args:
 
 
 ENV_ID = "SemReloc-v4"
-"""The env every episode runs in; its cases' procedural layouts come from the newest generator, as v3's and v4's do.
+"""The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
+generator, as v3's and v4's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
 draws again; v4 changes the relocalizer, so every episode.)"""
@@ -329,6 +358,8 @@ def settings(args: Args, spec: str) -> dict:
         "sample_learned": args.sample_learned and "=" in spec,
         **({"seed_set": args.seed_set} if args.seed_set != "held_out" else {}),
         **({"action_type": args.action_type} if args.action_type != "discrete" else {}),
+        **({"env_id": args.env_id} if args.env_id != ENV_ID else {}),
+        **({"relocalizer": args.relocalizer_overrides()} if args.relocalizer.strip() not in ("", "{}") else {}),
     }
 
 
@@ -432,12 +463,12 @@ def case_env(case: dict, args: Args, render_mode: str | None = None):
     import semreloc_env  # noqa: F401
 
     return gym.make(
-        ENV_ID,
+        args.env_id,
         layout=case["layout"],
         layout_seed=case["layout_seed"],
         scenario=case["scenario"],
         map_source=args.map_source,
-        relocalizer={"n_particles": args.particles},
+        relocalizer=args.relocalizer_overrides(),
         max_episode_steps=args.max_steps,
         action_type=args.action_type,
         render_mode=render_mode,
