@@ -65,7 +65,7 @@ def test_a_pose_that_puts_a_mapped_object_on_an_unlabelled_beam_loses_log_1_minu
 
 
 def test_the_points_stop_short_of_the_return_so_a_wall_beside_an_object_costs_nothing():
-    cfg = NegativeEvidenceConfig(p_detect=0.8, radius_m=0.1, sigma_m=0.05, margin_m=0.15)
+    cfg = NegativeEvidenceConfig(p_detect=0.8, radius_m=0.1, sigma_m=0.05, step_m=0.25, margin_m=0.15)
     m = LikelihoodFieldModel(room_grid(), negative=cfg)
     # a beam along the east wall's face, 0.3 m south of the bin, ending on the south wall
     scan = SemanticScan([0.8], [-math.pi / 2], [0], 4.5)
@@ -73,6 +73,10 @@ def test_the_points_stop_short_of_the_return_so_a_wall_beside_an_object_costs_no
     assert ll_s[0] > math.log(1 - 0.8) / 2  # grazes the bin's corner at most: a small loss
     counts, r = cfg.sample_ranges(np.array([0.3, 0.4, 1.0]))
     assert counts.tolist() == [0, 1, 3] and r.tolist() == pytest.approx([0.25, 0.85, 0.6, 0.35])
+    # a step not exact in binary still reaches down to one step from the robot
+    tenth = NegativeEvidenceConfig(step_m=0.1, margin_m=0.0)
+    counts, r = tenth.sample_ranges(np.array([0.7, 0.3]))
+    assert counts.tolist() == [7, 3] and r[-1] == pytest.approx(0.1)
 
 
 def test_beams_next_to_a_detection_and_no_returns_are_not_used():
@@ -128,7 +132,8 @@ def test_bad_configs_are_refused_and_models_are_cached_per_config():
         {"p_detect": True},
         {"p_detect": "0.5"},
     )
-    for bad in (*bad_values, {"sigma_m": 0.0}, {"step_m": -1}, {"radius_m": float("inf")}):
+    tiny = ({"sigma_m": 1e-200}, {"step_m": 1e-9})  # NaN in the table, or billions of points per beam
+    for bad in (*bad_values, *tiny, {"sigma_m": 0.0}, {"step_m": -1}, {"radius_m": float("inf")}, {"margin_m": -0.1}):
         with pytest.raises(ValueError, match="NegativeEvidenceConfig"):
             NegativeEvidenceConfig(**bad)
     for bad_n in (0, True, 2.0):
@@ -146,3 +151,4 @@ def test_bad_configs_are_refused_and_models_are_cached_per_config():
     grid = room_grid()
     assert cached_model(grid, negative=ON) is cached_model(grid, negative=NegativeEvidenceConfig(p_detect=0.8))
     assert cached_model(grid, negative=ON) is not cached_model(grid)
+    assert cached_model(grid, negative=NegativeEvidenceConfig(radius_m=0.3)) is cached_model(grid)  # off is off

@@ -127,17 +127,17 @@ class NegativeEvidenceConfig:
         p_detect: chance the filter assumes that a mapped object on the ray is detected, in
             ``[0, 1)``; 0 turns the evidence off (no beams are selected, nothing is computed).
         radius_m: points this close to an object cell count as on it (metres, >= 0).
-        sigma_m: fall-off of ``presence`` beyond ``radius_m`` (metres, > 0).
-        step_m: spacing of the points along a beam (metres, > 0).
+        sigma_m: fall-off of ``presence`` beyond ``radius_m`` (metres, >= 0.001).
+        step_m: spacing of the points along a beam (metres, >= 0.01).
         margin_m: the first point lies this far short of the return (metres, >= 0), so that a
             beam ending on a wall beside an object does not count as passing through it.
         max_beams: at most this many beams per scan (>= 1).
     """
 
     p_detect: float = 0.0
-    radius_m: float = 0.1
-    sigma_m: float = 0.1
-    step_m: float = 0.25
+    radius_m: float = 0.0
+    sigma_m: float = 0.07
+    step_m: float = 0.15
     margin_m: float = 0.15
     max_beams: int = 8
 
@@ -146,11 +146,10 @@ class NegativeEvidenceConfig:
         if not (is_real(p) and 0.0 <= p < 1.0):
             raise ValueError(f"NegativeEvidenceConfig.p_detect must be a number in [0, 1), got {p!r}")
         object.__setattr__(self, "p_detect", float(p))
-        for name, low_ok in (("radius_m", True), ("sigma_m", False), ("step_m", False), ("margin_m", True)):
+        for name, low in (("radius_m", 0.0), ("sigma_m", 1e-3), ("step_m", 0.01), ("margin_m", 0.0)):
             v = getattr(self, name)
-            if not (is_real(v) and math.isfinite(v) and (v >= 0 if low_ok else v > 0)):
-                what = "a finite number >= 0" if low_ok else "a positive finite number"
-                raise ValueError(f"NegativeEvidenceConfig.{name} must be {what}, got {v!r}")
+            if not (is_real(v) and math.isfinite(v) and v >= low):
+                raise ValueError(f"NegativeEvidenceConfig.{name} must be a finite number >= {low}, got {v!r}")
             object.__setattr__(self, name, float(v))
         if not (is_int(self.max_beams) and self.max_beams >= 1):
             raise ValueError(f"NegativeEvidenceConfig.max_beams must be an int >= 1, got {self.max_beams!r}")
@@ -172,7 +171,8 @@ class NegativeEvidenceConfig:
         each beam's points ``r - margin_m``, then every ``step_m`` down to ``step_m`` (none if
         ``r - margin_m < step_m``), beam after beam."""
         first = np.asarray(ranges, dtype=np.float64) - self.margin_m
-        counts = np.where(first >= self.step_m, np.floor((first - self.step_m) / self.step_m) + 1, 0).astype(np.int64)
+        steps = np.floor((first - self.step_m) / self.step_m + 1e-9)  # 1e-9: a step that is not exact in binary
+        counts = np.where(first >= self.step_m, steps + 1, 0).astype(np.int64)
         ends = np.cumsum(counts)
         k = np.arange(int(ends[-1]) if counts.size else 0) - np.repeat(ends - counts, counts)
         return counts, np.repeat(first, counts) - self.step_m * k
@@ -408,9 +408,10 @@ class LikelihoodFieldModel:
         self.grid = grid
         self.lidar_config = lidar if lidar is not None else LikelihoodFieldConfig()
         self.semantic_config = semantic if semantic is not None else DEFAULT_SEMANTIC_FIELD
-        self.negative_config = negative if negative is not None else NO_NEGATIVE_EVIDENCE
-        if not isinstance(self.negative_config, NegativeEvidenceConfig):
+        negative = negative if negative is not None else NO_NEGATIVE_EVIDENCE
+        if not isinstance(negative, NegativeEvidenceConfig):
             raise TypeError(f"negative must be a NegativeEvidenceConfig, got {type(negative).__name__}")
+        self.negative_config = negative if negative.enabled else NO_NEGATIVE_EVIDENCE
         self.backend = backend
         res = grid.resolution_m
         n_cls = len(grid.class_names)
@@ -659,6 +660,8 @@ def cached_model(
     lidar = lidar if lidar is not None else LikelihoodFieldConfig()
     semantic = semantic if semantic is not None else DEFAULT_SEMANTIC_FIELD
     negative = negative if negative is not None else NO_NEGATIVE_EVIDENCE
+    if isinstance(negative, NegativeEvidenceConfig) and not negative.enabled:
+        negative = NO_NEGATIVE_EVIDENCE  # every disabled config is the same model
     key = (grid_content_key(grid), lidar, semantic, backend, negative)
     model = _models.get(key)
     if model is None:
