@@ -23,11 +23,14 @@ alone (never the true pose):
    viewpoint, heading and pair ``(k, l)``, the rays of the scan ``k`` would get are scored at
    ``l``'s pose in the filter's likelihood fields (lidar field for every ray that hits,
    the class field for the labelled rays in the camera's field of view; the per-ray mean times
-   the number of beams the filter uses). Raised to ``likelihood_scale * views`` (``views``
-   filter updates at the viewpoint) and times the prior weights, that is the posterior over the
-   hypotheses if ``k`` is the truth; a hypothesis whose predicted pose is not free is ruled out
-   by the others. A viewpoint the robot reaches by turning on the spot is scored without the
-   lidar when the relocalizer leaves it out of rotation-only updates (``lidar_on_rotation``).
+   the number of beams the filter uses; the relocalizer's negative evidence, `SemReloc-v4`'s
+   penalty for objects the camera did not see, is not modelled: a viewpoint is valued by what
+   ``k``'s labelled rays and lidar rays tell, both directions of every pair counted). Raised to
+   ``likelihood_scale * views`` (``views`` filter updates at the viewpoint) and times the prior
+   weights, that is the posterior over the hypotheses if ``k`` is the truth; a hypothesis whose
+   predicted pose is not free is ruled out by the others. A viewpoint the robot reaches by
+   turning on the spot is scored without the lidar when the relocalizer leaves it out of
+   rotation-only updates (``lidar_on_rotation``).
    The score is the expected entropy removed, as a share of the prior entropy (in ``[0, 1]``),
    minus ``cost_per_m`` times the path length (plus, at their driving
    equivalent, the turn onto the path and the final turn); the best (viewpoint, heading) pair is

@@ -248,7 +248,8 @@ class BeamSet:
         lidar_range_max_m, semantic_range_max_m: range limits the log tables use.
         nx, ny: ``(S,)`` robot-frame points (metres) of the negative-evidence beams
             (`NegativeEvidenceConfig`), beam after beam; empty when it is off.
-        n_starts: ``(n_negative + 1,)`` int64: beam ``b``'s points are ``nx[n_starts[b]:n_starts[b + 1]]``.
+        n_starts: ``(n_negative + 1,)`` int64: beam ``b``'s points are ``nx[n_starts[b]:n_starts[b + 1]]``;
+            every beam has at least one point (`beams` leaves out beams with none).
     """
 
     lx: np.ndarray

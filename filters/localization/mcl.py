@@ -248,7 +248,11 @@ class MCLConfig:
         for name, cls in _SUBCONFIGS.items():
             v = getattr(self, name)
             if isinstance(v, dict):
-                object.__setattr__(self, name, cls(**v))
+                try:
+                    object.__setattr__(self, name, cls(**v))
+                except TypeError as e:  # unknown key: name the field and the keys it has
+                    keys = sorted(f.name for f in fields(cls))
+                    raise TypeError(f"MCLConfig.{name}: {e}; its keys are {keys}") from None
             elif not isinstance(v, cls):
                 raise TypeError(f"MCLConfig.{name} must be a {cls.__name__} or a dict, got {type(v).__name__}")
         for name in ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates"):

@@ -34,7 +34,7 @@ RELOCALIZER_V1 = MCLConfig(
     lidar_on_rotation=False,
     likelihood_scale=0.06,
 )
-"""The relocalizer of SemReloc-v1 and -v2 (`filters.localization.mcl.MCLConfig` with these overrides):
+"""The relocalizer of SemReloc-v1 to -v3 (`filters.localization.mcl.MCLConfig` with these overrides):
 50 particles per m^2 of free space (500 to 20,000) with KLD sampling, clustered resampling,
 5 % of the particles replaced every update by poses drawn from the current scan (semantic
 detections first) plus augmented-MCL recovery, the lidar factor left out of turn-in-place

@@ -187,7 +187,7 @@ class SemSlamEnv(SemRelocBase):
     procedural_version = 1
     """Lookalike layouts by name as ``SemReloc-v2`` draws them (the SLAM episode starts from a known pose,
     so their half-turn symmetry does not matter here; pass a Layout from
-    ``get_layout("procedural_lookalike", seed)`` for ``SemReloc-v3``'s)."""
+    ``get_layout("procedural_lookalike", seed)`` for ``SemReloc-v3``'s and ``-v4``'s)."""
 
     def __init__(
         self,
