@@ -153,11 +153,11 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
         ({"seed_set": "tuning", "layouts_per_kind": 0}, "tuning"),
         ({"layout_files": (str(tmp_path / "missing.json"),)}, "layout_files"),
         ({"policies": (f"ppo={junk}",)}, "not a policy zip"),
-        ({"relocalizer": "[1, 2]"}, "JSON object"),
-        ({"relocalizer": "{not json"}, "not a JSON object"),
-        ({"relocalizer": '{"bogus": 1}'}, "relocalizer"),
-        ({"relocalizer": '{"negative_evidence": {"p_detect": 2}}'}, "p_detect"),
-        ({"relocalizer": '{"n_particles": 10}'}, "--particles"),
+        ({"relocalizer": [1, 2]}, "JSON object"),
+        ({"relocalizer": {"bogus": 1}}, "relocalizer"),
+        ({"relocalizer": {"negative_evidence": {"p_detect": 2}}}, "p_detect"),
+        ({"relocalizer": {"negative_evidence": {"bogus": 1}}}, "its keys are"),
+        ({"relocalizer": {"n_particles": 10}}, "--particles"),
     ]:
         with pytest.raises(ValueError, match=match):
             ev.Args(**kw)
@@ -165,6 +165,10 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
     assert ev.main(["--policies", "spin", "--layouts-per-kind", "0", "--gif-case", "999", "--out", str(out)]) == 2
     assert not out.exists()
     assert "--gif-case 999 is not a case" in capsys.readouterr().err
+    for bad in ("[1, 2]", "{not json"):  # the command line takes one JSON object
+        with pytest.raises(SystemExit) as e:
+            ev.main(["--policies", "spin", "--relocalizer", bad, "--out", str(out)])
+        assert e.value.code == 2 and not out.exists()
 
 
 def _row(case, policy, outcome, steps=None, uninformative=False, kind="procedural"):
@@ -253,7 +257,7 @@ def test_env_id_and_relocalizer_overrides_reach_the_env_and_the_rows_settings():
     case = ev.build_cases(ev.Args(policies=("spin",), layouts_per_kind=1, starts=1))[0]
     plain = ev.Args(policies=("spin",), particles=100)
     v3 = ev.Args(policies=("spin",), particles=100, env_id="SemReloc-v3")
-    half = ev.Args(policies=("spin",), particles=100, relocalizer='{"negative_evidence": {"p_detect": 0.5}}')
+    half = ev.Args(policies=("spin",), particles=100, relocalizer={"negative_evidence": {"p_detect": 0.5}})
     for args, p_detect in ((plain, 0.8), (v3, 0.0), (half, 0.5)):
         env = ev.case_env(case, args)
         assert env.unwrapped.mcl_config.negative_evidence.p_detect == p_detect

@@ -43,13 +43,13 @@ import math
 import sys
 import time
 import types
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import Runner, command_line, parse, usage_error
+from filters.experiments.cli import JsonDict, Runner, command_line, parse, usage_error
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import wilson_interval
 
@@ -88,8 +88,8 @@ class Args:
     env_id: Literal["SemReloc-v4", "SemReloc-v3"] = "SemReloc-v4"
     """the env the episodes run in: SemReloc-v4 (the newest) or SemReloc-v3 (to repeat the tables
     made with it; the same worlds and sensors, the relocalizer without negative evidence)"""
-    relocalizer: str = "{}"
-    """JSON object of relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, e.g.
+    relocalizer: JsonDict = field(default_factory=dict)
+    """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
     map_source: str = "mapping"
     """the filter's map: mapping (a simulated mapping run) or perfect"""
@@ -108,16 +108,11 @@ class Args:
 
     def relocalizer_overrides(self) -> dict:
         """``--relocalizer`` as a dict, with ``n_particles`` from ``--particles``; checked against `MCLConfig`."""
-        import json
-
         from filters.localization.mcl import MCLConfig
 
-        try:
-            extra = json.loads(self.relocalizer)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"relocalizer: not a JSON object: {e}") from None
+        extra = self.relocalizer
         if not isinstance(extra, dict):
-            raise ValueError(f"relocalizer: a JSON object of MCLConfig fields, got {self.relocalizer!r}")
+            raise ValueError(f"relocalizer: a dict (a JSON object) of MCLConfig fields, got {extra!r}")
         if "n_particles" in extra:
             raise ValueError("relocalizer: set the particle count with --particles")
         overrides = {**extra, "n_particles": self.particles}
@@ -359,7 +354,7 @@ def settings(args: Args, spec: str) -> dict:
         **({"seed_set": args.seed_set} if args.seed_set != "held_out" else {}),
         **({"action_type": args.action_type} if args.action_type != "discrete" else {}),
         **({"env_id": args.env_id} if args.env_id != ENV_ID else {}),
-        **({"relocalizer": args.relocalizer_overrides()} if args.relocalizer.strip() not in ("", "{}") else {}),
+        **({"relocalizer": args.relocalizer_overrides()} if args.relocalizer else {}),
     }
 
 
