@@ -312,3 +312,14 @@ def test_derived_masks_are_computed_once_read_only_and_match_the_thresholds():
         assert not twin.occupancy.flags.writeable and not twin.semantic.flags.writeable
         assert not twin.free_mask().flags.writeable
         np.testing.assert_array_equal(twin.free_mask(), grid.free_mask())
+
+
+def test_build_maps_command_names_both_maps_after_the_layout(tmp_path, capsys):
+    """``build_maps --perfect`` wrote ``cabinet.perfect.*`` for every layout (a loop variable shadowed
+    the layout's name), so two layouts built into one folder overwrote each other's perfect map."""
+    from semreloc_env.tools.build_maps import main
+
+    assert main(["--layout", "twin_rooms", "--perfect", "--out", str(tmp_path)]) == 0
+    names = sorted(p.name for p in tmp_path.glob("*.yaml"))
+    assert "twin_rooms.yaml" in names and "twin_rooms.perfect.yaml" in names, names
+    assert not any(n.startswith(("door", "chair", "trash_bin", "cabinet")) for n in names), names

@@ -59,9 +59,9 @@ def main(argv: list[str] | None = None) -> int:
     path = save_map(grid, out / f"{name}.yaml")
     truth = rasterize(layout, args.resolution)
     print(f"{layout.name}: {len(mapping_path(layout))} poses mapped in {time.perf_counter() - t0:.1f} s -> {path}")
-    for name, q in semantic_surface_quality(grid, truth).items():
+    for cls, q in semantic_surface_quality(grid, truth).items():
         print(
-            f"  {name:10s} IoU vs visible surface {q['iou']:.2f}, precision {q['precision']:.2f}, "
+            f"  {cls:10s} IoU vs visible surface {q['iou']:.2f}, precision {q['precision']:.2f}, "
             f"recall {q['recall']:.2f} (1-cell tolerance)"
         )
     if args.perfect:
