@@ -41,6 +41,7 @@ without the tables, used to test the kernel.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import weakref
@@ -180,6 +181,16 @@ class NegativeEvidenceConfig:
 
 NO_NEGATIVE_EVIDENCE = NegativeEvidenceConfig()
 """The default: negative evidence off (the model of paper 004)."""
+
+
+def _negative_in_effect(negative: NegativeEvidenceConfig | None) -> NegativeEvidenceConfig:
+    """``negative`` as a model uses it: None and every disabled config are `NO_NEGATIVE_EVIDENCE`
+    (so they share one cached model). TypeError if it is not a `NegativeEvidenceConfig`."""
+    if negative is None:
+        return NO_NEGATIVE_EVIDENCE
+    if not isinstance(negative, NegativeEvidenceConfig):
+        raise TypeError(f"negative must be a NegativeEvidenceConfig, got {type(negative).__name__}")
+    return negative if negative.enabled else NO_NEGATIVE_EVIDENCE
 
 
 DEFAULT_SEMANTIC_FIELD = LikelihoodFieldConfig(sigma_hit_m=0.3, z_hit=0.8, z_rand=0.2, max_dist_m=2.0, max_beams=40)
@@ -409,10 +420,7 @@ class LikelihoodFieldModel:
         self.grid = grid
         self.lidar_config = lidar if lidar is not None else LikelihoodFieldConfig()
         self.semantic_config = semantic if semantic is not None else DEFAULT_SEMANTIC_FIELD
-        negative = negative if negative is not None else NO_NEGATIVE_EVIDENCE
-        if not isinstance(negative, NegativeEvidenceConfig):
-            raise TypeError(f"negative must be a NegativeEvidenceConfig, got {type(negative).__name__}")
-        self.negative_config = negative if negative.enabled else NO_NEGATIVE_EVIDENCE
+        self.negative_config = _negative_in_effect(negative)
         self.backend = backend
         res = grid.resolution_m
         n_cls = len(grid.class_names)
@@ -426,11 +434,14 @@ class LikelihoodFieldModel:
         self._tables: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._negative_table: np.ndarray | None = None
 
-    @property
+    @functools.cached_property
     def object_distance_m(self) -> np.ndarray:
-        """``(H, W)`` distance (metres) to the nearest cell of any class (``inf`` if the map has none)."""
+        """``(H, W)`` distance (metres) to the nearest cell of any class (``inf`` if the map has none),
+        read-only; computed once (the NumPy reference reads it at every call)."""
         f = self.distance_fields_m
-        return f[1:].min(axis=0) if f.shape[0] > 1 else np.full(f.shape[1:], np.inf)
+        d = f[1:].min(axis=0) if f.shape[0] > 1 else np.full(f.shape[1:], np.inf)
+        d.setflags(write=False)
+        return d
 
     def negative_table(self) -> np.ndarray:
         """``(H * W + 1,)`` ``log(1 - p_detect * presence)`` per cell (`NegativeEvidenceConfig.log_q`),
@@ -660,9 +671,7 @@ def cached_model(
         raise TypeError(f"grid must be a filters.mapping.grid.GridMap, got {type(grid).__name__}")
     lidar = lidar if lidar is not None else LikelihoodFieldConfig()
     semantic = semantic if semantic is not None else DEFAULT_SEMANTIC_FIELD
-    negative = negative if negative is not None else NO_NEGATIVE_EVIDENCE
-    if isinstance(negative, NegativeEvidenceConfig) and not negative.enabled:
-        negative = NO_NEGATIVE_EVIDENCE  # every disabled config is the same model
+    negative = _negative_in_effect(negative)
     key = (grid_content_key(grid), lidar, semantic, backend, negative)
     model = _models.get(key)
     if model is None:
