@@ -104,7 +104,7 @@ from filters.localization.likelihood_field import (
     LikelihoodFieldModel,
     NegativeEvidenceConfig,
 )
-from filters.localization.proposals import ScanProposal
+from filters.localization.proposals import ScanProposal, prior_mass_near
 from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.numbers import is_int, is_real
@@ -198,6 +198,16 @@ class MCLConfig:
             ``proposal_frac`` is a recovery and gives all its injected particles ``1 / N``; a
             smaller one is absorbed into the routine injection. Below 1 the fresh particles start
             lighter than an average one (docs/relocalizer.md: 0.2 did not help).
+        proposal_prior_weight: share of the routine injection's total weight that is spread over
+            the injected particles in proportion to the prior belief near each of them (the weight
+            of the other particles within one cluster bin, ``belief.cluster_bin_m`` and
+            ``belief.cluster_bin_theta_rad``, and its neighbours: Mixture MCL's weight for
+            sensor-drawn samples, Thrun et al. 2001); the rest is spread evenly. 0 (every
+            registered env) = all evenly: a look-alike place the belief has left is refilled at
+            every update. More than 0 converges faster and keeps a tracked belief in a symmetric
+            world, but rescues a wrong convergence less often (docs/relocalizer.md, "Proposals
+            weighed by the prior"). Recovery injections are always even; if no injected
+            particle has prior weight near it, all are weighed evenly.
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -239,6 +249,7 @@ class MCLConfig:
     proposal_semantic_frac: float = 0.5
     proposal_frac: float = 0.0
     proposal_weight: float = 1.0
+    proposal_prior_weight: float = 0.0
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
@@ -282,7 +293,7 @@ class MCLConfig:
             "alpha_fast": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
             **{
                 n: (lambda v: 0.0 <= v <= 1.0, "in [0, 1]")
-                for n in ("cluster_keep_weight", "proposal_semantic_frac", "proposal_frac")
+                for n in ("cluster_keep_weight", "proposal_semantic_frac", "proposal_frac", "proposal_prior_weight")
             },
             "proposal_weight": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
             "global_particles_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
@@ -337,6 +348,7 @@ class UpdateDiagnostics:
         w_slow, w_fast: augmented-MCL averages after this update.
         p_inject: the injection probability ``max(0, 1 - w_fast / w_slow)`` of this update.
         lidar_used: the lidar factor was part of this update.
+        n_negative_beams: camera beams that gave negative evidence (`NegativeEvidenceConfig`; 0 when off).
     """
 
     updated: bool = False
@@ -355,6 +367,7 @@ class UpdateDiagnostics:
     w_fast: float = 0.0
     p_inject: float = 0.0
     lidar_used: bool = False
+    n_negative_beams: int = 0
 
     def as_dict(self) -> dict:
         """Plain Python values for a Gymnasium ``info``."""
@@ -675,6 +688,7 @@ class MonteCarloLocalizer:
             w_fast=self._w_fast,
             p_inject=p_inj,
             lidar_used=use_lidar,
+            n_negative_beams=getattr(beams, "n_negative", 0),
         )
         self.last_diagnostics = diag
         return diag
@@ -799,10 +813,20 @@ class MonteCarloLocalizer:
             new = self._proposal.draw(m, cand, c.likelihood_scale * (np.asarray(ll_l) + np.asarray(ll_s)), self.rng)
         else:
             new = self.sample_free(m)
-        self._poses = self._poses.copy()
-        self._poses[mask] = new
         logw = self._logw.copy()
         logw[mask] = -math.log(self.n_particles) + (0.0 if recovery else math.log(c.proposal_weight))
+        lam = c.proposal_prior_weight
+        if not recovery and lam > 0.0:
+            b = c.belief
+            near = prior_mass_near(
+                self._poses[~mask], np.exp(self._logw[~mask]), new, b.cluster_bin_m, b.cluster_bin_theta_rad
+            )
+            total = float(near.sum())
+            if total > 0.0:  # else no prior mass near any of them: evenly
+                with np.errstate(divide="ignore"):  # lam = 1: no prior mass near -> weight 0
+                    logw[mask] += np.log(m * ((1.0 - lam) / m + lam * near / total))
+        self._poses = self._poses.copy()
+        self._poses[mask] = new
         self._logw = logw - self._lse(logw)
         return m
 

@@ -105,3 +105,59 @@ class ScanProposal:
             return candidates[rng.integers(0, candidates.shape[0], size=m)]
         w = normalise_weights(np.exp(ll - ll.max()))
         return candidates[rng.choice(candidates.shape[0], size=m, p=w)]
+
+
+_MAX_DENSE_CELLS = 1 << 22
+"""`prior_mass_near` rasters the bins of a bounding box up to this many cells (32 MB of float64)."""
+
+
+def prior_mass_near(
+    prior: np.ndarray, weights: np.ndarray, query: np.ndarray, bin_xy_m: float, bin_theta_rad: float
+) -> np.ndarray:
+    """``(M,)`` weight of the ``prior`` particles in each ``query`` pose's bin and its 26 neighbours.
+
+    Bins are ``bin_xy_m`` square in position and ``2 pi / round(2 pi / bin_theta_rad)`` wide in
+    heading (which wraps). A coarse density of the prior belief at the query poses: Mixture MCL
+    weighs its sensor-drawn ("dual") samples by it (Thrun et al. 2001).
+
+    Args:
+        prior: ``(N, 3)`` poses ``(x m, y m, theta rad)``; weights: ``(N,)`` their weights (>= 0).
+        query: ``(M, 3)`` poses.
+    """
+    n_t = max(1, round(2.0 * np.pi / bin_theta_rad))
+
+    def cells(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t = np.floor((wrap_angle(p[:, 2]) + np.pi) * (n_t / (2.0 * np.pi))).astype(np.int64)
+        return (
+            np.floor(p[:, 0] / bin_xy_m).astype(np.int64),
+            np.floor(p[:, 1] / bin_xy_m).astype(np.int64),
+            np.minimum(t, n_t - 1),
+        )
+
+    if prior.shape[0] == 0 or query.shape[0] == 0:
+        return np.zeros(query.shape[0])
+    px, py, pt = cells(prior)
+    qx, qy, qt = cells(query)
+    x0 = min(int(px.min()), int(qx.min())) - 1
+    y0 = min(int(py.min()), int(qy.min())) - 1
+    ny = max(int(py.max()), int(qy.max())) - y0 + 2
+
+    def key(x, y, t):
+        return ((x - x0) * ny + (y - y0)) * n_t + t
+
+    size = (max(int(px.max()), int(qx.max())) - x0 + 2) * ny * n_t
+    dense = size <= _MAX_DENSE_CELLS  # a raster over the bounding box; else the occupied bins only
+    if dense:
+        mass = np.bincount(key(px, py, pt), weights=weights, minlength=size)
+    else:
+        uk, inv = np.unique(key(px, py, pt), return_inverse=True)
+        mass = np.bincount(inv, weights=weights, minlength=uk.size)
+    t_offsets = (-1, 0, 1) if n_t >= 3 else tuple(range(n_t))  # each neighbouring heading bin once
+    d = np.array([(dx, dy, dt) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dt in t_offsets]).T
+    k = key(qx[:, None] + d[0], qy[:, None] + d[1], (qt[:, None] + d[2]) % n_t)  # (M, 27)
+    if dense:
+        out = mass[k].sum(axis=1)
+    else:
+        i = np.minimum(np.searchsorted(uk, k), uk.size - 1)
+        out = np.where(uk[i] == k, mass[i], 0.0).sum(axis=1)
+    return out
