@@ -113,3 +113,14 @@ def test_free_form_keyword_arguments_are_one_json_object_on_the_command_line():
             parse(imitate_active.Args, ["--config.planner", bad])
     with pytest.raises(SystemExit):  # the config's own check still runs: an unknown planner argument
         parse(imitate_active.Args, ["--config.planner", '{"no_such_knob": 1}'])
+
+
+def test_paper004_checks_its_relocalizer_overrides_before_any_episode():
+    from agents.experiments import paper004
+    from filters.experiments.cli import parse
+
+    assert parse(paper004.Args, ["--mcl", '{"likelihood_scale": 0.05}']).mcl == {"likelihood_scale": 0.05}
+    assert parse(paper004.Args, []).mcl == {}
+    for bad in ('{"likelihood_scal": 0.05}', '{"likelihood_scale": -1}', "[1]", "{oops"):
+        with pytest.raises(SystemExit):
+            parse(paper004.Args, ["--mcl", bad])

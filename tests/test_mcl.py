@@ -368,12 +368,23 @@ def test_predict_that_would_make_particles_non_finite_is_rejected_and_changes_no
 
 @pytest.mark.parametrize(
     "pose, std, match",
-    [([1.0, 1.0, 0.0], [0.1, 0.1], "std"), ([1.0, 1.0, 0.0], "a", "std"), ("xy", 0.1, "pose"), ([1, 1], 0.1, "pose")],
+    [
+        ([1.0, 1.0, 0.0], [0.1, 0.1], "std"),
+        ([1.0, 1.0, 0.0], "a", "std"),
+        ("xy", 0.1, "pose"),
+        ([1, 1], 0.1, "pose"),
+        ([50.0, 1.0, 0.0], 0.1, r"pose \(50, 1\) lies outside the map, x in \[0, 10\] m"),
+        ([1.0, -0.2, 0.0], 0.1, "outside the map"),
+    ],
 )
 def test_init_around_names_its_bad_argument(pose, std, match):
     m = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=100), np.random.default_rng(0))
+    m.init_global()
+    before, state = m.poses.copy(), m.rng.bit_generator.state
     with pytest.raises(ValueError, match=match):
         m.init_around(pose, std)
+    np.testing.assert_array_equal(m.poses, before)  # the filter is as it was, no draw was taken
+    assert m.rng.bit_generator.state == state
 
 
 def test_particle_counts_have_an_upper_bound():

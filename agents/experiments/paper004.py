@@ -23,17 +23,16 @@ Run from the repository root: ``python scripts/repro_paper004.py`` (or ``semrelo
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import Runner, command_line, parse
+from filters.experiments.cli import JsonDict, Runner, command_line, parse
 from filters.experiments.report import markdown_table, pyplot, replace_block, save_figure
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import wilson_interval
@@ -61,8 +60,9 @@ class Args:
     """particles of the relocalizer"""
     cases: tuple[Literal["twin_rooms", "lab", "lab_changed"], ...] = ("twin_rooms", "lab", "lab_changed")
     """cases to run (the first one's first seed gives the particle snapshots)"""
-    mcl: str = "{}"
-    """JSON dict of MCLConfig overrides (filters.localization.mcl), both variants, e.g. '{"likelihood_scale": 0.05}'"""
+    mcl: JsonDict = field(default_factory=dict)
+    """MCLConfig overrides (filters.localization.mcl) for both variants, one JSON object, e.g.
+    '{"likelihood_scale": 0.05}'; checked before any episode runs"""
     env_id: str = "SemReloc-v0"
     """env id: docs/paper004.md was made with SemReloc-v0 (the first release's relocalizer)"""
     out: str = ""
@@ -74,12 +74,12 @@ class Args:
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.max_steps < 1 or self.particles < 1 or not self.cases:
             raise ValueError("seeds, max_steps and particles must be >= 1 and cases not empty")
+        from filters.localization.mcl import MCLConfig
+
         try:
-            mcl = json.loads(self.mcl)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"mcl is not JSON: {e}") from None
-        if not isinstance(mcl, dict):
-            raise ValueError(f"mcl must be a JSON object of MCLConfig overrides, got {self.mcl!r}")
+            MCLConfig(**{"n_particles": self.particles, **self.mcl})
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"mcl: {e}") from None
 
     def resolved(self) -> Args:
         """Apply ``--quick`` and the default output folder (relative to the working directory)."""
@@ -161,9 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parse(Args, argv, __doc__).resolved()
     cases = list(args.cases)
-    mcl = json.loads(args.mcl)
     jobs = [
-        (c, sem, s, args.max_steps, args.particles, mcl, s == args.first_seed, args.env_id)
+        (c, sem, s, args.max_steps, args.particles, args.mcl, s == args.first_seed, args.env_id)
         for c in cases
         for sem in (False, True)
         for s in range(args.first_seed, args.first_seed + args.seeds)

@@ -520,8 +520,12 @@ class MonteCarloLocalizer:
         """Gaussian cloud of ``n`` particles around ``pose (x, y, theta)`` (default: module docstring).
 
         Args:
-            pose: ``(3,)`` centre, metres / radians.
+            pose: ``(3,)`` centre, metres / radians, within the map's extent (``GridMap.extent_m``).
             std: scalar or ``(3,)`` standard deviations ``(x m, y m, theta rad)``, >= 0.
+
+        Raises:
+            ValueError: a pose that is not 3 finite numbers or lies outside the map; a bad ``std``
+                or ``n``. The filter is left as it was.
         """
         if n is None:
             n = self.config.n_particles if self.config.n_particles is not None else self.config.min_particles
@@ -532,6 +536,12 @@ class MonteCarloLocalizer:
             p = None
         if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ValueError(f"pose must be 3 finite numbers, got {pose!r:.80}")
+        x0, x1, y0, y1 = self.grid.extent_m
+        if not (x0 <= p[0] <= x1 and y0 <= p[1] <= y1):
+            raise ValueError(
+                f"pose ({p[0]:.6g}, {p[1]:.6g}) lies outside the map, x in [{x0:.6g}, {x1:.6g}] m and "
+                f"y in [{y0:.6g}, {y1:.6g}] m (a pose in the map's frame was meant?)"
+            )
         try:
             s = np.broadcast_to(np.asarray(std, dtype=np.float64), (3,))
         except (TypeError, ValueError):
