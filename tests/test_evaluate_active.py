@@ -265,3 +265,31 @@ def test_env_id_and_relocalizer_overrides_reach_the_env_and_the_rows_settings():
     assert "env_id" not in ev.settings(plain, "spin") and "relocalizer" not in ev.settings(plain, "spin")
     assert ev.settings(v3, "spin")["env_id"] == "SemReloc-v3"  # so --reuse never mixes rows of two envs
     assert ev.settings(half, "spin")["relocalizer"]["negative_evidence"] == {"p_detect": 0.5}
+
+
+def test_one_map_for_worlds_that_differ_from_it(tmp_path):
+    """--map-source LAYOUT: the filter's map is that layout's mapping run, the worlds are the layout
+    files (a map object missing from the world, say); a map that does not fit is an argument error."""
+    from semreloc_env.layouts import get_layout
+
+    full = get_layout("twin_rooms").to_dict()
+    world = dict(full, objects=[o for o in full["objects"] if o["name"] != "trash_bin_west"])
+    (tmp_path / "map.json").write_text(json.dumps(full))
+    (tmp_path / "world.json").write_text(json.dumps(world))
+    files = (str(tmp_path / "world.json"),)
+    args = ev.Args(layouts_per_kind=0, starts=1, layout_files=files, builtin_layouts=False, policies=("spin",),
+                   map_source=str(tmp_path / "map.json"), particles=100)  # fmt: skip
+    env = ev.case_env(ev.build_cases(args)[0], args)
+    names = {o.name for o in env.unwrapped.layout.objects}
+    grid = env.unwrapped.grid  # the map still has the bin the world lacks, at x 4.3-4.7, y 4.8-5.2
+    (r0, r1), (c0, c1) = grid.world_to_cell(np.array([[4.2, 4.7], [4.8, 5.3]]))
+    assert "trash_bin_west" not in names and grid.class_mask(grid.class_index("trash_bin"))[r0:r1, c0:c1].any()
+    assert ev.settings(args, "spin")["map_digest"] == ev.file_digest(str(tmp_path / "map.json"))
+    assert "map_digest" not in ev.settings(ev.Args(policies=("spin",)), "spin")
+    kw = dict(layouts_per_kind=0, starts=1, layout_files=files, builtin_layouts=False, policies=("spin",))
+    with pytest.raises(ValueError, match="does not fit"):
+        ev.Args(**kw, map_source="lab")  # another building
+    with pytest.raises(ValueError, match="layout-files alone"):
+        ev.Args(policies=("spin",), map_source="twin_rooms")  # the procedural held-out layouts too
+    with pytest.raises(ValueError, match="map_source must be"):
+        ev.Args(**kw, map_source="nowhere.yaml")

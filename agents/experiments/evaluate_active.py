@@ -92,7 +92,10 @@ class Args:
     """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
     map_source: str = "mapping"
-    """the filter's map: mapping (a simulated mapping run) or perfect"""
+    """the filter's map: mapping (a simulated mapping run of each case's layout), perfect (the layout
+    rasterised), or a layout (a built-in name or a layout file) whose mapping run is the map of every
+    case: the worlds of --layout-files (alone: --layouts-per-kind 0 --no-builtin-layouts) may then
+    differ from it, objects moved, missing or added"""
     builtin_layouts: bool = True
     """with the held-out seed set: also twin_rooms, the lab and the changed lab (--no-builtin-layouts:
     only the procedural held-out layouts and --layout-files)"""
@@ -105,6 +108,30 @@ class Args:
     out: str = "out/evaluate_active"
     """output folder"""
     runner: Runner = RunnerConfig(workers=2)
+
+    def _check_map_source(self) -> None:
+        """A map layout must fit every case's world (checked here, with its mapping run, not in a worker)."""
+        if self.map_source in ("mapping", "perfect"):
+            return
+        from semreloc_env.config import CameraParams, LidarParams
+        from semreloc_env.layouts import LayoutError, get_layout
+        from semreloc_env.maps import maps_for, names_a_layout
+
+        if not names_a_layout(self.map_source):
+            raise ValueError(
+                f"map_source must be mapping, perfect or a layout (a built-in name or a layout file), "
+                f"got {self.map_source!r}"
+            )
+        if self.layouts_per_kind or self.builtin_layouts or not self.layout_files:
+            raise ValueError(
+                "map_source: one map for every case needs worlds that fit it: --layout-files alone "
+                "(--layouts-per-kind 0 --no-builtin-layouts)"
+            )
+        for f in self.layout_files:
+            try:
+                maps_for(get_layout(f), self.map_source, LidarParams(), CameraParams())
+            except (LayoutError, ValueError) as e:
+                raise ValueError(f"map_source {self.map_source!r} does not fit layout file {f!r}: {e}") from None
 
     def relocalizer_overrides(self) -> dict:
         """``--relocalizer`` as a dict, with ``n_particles`` from ``--particles``; checked against `MCLConfig`."""
@@ -148,8 +175,6 @@ class Args:
                     f"{name} must be >= {0 if name == 'layouts_per_kind' else 1}, got {getattr(self, name)}"
                 )
         self.relocalizer_overrides()  # a bad JSON object or field is an error now, not in every worker
-        if self.map_source not in ("mapping", "perfect"):
-            raise ValueError(f"map_source must be mapping or perfect, got {self.map_source!r}")
         from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
 
         if self.seed_set == "held_out" and self.layouts_per_kind > len(HELD_OUT_LAYOUT_SEEDS):
@@ -174,6 +199,7 @@ class Args:
                 raise ValueError(f"layout_files: {e}") from None
         if self.layouts_per_kind == 0 and not self.layout_files and not self.builtin_layouts:
             raise ValueError("no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files")
+        self._check_map_source()
         for spec in self.policies:
             if "=" in spec:
                 from agents.learned import read_metadata
@@ -347,6 +373,7 @@ def settings(args: Args, spec: str) -> dict:
         "particles": args.particles,
         "max_steps": args.max_steps,
         "map_source": args.map_source,
+        **({"map_digest": file_digest(args.map_source)} if _map_is_file(args.map_source) else {}),
         "spec": spec,
         "code": policy_code(spec),
         "env_code": env_code(),
@@ -395,6 +422,14 @@ def env_code() -> str:
     for f in sorted(f for root in roots for f in root.rglob("*.py")) + [Path(__file__)]:
         h.update(f.relative_to(roots[0].parent).as_posix().encode() + b"\0" + f.read_bytes())
     return h.hexdigest()[:16]
+
+
+def _map_is_file(map_source: str) -> bool:
+    """Whether ``map_source`` is a layout file (whose bytes a row's settings record; a built-in
+    layout is part of the code, `env_code`)."""
+    from semreloc_env.layouts import LAYOUT_NAMES
+
+    return map_source not in ("mapping", "perfect", *LAYOUT_NAMES)
 
 
 def file_digest(path: str) -> str:
