@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from filters.localization.belief import BeliefConfig, cluster_labels, summarize
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.localization.proposals import ScanProposal, detection_runs, prior_mass_near
-from filters.pose import compose
+from filters.pose import compose, wrap_angle
 from filters.robot_data.scans import SemanticScan
 from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
 from tests.test_mcl import CAMERA_ANGLES, LIDAR_ANGLES, drive, mirror, symmetric_room
@@ -307,14 +307,15 @@ def test_prior_mass_near_sums_the_weight_in_the_neighbouring_bins(seed, n, m, bi
 
 def test_routine_proposals_at_a_look_alike_place_the_belief_left_weigh_by_the_prior():
     """Tracking in the half-turn symmetric room with the lidar alone: the scan fits the pose and its
-    half-turned image equally, so the routine scan proposals land at both. Weighed evenly (0) the
-    image gets their share at every update; weighed by the prior (1), nothing; half and half between.
-    (Were no proposal near any prior mass, all would be weighed evenly: not the case here.)"""
+    half-turned image equally, so the routine scan proposals land at both. Weighed evenly (0) those
+    at the image get an average weight at every update; scaled by ``1 - lam + lam * near`` (the
+    prior holds nothing there) half of it with 0.5 and nothing with 1, relative to the particles
+    the injection kept; those at the pose, where the prior holds everything, keep theirs."""
     grid = symmetric_room()
     pose = np.array([3.0, 2.5, 0.3])
     lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
     image = mirror(pose)[:2]
-    mass = {}
+    ratio, runs = {}, {}
     for lam in (0.0, 0.5, 1.0):
         cfg = MCLConfig(
             n_particles=400,
@@ -328,11 +329,40 @@ def test_routine_proposals_at_a_look_alike_place_the_belief_left_weigh_by_the_pr
         )
         mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(2))
         mcl.init_around(pose, (0.05, 0.05, 0.02))
+        before = mcl.poses.copy()
         d = mcl.update(lidar, force=True)
         assert d.n_injected > 0 and not d.resampled
+        fresh = np.any(mcl.poses != before, axis=1)
         at_image = np.hypot(*(mcl.poses[:, :2] - image).T) < 0.5
-        assert at_image.sum() >= 5  # proposals did land there, and the draw is the same for every lam
-        mass[lam] = float(mcl.weights[at_image].sum())
+        at_pose = (np.hypot(*(mcl.poses[:, :2] - pose[:2]).T) < 0.5) & (
+            np.abs(wrap_angle(mcl.poses[:, 2] - pose[2])) < 1.0
+        )
+        assert (fresh & at_image).sum() >= 5 and (fresh & at_pose).sum() >= 1  # proposals landed at both
         assert mcl.weights.sum() == pytest.approx(1.0)
-    assert mass[1.0] == 0.0 < mass[0.5] < mass[0.0]
-    assert mass[0.5] == pytest.approx(mass[0.0] / 2, rel=0.1)
+        kept = mcl.weights[~fresh].mean()  # the same update weighed them, whatever lam
+        ratio[lam] = (mcl.weights[fresh & at_image] / kept, mcl.weights[fresh & at_pose] / kept)
+        runs[lam] = mcl.poses.copy()
+    np.testing.assert_array_equal(runs[0.0], runs[1.0])  # the same draws: only the weights differ
+    np.testing.assert_allclose(ratio[0.5][0], 0.5 * ratio[0.0][0], rtol=1e-9)
+    assert np.all(ratio[1.0][0] == 0.0)
+    np.testing.assert_allclose(ratio[1.0][1], ratio[0.0][1], rtol=0.05)  # near ~ 1 at the pose
+
+
+def test_the_env_runs_with_routine_proposals_weighed_by_the_prior():
+    """With the registered relocalizer (augmented MCL, scan proposals, KLD, clustered resampling)."""
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+
+    out = {}
+    for lam in (0.0, 0.5):
+        env = gym.make("SemReloc-v4", map_source="perfect", relocalizer={"n_particles": 300, "proposal_prior_weight": lam})
+        obs, info = env.reset(seed=3)
+        injected = 0
+        for t in range(40):
+            obs, r, term, trunc, info = env.step(t % 4)
+            injected += info["mcl"]["n_injected"]
+        out[lam] = (injected, info["belief"]["hypotheses"])
+        env.close()
+    assert out[0.0][0] > 0 and out[0.5][0] > 0
+    assert out[0.0][1] != out[0.5][1]  # the weights differ, so the beliefs do

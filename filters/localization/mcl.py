@@ -198,16 +198,16 @@ class MCLConfig:
             ``proposal_frac`` is a recovery and gives all its injected particles ``1 / N``; a
             smaller one is absorbed into the routine injection. Below 1 the fresh particles start
             lighter than an average one (docs/relocalizer.md: 0.2 did not help).
-        proposal_prior_weight: share of the routine injection's total weight that is spread over
-            the injected particles in proportion to the prior belief near each of them (the weight
-            of the other particles within one cluster bin, ``belief.cluster_bin_m`` and
-            ``belief.cluster_bin_theta_rad``, and its neighbours: Mixture MCL's weight for
-            sensor-drawn samples, Thrun et al. 2001); the rest is spread evenly. 0 (every
-            registered env) = all evenly: a look-alike place the belief has left is refilled at
-            every update. More than 0 converges faster and keeps a tracked belief in a symmetric
-            world, but rescues a wrong convergence less often (docs/relocalizer.md, "Proposals
-            weighed by the prior"). Recovery injections are always even; if no injected
-            particle has prior weight near it, all are weighed evenly.
+        proposal_prior_weight: ``lam`` in ``[0, 1]``: each routine injected particle's weight is
+            scaled by ``1 - lam + lam * near``, ``near`` the prior belief's weight within the
+            particle's cluster bin (``belief.cluster_bin_m`` x ``belief.cluster_bin_theta_rad``)
+            and the 26 bins around it (in ``[0, 1]``; Mixture MCL weighs its sensor-drawn samples
+            by the prior, Thrun et al. 2001). 0 (every registered env): all at
+            ``proposal_weight / N``, so a look-alike place the belief has left is refilled at
+            every update; 1: a proposal where the belief holds nothing gets weight 0. More than
+            0 keeps a tracked belief and converges sooner, but rescues a wrong convergence less
+            often (docs/relocalizer.md, "Proposals weighed by the prior"). Recovery injections
+            are never scaled.
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -636,6 +636,7 @@ class MonteCarloLocalizer:
         tempered = c.likelihood_scale * ll
         if math.isfinite(c.max_update_log_ratio) and np.isfinite(tempered).any():
             tempered = np.maximum(tempered, np.max(tempered) - c.max_update_log_ratio)
+        predicted = (self._poses, self._logw)  # the belief before this update (routine proposals' prior)
         logw = self._logw + tempered
         finite_any = bool(np.any(np.isfinite(logw)))
         lse = float(self._lse(logw)) if finite_any else -np.inf
@@ -678,7 +679,7 @@ class MonteCarloLocalizer:
             resampled = True
         p_any = max(p_inj, c.proposal_frac)
         # proposals are weighted by the whole current scan, also when the lidar factor sat this update out
-        n_inj = self._inject(p_any, lidar, sem, recovery=p_inj > c.proposal_frac) if p_any > 0.0 else 0
+        n_inj = self._inject(p_any, lidar, sem, recovery=p_inj > c.proposal_frac, prior=predicted) if p_any > 0.0 else 0
         if p_inj > 0.0 and n_inj:
             self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
         diag = UpdateDiagnostics(
@@ -803,8 +804,19 @@ class MonteCarloLocalizer:
             return self._resample(w, self.rng)
         return inverse_cdf(w, (self.rng.random() + np.arange(m)) / m)
 
-    def _inject(self, p_inj: float, lidar: LaserScan | None, semantic: SemanticScan | None, recovery: bool) -> int:
+    def _inject(
+        self,
+        p_inj: float,
+        lidar: LaserScan | None,
+        semantic: SemanticScan | None,
+        recovery: bool,
+        prior: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> int:
         """Replace each particle with probability ``p_inj`` by an injected one; returns how many.
+
+        ``prior``: ``(poses, log weights)`` of the predicted belief, before this update weighed it
+        (``proposal_prior_weight`` scales routine proposals by its weight near each; None: the
+        current set).
 
         A recovery (augmented MCL) draws from ``proposal_candidates`` candidates; the routine
         Mixture-MCL injection from ``min(proposal_candidates, max(200, 20 m))`` for ``m`` particles.
@@ -828,13 +840,10 @@ class MonteCarloLocalizer:
         lam = c.proposal_prior_weight
         if not recovery and lam > 0.0:
             b = c.belief
-            near = prior_mass_near(
-                self._poses[~mask], np.exp(self._logw[~mask]), new, b.cluster_bin_m, b.cluster_bin_theta_rad
-            )
-            total = float(near.sum())
-            if total > 0.0:  # else no prior mass near any of them: evenly
-                with np.errstate(divide="ignore"):  # lam = 1: no prior mass near -> weight 0
-                    logw[mask] += np.log(m * ((1.0 - lam) / m + lam * near / total))
+            poses, logw_prior = prior if prior is not None else (self._poses, self._logw)
+            near = prior_mass_near(poses, np.exp(logw_prior), new, b.cluster_bin_m, b.cluster_bin_theta_rad)
+            with np.errstate(divide="ignore"):  # lam = 1 and no prior weight near: weight 0
+                logw[mask] += np.log((1.0 - lam) + lam * np.minimum(near, 1.0))  # near <= 1 but for rounding
         self._poses = self._poses.copy()
         self._poses[mask] = new
         self._logw = logw - self._lse(logw)
