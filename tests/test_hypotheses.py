@@ -368,3 +368,15 @@ def test_the_env_runs_with_routine_proposals_weighed_by_the_prior():
         env.close()
     assert out[0.0][0] > 0 and out[0.5][0] > 0
     assert out[0.0][1] != out[0.5][1]  # the weights differ, so the beliefs do
+
+
+def test_scaling_never_leaves_the_set_without_weight():
+    """lam = 1 with every particle replaced by proposals where the belief holds nothing (a review):
+    the weights stayed NaN. Now the scaling is skipped for such an update."""
+    grid = symmetric_room()
+    cfg = MCLConfig(n_particles=50, injection="scan", proposal_frac=1.0, proposal_prior_weight=1.0, use_semantic=False)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(0))
+    mcl.init_around([5.0, 2.5, 1.0], (0.02, 0.02, 0.01))  # where the scan below does not fit
+    d = mcl.update(simulate_lidar(grid, np.array([2.0, 1.0, 0.0]), LIDAR_ANGLES, 8.0), force=True)
+    assert d.n_injected == 50 and np.all(np.isfinite(mcl.weights)) and mcl.weights.sum() == pytest.approx(1.0)
+    mcl.belief()  # raised on NaN weights

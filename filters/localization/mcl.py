@@ -201,8 +201,8 @@ class MCLConfig:
         proposal_prior_weight: ``lam`` in ``[0, 1]``: each routine injected particle's weight is
             scaled by ``1 - lam + lam * near``, ``near`` the prior belief's weight within the
             particle's cluster bin (``belief.cluster_bin_m`` x ``belief.cluster_bin_theta_rad``)
-            and the 26 bins around it (in ``[0, 1]``; Mixture MCL weighs its sensor-drawn samples
-            by the prior, Thrun et al. 2001). 0 (every registered env): all at
+            and the 26 bins around it (fewer with under 3 heading bins; in ``[0, 1]``; Mixture
+            MCL weighs its sensor-drawn samples by the prior, Thrun et al. 2001). 0 (every registered env): all at
             ``proposal_weight / N``, so a look-alike place the belief has left is refilled at
             every update; 1: a proposal where the belief holds nothing gets weight 0. More than
             0 keeps a tracked belief and converges sooner, but rescues a wrong convergence less
@@ -348,7 +348,8 @@ class UpdateDiagnostics:
         w_slow, w_fast: augmented-MCL averages after this update.
         p_inject: the injection probability ``max(0, 1 - w_fast / w_slow)`` of this update.
         lidar_used: the lidar factor was part of this update.
-        n_negative_beams: camera beams that gave negative evidence (`NegativeEvidenceConfig`; 0 when off).
+        n_negative_beams: unlabelled camera beams sampled for negative evidence
+            (`NegativeEvidenceConfig`, at most its ``max_beams``; 0 when it is off).
     """
 
     updated: bool = False
@@ -651,6 +652,7 @@ class MonteCarloLocalizer:
                 n_particles=self.n_particles,
                 recovered=True,
                 lidar_used=use_lidar,
+                n_negative_beams=getattr(beams, "n_negative", 0),
             )
             self.last_diagnostics = diag
             return diag
@@ -843,7 +845,10 @@ class MonteCarloLocalizer:
             poses, logw_prior = prior if prior is not None else (self._poses, self._logw)
             near = prior_mass_near(poses, np.exp(logw_prior), new, b.cluster_bin_m, b.cluster_bin_theta_rad)
             with np.errstate(divide="ignore"):  # lam = 1 and no prior weight near: weight 0
-                logw[mask] += np.log((1.0 - lam) + lam * np.minimum(near, 1.0))  # near <= 1 but for rounding
+                scaled = logw[mask] + np.log((1.0 - lam) + lam * np.minimum(near, 1.0))  # near <= 1 but rounding
+            kept = logw[~mask]
+            if np.isfinite(scaled).any() or np.isfinite(kept).any():  # else no weight would be left: unscaled
+                logw[mask] = scaled
         self._poses = self._poses.copy()
         self._poses[mask] = new
         self._logw = logw - self._lse(logw)

@@ -114,7 +114,8 @@ _MAX_DENSE_CELLS = 1 << 22
 def prior_mass_near(
     prior: np.ndarray, weights: np.ndarray, query: np.ndarray, bin_xy_m: float, bin_theta_rad: float
 ) -> np.ndarray:
-    """``(M,)`` weight of the ``prior`` particles in each ``query`` pose's bin and its 26 neighbours.
+    """``(M,)`` weight of the ``prior`` particles in each ``query`` pose's bin and its 26 neighbours
+    (each bin once: fewer with under 3 heading bins).
 
     Bins are ``bin_xy_m`` square in position and ``2 pi / round(2 pi / bin_theta_rad)`` wide in
     heading (which wraps). A coarse density of the prior belief at the query poses: Mixture MCL
