@@ -227,7 +227,8 @@ def linear_bin_keys(*keys: np.ndarray) -> np.ndarray:
     return out
 
 
-def _heading_bins(theta: np.ndarray, bin_rad: float) -> tuple[np.ndarray, int]:
+def heading_bins(theta: np.ndarray, bin_rad: float) -> tuple[np.ndarray, int]:
+    """``(bin index per heading, n)``: ``n = round(2 pi / bin_rad)`` (at least 1) bins over ``[-pi, pi)``."""
     n = max(1, round(2.0 * math.pi / bin_rad))
     k = np.floor((wrap_angle(theta) + math.pi) * (n / (2.0 * math.pi))).astype(np.int64)
     return np.minimum(k, n - 1), n
@@ -251,7 +252,7 @@ def histogram_entropy(
         return histogram_entropy(poses, w, bin_xy_m, bin_theta_rad, "numpy")
     ix = _bin_keys(poses[:, 0], bin_xy_m)
     iy = _bin_keys(poses[:, 1], bin_xy_m)
-    it, nt = _heading_bins(poses[:, 2], bin_theta_rad)
+    it, nt = heading_bins(poses[:, 2], bin_theta_rad)
     ix -= ix.min()
     iy -= iy.min()
     nx, ny = int(ix.max()) + 1, int(iy.max()) + 1
@@ -290,7 +291,7 @@ def cluster_labels(
     ix -= ix.min()
     iy -= iy.min()
     nx, ny = int(ix.max()) + 1, int(iy.max()) + 1
-    it, nt = _heading_bins(p[:, 2], bin_theta_rad)
+    it, nt = heading_bins(p[:, 2], bin_theta_rad)
     if nx * ny * nt > _MAX_RASTER_CELLS:  # absurdly spread cloud: coarser raster
         return cluster_labels(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac, "numpy")
     if weights is not None and min_bin_frac > 0:

@@ -54,7 +54,7 @@ def residuals(poses, mx, my, mth, out):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it):  # pragma: no cover - compiled
-    """Raster cell of every pose, as the reference's ``_bin_keys`` / ``_heading_bins``.
+    """Raster cell of every pose, as the reference's ``_bin_keys`` / ``heading_bins``.
 
     ``ix, iy`` (out) are ``floor(x / bin_xy_m)`` shifted to start at 0; ``it`` (out) is
     ``min(floor((wrap(theta) + pi) * scale), nt - 1)`` with ``scale = nt / (2 pi)`` computed by
@@ -225,6 +225,6 @@ def cluster_covariances(labels, n, poses, w, count, weight, wsum, mean):  # prag
 
 
 def heading_scale(bin_theta_rad: float) -> tuple[int, float]:
-    """``(nt, nt / (2 pi))`` of the reference's ``_heading_bins``."""
+    """``(nt, nt / (2 pi))`` of the reference's ``heading_bins``."""
     nt = max(1, round(2.0 * math.pi / bin_theta_rad))
     return nt, nt / (2.0 * math.pi)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.localization.belief import heading_bins
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 from filters.robot_data.scans import SemanticScan
@@ -125,20 +126,15 @@ def prior_mass_near(
         prior: ``(N, 3)`` poses ``(x m, y m, theta rad)``; weights: ``(N,)`` their weights (>= 0).
         query: ``(M, 3)`` poses.
     """
-    n_t = max(1, round(2.0 * np.pi / bin_theta_rad))
 
-    def cells(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        t = np.floor((wrap_angle(p[:, 2]) + np.pi) * (n_t / (2.0 * np.pi))).astype(np.int64)
-        return (
-            np.floor(p[:, 0] / bin_xy_m).astype(np.int64),
-            np.floor(p[:, 1] / bin_xy_m).astype(np.int64),
-            np.minimum(t, n_t - 1),
-        )
+    def cells(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        t, n_t = heading_bins(p[:, 2], bin_theta_rad)
+        return np.floor(p[:, 0] / bin_xy_m).astype(np.int64), np.floor(p[:, 1] / bin_xy_m).astype(np.int64), t, n_t
 
     if prior.shape[0] == 0 or query.shape[0] == 0:
         return np.zeros(query.shape[0])
-    px, py, pt = cells(prior)
-    qx, qy, qt = cells(query)
+    px, py, pt, n_t = cells(prior)
+    qx, qy, qt, _ = cells(query)
     x0 = min(int(px.min()), int(qx.min())) - 1
     y0 = min(int(py.min()), int(qy.min())) - 1
     ny = max(int(py.max()), int(qy.max())) - y0 + 2
