@@ -135,7 +135,7 @@ class Args:
 
     def relocalizer_overrides(self) -> dict:
         """``--relocalizer`` as a dict, with ``n_particles`` from ``--particles``; checked against `MCLConfig`."""
-        from filters.localization.mcl import MCLConfig
+        from filters.localization.mcl import check_overrides
 
         extra = self.relocalizer
         if not isinstance(extra, dict):
@@ -143,10 +143,7 @@ class Args:
         if "n_particles" in extra:
             raise ValueError("relocalizer: set the particle count with --particles")
         overrides = {**extra, "n_particles": self.particles}
-        try:
-            MCLConfig(**overrides)
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"relocalizer: {e}") from None
+        check_overrides(overrides, "relocalizer")
         return overrides
 
     def __post_init__(self) -> None:

@@ -74,12 +74,9 @@ class Args:
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.max_steps < 1 or self.particles < 1 or not self.cases:
             raise ValueError("seeds, max_steps and particles must be >= 1 and cases not empty")
-        from filters.localization.mcl import MCLConfig
+        from filters.localization.mcl import check_overrides
 
-        try:
-            MCLConfig(**{"n_particles": self.particles, **self.mcl})
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"mcl: {e}") from None
+        check_overrides({"n_particles": self.particles, **self.mcl}, "mcl")
 
     def resolved(self) -> Args:
         """Apply ``--quick`` and the default output folder (relative to the working directory)."""

@@ -328,6 +328,15 @@ class MCLConfig:
         return out
 
 
+def check_overrides(overrides: dict, what: str) -> None:
+    """Raise ``ValueError`` naming ``what`` (a command's option) if ``overrides`` are not valid
+    `MCLConfig` fields and values; commands call it before any episode runs."""
+    try:
+        MCLConfig(**overrides)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{what}: {e}") from None
+
+
 @dataclass(frozen=True)
 class UpdateDiagnostics:
     """What one `MonteCarloLocalizer.update` did.
