@@ -101,6 +101,18 @@ def test_clustered_resampling_keeps_a_weak_hypothesis_and_its_weight():
     assert np.hypot(glob.poses[:, 0] - 7.0, glob.poses[:, 1] - 2.5).__lt__(0.5).sum() <= 10
 
 
+def test_clustered_resampling_with_keep_weight_zero_skips_empty_groups():
+    # cluster_keep_weight = 0 is allowed; with every particle in one cluster the haze group is
+    # empty (weight 0) and used to be drawn from (IndexError in the CDF of no particles)
+    grid = symmetric_room()
+    cfg = MCLConfig(n_particles=500, resample_mode="clustered", cluster_keep_weight=0.0)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
+    mcl._set(np.tile([3.0, 2.5, 0.0], (500, 1)))
+    poses, logw = mcl._clustered(np.full(500, 1 / 500), 400)
+    assert poses.shape == (400, 3) and np.allclose(poses, [3.0, 2.5, 0.0])
+    assert np.exp(logw).sum() == pytest.approx(1.0)
+
+
 def test_detection_runs_and_a_proposal_from_a_unique_object_lands_near_the_truth():
     grid = symmetric_room()  # the cabinet is the only object of its class
     pose = np.array([3.5, 1.5, np.pi])  # facing the cabinet (x 2.0-2.5, y 1.0-2.0)

@@ -791,7 +791,7 @@ class MonteCarloLocalizer:
         labels = np.where(labels < 0, n_lab, labels)  # the haze outside every cluster is one more group
         n_lab += 1
         cw = np.bincount(labels, weights=w, minlength=n_lab)
-        keep = np.flatnonzero(cw >= c.cluster_keep_weight)
+        keep = np.flatnonzero((cw >= c.cluster_keep_weight) & (cw > 0))  # an empty group has nothing to draw
         if keep.size == 0:
             keep = np.array([int(np.argmax(cw))])
         order = np.argsort(labels, kind="stable")
