@@ -154,7 +154,7 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
         ({"layout_files": (str(tmp_path / "missing.json"),)}, "layout_files"),
         ({"policies": (f"ppo={junk}",)}, "not a policy zip"),
         ({"relocalizer": [1, 2]}, "JSON object"),
-        ({"relocalizer": {"bogus": 1}}, "relocalizer"),
+        ({"relocalizer": {"bogus": 1}}, r"relocalizer: unknown keys \['bogus'\]; valid keys: \[.*'likelihood_scale'"),
         ({"relocalizer": {"negative_evidence": {"p_detect": 2}}}, "p_detect"),
         ({"relocalizer": {"negative_evidence": {"bogus": 1}}}, "its keys are"),
         ({"relocalizer": {"n_particles": 10}}, "--particles"),

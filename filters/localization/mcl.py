@@ -331,6 +331,10 @@ class MCLConfig:
 def check_overrides(overrides: dict, what: str) -> None:
     """Raise ``ValueError`` naming ``what`` (a command's option) if ``overrides`` are not valid
     `MCLConfig` fields and values; commands call it before any episode runs."""
+    names = {f.name for f in fields(MCLConfig)}
+    unknown = sorted(set(overrides) - names, key=str)
+    if unknown:
+        raise ValueError(f"{what}: unknown keys {unknown}; valid keys: {sorted(names)}")
     try:
         MCLConfig(**overrides)
     except (TypeError, ValueError) as e:
