@@ -58,6 +58,7 @@ def test_evaluation_runs_writes_its_outputs_and_does_not_depend_on_workers(tmp_p
     assert s["success"]["count"] + s["wrong"]["count"] + s["unconverged"]["count"] == 3
     assert (tmp_path / "a" / "success.png").stat().st_size > 0
     assert "| spin |" in (tmp_path / "a" / "table.md").read_text()
+    assert " pairs, " not in capsys.readouterr().out  # --no-progress: no line per pair
 
 
 def test_reuse_keeps_rows_only_of_the_same_policy_code(tmp_path, capsys, monkeypatch):

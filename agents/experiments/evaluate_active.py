@@ -704,7 +704,8 @@ def main(argv: list[str] | None = None) -> int:
     def report(done_jobs: int, total: int) -> None:
         print(f"  {done_jobs}/{total} pairs, {time.time() - t0:.0f} s", flush=True)
 
-    for r in run_jobs(run_case, jobs, args.runner, desc="pairs", on_result=report):  # results in job order
+    on_result = report if args.runner.progress else None  # --no-progress: nothing per pair
+    for r in run_jobs(run_case, jobs, args.runner, desc="pairs", on_result=on_result):  # results in job order
         rows += r
     rows.sort(key=lambda r: (r["case"], policies.index(r["policy"])))
     summary = {
