@@ -2,6 +2,7 @@
 (``--help`` exits 0, a bad value exits 2), and every file in ``scripts/`` that names one calls it."""
 
 import importlib
+import math
 import re
 from pathlib import Path
 
@@ -124,3 +125,17 @@ def test_paper004_checks_its_relocalizer_overrides_before_any_episode():
     for bad in ('{"likelihood_scal": 0.05}', '{"likelihood_scale": -1}', "[1]", "{oops"):
         with pytest.raises(SystemExit):
             parse(paper004.Args, ["--mcl", bad])
+
+
+def test_paper004_weight_plot_takes_steps_with_no_value_without_warning(tmp_path):
+    """Steps before any run's first update have no lidar likelihood (NaN): no 'Mean of empty slice'."""
+    import warnings
+
+    from agents.experiments import paper004
+
+    runs = [[math.nan, 0.2], [math.nan, 0.2, 0.3]]  # no run has a value at step 1
+    results = [{"case": "lab", "semantic": sem, "weights": w} for sem in (False, True) for w in runs]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        paper004._plot_weights(results, ["lab"], tmp_path / "w.png")
+    assert (tmp_path / "w.png").stat().st_size > 0

@@ -26,6 +26,7 @@ import dataclasses
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -94,13 +95,15 @@ def run_episode(job: tuple) -> dict:
     from agents.baselines import WallFollowExplorer
 
     case, semantic, seed, max_steps, particles, mcl, snapshot, env_id = job
-    env = gym.make(
-        env_id,
-        **CASES[case],
-        semantic=semantic,
-        relocalizer={"n_particles": particles, **mcl},
-        max_episode_steps=max_steps,
-    )
+    with warnings.catch_warnings():  # an older version is this command's documented choice (--env-id)
+        warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
+        env = gym.make(
+            env_id,
+            **CASES[case],
+            semantic=semantic,
+            relocalizer={"n_particles": particles, **mcl},
+            max_episode_steps=max_steps,
+        )
     policy = WallFollowExplorer()
     obs, info = env.reset(seed=seed)
     weights, errors = [], []
@@ -196,9 +199,16 @@ def _plot_weights(results, cases, path):
                 mat[i, : len(w)] = w
             # a finished (successful) episode keeps its last value: the filter stays where it was
             mat = _ffill(mat)
+            seen = ~np.isnan(mat)  # steps before any run's first update have no value (no warning)
+            mean = np.divide(
+                np.where(seen, mat, 0.0).sum(axis=0),
+                seen.sum(axis=0),
+                out=np.full(length, np.nan),
+                where=seen.any(axis=0),
+            )
             ax.plot(
                 np.arange(1, length + 1),
-                np.nanmean(mat, axis=0),
+                mean,
                 color=color,
                 label="lidar + semantic" if sem else "lidar only",
             )
