@@ -23,9 +23,10 @@ alone (never the true pose):
    viewpoint, heading and pair ``(k, l)``, the rays of the scan ``k`` would get are scored at
    ``l``'s pose in the filter's likelihood fields (lidar field for every ray that hits,
    the class field for the labelled rays in the camera's field of view; the per-ray mean times
-   the number of beams the filter uses; the relocalizer's negative evidence, `SemReloc-v4`'s
-   penalty for objects the camera did not see, is not modelled: a viewpoint is valued by what
-   ``k``'s labelled rays and lidar rays tell, both directions of every pair counted). Raised to
+   the number of beams the filter uses; with ``negative_evidence`` and a relocalizer that weighs
+   it, as `SemReloc-v4`'s does, also ``k``'s unlabelled camera returns, sampled as the filter
+   samples them and scored in its negative-evidence table at ``l``'s pose: objects ``l`` would
+   see there that ``k``'s scan shows to be absent). Raised to
    ``likelihood_scale * views`` (``views`` filter updates at the viewpoint) and times the prior
    weights, that is the posterior over the hypotheses if ``k`` is the truth; a hypothesis whose
    predicted pose is not free is ruled out by the others. A viewpoint the robot reaches by
@@ -154,6 +155,63 @@ def _cross_ll(
                     out_s[p, i, k, m] = acc_s / n_s if n_s > 0 else 0.0
                     cnt_l[p, i, k] = n_l
                     cnt_s[p, i, k] = n_s
+
+
+@numba.njit(cache=True)
+def _cross_neg(
+    ranges, labels, xy, phi0, headings, angles, fov_half, cam_min, cam_max, table, margin, step, ox, oy, inv_res, w, h,
+    out_n, cnt_n,
+):  # fmt: skip
+    """The relocalizer's negative evidence (`filters.localization.likelihood_field.NegativeEvidenceConfig`)
+    of the scan hypothesis ``k`` would get at every viewpoint, scored at hypothesis ``l``'s pose:
+    ``out_n[p, i, k, l]`` is the per-ray mean, over ``k``'s unlabelled camera returns (in the field of
+    view, in ``[cam_min, cam_max)``, neither neighbouring ray labelled), of the lowest ``table`` value
+    of the ray's points (``margin`` short of the return, then every ``step`` towards the robot, down
+    to ``step``) placed along the same ray from ``l``'s pose; ``cnt_n[p, i, k]`` counts those rays.
+    ``table`` is the model's ``negative_table`` (``w * h`` cells, then 0 off the map). Arguments
+    otherwise as `_cross_ll`.
+    """
+    n_k, n_p, n_b = ranges.shape
+    n_h = headings.shape[0]
+    for i in range(n_h):
+        for k in range(n_k):
+            phi_k = phi0[k] + headings[i]
+            for p in range(n_p):
+                n_n = 0
+                for m in range(n_k):
+                    out_n[p, i, k, m] = 0.0
+                for j in range(n_b):
+                    r = ranges[k, p, j]
+                    if labels[k, p, j] > 0 or r < cam_min or r >= cam_max:
+                        continue
+                    if labels[k, p, (j + 1) % n_b] > 0 or labels[k, p, (j - 1) % n_b] > 0:
+                        continue
+                    beta = angles[j] - phi_k
+                    bw = beta - 2.0 * math.pi * math.floor((beta + math.pi) / (2.0 * math.pi))
+                    if abs(bw) > fov_half:
+                        continue
+                    first = r - margin
+                    if first < step:
+                        continue
+                    n_n += 1
+                    for m in range(n_k):
+                        a = beta + (phi0[m] + headings[i])
+                        ca, sa = math.cos(a) * inv_res, math.sin(a) * inv_res
+                        bx = (xy[m, p, 0] - ox) * inv_res
+                        by = (xy[m, p, 1] - oy) * inv_res
+                        low = 0.0
+                        d = first
+                        while d >= step - 1e-9:
+                            ex = bx + d * ca
+                            ey = by + d * sa
+                            if ex >= 0.0 and ex < w and ey >= 0.0 and ey < h:
+                                low = min(low, table[int(ey) * w + int(ex)])
+                            d -= step
+                        out_n[p, i, k, m] += low
+                for m in range(n_k):
+                    if n_n > 0:
+                        out_n[p, i, k, m] /= n_n
+                cnt_n[p, i, k] = n_n
 
 
 @numba.njit(cache=True)
@@ -289,6 +347,10 @@ class ViewpointPlanner(Policy):
             radius (+ 5 cm) sideways. 0 (the default): never; else in ``(pi/2, pi]``.
         reverse_max_m: back up only when the rest of the path is at most this long (metres;
             ``inf``: any path).
+        negative_evidence: score viewpoints with the relocalizer's negative evidence (objects a
+            hypothesis would see that the scan shows to be absent) when its model has it on
+            (`NegativeEvidenceConfig.p_detect > 0`, as in `SemReloc-v4`); False: lidar and
+            labelled rays only, as before this option.
     """
 
     def __init__(
@@ -320,8 +382,12 @@ class ViewpointPlanner(Policy):
         arc_final_m: float = 0.3,
         reverse_rad: float = 0.0,
         reverse_max_m: float = math.inf,
+        negative_evidence: bool = True,
     ):
         super().__init__(seed)
+        if not isinstance(negative_evidence, (bool, np.bool_)):
+            raise ValueError(f"negative_evidence must be a bool, got {negative_evidence!r}")
+        self.negative_evidence = bool(negative_evidence)
         ints = {
             "candidate_stride": candidate_stride,
             "n_headings": n_headings,
@@ -569,6 +635,16 @@ class ViewpointPlanner(Policy):
         if stay is not None and not cfg.lidar_on_rotation:
             n_lidar = np.where(np.asarray(stay)[:, None, None], 0.0, n_lidar)
         ll = n_lidar[..., None] * out_l + (n_cam[..., None] * out_s if cfg.use_semantic else 0.0)
+        neg = model.negative_config
+        if self.negative_evidence and cfg.use_semantic and neg.enabled:
+            out_n = np.empty_like(out_l)
+            cnt_n = np.zeros_like(cnt_l)
+            _cross_neg(
+                ranges.reshape(k_n, p_n, b), labels.reshape(k_n, p_n, b), xy, poses[:, 2].copy(), headings,
+                angles, cam.fov_rad / 2, cam.range_min_m, cam.range_max_m, model.negative_table(), neg.margin_m,
+                neg.step_m, float(ox), float(oy), 1.0 / grid.resolution_m, w_cells, h_cells, out_n, cnt_n,
+            )  # fmt: skip
+            ll = ll + np.minimum(cnt_n / n_fov * cam.n_beams, neg.max_beams)[..., None] * out_n
         # log posterior of hypothesis l when k is the truth, after `views` updates at the viewpoint
         logit = cfg.likelihood_scale * self.views * (ll - np.diagonal(ll, axis1=2, axis2=3)[..., :, None])
         bad = invalid.T[:, None, :, None] | invalid.T[:, None, None, :]

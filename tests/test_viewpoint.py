@@ -447,6 +447,71 @@ def test_cross_likelihood_kernel_matches_a_plain_reference():
         np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
 
 
+def test_negative_evidence_kernel_matches_a_plain_reference_with_the_filters_sampling():
+    """`_cross_neg` against the filter's own rules written out: the rays `negative_beams` would pick
+    (unlabelled returns, no labelled neighbour; here in the camera's view), the points
+    `NegativeEvidenceConfig.sample_ranges` puts on them, the lowest table value per ray."""
+    from agents.viewpoint import _cross_neg
+    from filters.localization.likelihood_field import NegativeEvidenceConfig
+
+    rng = np.random.default_rng(4)
+    n_k, n_p, n_b, w, h = 3, 5, 24, 40, 30
+    neg = NegativeEvidenceConfig(p_detect=0.8)
+    ranges = rng.uniform(0.0, 6.0, (n_k, n_p, n_b))
+    labels = np.where(rng.random(ranges.shape) < 0.25, rng.integers(1, 4, ranges.shape), 0)
+    xy, phi0 = rng.uniform(-1.0, 5.0, (n_k, n_p, 2)), rng.uniform(-4, 4, n_k)
+    headings, angles = 2 * math.pi * np.arange(4) / 4, 2 * math.pi * np.arange(n_b) / n_b
+    fov_half, cam_min, cam_max, ox, oy, inv_res = math.radians(100), 0.5, 5.0, -0.5, -0.3, 10.0
+    table = np.append(np.minimum(rng.normal(size=w * h), 0.0), 0.0)
+    want_n, want_c = np.zeros((n_p, 4, n_k, n_k)), np.zeros((n_p, 4, n_k))
+    for p, i, k in np.ndindex(n_p, 4, n_k):
+        lab = labels[k, p]
+        near = (lab > 0) | (np.roll(lab, 1) > 0) | (np.roll(lab, -1) > 0)
+        rays = []
+        for j in range(n_b):
+            beta = angles[j] - (phi0[k] + headings[i])
+            r = ranges[k, p, j]
+            if near[j] or not cam_min <= r < cam_max or abs(math.remainder(beta, 2 * math.pi)) > fov_half:
+                continue
+            counts, pts = neg.sample_ranges(np.array([r]))
+            if counts[0]:
+                rays.append((beta, pts))
+        want_c[p, i, k] = len(rays)
+        for m in range(n_k):
+            lows = []
+            for beta, pts in rays:
+                a = beta + phi0[m] + headings[i]
+                ex = (xy[m, p, 0] - ox) * inv_res + pts * math.cos(a) * inv_res
+                ey = (xy[m, p, 1] - oy) * inv_res + pts * math.sin(a) * inv_res
+                inside = (ex >= 0) & (ex < w) & (ey >= 0) & (ey < h)
+                cells = np.where(inside, ey.astype(int) * w + ex.astype(int), w * h)
+                lows.append(min(0.0, table[cells].min()))
+            want_n[p, i, k, m] = np.mean(lows) if lows else 0.0
+    got_n, got_c = np.empty_like(want_n), np.zeros_like(want_c)
+    args = (ranges, labels, xy, phi0, headings, angles, fov_half, cam_min, cam_max, table, neg.margin_m, neg.step_m)
+    _cross_neg(*args, ox, oy, inv_res, w, h, got_n, got_c)
+    assert want_c.min() >= 0 and want_c.sum() > 20 and (want_n < 0).sum() > 20  # rays were scored
+    np.testing.assert_array_equal(got_c, want_c)
+    np.testing.assert_allclose(got_n, want_n, rtol=1e-12, atol=1e-12)
+
+
+def test_negative_evidence_values_a_place_where_only_one_twin_would_see_an_object():
+    """At a viewpoint where one twin's image sees an object and the other's a bare wall, the filter
+    learns from either truth (the missing object counts against the other twin): the planner's
+    score there rises with the negative evidence modelled, and it is unchanged without."""
+    scores = {}
+    for on in (True, False):
+        pol = ViewpointPlanner(seed=0, negative_evidence=on)
+        env = _env(pol)
+        twins = _twins()
+        env.reset(seed=0, options={"pose": twins[0].tolist()})
+        pm = pol._plan_map()
+        scores[on], _ = pol._gains(pm, twins, np.array([0.5, 0.5]), np.arange(0, pm.xy.shape[0], 3))
+    assert scores[True].shape == scores[False].shape
+    assert (scores[True] > scores[False] + 0.05).sum() > 10  # viewpoints valued more ...
+    assert scores[True].max() >= scores[False].max() - 1e-9  # ... and the best no worse
+
+
 def test_clear_segment_matches_sampling_the_segment_with_numpy():
     env = gym.make("SemReloc-v4", layout="twin_rooms", map_source="perfect")
     from agents.viewpoint import _PlanMap
