@@ -294,3 +294,37 @@ def test_one_map_for_worlds_that_differ_from_it(tmp_path):
         ev.Args(policies=("spin",), map_source="twin_rooms")  # the procedural held-out layouts too
     with pytest.raises(ValueError, match="map_source must be"):
         ev.Args(**kw, map_source="nowhere.yaml")
+
+
+def test_one_ros_map_for_every_case(tmp_path):
+    """--map-source MAP.yaml: a ROS map (with its semantic sidecar) is every case's map; its digest
+    follows the image, not only the .yaml; a ROS map of another building is an argument error."""
+    from filters.mapping.ros_map import save_map
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.maps import maps_for
+
+    twin = get_layout("twin_rooms")
+    (tmp_path / "world.json").write_text(json.dumps(twin.to_dict()))
+    yaml_path = save_map(maps_for(twin, "mapping", LidarParams(), CameraParams()), tmp_path / "twin.yaml")
+    kw = dict(layouts_per_kind=0, starts=1, layout_files=(str(tmp_path / "world.json"),), builtin_layouts=False)
+    kw.update(policies=("spin",), particles=100, max_steps=3)
+    args = ev.Args(**kw, map_source=str(yaml_path))
+    env = ev.case_env(ev.build_cases(args)[0], args)
+    mapped = maps_for(twin, "mapping", LidarParams(), CameraParams())
+    grid = env.unwrapped.grid  # the file's map (saved as trinary pixels), with the sidecar's classes
+    assert grid.shape == mapped.shape and grid.class_names == mapped.class_names and grid.semantic is not None
+    assert np.array_equal(grid.occupied_mask(), mapped.occupied_mask())
+    digest = ev.settings(args, "spin")["map_digest"]
+    image = next(tmp_path.glob("twin.p*m"))
+    image.write_bytes(image.read_bytes()[:-1] + bytes([255 - image.read_bytes()[-1]]))  # one pixel changed
+    assert ev.settings(args, "spin")["map_digest"] != digest
+    out = tmp_path / "out"
+    assert ev.main(["--policies", "spin", "--layouts-per-kind", "0", "--no-builtin-layouts", "--starts", "1",
+                    "--layout-files", str(tmp_path / "world.json"), "--map-source", str(yaml_path),
+                    "--particles", "100", "--max-steps", "3", "--no-progress", "--workers", "1",
+                    "--out", str(out)]) == 0  # fmt: skip
+    assert len(json.loads((out / "episodes.json").read_text())) == 1
+    lab_map = save_map(maps_for(get_layout("lab"), "perfect", LidarParams(), CameraParams()), tmp_path / "lab.yaml")
+    with pytest.raises(ValueError, match="does not fit"):
+        ev.Args(**kw, map_source=str(lab_map))

@@ -93,9 +93,10 @@ class Args:
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
     map_source: str = "mapping"
     """the filter's map: mapping (a simulated mapping run of each case's layout), perfect (the layout
-    rasterised), or a layout (a built-in name or a layout file) whose mapping run is the map of every
-    case: the worlds of --layout-files (alone: --layouts-per-kind 0 --no-builtin-layouts) may then
-    differ from it, objects moved, missing or added"""
+    rasterised), or one map for every case: a layout (a built-in name or a layout file; its mapping
+    run) or a ROS map (.yaml with its image, and a .semantic.yaml sidecar for the semantic factor);
+    the worlds of --layout-files (alone: --layouts-per-kind 0 --no-builtin-layouts) may then differ
+    from it, objects moved, missing or added"""
     builtin_layouts: bool = True
     """with the held-out seed set: also twin_rooms, the lab and the changed lab (--no-builtin-layouts:
     only the procedural held-out layouts and --layout-files)"""
@@ -115,12 +116,12 @@ class Args:
             return
         from semreloc_env.config import CameraParams, LidarParams
         from semreloc_env.layouts import LayoutError, get_layout
-        from semreloc_env.maps import maps_for, names_a_layout
+        from semreloc_env.maps import is_ros_map_file, maps_for, names_a_layout
 
-        if not names_a_layout(self.map_source):
+        if not (names_a_layout(self.map_source) or is_ros_map_file(self.map_source)):
             raise ValueError(
-                f"map_source must be mapping, perfect or a layout (a built-in name or a layout file), "
-                f"got {self.map_source!r}"
+                f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a "
+                f"ROS map (.yaml), got {self.map_source!r}"
             )
         if self.layouts_per_kind or self.builtin_layouts or not self.layout_files:
             raise ValueError(
@@ -130,7 +131,7 @@ class Args:
         for f in self.layout_files:
             try:
                 maps_for(get_layout(f), self.map_source, LidarParams(), CameraParams())
-            except (LayoutError, ValueError) as e:
+            except (LayoutError, ValueError, OSError) as e:  # MapFormatError is a ValueError
                 raise ValueError(f"map_source {self.map_source!r} does not fit layout file {f!r}: {e}") from None
 
     def relocalizer_overrides(self) -> dict:
@@ -430,9 +431,20 @@ def _map_is_file(map_source: str) -> bool:
 
 
 def file_digest(path: str) -> str:
-    """A fingerprint (16 hex digits) of a layout file's bytes (found as `get_layout` finds it)."""
+    """A fingerprint (16 hex digits) of a layout file's bytes (found as `get_layout` finds it), or of
+    a ROS map as read (its occupancy and class grids, resolution, origin and class names: the image
+    and sidecar files count, not only the .yaml's bytes)."""
     from semreloc_env.layouts import find_layout_file
+    from semreloc_env.maps import is_ros_map_file
 
+    if is_ros_map_file(path):
+        from filters.mapping.ros_map import load_map
+
+        grid = load_map(path)
+        h = hashlib.sha256(np.ascontiguousarray(grid.occupancy).tobytes())
+        h.update(b"" if grid.semantic is None else np.ascontiguousarray(grid.semantic).tobytes())
+        h.update(repr((grid.resolution_m, tuple(grid.origin_xy_m), tuple(grid.class_names))).encode())
+        return h.hexdigest()[:16]
     found = Path(path) if Path(path).is_file() else find_layout_file(path)
     return hashlib.sha256(Path(found).read_bytes()).hexdigest()[:16]
 
