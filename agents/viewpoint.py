@@ -167,12 +167,40 @@ def _cross_neg(
     ``out_n[p, i, k, l]`` is the per-ray mean, over ``k``'s unlabelled camera returns (in the field of
     view, in ``[cam_min, cam_max)``, neither neighbouring ray labelled), of the lowest ``table`` value
     of the ray's points (``margin`` short of the return, then every ``step`` towards the robot, down
-    to ``step``) placed along the same ray from ``l``'s pose; ``cnt_n[p, i, k]`` counts those rays.
-    ``table`` is the model's ``negative_table`` (``w * h`` cells, then 0 off the map). Arguments
-    otherwise as `_cross_ll`.
+    to ``step``) placed along the same ray from ``l``'s pose, at absolute angle
+    ``angles[j] - phi0[k] + phi0[l]``; ``cnt_n[p, i, k]`` counts those rays. ``table`` is the model's
+    ``negative_table`` (``w * h`` cells, then 0 off the map). Arguments otherwise as `_cross_ll`.
+
+    A ray's points and their values do not depend on the viewpoint heading ``i``, only whether the
+    ray lies in the camera's view does: the values are computed once per ray, then summed per heading.
     """
     n_k, n_p, n_b = ranges.shape
     n_h = headings.shape[0]
+    low = np.zeros((n_k, n_p, n_b, n_k))
+    usable = np.zeros((n_k, n_p, n_b), np.bool_)
+    for k in range(n_k):
+        for p in range(n_p):
+            for j in range(n_b):
+                r = ranges[k, p, j]
+                if labels[k, p, j] > 0 or r < cam_min or r >= cam_max or r - margin < step:
+                    continue
+                if labels[k, p, (j + 1) % n_b] > 0 or labels[k, p, (j - 1) % n_b] > 0:
+                    continue
+                usable[k, p, j] = True
+                for m in range(n_k):
+                    a = angles[j] - phi0[k] + phi0[m]
+                    ca, sa = math.cos(a) * inv_res, math.sin(a) * inv_res
+                    bx = (xy[m, p, 0] - ox) * inv_res
+                    by = (xy[m, p, 1] - oy) * inv_res
+                    v = 0.0
+                    d = r - margin
+                    while d >= step - 1e-9:
+                        ex = bx + d * ca
+                        ey = by + d * sa
+                        if ex >= 0.0 and ex < w and ey >= 0.0 and ey < h:
+                            v = min(v, table[int(ey) * w + int(ex)])
+                        d -= step
+                    low[k, p, j, m] = v
     for i in range(n_h):
         for k in range(n_k):
             phi_k = phi0[k] + headings[i]
@@ -181,33 +209,15 @@ def _cross_neg(
                 for m in range(n_k):
                     out_n[p, i, k, m] = 0.0
                 for j in range(n_b):
-                    r = ranges[k, p, j]
-                    if labels[k, p, j] > 0 or r < cam_min or r >= cam_max:
-                        continue
-                    if labels[k, p, (j + 1) % n_b] > 0 or labels[k, p, (j - 1) % n_b] > 0:
+                    if not usable[k, p, j]:
                         continue
                     beta = angles[j] - phi_k
                     bw = beta - 2.0 * math.pi * math.floor((beta + math.pi) / (2.0 * math.pi))
                     if abs(bw) > fov_half:
                         continue
-                    first = r - margin
-                    if first < step:
-                        continue
                     n_n += 1
                     for m in range(n_k):
-                        a = beta + (phi0[m] + headings[i])
-                        ca, sa = math.cos(a) * inv_res, math.sin(a) * inv_res
-                        bx = (xy[m, p, 0] - ox) * inv_res
-                        by = (xy[m, p, 1] - oy) * inv_res
-                        low = 0.0
-                        d = first
-                        while d >= step - 1e-9:
-                            ex = bx + d * ca
-                            ey = by + d * sa
-                            if ex >= 0.0 and ex < w and ey >= 0.0 and ey < h:
-                                low = min(low, table[int(ey) * w + int(ex)])
-                            d -= step
-                        out_n[p, i, k, m] += low
+                        out_n[p, i, k, m] += low[k, p, j, m]
                 for m in range(n_k):
                     if n_n > 0:
                         out_n[p, i, k, m] /= n_n

@@ -475,12 +475,12 @@ def test_negative_evidence_kernel_matches_a_plain_reference_with_the_filters_sam
                 continue
             counts, pts = neg.sample_ranges(np.array([r]))
             if counts[0]:
-                rays.append((beta, pts))
+                rays.append((j, pts))
         want_c[p, i, k] = len(rays)
         for m in range(n_k):
             lows = []
-            for beta, pts in rays:
-                a = beta + phi0[m] + headings[i]
+            for j, pts in rays:
+                a = angles[j] - phi0[k] + phi0[m]  # the ray's absolute angle at m's pose (any heading i)
                 ex = (xy[m, p, 0] - ox) * inv_res + pts * math.cos(a) * inv_res
                 ey = (xy[m, p, 1] - oy) * inv_res + pts * math.sin(a) * inv_res
                 inside = (ex >= 0) & (ex < w) & (ey >= 0) & (ey < h)
