@@ -8,10 +8,11 @@ import pytest
 
 from filters.localization.mcl import MCLConfig
 from filters.mapping.from_scans import map_from_scans, raster_for
-from filters.mapping.ros_map import load_map
+from filters.mapping.grid import GridMap
+from filters.mapping.ros_map import load_map, save_map
 from filters.pose import compose
 from filters.robot_data.carmen import read_carmen
-from filters.robot_data.replay import global_localization_trials, summarize_trials, track
+from filters.robot_data.replay import MapMismatchError, global_localization_trials, summarize_trials, track
 from filters.robot_data.scans import LaserScan
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -133,8 +134,22 @@ def test_a_map_of_another_place_is_refused(aces, aces_map):
 
     x0, y0 = aces_map.origin_xy_m
     shifted = dataclasses.replace(aces_map, origin_xy_m=(x0 + 500.0, y0 + 500.0))
-    with pytest.raises(ValueError, match="lie on the map"):
+    with pytest.raises(MapMismatchError, match="lie on the map"):
         track(aces, shifted, MCLConfig(n_particles=100), rng_seed=0, start=0, stop=20)
+    with pytest.raises(MapMismatchError, match=r"the start scans' poses \(3 starts\): only 0 % lie on the map"):
+        global_localization_trials(aces, shifted, MCLConfig(n_particles=100), [0, 100, 200], 5, rng_seed=0)
+
+
+def test_tracking_from_a_start_pose_off_the_map_is_refused(aces, aces_map):
+    # 19 of 20 poses on the map pass the 90 % check, but a cloud cannot start off the map
+    import dataclasses
+
+    poses = np.array(aces.poses[:20], dtype=float)
+    x0 = aces_map.extent_m[0]
+    poses[0, 0] = x0 - 5.0
+    moved = dataclasses.replace(aces, poses=poses)
+    with pytest.raises(MapMismatchError, match=r"the start pose \(scan 0\): \(-?[0-9.]+, -?[0-9.]+\) lies off the map"):
+        track(moved, aces_map, MCLConfig(n_particles=100), rng_seed=0, start=0, stop=20)
 
 
 def test_replay_command_reports_bad_input_without_a_traceback(tmp_path, capsys):
@@ -144,6 +159,8 @@ def test_replay_command_reports_bad_input_without_a_traceback(tmp_path, capsys):
     bad_log.write_text("FLASER 2 1.0 2.0 3.3 0 0 0 0 0 0 1.0 h 1.0\n")  # one reading too many
     bad_map = tmp_path / "bad.yaml"
     bad_map.write_text("image: missing.pgm\nresolution: 0.05\n")
+    other = np.zeros((40, 60), dtype=np.int8)  # a 3 m x 2 m room elsewhere: a map of another place
+    other_map = save_map(GridMap(other, resolution_m=0.05, origin_xy_m=(-100.0, -100.0)), tmp_path / "other.yaml")
     out = ["--out", str(tmp_path / "out")]
     for argv, match in [
         (["--log", str(bad_log)], "bad.log:1: FLASER: 2 readings make 11 fields"),
@@ -151,6 +168,7 @@ def test_replay_command_reports_bad_input_without_a_traceback(tmp_path, capsys):
         (["--log", str(tmp_path / "none.log")], "not found"),
         (["--start", "500"], "--start 500 is beyond the log's 440 scans"),
         (["--mode", "global", "--trials", "441"], "--trials 441 is more than the log's 440 scans"),
+        (["--map", str(other_map), "--steps", "20"], "the log's poses (scans 0-19): only 0 % lie on the map (x in [-100, -97] m"),
     ]:
         assert replay_log.main(argv + out) == 2, argv
         err = capsys.readouterr().err

@@ -30,9 +30,27 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
-__all__ = ["Track", "TrialResult", "track", "global_localization_trials", "summarize_trials"]
+__all__ = ["MapMismatchError", "Track", "TrialResult", "track", "global_localization_trials", "summarize_trials"]
 
 OUTCOMES = ("correct", "wrong", "unconverged")
+
+
+class MapMismatchError(ValueError):
+    """The map does not hold the log's poses: a map of another place, or in another frame."""
+
+
+def _check_on_map(grid: GridMap, poses: np.ndarray, what: str, min_share: float = 0.9) -> None:
+    """Raise `MapMismatchError` unless at least ``min_share`` of ``poses`` (``(K, 3)``, the map's
+    frame, m) lie on ``grid``; ``what`` names them in the message."""
+    xy = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[:, :2]
+    inside = float(np.mean(grid.in_bounds(*grid.world_to_cell(xy))))
+    if inside < min_share:
+        x0, x1, y0, y1 = grid.extent_m
+        share = f"({xy[0, 0]:.6g}, {xy[0, 1]:.6g}) lies off" if len(xy) == 1 else f"only {100 * inside:.0f} % lie on"
+        raise MapMismatchError(
+            f"{what}: {share} the map (x in [{x0:.6g}, {x1:.6g}] m, y in [{y0:.6g}, {y1:.6g}] m): "
+            "is it a map of this place, in the log's frame?"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +144,9 @@ def track(
 ) -> Track:
     """Replay scans ``start .. stop - 1`` from a cloud around ``poses[start]`` (or uniform with ``global_init``).
 
+    Raises `MapMismatchError` (a ``ValueError``) if fewer than 90 % of these scans' reference poses, or
+    (tracking) the start pose, lie on ``grid``.
+
     Args:
         log: see the module docstring.
         grid: the map.
@@ -141,13 +162,9 @@ def track(
     stop = n if stop is None else stop
     if not 0 <= start < stop <= n:
         raise ValueError(f"need 0 <= start < stop <= {n}, got start={start}, stop={stop}")
-    row, col = grid.world_to_cell(np.asarray(log.poses[start:stop])[:, :2])
-    inside = float(np.mean(grid.in_bounds(row, col)))
-    if inside < 0.9:
-        raise ValueError(
-            f"only {100 * inside:.0f} % of the log's poses (scans {start}-{stop - 1}) lie on the map: "
-            "is it a map of this place, in the log's frame?"
-        )
+    _check_on_map(grid, log.poses[start:stop], f"the log's poses (scans {start}-{stop - 1})")
+    if not global_init:
+        _check_on_map(grid, log.poses[start], f"the start pose (scan {start})", min_share=1.0)
     mcl = MonteCarloLocalizer(grid, _config(mcl_config), np.random.default_rng(rng_seed))
     if global_init:
         mcl.init_global()
@@ -189,6 +206,9 @@ def global_localization_trials(
 
     Returns:
         One `TrialResult` per start, in order.
+
+    Raises:
+        MapMismatchError: fewer than 90 % of the start scans' reference poses lie on ``grid``.
     """
     n = _check_log(log)
     cfg = _config(mcl_config)
@@ -200,6 +220,7 @@ def global_localization_trials(
         raise ValueError(f"starts must be scan indices in [0, {n}), got {bad[:5]}")
     if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
         raise ValueError(f"n_steps must be an int >= 1, got {n_steps!r}")
+    _check_on_map(grid, log.poses[starts], f"the start scans' poses ({len(starts)} starts)")
     out = []
     for i, s in enumerate(starts):
         mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng([rng_seed, i]))

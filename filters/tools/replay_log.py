@@ -35,7 +35,7 @@ from filters.mapping.from_scans import map_from_scans
 from filters.mapping.grid import GridMap
 from filters.mapping.ros_map import MapFormatError, load_map
 from filters.robot_data.carmen import CarmenLogError, read_carmen
-from filters.robot_data.replay import Track, global_localization_trials, summarize_trials, track
+from filters.robot_data.replay import MapMismatchError, Track, global_localization_trials, summarize_trials, track
 
 DEFAULT_LOG = Path(__file__).resolve().parents[2] / "tests" / "data" / "aces-corrected.log.gz"
 """The ACES log shipped with the repository's tests (the default needs a source checkout)."""
@@ -194,11 +194,12 @@ def run(args: Args) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``) and `run`. A log or map that cannot be read,
-    or an option beyond the log, prints the reason and returns 2 (no traceback)."""
+    a map that does not hold the log's poses, or an option beyond the log, prints the reason and
+    returns 2 (no traceback)."""
     args = parse(Args, argv, __doc__)
     try:
         run(args)
-    except (CarmenLogError, MapFormatError, FileNotFoundError, LogArgumentError) as e:
+    except (CarmenLogError, MapFormatError, MapMismatchError, FileNotFoundError, LogArgumentError) as e:
         return usage_error("replay_log", e)
     return 0
 
