@@ -56,6 +56,10 @@ def test_evaluation_runs_writes_its_outputs_and_does_not_depend_on_workers(tmp_p
     s = summary["all"]["spin"]
     assert s["episodes"] == 3
     assert s["success"]["count"] + s["wrong"]["count"] + s["unconverged"]["count"] == 3
+    spins = [r for r in rows[0] if r["policy"] == "spin"]
+    assert all(isinstance(r["first_convergence_wrong"], bool) for r in spins)
+    assert s["first_wrong"]["count"] == sum(r["first_convergence_wrong"] for r in spins)
+    assert all(r["first_convergence_wrong"] for r in spins if r["outcome"] == "wrong")
     assert (tmp_path / "a" / "success.png").stat().st_size > 0
     assert "| spin |" in (tmp_path / "a" / "table.md").read_text()
     assert " pairs, " not in capsys.readouterr().out  # --no-progress: no line per pair
@@ -68,6 +72,16 @@ def test_reuse_keeps_rows_only_of_the_same_policy_code(tmp_path, capsys, monkeyp
     capsys.readouterr()
     assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")]) == 0
     assert "reused 3 episodes" in capsys.readouterr().out
+    old = tmp_path / "old"  # rows from before the first convergence was recorded: run again
+    old.mkdir()
+    rows = json.loads((tmp_path / "a" / "episodes.json").read_text())
+    (old / "episodes.json").write_text(
+        json.dumps([{k: v for k, v in r.items() if k != "first_convergence_wrong"} for r in rows])
+    )
+    assert ev.main([*common, "--reuse", str(old), "--out", str(tmp_path / "e")]) == 0
+    assert "reused 0 episodes" in capsys.readouterr().out
+    again = json.loads((tmp_path / "e" / "episodes.json").read_text())
+    assert [{**r, "seconds": 0} for r in again] == [{**r, "seconds": 0} for r in rows]  # the same episodes
     monkeypatch.setattr(ev, "policy_code", lambda spec: "changed")
     assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")]) == 0
     assert "reused 0 episodes" in capsys.readouterr().out
@@ -172,10 +186,11 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
         assert e.value.code == 2 and not out.exists()
 
 
-def _row(case, policy, outcome, steps=None, uninformative=False, kind="procedural"):
+def _row(case, policy, outcome, steps=None, uninformative=False, kind="procedural", first_wrong=False):
     return {
         "case": case, "policy": policy, "outcome": outcome, "steps_to_success": steps, "collisions": case % 2,
         "seconds": 1.0, "length": 10, "kind": kind, "uninformative": uninformative,
+        "first_convergence_wrong": first_wrong,
     }  # fmt: skip
 
 
@@ -196,9 +211,13 @@ def test_paired_comparison_counts_discordant_pairs_and_tests_them():
 
 def test_summarise_counts_each_outcome_with_its_wilson_interval():
     outcomes = ["success", "success", "wrong", "unconverged", "success"]
-    rows = [_row(i, "p", o, steps=10 + i if o == "success" else None) for i, o in enumerate(outcomes)]
+    first = [True, False, True, False, False]  # a success whose belief was first sure of a wrong pose
+    rows = [
+        _row(i, "p", o, steps=10 + i if o == "success" else None, first_wrong=f)
+        for i, (o, f) in enumerate(zip(outcomes, first))
+    ]
     s = ev.summarise(rows)
-    for outcome, k in (("success", 3), ("wrong", 1), ("unconverged", 1)):
+    for outcome, k in (("success", 3), ("wrong", 1), ("unconverged", 1), ("first_wrong", 2)):
         assert s[outcome]["count"] == k and s[outcome]["rate"] == k / 5
         assert s[outcome]["ci95"] == pytest.approx(ev.wilson(k, 5))
     assert s["median_steps"] == 11.0 and s["collisions_per_episode"] == pytest.approx(2 / 5)

@@ -16,12 +16,14 @@ room; spinning in place cannot tell them apart, only moving out can. These are f
 
 Per policy (overall, per layout kind, and on the uninformative starts): success within the
 step limit (the env's own test, `agents.metrics`), wrong convergence (converged, wrong
-place, at the end), unconverged, each with a Wilson 95 % interval
-(``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the successes,
-mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per episode, with
-the count of every discrete action taken, or with ``--action-type continuous`` of every kind of
-motion, `motion_kind`),
-``summary.json``, ``table.md`` and ``success.png`` (bar plot with the intervals).
+place, at the end), unconverged, *first convergence wrong* (the belief first said "converged"
+at a wrong pose, whatever it did after: a robot that stopped when its belief said so would have
+stopped there; the env ends an episode only on a correct convergence), each with a Wilson 95 %
+interval (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), median steps of the
+successes, mean steps in collision per episode. Into ``--out``: ``episodes.json`` (one row per
+episode, with the count of every discrete action taken, or with ``--action-type continuous`` of
+every kind of motion, `motion_kind`), ``summary.json``, ``table.md`` and ``success.png`` (bar
+plot with the intervals).
 
 The same arguments give the same numbers whatever the runner (``--executor``, ``--workers``,
 ``--address``): every episode is seeded on its own and results are put back in job order.
@@ -343,6 +345,7 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
                 "outcome": res.outcome,
                 "length": res.length,
                 "steps_to_success": res.steps_to_converge,
+                "first_convergence_wrong": res.first_convergence_wrong,
                 "collisions": collisions,
                 "final_position_error_m": res.final_position_error_m,
                 "seconds": time.perf_counter() - t0,
@@ -542,11 +545,17 @@ wilson = wilson_interval  # Wilson 95 % interval (filters.experiments.stats)
 
 
 def summarise(rows: list[dict]) -> dict:
+    """One policy's rows: ``episodes``; per outcome (``success``, ``wrong``, ``unconverged``) and for
+    ``first_wrong`` (episodes whose belief first reported "converged" at a wrong pose, whatever came
+    after) ``{"rate", "ci95" (Wilson), "count"}``; ``median_steps`` of the successes (None if none),
+    ``collisions_per_episode``, ``seconds_per_step``."""
     n = len(rows)
     out = {"episodes": n}
     for outcome in ("success", "wrong", "unconverged"):
         k = sum(r["outcome"] == outcome for r in rows)
         out[outcome] = {"rate": k / n, "ci95": wilson(k, n), "count": k}
+    k = sum(r["first_convergence_wrong"] for r in rows)
+    out["first_wrong"] = {"rate": k / n, "ci95": wilson(k, n), "count": k}
     steps = [r["steps_to_success"] for r in rows if r["steps_to_success"] is not None]
     out["median_steps"] = float(np.median(steps)) if steps else None
     out["collisions_per_episode"] = float(np.mean([r["collisions"] for r in rows]))
@@ -576,15 +585,16 @@ def table(summary: dict, policies: list[str]) -> str:
         lines += [
             f"### {group} ({n} episodes per policy)",
             "",
-            "| policy | success | wrong | unconverged | median steps | steps in collision / episode |",
-            "|---|---|---|---|---|---|",
+            "| policy | success | wrong | unconverged | first convergence wrong | median steps "
+            "| steps in collision / episode |",
+            "|---|---|---|---|---|---|---|",
         ]
         for p in policies:
             s = per_policy[p]
             med = "-" if s["median_steps"] is None else f"{s['median_steps']:.0f}"
             lines.append(
-                f"| {p} | {_pct(s['success'])} | {_pct(s['wrong'])} | {_pct(s['unconverged'])} | {med} | "
-                f"{s['collisions_per_episode']:.1f} |"
+                f"| {p} | {_pct(s['success'])} | {_pct(s['wrong'])} | {_pct(s['unconverged'])} | "
+                f"{_pct(s['first_wrong'])} | {med} | {s['collisions_per_episode']:.1f} |"
             )
         lines.append("")
     return "\n".join(lines)
@@ -698,6 +708,7 @@ def main(argv: list[str] | None = None) -> int:
                 and all(r.get(k) == v for k, v in c.items())
                 and (r["case"], r["policy"]) not in seen
                 and r.get("settings", wanted[r["policy"]]) == wanted[r["policy"]]
+                and "first_convergence_wrong" in r  # rows of runs before it was recorded are run again
             ):
                 unverified += "settings" not in r
                 seen.add((r["case"], r["policy"]))
