@@ -396,3 +396,46 @@ def test_particle_counts_have_an_upper_bound():
     m = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=100), np.random.default_rng(0))
     with pytest.raises(ValueError, match="particle count"):
         m.init_global(10**12)
+
+
+def test_converged_min_updates_asks_the_criterion_to_hold_after_the_last_k_updates():
+    """``belief.converged_min_updates = k``: converged only once the set met the criterion after
+    each of the last k measurement updates; the particles (every draw) are those of k = 1, an update
+    whose set does not meet it starts the count again, and so does an init."""
+    grid = symmetric_room()
+    pose0 = np.array([4.0, 1.5, np.pi / 2])
+    runs = {}
+    for k in (1, 3):
+        rng = np.random.default_rng(11)
+        cfg = MCLConfig(n_particles=500, belief={"converged_min_updates": k})
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(12))
+        mcl.init_around(pose0, [0.05, 0.05, 0.02])
+        pose, seq = pose0, []
+        for _ in range(40):
+            r, _, _ = cast_rays(grid, pose, np.array([0.0]), 8.0)
+            u = np.array([0.05, 0.0, 0.02]) if r[0] > 0.6 else np.array([0.0, 0.0, 0.4])
+            new = compose(pose, u)
+            odom = relative(pose, new) + rng.normal(0.0, [0.005, 0.005, 0.005])
+            pose = new
+            mcl.predict(odom)
+            updated = mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)).updated
+            seq.append((updated, mcl.belief().converged, mcl.converged_updates, mcl.poses.copy()))
+        runs[k] = (mcl, seq)
+    (_, one), (mcl, three) = runs[1], runs[3]
+    assert all(np.array_equal(a[3], b[3]) for a, b in zip(one, three))  # the same particles, step by step
+    assert all(a[2] == 0 for a in one)  # k = 1 counts nothing
+    n_upd, streak = 0, 0
+    for (updated, raw, _, _), (_, conv, count, _) in zip(one, three):
+        if updated:
+            n_upd += 1
+            streak = streak + 1 if raw else 0
+        assert count == streak
+        assert conv == (raw and streak >= 3)
+    assert any(raw for _, raw, _, _ in one[:2]) and not any(c for _, c, _, _ in three[:2])  # delayed ...
+    assert three[-1][1] and n_upd >= 3  # ... then converged
+    mcl.init_global(300)  # an init starts the count again
+    assert mcl.converged_updates == 0
+    with pytest.raises(ValueError, match="converged_min_updates"):
+        MCLConfig(belief={"converged_min_updates": 0})
+    with pytest.raises(ValueError, match="converged_min_updates"):
+        MCLConfig(belief={"converged_min_updates": 2.5})

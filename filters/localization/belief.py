@@ -31,7 +31,11 @@ Definitions (all weights normalised to sum 1):
   ``< converged_theta_std_rad`` (0.2 rad). A cloud split over two look-alike places
   is never converged, however tight each part is. (``converged_rule="spread"`` restores
   the rule of the first release, kept for comparisons: the *whole* set's stds below the
-  same thresholds, whatever its hypotheses.)
+  same thresholds, whatever its hypotheses.) `summarize` judges the set it is given;
+  `filters.localization.mcl.MonteCarloLocalizer.belief` can also ask that the criterion held
+  after each of the last ``converged_min_updates`` measurement updates (default 1: the current
+  set only), so that places the filter's proposals have only just put particles on get a few
+  updates to show themselves before one place is called certain.
 
 Cost: O(N) plus the raster (the particles' bounding box), every step.
 
@@ -93,8 +97,12 @@ class BeliefConfig:
     converged_pos_std_m: float = 0.3
     converged_theta_std_rad: float = 0.2
     converged_rule: str = "hypothesis"
+    converged_min_updates: int = 1
 
     def __post_init__(self) -> None:
+        k = self.converged_min_updates
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise ValueError(f"BeliefConfig.converged_min_updates must be an int >= 1, got {k!r}")
         if self.converged_rule not in ("hypothesis", "spread"):
             raise ValueError(
                 f"BeliefConfig.converged_rule must be 'hypothesis' or 'spread', got {self.converged_rule!r}"

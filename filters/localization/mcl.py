@@ -89,7 +89,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from scipy.special import logsumexp
@@ -448,6 +448,9 @@ class MonteCarloLocalizer:
         self._w_fast = 0.0
         self.n_updates = 0
         """Measurement updates that ran since the last init."""
+        self.converged_updates = 0
+        """Consecutive measurement updates, the latest included, after which the set met the
+        "converged" criterion (counted only when ``belief.converged_min_updates > 1``)."""
 
     @property
     def poses(self) -> np.ndarray:
@@ -717,6 +720,9 @@ class MonteCarloLocalizer:
             n_negative_beams=getattr(beams, "n_negative", 0),
         )
         self.last_diagnostics = diag
+        if c.belief.converged_min_updates > 1:
+            met = summarize(self._poses, np.exp(self._logw), c.belief, self._belief_backend).converged
+            self.converged_updates = self.converged_updates + 1 if met else 0
         return diag
 
     # ------------------------------------------------------------ resampling
@@ -869,6 +875,13 @@ class MonteCarloLocalizer:
 
     # ------------------------------------------------------------ summary
     def belief(self) -> Belief:
-        """Summary of the current particle set (see `filters.localization.belief`)."""
+        """Summary of the current particle set (see `filters.localization.belief`). With
+        ``belief.converged_min_updates = k > 1`` it is ``converged`` only if the current set meets
+        the criterion and so did the set after each of the last ``k`` measurement updates
+        (`converged_updates`); after an init, ``k`` updates must run first."""
         self._require_particles()
-        return summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)
+        b = summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)
+        k = self.config.belief.converged_min_updates
+        if k > 1 and b.converged and self.converged_updates < k:
+            b = replace(b, converged=False)
+        return b
