@@ -54,6 +54,19 @@ def drive(grid, pose, mcl, rng, steps, use_camera=True):
     return pose
 
 
+def creep(grid, pose, mcl, rng, use_camera=True):
+    """One slow step (0.05 m and 0.02 rad, or a 0.4 rad turn near a wall), noisy odometry, an update;
+    returns the new pose and whether the update ran."""
+    r, _, _ = cast_rays(grid, pose, np.array([0.0]), 8.0)
+    u = np.array([0.05, 0.0, 0.02]) if r[0] > 0.6 else np.array([0.0, 0.0, 0.4])
+    new = compose(pose, u)
+    odom = relative(pose, new) + rng.normal(0.0, [0.005, 0.005, 0.005])
+    mcl.predict(odom)
+    lidar = simulate_lidar(grid, new, LIDAR_ANGLES, 8.0, 0.02, rng)
+    sem = simulate_semantic(grid, new, CAMERA_ANGLES, 5.0) if use_camera else None
+    return new, mcl.update(lidar, sem).updated
+
+
 # --------------------------------------------------------------------------- kernel vs reference
 def test_numba_kernel_matches_numpy_reference():
     grid = symmetric_room()
@@ -144,14 +157,8 @@ def test_tracking_stays_within_20cm_for_300_steps():
     mcl.init_around(pose, [0.05, 0.05, 0.02])
     errors, updates = [], 0
     for _ in range(300):
-        r, _, _ = cast_rays(grid, pose, np.array([0.0]), 8.0)
-        u = np.array([0.05, 0.0, 0.02]) if r[0] > 0.6 else np.array([0.0, 0.0, 0.4])
-        new = compose(pose, u)
-        odom = relative(pose, new) + rng.normal(0.0, [0.005, 0.005, 0.005])
-        pose = new
-        mcl.predict(odom)
-        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
-        updates += mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0)).updated
+        pose, updated = creep(grid, pose, mcl, rng)
+        updates += updated
         b = mcl.belief()
         errors.append(math.hypot(b.mean[0] - pose[0], b.mean[1] - pose[1]))
     assert max(errors) < 0.2
@@ -412,13 +419,7 @@ def test_converged_min_updates_asks_the_criterion_to_hold_after_the_last_k_updat
         mcl.init_around(pose0, [0.05, 0.05, 0.02])
         pose, seq = pose0, []
         for _ in range(40):
-            r, _, _ = cast_rays(grid, pose, np.array([0.0]), 8.0)
-            u = np.array([0.05, 0.0, 0.02]) if r[0] > 0.6 else np.array([0.0, 0.0, 0.4])
-            new = compose(pose, u)
-            odom = relative(pose, new) + rng.normal(0.0, [0.005, 0.005, 0.005])
-            pose = new
-            mcl.predict(odom)
-            updated = mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)).updated
+            pose, updated = creep(grid, pose, mcl, rng, use_camera=False)
             seq.append((updated, mcl.belief().converged, mcl.converged_updates, mcl.poses.copy()))
         runs[k] = (mcl, seq)
     (_, one), (mcl, three) = runs[1], runs[3]
