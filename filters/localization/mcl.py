@@ -95,7 +95,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from filters import _blas
-from filters.localization import kld_kernels
+from filters.localization import audit, kld_kernels
 from filters.localization.belief import Belief, BeliefConfig, cluster_labels, linear_bin_keys, summarize
 from filters.localization.likelihood_field import (
     DEFAULT_SEMANTIC_FIELD,
@@ -133,6 +133,9 @@ def _fox_bound_table(epsilon: float, z: float, size: int) -> np.ndarray:
     table.setflags(write=False)
     return table
 
+
+MAX_AUDIT_WINDOW = 1000
+"""Most measurement updates `MCLConfig.audit_window` may look back over."""
 
 _SUBCONFIGS = {
     "lidar_field": LikelihoodFieldConfig,
@@ -208,6 +211,18 @@ class MCLConfig:
             0 keeps a tracked belief and converges sooner, but rescues a wrong convergence less
             often (docs/relocalizer.md, "Proposals weighed by the prior"). Recovery injections
             are never scaled.
+        audit_window: ``K`` (0 = off): the *convergence audit* (`filters.localization.audit`). At
+            an update after which the set meets the "converged" criterion and did not before, it
+            looks for the pose outside the converged hypothesis that best explains the scans of the
+            last ``K`` updates (followed back along the odometry); if that pose's tempered
+            log-likelihood of them is at most ``audit_margin`` below the hypothesis's, it adds
+            ``cluster_min_particles`` particles there, shaped like the hypothesis
+            (`filters.localization.audit.shaped_like`) and together weighing the hypothesis's
+            weight times the likelihood ratio, so the belief holds two hypotheses, not one.
+        audit_margin: how far below the hypothesis (tempered nats, >= 0) an alternative may fit
+            and still be added.
+        audit_candidates: scan-proposal candidates the audit draws (the best 50 outside the
+            hypothesis are evaluated over the window, with the heaviest particles outside it).
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -250,6 +265,9 @@ class MCLConfig:
     proposal_frac: float = 0.0
     proposal_weight: float = 1.0
     proposal_prior_weight: float = 0.0
+    audit_window: int = 0
+    audit_margin: float = 1.0
+    audit_candidates: int = 2000
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
@@ -266,7 +284,12 @@ class MCLConfig:
                     raise TypeError(f"MCLConfig.{name}: {e}; its keys are {keys}") from None
             elif not isinstance(v, cls):
                 raise TypeError(f"MCLConfig.{name} must be a {cls.__name__} or a dict, got {type(v).__name__}")
-        for name in ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates"):
+        k = self.audit_window
+        if not (is_int(k) and 0 <= k <= MAX_AUDIT_WINDOW):
+            raise ValueError(f"MCLConfig.audit_window must be an int in [0, {MAX_AUDIT_WINDOW}], got {k!r}")
+        object.__setattr__(self, "audit_window", int(k))
+        names = ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates")
+        for name in (*names, "audit_candidates"):
             v = getattr(self, name)
             if name == "n_particles" and v is None:
                 if not self.global_particles_per_m2 > 0:
@@ -297,6 +320,7 @@ class MCLConfig:
             },
             "proposal_weight": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
             "global_particles_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            "audit_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "max_update_log_ratio": (lambda v: v > 0 and not math.isnan(v), "> 0 (inf = no cap)"),
         }
         for name, (ok, what) in numbers.items():
@@ -363,6 +387,11 @@ class UpdateDiagnostics:
         lidar_used: the lidar factor was part of this update.
         n_negative_beams: unlabelled camera beams sampled for negative evidence
             (`NegativeEvidenceConfig`, at most its ``max_beams``; 0 when it is off).
+        audit_log_ratio: the convergence audit's best alternative's window log-likelihood minus the
+            converged hypothesis's (tempered nats; NaN when no audit ran: ``audit_window`` 0, or the
+            set did not just become converged, or nothing lay outside the hypothesis).
+        n_audit_injected: particles the audit added around that alternative (0 or
+            ``cluster_min_particles``).
     """
 
     updated: bool = False
@@ -382,6 +411,8 @@ class UpdateDiagnostics:
     p_inject: float = 0.0
     lidar_used: bool = False
     n_negative_beams: int = 0
+    audit_log_ratio: float = float("nan")
+    n_audit_injected: int = 0
 
     def as_dict(self) -> dict:
         """Plain Python values for a Gymnasium ``info``."""
@@ -448,6 +479,9 @@ class MonteCarloLocalizer:
         self._w_fast = 0.0
         self.n_updates = 0
         """Measurement updates that ran since the last init."""
+        self._window: audit.Window = []
+        """The last ``audit_window`` updates' scans and odometry (`filters.localization.audit.Window`)."""
+        self._was_converged = False
         self.converged_updates = 0
         """Consecutive measurement updates, the latest included, after which the set met the
         "converged" criterion (counted only when ``belief.converged_min_updates > 1``)."""
@@ -644,6 +678,7 @@ class MonteCarloLocalizer:
         else:
             mean_lidar = float("nan")
 
+        delta = self._since_update
         self._since_update = np.zeros(3)
         self._since_lidar_m = 0.0 if use_lidar else self._since_lidar_m + moved_m
         self._has_updated = True
@@ -700,6 +735,10 @@ class MonteCarloLocalizer:
         n_inj = self._inject(p_any, lidar, sem, recovery=p_inj > c.proposal_frac, prior=predicted) if p_any > 0.0 else 0
         if p_inj > 0.0 and n_inj:
             self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
+        audit_ratio, n_audit = math.nan, 0
+        if c.audit_window:
+            self._window = [*self._window, (lid, sem, delta)][-c.audit_window :]
+            audit_ratio, n_audit = self._audit(lidar, sem)
         diag = UpdateDiagnostics(
             updated=True,
             n_lidar_beams=beams.n_lidar,
@@ -718,6 +757,8 @@ class MonteCarloLocalizer:
             p_inject=p_inj,
             lidar_used=use_lidar,
             n_negative_beams=getattr(beams, "n_negative", 0),
+            audit_log_ratio=audit_ratio,
+            n_audit_injected=n_audit,
         )
         self.last_diagnostics = diag
         if c.belief.converged_min_updates > 1:
@@ -872,6 +913,36 @@ class MonteCarloLocalizer:
         self._poses[mask] = new
         self._logw = logw - self._lse(logw)
         return m
+
+    def _audit(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> tuple[float, int]:
+        """The convergence audit of one update (`MCLConfig.audit_window`); ``(log ratio, added)``."""
+        c = self.config
+        b = summarize(self._poses, np.exp(self._logw), c.belief, self._belief_backend)
+        if not b.converged or self._was_converged:
+            self._was_converged = b.converged
+            return math.nan, 0
+        self._was_converged = True
+        if self._proposal is None:
+            self._proposal = ScanProposal(self.grid, self.sample_free)
+        cand = self._proposal.candidates(c.audit_candidates, semantic, c.proposal_semantic_frac, self.rng)
+        ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
+        hyp = b.hypotheses[0]
+        outside_args = (2.0 * c.belief.cluster_bin_m, c.belief.cluster_bin_theta_rad)
+        alt = audit.best_alternative(
+            self.measurement_model, self._window, c.likelihood_scale, self._poses, self._logw, hyp.mean,
+            cand, np.asarray(ll_l) + np.asarray(ll_s), self.rng, *outside_args,
+        )  # fmt: skip
+        if alt is None:
+            return math.nan, 0
+        if alt.log_ratio < -c.audit_margin:
+            return alt.log_ratio, 0
+        m = c.cluster_min_particles
+        new = audit.shaped_like(self._poses, np.exp(self._logw), hyp.mean, alt.pose, m, self.rng, *outside_args)
+        logw = np.concatenate([self._logw, np.full(m, math.log(hyp.weight) + alt.log_ratio - math.log(m))])
+        self._poses = np.ascontiguousarray(np.vstack([self._poses, new]))
+        self._logw = logw - self._lse(logw)
+        self._was_converged = False
+        return alt.log_ratio, m
 
     # ------------------------------------------------------------ summary
     def belief(self) -> Belief:

@@ -1,0 +1,165 @@
+"""Convergence audit: before a belief calls one place certain, look for another place that
+explains the recent scans as well.
+
+A particle filter can only weigh the places it holds particles at. In a layout with look-alike
+places it sometimes loses the true place to sampling (no particle near it, or too few with the
+right heading) while the scans cannot yet tell the two apart, and the look-alike then gathers
+all the mass: the belief says "converged", wrongly. The audit asks, at the update where the
+belief would become converged, whether some pose *outside* the converged hypothesis explains
+the scans of the last ``K`` measurement updates about as well as the hypothesis does:
+
+* **window log-likelihood** `window_log_likelihood`: a pose's tempered log-likelihood summed
+  over the last ``K`` updates' scans, each evaluated at the pose the odometry between the
+  updates leads back to (no motion noise; the odometry of ``K`` = 20 updates, a few metres,
+  drifts by centimetres);
+* **the hypothesis** `best_alternative`: the highest window log-likelihood of its mean and of
+  its heaviest particles;
+* **alternatives**: the best-fitting candidates of the filter's scan proposals
+  (`filters.localization.proposals.ScanProposal`) and the heaviest particles outside the
+  hypothesis, farther than ``min_dist_m`` or turned by more than ``min_heading_rad``; the best
+  few are refined by random perturbations.
+
+`filters.localization.mcl.MonteCarloLocalizer` (``MCLConfig.audit_window``) puts the best
+alternative into the belief when its log ratio to the hypothesis is at least ``-margin``: particles
+spread around it as the hypothesis's are around its mean (`shaped_like`, so that the two compete
+on equal terms at the next updates), with the weight that ratio gives it against the hypothesis
+(the two as equally likely ``K`` updates ago). The belief is then not converged, and a policy
+sees a second hypothesis to tell apart.
+docs/relocalizer.md, "Convergence audit", has the measurements behind the defaults.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from filters.pose import compose, relative, wrap_angle
+from filters.robot_data.scans import LaserScan, SemanticScan
+from filters.smc.resampling import inverse_cdf
+
+Window = list[tuple[LaserScan | None, SemanticScan | None, np.ndarray]]
+"""The scans of the last updates, oldest first, each with the odometry ``(dx, dy, dtheta)`` from
+the update before it to its own (robot frame of the earlier one)."""
+
+REFINE_BEST = 10
+"""Alternatives refined by perturbation."""
+REFINE_DRAWS = 20
+"""Perturbations of each."""
+PERTURBATION_STD = (0.1, 0.1, 0.05)
+"""Standard deviations of a perturbation (m, m, rad)."""
+REFERENCE_PARTICLES = 64
+"""The hypothesis's heaviest particles (and alternatives among the particles) evaluated."""
+CANDIDATES_KEPT = 50
+"""Scan-proposal candidates (the best fitting the newest scans) evaluated over the window."""
+
+
+@dataclass(frozen=True)
+class Alternative:
+    """The best place found outside the hypothesis.
+
+    Attributes:
+        pose: ``(3,)`` its pose (m, m, rad) at the time of the newest update.
+        log_ratio: its window log-likelihood minus the hypothesis's (tempered nats).
+    """
+
+    pose: np.ndarray
+    log_ratio: float
+
+
+def window_log_likelihood(model, poses: np.ndarray, window: Window, scale: float) -> np.ndarray:
+    """``(M,)`` tempered log-likelihood of ``window``'s scans for ``poses`` ``(M, 3)`` at the time of
+    the newest update (``-inf`` where not finite).
+
+    ``model``: ``log_likelihood_terms(poses, lidar, semantic) -> (lidar_ll, semantic_ll, beams)``;
+    ``scale``: the filter's ``likelihood_scale``.
+    """
+    p = np.asarray(poses, dtype=np.float64)
+    total = np.zeros(p.shape[0])
+    origin = np.zeros(3)
+    for i, (lidar, semantic, into) in enumerate(reversed(window)):
+        ll_l, ll_s, _ = model.log_likelihood_terms(p, lidar, semantic)
+        total += scale * (np.asarray(ll_l, dtype=np.float64) + np.asarray(ll_s, dtype=np.float64))
+        if i + 1 < len(window):  # back to the pose of the update before
+            p = compose(p, relative(into, origin))
+    return np.where(np.isfinite(total), total, -np.inf)
+
+
+def outside(poses: np.ndarray, mean: np.ndarray, min_dist_m: float, min_heading_rad: float) -> np.ndarray:
+    """``(N,)`` True where a pose is farther than ``min_dist_m`` from ``mean`` or turned from it by more
+    than ``min_heading_rad``."""
+    far = np.hypot(poses[:, 0] - mean[0], poses[:, 1] - mean[1]) > min_dist_m
+    return far | (np.abs(wrap_angle(poses[:, 2] - mean[2])) > min_heading_rad)
+
+
+def _heaviest(logw: np.ndarray, mask: np.ndarray, k: int) -> np.ndarray:
+    idx = np.flatnonzero(mask)
+    return idx[np.argsort(-logw[idx], kind="stable")[:k]]
+
+
+def best_alternative(
+    model,
+    window: Window,
+    scale: float,
+    poses: np.ndarray,
+    logw: np.ndarray,
+    mean: np.ndarray,
+    candidates: np.ndarray,
+    candidate_ll: np.ndarray,
+    rng: np.random.Generator,
+    min_dist_m: float,
+    min_heading_rad: float,
+) -> Alternative | None:
+    """The pose outside the hypothesis at ``mean`` that best explains ``window`` (None if there is
+    no candidate or particle outside it, or the hypothesis explains nothing finitely).
+
+    Args:
+        model, window, scale: as `window_log_likelihood`.
+        poses, logw: the particle set ``(N, 3)`` and its log-weights ``(N,)``.
+        mean: ``(3,)`` the hypothesis's mean pose.
+        candidates: ``(C, 3)`` scan-proposal candidates; ``candidate_ll``: ``(C,)`` their
+            log-likelihood of the newest scans (only their order matters).
+        rng: draws the perturbations.
+        min_dist_m, min_heading_rad: what counts as outside (`outside`).
+    """
+    out = outside(poses, mean, min_dist_m, min_heading_rad)
+    ref = np.vstack([mean[None], poses[_heaviest(logw, ~out, REFERENCE_PARTICLES)]])
+    l_ref = float(window_log_likelihood(model, ref, window, scale).max())
+    cand_out = outside(candidates, mean, min_dist_m, min_heading_rad)
+    ll = np.where(np.isfinite(candidate_ll), candidate_ll, -np.inf)
+    best_cand = np.flatnonzero(cand_out)[np.argsort(-ll[cand_out], kind="stable")[:CANDIDATES_KEPT]]
+    alts = np.vstack([candidates[best_cand], poses[_heaviest(logw, out, REFERENCE_PARTICLES)]])
+    if alts.shape[0] == 0 or not np.isfinite(l_ref):
+        return None
+    la = window_log_likelihood(model, alts, window, scale)
+    top = alts[np.argsort(-la, kind="stable")[:REFINE_BEST]]
+    jitter = rng.normal(0.0, PERTURBATION_STD, (top.shape[0], REFINE_DRAWS, 3))
+    tried = (top[:, None, :] + jitter).reshape(-1, 3)
+    tried[:, 2] = wrap_angle(tried[:, 2])
+    tried = tried[outside(tried, mean, min_dist_m, min_heading_rad)]
+    lt = window_log_likelihood(model, tried, window, scale)
+    all_poses = np.vstack([alts, tried])
+    all_ll = np.concatenate([la, lt])
+    i = int(np.argmax(all_ll))
+    if not np.isfinite(all_ll[i]):
+        return None
+    return Alternative(pose=all_poses[i].copy(), log_ratio=float(all_ll[i] - l_ref))
+
+
+def shaped_like(
+    poses: np.ndarray,
+    weights: np.ndarray,
+    mean: np.ndarray,
+    at: np.ndarray,
+    m: int,
+    rng: np.random.Generator,
+    min_dist_m: float,
+    min_heading_rad: float,
+) -> np.ndarray:
+    """``(m, 3)`` poses around ``at`` spread as the hypothesis's particles are around ``mean``: ``m``
+    particles not `outside` the hypothesis, drawn by weight (systematic pointers), each carried by
+    the rigid motion that takes ``mean`` to ``at`` (their offsets in ``mean``'s frame kept)."""
+    inside = np.flatnonzero(~outside(poses, mean, min_dist_m, min_heading_rad))
+    w = weights[inside] / weights[inside].sum()
+    pick = inside[inverse_cdf(w, (rng.random() + np.arange(m)) / m)]
+    return compose(np.broadcast_to(at, (m, 3)), relative(mean, poses[pick]))

@@ -1,0 +1,139 @@
+"""The convergence audit (`filters.localization.audit`, `MCLConfig.audit_window`)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from filters.localization.audit import best_alternative, outside, window_log_likelihood
+from filters.localization.likelihood_field import LikelihoodFieldModel
+from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
+from filters.pose import compose, relative
+from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
+from tests.test_mcl import CAMERA_ANGLES, LIDAR_ANGLES, mirror, symmetric_room
+
+
+class _Recorder:
+    """A measurement model that records the poses it is asked about and scores ``-|x - scan.x|``."""
+
+    def __init__(self):
+        self.calls = []
+
+    def log_likelihood_terms(self, poses, lidar, semantic):
+        self.calls.append((poses.copy(), lidar))
+        return -np.abs(poses[:, 0] - lidar), np.zeros(poses.shape[0]), None
+
+
+def test_window_follows_the_odometry_back_to_each_update():
+    """Three updates at known poses: the window evaluates each update's scan at the pose the odometry
+    leads back to, newest first, and sums the tempered terms."""
+    path = np.array([[1.0, 2.0, 0.3], [1.5, 2.2, 0.9], [1.6, 2.9, -2.8]])
+    deltas = [np.zeros(3), relative(path[0], path[1]), relative(path[1], path[2])]
+    window = [(float(p[0]) + 0.25, None, d) for p, d in zip(path, deltas)]  # "scan" = an x to match
+    model = _Recorder()
+    got = window_log_likelihood(model, path[2][None], window, 0.5)
+    seen = [c[0][0] for c in model.calls]
+    np.testing.assert_allclose(seen, path[::-1], atol=1e-12)
+    assert [c[1] for c in model.calls] == [w[0] for w in window[::-1]]
+    np.testing.assert_allclose(got, [0.5 * 3 * -0.25])
+
+
+def test_outside_is_distance_or_heading():
+    mean = np.array([1.0, 1.0, 3.1])
+    poses = np.array([[1.5, 1.0, 3.1], [2.5, 1.0, 3.1], [1.0, 1.0, -3.1], [1.0, 1.0, 2.0]])
+    assert outside(poses, mean, 1.0, 0.5).tolist() == [False, True, False, True]  # heading wraps at pi
+
+
+def _converged_at_the_image(audit_window: int, seed: int = 0):
+    """Lidar-only filter in the half-turn symmetric room, its particles tight around the image of the
+    true pose (which fits the scans as well): one update after a short drive."""
+    grid = symmetric_room()
+    pose = np.array([3.0, 2.5, 0.3])
+    cfg = MCLConfig(n_particles=300, use_semantic=False, audit_window=audit_window, audit_candidates=20000)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(seed))
+    mcl.init_around(mirror(pose), (0.03, 0.03, 0.01))
+    rng = np.random.default_rng(seed + 1)
+    diags = []
+    for _ in range(3):
+        new = compose(pose, np.array([0.15, 0.0, 0.05]))
+        mcl.predict(relative(pose, new))
+        pose = new
+        diags.append(mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)))
+    return mcl, pose, diags
+
+
+def test_audit_finds_the_look_alike_place_the_belief_missed():
+    """Off, the belief is converged at the wrong one of two places the scans cannot tell apart. On,
+    the audit at the update where it became converged finds the true place (its log ratio near 0),
+    adds particles there, and the belief holds two hypotheses: not converged."""
+    off, pose, d_off = _converged_at_the_image(0)
+    b = off.belief()
+    assert b.converged and np.hypot(*(b.estimate[:2] - mirror(pose)[:2])) < 0.3
+    assert all(math.isnan(d.audit_log_ratio) and d.n_audit_injected == 0 for d in d_off)
+
+    on, pose, d_on = _converged_at_the_image(20)
+    first = d_on[0]  # the set was converged after the first update: the audit ran there
+    assert first.n_audit_injected == on.config.cluster_min_particles and abs(first.audit_log_ratio) < 1.0
+    b = on.belief()
+    assert not b.converged and b.n_clusters == 2
+    means = np.array([h.mean for h in b.hypotheses])
+    assert min(np.hypot(*(means[:, :2] - pose[:2]).T)) < 0.3  # the true place is one of them
+    assert all(h.weight > 0.1 for h in b.hypotheses)
+    assert on.weights.sum() == pytest.approx(1.0) and np.all(np.isfinite(on.poses))
+
+
+def test_audit_keeps_a_belief_nothing_else_explains():
+    """Converged at the true place of a room that is not symmetric for the window's scans: the audit
+    runs once, finds nothing within the margin, adds nothing, and does not run again while converged."""
+    grid = symmetric_room()
+    pose = np.array([2.2, 3.0, -1.2])  # facing the cabinet's box, near the wall stub's free side
+    cfg = MCLConfig(n_particles=300, audit_window=5)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(4))
+    mcl.init_around(pose, (0.03, 0.03, 0.01))
+    rng = np.random.default_rng(5)
+    diags = []
+    for _ in range(4):
+        new = compose(pose, np.array([0.12, 0.0, 0.0]))
+        mcl.predict(relative(pose, new))
+        pose = new
+        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
+        diags.append(mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0)))
+    assert diags[0].audit_log_ratio < -cfg.audit_margin and diags[0].n_audit_injected == 0
+    assert all(math.isnan(d.audit_log_ratio) for d in diags[1:])
+    assert mcl.belief().converged
+
+
+def test_audit_is_deterministic_per_seed():
+    a, _, _ = _converged_at_the_image(20, seed=3)
+    b, _, _ = _converged_at_the_image(20, seed=3)
+    assert np.array_equal(a.poses, b.poses) and np.array_equal(a.log_weights, b.log_weights)
+
+
+def test_best_alternative_with_nothing_outside_is_none():
+    grid = symmetric_room()
+    model = LikelihoodFieldModel(grid)
+    pose = np.array([3.0, 2.5, 0.3])
+    window = [(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), None, np.zeros(3))]
+    poses = np.tile(pose, (5, 1))
+    got = best_alternative(
+        model, window, 0.1, poses, np.zeros(5), pose, poses, np.zeros(5), np.random.default_rng(0), 1.0, 0.5
+    )
+    assert got is None
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"audit_window": -1},
+        {"audit_window": 2.5},
+        {"audit_window": True},
+        {"audit_window": 1001},
+        {"audit_margin": -0.1},
+        {"audit_margin": float("nan")},
+        {"audit_margin": float("inf")},
+        {"audit_candidates": 0},
+    ],
+)
+def test_bad_audit_options_are_rejected(bad):
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        MCLConfig(**bad)
