@@ -52,6 +52,7 @@ def _converged_at_the_image(audit_window: int, seed: int = 0):
     cfg = MCLConfig(n_particles=300, use_semantic=False, audit_window=audit_window, audit_candidates=20000)
     mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(seed))
     mcl.init_around(mirror(pose), (0.03, 0.03, 0.01))
+    mcl._audit_on = True  # as after an init_global whose belief collapsed onto the image
     rng = np.random.default_rng(seed + 1)
     diags = []
     for _ in range(3):
@@ -90,6 +91,7 @@ def test_audit_keeps_a_belief_nothing_else_explains():
     cfg = MCLConfig(n_particles=300, audit_window=5)
     mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(4))
     mcl.init_around(pose, (0.03, 0.03, 0.01))
+    mcl._audit_on = True  # as after an init_global
     rng = np.random.default_rng(5)
     diags = []
     for _ in range(4):
@@ -101,6 +103,22 @@ def test_audit_keeps_a_belief_nothing_else_explains():
     assert diags[0].audit_log_ratio < -cfg.audit_margin and diags[0].n_audit_injected == 0
     assert all(math.isnan(d.audit_log_ratio) for d in diags[1:])
     assert mcl.belief().converged
+
+
+def test_no_audit_after_init_around():
+    """Tracking: the caller said where the robot is, so a look-alike place is no alternative; the audit
+    runs only after init_global (and again after the next one)."""
+    grid = symmetric_room()
+    pose = np.array([3.0, 2.5, 0.3])
+    mcl = MonteCarloLocalizer(
+        grid, MCLConfig(n_particles=300, use_semantic=False, audit_window=20), np.random.default_rng(0)
+    )
+    mcl.init_around(pose, (0.03, 0.03, 0.01))
+    d = mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), force=True)
+    assert math.isnan(d.audit_log_ratio) and d.n_audit_injected == 0 and mcl.belief().converged
+    assert mcl._window == []
+    mcl.init_global()
+    assert mcl._audit_on
 
 
 def test_audit_is_deterministic_per_seed():

@@ -76,6 +76,10 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    rotation alone (a 360 deg lidar sees the same scene when the robot turns in place, so
    its correlated errors would be multiplied in again and again); the semantic factor
    (a narrow camera, which does see new things when turning) is always used.
+9. **Convergence audit**, if ``audit_window`` (after ``init_global`` only): at the update after
+   which the set first meets the "converged" criterion, a pose outside the converged hypothesis
+   that explains the last ``audit_window`` updates' scans within ``audit_margin`` (tempered nats)
+   of it becomes a second hypothesis (`filters.localization.audit`; docs/relocalizer.md).
 
 Particle counts: ``init_global`` and ``init_around`` draw ``n_particles``. With
 ``n_particles=None`` the count follows the map: ``init_global`` draws
@@ -218,7 +222,9 @@ class MCLConfig:
             log-likelihood of them is at most ``audit_margin`` below the hypothesis's, it adds
             ``cluster_min_particles`` particles there, shaped like the hypothesis
             (`filters.localization.audit.shaped_like`) and together weighing the hypothesis's
-            weight times the likelihood ratio, so the belief holds two hypotheses, not one.
+            weight times the likelihood ratio, so the belief holds two hypotheses, not one. Only
+            after `init_global` (the audit weighs the two places as equally likely ``K`` updates
+            ago; after `init_around` the caller said where the robot is).
         audit_margin: how far below the hypothesis (tempered nats, >= 0) an alternative may fit
             and still be added.
         audit_candidates: scan-proposal candidates the audit draws (the best 50 outside the
@@ -466,6 +472,7 @@ class MonteCarloLocalizer:
         self._poses = np.zeros((0, 3))
         self._logw = np.zeros(0)
         self._budget = 0  # size of the last set given (`_set`): what a resampling without KLD draws
+        self._summary_cache: tuple[np.ndarray, np.ndarray, Belief] | None = None
         self._reset_state()
         self.last_diagnostics = UpdateDiagnostics()
 
@@ -482,6 +489,7 @@ class MonteCarloLocalizer:
         self._window: audit.Window = []
         """The last ``audit_window`` updates' scans and odometry (`filters.localization.audit.Window`)."""
         self._was_converged = False
+        self._audit_on = False  # the convergence audit runs after init_global only
         self.converged_updates = 0
         """Consecutive measurement updates, the latest included, after which the set met the
         "converged" criterion (counted only when ``belief.converged_min_updates > 1``)."""
@@ -566,6 +574,7 @@ class MonteCarloLocalizer:
         n = self._check_n(self.global_particle_count() if n is None else n)
         self._set(self.sample_free(n))
         self._reset_state()
+        self._audit_on = True
 
     def init_around(self, pose, std, n: int | None = None) -> None:
         """Gaussian cloud of ``n`` particles around ``pose (x, y, theta)`` (default: module docstring).
@@ -736,7 +745,7 @@ class MonteCarloLocalizer:
         if p_inj > 0.0 and n_inj:
             self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
         audit_ratio, n_audit = math.nan, 0
-        if c.audit_window:
+        if c.audit_window and self._audit_on:
             self._window = [*self._window, (lid, sem, delta)][-c.audit_window :]
             audit_ratio, n_audit = self._audit(lidar, sem)
         diag = UpdateDiagnostics(
@@ -762,7 +771,7 @@ class MonteCarloLocalizer:
         )
         self.last_diagnostics = diag
         if c.belief.converged_min_updates > 1:
-            met = summarize(self._poses, np.exp(self._logw), c.belief, self._belief_backend).converged
+            met = self._summary().converged
             self.converged_updates = self.converged_updates + 1 if met else 0
         return diag
 
@@ -917,7 +926,7 @@ class MonteCarloLocalizer:
     def _audit(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> tuple[float, int]:
         """The convergence audit of one update (`MCLConfig.audit_window`); ``(log ratio, added)``."""
         c = self.config
-        b = summarize(self._poses, np.exp(self._logw), c.belief, self._belief_backend)
+        b = self._summary()
         if not b.converged or self._was_converged:
             self._was_converged = b.converged
             return math.nan, 0
@@ -945,13 +954,23 @@ class MonteCarloLocalizer:
         return alt.log_ratio, m
 
     # ------------------------------------------------------------ summary
+    def _summary(self) -> Belief:
+        """`summarize` of the current set, computed once per set (the set's arrays are replaced, never
+        written, when it changes, so their identity says whether it did)."""
+        cached = self._summary_cache
+        if cached is not None and cached[0] is self._poses and cached[1] is self._logw:
+            return cached[2]
+        b = summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)
+        self._summary_cache = (self._poses, self._logw, b)
+        return b
+
     def belief(self) -> Belief:
         """Summary of the current particle set (see `filters.localization.belief`). With
         ``belief.converged_min_updates = k > 1`` it is ``converged`` only if the current set meets
         the criterion and so did the set after each of the last ``k`` measurement updates
         (`converged_updates`); after an init, ``k`` updates must run first."""
         self._require_particles()
-        b = summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)
+        b = self._summary()
         k = self.config.belief.converged_min_updates
         if k > 1 and b.converged and self.converged_updates < k:
             b = replace(b, converged=False)
