@@ -1,5 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v4 (v3's relocalizer with evidence from
-objects not seen), SemReloc-v3 (v2 with lookalike layouts that break
+"""The registered ids behave as their Version History says: SemReloc-v5 (v4's relocalizer with the convergence
+audit), SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that break
 their half turn), SemReloc-v2 / SemSlam-v1 (typed observation,
 not-computed info values left out) against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
 
@@ -37,6 +37,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v5",
         "SemReloc-v4",
         "SemReloc-v3",
         "SemReloc-v2",
@@ -50,6 +51,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v5", typed),
         ("SemReloc-v4", typed),
         ("SemReloc-v3", typed),
         ("SemReloc-v2", typed),
@@ -76,7 +78,7 @@ def test_typed_observation_space():
 @pytest.mark.parametrize(
     "new_id, old_id, kw, start, info_key, missing",
     [
-        ("SemReloc-v2", "SemReloc-v1", FAST, START, "mcl", ("ess", "mean_lidar_beam_likelihood")),
+        ("SemReloc-v2", "SemReloc-v1", FAST, START, "mcl", ("ess", "mean_lidar_beam_likelihood", "audit_log_ratio")),
         ("SemSlam-v1", "SemSlam-v0", SLAM_FAST, SLAM_START, "slam_error", ("landmark",)),
     ],
 )
@@ -227,3 +229,26 @@ def test_v4_is_v3_with_negative_evidence():
     for x, z in zip(a, c):
         np.testing.assert_equal(x[0], z[0])  # observations do not depend on the filter
     assert any(x[4]["belief"] != z[4]["belief"] for x, z in zip(a, c))
+
+
+def test_v5_is_v4_with_the_convergence_audit():
+    """v5's relocalizer is v4's with ``audit_window`` 20; with the audit off, v5 gives v4's episode bit for
+    bit; on, the audit runs where the belief becomes converged and the beliefs part from there."""
+    v5, v4 = make("SemReloc-v5", **FAST).unwrapped, make("SemReloc-v4", **FAST).unwrapped
+    assert (v5.mcl_config.audit_window, v4.mcl_config.audit_window) == (20, 0)
+    assert v5.mcl_config == v4.mcl_config.__class__(
+        **{**v4.mcl_config.as_dict(), "audit_window": 20, "audit_margin": v5.mcl_config.audit_margin}
+    )
+    off = {**FAST, "relocalizer": {**FAST["relocalizer"], "audit_window": 0}}
+    actions = ACTIONS + [0, 0, 1] * 20
+    a = rollout(make("SemReloc-v5", **off), actions=actions)
+    b = rollout(make("SemReloc-v4", **FAST), actions=actions)
+    c = rollout(make("SemReloc-v5", **FAST), actions=actions)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+    audited = [i for i, x in enumerate(c) if "audit_log_ratio" in x[4]["mcl"]]
+    assert audited  # the belief became converged and was audited
+    first = audited[0]
+    for x, z in zip(a[:first], c[:first]):  # the same episode until the first audit
+        np.testing.assert_equal(x, z)
+    assert all("audit_log_ratio" not in x[4]["mcl"] for x in a)  # NaN (no audit) is left out of info

@@ -1,4 +1,4 @@
-"""``SemReloc-v4`` (and ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v5`` (and ``-v4``, ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -41,10 +41,17 @@ detections first) plus augmented-MCL recovery, the lidar factor left out of turn
 updates, tempering 0.06. Chosen on tuning seeds 5000+ and procedural_sym layouts 100-104
 (docs/relocalizer_eval.md, "Choosing the defaults"); evaluated on other seeds and layouts."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V1, negative_evidence=NegativeEvidenceConfig(p_detect=0.8))
+RELOCALIZER_V4 = dataclasses.replace(RELOCALIZER_V1, negative_evidence=NegativeEvidenceConfig(p_detect=0.8))
 """The relocalizer of SemReloc-v4: `RELOCALIZER_V1` plus evidence from mapped objects the camera
 did not see (`filters.localization.likelihood_field.NegativeEvidenceConfig`, ``p_detect=0.8``;
 docs/relocalizer.md, "Negative evidence"). Chosen on the tuning cases of
+``scripts/evaluate_active.py --seed-set tuning``; evaluated on the held-out ones."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V4, audit_window=20, audit_margin=1.0)
+"""The relocalizer of SemReloc-v5: `RELOCALIZER_V4` plus the convergence audit
+(`filters.localization.audit`: at the update where the belief becomes converged, a place outside
+its hypothesis that explains the last 20 updates' scans within 1 nat of it is added as a second
+hypothesis; docs/relocalizer.md, "Convergence audit"). Chosen on the tuning cases of
 ``scripts/evaluate_active.py --seed-set tuning``; evaluated on the held-out ones."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
@@ -176,6 +183,14 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v5: the relocalizer audits each convergence (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V4` with
+      ``audit_window=20``): at the update where the belief would become converged, the pose
+      outside its hypothesis that best explains the last 20 updates' scans is looked for, and if
+      it fits within 1 nat (tempered) it is added as a second hypothesis, weighted by the
+      likelihood ratio, so the belief is not converged. Fewer episodes whose belief first
+      converges at a look-alike place (docs/relocalizer.md, "Convergence audit"). ``info["mcl"]``
+      gains ``audit_log_ratio`` and ``n_audit_injected``. Worlds, sensors, observations, rewards
+      and episode end are v4's (`SemRelocEnvV4` is v4).
     * v4: the relocalizer takes evidence from objects its map puts in the camera's view that the
       camera did not detect (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V1` with ``negative_evidence``
       on). Up to 8 unlabelled camera returns per update are sampled along their rays; a pose from
@@ -420,10 +435,18 @@ class SemRelocEnv(SemRelocBase):
         return state
 
 
-class SemRelocEnvV3(SemRelocEnv):
-    """``SemReloc-v3``: `SemRelocEnv` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
+class SemRelocEnvV4(SemRelocEnv):
+    """``SemReloc-v4``: `SemRelocEnv` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
+    audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
+    reproduced; new work should use ``SemReloc-v5``."""
+
+    default_relocalizer = RELOCALIZER_V4
+
+
+class SemRelocEnvV3(SemRelocEnvV4):
+    """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v4``."""
+    v3 can be reproduced; new work should use ``SemReloc-v5``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -431,7 +454,7 @@ class SemRelocEnvV3(SemRelocEnv):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v4``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v5``."""
 
     procedural_version = 1
 
@@ -440,7 +463,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v4``."""
+    v1 keep working; new work should use ``SemReloc-v5``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -448,6 +471,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v4``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v5``."""
 
     default_relocalizer = LEGACY_RELOCALIZER
