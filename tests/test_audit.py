@@ -44,7 +44,7 @@ def test_outside_is_distance_or_heading():
     assert outside(poses, mean, 1.0, 0.5).tolist() == [False, True, False, True]  # heading wraps at pi
 
 
-def _converged_at_the_image(audit_window: int, seed: int = 0):
+def _converged_at_the_image(audit_window: int, seed: int = 0, updates: int = 3):
     """Lidar-only filter in the half-turn symmetric room, its particles tight around the image of the
     true pose (which fits the scans as well): one update after a short drive."""
     grid = symmetric_room()
@@ -55,7 +55,7 @@ def _converged_at_the_image(audit_window: int, seed: int = 0):
     mcl._audit_on = True  # as after an init_global whose belief collapsed onto the image
     rng = np.random.default_rng(seed + 1)
     diags = []
-    for _ in range(3):
+    for _ in range(updates):
         new = compose(pose, np.array([0.15, 0.0, 0.05]))
         mcl.predict(relative(pose, new))
         pose = new
@@ -81,6 +81,25 @@ def test_audit_finds_the_look_alike_place_the_belief_missed():
     assert min(np.hypot(*(means[:, :2] - pose[:2]).T)) < 0.3  # the true place is one of them
     assert all(h.weight > 0.1 for h in b.hypotheses)
     assert on.weights.sum() == pytest.approx(1.0) and np.all(np.isfinite(on.poses))
+
+
+def test_added_hypothesis_weighs_the_ratio_times_the_hypothesis_at_most_as_much():
+    """Right after the audit: the added particles are the last ``cluster_min_particles`` of the set, shaped
+    like the hypothesis (the same spread about their mean), and weigh ``exp(min(ratio, 0))`` times
+    the hypothesis's weight before the audit, renormalised."""
+    for seed in range(3):
+        mcl, _, diags = _converged_at_the_image(20, seed=seed, updates=1)
+        d = diags[0]
+        m = mcl.config.cluster_min_particles
+        assert d.n_audit_injected == m
+        w = mcl.weights
+        added, kept = w[-m:].sum(), w[:-m].sum()
+        assert added <= kept + 1e-12
+        # the kept set was one converged hypothesis (>= 95 % of it); the added weight is ratio x that
+        ratio = math.exp(min(d.audit_log_ratio, 0.0))
+        assert 0.95 * ratio * kept - 1e-9 <= added <= ratio * kept + 1e-9
+        spread = lambda p: np.hypot(*(p[:, :2] - p[:, :2].mean(0)).T).mean()  # noqa: E731
+        assert spread(mcl.poses[-m:]) < 0.2
 
 
 def test_audit_keeps_a_belief_nothing_else_explains():

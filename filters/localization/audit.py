@@ -13,17 +13,19 @@ the scans of the last ``K`` measurement updates about as well as the hypothesis 
   updates leads back to (no motion noise; the odometry of ``K`` = 20 updates, a few metres,
   drifts by centimetres);
 * **the hypothesis** `best_alternative`: the highest window log-likelihood of its mean and of
-  its heaviest particles;
+  its heaviest particles, refined by a coarse-to-fine random search;
 * **alternatives**: the best-fitting candidates of the filter's scan proposals
   (`filters.localization.proposals.ScanProposal`) and the heaviest particles outside the
-  hypothesis, farther than ``min_dist_m`` or turned by more than ``min_heading_rad``; the best
-  few are refined by random perturbations.
+  hypothesis, farther than ``min_dist_m`` or turned by more than ``min_heading_rad``, refined
+  alike (searched less thoroughly than the alternatives, the hypothesis would look worse than it
+  is, and the audit would add places that fit no better).
 
 `filters.localization.mcl.MonteCarloLocalizer` (``MCLConfig.audit_window``) puts the best
 alternative into the belief when its log ratio to the hypothesis is at least ``-margin``: particles
 spread around it as the hypothesis's are around its mean (`shaped_like`, so that the two compete
 on equal terms at the next updates), with the weight that ratio gives it against the hypothesis
-(the two as equally likely ``K`` updates ago). The belief is then not converged, and a policy
+(the two as equally likely ``K`` updates ago), at most the hypothesis's own: the audit adds
+doubt, it never decides; the next updates do. The belief is then not converged, and a policy
 sees a second hypothesis to tell apart.
 docs/relocalizer.md, "Convergence audit", has the measurements behind the defaults.
 """
@@ -42,12 +44,12 @@ Window = list[tuple[LaserScan | None, SemanticScan | None, np.ndarray]]
 """The scans of the last updates, oldest first, each with the odometry ``(dx, dy, dtheta)`` from
 the update before it to its own (robot frame of the earlier one)."""
 
-REFINE_BEST = 10
-"""Alternatives refined by perturbation."""
+REFINE_BEST = 5
+"""Poses refined in each round of the search."""
 REFINE_DRAWS = 20
-"""Perturbations of each."""
-PERTURBATION_STD = (0.1, 0.1, 0.05)
-"""Standard deviations of a perturbation (m, m, rad)."""
+"""Perturbations of each, per round."""
+REFINE_STEPS = ((0.2, 0.2, 0.1), (0.1, 0.1, 0.05), (0.05, 0.05, 0.025), (0.025, 0.025, 0.012), (0.01, 0.01, 0.005))
+"""Standard deviations of the perturbations (m, m, rad), one round each, coarse to fine."""
 REFERENCE_PARTICLES = 64
 """The hypothesis's heaviest particles (and alternatives among the particles) evaluated."""
 CANDIDATES_KEPT = 50
@@ -124,26 +126,39 @@ def best_alternative(
     """
     out = outside(poses, mean, min_dist_m, min_heading_rad)
     ref = np.vstack([mean[None], poses[_heaviest(logw, ~out, REFERENCE_PARTICLES)]])
-    l_ref = float(window_log_likelihood(model, ref, window, scale).max())
     cand_out = outside(candidates, mean, min_dist_m, min_heading_rad)
     ll = np.where(np.isfinite(candidate_ll), candidate_ll, -np.inf)
     best_cand = np.flatnonzero(cand_out)[np.argsort(-ll[cand_out], kind="stable")[:CANDIDATES_KEPT]]
     alts = np.vstack([candidates[best_cand], poses[_heaviest(logw, out, REFERENCE_PARTICLES)]])
-    if alts.shape[0] == 0 or not np.isfinite(l_ref):
+    if alts.shape[0] == 0:
         return None
-    la = window_log_likelihood(model, alts, window, scale)
-    top = alts[np.argsort(-la, kind="stable")[:REFINE_BEST]]
-    jitter = rng.normal(0.0, PERTURBATION_STD, (top.shape[0], REFINE_DRAWS, 3))
-    tried = (top[:, None, :] + jitter).reshape(-1, 3)
-    tried[:, 2] = wrap_angle(tried[:, 2])
-    tried = tried[outside(tried, mean, min_dist_m, min_heading_rad)]
-    lt = window_log_likelihood(model, tried, window, scale)
-    all_poses = np.vstack([alts, tried])
-    all_ll = np.concatenate([la, lt])
-    i = int(np.argmax(all_ll))
-    if not np.isfinite(all_ll[i]):
+
+    def is_out(p: np.ndarray) -> np.ndarray:
+        return outside(p, mean, min_dist_m, min_heading_rad)
+
+    _, l_ref = _refined_best(model, window, scale, ref, rng, lambda p: ~is_out(p))
+    pose, l_alt = _refined_best(model, window, scale, alts, rng, is_out)
+    if not (np.isfinite(l_ref) and np.isfinite(l_alt)):
         return None
-    return Alternative(pose=all_poses[i].copy(), log_ratio=float(all_ll[i] - l_ref))
+    return Alternative(pose=pose, log_ratio=float(l_alt - l_ref))
+
+
+def _refined_best(model, window: Window, scale: float, poses: np.ndarray, rng: np.random.Generator, keep):
+    """``(pose, window log-likelihood)`` of the best pose found from ``poses`` by a coarse-to-fine random
+    search: in each round of `REFINE_STEPS`, `REFINE_DRAWS` perturbations of each of the `REFINE_BEST`
+    best poses so far, limited to those where ``keep`` is True. The hypothesis and its alternatives
+    are searched alike, so neither wins by the search alone."""
+    best_poses = np.asarray(poses, dtype=np.float64)
+    best_ll = window_log_likelihood(model, best_poses, window, scale)
+    for std in REFINE_STEPS:
+        top = best_poses[np.argsort(-best_ll, kind="stable")[:REFINE_BEST]]
+        tried = (top[:, None, :] + rng.normal(0.0, std, (top.shape[0], REFINE_DRAWS, 3))).reshape(-1, 3)
+        tried[:, 2] = wrap_angle(tried[:, 2])
+        tried = tried[keep(tried)]
+        best_poses = np.vstack([best_poses, tried])
+        best_ll = np.concatenate([best_ll, window_log_likelihood(model, tried, window, scale)])
+    i = int(np.argmax(best_ll))
+    return best_poses[i].copy(), float(best_ll[i])
 
 
 def shaped_like(

@@ -222,7 +222,8 @@ class MCLConfig:
             log-likelihood of them is at most ``audit_margin`` below the hypothesis's, it adds
             ``cluster_min_particles`` particles there, shaped like the hypothesis
             (`filters.localization.audit.shaped_like`) and together weighing the hypothesis's
-            weight times the likelihood ratio, so the belief holds two hypotheses, not one. Only
+            weight times the likelihood ratio (at most 1), so the belief holds two hypotheses,
+            not one. Only
             after `init_global` (the audit weighs the two places as equally likely ``K`` updates
             ago; after `init_around` the caller said where the robot is).
         audit_margin: how far below the hypothesis (tempered nats, >= 0) an alternative may fit
@@ -947,7 +948,8 @@ class MonteCarloLocalizer:
             return alt.log_ratio, 0
         m = c.cluster_min_particles
         new = audit.shaped_like(self._poses, np.exp(self._logw), hyp.mean, alt.pose, m, self.rng, *outside_args)
-        logw = np.concatenate([self._logw, np.full(m, math.log(hyp.weight) + alt.log_ratio - math.log(m))])
+        added = math.log(hyp.weight) + min(alt.log_ratio, 0.0)  # at most the hypothesis's weight
+        logw = np.concatenate([self._logw, np.full(m, added - math.log(m))])
         self._poses = np.ascontiguousarray(np.vstack([self._poses, new]))
         self._logw = logw - self._lse(logw)
         self._was_converged = False
