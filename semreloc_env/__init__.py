@@ -25,7 +25,16 @@ __all__ = [
     "load_layout",
 ]
 
-ENV_IDS = ("SemReloc-v5", "SemReloc-v4", "SemReloc-v3", "SemReloc-v2", "SemReloc-v1", "SemReloc-v0", "SemSlam-v1", "SemSlam-v0")
+ENV_IDS = (
+    "SemReloc-v5",
+    "SemReloc-v4",
+    "SemReloc-v3",
+    "SemReloc-v2",
+    "SemReloc-v1",
+    "SemReloc-v0",
+    "SemSlam-v1",
+    "SemSlam-v0",
+)
 """Every registered single-robot id, newest first; the older ones are kept for reproducing old results and
 running old policies (each env's Version History says what changed): ``SemReloc-v1`` and ``SemSlam-v0`` have
 the flat observation, ``SemReloc-v0`` also the first release's relocalizer."""

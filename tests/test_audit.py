@@ -29,7 +29,7 @@ def test_window_follows_the_odometry_back_to_each_update():
     leads back to, newest first, and sums the tempered terms."""
     path = np.array([[1.0, 2.0, 0.3], [1.5, 2.2, 0.9], [1.6, 2.9, -2.8]])
     deltas = [np.zeros(3), relative(path[0], path[1]), relative(path[1], path[2])]
-    window = [(float(p[0]) + 0.25, None, d) for p, d in zip(path, deltas)]  # "scan" = an x to match
+    window = [(float(p[0]) + 0.25, None, d, None) for p, d in zip(path, deltas)]  # "scan" = an x to match
     model = _Recorder()
     got = window_log_likelihood(model, path[2][None], window, 0.5)
     seen = [c[0][0] for c in model.calls]
@@ -150,7 +150,7 @@ def test_best_alternative_with_nothing_outside_is_none():
     grid = symmetric_room()
     model = LikelihoodFieldModel(grid)
     pose = np.array([3.0, 2.5, 0.3])
-    window = [(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), None, np.zeros(3))]
+    window = [(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), None, np.zeros(3), None)]
     poses = np.tile(pose, (5, 1))
     got = best_alternative(
         model, window, 0.1, poses, np.zeros(5), pose, poses, np.zeros(5), np.random.default_rng(0), 1.0, 0.5

@@ -1,6 +1,6 @@
 """The registered ids behave as their Version History says: SemReloc-v5 (v4's relocalizer with the convergence
-audit), SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that break
-their half turn), SemReloc-v2 / SemSlam-v1 (typed observation,
+audit), SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike
+layouts that break their half turn), SemReloc-v2 / SemSlam-v1 (typed observation,
 not-computed info values left out) against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
 
 import warnings

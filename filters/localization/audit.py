@@ -40,9 +40,10 @@ from filters.pose import compose, relative, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.smc.resampling import inverse_cdf
 
-Window = list[tuple[LaserScan | None, SemanticScan | None, np.ndarray]]
+Window = list[tuple[LaserScan | None, SemanticScan | None, np.ndarray, object]]
 """The scans of the last updates, oldest first, each with the odometry ``(dx, dy, dtheta)`` from
-the update before it to its own (robot frame of the earlier one)."""
+the update before it to its own (robot frame of the earlier one) and the beams the measurement
+model selected from them (its ``log_likelihood_terms``' third value; None: select them again)."""
 
 REFINE_BEST = 5
 """Poses refined in each round of the search."""
@@ -79,8 +80,12 @@ def window_log_likelihood(model, poses: np.ndarray, window: Window, scale: float
     p = np.asarray(poses, dtype=np.float64)
     total = np.zeros(p.shape[0])
     origin = np.zeros(3)
-    for i, (lidar, semantic, into) in enumerate(reversed(window)):
-        ll_l, ll_s, _ = model.log_likelihood_terms(p, lidar, semantic)
+    by_beams = getattr(model, "beam_log_likelihoods", None)
+    for i, (lidar, semantic, into, beams) in enumerate(reversed(window)):
+        if beams is not None and by_beams is not None:
+            ll_l, ll_s = by_beams(p, beams)
+        else:
+            ll_l, ll_s, _ = model.log_likelihood_terms(p, lidar, semantic)
         total += scale * (np.asarray(ll_l, dtype=np.float64) + np.asarray(ll_s, dtype=np.float64))
         if i + 1 < len(window):  # back to the pose of the update before
             p = compose(p, relative(into, origin))

@@ -569,9 +569,18 @@ class LikelihoodFieldModel:
         if not np.all(np.isfinite(p)):
             raise ValueError("poses contain NaN or inf")
         beams = self.beams(lidar, semantic)
+        ll_l, ll_s = self.beam_log_likelihoods(p, beams)
+        return ll_l, ll_s, beams
+
+    def beam_log_likelihoods(self, poses: np.ndarray, beams: BeamSet) -> tuple[np.ndarray, np.ndarray]:
+        """``(lidar_ll (N,), semantic_ll (N,))`` of the beams of `beams` (a `BeamSet` this model made) for
+        ``poses`` ``(N, 3)``: `log_likelihood_terms` without selecting the beams again (for callers that
+        score the same scans more than once, such as the convergence audit)."""
+        p = np.ascontiguousarray(poses, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
         if self.backend == "numpy":
-            ll_l, ll_s = log_likelihood_terms_reference(self, p, beams)
-            return ll_l, ll_s, beams
+            return log_likelihood_terms_reference(self, p, beams)
         _, _, flat = self._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
         n = p.shape[0]
         out_l = np.zeros(n)
@@ -619,7 +628,7 @@ class LikelihoodFieldModel:
                     h,
                     out_s,
                 )
-        return out_l, out_s, beams
+        return out_l, out_s
 
     def log_likelihood(
         self, poses: np.ndarray, lidar: LaserScan | None, semantic: SemanticScan | None = None

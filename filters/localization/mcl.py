@@ -747,7 +747,7 @@ class MonteCarloLocalizer:
             self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
         audit_ratio, n_audit = math.nan, 0
         if c.audit_window and self._audit_on:
-            self._window = [*self._window, (lid, sem, delta)][-c.audit_window :]
+            self._window = [*self._window, (lid, sem, delta, beams)][-c.audit_window :]
             audit_ratio, n_audit = self._audit(lidar, sem)
         diag = UpdateDiagnostics(
             updated=True,
