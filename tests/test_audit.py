@@ -122,6 +122,18 @@ def test_audit_keeps_a_belief_nothing_else_explains():
     assert diags[0].audit_log_ratio < -cfg.audit_margin and diags[0].n_audit_injected == 0
     assert all(math.isnan(d.audit_log_ratio) for d in diags[1:])
     assert mcl.belief().converged
+    # the belief drops out of "converged" and back (simulated): within the window (5 updates) of the
+    # audit that cleared this place it is not audited again; after it, it is
+    audited = []
+    for _ in range(6):
+        mcl._was_converged = False
+        new = compose(pose, np.array([0.12, 0.0, 0.0]))
+        mcl.predict(relative(pose, new))
+        pose = new
+        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
+        d = mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0))
+        audited.append((mcl.n_updates, not math.isnan(d.audit_log_ratio)))
+    assert audited == [(5, False), (6, True), (7, False), (8, False), (9, False), (10, False)]
 
 
 def test_no_audit_after_init_around():

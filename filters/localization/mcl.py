@@ -225,7 +225,10 @@ class MCLConfig:
             weight times the likelihood ratio (at most 1), so the belief holds two hypotheses,
             not one. Only
             after `init_global` (the audit weighs the two places as equally likely ``K`` updates
-            ago; after `init_around` the caller said where the robot is).
+            ago; after `init_around` the caller said where the robot is). A hypothesis an audit
+            cleared is not audited again at the same place (within ``2 * belief.cluster_bin_m``
+            and ``belief.cluster_bin_theta_rad`` of it) for ``K`` updates, when the belief
+            drops out of "converged" and back.
         audit_margin: how far below the hypothesis (tempered nats, >= 0) an alternative may fit
             and still be added.
         audit_candidates: scan-proposal candidates the audit draws (the best 50 outside the
@@ -490,6 +493,7 @@ class MonteCarloLocalizer:
         self._window: audit.Window = []
         """The last ``audit_window`` updates' scans and odometry (`filters.localization.audit.Window`)."""
         self._was_converged = False
+        self._cleared: tuple[np.ndarray, int] | None = None  # (mean, n_updates) of the last hypothesis an audit cleared
         self._audit_on = False  # the convergence audit runs after init_global only
         self.converged_updates = 0
         """Consecutive measurement updates, the latest included, after which the set met the
@@ -932,20 +936,23 @@ class MonteCarloLocalizer:
             self._was_converged = b.converged
             return math.nan, 0
         self._was_converged = True
+        hyp = b.hypotheses[0]
+        outside_args = (2.0 * c.belief.cluster_bin_m, c.belief.cluster_bin_theta_rad)
+        if self._cleared is not None and self.n_updates - self._cleared[1] < c.audit_window:
+            if not audit.outside(hyp.mean[None], self._cleared[0], *outside_args)[0]:
+                return math.nan, 0  # cleared within the window: the same scans would be audited again
         if self._proposal is None:
             self._proposal = ScanProposal(self.grid, self.sample_free)
         cand = self._proposal.candidates(c.audit_candidates, semantic, c.proposal_semantic_frac, self.rng)
         ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
-        hyp = b.hypotheses[0]
-        outside_args = (2.0 * c.belief.cluster_bin_m, c.belief.cluster_bin_theta_rad)
         alt = audit.best_alternative(
             self.measurement_model, self._window, c.likelihood_scale, self._poses, self._logw, hyp.mean,
             cand, np.asarray(ll_l) + np.asarray(ll_s), self.rng, *outside_args,
         )  # fmt: skip
-        if alt is None:
-            return math.nan, 0
-        if alt.log_ratio < -c.audit_margin:
-            return alt.log_ratio, 0
+        if alt is None or alt.log_ratio < -c.audit_margin:
+            self._cleared = (hyp.mean, self.n_updates)
+            return (math.nan if alt is None else alt.log_ratio), 0
+        self._cleared = None
         m = c.cluster_min_particles
         new = audit.shaped_like(self._poses, np.exp(self._logw), hyp.mean, alt.pose, m, self.rng, *outside_args)
         added = math.log(hyp.weight) + min(alt.log_ratio, 0.0)  # at most the hypothesis's weight
