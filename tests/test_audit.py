@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from filters.localization.audit import best_alternative, outside, window_log_likelihood
+from filters.localization.audit import best_alternative, outside, shaped_like, window_log_likelihood
 from filters.localization.likelihood_field import LikelihoodFieldModel
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.pose import compose, relative
@@ -186,3 +186,15 @@ def test_best_alternative_with_nothing_outside_is_none():
 def test_bad_audit_options_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         MCLConfig(**bad)
+
+
+def test_shaped_like_carries_the_hypothesis_and_survives_an_empty_one():
+    rng = np.random.default_rng(0)
+    mean = np.array([1.0, 1.0, 0.0])
+    poses = np.array([[1.1, 1.0, 0.0], [1.0, 1.2, 0.1], [5.0, 5.0, 0.0]])
+    w = np.array([0.5, 0.5, 0.0])
+    got = shaped_like(poses, w, mean, np.array([3.0, 2.0, np.pi / 2]), 4, rng, 1.0, 0.5)
+    want = {(3.0, 2.1, round(np.pi / 2, 9)), (2.8, 2.0, round(np.pi / 2 + 0.1, 9))}  # offsets turned by 90 deg
+    assert {tuple(np.round(p, 9)) for p in got} <= want and got.shape == (4, 3)
+    at = np.array([3.0, 2.0, 0.5])
+    np.testing.assert_array_equal(shaped_like(poses, np.array([0.0, 0.0, 1.0]), mean, at, 3, rng, 1.0, 0.5), [at] * 3)

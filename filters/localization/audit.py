@@ -180,6 +180,9 @@ def shaped_like(
     particles not `outside` the hypothesis, drawn by weight (systematic pointers), each carried by
     the rigid motion that takes ``mean`` to ``at`` (their offsets in ``mean``'s frame kept)."""
     inside = np.flatnonzero(~outside(poses, mean, min_dist_m, min_heading_rad))
-    w = weights[inside] / weights[inside].sum()
+    total = weights[inside].sum() if inside.size else 0.0
+    if not total > 0.0:  # nothing near the mean carries weight: all at ``at``
+        return np.tile(np.asarray(at, dtype=np.float64), (m, 1))
+    w = weights[inside] / total
     pick = inside[inverse_cdf(w, (rng.random() + np.arange(m)) / m)]
     return compose(np.broadcast_to(at, (m, 3)), relative(mean, poses[pick]))
