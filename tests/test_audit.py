@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from filters.localization.audit import best_alternative, outside, shaped_like, window_log_likelihood
+import filters.localization.audit as audit_module
+from filters.localization.audit import Alternative, best_alternative, outside, shaped_like, window_log_likelihood
 from filters.localization.likelihood_field import LikelihoodFieldModel
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.pose import compose, relative
@@ -198,3 +199,56 @@ def test_shaped_like_carries_the_hypothesis_and_survives_an_empty_one():
     assert {tuple(np.round(p, 9)) for p in got} <= want and got.shape == (4, 3)
     at = np.array([3.0, 2.0, 0.5])
     np.testing.assert_array_equal(shaped_like(poses, np.array([0.0, 0.0, 1.0]), mean, at, 3, rng, 1.0, 0.5), [at] * 3)
+
+
+@pytest.mark.parametrize("ratio", [-0.7, 0.0, 2.0])
+def test_added_weight_is_the_hypothesis_weight_times_the_capped_ratio(monkeypatch, ratio):
+    """With the search replaced by one that reports a known log ratio: the added particles weigh
+    ``H * exp(min(ratio, 0))``, H the hypothesis's weight before the audit, against the kept set."""
+    found = {}
+
+    def fixed(model, window, scale, poses, logw, mean, *args):
+        found["h"] = mean
+        return Alternative(pose=mirror(mean), log_ratio=ratio)
+
+    monkeypatch.setattr(audit_module, "best_alternative", fixed)
+    grid = symmetric_room()
+    pose = np.array([3.0, 2.5, 0.3])
+    cfg = MCLConfig(n_particles=300, use_semantic=False, audit_window=5)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(1))
+    mcl.init_around(pose, (0.03, 0.03, 0.01))
+    mcl._audit_on = True  # as after an init_global
+    before = {}
+    orig = mcl._summary
+
+    def summary():
+        b = orig()
+        before.setdefault("weight", b.hypotheses[0].weight)
+        return b
+
+    monkeypatch.setattr(mcl, "_summary", summary)
+    d = mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), force=True)
+    m = mcl.config.cluster_min_particles
+    assert d.n_audit_injected == m and d.audit_log_ratio == ratio
+    w = mcl.weights
+    got = w[-m:].sum() / w[:-m].sum()
+    assert got == pytest.approx(before["weight"] * math.exp(min(ratio, 0.0)), rel=1e-9)
+
+
+def test_window_keeps_the_scans_each_update_used():
+    """With ``lidar_on_rotation=False`` a turn-in-place update (not the first) uses no lidar: its window
+    entry has none, and its beams are the camera's only; an update after driving has both."""
+    grid = symmetric_room()
+    cfg = MCLConfig(n_particles=200, audit_window=10, lidar_on_rotation=False)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(2))
+    mcl.init_global()
+    pose = np.array([2.2, 3.0, -1.2])
+    for step in (np.array([0.3, 0.0, 0.0]), np.array([0.0, 0.0, 0.3]), np.array([0.3, 0.0, 0.0])):  # 1st: both
+        new = compose(pose, step)
+        mcl.predict(relative(pose, new))
+        pose = new
+        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
+        mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0))
+    (turn_l, turn_s, _, turn_b), (drive_l, drive_s, _, drive_b) = mcl._window[-2:]
+    assert turn_l is None and turn_b.n_lidar == 0 and turn_s is not None
+    assert drive_l is not None and drive_b.n_lidar == len(LIDAR_ANGLES)

@@ -440,3 +440,21 @@ def test_converged_min_updates_asks_the_criterion_to_hold_after_the_last_k_updat
         MCLConfig(belief={"converged_min_updates": 0})
     with pytest.raises(ValueError, match="converged_min_updates"):
         MCLConfig(belief={"converged_min_updates": 2.5})
+
+
+def test_belief_follows_weights_that_change_without_moving_particles():
+    """belief() is computed once per particle set: an update that only reweighs (no resampling, no
+    injection, the same pose array) must still give the summary of the new weights."""
+    from filters.localization.belief import summarize
+
+    grid = symmetric_room()
+    mcl = MonteCarloLocalizer(grid, MCLConfig(n_particles=300, resample_ess_frac=0.0), np.random.default_rng(3))
+    mcl.init_global()
+    first = mcl.belief()
+    poses = mcl.poses
+    mcl.update(simulate_lidar(grid, np.array([4.0, 1.5, np.pi]), LIDAR_ANGLES, 8.0), force=True)
+    assert np.shares_memory(mcl.poses, poses)  # the same particles, new weights
+    got = mcl.belief()
+    want = summarize(mcl.poses, mcl.weights, mcl.config.belief)
+    assert got.entropy_nats == want.entropy_nats != first.entropy_nats
+    np.testing.assert_array_equal(got.mean, want.mean)

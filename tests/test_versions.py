@@ -236,6 +236,11 @@ def test_v5_is_v4_with_the_convergence_audit():
     bit; on, the audit runs where the belief becomes converged and the beliefs part from there."""
     v5, v4 = make("SemReloc-v5", **FAST).unwrapped, make("SemReloc-v4", **FAST).unwrapped
     assert (v5.mcl_config.audit_window, v4.mcl_config.audit_window) == (20, 0)
+    assert v5.mcl_config.audit_margin == 1.0
+    for vec_id, window in (("SemRelocVec-v5", 20), ("SemRelocVec-v4", 0)):
+        venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+        assert venv.envs[0].unwrapped.mcl_config.audit_window == window
+        venv.close()
     assert v5.mcl_config == v4.mcl_config.__class__(
         **{**v4.mcl_config.as_dict(), "audit_window": 20, "audit_margin": v5.mcl_config.audit_margin}
     )

@@ -579,6 +579,8 @@ class LikelihoodFieldModel:
         p = np.ascontiguousarray(poses, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise ValueError("poses contain NaN or inf")
         if self.backend == "numpy":
             return log_likelihood_terms_reference(self, p, beams)
         _, _, flat = self._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)

@@ -76,8 +76,9 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    rotation alone (a 360 deg lidar sees the same scene when the robot turns in place, so
    its correlated errors would be multiplied in again and again); the semantic factor
    (a narrow camera, which does see new things when turning) is always used.
-9. **Convergence audit**, if ``audit_window`` (after ``init_global`` only): at the update after
-   which the set first meets the "converged" criterion, a pose outside the converged hypothesis
+9. **Convergence audit**, if ``audit_window`` (after ``init_global`` only): at each update after
+   which the set meets the "converged" criterion and did not before (a place an audit cleared is
+   not audited again for ``audit_window`` updates), a pose outside the converged hypothesis
    that explains the last ``audit_window`` updates' scans within ``audit_margin`` (tempered nats)
    of it becomes a second hypothesis (`filters.localization.audit`; docs/relocalizer.md).
 
@@ -170,7 +171,7 @@ class MCLConfig:
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
         negative_evidence: evidence from mapped objects the camera did not see
-            (`NegativeEvidenceConfig`; off by default, on in ``SemReloc-v4``).
+            (`NegativeEvidenceConfig`; off by default, on in ``SemReloc-v4`` and ``-v5``).
         motion: odometry motion noise.
         belief: bins and thresholds of `MonteCarloLocalizer.belief`.
         use_semantic: multiply in the semantic factor (False = lidar-only MCL).
@@ -398,8 +399,9 @@ class UpdateDiagnostics:
         n_negative_beams: unlabelled camera beams sampled for negative evidence
             (`NegativeEvidenceConfig`, at most its ``max_beams``; 0 when it is off).
         audit_log_ratio: the convergence audit's best alternative's window log-likelihood minus the
-            converged hypothesis's (tempered nats; NaN when no audit ran: ``audit_window`` 0, or the
-            set did not just become converged, or nothing lay outside the hypothesis).
+            converged hypothesis's (tempered nats; NaN when no audit ran: ``audit_window`` 0, after
+            ``init_around``, the set did not just become converged, an audit cleared the same place
+            fewer than ``audit_window`` updates before, or nothing lay outside the hypothesis).
         n_audit_injected: particles the audit added around that alternative (0 or
             ``cluster_min_particles``).
     """
