@@ -389,6 +389,17 @@ def negative_evidence_kernel(
         out[i] += acc
 
 
+def _checked_poses(poses: np.ndarray) -> np.ndarray:
+    """``poses`` as a contiguous float64 ``(N, 3)`` array; ValueError if the shape is wrong or a value is
+    not finite."""
+    p = np.ascontiguousarray(poses, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("poses contain NaN or inf")
+    return p
+
+
 class LikelihoodFieldModel:
     """Measurement model ``log p(lidar, semantic | pose, map)`` over an ``(N, 3)`` pose array.
 
@@ -563,24 +574,19 @@ class LikelihoodFieldModel:
             lidar: lidar scan or None (then ``lidar_ll`` is 0).
             semantic: semantic scan or None (then ``semantic_ll`` is 0).
         """
-        p = np.ascontiguousarray(poses, dtype=np.float64)
-        if p.ndim != 2 or p.shape[1] != 3:
-            raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
-        if not np.all(np.isfinite(p)):
-            raise ValueError("poses contain NaN or inf")
+        p = _checked_poses(poses)
         beams = self.beams(lidar, semantic)
-        ll_l, ll_s = self.beam_log_likelihoods(p, beams)
+        ll_l, ll_s = self._scored(p, beams)
         return ll_l, ll_s, beams
 
     def beam_log_likelihoods(self, poses: np.ndarray, beams: BeamSet) -> tuple[np.ndarray, np.ndarray]:
         """``(lidar_ll (N,), semantic_ll (N,))`` of the beams of `beams` (a `BeamSet` this model made) for
         ``poses`` ``(N, 3)``: `log_likelihood_terms` without selecting the beams again (for callers that
         score the same scans more than once, such as the convergence audit)."""
-        p = np.ascontiguousarray(poses, dtype=np.float64)
-        if p.ndim != 2 or p.shape[1] != 3:
-            raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
-        if not np.all(np.isfinite(p)):
-            raise ValueError("poses contain NaN or inf")
+        return self._scored(_checked_poses(poses), beams)
+
+    def _scored(self, p: np.ndarray, beams: BeamSet) -> tuple[np.ndarray, np.ndarray]:
+        """The two log factors for checked, contiguous float64 poses ``p``."""
         if self.backend == "numpy":
             return log_likelihood_terms_reference(self, p, beams)
         _, _, flat = self._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)

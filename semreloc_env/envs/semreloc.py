@@ -187,8 +187,9 @@ class SemRelocEnv(SemRelocBase):
       ``audit_window=20``): at the update where the belief would become converged, the pose
       outside its hypothesis that best explains the last 20 updates' scans is looked for, and if
       it fits within 1 nat (tempered) it is added as a second hypothesis, weighted by the
-      likelihood ratio (at most as heavy as the first), so the belief is not converged. Fewer episodes whose belief first
-      converges at a look-alike place (docs/relocalizer.md, "Convergence audit"). ``info["mcl"]``
+      likelihood ratio (at most as heavy as the first), so the belief is not converged. Fewer
+      episodes whose belief first converges at a look-alike place (docs/relocalizer.md,
+      "Convergence audit"). ``info["mcl"]``
       gains ``audit_log_ratio`` and ``n_audit_injected``. Worlds, sensors, observations, rewards
       and episode end are v4's (`SemRelocEnvV4` is v4).
     * v4: the relocalizer takes evidence from objects its map puts in the camera's view that the
