@@ -6,7 +6,7 @@ stopping at success, so the belief is watched after it claims convergence. Per e
 
 * **success**: at some step the belief was converged with its estimate within 0.5 m and
   15 deg of the truth (what ``SemReloc`` terminates on); ``steps`` is the first such step.
-  In a kidnap episode only steps after the kidnap count, and ``steps`` counts from it.
+  In a kidnap episode only steps from the kidnap on count, and ``steps`` counts from it.
 * **wrong**: no success, and the last step's belief is converged elsewhere.
 * **unconverged**: neither. (The three partition the episodes, as in `agents.metrics`.)
 * **ever_wrong**: some step before the first success had a converged, wrong belief.
@@ -14,6 +14,26 @@ stopping at success, so the belief is watched after it claims convergence. Per e
   (post-kidnap steps only, in a kidnap episode): calibration = correct / converged.
 * **cpu_s_per_step**: process CPU time per env step (the machine may be shared).
 * **median_error_m**: median position error of the estimate over the scored steps.
+
+Kidnap episodes (tracking, or a global start, then a teleport at step ``kidnap_at_step``) also
+give (None in the others):
+
+* **reconverged_wrong**: after the kidnap the belief was unconverged at some step (or already at
+  the kidnap), and at a later step, before the first success, converged at a wrong place. Right
+  after a teleport the belief is still converged at the old place: that stale state makes
+  ``ever_wrong``, and says nothing about the recovery; ``reconverged_wrong`` does.
+* **pre_kidnap_success** / **converged_at_kidnap**: some step before the kidnap was a success /
+  the belief the teleport found (after step ``kidnap_at_step - 1``) was converged.
+* **kidnapped_at**: the first step whose ``info["kidnapped"]`` was True (the env's own record).
+* post-kidnap diagnostics of the relocalizer (``info["mcl"]``): ``w_slow_at_kidnap`` /
+  ``w_fast_at_kidnap`` (the augmented-MCL averages the teleport found), ``recovery_steps`` (steps
+  whose ``p_inject`` exceeded the routine ``proposal_frac``: augmented-MCL recovery injection),
+  ``max_p_inject``, ``reinit_steps`` (all weights underflowed: global re-init), ``audits`` /
+  ``audit_adds`` (convergence audits run / that added a hypothesis) and ``stale_audits`` /
+  ``stale_audit_adds`` (those run fewer than ``audit_window`` updates after the kidnap, with
+  pre-kidnap scans in the audit's window).
+
+`score_steps` is the scoring of one episode's beliefs (a pure function of them).
 
 Each episode's result depends only on its `EpisodeSpec`, so many of them run with
 `filters.experiments.runner.run_jobs` (``run_jobs(run_episode, specs, runner)``) give the
@@ -26,6 +46,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -38,9 +59,11 @@ POLICIES = ("random", "spin", "wall_follow")
 @dataclass(frozen=True)
 class EpisodeSpec:
     """One evaluation episode. ``mcl`` holds ``MCLConfig`` overrides (applied to the env's
-    default relocalizer); ``kidnap_at_step`` > 0 makes it a tracking-then-kidnap episode, and
+    default relocalizer); ``kidnap_at_step`` > 0 makes it a tracking-then-kidnap episode (row
+    ``*_kidnap``), with ``kidnap_after_global`` a global-start-then-kidnap episode (row
+    ``*_global_kidnap``: no ``tracking`` reset option, a teleport at step ``kidnap_at_step``), and
     ``tracking`` a tracking episode (the belief starts at the true pose; only the error and the
-    step time are of interest)."""
+    step time are of interest). Inconsistent values raise ``ValueError``."""
 
     layout: str
     seed: int
@@ -53,6 +76,34 @@ class EpisodeSpec:
     mcl: dict = field(default_factory=dict)
     env_kwargs: dict = field(default_factory=dict)
     label: str = ""
+    kidnap_after_global: bool = False
+
+    def __post_init__(self) -> None:
+        def is_int(v) -> bool:
+            return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+        for name in ("tracking", "kidnap_after_global"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ValueError(f"EpisodeSpec.{name} must be True or False, got {getattr(self, name)!r:.60}")
+        if not is_int(self.n_steps) or self.n_steps < 1:
+            raise ValueError(f"EpisodeSpec.n_steps must be an integer >= 1, got {self.n_steps!r:.60}")
+        if not is_int(self.kidnap_at_step) or self.kidnap_at_step < 0:
+            raise ValueError(
+                f"EpisodeSpec.kidnap_at_step must be an integer >= 0 (0: no kidnap), got {self.kidnap_at_step!r:.60}"
+            )
+        if self.kidnap_after_global:
+            if self.kidnap_at_step < 1:
+                raise ValueError(
+                    "EpisodeSpec.kidnap_after_global needs kidnap_at_step >= 1 (the step of the teleport), "
+                    f"got {self.kidnap_at_step}"
+                )
+            if self.tracking:
+                raise ValueError("EpisodeSpec.kidnap_after_global starts from a global belief: tracking must be False")
+        if self.kidnap_at_step > self.n_steps:
+            raise ValueError(
+                f"EpisodeSpec.kidnap_at_step {self.kidnap_at_step} is after the last step (n_steps {self.n_steps}): "
+                "no step after the kidnap would be scored"
+            )
 
     @property
     def row(self) -> str:
@@ -60,7 +111,18 @@ class EpisodeSpec:
         name = self.layout if self.layout not in ("procedural", "procedural_sym") else f"{self.layout}"
         if self.scenario != "nominal":
             name += f"_{self.scenario}"
+        if self.kidnap_after_global:
+            return name + "_global_kidnap"
         return name + ("_kidnap" if self.kidnap_at_step else "_tracking" if self.tracking else "")
+
+    @property
+    def reset_options(self) -> dict | None:
+        """The ``options`` of the episode's ``env.reset``."""
+        if self.kidnap_after_global:
+            return {"kidnap_at_step": self.kidnap_at_step}  # global start, teleport at kidnap_at_step
+        if self.kidnap_at_step:
+            return {"tracking": True, "kidnap_at_step": self.kidnap_at_step}
+        return {"tracking": True} if self.tracking else None
 
 
 def make_policy(name: str, seed: int):
@@ -76,8 +138,80 @@ def make_policy(name: str, seed: int):
     raise ValueError(f"unknown policy {name!r}; choose one of {POLICIES}")
 
 
+def score_steps(converged: Sequence[bool], near: Sequence[bool], kidnap_at_step: int = 0) -> dict:
+    """Score one episode from its beliefs: ``converged[t]`` / ``near[t]`` say whether the belief
+    after step ``t`` was converged / had its estimate within 0.5 m and 15 deg of the truth; index 0
+    is the belief after the reset (never scored; after a kidnap at step 1 it is the belief the
+    teleport finds). ``kidnap_at_step`` 0: no kidnap, every step is scored; ``K`` >= 1: steps ``K``
+    on are scored and ``steps`` counts from ``K`` (step ``K`` is 1).
+
+    Returns ``outcome``, ``steps``, ``ever_wrong``, ``converged_steps``,
+    ``converged_correct_steps`` (see the module docstring) and, for a kidnap (else None),
+    ``reconverged_wrong``, ``pre_kidnap_success`` and ``converged_at_kidnap``.
+    """
+    conv = [bool(c) for c in converged]
+    ok = [bool(x) for x in near]
+    n = len(conv) - 1
+    if len(ok) != len(conv) or n < 1:
+        raise ValueError(
+            f"converged and near need the same length >= 2 (the reset and the steps), got {len(conv)} and {len(ok)}"
+        )
+    k = kidnap_at_step
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= n:
+        raise ValueError(f"kidnap_at_step must be an integer in [0, {n}] (the steps scored), got {k!r:.60}")
+    first = max(k, 1)
+    first_success = None
+    ever_wrong = False
+    n_conv = n_ok = 0
+    for t in range(first, n + 1):
+        n_conv += conv[t]
+        n_ok += conv[t] and ok[t]
+        if first_success is None:
+            if conv[t] and ok[t]:
+                first_success = t - first + 1
+            elif conv[t]:
+                ever_wrong = True
+    if first_success is not None:
+        outcome = "success"
+    elif conv[n]:
+        outcome = "wrong"
+    else:
+        outcome = "unconverged"
+    out = {
+        "outcome": outcome,
+        "steps": first_success,
+        "ever_wrong": ever_wrong,
+        "converged_steps": int(n_conv),
+        "converged_correct_steps": int(n_ok),
+        "reconverged_wrong": None,
+        "pre_kidnap_success": None,
+        "converged_at_kidnap": None,
+    }
+    if k:
+        left = not conv[k - 1]  # the belief has left the place the teleport found it converged at
+        again_wrong = False
+        for t in range(k, n + 1):
+            if conv[t] and ok[t]:
+                break  # the first success: what follows is not a recovery
+            if not conv[t]:
+                left = True
+            elif left:
+                again_wrong = True
+                break
+        out.update(
+            reconverged_wrong=again_wrong,
+            pre_kidnap_success=any(conv[t] and ok[t] for t in range(1, k)),
+            converged_at_kidnap=conv[k - 1],
+        )
+    return out
+
+
 def run_episode(spec: EpisodeSpec) -> dict:
-    """Run one episode; returns a plain dict (the spec's fields plus the outcome fields)."""
+    """Run one episode; returns a plain dict (the spec's fields plus the outcome fields).
+
+    Every one of the ``n_steps`` steps is run, also after the env said ``terminated`` (a success,
+    which in a global-start kidnap episode may come before the kidnap).
+    """
     from semreloc_env.envs.semreloc import SemRelocEnv
 
     env = SemRelocEnv(
@@ -87,58 +221,73 @@ def run_episode(spec: EpisodeSpec) -> dict:
         relocalizer=dict(spec.mcl) or None,
         **spec.env_kwargs,
     )
-    if spec.kidnap_at_step:
-        options = {"tracking": True, "kidnap_at_step": spec.kidnap_at_step}
-    else:
-        options = {"tracking": True} if spec.tracking else None
-    obs, info = env.reset(seed=spec.seed, options=options)
+    obs, info = env.reset(seed=spec.seed, options=spec.reset_options)
+    cfg = env.mcl_config
     policy = make_policy(spec.policy, spec.seed)
-    first_success = None
-    ever_wrong = False
-    conv = conv_ok = 0
+    k = spec.kidnap_at_step
+
+    def near(err: dict) -> bool:
+        return err["position"] < 0.5 and err["heading"] < math.radians(15.0)
+
+    converged, close = [bool(info["belief"]["converged"])], [near(info["pose_error"])]
     collisions = 0
     cpu = 0.0
     n_particles, errors = [], []
+    diag = dict.fromkeys(
+        ("recovery_steps", "reinit_steps", "audits", "audit_adds", "stale_audits", "stale_audit_adds"), 0
+    )
+    kidnapped_at = None
+    w_at_kidnap = (info["mcl"]["w_slow"], info["mcl"]["w_fast"])
+    max_p_inject = 0.0
+    updates_since_kidnap = 0
     for t in range(1, spec.n_steps + 1):
         c0 = time.process_time()
-        obs, _, _, _, info = env.step(policy(obs))
+        obs, _, _, _, info = env.step(policy(obs))  # terminated is ignored: the belief is watched on
         cpu += time.process_time() - c0
         collisions += bool(info["collided"])
         n_particles.append(info["belief"]["n_particles"])
-        if spec.kidnap_at_step and t < spec.kidnap_at_step:
+        converged.append(bool(info["belief"]["converged"]))
+        close.append(near(info["pose_error"]))
+        if info["kidnapped"] and kidnapped_at is None:
+            kidnapped_at = t
+        m = info["mcl"]
+        if k and t == k - 1:
+            w_at_kidnap = (m["w_slow"], m["w_fast"])
+        if k and t < k:
             continue
-        err = info["pose_error"]
-        errors.append(err["position"])
-        near = err["position"] < 0.5 and err["heading"] < math.radians(15.0)
-        converged = info["belief"]["converged"]
-        conv += converged
-        conv_ok += converged and near
-        if converged and near and first_success is None:
-            first_success = t - (spec.kidnap_at_step - 1 if spec.kidnap_at_step else 0)
-        if converged and not near and first_success is None:
-            ever_wrong = True
+        errors.append(info["pose_error"]["position"])
+        if not k:
+            continue
+        updates_since_kidnap += bool(m["updated"])
+        max_p_inject = max(max_p_inject, float(m["p_inject"]))
+        diag["recovery_steps"] += bool(m["p_inject"] > cfg.proposal_frac)
+        diag["reinit_steps"] += bool(m["recovered"])
+        ratio = m.get("audit_log_ratio")
+        if ratio is not None and math.isfinite(ratio):
+            added = m["n_audit_injected"] > 0
+            stale = updates_since_kidnap < cfg.audit_window  # some of the window's scans predate the teleport
+            diag["audits"] += 1
+            diag["audit_adds"] += added
+            diag["stale_audits"] += stale
+            diag["stale_audit_adds"] += stale and added
     env.close()
-    final_converged = info["belief"]["converged"]
-    if first_success is not None:
-        outcome = "success"
-    elif final_converged:
-        outcome = "wrong"
-    else:
-        outcome = "unconverged"
     out = asdict(spec)
+    out.update(row=spec.row, **score_steps(converged, close, k))
     out.update(
-        row=spec.row,
-        outcome=outcome,
-        steps=first_success,
-        ever_wrong=ever_wrong,
-        converged_steps=int(conv),
-        converged_correct_steps=int(conv_ok),
         collisions=int(collisions),
         cpu_s_per_step=cpu / spec.n_steps,
         mean_particles=float(np.mean(n_particles)),
         final_particles=int(n_particles[-1]),
         median_error_m=float(np.median(errors)) if errors else math.nan,
+        kidnapped_at=kidnapped_at,
     )
+    if k:
+        out.update(
+            w_slow_at_kidnap=float(w_at_kidnap[0]),
+            w_fast_at_kidnap=float(w_at_kidnap[1]),
+            max_p_inject=max_p_inject,
+            **{name: int(v) for name, v in diag.items()},
+        )
     return out
 
 
@@ -146,7 +295,10 @@ wilson = wilson_interval  # Wilson 95 % interval of ``k / n`` (filters.experimen
 
 
 def summarize(results: list[dict]) -> dict:
-    """Rates with Wilson intervals, median steps, calibration and CPU time over episodes."""
+    """Rates with Wilson intervals, median steps, calibration and CPU time over episodes.
+
+    ``reconverged_wrong`` and ``pre_kidnap_success`` are ``(count, episodes, rate, low, high)`` over
+    the kidnap episodes among ``results`` (``(0, 0, nan, nan, nan)`` if none)."""
     n = len(results)
     out = {"episodes": n}
     for o in ("success", "wrong", "unconverged"):
@@ -154,6 +306,10 @@ def summarize(results: list[dict]) -> dict:
         out[o] = (k / n if n else math.nan, *wilson(k, n))
     k = sum(r["ever_wrong"] for r in results)
     out["ever_wrong"] = (k / n if n else math.nan, *wilson(k, n))
+    for name in ("reconverged_wrong", "pre_kidnap_success"):  # kidnap episodes only (older results lack them)
+        scored = [r[name] for r in results if r.get(name) is not None]
+        k, m = sum(scored), len(scored)
+        out[name] = (k, m, k / m if m else math.nan, *wilson(k, m))
     steps = [r["steps"] for r in results if r["steps"] is not None]
     out["median_steps"] = float(np.median(steps)) if steps else math.nan
     conv = sum(r["converged_steps"] for r in results)
@@ -174,6 +330,12 @@ def pct(t: tuple[float, float, float]) -> str:
     mid = f"{100 * r:.1f}" if 0 < r < 0.1 else f"{100 * r:.0f}"
     d = 1 if hi < 0.1 else 0
     return f"{mid} % [{100 * lo:.{d}f}–{100 * hi:.{d}f}]"
+
+
+def count_pct(t: tuple[int, int, float, float, float]) -> str:
+    """``"3 · 5.0 % [1.7–14]"`` from ``(count, n, rate, low, high)``; ``"—"`` when ``n`` is 0."""
+    k, n, *rest = t
+    return "—" if not n else f"{k} · {pct(tuple(rest))}"
 
 
 def save_jsonl(results: list[dict], path) -> None:

@@ -5,7 +5,9 @@ Each *variant* is a dict of ``MCLConfig`` overrides applied to ``SemReloc``'s de
 episodes pooled over the baseline policies (random walk, spin in place, wall following), each
 episode ``i`` with seed ``--seed-base + i``. Rows: the built-in layouts, the changed lab,
 ``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30,
-200 steps after it), and a tracking row (300 steps from the true pose: error and step time).
+200 steps after it), global-kidnap rows (``*_global_kidnap``: a global start, a teleport at
+step 150, 200 steps after it) and a tracking row (300 steps from the true pose: error and step
+time).
 
 Tuning and reporting use disjoint seeds: defaults were chosen with ``--seed-base 5000
 --sym-seeds 100 101 102 103 104``; the report in docs/relocalizer_eval.md uses the defaults below.
@@ -22,9 +24,12 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from agents.relocalizer_eval import (
     POLICIES,
     EpisodeSpec,
+    count_pct,
     log_tracking,
     log_trial,
     pct,
@@ -43,13 +48,17 @@ VARIANTS = {"before": LEGACY_RELOCALIZER_OVERRIDES, "after": {}}
 
 GLOBAL_ROWS = ("twin_rooms", "lab", "lab_changed", "procedural_sym", "three_rooms", "open_hall")
 KIDNAP_ROWS = ("lab_kidnap", "three_rooms_kidnap")
+GLOBAL_KIDNAP_ROWS = ("lab_global_kidnap", "three_rooms_global_kidnap")
+"""A global start, then a teleport at step ``GLOBAL_KIDNAP_STEP`` (global localization, then kidnapped)."""
+GLOBAL_KIDNAP_STEP = 150
 TRACKING_ROWS = ("lab_tracking",)
 
 
 def specs_for(row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict, label: str) -> list[EpisodeSpec]:
-    kidnap = row.endswith("_kidnap")
+    global_kidnap = row.endswith("_global_kidnap")
+    kidnap = row.endswith("_kidnap") and not global_kidnap
     tracking = row.endswith("_tracking")
-    base = row.removesuffix("_kidnap").removesuffix("_tracking")
+    base = row.removesuffix("_global_kidnap").removesuffix("_kidnap").removesuffix("_tracking")
     scenario = "changed" if base == "lab_changed" else "nominal"
     layout = "lab" if base == "lab_changed" else base
     out = []
@@ -61,20 +70,25 @@ def specs_for(row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict,
                 policy=POLICIES[i % len(POLICIES)],
                 layout_seed=sym_seeds[i % len(sym_seeds)] if layout.startswith("procedural") else 0,
                 scenario=scenario,
-                n_steps=230 if kidnap else 300 if tracking else 400,
-                kidnap_at_step=30 if kidnap else 0,
+                n_steps=GLOBAL_KIDNAP_STEP + 200 if global_kidnap else 230 if kidnap else 300 if tracking else 400,
+                kidnap_at_step=GLOBAL_KIDNAP_STEP if global_kidnap else 30 if kidnap else 0,
                 tracking=tracking,
                 mcl=mcl,
                 label=label,
+                kidnap_after_global=global_kidnap,
             )
         )
     return out
 
 
 def table(results: list[dict], variants: list[str], rows: list[str]) -> str:
-    """The Markdown table of the episode rows: one line per (row, variant) with episodes."""
+    """The Markdown table of the episode rows: one line per (row, variant) with episodes.
+
+    *reconverged wrong* and *pre-kidnap success* (count · rate [Wilson 95 %]) are for kidnap rows
+    (``—`` in the others)."""
     header = ["row", "variant", "episodes", "success", "wrong", "unconverged", "ever wrong", "median steps",
-              "calibration", "median error m", "CPU ms/step", "mean particles"]  # fmt: skip
+              "calibration", "median error m", "CPU ms/step", "mean particles", "reconverged wrong",
+              "pre-kidnap success"]  # fmt: skip
     lines = []
     for row in rows:
         for v in variants:
@@ -85,9 +99,40 @@ def table(results: list[dict], variants: list[str], rows: list[str]) -> str:
             lines.append(
                 [row, v, s["episodes"], pct(s["success"]), pct(s["wrong"]), pct(s["unconverged"]),
                  pct(s["ever_wrong"]), f"{s['median_steps']:.0f}", pct(s["calibration"]),
-                 f"{s['median_error_m']:.3f}", f"{s['cpu_ms_per_step']:.2f}", f"{s['mean_particles']:.0f}"]
+                 f"{s['median_error_m']:.3f}", f"{s['cpu_ms_per_step']:.2f}", f"{s['mean_particles']:.0f}",
+                 count_pct(s["reconverged_wrong"]), count_pct(s["pre_kidnap_success"])]
             )  # fmt: skip
     return markdown_table(header, lines) + "\n"
+
+
+def kidnap_table(results: list[dict], variants: list[str], rows: list[str]) -> str:
+    """The Markdown table of what the relocalizer did after the kidnap, per kidnap row and variant
+    (episodes with it; "" when no row has kidnap episodes): augmented-MCL recovery injection
+    (``p_inject`` above the routine ``proposal_frac``) and global re-inits, the averages the
+    teleport found, convergence audits (those with pre-kidnap scans in their window: stale)."""
+    header = ["row", "variant", "episodes", "converged at kidnap", "recovery injection", "median max p_inject",
+              "median w_slow / w_fast at kidnap", "global re-init", "audits (added)",
+              "stale-window audits (added)"]  # fmt: skip
+    lines = []
+    for row in rows:
+        for v in variants:
+            rs = [r for r in results if r["row"] == row and r["label"] == v and r.get("kidnapped_at") is not None]
+            if not rs or "recovery_steps" not in rs[0]:
+                continue
+
+            def eps(name: str, rs: list[dict] = rs) -> str:  # episodes where it happened
+                return str(sum(r[name] > 0 for r in rs))
+
+            def med(name: str, rs: list[dict] = rs) -> float:
+                return float(np.median([r[name] for r in rs]))
+
+            lines.append(
+                [row, v, len(rs), sum(bool(r["converged_at_kidnap"]) for r in rs), eps("recovery_steps"),
+                 f"{med('max_p_inject'):.2f}", f"{med('w_slow_at_kidnap'):.3f} / {med('w_fast_at_kidnap'):.3f}",
+                 eps("reinit_steps"), f"{eps('audits')} ({eps('audit_adds')})",
+                 f"{eps('stale_audits')} ({eps('stale_audit_adds')})"]
+            )  # fmt: skip
+    return markdown_table(header, lines) + "\n" if lines else ""
 
 
 ACES_LOG = Path(__file__).resolve().parents[2] / "tests" / "data" / "aces-corrected.log.gz"
@@ -125,7 +170,7 @@ class Args:
     """names of VARIANTS (or of --extra) to run"""
     extra: str = "{}"
     """JSON {"name": {MCLConfig overrides}} of more variants"""
-    rows: tuple[str, ...] = GLOBAL_ROWS + KIDNAP_ROWS + TRACKING_ROWS
+    rows: tuple[str, ...] = GLOBAL_ROWS + KIDNAP_ROWS + GLOBAL_KIDNAP_ROWS + TRACKING_ROWS
     """rows to run ('none' = only the log rows)"""
     episodes: int = 200
     """episodes per row and variant"""
@@ -181,6 +226,9 @@ def main(argv: list[str] | None = None) -> int:
     results = run_jobs(run_episode, specs, args.runner, desc="episodes")
     save_jsonl(results, out / "results.jsonl")
     md = table(results, names, rows) if results else ""
+    kt = kidnap_table(results, names, rows)
+    if kt:
+        md += "\n### After the kidnap (episodes)\n\n" + kt
     if args.log_starts > 0:
         log_path = str(ACES_LOG)
         n_scans = 440

@@ -1,0 +1,171 @@
+"""agents.relocalizer_eval: episode specs (global start, then a kidnap), the per-episode scoring, the rows."""
+
+import math
+
+import pytest
+
+from agents.experiments.evaluate_relocalizer import GLOBAL_KIDNAP_ROWS, kidnap_table, specs_for, table
+from agents.relocalizer_eval import EpisodeSpec, make_policy, run_episode, score_steps, summarize
+
+# ------------------------------------------------------------------ specs
+
+
+def test_row_names_and_reset_options():
+    glob = EpisodeSpec(layout="lab", seed=0, policy="spin", n_steps=350, kidnap_at_step=150, kidnap_after_global=True)
+    assert glob.row == "lab_global_kidnap"
+    assert glob.reset_options == {"kidnap_at_step": 150}  # no "tracking": a global start
+    track = EpisodeSpec(layout="lab", seed=0, policy="spin", kidnap_at_step=30)
+    assert track.row == "lab_kidnap"
+    assert track.reset_options == {"tracking": True, "kidnap_at_step": 30}
+    assert EpisodeSpec(layout="lab", seed=0, policy="spin", tracking=True).row == "lab_tracking"
+    assert EpisodeSpec(layout="lab", seed=0, policy="spin").reset_options is None
+    changed = EpisodeSpec(
+        layout="lab", seed=0, policy="spin", scenario="changed", kidnap_at_step=5, kidnap_after_global=True
+    )
+    assert changed.row == "lab_changed_global_kidnap"
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"kidnap_after_global": True}, "kidnap_after_global needs kidnap_at_step >= 1"),
+        ({"kidnap_after_global": True, "kidnap_at_step": 0}, "kidnap_after_global needs kidnap_at_step >= 1"),
+        ({"kidnap_after_global": True, "kidnap_at_step": 5, "tracking": True}, "tracking must be False"),
+        ({"kidnap_after_global": True, "kidnap_at_step": 500}, "after the last step"),
+        ({"kidnap_at_step": -1}, "kidnap_at_step must be an integer >= 0"),
+        ({"kidnap_at_step": 2.0}, "kidnap_at_step must be an integer >= 0"),
+        ({"kidnap_at_step": True}, "kidnap_at_step must be an integer >= 0"),
+        ({"kidnap_after_global": "yes", "kidnap_at_step": 5}, "kidnap_after_global must be True or False"),
+        ({"n_steps": 0}, "n_steps must be an integer >= 1"),
+    ],
+)
+def test_bad_specs_are_refused(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        EpisodeSpec(layout="lab", seed=0, policy="spin", **kwargs)
+
+
+def test_global_kidnap_rows_make_global_start_kidnap_specs():
+    for row in GLOBAL_KIDNAP_ROWS:
+        specs = specs_for(row, 4, 0, [0], {}, "after")
+        assert [s.row for s in specs] == [row] * 4
+        assert all(s.kidnap_after_global and not s.tracking for s in specs)
+        assert {(s.kidnap_at_step, s.n_steps) for s in specs} == {(150, 350)}
+        assert [s.policy for s in specs] == ["random", "spin", "wall_follow", "random"]
+    (s,) = specs_for("lab_kidnap", 1, 0, [0], {}, "after")  # the tracking kidnap rows are unchanged
+    assert (s.kidnap_after_global, s.kidnap_at_step, s.n_steps, s.reset_options["tracking"]) == (False, 30, 230, True)
+
+
+# ------------------------------------------------------------------ the env does what the spec says
+
+
+def test_a_global_kidnap_spec_starts_global_and_teleports_at_k_also_after_termination():
+    from semreloc_env.envs.semreloc import SemRelocEnv
+
+    spec = EpisodeSpec(
+        layout="lab", seed=0, policy="wall_follow", n_steps=12, kidnap_at_step=8, kidnap_after_global=True
+    )
+    env = SemRelocEnv(layout="lab")
+    obs, info = env.reset(seed=spec.seed, options=spec.reset_options)
+    assert not info["belief"]["converged"] and info["belief"]["pos_std_m"] > 1.0  # spread over the map
+    policy = make_policy(spec.policy, spec.seed)
+    flags, terminated = [], []
+    for _ in range(spec.n_steps):
+        obs, _, term, _, info = env.step(policy(obs))
+        flags.append(info["kidnapped"])
+        terminated.append(term)
+    assert flags == [False] * 7 + [True] * 5  # teleported at step 8 exactly
+    assert any(terminated[:7])  # this seed succeeds before the kidnap: the env said terminated...
+    # ...and run_episode steps on, so the kidnap happens and the steps after it are scored
+    out = run_episode(spec)
+    assert out["row"] == "lab_global_kidnap"
+    assert out["kidnapped_at"] == 8
+    assert out["pre_kidnap_success"] is True
+    assert out["converged_steps"] <= 5  # steps 8..12 only
+    for name in ("reconverged_wrong", "converged_at_kidnap"):
+        assert isinstance(out[name], bool)
+    assert out["recovery_steps"] >= 0 and out["stale_audits"] >= 0
+
+
+# ------------------------------------------------------------------ scoring (no env)
+
+C, U = True, False  # converged, unconverged
+R, W = True, False  # near the truth (right), not (wrong)
+
+
+def score(conv, near, k=0):
+    return score_steps(conv, near, k)
+
+
+def test_scoring_without_a_kidnap():
+    s = score([U, U, C, C, U], [W, W, W, R, R])
+    assert (s["outcome"], s["steps"], s["ever_wrong"]) == ("success", 3, True)
+    assert (s["converged_steps"], s["converged_correct_steps"]) == (2, 1)
+    assert s["reconverged_wrong"] is None and s["pre_kidnap_success"] is None and s["converged_at_kidnap"] is None
+    assert score([U, U, C], [W, W, W])["outcome"] == "wrong"
+    assert score([U, C, U], [W, R, W])["outcome"] == "success"
+    assert score([U, C, U], [W, W, W])["outcome"] == "unconverged"
+
+
+def test_reconverged_wrong_needs_the_belief_to_leave_the_stale_place_first():
+    # index 0 = the reset, kidnap at step 3: the teleport finds the belief converged (step 2)
+    stale_only = score([U, C, C, C, C, U, C], [W, R, R, W, W, W, R], k=3)
+    assert stale_only["ever_wrong"] and not stale_only["reconverged_wrong"]  # converged wrong: the old place only
+    assert stale_only["outcome"] == "success" and stale_only["steps"] == 4  # step 6, counted from step 3
+    assert stale_only["pre_kidnap_success"] and stale_only["converged_at_kidnap"]
+    assert (stale_only["converged_steps"], stale_only["converged_correct_steps"]) == (3, 1)  # steps 3..6 only
+
+    again = score([U, C, C, C, U, U, C, C, C], [W, R, R, W, W, W, W, W, R], k=3)
+    assert again["reconverged_wrong"] and again["ever_wrong"] and again["outcome"] == "success"
+
+    # after the first success, a wrong convergence is not a failed recovery
+    late = score([U, C, C, U, C, U, C], [W, R, R, W, R, W, W], k=3)
+    assert not late["reconverged_wrong"] and late["steps"] == 2
+
+    # the teleport found the belief unconverged (no pre-kidnap convergence): converging wrong counts
+    fresh = score([U, U, U, C, C], [W, W, W, W, W], k=3)
+    assert fresh["reconverged_wrong"] and fresh["outcome"] == "wrong"
+    assert not fresh["pre_kidnap_success"] and not fresh["converged_at_kidnap"]
+
+    # a kidnap at step 1: the belief it finds is the reset's
+    assert score([U, C, C], [W, W, R], k=1)["reconverged_wrong"]
+    assert not score([C, C, U, C], [R, W, W, R], k=1)["reconverged_wrong"]
+    # pre-kidnap success counts steps 1..K-1 only (not the reset, not the kidnap step)
+    assert not score([C, U, C, C], [R, W, R, R], k=2)["pre_kidnap_success"]
+    assert score([U, C, U, U], [W, R, W, W], k=2)["pre_kidnap_success"]
+
+
+def test_scoring_refuses_bad_input():
+    with pytest.raises(ValueError, match="same length"):
+        score_steps([U, C], [W], 0)
+    with pytest.raises(ValueError, match="same length >= 2"):
+        score_steps([U], [W], 0)
+    with pytest.raises(ValueError, match=r"kidnap_at_step must be an integer in \[0, 2\]"):
+        score_steps([U, C, C], [W, R, R], 3)
+
+
+def test_summary_and_tables_carry_the_kidnap_columns():
+    base = {"label": "after", "steps": 4, "ever_wrong": True, "converged_steps": 10, "converged_correct_steps": 9,
+            "cpu_s_per_step": 1e-3, "mean_particles": 500.0, "median_error_m": 0.05, "kidnapped_at": 150,
+            "converged_at_kidnap": True, "recovery_steps": 0, "max_p_inject": 0.0, "w_slow_at_kidnap": 0.08,
+            "w_fast_at_kidnap": 0.7, "reinit_steps": 0, "audits": 2, "audit_adds": 1, "stale_audits": 1,
+            "stale_audit_adds": 1}  # fmt: skip
+    rs = [
+        {
+            **base,
+            "row": "lab_global_kidnap",
+            "outcome": "success",
+            "reconverged_wrong": k < 1,
+            "pre_kidnap_success": k < 3,
+        }
+        for k in range(4)
+    ]
+    s = summarize(rs)
+    assert s["reconverged_wrong"][:3] == (1, 4, 0.25)
+    assert s["pre_kidnap_success"][:3] == (3, 4, 0.75)
+    assert math.isnan(summarize([{**rs[0], "reconverged_wrong": None}])["reconverged_wrong"][2])
+    md = table(rs, ["after"], ["lab_global_kidnap"])
+    assert "reconverged wrong" in md.splitlines()[0] and "| 1 · 25 % [" in md
+    kt = kidnap_table(rs, ["after"], ["lab_global_kidnap"])
+    assert "stale-window audits (added)" in kt and "| 4 (4) |" in kt
+    old = [{k: v for k, v in r.items() if k not in ("reconverged_wrong", "pre_kidnap_success")} for r in rs]
+    assert table(old, ["after"], ["lab_global_kidnap"]).splitlines()[2].endswith("| — | — |")  # older results
