@@ -252,3 +252,39 @@ def test_window_keeps_the_scans_each_update_used():
     (turn_l, turn_s, _, turn_b), (drive_l, drive_s, _, drive_b) = mcl._window[-2:]
     assert turn_l is None and turn_b.n_lidar == 0 and turn_s is not None
     assert drive_l is not None and drive_b.n_lidar == len(LIDAR_ANGLES)
+
+
+def test_window_shortcuts_give_the_bits_of_the_plain_computation():
+    """`window_log_likelihood` shares each entry's cos/sin between scoring and composing, takes the steps
+    back (`back_steps`) once per audit, and the model keeps each BeamSet's kernel inputs: the numbers are
+    those of scoring every entry with `beam_log_likelihoods` alone and composing with `compose`, bit for bit."""
+    grid = symmetric_room()
+    model = LikelihoodFieldModel(grid)
+    path = [np.array([1.2, 1.5, 0.2])]
+    for step in ([0.3, 0.05, 0.1], [0.0, 0.0, 0.4], [0.25, -0.02, -0.2]):
+        path.append(compose(path[-1], np.array(step)))
+    window = []
+    for i, pose in enumerate(path):
+        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
+        semantic = simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0)
+        _, _, beams = model.log_likelihood_terms(pose[None], lidar, semantic)
+        window.append((lidar, semantic, np.zeros(3) if i == 0 else relative(path[i - 1], pose), beams))
+    poses = path[-1] + np.random.default_rng(0).normal(0.0, 0.2, (40, 3))
+    expected, p = np.zeros(40), poses.copy()
+    for i, (_, _, into, beams) in enumerate(reversed(window)):
+        ll_l, ll_s = model.beam_log_likelihoods(p, beams)
+        expected += 0.06 * (ll_l + ll_s)
+        if i + 1 < len(window):
+            p = compose(p, relative(into, np.zeros(3)))
+    steps = audit_module.back_steps(window)
+    assert len(steps) == len(window) - 1
+    for got in (
+        window_log_likelihood(model, poses, window, 0.06),
+        window_log_likelihood(model, poses, window, 0.06, steps),
+    ):
+        assert got.tobytes() == expected.tobytes()
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    for a, b in zip(
+        model.beam_log_likelihoods(poses, window[0][3], (c, s)), model.beam_log_likelihoods(poses, window[0][3])
+    ):
+        assert a.tobytes() == b.tobytes()

@@ -70,25 +70,38 @@ class Alternative:
     log_ratio: float
 
 
-def window_log_likelihood(model, poses: np.ndarray, window: Window, scale: float) -> np.ndarray:
+def back_steps(window: Window) -> list[np.ndarray]:
+    """``(3,)`` robot-frame steps back along ``window``'s odometry, newest update first: step ``i`` takes a
+    pose at the ``i``-th newest update to the pose of the update before it (``len(window) - 1`` steps)."""
+    origin = np.zeros(3)
+    return [relative(into, origin) for _, _, into, _ in reversed(window[1:])]
+
+
+def window_log_likelihood(
+    model, poses: np.ndarray, window: Window, scale: float, steps: list[np.ndarray] | None = None
+) -> np.ndarray:
     """``(M,)`` tempered log-likelihood of ``window``'s scans for ``poses`` ``(M, 3)`` at the time of
     the newest update (``-inf`` where not finite).
 
-    ``model``: ``log_likelihood_terms(poses, lidar, semantic) -> (lidar_ll, semantic_ll, beams)``;
-    ``scale``: the filter's ``likelihood_scale``.
+    ``model``: ``log_likelihood_terms(poses, lidar, semantic) -> (lidar_ll, semantic_ll, beams)``
+    (and, if it has one, ``beam_log_likelihoods(poses, beams, trig)``, used for entries that carry
+    their beams); ``scale``: the filter's ``likelihood_scale``; ``steps``: `back_steps` of ``window``
+    if the caller scores it more than once (None: computed here).
     """
-    p = np.asarray(poses, dtype=np.float64)
+    p = np.ascontiguousarray(poses, dtype=np.float64)
     total = np.zeros(p.shape[0])
-    origin = np.zeros(3)
+    steps = back_steps(window) if steps is None else steps
     by_beams = getattr(model, "beam_log_likelihoods", None)
-    for i, (lidar, semantic, into, beams) in enumerate(reversed(window)):
+    for i, (lidar, semantic, _, beams) in enumerate(reversed(window)):
+        c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
         if beams is not None and by_beams is not None:
-            ll_l, ll_s = by_beams(p, beams)
+            ll_l, ll_s = by_beams(p, beams, (c, s))
         else:
             ll_l, ll_s, _ = model.log_likelihood_terms(p, lidar, semantic)
         total += scale * (np.asarray(ll_l, dtype=np.float64) + np.asarray(ll_s, dtype=np.float64))
-        if i + 1 < len(window):  # back to the pose of the update before
-            p = compose(p, relative(into, origin))
+        if i < len(steps):  # back to the pose of the update before: `compose(p, steps[i])`, sharing c, s
+            d = steps[i]
+            p = np.stack([p[:, 0] + c * d[0] - s * d[1], p[:, 1] + s * d[0] + c * d[1], wrap_angle(p[:, 2] + d[2])], -1)
     return np.where(np.isfinite(total), total, -np.inf)
 
 
@@ -141,27 +154,30 @@ def best_alternative(
     def is_out(p: np.ndarray) -> np.ndarray:
         return outside(p, mean, min_dist_m, min_heading_rad)
 
-    _, l_ref = _refined_best(model, window, scale, ref, rng, lambda p: ~is_out(p))
-    pose, l_alt = _refined_best(model, window, scale, alts, rng, is_out)
+    steps = back_steps(window)
+    _, l_ref = _refined_best(model, window, scale, ref, rng, lambda p: ~is_out(p), steps)
+    pose, l_alt = _refined_best(model, window, scale, alts, rng, is_out, steps)
     if not (np.isfinite(l_ref) and np.isfinite(l_alt)):
         return None
     return Alternative(pose=pose, log_ratio=float(l_alt - l_ref))
 
 
-def _refined_best(model, window: Window, scale: float, poses: np.ndarray, rng: np.random.Generator, keep):
+def _refined_best(
+    model, window: Window, scale: float, poses: np.ndarray, rng: np.random.Generator, keep, steps: list[np.ndarray]
+):
     """``(pose, window log-likelihood)`` of the best pose found from ``poses`` by a coarse-to-fine random
     search: in each round of `REFINE_STEPS`, `REFINE_DRAWS` perturbations of each of the `REFINE_BEST`
     best poses so far, limited to those where ``keep`` is True. The hypothesis and its alternatives
     are searched alike, so neither wins by the search alone."""
     best_poses = np.asarray(poses, dtype=np.float64)
-    best_ll = window_log_likelihood(model, best_poses, window, scale)
+    best_ll = window_log_likelihood(model, best_poses, window, scale, steps)
     for std in REFINE_STEPS:
         top = best_poses[np.argsort(-best_ll, kind="stable")[:REFINE_BEST]]
         tried = (top[:, None, :] + rng.normal(0.0, std, (top.shape[0], REFINE_DRAWS, 3))).reshape(-1, 3)
         tried[:, 2] = wrap_angle(tried[:, 2])
         tried = tried[keep(tried)]
         best_poses = np.vstack([best_poses, tried])
-        best_ll = np.concatenate([best_ll, window_log_likelihood(model, tried, window, scale)])
+        best_ll = np.concatenate([best_ll, window_log_likelihood(model, tried, window, scale, steps)])
     i = int(np.argmax(best_ll))
     return best_poses[i].copy(), float(best_ll[i])
 

@@ -444,6 +444,7 @@ class LikelihoodFieldModel:
         """``(1 + C, H, W)`` uncapped distances in metres: ``[0]`` to occupied cells, ``[k + 1]`` to class ``k``."""
         self._tables: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._negative_table: np.ndarray | None = None
+        self._kernel_beams: weakref.WeakKeyDictionary[BeamSet, tuple] = weakref.WeakKeyDictionary()
 
     @functools.cached_property
     def object_distance_m(self) -> np.ndarray:
@@ -579,63 +580,63 @@ class LikelihoodFieldModel:
         ll_l, ll_s = self._scored(p, beams)
         return ll_l, ll_s, beams
 
-    def beam_log_likelihoods(self, poses: np.ndarray, beams: BeamSet) -> tuple[np.ndarray, np.ndarray]:
+    def beam_log_likelihoods(
+        self, poses: np.ndarray, beams: BeamSet, trig: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(lidar_ll (N,), semantic_ll (N,))`` of the beams of `beams` (a `BeamSet` this model made) for
         ``poses`` ``(N, 3)``: `log_likelihood_terms` without selecting the beams again (for callers that
-        score the same scans more than once, such as the convergence audit)."""
-        return self._scored(_checked_poses(poses), beams)
+        score the same scans more than once, such as the convergence audit).
 
-    def _scored(self, p: np.ndarray, beams: BeamSet) -> tuple[np.ndarray, np.ndarray]:
-        """The two log factors for checked, contiguous float64 poses ``p``."""
+        ``trig``: ``(np.cos(p[:, 2]), np.sin(p[:, 2]))`` of the checked poses ``p`` if the caller has
+        them (the convergence audit needs them to compose poses too); None: computed here."""
+        return self._scored(_checked_poses(poses), beams, trig)
+
+    def _prepared(self, beams: BeamSet) -> tuple:
+        """The kernels' inputs that depend on the beams only, computed once per `BeamSet` (its arrays
+        are never written): ``(flat, lu, lv, offset, outside, nu, nv)``."""
+        prep = self._kernel_beams.get(beams)
+        if prep is None:
+            _, _, flat = self._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
+            h, w = self.grid.shape
+            inv_res = 1.0 / self.grid.resolution_m
+            prep = (
+                flat,
+                beams.lx * inv_res,
+                beams.ly * inv_res,
+                beams.table * (h * w),
+                beams.table + self.distance_fields_m.size,
+                beams.nx * inv_res,
+                beams.ny * inv_res,
+            )
+            self._kernel_beams[beams] = prep
+        return prep
+
+    def _scored(
+        self, p: np.ndarray, beams: BeamSet, trig: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The two log factors for checked, contiguous float64 poses ``p`` (``trig``: as `beam_log_likelihoods`)."""
         if self.backend == "numpy":
             return log_likelihood_terms_reference(self, p, beams)
-        _, _, flat = self._log_tables(beams.lidar_range_max_m, beams.semantic_range_max_m)
         n = p.shape[0]
         out_l = np.zeros(n)
         out_s = np.zeros(n)
         if n and (beams.lx.size or beams.n_negative):
+            flat, lu, lv, offset, outside, nu, nv = self._prepared(beams)
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
             inv_res = 1.0 / self.grid.resolution_m
-            x, y, cos_t, sin_t = p[:, 0].copy(), p[:, 1].copy(), np.cos(p[:, 2]), np.sin(p[:, 2])
+            cos_t, sin_t = trig if trig is not None else (np.cos(p[:, 2]), np.sin(p[:, 2]))
+            x, y = p[:, 0].copy(), p[:, 1].copy()
             if beams.lx.size:
-                offset = beams.table * (h * w)
                 log_likelihood_kernel(
-                    x,
-                    y,
-                    cos_t,
-                    sin_t,
-                    beams.lx * inv_res,
-                    beams.ly * inv_res,
-                    offset,
-                    beams.table + self.distance_fields_m.size,
-                    beams.n_lidar,
-                    flat,
-                    float(ox),
-                    float(oy),
-                    inv_res,
-                    w,
-                    h,
-                    out_l,
-                    out_s,
-                )
+                    x, y, cos_t, sin_t, lu, lv, offset, outside, beams.n_lidar, flat,
+                    float(ox), float(oy), inv_res, w, h, out_l, out_s,
+                )  # fmt: skip
             if beams.n_negative:
                 negative_evidence_kernel(
-                    x,
-                    y,
-                    cos_t,
-                    sin_t,
-                    beams.nx * inv_res,
-                    beams.ny * inv_res,
-                    beams.n_starts,
-                    self.negative_table(),
-                    float(ox),
-                    float(oy),
-                    inv_res,
-                    w,
-                    h,
-                    out_s,
-                )
+                    x, y, cos_t, sin_t, nu, nv, beams.n_starts, self.negative_table(),
+                    float(ox), float(oy), inv_res, w, h, out_s,
+                )  # fmt: skip
         return out_l, out_s
 
     def log_likelihood(
