@@ -23,7 +23,7 @@ def _plain_map(tmp_path, suffix=".yaml"):
 def test_plain_ros_map_runs_lidar_only(tmp_path, suffix):
     grid, path = _plain_map(tmp_path, suffix)
     assert not (tmp_path / "plain.semantic.yaml").exists()
-    env = gym.make("SemReloc-v5", layout="twin_rooms", map_source=str(path), semantic=False,
+    env = gym.make("SemReloc-v6", layout="twin_rooms", map_source=str(path), semantic=False,
                    relocalizer={"n_particles": 200})  # fmt: skip
     env.reset(seed=0)
     for _ in range(3):
@@ -36,16 +36,16 @@ def test_plain_ros_map_runs_lidar_only(tmp_path, suffix):
 def test_plain_ros_map_with_semantic_on_says_what_to_do(tmp_path):
     _, path = _plain_map(tmp_path)
     with pytest.raises(ValueError, match="has no semantic classes.*semantic=False"):
-        gym.make("SemReloc-v5", layout="twin_rooms", map_source=str(path))
+        gym.make("SemReloc-v6", layout="twin_rooms", map_source=str(path))
 
 
 def test_png_map_in_the_env(tmp_path):
     _, path = _plain_map(tmp_path)
     Image.open(tmp_path / "plain.pgm").save(tmp_path / "plain.png")
     (tmp_path / "png.yml").write_text(path.read_text().replace("plain.pgm", "plain.png").replace("negate: 0\n", ""))
-    env = gym.make("SemReloc-v5", layout="twin_rooms", map_source=str(tmp_path / "png.yml"), semantic=False,
+    env = gym.make("SemReloc-v6", layout="twin_rooms", map_source=str(tmp_path / "png.yml"), semantic=False,
                    relocalizer={"n_particles": 100})  # fmt: skip
-    pgm = gym.make("SemReloc-v5", layout="twin_rooms", map_source=str(path), semantic=False,
+    pgm = gym.make("SemReloc-v6", layout="twin_rooms", map_source=str(path), semantic=False,
                    relocalizer={"n_particles": 100})  # fmt: skip
     a, b = env.unwrapped.grid, pgm.unwrapped.grid  # the PNG holds the PGM's pixels: the same map
     np.testing.assert_array_equal(a.occupied_mask(), b.occupied_mask())
@@ -62,7 +62,7 @@ def test_a_broken_yaml_file_is_a_layout_error_unless_it_is_a_ros_map(tmp_path):
 
     (tmp_path / "office.yaml").write_text("outer: [[0, 0], [4, 0]\nwalls: []\n")
     with pytest.raises(LayoutError, match="office.yaml: not valid YAML"):
-        gym.make("SemReloc-v5", layout=str(tmp_path / "office.yaml"))
+        gym.make("SemReloc-v6", layout=str(tmp_path / "office.yaml"))
     (tmp_path / "map.yaml").write_text("image: plain.pgm\nresolution: [0.05\n")
     with pytest.raises(MapFormatError, match="map.yaml"):
-        gym.make("SemReloc-v5", layout="twin_rooms", map_source=str(tmp_path / "map.yaml"), semantic=False)
+        gym.make("SemReloc-v6", layout="twin_rooms", map_source=str(tmp_path / "map.yaml"), semantic=False)

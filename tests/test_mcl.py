@@ -458,3 +458,53 @@ def test_belief_follows_weights_that_change_without_moving_particles():
     want = summarize(mcl.poses, mcl.weights, mcl.config.belief)
     assert got.entropy_nats == want.entropy_nats != first.entropy_nats
     np.testing.assert_array_equal(got.mean, want.mean)
+
+
+def _converged_then_reweighted(hold, top_share, away_m=3.0):
+    """A tracking set that one update calls converged, then the same particles plus a far group given
+    ``1 - top_share`` of the weight (no update between): the belief the hold judges."""
+    grid = symmetric_room()
+    pose = np.array([4.0, 1.5, np.pi / 2])
+    mcl = MonteCarloLocalizer(
+        grid, MCLConfig(n_particles=400, belief={"converged_hold_weight": hold}), np.random.default_rng(3)
+    )
+    mcl.init_around(pose, [0.05, 0.05, 0.02])
+    mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), force=True)
+    first = mcl.belief()
+    far = mcl.poses[:40] + np.array([away_m, 0.0, 0.0])
+    n = mcl.n_particles
+    w = np.r_[np.full(n, top_share / n), np.full(40, (1.0 - top_share) / 40)]
+    mcl._poses, mcl._logw = np.vstack([mcl.poses, far]), np.log(w)
+    return first, mcl
+
+
+def test_a_held_convergence_survives_a_dip_at_the_same_place_only():
+    """``belief.converged_hold_weight``: once an update called the belief converged, it stays converged while
+    the heaviest hypothesis is at the same place with at least the hold weight; not below it, not
+    elsewhere, not without the option; an update that is not converged ends the hold."""
+    first, held = _converged_then_reweighted(0.85, 0.9)
+    assert first.converged and first.hypotheses[0].weight >= 0.95
+    b = held.belief()
+    assert b.hypotheses[0].weight == pytest.approx(0.9) and b.converged
+    assert not _converged_then_reweighted(None, 0.9)[1].belief().converged  # the strict rule alone
+    assert not _converged_then_reweighted(0.85, 0.8)[1].belief().converged  # below the hold weight
+    # the far group heaviest: another place, however heavy, must meet the strict rule itself
+    _, moved = _converged_then_reweighted(0.85, 0.1)
+    assert moved.belief().hypotheses[0].weight == pytest.approx(0.9) and not moved.belief().converged
+    # after every update the hold follows what the update reported: a scanless update leaves the weights
+    # (0.9 at the place: still held; 0.5: neither converged nor held, which ends the hold)
+    _, half = _converged_then_reweighted(0.85, 0.5)
+    assert half._held is not None and not half.belief().converged
+    for mcl, kept in ((held, True), (half, False)):
+        mcl.update(None, None, force=True)
+        assert (mcl._held is not None) == mcl.belief().converged == kept
+    held.init_global(300)
+    assert held._held is None and not held.belief().converged
+
+
+@pytest.mark.parametrize("bad", [0.0, 0.96, True, "0.9", float("nan")])
+def test_bad_hold_weights_are_rejected(bad):
+    with pytest.raises(ValueError, match="converged_hold_weight"):
+        MCLConfig(belief={"converged_hold_weight": bad})
+    with pytest.raises(ValueError, match="converged_hold_weight"):
+        MCLConfig(belief={"converged_hold_weight": 0.9, "converged_rule": "spread"})

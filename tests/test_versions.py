@@ -1,7 +1,8 @@
-"""The registered ids behave as their Version History says: SemReloc-v5 (v4's relocalizer with the convergence
-audit), SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike
-layouts that break their half turn), SemReloc-v2 / SemSlam-v1 (typed observation,
-not-computed info values left out) against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
+"""The registered ids behave as their Version History says: SemReloc-v6 (v5's relocalizer whose belief holds a
+convergence), SemReloc-v5 (v4's relocalizer with the convergence audit), SemReloc-v4 (v3's relocalizer with
+evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that break their half turn),
+SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out) against SemReloc-v1 /
+SemSlam-v0 (flat observation, None)."""
 
 import warnings
 
@@ -37,6 +38,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v6",
         "SemReloc-v5",
         "SemReloc-v4",
         "SemReloc-v3",
@@ -51,6 +53,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v6", typed),
         ("SemReloc-v5", typed),
         ("SemReloc-v4", typed),
         ("SemReloc-v3", typed),
@@ -257,3 +260,36 @@ def test_v5_is_v4_with_the_convergence_audit():
     for x, z in zip(a[:first], c[:first]):  # the same episode until the first audit
         np.testing.assert_equal(x, z)
     assert all("audit_log_ratio" not in x[4]["mcl"] for x in a)  # NaN (no audit) is left out of info
+
+
+def test_v6_is_v5_whose_belief_holds_a_convergence():
+    """v6's relocalizer is v5's with ``belief.converged_hold_weight`` 0.85; with the hold off, v6 gives v5's
+    episode bit for bit; on, the particles are v5's step for step, and the belief is converged wherever v5's
+    is and at some steps where v5's flickered off."""
+    v6, v5 = make("SemReloc-v6", **FAST).unwrapped, make("SemReloc-v5", **FAST).unwrapped
+    assert (v6.mcl_config.belief.converged_hold_weight, v5.mcl_config.belief.converged_hold_weight) == (0.85, None)
+    for vec_id, hold in (("SemRelocVec-v6", 0.85), ("SemRelocVec-v5", None)):
+        venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+        assert venv.envs[0].unwrapped.mcl_config.belief.converged_hold_weight == hold
+        venv.close()
+    off = {**FAST, "relocalizer": {**FAST["relocalizer"], "belief": {"converged_hold_weight": None}}}
+    actions = ACTIONS + [0, 0, 0, 1, 0, 0, 2, 0, 3] * 25
+    a = rollout(make("SemReloc-v6", **off), actions=actions)
+    b = rollout(make("SemReloc-v5", **FAST), actions=actions)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+    runs = {}
+    for env_id in ("SemReloc-v6", "SemReloc-v5"):
+        env = make(env_id, **FAST)
+        env.reset(seed=4, options=START)
+        steps = []
+        for act in actions:
+            info = env.step(act)[4]
+            mcl = env.unwrapped.mcl
+            steps.append((mcl.poses.copy(), mcl.log_weights.copy(), info["belief"]["converged"]))
+        runs[env_id] = steps
+    for (p6, w6, c6), (p5, w5, c5) in zip(runs["SemReloc-v6"], runs["SemReloc-v5"]):
+        np.testing.assert_array_equal(p6, p5)
+        np.testing.assert_array_equal(w6, w5)
+        assert c6 or not c5
+    assert sum(c for *_, c in runs["SemReloc-v6"]) > sum(c for *_, c in runs["SemReloc-v5"])

@@ -87,10 +87,10 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: Literal["SemReloc-v5", "SemReloc-v4", "SemReloc-v3"] = "SemReloc-v5"
-    """the env the episodes run in: SemReloc-v5 (the newest), SemReloc-v4 or SemReloc-v3 (to repeat the
-    tables made with them; the same worlds and sensors, the relocalizer without the convergence audit
-    (v4) and without negative evidence (v3))"""
+    env_id: Literal["SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"] = "SemReloc-v6"
+    """the env the episodes run in: SemReloc-v6 (the newest), SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to
+    repeat the tables made with them; the same worlds and sensors, the relocalizer without the hold of a
+    convergence (v5), also without the convergence audit (v4) and without negative evidence (v3))"""
     relocalizer: JsonDict = field(default_factory=dict)
     """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
@@ -211,12 +211,12 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v5"
+ENV_ID = "SemReloc-v6"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
-generator, as v3's, v4's and v5's do.
+generator, as v3's, v4's, v5's and v6's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
-draws again; v4 and v5 change the relocalizer, so every episode.)"""
+draws again; v4, v5 and v6 change the relocalizer, so every episode.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")

@@ -500,6 +500,8 @@ class MonteCarloLocalizer:
         self.converged_updates = 0
         """Consecutive measurement updates, the latest included, after which the set met the
         "converged" criterion (counted only when ``belief.converged_min_updates > 1``)."""
+        self._held: np.ndarray | None = None
+        """Mean of the hypothesis called converged after the last update (``belief.converged_hold_weight``)."""
 
     @property
     def poses(self) -> np.ndarray:
@@ -780,6 +782,9 @@ class MonteCarloLocalizer:
         if c.belief.converged_min_updates > 1:
             met = self._summary().converged
             self.converged_updates = self.converged_updates + 1 if met else 0
+        if c.belief.converged_hold_weight is not None:
+            b = self.belief()
+            self._held = b.hypotheses[0].mean.copy() if b.converged else None
         return diag
 
     # ------------------------------------------------------------ resampling
@@ -985,4 +990,21 @@ class MonteCarloLocalizer:
         k = self.config.belief.converged_min_updates
         if k > 1 and b.converged and self.converged_updates < k:
             b = replace(b, converged=False)
+        if not b.converged and self._holds(b):
+            b = replace(b, converged=True)
         return b
+
+    def _holds(self, b: Belief) -> bool:
+        """Whether ``b``'s heaviest hypothesis keeps the convergence of the last update's
+        (``belief.converged_hold_weight``; the belief module's docstring)."""
+        c = self.config.belief
+        if c.converged_hold_weight is None or self._held is None or not b.hypotheses:
+            return False
+        top = b.hypotheses[0]
+        same = not audit.outside(top.mean[None], self._held, 2.0 * c.cluster_bin_m, c.cluster_bin_theta_rad)[0]
+        return bool(
+            same
+            and top.weight >= c.converged_hold_weight
+            and top.pos_std_m < c.converged_pos_std_m
+            and top.theta_std_rad < c.converged_theta_std_rad
+        )
