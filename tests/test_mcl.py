@@ -508,3 +508,43 @@ def test_bad_hold_weights_are_rejected(bad):
         MCLConfig(belief={"converged_hold_weight": bad})
     with pytest.raises(ValueError, match="converged_hold_weight"):
         MCLConfig(belief={"converged_hold_weight": 0.9, "converged_rule": "spread"})
+
+
+def test_a_surprise_ends_the_hold_and_restarts_the_audit_window():
+    """``surprise_ratio``: after the belief has been converged, an update whose scans fit far worse than of
+    late (here: scans taken 4 m away, a kidnapping) is a surprise: the hold ends, the audit's window keeps
+    only that update's scans, and the next convergence may be audited; nothing before the first convergence
+    or with the test off."""
+    room = symmetric_room()
+    occ = np.array(room.occupancy, copy=True)
+    occ[70:80, 20:26] = 1.0  # a block at x 1.0-1.3, y 3.5-4.0 breaks the half turn (no look-alike to audit)
+    grid = GridMap(occ, RES, (0.0, 0.0), np.array(room.semantic), DEFAULT_CLASS_NAMES)
+    pose, away = np.array([4.0, 1.5, np.pi / 2]), np.array([8.5, 2.5, 0.0])
+
+    def run(ratio, start_converged=True):
+        cfg = MCLConfig(
+            n_particles=400, augmented=True, audit_window=5, surprise_ratio=ratio,
+            belief={"converged_hold_weight": 0.85},
+        )  # fmt: skip
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
+        mcl.init_global(3000) if not start_converged else mcl.init_around(pose, [0.05, 0.05, 0.02])
+        mcl._audit_on = True  # the window is kept after init_global only; here it is what is looked at
+        out = []
+        for p in [pose] * 6 + [away] * 2:
+            d = mcl.update(simulate_lidar(grid, p, LIDAR_ANGLES, 8.0), force=True)
+            out.append((d, len(mcl._window), mcl.belief().converged))
+        return out
+
+    steps = run(0.3)
+    assert all(conv and not d.surprise for d, _, conv in steps[:6]) and steps[5][1] == 5
+    d, window, conv = steps[6]  # the first update after the jump
+    assert d.surprise and window == 1
+    assert np.isfinite(d.audit_log_ratio) and d.n_audit_injected > 0 and not conv  # audited at once: doubt added
+    assert not any(d.surprise for d, _, _ in run(0.0))  # off
+    cold = run(0.3, start_converged=False)  # from a global spread: no surprise up to the first convergence
+    first = next((i for i, (_, _, conv) in enumerate(cold) if conv), len(cold))
+    assert first > 0 and not any(d.surprise for d, _, _ in cold[: first + 1])
+    with pytest.raises(ValueError, match="surprise_ratio"):
+        MCLConfig(surprise_ratio=1.0)
+    with pytest.raises(ValueError, match="surprise_ratio"):
+        MCLConfig(surprise_ratio=-0.1)

@@ -263,16 +263,20 @@ def test_v5_is_v4_with_the_convergence_audit():
 
 
 def test_v6_is_v5_whose_belief_holds_a_convergence():
-    """v6's relocalizer is v5's with ``belief.converged_hold_weight`` 0.85; with the hold off, v6 gives v5's
-    episode bit for bit; on, the particles are v5's step for step, and the belief is converged wherever v5's
-    is and at some steps where v5's flickered off."""
+    """v6's relocalizer is v5's with ``belief.converged_hold_weight`` 0.85 and ``surprise_ratio`` 0.3; with both
+    off, v6 gives v5's episode bit for bit; on, the particles are v5's step for step up to a surprise (none in
+    this episode), and the belief is converged wherever v5's is and at some steps where v5's flickered off."""
     v6, v5 = make("SemReloc-v6", **FAST).unwrapped, make("SemReloc-v5", **FAST).unwrapped
     assert (v6.mcl_config.belief.converged_hold_weight, v5.mcl_config.belief.converged_hold_weight) == (0.85, None)
+    assert (v6.mcl_config.surprise_ratio, v5.mcl_config.surprise_ratio) == (0.3, 0.0)
     for vec_id, hold in (("SemRelocVec-v6", 0.85), ("SemRelocVec-v5", None)):
         venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
         assert venv.envs[0].unwrapped.mcl_config.belief.converged_hold_weight == hold
         venv.close()
-    off = {**FAST, "relocalizer": {**FAST["relocalizer"], "belief": {"converged_hold_weight": None}}}
+    off = {
+        **FAST,
+        "relocalizer": {**FAST["relocalizer"], "belief": {"converged_hold_weight": None}, "surprise_ratio": 0.0},
+    }
     actions = ACTIONS + [0, 0, 0, 1, 0, 0, 2, 0, 3] * 25
     a = rollout(make("SemReloc-v6", **off), actions=actions)
     b = rollout(make("SemReloc-v5", **FAST), actions=actions)
@@ -286,10 +290,13 @@ def test_v6_is_v5_whose_belief_holds_a_convergence():
         for act in actions:
             info = env.step(act)[4]
             mcl = env.unwrapped.mcl
-            steps.append((mcl.poses.copy(), mcl.log_weights.copy(), info["belief"]["converged"]))
+            steps.append(
+                (mcl.poses.copy(), mcl.log_weights.copy(), info["belief"]["converged"], info["mcl"]["surprise"])
+            )
         runs[env_id] = steps
-    for (p6, w6, c6), (p5, w5, c5) in zip(runs["SemReloc-v6"], runs["SemReloc-v5"]):
+    assert not any(s for *_, s in runs["SemReloc-v6"])
+    for (p6, w6, c6, _), (p5, w5, c5, _) in zip(runs["SemReloc-v6"], runs["SemReloc-v5"]):
         np.testing.assert_array_equal(p6, p5)
         np.testing.assert_array_equal(w6, w5)
         assert c6 or not c5
-    assert sum(c for *_, c in runs["SemReloc-v6"]) > sum(c for *_, c in runs["SemReloc-v5"])
+    assert sum(c for _, _, c, _ in runs["SemReloc-v6"]) > sum(c for _, _, c, _ in runs["SemReloc-v5"])

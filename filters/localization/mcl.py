@@ -81,6 +81,11 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    not audited again for ``audit_window`` updates), a pose outside the converged hypothesis
    that explains the last ``audit_window`` updates' scans within ``audit_margin`` (tempered nats)
    of it becomes a second hypothesis (`filters.localization.audit`; docs/relocalizer.md).
+10. **Surprise**, if ``surprise_ratio`` (and ``augmented``): once the belief has been converged since
+   the last init, an update whose scans fit the particles far worse than of late (``w_avg <
+   surprise_ratio * w_fast``, the augmented-MCL averages) is taken for a jump the odometry did not
+   see (a kidnapping, a slip): a held convergence (``belief.converged_hold_weight``) ends, the
+   audit's window drops the scans before it and the next convergence, or the current one, is audited.
 
 Particle counts: ``init_global`` and ``init_around`` draw ``n_particles``. With
 ``n_particles=None`` the count follows the map: ``init_global`` draws
@@ -234,6 +239,13 @@ class MCLConfig:
             and still be added.
         audit_candidates: scan-proposal candidates the audit draws (the best 50 outside the
             hypothesis are evaluated over the window, with the heaviest particles outside it).
+        surprise_ratio: in ``[0, 1)`` (0 = off): the *surprise* test (module docstring, step 10). After
+            the belief has been converged once since the last init, an update whose average beam
+            likelihood ``w_avg`` falls below ``surprise_ratio`` times ``w_fast`` (needs ``augmented``)
+            ends a held convergence, empties the audit window (keeping this update's scans), forgets
+            the place the audit last cleared, and has the audit run at the next update whose set
+            meets the "converged" criterion, this one included. Particles and weights are touched
+            only by that audit. ``UpdateDiagnostics.surprise`` records it.
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -279,6 +291,7 @@ class MCLConfig:
     audit_window: int = 0
     audit_margin: float = 1.0
     audit_candidates: int = 2000
+    surprise_ratio: float = 0.0
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
@@ -332,6 +345,7 @@ class MCLConfig:
             "proposal_weight": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
             "global_particles_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "audit_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            "surprise_ratio": (lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = off)"),
             "max_update_log_ratio": (lambda v: v > 0 and not math.isnan(v), "> 0 (inf = no cap)"),
         }
         for name, (ok, what) in numbers.items():
@@ -404,6 +418,7 @@ class UpdateDiagnostics:
             fewer than ``audit_window`` updates before, or nothing lay outside the hypothesis).
         n_audit_injected: particles the audit added around that alternative (0 or
             ``cluster_min_particles``).
+        surprise: this update was a surprise (`MCLConfig.surprise_ratio`).
     """
 
     updated: bool = False
@@ -425,6 +440,7 @@ class UpdateDiagnostics:
     n_negative_beams: int = 0
     audit_log_ratio: float = float("nan")
     n_audit_injected: int = 0
+    surprise: bool = False
 
     def as_dict(self) -> dict:
         """Plain Python values for a Gymnasium ``info``."""
@@ -502,6 +518,7 @@ class MonteCarloLocalizer:
         "converged" criterion (counted only when ``belief.converged_min_updates > 1``)."""
         self._held: np.ndarray | None = None
         """Mean of the hypothesis called converged after the last update (``belief.converged_hold_weight``)."""
+        self._ever_converged = False  # some update since the init was converged (`MCLConfig.surprise_ratio`)
 
     @property
     def poses(self) -> np.ndarray:
@@ -727,10 +744,14 @@ class MonteCarloLocalizer:
             return diag
 
         p_inj = 0.0
+        surprise = False
         if c.augmented and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
             prior = np.exp(self._logw)
             w_avg = float(_blas.dot(prior, per_beam))  # one order whatever the BLAS thread count
+            surprise = self._ever_converged and self._w_fast > 0.0 and w_avg < c.surprise_ratio * self._w_fast
+            if surprise:
+                self._held, self._window, self._cleared, self._was_converged = None, [], None, False
             if self._w_slow == 0.0:  # pf.c: the averages start at the first average
                 self._w_slow = self._w_fast = w_avg
             else:
@@ -777,14 +798,17 @@ class MonteCarloLocalizer:
             n_negative_beams=getattr(beams, "n_negative", 0),
             audit_log_ratio=audit_ratio,
             n_audit_injected=n_audit,
+            surprise=surprise,
         )
         self.last_diagnostics = diag
         if c.belief.converged_min_updates > 1:
             met = self._summary().converged
             self.converged_updates = self.converged_updates + 1 if met else 0
-        if c.belief.converged_hold_weight is not None:
+        if c.belief.converged_hold_weight is not None or c.surprise_ratio > 0.0:
             b = self.belief()
-            self._held = b.hypotheses[0].mean.copy() if b.converged else None
+            if c.belief.converged_hold_weight is not None:
+                self._held = b.hypotheses[0].mean.copy() if b.converged else None
+            self._ever_converged = self._ever_converged or b.converged
         return diag
 
     # ------------------------------------------------------------ resampling

@@ -55,13 +55,18 @@ hypothesis; docs/relocalizer.md, "Convergence audit"). Chosen on the tuning case
 ``scripts/evaluate_active.py --seed-set tuning``; evaluated on the held-out ones."""
 
 DEFAULT_RELOCALIZER = dataclasses.replace(
-    RELOCALIZER_V5, belief=dataclasses.replace(RELOCALIZER_V5.belief, converged_hold_weight=0.85)
+    RELOCALIZER_V5,
+    belief=dataclasses.replace(RELOCALIZER_V5.belief, converged_hold_weight=0.85),
+    surprise_ratio=0.3,
 )
 """The relocalizer of SemReloc-v6: `RELOCALIZER_V5` whose belief *holds* a convergence
 (`filters.localization.belief.BeliefConfig.converged_hold_weight` 0.85: once called converged, the
 belief stays so while its heaviest hypothesis stays at the same place with at least 85 % of the
-weight; docs/relocalizer.md, "Holding a convergence"). Chosen on tuning seeds 100-103 of the lab,
-``three_rooms`` and ``twin_rooms``; evaluated on the seeds of ``scripts/evaluate_relocalizer.py``."""
+weight) until a *surprise* (`MCLConfig.surprise_ratio` 0.3: an update whose scans fit the particles
+far worse than of late ends the hold and restarts the convergence audit's window);
+docs/relocalizer.md, "Holding a convergence". Chosen on tuning seeds 100-111 of the lab,
+``three_rooms``, ``twin_rooms`` and procedural layouts; evaluated on the seeds of
+``scripts/evaluate_relocalizer.py`` and the held-out pairs of ``scripts/evaluate_active.py``."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -193,15 +198,19 @@ class SemRelocEnv(SemRelocBase):
 
     ## Version History
     * v6: a convergence holds (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V5` with
-      ``belief.converged_hold_weight=0.85``): once the belief is converged, it stays so while its
-      heaviest hypothesis stays at the same place (within 1 m and 45 deg of the one last called
-      converged) with at least 85 % of the weight and the same spread limits; a new place must
-      still reach 95 %. On v5 the flag flickered: the routine scan proposals take about 5 % of the
-      mass at each update, so a belief at the truth hovered around the 95 % it needs, and about half
-      the steps after a successful relocalization said "not converged" (docs/relocalizer.md, "Holding
-      a convergence"). The particles are v5's, step for step; ``info["belief"]["converged"]``, the
-      ``wrong_convergence`` reward term and termination follow the held flag. Worlds, sensors,
-      observations and rewards are otherwise v5's (`SemRelocEnvV5` is v5).
+      ``belief.converged_hold_weight=0.85`` and ``surprise_ratio=0.3``): once the belief is
+      converged, it stays so while its heaviest hypothesis stays at the same place (within 1 m and
+      45 deg of the one last called converged) with at least 85 % of the weight and the same spread
+      limits; a new place must still reach 95 %. On v5 the flag flickered: the routine scan
+      proposals take about 5 % of the mass at each update, so a belief at the truth hovered around
+      the 95 % it needs, and about half the steps after a successful relocalization said "not
+      converged". A *surprise* (once converged, an update whose scans fit the particles far worse
+      than of late, as after a kidnapping) ends the hold and restarts the convergence audit's
+      window, so a teleport is doubted sooner (docs/relocalizer.md, "Holding a convergence").
+      The particles are v5's up to the first surprise; ``info["belief"]["converged"]``, the
+      ``wrong_convergence`` reward term and termination follow the held flag; ``info["mcl"]`` gains
+      ``surprise`` (in every version; False where the test is off). Worlds, sensors, observations
+      and rewards are otherwise v5's (`SemRelocEnvV5` is v5).
     * v5: the relocalizer audits each convergence (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V4` with
       ``audit_window=20``): at the update where the belief would become converged, the pose
       outside its hypothesis that best explains the last 20 updates' scans is looked for, and if
