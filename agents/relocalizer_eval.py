@@ -29,8 +29,10 @@ give (None in the others):
   ``w_fast_at_kidnap`` (the augmented-MCL averages the teleport found), ``recovery_steps`` (steps
   whose ``p_inject`` exceeded the routine ``proposal_frac``: augmented-MCL recovery injection),
   ``max_p_inject``, ``reinit_steps`` (all weights underflowed: global re-init), ``audits`` /
-  ``audit_adds`` (convergence audits run / that added a hypothesis) and ``stale_audits`` /
-  ``stale_audit_adds`` (those run fewer than ``audit_window`` updates after the kidnap, with
+  ``audit_adds`` (convergence audits run / that added a hypothesis), ``surprises`` (updates the
+  relocalizer took for a jump, `MCLConfig.surprise_ratio`; its audit window restarts there) and
+  ``stale_audits`` / ``stale_audit_adds`` (those run fewer than ``audit_window`` updates after the
+  kidnap and before any surprise after it, with
   pre-kidnap scans in the audit's window).
 
 `score_steps` is the scoring of one episode's beliefs (a pure function of them).
@@ -234,7 +236,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
     cpu = 0.0
     n_particles, errors = [], []
     diag = dict.fromkeys(
-        ("recovery_steps", "reinit_steps", "audits", "audit_adds", "stale_audits", "stale_audit_adds"), 0
+        ("recovery_steps", "reinit_steps", "audits", "audit_adds", "stale_audits", "stale_audit_adds", "surprises"), 0
     )
     kidnapped_at = None
     w_at_kidnap = (info["mcl"]["w_slow"], info["mcl"]["w_fast"])
@@ -259,6 +261,9 @@ def run_episode(spec: EpisodeSpec) -> dict:
         if not k:
             continue
         updates_since_kidnap += bool(m["updated"])
+        if m.get("surprise"):  # the relocalizer restarted its audit window at this update
+            updates_since_kidnap = cfg.audit_window
+            diag["surprises"] += 1
         max_p_inject = max(max_p_inject, float(m["p_inject"]))
         diag["recovery_steps"] += bool(m["p_inject"] > cfg.proposal_frac)
         diag["reinit_steps"] += bool(m["recovered"])

@@ -148,7 +148,7 @@ def test_summary_and_tables_carry_the_kidnap_columns():
             "cpu_s_per_step": 1e-3, "mean_particles": 500.0, "median_error_m": 0.05, "kidnapped_at": 150,
             "converged_at_kidnap": True, "recovery_steps": 0, "max_p_inject": 0.0, "w_slow_at_kidnap": 0.08,
             "w_fast_at_kidnap": 0.7, "reinit_steps": 0, "audits": 2, "audit_adds": 1, "stale_audits": 1,
-            "stale_audit_adds": 1}  # fmt: skip
+            "stale_audit_adds": 1, "surprises": 1}  # fmt: skip
     rs = [
         {
             **base,
@@ -167,5 +167,8 @@ def test_summary_and_tables_carry_the_kidnap_columns():
     assert "reconverged wrong" in md.splitlines()[0] and "| 1 · 25 % [" in md
     kt = kidnap_table(rs, ["after"], ["lab_global_kidnap"])
     assert "stale-window audits (added)" in kt and "| 4 (4) |" in kt
+    assert "| surprise |" in kt.splitlines()[0] and "| 0 | 4 | 4 (4) | 4 (4) |" in kt  # re-inits, surprises, audits
+    no_surprise = [{k: v for k, v in r.items() if k != "surprises"} for r in rs]  # results made before the column
+    assert "| 0 | 0 | 4 (4) | 4 (4) |" in kidnap_table(no_surprise, ["after"], ["lab_global_kidnap"])
     old = [{k: v for k, v in r.items() if k not in ("reconverged_wrong", "pre_kidnap_success")} for r in rs]
     assert table(old, ["after"], ["lab_global_kidnap"]).splitlines()[2].endswith("| — | — |")  # older results

@@ -109,9 +109,10 @@ def kidnap_table(results: list[dict], variants: list[str], rows: list[str]) -> s
     """The Markdown table of what the relocalizer did after the kidnap, per kidnap row and variant
     (episodes with it; "" when no row has kidnap episodes): augmented-MCL recovery injection
     (``p_inject`` above the routine ``proposal_frac``) and global re-inits, the averages the
-    teleport found, convergence audits (those with pre-kidnap scans in their window: stale)."""
+    teleport found, surprises (`MCLConfig.surprise_ratio`), convergence audits (those with pre-kidnap
+    scans in their window: stale)."""
     header = ["row", "variant", "episodes", "converged at kidnap", "recovery injection", "median max p_inject",
-              "median w_slow / w_fast at kidnap", "global re-init", "audits (added)",
+              "median w_slow / w_fast at kidnap", "global re-init", "surprise", "audits (added)",
               "stale-window audits (added)"]  # fmt: skip
     lines = []
     for row in rows:
@@ -120,8 +121,8 @@ def kidnap_table(results: list[dict], variants: list[str], rows: list[str]) -> s
             if not rs or "recovery_steps" not in rs[0]:
                 continue
 
-            def eps(name: str, rs: list[dict] = rs) -> str:  # episodes where it happened
-                return str(sum(r[name] > 0 for r in rs))
+            def eps(name: str, rs: list[dict] = rs) -> str:  # episodes where it happened (0 in older results)
+                return str(sum(r.get(name, 0) > 0 for r in rs))
 
             def med(name: str, rs: list[dict] = rs) -> float:
                 return float(np.median([r[name] for r in rs]))
@@ -129,7 +130,7 @@ def kidnap_table(results: list[dict], variants: list[str], rows: list[str]) -> s
             lines.append(
                 [row, v, len(rs), sum(bool(r["converged_at_kidnap"]) for r in rs), eps("recovery_steps"),
                  f"{med('max_p_inject'):.2f}", f"{med('w_slow_at_kidnap'):.3f} / {med('w_fast_at_kidnap'):.3f}",
-                 eps("reinit_steps"), f"{eps('audits')} ({eps('audit_adds')})",
+                 eps("reinit_steps"), eps("surprises"), f"{eps('audits')} ({eps('audit_adds')})",
                  f"{eps('stale_audits')} ({eps('stale_audit_adds')})"]
             )  # fmt: skip
     return markdown_table(header, lines) + "\n" if lines else ""

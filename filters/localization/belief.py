@@ -66,6 +66,7 @@ from scipy.sparse.csgraph import connected_components
 
 from filters import _blas
 from filters.localization import belief_kernels as _k
+from filters.numbers import is_real
 from filters.pose import wrap_angle
 from filters.smc.resampling import normalise_weights
 
@@ -110,18 +111,6 @@ class BeliefConfig:
         k = self.converged_min_updates
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
             raise ValueError(f"BeliefConfig.converged_min_updates must be an int >= 1, got {k!r}")
-        h = self.converged_hold_weight
-        if h is not None and (
-            isinstance(h, bool)
-            or not isinstance(h, (int, float))
-            or not (0 < h <= self.converged_min_weight)
-            or self.converged_rule != "hypothesis"
-        ):
-            raise ValueError(
-                "BeliefConfig.converged_hold_weight must be None or a number in (0, converged_min_weight] "
-                f"with converged_rule 'hypothesis', got {h!r} (converged_min_weight {self.converged_min_weight!r}, "
-                f"rule {self.converged_rule!r})"
-            )
         if self.converged_rule not in ("hypothesis", "spread"):
             raise ValueError(
                 f"BeliefConfig.converged_rule must be 'hypothesis' or 'spread', got {self.converged_rule!r}"
@@ -141,6 +130,16 @@ class BeliefConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0 <= v <= 1):
                 raise ValueError(f"BeliefConfig.{name} must be in [0, 1], got {v!r}")
+        h = self.converged_hold_weight
+        if h is not None:
+            if not (is_real(h) and 0 < h <= self.converged_min_weight and self.converged_rule == "hypothesis"):
+                raise ValueError(
+                    "BeliefConfig.converged_hold_weight must be None (no hold) or a number in "
+                    f"(0, converged_min_weight] with converged_rule 'hypothesis'; got {h!r} with converged_min_weight "
+                    f"{self.converged_min_weight!r} and rule {self.converged_rule!r} (SemReloc-v6 holds at 0.85: "
+                    "to lower converged_min_weight below it or use the 'spread' rule, also set converged_hold_weight)"
+                )
+            object.__setattr__(self, "converged_hold_weight", float(h))
 
 
 @dataclass(frozen=True, eq=False)

@@ -275,6 +275,13 @@ class BeamSet:
     ny: np.ndarray = field(default_factory=lambda: _EMPTY_F)
     n_starts: np.ndarray = field(default_factory=lambda: _ZERO_START)
 
+    def __post_init__(self) -> None:
+        # read-only views: models cache what they derive from a BeamSet (`LikelihoodFieldModel._prepared`)
+        for name in ("lx", "ly", "table", "nx", "ny", "n_starts"):
+            v = np.asarray(getattr(self, name)).view()
+            v.setflags(write=False)
+            object.__setattr__(self, name, v)
+
     @property
     def n_negative(self) -> int:
         """Negative-evidence beams (unlabelled semantic returns sampled for missing objects)."""
@@ -446,6 +453,15 @@ class LikelihoodFieldModel:
         self._negative_table: np.ndarray | None = None
         self._kernel_beams: weakref.WeakKeyDictionary[BeamSet, tuple] = weakref.WeakKeyDictionary()
 
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        del state["_kernel_beams"]  # a cache of weak references: not picklable, rebuilt on use
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._kernel_beams = weakref.WeakKeyDictionary()
+
     @functools.cached_property
     def object_distance_m(self) -> np.ndarray:
         """``(H, W)`` distance (metres) to the nearest cell of any class (``inf`` if the map has none),
@@ -588,8 +604,18 @@ class LikelihoodFieldModel:
         score the same scans more than once, such as the convergence audit).
 
         ``trig``: ``(np.cos(p[:, 2]), np.sin(p[:, 2]))`` of the checked poses ``p`` if the caller has
-        them (the convergence audit needs them to compose poses too); None: computed here."""
-        return self._scored(_checked_poses(poses), beams, trig)
+        them (the convergence audit needs them to compose poses too); None: computed here.
+
+        Raises:
+            ValueError: ``trig`` is not two float64 arrays of shape ``(N,)``."""
+        p = _checked_poses(poses)
+        if trig is not None:
+            c, s = trig
+            n = (p.shape[0],)
+            for a in (c, s):
+                if not (isinstance(a, np.ndarray) and a.shape == n and a.dtype == np.float64):
+                    raise ValueError(f"trig must be (cos, sin) of the poses' headings: two float64 arrays of shape {n}")
+        return self._scored(p, beams, trig)
 
     def _prepared(self, beams: BeamSet) -> tuple:
         """The kernels' inputs that depend on the beams only, computed once per `BeamSet` (its arrays

@@ -81,8 +81,8 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    not audited again for ``audit_window`` updates), a pose outside the converged hypothesis
    that explains the last ``audit_window`` updates' scans within ``audit_margin`` (tempered nats)
    of it becomes a second hypothesis (`filters.localization.audit`; docs/relocalizer.md).
-10. **Surprise**, if ``surprise_ratio`` (and ``augmented``): once the belief has been converged since
-   the last init, an update whose scans fit the particles far worse than of late (``w_avg <
+10. **Surprise**, if ``surprise_ratio``: once the belief has been converged since the last init, an
+   update with the lidar whose scans fit the particles far worse than of late (``w_avg <
    surprise_ratio * w_fast``, the augmented-MCL averages) is taken for a jump the odometry did not
    see (a kidnapping, a slip): a held convergence (``belief.converged_hold_weight``) ends, the
    audit's window drops the scans before it and the next convergence, or the current one, is audited.
@@ -176,7 +176,7 @@ class MCLConfig:
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
         negative_evidence: evidence from mapped objects the camera did not see
-            (`NegativeEvidenceConfig`; off by default, on in ``SemReloc-v4`` and ``-v5``).
+            (`NegativeEvidenceConfig`; off by default, on in ``SemReloc-v4`` to ``-v6``).
         motion: odometry motion noise.
         belief: bins and thresholds of `MonteCarloLocalizer.belief`.
         use_semantic: multiply in the semantic factor (False = lidar-only MCL).
@@ -240,12 +240,14 @@ class MCLConfig:
         audit_candidates: scan-proposal candidates the audit draws (the best 50 outside the
             hypothesis are evaluated over the window, with the heaviest particles outside it).
         surprise_ratio: in ``[0, 1)`` (0 = off): the *surprise* test (module docstring, step 10). After
-            the belief has been converged once since the last init, an update whose average beam
-            likelihood ``w_avg`` falls below ``surprise_ratio`` times ``w_fast`` (needs ``augmented``)
-            ends a held convergence, empties the audit window (keeping this update's scans), forgets
-            the place the audit last cleared, and has the audit run at the next update whose set
-            meets the "converged" criterion, this one included. Particles and weights are touched
-            only by that audit. ``UpdateDiagnostics.surprise`` records it.
+            the belief has been converged once since the last init, an update that used the lidar and
+            whose average beam likelihood ``w_avg`` falls below ``surprise_ratio`` times ``w_fast`` (the
+            augmented-MCL averages, kept for this test also when ``augmented`` is off, which then only
+            leaves out the recovery injection) ends a held convergence (that update is judged by the
+            95 % rule alone), empties the audit window (keeping this update's scans), forgets the place
+            the audit last cleared, and has the audit run at the next update whose set meets the
+            "converged" criterion, this one included. Particles and weights are touched only by that
+            audit. ``UpdateDiagnostics.surprise`` records it.
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -745,11 +747,18 @@ class MonteCarloLocalizer:
 
         p_inj = 0.0
         surprise = False
-        if c.augmented and n_beams:
+        if (c.augmented or c.surprise_ratio > 0.0) and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
             prior = np.exp(self._logw)
             w_avg = float(_blas.dot(prior, per_beam))  # one order whatever the BLAS thread count
-            surprise = self._ever_converged and self._w_fast > 0.0 and w_avg < c.surprise_ratio * self._w_fast
+            # judged on updates that used the lidar only: a turn-in-place update's few camera beams
+            # average too noisily to compare with the averages the lidar's updates made
+            surprise = (
+                self._ever_converged
+                and beams.n_lidar > 0
+                and self._w_fast > 0.0
+                and w_avg < c.surprise_ratio * self._w_fast
+            )
             if surprise:
                 self._held, self._window, self._cleared, self._was_converged = None, [], None, False
             if self._w_slow == 0.0:  # pf.c: the averages start at the first average
@@ -757,7 +766,7 @@ class MonteCarloLocalizer:
             else:
                 self._w_slow += c.alpha_slow * (w_avg - self._w_slow)
                 self._w_fast += c.alpha_fast * (w_avg - self._w_fast)
-            if self._w_slow > 0.0:
+            if c.augmented and self._w_slow > 0.0:
                 p_inj = max(0.0, 1.0 - self._w_fast / self._w_slow)
 
         self._logw = logw - lse
@@ -778,6 +787,8 @@ class MonteCarloLocalizer:
         if c.audit_window and self._audit_on:
             self._window = [*self._window, (lid, sem, delta, beams)][-c.audit_window :]
             audit_ratio, n_audit = self._audit(lidar, sem)
+            if n_audit:
+                self._held = None  # the audit's doubt ends a held convergence, whatever the weights say
         diag = UpdateDiagnostics(
             updated=True,
             n_lidar_beams=beams.n_lidar,
@@ -1008,7 +1019,10 @@ class MonteCarloLocalizer:
         """Summary of the current particle set (see `filters.localization.belief`). With
         ``belief.converged_min_updates = k > 1`` it is ``converged`` only if the current set meets
         the criterion and so did the set after each of the last ``k`` measurement updates
-        (`converged_updates`); after an init, ``k`` updates must run first."""
+        (`converged_updates`); after an init, ``k`` updates must run first. With
+        ``belief.converged_hold_weight`` a set that does not meet the criterion is ``converged`` while
+        the last update's was and its heaviest hypothesis stays at that place with at least the hold
+        weight (the hold's place moves with that hypothesis from update to update)."""
         self._require_particles()
         b = self._summary()
         k = self.config.belief.converged_min_updates
