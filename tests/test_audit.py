@@ -288,3 +288,42 @@ def test_window_shortcuts_give_the_bits_of_the_plain_computation():
         model.beam_log_likelihoods(poses, window[0][3], (c, s)), model.beam_log_likelihoods(poses, window[0][3])
     ):
         assert a.tobytes() == b.tobytes()
+
+
+def test_doubt_the_audit_adds_ends_a_held_convergence(monkeypatch):
+    """An audit that adds an alternative leaves the heaviest hypothesis at ``1 / (1 + e^r)`` of the weight; with a
+    wide margin that can stay above the hold weight (here about 0.92 for r = -2.5, margin 3): the belief must
+    still not be converged by the hold after that update (the 95 % rule alone judges it)."""
+    monkeypatch.setattr(
+        audit_module,
+        "best_alternative",
+        lambda model, window, scale, poses, logw, mean, *a: Alternative(mirror(mean), -2.5),
+    )
+    grid = symmetric_room()
+    pose = np.array([3.0, 2.5, 0.3])
+    hold = {"belief": {"converged_hold_weight": 0.85}}
+    mcl = MonteCarloLocalizer(grid, MCLConfig(n_particles=300, use_semantic=False, **hold), np.random.default_rng(1))
+    mcl.init_around(pose, (0.03, 0.03, 0.01))
+    mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), force=True)
+    assert mcl.belief().converged and mcl._held is not None  # held from here on
+    mcl.config = MCLConfig(n_particles=300, use_semantic=False, audit_window=5, audit_margin=3.0, **hold)
+    mcl._audit_on, mcl._was_converged = True, False  # as after an init_global, before its first convergence
+    d = mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), force=True)
+    b = mcl.belief()
+    assert d.n_audit_injected > 0 and 0.85 <= b.hypotheses[0].weight < 0.95
+    assert not b.converged and mcl._held is None
+
+
+def test_trig_must_be_the_poses_cos_and_sin_arrays_and_beam_sets_are_read_only():
+    grid = symmetric_room()
+    model = LikelihoodFieldModel(grid)
+    pose = np.array([3.0, 2.5, 0.3])
+    _, _, beams = model.log_likelihood_terms(pose[None], simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0))
+    poses = np.tile(pose, (4, 1))
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    for bad in ((c[:3], s[:3]), (c.astype(np.float32), s), ([1.0] * 4, s)):
+        with pytest.raises(ValueError, match="trig"):
+            model.beam_log_likelihoods(poses, beams, bad)
+    for name in ("lx", "ly", "table", "nx", "ny", "n_starts"):
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(beams, name)[...] = 0

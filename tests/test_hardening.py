@@ -291,3 +291,18 @@ def test_nested_overrides_keep_their_own_defaults():
     assert cfg.likelihood_scale == DEFAULT_RELOCALIZER.likelihood_scale
     env = gym.make("SemReloc-v6", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
     assert env.unwrapped.mcl_config.semantic_field == cfg.semantic_field
+
+
+def test_9b_a_semreloc_env_pickles_mid_episode_and_its_copy_goes_on_alike():
+    """A SemReloc-v6 env (its relocalizer, its likelihood model with the per-BeamSet cache, the held
+    convergence and the audit's window) survives pickle and deepcopy mid-episode, and each copy then
+    gives the episode the original gives."""
+    env = gym.make("SemReloc-v6", map_source="perfect", relocalizer={"n_particles": 300})
+    env.reset(seed=3, options={"pose": [2.0, 5.0, 0.0]})
+    for a in [0, 0, 1, 0, 2, 0, 0, 1] * 3:
+        env.step(a)
+    copies = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    actions = [0, 1, 0, 0, 2, 0, 3, 0]
+    ref = [env.step(a) for a in actions]
+    for c in copies:
+        assert_identical([c.step(a) for a in actions], ref)

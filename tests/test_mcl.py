@@ -510,6 +510,15 @@ def test_bad_hold_weights_are_rejected(bad):
         MCLConfig(belief={"converged_hold_weight": 0.9, "converged_rule": "spread"})
 
 
+def test_hold_weight_takes_numpy_numbers_and_says_how_to_lower_the_convergence_weight():
+    assert MCLConfig(belief={"converged_hold_weight": np.float32(0.5)}).belief.converged_hold_weight == 0.5
+    assert type(MCLConfig(belief={"converged_hold_weight": np.float64(0.8)}).belief.converged_hold_weight) is float
+    with pytest.raises(ValueError, match="also set converged_hold_weight"):  # v6's hold under a lower 95 %
+        MCLConfig(belief={"converged_hold_weight": 0.85, "converged_min_weight": 0.8})
+    with pytest.raises(ValueError, match="converged_rule"):  # a bad rule is reported as such, not as the hold
+        MCLConfig(belief={"converged_hold_weight": 0.85, "converged_rule": "nearest"})
+
+
 def test_a_surprise_ends_the_hold_and_restarts_the_audit_window():
     """``surprise_ratio``: after the belief has been converged, an update whose scans fit far worse than of
     late (here: scans taken 4 m away, a kidnapping) is a surprise: the hold ends, the audit's window keeps
@@ -521,17 +530,20 @@ def test_a_surprise_ends_the_hold_and_restarts_the_audit_window():
     grid = GridMap(occ, RES, (0.0, 0.0), np.array(room.semantic), DEFAULT_CLASS_NAMES)
     pose, away = np.array([4.0, 1.5, np.pi / 2]), np.array([8.5, 2.5, 0.0])
 
-    def run(ratio, start_converged=True):
+    def run(ratio, start_converged=True, augmented=True, camera_only_jump=False):
         cfg = MCLConfig(
-            n_particles=400, augmented=True, audit_window=5, surprise_ratio=ratio,
+            n_particles=400, augmented=augmented, audit_window=5, surprise_ratio=ratio,
             belief={"converged_hold_weight": 0.85},
         )  # fmt: skip
         mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
         mcl.init_global(3000) if not start_converged else mcl.init_around(pose, [0.05, 0.05, 0.02])
         mcl._audit_on = True  # the window is kept after init_global only; here it is what is looked at
         out = []
-        for p in [pose] * 6 + [away] * 2:
-            d = mcl.update(simulate_lidar(grid, p, LIDAR_ANGLES, 8.0), force=True)
+        for k, p in enumerate([pose] * 6 + [away] * 2):
+            if camera_only_jump and k >= 6:  # a turn-in-place update: the camera's few beams alone
+                d = mcl.update(None, simulate_semantic(grid, p, CAMERA_ANGLES, 5.0), force=True)
+            else:
+                d = mcl.update(simulate_lidar(grid, p, LIDAR_ANGLES, 8.0), force=True)
             out.append((d, len(mcl._window), mcl.belief().converged))
         return out
 
@@ -541,6 +553,9 @@ def test_a_surprise_ends_the_hold_and_restarts_the_audit_window():
     assert d.surprise and window == 1
     assert np.isfinite(d.audit_log_ratio) and d.n_audit_injected > 0 and not conv  # audited at once: doubt added
     assert not any(d.surprise for d, _, _ in run(0.0))  # off
+    plain = run(0.3, augmented=False)  # without augmented MCL's injection the test keeps its own averages
+    assert plain[6][0].surprise and plain[6][0].p_inject == 0.0 and plain[6][0].w_fast > 0.0
+    assert not any(d.surprise for d, _, _ in run(0.3, camera_only_jump=True))  # judged on lidar updates only
     cold = run(0.3, start_converged=False)  # from a global spread: no surprise up to the first convergence
     first = next((i for i, (_, _, conv) in enumerate(cold) if conv), len(cold))
     assert first > 0 and not any(d.surprise for d, _, _ in cold[: first + 1])

@@ -156,7 +156,8 @@ class SemRelocEnv(SemRelocBase):
     ## Info
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
     (`filters.localization.belief.Belief.as_dict`: ``converged`` — one tight hypothesis
-    holds >= 95 % of the mass —, ``hypotheses`` by weight, ``estimate``, spread, entropy, ESS);
+    holds >= 95 % of the mass, or, since v6, still >= 85 % at the place an update last called
+    converged —, ``hypotheses`` by weight, ``estimate``, spread, entropy, ESS);
     ``pose_error`` ``{"position": m, "heading": rad}`` of the belief's estimate (its heaviest
     hypothesis); ``is_success`` (the success test below has been met in this episode); ``mcl`` the last update's diagnostics (`filters.localization.mcl.UpdateDiagnostics`;
     a value not computed in this step, such as ``ess`` when the motion gate skipped the update, is left
@@ -207,9 +208,11 @@ class SemRelocEnv(SemRelocBase):
       converged". A *surprise* (once converged, an update whose scans fit the particles far worse
       than of late, as after a kidnapping) ends the hold and restarts the convergence audit's
       window, so a teleport is doubted sooner (docs/relocalizer.md, "Holding a convergence").
-      The particles are v5's up to the first surprise; ``info["belief"]["converged"]``, the
-      ``wrong_convergence`` reward term and termination follow the held flag; ``info["mcl"]`` gains
-      ``surprise`` (in every version; False where the test is off). Worlds, sensors, observations
+      For the same actions the particles are v5's up to the first surprise;
+      ``info["belief"]["converged"]``, the ``wrong_convergence`` reward term and termination follow
+      the held flag; ``info["mcl"]`` gains ``surprise`` (in every version; False where the test is
+      off). An override lowering ``belief.converged_min_weight`` below 0.85, or choosing the
+      ``spread`` rule, must set ``belief.converged_hold_weight`` too. Worlds, sensors, observations
       and rewards are otherwise v5's (`SemRelocEnvV5` is v5).
     * v5: the relocalizer audits each convergence (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V4` with
       ``audit_window=20``): at the update where the belief would become converged, the pose
@@ -466,7 +469,7 @@ class SemRelocEnv(SemRelocBase):
 
 class SemRelocEnvV5(SemRelocEnv):
     """``SemReloc-v5``: `SemRelocEnv` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
-    judged afresh at every step, no hold). Otherwise identical to ``SemReloc-v6``. Kept so that
+    judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
     results made with v5 can be reproduced; new work should use ``SemReloc-v6``."""
 
     default_relocalizer = RELOCALIZER_V5
