@@ -14,14 +14,15 @@ def wrap_angle(a):
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def compose(pose: np.ndarray, delta: np.ndarray) -> np.ndarray:
+def compose(pose: np.ndarray, delta: np.ndarray, trig: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Apply the robot-frame increment ``delta = (dx, dy, dtheta)`` to ``pose``.
 
-    Both may be ``(3,)`` or ``(N, 3)``; broadcasting applies. Returns wrapped poses.
+    Both may be ``(3,)`` or ``(N, 3)``; broadcasting applies. Returns wrapped poses. ``trig``:
+    ``(np.cos(pose[..., 2]), np.sin(pose[..., 2]))`` if the caller has them already (None: computed here).
     """
     pose = np.asarray(pose, dtype=np.float64)
     delta = np.asarray(delta, dtype=np.float64)
-    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    c, s = trig if trig is not None else (np.cos(pose[..., 2]), np.sin(pose[..., 2]))
     x = pose[..., 0] + c * delta[..., 0] - s * delta[..., 1]
     y = pose[..., 1] + s * delta[..., 0] + c * delta[..., 1]
     th = wrap_angle(pose[..., 2] + delta[..., 2])

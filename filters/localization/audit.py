@@ -99,9 +99,8 @@ def window_log_likelihood(
         else:
             ll_l, ll_s, _ = model.log_likelihood_terms(p, lidar, semantic)
         total += scale * (np.asarray(ll_l, dtype=np.float64) + np.asarray(ll_s, dtype=np.float64))
-        if i < len(steps):  # back to the pose of the update before: `compose(p, steps[i])`, sharing c, s
-            d = steps[i]
-            p = np.stack([p[:, 0] + c * d[0] - s * d[1], p[:, 1] + s * d[0] + c * d[1], wrap_angle(p[:, 2] + d[2])], -1)
+        if i < len(steps):  # back to the pose of the update before
+            p = compose(p, steps[i], (c, s))
     return np.where(np.isfinite(total), total, -np.inf)
 
 

@@ -429,6 +429,14 @@ def _cluster_stats_numba(p, w, labels, n, sin_th, cos_th):
     return weight, mean, cov, count
 
 
+def holds_as_converged(h: Hypothesis, cfg: BeliefConfig, min_weight: float) -> bool:
+    """Whether hypothesis ``h`` weighs at least ``min_weight`` and is as tight as "converged" asks
+    (``converged_pos_std_m``, ``converged_theta_std_rad``): the ``"hypothesis"`` rule with
+    ``converged_min_weight``, and a held convergence with ``converged_hold_weight``."""
+    tight = h.pos_std_m < cfg.converged_pos_std_m and h.theta_std_rad < cfg.converged_theta_std_rad
+    return bool(h.weight >= min_weight and tight)
+
+
 def summarize(
     poses: np.ndarray, weights: np.ndarray, config: BeliefConfig | None = None, backend: str = "numba"
 ) -> Belief:
@@ -488,12 +496,7 @@ def summarize(
     if cfg.converged_rule == "spread":
         converged = bool(pos_std < cfg.converged_pos_std_m and th_std < cfg.converged_theta_std_rad)
     else:
-        converged = bool(
-            best is not None
-            and best.weight >= cfg.converged_min_weight
-            and best.pos_std_m < cfg.converged_pos_std_m
-            and best.theta_std_rad < cfg.converged_theta_std_rad
-        )
+        converged = best is not None and holds_as_converged(best, cfg, cfg.converged_min_weight)
 
     mean = np.array([mx, my, mth])
     mean.setflags(write=False)

@@ -106,7 +106,14 @@ from scipy.special import logsumexp
 
 from filters import _blas
 from filters.localization import audit, kld_kernels
-from filters.localization.belief import Belief, BeliefConfig, cluster_labels, linear_bin_keys, summarize
+from filters.localization.belief import (
+    Belief,
+    BeliefConfig,
+    cluster_labels,
+    holds_as_converged,
+    linear_bin_keys,
+    summarize,
+)
 from filters.localization.likelihood_field import (
     DEFAULT_SEMANTIC_FIELD,
     NO_NEGATIVE_EVIDENCE,
@@ -1040,9 +1047,4 @@ class MonteCarloLocalizer:
             return False
         top = b.hypotheses[0]
         same = not audit.outside(top.mean[None], self._held, 2.0 * c.cluster_bin_m, c.cluster_bin_theta_rad)[0]
-        return bool(
-            same
-            and top.weight >= c.converged_hold_weight
-            and top.pos_std_m < c.converged_pos_std_m
-            and top.theta_std_rad < c.converged_theta_std_rad
-        )
+        return same and holds_as_converged(top, c, c.converged_hold_weight)
