@@ -149,15 +149,16 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
         simplify_m: Douglas-Peucker tolerance in metres (default half a cell; 0 = exact cell edges).
 
     Raises:
-        ValueError: the map has no free cell, or semantic classes other than the env's
-            (`CLASS_NAMES`).
+        ValueError: the map has no free cell, or a semantic class that is not the env's
+            (`CLASS_NAMES`; any of them, in any order, make objects of that class).
     """
     if not isinstance(grid, GridMap):
         raise TypeError(f"grid must be a GridMap, got {type(grid).__name__}")
     if not grid.free_mask().any():
         raise ValueError("the map has no free cell: no world to build")
-    if grid.class_names and grid.class_names != CLASS_NAMES:
-        raise ValueError(f"map classes {grid.class_names} differ from the env's {CLASS_NAMES}")
+    unknown = [c for c in grid.class_names if c not in CLASS_NAMES]
+    if unknown:
+        raise ValueError(f"map classes {unknown} are not among the env's {CLASS_NAMES}")
     res = grid.resolution_m
     tol = 0.5 * res if simplify_m is None else float(simplify_m)
     if not (math.isfinite(tol) and tol >= 0):

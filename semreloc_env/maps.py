@@ -177,8 +177,9 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
             rasterised layout), a ROS map ``.yaml`` / ``.yml`` path (`filters.mapping.ros_map.load_map`),
             a GridMap, or a *layout* (a name such as ``"lab"``, or a layout file): the mapping run
             of that layout, so the world can differ from the map ("the map is the lab, the world
-            is the lab with furniture moved"). A map's classes must be those of the layouts, in
-            order; a map without classes (a plain ROS map, no semantic sidecar) needs ``semantic=False``.
+            is the lab with furniture moved"). A map's classes are the env's, in any order
+            (`env_classes`); a map without classes (a plain ROS map, no semantic sidecar) or with only
+            some of them needs ``semantic=False``.
         semantic: whether the relocalizer uses the semantic factor.
 
     Raises:
@@ -205,11 +206,42 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
                 "(a plain ROS map without a <name>.semantic.yaml sidecar): pass semantic=False for lidar-only "
                 f"relocalization, or give the map a sidecar with the classes {CLASS_NAMES} (docs/maps.md)"
             )
-    elif grid.class_names != CLASS_NAMES:
-        raise ValueError(f"map classes {grid.class_names} differ from the env's {CLASS_NAMES}")
+    else:
+        grid = env_classes(grid, source, semantic)
     if not derived and not (isinstance(layout, MapLayout) and _same_map(layout.grid, grid)):
         check_map_matches_world(grid, layout)
     return grid
+
+
+def env_classes(grid: GridMap, source, semantic: bool = True) -> GridMap:
+    """``grid`` with its class layers in the env's order (`CLASS_NAMES`), those it lacks empty.
+
+    A map's sidecar may list some of the env's classes, in any order (docs/maps.md). The semantic
+    factor needs a layer for every class (a missing one would read as "no such object anywhere"),
+    so a map that lacks one is refused when ``semantic`` is True; lidar-only relocalization takes it.
+
+    Raises:
+        ValueError: a class that is not the env's, or (``semantic``) a class of the env's missing;
+            the message names the map (``source``) and what to do.
+    """
+    names = grid.class_names
+    if names == CLASS_NAMES:
+        return grid
+    where = f"map {source if not isinstance(source, GridMap) else '(GridMap)'}"
+    unknown = [c for c in names if c not in CLASS_NAMES]
+    if unknown:
+        raise ValueError(f"{where}: classes {unknown} are not among the env's {CLASS_NAMES} (docs/maps.md)")
+    missing = [c for c in CLASS_NAMES if c not in names]
+    if missing and semantic:
+        raise ValueError(
+            f"{where} has no layer for the classes {missing}: the semantic factor needs every class of the "
+            f"env {CLASS_NAMES}. Add them to its sidecar (an image with no cell of the class where the building "
+            "has none; docs/maps.md), or pass semantic=False for lidar-only relocalization"
+        )
+    layers = np.zeros((len(CLASS_NAMES), *grid.shape), dtype=np.float32)
+    for k, name in enumerate(names):
+        layers[CLASS_NAMES.index(name)] = grid.semantic[k]
+    return dataclasses.replace(grid, semantic=layers, class_names=CLASS_NAMES)
 
 
 def _same_map(a: GridMap, b: GridMap) -> bool:

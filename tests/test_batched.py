@@ -108,6 +108,17 @@ def test_rejected_steps_and_resets_move_no_robot():
     venv.reset(seed=range(3))  # any sequence of seeds
 
 
+def test_a_float_array_of_discrete_actions_says_which_robots_hold_nan():
+    # a new user's trial: [0, 1, nan] is a float array, so robot 0's 0.0 was blamed alone
+    venv = SemRelocLoopVectorEnv(num_envs=3, **KW)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match=r"robot 0: .*float64 array: discrete actions must be integers; robots \[2\]"):
+        venv.step(np.array([0, 1, np.nan]))
+    with pytest.raises(ValueError, match=r"discrete actions must be integers\)$"):
+        venv.step(np.array([0.0, 1.0, 2.0]))
+    venv.step(np.array([0, 1, 2]))
+
+
 def test_a_done_robots_action_is_ignored_not_checked():
     venv = SemRelocLoopVectorEnv(num_envs=2, **{**KW, "max_episode_steps": 2})
     venv.reset(seed=0)

@@ -139,3 +139,13 @@ def test_paper004_weight_plot_takes_steps_with_no_value_without_warning(tmp_path
         warnings.simplefilter("error")
         paper004._plot_weights(results, ["lab"], tmp_path / "w.png")
     assert (tmp_path / "w.png").stat().st_size > 0
+
+
+def test_the_demo_refuses_a_negative_seed_and_an_unknown_layout_before_it_runs():
+    # a new user's trial: both printed a traceback from inside the episode
+    from agents.tools.demo import Args
+
+    with pytest.raises(ValueError, match="seed must be >= 0"):
+        Args(seed=-1)
+    with pytest.raises(ValueError, match="layout: unknown layout 'nope'"):
+        Args(layout="nope")

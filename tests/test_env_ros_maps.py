@@ -66,3 +66,32 @@ def test_a_broken_yaml_file_is_a_layout_error_unless_it_is_a_ros_map(tmp_path):
     (tmp_path / "map.yaml").write_text("image: plain.pgm\nresolution: [0.05\n")
     with pytest.raises(MapFormatError, match="map.yaml"):
         gym.make("SemReloc-v6", layout="twin_rooms", map_source=str(tmp_path / "map.yaml"), semantic=False)
+
+
+def test_a_sidecar_with_some_classes_or_another_order(tmp_path):
+    # a new user's trial: docs/maps.md allows any class list, the env refused all but its own four in order
+    grid = rasterize(get_layout("twin_rooms"))
+    door = dataclasses.replace(grid, semantic=grid.semantic[:1], class_names=grid.class_names[:1])
+    order = [3, 2, 1, 0]
+    turned = dataclasses.replace(
+        grid, semantic=grid.semantic[order], class_names=tuple(grid.class_names[i] for i in order)
+    )
+    kw = dict(layout="twin_rooms", relocalizer={"n_particles": 200})
+    with pytest.raises(
+        ValueError, match=r"door.*has no layer for the classes \['chair', 'trash_bin', 'cabinet'\].*semantic=False"
+    ):
+        gym.make("SemReloc-v6", map_source=str(save_map(door, tmp_path / "door" / "door.yaml")), **kw)
+    lidar_only = gym.make("SemReloc-v6", map_source=str(tmp_path / "door" / "door.yaml"), semantic=False, **kw)
+    g = lidar_only.unwrapped.grid
+    assert g.class_names == grid.class_names
+    np.testing.assert_array_equal(g.class_mask(0), grid.class_mask(0))
+    assert not any(g.class_mask(k).any() for k in (1, 2, 3))
+    lidar_only.reset(seed=0)
+    lidar_only.step(0)
+    same = gym.make("SemReloc-v6", map_source=str(save_map(turned, tmp_path / "turned" / "t.yaml")), **kw)
+    plain = gym.make("SemReloc-v6", map_source=str(save_map(grid, tmp_path / "full" / "f.yaml")), **kw)
+    assert same.unwrapped.grid.class_names == grid.class_names
+    np.testing.assert_array_equal(same.unwrapped.grid.semantic, plain.unwrapped.grid.semantic)
+    unknown = dataclasses.replace(grid, class_names=("door", "chair", "sofa", "cabinet"))
+    with pytest.raises(ValueError, match=r"classes \['sofa'\] are not among the env's"):
+        gym.make("SemReloc-v6", map_source=str(save_map(unknown, tmp_path / "sofa" / "s.yaml")), semantic=False, **kw)

@@ -273,6 +273,29 @@ def test_own_layouts_alone_and_malformed_layout_files(tmp_path):
     assert exit_.value.code == 2
 
 
+def test_layout_files_get_a_row_of_their_own(tmp_path, capsys):
+    # a new user's trial: a file named lab.json shared the built-in lab's row, and two my.yaml one row
+    assert ev.layout_file_kinds(["/x/lab.json", "/a/my.yaml", "/b/my.yaml", "/c/other.json"]) == {
+        "/x/lab.json": "/x/lab.json",
+        "/a/my.yaml": "/a/my.yaml",
+        "/b/my.yaml": "/b/my.yaml",
+        "/c/other.json": "other",
+    }
+    from semreloc_env.layouts import get_layout
+
+    path = tmp_path / "lab.json"
+    path.write_text(json.dumps(get_layout("twin_rooms").to_dict()))
+    cases = ev.build_cases(ev.Args(layouts_per_kind=0, starts=1, layout_files=(str(path),), policies=("spin",)))
+    assert [c["kind"] for c in cases] == ["twin_rooms", "lab", "lab_changed", str(path)]
+    with pytest.raises(ValueError, match="more than once"):
+        ev.Args(layout_files=(str(path), str(tmp_path / "." / "lab.json")), policies=("spin",))
+    tiny = tmp_path / "tiny.yaml"
+    tiny.write_text("outer: [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]\n")
+    argv = ["--layout-files", str(tiny), "--layouts-per-kind", "0", "--no-builtin-layouts", "--policies", "spin"]
+    assert ev.main([*argv, "--out", str(tmp_path / "out")]) == 2  # an argument error, not a traceback
+    assert "no free space" in capsys.readouterr().err
+
+
 def test_env_id_and_relocalizer_overrides_reach_the_env_and_the_rows_settings():
     case = ev.build_cases(ev.Args(policies=("spin",), layouts_per_kind=1, starts=1))[0]
     plain = ev.Args(policies=("spin",), particles=100)

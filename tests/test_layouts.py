@@ -140,6 +140,30 @@ def test_malformed_layouts_name_the_entry(data, match):
         layout_from_dict(data)
 
 
+@pytest.mark.parametrize(
+    "obj, match",
+    [  # a new user's trial: a number or bool where a polygon belongs gave a bare TypeError
+        ({"class": "chair", "polygon": 0.5}, r"objects\[0\]: expected a list of \[x, y\] points, got float"),
+        ({"class": "chair", "polygon": True}, r"objects\[0\]: expected a list of \[x, y\] points, got bool"),
+        ({"class": "chair", "center": [1, 1], "size": 0.5}, r"objects\[0\]\.size: expected an \[x, y\] pair"),
+        ({"class": "chair", "center": 1, "size": [1, 1]}, r"objects\[0\]\.center: expected an \[x, y\] pair"),
+        ({"class": "chair", "center": [1, 1], "size": [1, 0.5, 2]}, r"objects\[0\]\.size: expected an \[x, y\]"),
+        ({"class": "chair", "center": ["1e-3", 1], "size": [1, 1]}, r"center: .*str '1e-3'.*write 1\.0e-3"),
+        ({"class": "chair", "center": [1, 1], "size": [1e-7, 1e-7]}, "zero area.*too close"),
+    ],
+)
+def test_wrong_types_in_an_object_name_the_entry(obj, match):
+    with pytest.raises(LayoutError, match=match):
+        layout_from_dict({"outer": SQUARE, "objects": [obj]})
+
+
+def test_a_numpy_polygon_is_taken_like_a_list():
+    poly = np.array([[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]])
+    from_array = layout_from_dict({"outer": SQUARE, "objects": [{"class": "chair", "polygon": poly}]})
+    from_list = layout_from_dict({"outer": SQUARE, "objects": [{"class": "chair", "polygon": poly.tolist()}]})
+    assert from_array.to_dict() == from_list.to_dict()
+
+
 def test_unnamed_objects_get_names_no_other_object_has():
     second = ((2.5, 1), (3, 1), (3, 1.5), (2.5, 1.5))
     layout = layout_from_dict({"outer": SQUARE, "objects": [_obj(name="chair_1"), _obj(poly=second)]})

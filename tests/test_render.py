@@ -99,3 +99,19 @@ def test_renderer_rejects_bad_fps():
     env = gym.make("SemReloc-v6", **FAST)
     with pytest.raises(ValueError, match="fps"):
         render.Renderer(env.unwrapped.layout, fps=0)
+
+
+def test_an_env_that_has_rendered_pickles_and_deep_copies():
+    # a new user's trial: the renderer's matplotlib canvas made both fail after the first render()
+    import copy
+    import pickle
+
+    env = gym.make("SemReloc-v6", render_mode="rgb_array", **FAST)
+    env.reset(seed=1)
+    first = env.render()
+    for twin in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
+        assert twin.unwrapped._renderer is None  # a copy draws its own
+        np.testing.assert_array_equal(twin.render(), first)
+        a, b = env.step(1)[0], twin.step(1)[0]
+        np.testing.assert_array_equal(a["lidar"], b["lidar"])
+        env.reset(seed=1)

@@ -191,6 +191,10 @@ class Args:
         missing = [f for f in self.layout_files if not Path(f).is_file() and find_layout_file(f) is None]
         if missing:
             raise ValueError(f"layout_files: no such file (nor a name on $SEMRELOC_LAYOUT_PATH): {missing}")
+        where = [Path(f).resolve() if Path(f).is_file() else find_layout_file(f).resolve() for f in self.layout_files]
+        twice = sorted({f for f, w in zip(self.layout_files, where) if where.count(w) > 1})
+        if twice:
+            raise ValueError(f"layout_files: the same file given more than once: {twice}")
         from semreloc_env.layouts import LayoutError, get_layout
 
         for f in self.layout_files:  # a malformed file fails here, not in a worker with a traceback
@@ -220,6 +224,15 @@ draws again; v4, v5 and v6 change the relocalizer, so every episode.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
+BUILTIN_ROWS = (*PROCEDURAL_KINDS, "twin_rooms", "lab", "lab_changed", "all", "uninformative starts")
+"""The table rows the built-in cases fill (`groups`); a layout file never shares one."""
+
+
+def layout_file_kinds(files: tuple[str, ...] | list[str]) -> dict[str, str]:
+    """The ``kind`` (table row) of each layout file's cases: its name without the extension, or the
+    path as given where that name is a built-in row's (`BUILTIN_ROWS`) or another file's."""
+    stems = [Path(f).stem for f in files]
+    return {f: (s if s not in BUILTIN_ROWS and stems.count(s) == 1 else f) for f, s in zip(files, stems)}
 
 
 def _view(world, pose, lidar_max, cam_max, angles, labels):
@@ -278,6 +291,7 @@ def build_cases(args: Args) -> list[dict]:
         layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
     layouts += [(f, 0, "nominal") for f in args.layout_files]
     lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
+    file_kinds = layout_file_kinds(args.layout_files)
     cases = []
     for li, (spec, seed, scenario) in enumerate(layouts):
         layout = get_layout(spec, seed=seed)
@@ -292,8 +306,10 @@ def build_cases(args: Args) -> list[dict]:
                 flag = pose is not None
             if pose is None:
                 pose = world.sample_free_pose(rng, margin_m=0.3)
-            name = spec if spec in ("twin_rooms", "lab") or spec in PROCEDURAL_KINDS else Path(spec).stem
-            kind = "lab_changed" if scenario == "changed" else (name if spec not in PROCEDURAL_KINDS else spec)
+            if spec in args.layout_files:
+                kind = file_kinds[spec]
+            else:
+                kind = "lab_changed" if scenario == "changed" else spec
             cases.append(
                 {
                     "case": len(cases),
@@ -685,7 +701,10 @@ def main(argv: list[str] | None = None) -> int:
     specs = list(args.policies)
     policies = [s.partition("=")[0] for s in specs]
     t0 = time.time()
-    cases = build_cases(args)
+    try:
+        cases = build_cases(args)
+    except ValueError as e:  # e.g. a layout file with no room for the robot: its message names the layout
+        return usage_error("evaluate_active", f"--layout-files: {e}")
     if args.gif_case >= len(cases):  # known only once the cases are built: an argument error all the same
         return usage_error(
             "evaluate_active", f"--gif-case {args.gif_case} is not a case (there are {len(cases)}, 0-{len(cases) - 1})"

@@ -45,6 +45,14 @@ class Args:
     def __post_init__(self) -> None:
         if self.steps < 1 or self.frame_every < 1:
             raise ValueError(f"steps and frame_every must be >= 1, got {self.steps} and {self.frame_every}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
+        from semreloc_env.layouts import LayoutError, get_layout
+
+        try:  # an unknown name or a malformed file fails here, with the parser's message, not a traceback
+            get_layout(self.layout)
+        except LayoutError as e:
+            raise ValueError(f"layout: {e}") from None
 
 
 def main(argv: list[str] | None = None) -> int:

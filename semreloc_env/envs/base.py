@@ -231,6 +231,13 @@ class SemRelocBase(gym.Env):
         frame = self._renderer.draw(self._render_state())
         return frame if self.render_mode == "rgb_array" else None
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle and deep-copy without the renderer (a matplotlib figure, which does not pickle); a
+        copy draws its own at its first `render`."""
+        state = self.__dict__.copy()
+        state["_renderer"] = None
+        return state
+
     def close(self):
         if self._renderer is not None:
             self._renderer.close()

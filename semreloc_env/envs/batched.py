@@ -35,6 +35,16 @@ from .spaces import decode_action
 SINGLE_ENV_ID = "SemReloc-v1"
 
 
+def _float_array_hint(actions, space) -> str:
+    """For a float array of discrete actions (NumPy turns ``[0, 1, nan]`` into floats): which robots'
+    entries are not finite, since the first robot's error names a float that looked fine."""
+    if not (isinstance(actions, np.ndarray) and actions.dtype.kind == "f" and isinstance(space, gym.spaces.Discrete)):
+        return ""
+    bad = np.flatnonzero(~np.isfinite(actions.reshape(len(actions), -1)).all(axis=1))
+    where = f"; robots {bad.tolist()} hold NaN or inf" if bad.size else ""
+    return f" (the actions are a {actions.dtype} array: discrete actions must be integers{where})"
+
+
 class SemRelocLoopVectorEnv(VectorEnv):
     """``num_envs`` SemReloc envs stepped in a loop in this process (see the module docstring).
 
@@ -101,7 +111,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 elif isinstance(a, (bool, np.bool_)) or not env.action_space.contains(a):
                     raise ValueError(f"invalid action {a!r:.80} for {env.action_space}")
             except ValueError as e:
-                raise ValueError(f"robot {i}: {e}") from None
+                raise ValueError(f"robot {i}: {e}{_float_array_hint(actions, env.action_space)}") from None
         return acts
 
     def check_seeds(self, seed, options=None) -> list[int | None]:

@@ -14,9 +14,9 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
-from ..layouts import CLASS_NAMES, LAYOUT_NAMES, get_layout
+from ..layouts import LAYOUT_NAMES, get_layout
 from ..map_world import check_map_matches_world
-from ..maps import MAP_SOURCES, is_ros_map_file, maps_for, names_a_layout
+from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
 from .base import SemRelocBase, check_layout_seed
@@ -319,7 +319,7 @@ class SemRelocEnv(SemRelocBase):
 
         Raises:
             ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
-                to one layout), or the grid's classes differ, or it is not a map of the layout
+                to one layout), or the grid's classes do not fit (`semreloc_env.maps.env_classes`), or it is not a map of the layout
                 (`semreloc_env.map_world.check_map_matches_world`: another place, shifted or
                 rotated); nothing changes then.
         """
@@ -331,12 +331,12 @@ class SemRelocEnv(SemRelocBase):
                     f"set_layout needs a grid: the env's map_source {self.map_source!r} is fixed to one layout"
                 )
             grid = maps_for(new_layout, self.map_source, self.lidar.params, self.camera.params)
-        elif not isinstance(grid, GridMap):
-            raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
-        elif grid.class_names != CLASS_NAMES:
-            raise ValueError(f"grid classes {grid.class_names} differ from the env's {CLASS_NAMES}")
-        elif check_map:  # ~5 ms
-            check_map_matches_world(grid, new_layout)
+        else:
+            if not isinstance(grid, GridMap):
+                raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
+            grid = env_classes(grid, "(the grid given to set_layout)", self.mcl_config.use_semantic)
+            if check_map:  # ~5 ms
+                check_map_matches_world(grid, new_layout)
         obstacles = changed_obstacles(new_layout, layout_seed) if self.scenario == "changed" else []
         self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, layout_seed, grid, obstacles
         if self._renderer is not None:  # drawn for the old layout

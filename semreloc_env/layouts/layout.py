@@ -180,6 +180,9 @@ def _is_number(v) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
 
 
+_SEQUENCES = (list, tuple, np.ndarray)
+
+
 def _as_list(raw, what: str, expected: str) -> list:
     """``raw`` as a list if it is a list, tuple or ndarray; LayoutError otherwise."""
     if isinstance(raw, np.ndarray):
@@ -203,7 +206,9 @@ def _points(raw, what: str, min_points: int) -> np.ndarray:
                 raise LayoutError(f"{what}[{i}]: expected an [x, y] point, got {pt!r:.80}")
             for v in pt:
                 if not _is_number(v):
-                    raise LayoutError(f"{what}[{i}]: coordinates must be numbers, got {type(v).__name__} {v!r:.40}")
+                    raise LayoutError(
+                        f"{what}[{i}]: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{_yaml_hint(v)}"
+                    )
             flat.append(pt)
         p = np.array(flat, dtype=np.float64).reshape(-1, 2)
     if not np.all(np.isfinite(p)):
@@ -213,6 +218,17 @@ def _points(raw, what: str, min_points: int) -> np.ndarray:
     if len(p) < min_points:
         raise LayoutError(f"{what}: needs at least {min_points} points, got {len(p)}")
     return p
+
+
+def _yaml_hint(v) -> str:
+    """A hint for a string that reads as a number: YAML 1.1 (PyYAML) takes ``1e-3`` for a string."""
+    if not isinstance(v, str):
+        return ""
+    try:
+        float(v)
+    except ValueError:
+        return ""
+    return " (YAML reads a number without a dot, such as 1e-3, as a string: write 1.0e-3)"
 
 
 def _ring(raw, what: str) -> np.ndarray:
@@ -229,7 +245,9 @@ def _ring(raw, what: str) -> np.ndarray:
     area = _signed_area(p)
     poly = shapely.polygons(p - p[0])
     if abs(area) < ZERO_AREA_M2 and shapely.convex_hull(poly).area < ZERO_AREA_M2:
-        raise LayoutError(f"{what}: polygon has zero area (its vertices are collinear)")
+        raise LayoutError(
+            f"{what}: polygon has zero area (below {ZERO_AREA_M2:g} m^2: its vertices are collinear or too close)"
+        )
     reason = shapely.is_valid_reason(poly)
     if reason == "Valid Geometry" and abs(area) < ZERO_AREA_M2:
         raise LayoutError(f"{what}: polygon has zero area")
@@ -248,9 +266,19 @@ def _real(entry: Mapping, key: str, what: str, default: float | None = None) -> 
     return float(v)
 
 
+def _point(raw, what: str) -> np.ndarray:
+    """One ``[x, y]`` point, validated as `_points` does; the message names ``what`` itself."""
+    if not (isinstance(raw, (list, tuple)) or (isinstance(raw, np.ndarray) and raw.ndim == 1)) or len(raw) != 2:
+        raise LayoutError(f"{what}: expected an [x, y] pair of numbers, got {raw!r:.80}")
+    for v in raw:
+        if not _is_number(v):
+            raise LayoutError(f"{what}: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{_yaml_hint(v)}")
+    return _points([raw], what, 1)[0]
+
+
 def _box(entry: Mapping, what: str) -> np.ndarray:
-    c = _points([entry["center"]], f"{what}.center", 1)[0]
-    size = _points([entry["size"]], f"{what}.size", 1)[0]
+    c = _point(entry["center"], f"{what}.center")
+    size = _point(entry["size"], f"{what}.size")
     if np.any(size <= 0):
         raise LayoutError(f"{what}.size must be positive, got {size.tolist()}")
     ang = _real(entry, "angle_rad", what, 0.0)
@@ -344,8 +372,8 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         raise LayoutError(f"'name' must be a string, got {type(name).__name__}")
     raw_walls = _optional_list(data, "walls")
     raw_objects = _optional_list(data, "objects")
-    total = sum(len(x) if isinstance(x, (list, tuple, np.ndarray)) else 0 for x in [data["outer"], *raw_walls])
-    total += sum(len(o.get("polygon") or ()) if isinstance(o, Mapping) else 0 for o in raw_objects)
+    polygons = [o.get("polygon") for o in raw_objects if isinstance(o, Mapping)]
+    total = sum(len(x) if isinstance(x, _SEQUENCES) else 0 for x in [data["outer"], *raw_walls, *polygons])
     if total > MAX_VERTICES:
         raise LayoutError(f"layout has {total} vertices, more than the limit of {MAX_VERTICES}")
     outer = _ring(data["outer"], "outer")
