@@ -77,7 +77,7 @@ _VECTOR = {
     "SemRelocVec-v4": ("semreloc_env.envs.semreloc:SemRelocEnvV4", "semreloc_env.envs.vector_ids:semreloc_vec_v4"),
     "SemRelocVec-v3": ("semreloc_env.envs.semreloc:SemRelocEnvV3", "semreloc_env.envs.vector_ids:semreloc_vec_v3"),
     "SemRelocVec-v2": ("semreloc_env.envs.semreloc:SemRelocEnvV2", "semreloc_env.envs.vector_ids:semreloc_vec_v2"),
-    "SemRelocVec-v1": ("semreloc_env.envs.semreloc:SemRelocEnvV1", "semreloc_env.envs.batched:SemRelocLoopVectorEnv"),
+    "SemRelocVec-v1": ("semreloc_env.envs.semreloc:SemRelocEnvV1", "semreloc_env.envs.vector_ids:semreloc_vec_v1"),
 }
 for _id, (_entry, _vector_entry) in _VECTOR.items():
     if _id not in registry:

@@ -8,6 +8,7 @@ import semreloc_env  # noqa: F401
 from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
 KW = dict(layout="twin_rooms", relocalizer={"n_particles": 300}, max_episode_steps=25)
+VKW = dict(KW, env_id="SemReloc-v1")  # the loop env over the single envs these tests compare with
 
 
 def _same(a, b) -> bool:
@@ -35,7 +36,7 @@ def test_make_vec_vector_entry_point_gives_the_loop_env_with_batched_spaces():
 
 def test_each_robot_equals_an_independent_env_bit_for_bit_through_autoresets():
     r, seed, n_steps = 3, 11, 60
-    venv = SemRelocLoopVectorEnv(num_envs=r, **KW)
+    venv = SemRelocLoopVectorEnv(num_envs=r, **VKW)
     singles = [gym.make("SemReloc-v1", **KW) for _ in range(r)]
     rng = np.random.default_rng(0)
     obs, infos = venv.reset(seed=seed)
@@ -66,7 +67,7 @@ def test_each_robot_equals_an_independent_env_bit_for_bit_through_autoresets():
 def test_bad_arguments():
     with pytest.raises(ValueError, match="num_envs"):
         SemRelocLoopVectorEnv(num_envs=0)
-    venv = SemRelocLoopVectorEnv(num_envs=2, **KW)
+    venv = SemRelocLoopVectorEnv(num_envs=2, **VKW)
     with pytest.raises(ValueError, match="seeds"):
         venv.reset(seed=[1, 2, 3])
     venv.reset(seed=0)
@@ -79,7 +80,7 @@ def test_rejected_steps_and_resets_move_no_robot():
     # seed) raised, and a scalar action gave "'int' object is not iterable".
     from agents.vec_env import SB3VecEnvAdapter
 
-    venv = SemRelocLoopVectorEnv(num_envs=3, **KW)
+    venv = SemRelocLoopVectorEnv(num_envs=3, **VKW)
     venv.reset(seed=0)
     poses = [e.unwrapped.world.pose.copy() for e in venv.envs]
     particles = [e.unwrapped.mcl.poses.copy() for e in venv.envs]
@@ -110,7 +111,7 @@ def test_rejected_steps_and_resets_move_no_robot():
 
 def test_a_float_array_of_discrete_actions_says_which_robots_hold_nan():
     # a new user's trial: [0, 1, nan] is a float array, so robot 0's 0.0 was blamed alone
-    venv = SemRelocLoopVectorEnv(num_envs=3, **KW)
+    venv = SemRelocLoopVectorEnv(num_envs=3, **VKW)
     venv.reset(seed=0)
     with pytest.raises(ValueError, match=r"robot 0: .*float64 array: discrete actions must be integers; robots \[2\]"):
         venv.step(np.array([0, 1, np.nan]))
@@ -120,7 +121,7 @@ def test_a_float_array_of_discrete_actions_says_which_robots_hold_nan():
 
 
 def test_a_done_robots_action_is_ignored_not_checked():
-    venv = SemRelocLoopVectorEnv(num_envs=2, **{**KW, "max_episode_steps": 2})
+    venv = SemRelocLoopVectorEnv(num_envs=2, **{**VKW, "max_episode_steps": 2})
     venv.reset(seed=0)
     for _ in range(2):
         _, _, term, trunc, _ = venv.step([3, 3])
@@ -137,7 +138,7 @@ def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():
     from semreloc_env.wrappers import BeliefObservation
 
     r = 2
-    adapter = SB3VecEnvAdapter(SemRelocLoopVectorEnv(num_envs=r, wrapper=BeliefObservation, **KW))
+    adapter = SB3VecEnvAdapter(SemRelocLoopVectorEnv(num_envs=r, wrapper=BeliefObservation, **VKW))
     dummy = DummyVecEnv([lambda: BeliefObservation(gym.make("SemReloc-v1", **KW)) for _ in range(r)])
     assert adapter.observation_space == dummy.observation_space
     adapter.seed(5)
@@ -155,3 +156,16 @@ def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():
     assert n_done >= r
     assert adapter.get_attr("layout")[0].name == "twin_rooms"
     adapter.close()
+
+
+def test_the_loop_env_runs_the_newest_env_unless_told_and_each_vector_id_its_own():
+    # the class's default was SemReloc-v1 long after v2-v6 came: a direct constructor ran an old relocalizer
+    from semreloc_env import ENV_IDS
+
+    newest = max((i for i in ENV_IDS if i.startswith("SemReloc-v")), key=lambda i: int(i.rsplit("v", 1)[1]))
+    assert SemRelocLoopVectorEnv(num_envs=1, **KW).envs[0].spec.id == newest
+    for vid in ("SemRelocVec-v1", "SemRelocVec-v6"):
+        venv = gym.make_vec(vid, num_envs=1, vectorization_mode="vector_entry_point", **KW)
+        assert venv.unwrapped.envs[0].spec.id == vid.replace("Vec", "")
+        with pytest.raises(TypeError, match="runs SemReloc"):
+            gym.make_vec(vid, num_envs=1, vectorization_mode="vector_entry_point", env_id="SemReloc-v0")

@@ -39,6 +39,11 @@ def semreloc_vec_v3(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
 
 def semreloc_vec_v2(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
     """``SemRelocVec-v2``: ``num_envs`` ``SemReloc-v2`` robots in one process
-    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v2"``).
-    ``SemRelocVec-v1`` is the class itself, whose ``env_id`` defaults to ``"SemReloc-v1"``."""
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v2"``)."""
     return _loop("SemReloc-v2", num_envs, kwargs)
+
+
+def semreloc_vec_v1(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v1``: ``num_envs`` ``SemReloc-v1`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v1"``)."""
+    return _loop("SemReloc-v1", num_envs, kwargs)
