@@ -199,15 +199,13 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
         grid = mapped(get_layout(source), lidar, camera)
     else:
         grid = load_map(Path(source))
-    if not grid.class_names:
-        if semantic:
-            raise ValueError(
-                f"map {source if not isinstance(source, GridMap) else '(GridMap)'} has no semantic classes "
-                "(a plain ROS map without a <name>.semantic.yaml sidecar): pass semantic=False for lidar-only "
-                f"relocalization, or give the map a sidecar with the classes {CLASS_NAMES} (docs/maps.md)"
-            )
-    else:
-        grid = env_classes(grid, source, semantic)
+    if not grid.class_names and semantic:
+        raise ValueError(
+            f"map {source if not isinstance(source, GridMap) else '(GridMap)'} has no semantic classes "
+            "(a plain ROS map without a <name>.semantic.yaml sidecar): pass semantic=False for lidar-only "
+            f"relocalization, or give the map a sidecar with the classes {CLASS_NAMES} (docs/maps.md)"
+        )
+    grid = env_classes(grid, source, semantic)  # the env's classes, in its order (empty layers if lidar-only)
     if not derived and not (isinstance(layout, MapLayout) and _same_map(layout.grid, grid)):
         check_map_matches_world(grid, layout)
     return grid

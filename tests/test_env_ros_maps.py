@@ -33,6 +33,19 @@ def test_plain_ros_map_runs_lidar_only(tmp_path, suffix):
     env.close()
 
 
+def test_a_lidar_only_env_on_a_plain_map_carries_the_env_classes(tmp_path):
+    # a review: the plain map kept no class layers, so ActiveObservation's images left its own space
+    from semreloc_env.observations import ActiveObservation
+
+    _, path = _plain_map(tmp_path)
+    env = gym.make("SemReloc-v6", map_source=str(path), semantic=False, relocalizer={"n_particles": 200})
+    assert env.unwrapped.grid.class_names == ("door", "chair", "trash_bin", "cabinet")
+    assert not env.unwrapped.grid.semantic.any()
+    wrapped = ActiveObservation(env)
+    obs, _ = wrapped.reset(seed=0)
+    assert wrapped.observation_space.contains(obs)
+
+
 def test_plain_ros_map_with_semantic_on_says_what_to_do(tmp_path):
     _, path = _plain_map(tmp_path)
     with pytest.raises(ValueError, match="has no semantic classes.*semantic=False"):

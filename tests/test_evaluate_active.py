@@ -273,20 +273,25 @@ def test_own_layouts_alone_and_malformed_layout_files(tmp_path):
     assert exit_.value.code == 2
 
 
-def test_layout_files_get_a_row_of_their_own(tmp_path, capsys):
+def test_layout_files_get_a_row_of_their_own(tmp_path, capsys, monkeypatch):
     # a new user's trial: a file named lab.json shared the built-in lab's row, and two my.yaml one row
-    assert ev.layout_file_kinds(["/x/lab.json", "/a/my.yaml", "/b/my.yaml", "/c/other.json"]) == {
-        "/x/lab.json": "/x/lab.json",
-        "/a/my.yaml": "/a/my.yaml",
-        "/b/my.yaml": "/b/my.yaml",
+    assert ev.layout_file_kinds(["/x/lab.json", "/a/my.yaml", "/b/my.yaml", "/c/other.json", "paired.json"]) == {
+        "/x/lab.json": "file:/x/lab.json",
+        "/a/my.yaml": "file:/a/my.yaml",
+        "/b/my.yaml": "file:/b/my.yaml",
         "/c/other.json": "other",
+        "paired.json": "file:paired.json",  # the summary's key for paired comparisons
     }
     from semreloc_env.layouts import get_layout
 
     path = tmp_path / "lab.json"
     path.write_text(json.dumps(get_layout("twin_rooms").to_dict()))
     cases = ev.build_cases(ev.Args(layouts_per_kind=0, starts=1, layout_files=(str(path),), policies=("spin",)))
-    assert [c["kind"] for c in cases] == ["twin_rooms", "lab", "lab_changed", str(path)]
+    assert [c["kind"] for c in cases] == ["twin_rooms", "lab", "lab_changed", f"file:{path}"]
+    assert [("layout_digest" in c) for c in cases] == [False, False, False, True]
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path))  # a name on the search path that a built-in takes
+    with pytest.raises(ValueError, match=r"\['lab'\] name built-in layouts"):
+        ev.Args(layout_files=("lab",), policies=("spin",))
     with pytest.raises(ValueError, match="more than once"):
         ev.Args(layout_files=(str(path), str(tmp_path / "." / "lab.json")), policies=("spin",))
     tiny = tmp_path / "tiny.yaml"

@@ -149,6 +149,10 @@ def test_malformed_layouts_name_the_entry(data, match):
         ({"class": "chair", "center": 1, "size": [1, 1]}, r"objects\[0\]\.center: expected an \[x, y\] pair"),
         ({"class": "chair", "center": [1, 1], "size": [1, 0.5, 2]}, r"objects\[0\]\.size: expected an \[x, y\]"),
         ({"class": "chair", "center": ["1e-3", 1], "size": [1, 1]}, r"center: .*str '1e-3'.*write 1\.0e-3"),
+        ({"class": "chair", "center": ["1.0e0", 1], "size": [1, 1]}, r"'1.0e0' \(YAML .*signed exponent"),
+        ({"class": "chair", "center": [1, 1], "size": [1, 1], "angle_rad": "1e-3"}, r"angle_rad.*'1e-3' \(YAML"),
+        ({"class": "chair", "center": ["nan", 1], "size": [1, 1]}, r"got str 'nan'$"),
+        ({"class": "chair", "polygon": np.array(0.5)}, r"objects\[0\]: expected a list of \[x, y\] points"),
         ({"class": "chair", "center": [1, 1], "size": [1e-7, 1e-7]}, "zero area.*too close"),
     ],
 )

@@ -131,11 +131,13 @@ class Args:
                 "map_source: one map for every case needs worlds that fit it: --layout-files alone "
                 "(--layouts-per-kind 0 --no-builtin-layouts)"
             )
+        semantic = self.relocalizer.get("use_semantic", True) if isinstance(self.relocalizer, dict) else True
         for f in self.layout_files:
             try:
-                maps_for(get_layout(f), self.map_source, LidarParams(), CameraParams())
+                maps_for(get_layout(f), self.map_source, LidarParams(), CameraParams(), semantic=semantic)
             except (LayoutError, ValueError, OSError) as e:  # MapFormatError is a ValueError
-                raise ValueError(f"map_source {self.map_source!r} does not fit layout file {f!r}: {e}") from None
+                hint = " (lidar only: --relocalizer '{\"use_semantic\": false}')" if semantic else ""
+                raise ValueError(f"map_source {self.map_source!r} for layout file {f!r}: {e}{hint}") from None
 
     def relocalizer_overrides(self) -> dict:
         """``--relocalizer`` as a dict, with ``n_particles`` from ``--particles``; checked against `MCLConfig`."""
@@ -191,6 +193,11 @@ class Args:
         missing = [f for f in self.layout_files if not Path(f).is_file() and find_layout_file(f) is None]
         if missing:
             raise ValueError(f"layout_files: no such file (nor a name on $SEMRELOC_LAYOUT_PATH): {missing}")
+        from semreloc_env.layouts import LAYOUT_NAMES
+
+        shadowed = [f for f in self.layout_files if f in LAYOUT_NAMES and not Path(f).is_file()]
+        if shadowed:  # get_layout would take the built-in layout, never the file on the search path
+            raise ValueError(f"layout_files: {shadowed} name built-in layouts; give the files' paths")
         where = [Path(f).resolve() if Path(f).is_file() else find_layout_file(f).resolve() for f in self.layout_files]
         twice = sorted({f for f, w in zip(self.layout_files, where) if where.count(w) > 1})
         if twice:
@@ -224,15 +231,16 @@ draws again; v4, v5 and v6 change the relocalizer, so every episode.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
-BUILTIN_ROWS = (*PROCEDURAL_KINDS, "twin_rooms", "lab", "lab_changed", "all", "uninformative starts")
-"""The table rows the built-in cases fill (`groups`); a layout file never shares one."""
+BUILTIN_ROWS = (*PROCEDURAL_KINDS, "twin_rooms", "lab", "lab_changed", "all", "uninformative starts", "paired")
+"""The rows (and summary keys) the built-in cases fill (`groups`); a layout file never shares one."""
 
 
 def layout_file_kinds(files: tuple[str, ...] | list[str]) -> dict[str, str]:
-    """The ``kind`` (table row) of each layout file's cases: its name without the extension, or the
-    path as given where that name is a built-in row's (`BUILTIN_ROWS`) or another file's."""
+    """The ``kind`` (table row) of each layout file's cases: its name without the extension, or
+    ``file:`` and the path as given where that name is a built-in row's (`BUILTIN_ROWS`) or another
+    file's."""
     stems = [Path(f).stem for f in files]
-    return {f: (s if s not in BUILTIN_ROWS and stems.count(s) == 1 else f) for f, s in zip(files, stems)}
+    return {f: (s if s not in BUILTIN_ROWS and stems.count(s) == 1 else f"file:{f}") for f, s in zip(files, stems)}
 
 
 def _view(world, pose, lidar_max, cam_max, angles, labels):
@@ -289,13 +297,15 @@ def build_cases(args: Args) -> list[dict]:
     layouts = [(k, int(s), "nominal") for k in PROCEDURAL_KINDS for s in seeds]
     if not tuning and args.builtin_layouts:
         layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
+    n_fixed = len(layouts)  # the layout files' cases come after these
     layouts += [(f, 0, "nominal") for f in args.layout_files]
     lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
     file_kinds = layout_file_kinds(args.layout_files)
     cases = []
     for li, (spec, seed, scenario) in enumerate(layouts):
         layout = get_layout(spec, seed=seed)
-        digest = {"layout_digest": file_digest(spec)} if spec in args.layout_files else {}
+        is_file = li >= n_fixed
+        digest = {"layout_digest": file_digest(spec)} if is_file else {}
         extra = changed_obstacles(layout, seed) if scenario == "changed" else []
         world = build_world(layout, extra_obstacles=extra)
         for si in range(args.starts):
@@ -306,7 +316,7 @@ def build_cases(args: Args) -> list[dict]:
                 flag = pose is not None
             if pose is None:
                 pose = world.sample_free_pose(rng, margin_m=0.3)
-            if spec in args.layout_files:
+            if is_file:
                 kind = file_kinds[spec]
             else:
                 kind = "lab_changed" if scenario == "changed" else spec
@@ -704,7 +714,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         cases = build_cases(args)
     except ValueError as e:  # e.g. a layout file with no room for the robot: its message names the layout
-        return usage_error("evaluate_active", f"--layout-files: {e}")
+        return usage_error("evaluate_active", f"--layout-files: {e}" if args.layout_files else e)
     if args.gif_case >= len(cases):  # known only once the cases are built: an argument error all the same
         return usage_error(
             "evaluate_active", f"--gif-case {args.gif_case} is not a case (there are {len(cases)}, 0-{len(cases) - 1})"

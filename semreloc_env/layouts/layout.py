@@ -185,7 +185,7 @@ _SEQUENCES = (list, tuple, np.ndarray)
 
 def _as_list(raw, what: str, expected: str) -> list:
     """``raw`` as a list if it is a list, tuple or ndarray; LayoutError otherwise."""
-    if isinstance(raw, np.ndarray):
+    if isinstance(raw, np.ndarray) and raw.ndim >= 1:
         return list(raw)
     if isinstance(raw, (list, tuple)):
         return list(raw)
@@ -220,15 +220,18 @@ def _points(raw, what: str, min_points: int) -> np.ndarray:
     return p
 
 
+_EXPONENT_FORM = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+
+
 def _yaml_hint(v) -> str:
-    """A hint for a string that reads as a number: YAML 1.1 (PyYAML) takes ``1e-3`` for a string."""
-    if not isinstance(v, str):
+    """A hint for a string written in exponent form, which YAML 1.1 (PyYAML) reads as a number only
+    with a dot and a signed exponent (``1.0e-3``, ``1.0e+3``; ``1e-3`` and ``1.0e3`` are strings)."""
+    if not (isinstance(v, str) and _EXPONENT_FORM.fullmatch(v.strip())):
         return ""
-    try:
-        float(v)
-    except ValueError:
-        return ""
-    return " (YAML reads a number without a dot, such as 1e-3, as a string: write 1.0e-3)"
+    return (
+        " (YAML reads a number in exponent form as a string unless it has a dot and a signed exponent:"
+        " write 1.0e-3 or 1.0e+3)"
+    )
 
 
 def _ring(raw, what: str) -> np.ndarray:
@@ -262,7 +265,7 @@ def _ring(raw, what: str) -> np.ndarray:
 def _real(entry: Mapping, key: str, what: str, default: float | None = None) -> float:
     v = entry.get(key, default)
     if not _is_number(v) or not math.isfinite(v):
-        raise LayoutError(f"{what}.{key} must be a finite number, got {v!r:.80}")
+        raise LayoutError(f"{what}.{key} must be a finite number, got {v!r:.80}{_yaml_hint(v)}")
     return float(v)
 
 
@@ -373,7 +376,9 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     raw_walls = _optional_list(data, "walls")
     raw_objects = _optional_list(data, "objects")
     polygons = [o.get("polygon") for o in raw_objects if isinstance(o, Mapping)]
-    total = sum(len(x) if isinstance(x, _SEQUENCES) else 0 for x in [data["outer"], *raw_walls, *polygons])
+    total = sum(
+        len(x) if isinstance(x, _SEQUENCES) and np.ndim(x) >= 1 else 0 for x in [data["outer"], *raw_walls, *polygons]
+    )
     if total > MAX_VERTICES:
         raise LayoutError(f"layout has {total} vertices, more than the limit of {MAX_VERTICES}")
     outer = _ring(data["outer"], "outer")
