@@ -110,7 +110,8 @@ class TrainConfig:
         device: torch device of the policy (``"cpu"``, ``"cuda"``, ``"auto"``; PPO with small MLPs
             is usually fastest on the CPU).
         log_dir: the run's folder: ``progress.csv``, TensorBoard events, checkpoints and evaluations
-            go there and nowhere else (None: nothing is written; stdout only with ``verbose``).
+            go there and nowhere else (None: nothing is written, which needs ``checkpoint_every`` and
+            ``eval_every`` None too; stdout only with ``verbose``).
         verbose: SB3 verbosity (1 prints the log table every rollout).
         progress_bar: SB3's progress bar (tqdm + rich) on stderr.
         metrics_window: episodes the logged relocalization rates are taken over.

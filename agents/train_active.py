@@ -35,6 +35,7 @@ import semreloc_env  # noqa: F401  (registers the env ids)
 from filters.experiments.cli import JsonDict
 from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
 from semreloc_env.observations import ActiveObservation
+from semreloc_env.observations.active import check_arguments as check_active_arguments
 from semreloc_env.rewards import BeliefMassReward
 from semreloc_env.wrappers import ActionRepeat
 
@@ -164,6 +165,10 @@ class ActiveTrainConfig:
         unknown = sorted(set(self.observation) - allowed)
         if unknown:
             raise ValueError(f"observation: unknown ActiveObservation arguments {unknown}; known {sorted(allowed)}")
+        try:  # bad values fail here, not in every worker process
+            check_active_arguments(**self.observation)
+        except ValueError as e:
+            raise ValueError(f"observation: {e}") from None
         from semreloc_env.config import coerce_config
         from semreloc_env.envs.semreloc import RewardWeights
 

@@ -277,3 +277,25 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
     assert {"model.zip", "progress.csv", "results.json", "results.md", "checkpoints"} <= {p.name for p in run.iterdir()}
     assert list(run.glob("events.out.tfevents.*"))
     assert "| PPO |" in (run / "results.md").read_text()
+
+
+def test_train_ppo_evaluates_on_its_env_id_and_refuses_a_missing_model(tmp_path, monkeypatch):
+    # a new user's trial: --config.env-id SemReloc-v1 trained, then evaluated on SemReloc-v6 and failed;
+    # --load of a missing file gave stable-baselines3's traceback
+    import stable_baselines3
+
+    import agents.tools.train_ppo as mod
+    import agents.train
+
+    with pytest.raises(ValueError, match="load: no model file"):
+        mod.Args(load=str(tmp_path / "none.zip"))
+    (tmp_path / "model.zip").write_bytes(b"")
+    seen = []
+    monkeypatch.setattr(stable_baselines3.PPO, "load", staticmethod(lambda path, device="auto": "model"))
+    monkeypatch.setattr(agents.train, "evaluate", lambda policy, kwargs, **kw: seen.append(kw["env_id"]) or {
+        "success_rate": 0.0, "wrong_convergence_rate": 0.0, "unconverged_rate": 1.0,
+        "median_steps_to_converge": None, "median_final_position_error_m": 1.0, "mean_return": 0.0,
+    })  # fmt: skip
+    argv = ["--load", str(tmp_path / "model.zip"), "--config.env-id", "SemReloc-v1", "--eval-episodes", "1"]
+    mod.run(parse(mod.Args, [*argv, "--config.log-dir", str(tmp_path / "run")]), argv)
+    assert seen == ["SemReloc-v1"] * 3

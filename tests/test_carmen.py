@@ -128,7 +128,11 @@ def test_robotlaser1(tmp_path):
     [
         ("FLASER 3 1.0 2.0", "3 readings make 12 fields"),
         ("FLASER x 1.0", "not an integer"),
-        ("FLASER 2 1.0 abc 0 0 0 0 0 0 1.0 h 1.0", "non-numeric"),
+        ("FLASER 2 1.0 abc 0 0 0 0 0 0 1.0 h 1.0", "non-numeric field 'abc' at position 1 of 2"),
+        (
+            "FLASER 3 1.0 2.0 3.0 0 0 0 0 0 0 1.0 h 1.0",
+            r"different beam counts \[2, 3\]: this one has 3, the first \(line 2\) 2",
+        ),
         ("FLASER 2 1.0 -2.0 0 0 0 0 0 0 1.0 h 1.0", "negative range"),
         ("FLASER 2 1.0 2.0 3.3 0 0 0 0 0 0 1.0 h 1.0", "2 readings make 11 fields .* got 14"),  # one reading extra
         ("FLASER 3 1.0 2.0 0 0 0 0 0 0 1.0 h 1.0", "3 readings make 12 fields .* got 13"),  # one reading short

@@ -202,3 +202,21 @@ def test_what_reads_scans_in_metres_refuses_an_env_wrapped_by_active_observation
     )
     assert POLICIES["wall_follow"](0).wrap(believed) is believed  # an added entry keeps the scans in metres
     assert "ego" in ActiveObservation(believed).observation_space.spaces
+
+
+def test_active_observation_arguments_are_checked_without_an_env():
+    # a new user's trial: train_active took a bad ego_size and failed in every worker process
+    from agents.train_active import ActiveTrainConfig
+    from semreloc_env.observations.active import check_arguments
+
+    check_arguments()  # the defaults
+    for bad, match in [
+        ({"ego_size": 0}, "ego_size must be a positive integer"),
+        ({"ego_cell_m": 0.0}, "ego_cell_m"),
+        ({"keys": "ego"}, "keys must be a list"),
+        ({"keys": ["ego", "x_ray"]}, r"keys \['x_ray'\] invalid"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            check_arguments(**bad)
+        with pytest.raises(ValueError, match="observation: " + match):
+            ActiveTrainConfig(observation=bad)

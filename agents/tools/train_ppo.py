@@ -87,6 +87,8 @@ class Args:
                 f"n_particles, max_episode_steps and eval_episodes must be >= 1, got "
                 f"{self.n_particles}, {self.max_episode_steps}, {self.eval_episodes}"
             )
+        if self.load and not (Path(self.load).is_file() or Path(self.load + ".zip").is_file()):
+            raise ValueError(f"load: no model file {self.load!r} (a model.zip that train_ppo.py saved)")
         final = range(self.eval_seed, self.eval_seed + self.eval_episodes)
         if not self.load and self.config.eval_every is not None and self.config.eval_seed in final:
             raise ValueError(
@@ -175,7 +177,9 @@ def run(args: Args, argv: list[str] | None = None) -> dict:
     rows, eval_s = {}, {}
     for name, policy in policies.items():
         t1 = time.perf_counter()
-        rows[name] = evaluate(policy, env_kwargs, n_episodes=args.eval_episodes, seed=args.eval_seed)
+        rows[name] = evaluate(
+            policy, env_kwargs, n_episodes=args.eval_episodes, seed=args.eval_seed, env_id=config.env_id
+        )
         eval_s[name] = time.perf_counter() - t1
         print(f"[train_ppo] evaluated {name} in {eval_s[name]:.0f} s: {rows[name]}", file=sys.stderr, flush=True)
 

@@ -186,10 +186,14 @@ def _open_text(path: Path):
 
 
 def _floats(tokens: list[str], what: str, path: str, lineno: int) -> list[float]:
-    try:
-        vals = [float(t) for t in tokens]
-    except ValueError:
-        raise CarmenLogError(path, lineno, f"{what}: non-numeric field in {tokens[:8]}") from None
+    vals = []
+    for i, t in enumerate(tokens):
+        try:
+            vals.append(float(t))
+        except ValueError:
+            raise CarmenLogError(
+                path, lineno, f"{what}: non-numeric field {t!r:.40} at position {i} of {len(tokens)}"
+            ) from None
     bad = [i for i, v in enumerate(vals) if not math.isfinite(v)]
     if bad:
         i = bad[0]
@@ -327,8 +331,14 @@ def read_carmen(
     if not scans:
         raise CarmenLogError(spath, 0, f"no {laser if laser != 'auto' else 'FLASER or ROBOTLASER1'} scan in the log")
     counts = {len(r["ranges"]) for r in scans}
-    if len(counts) != 1:
-        raise CarmenLogError(spath, scans[0]["line"], f"scans have different beam counts {sorted(counts)}")
+    if len(counts) != 1:  # name the first scan whose count differs from the first scan's
+        odd = next(r for r in scans if len(r["ranges"]) != len(scans[0]["ranges"]))
+        raise CarmenLogError(
+            spath,
+            odd["line"],
+            f"scans have different beam counts {sorted(counts)}: this one has {len(odd['ranges'])}, "
+            f"the first (line {scans[0]['line']}) {len(scans[0]['ranges'])}",
+        )
     n_beams = counts.pop()
     if n_beams == 0:
         raise CarmenLogError(spath, scans[0]["line"], "scans have no range readings")

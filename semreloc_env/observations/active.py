@@ -59,6 +59,35 @@ OBSERVATION_KEYS = (
 _SQRT2 = math.sqrt(2.0)
 
 
+def check_arguments(
+    keys=None, ego_size=32, ego_cell_m=0.25, global_size=32, n_heading_bins=4, max_hypotheses=8
+) -> None:
+    """Raise ValueError for `ActiveObservation` arguments it would refuse (without an env, so that a
+    training run can check its settings before it starts workers)."""
+    for name, v in (
+        ("ego_size", ego_size),
+        ("global_size", global_size),
+        ("n_heading_bins", n_heading_bins),
+        ("max_hypotheses", max_hypotheses),
+    ):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise ValueError(f"{name} must be a positive integer, got {v!r}")
+    for name, v in (("ego_size", ego_size), ("global_size", global_size)):
+        if v > 512:  # the images are (channels, size, size) per step
+            raise ValueError(f"{name} must be at most 512 cells, got {v!r}")
+    if not (is_real(ego_cell_m) and math.isfinite(ego_cell_m) and 0.01 <= ego_cell_m <= 10.0):
+        raise ValueError(f"ego_cell_m must be a number in [0.01, 10] m, got {ego_cell_m!r}")
+    try:
+        chosen = OBSERVATION_KEYS if keys is None else tuple(keys)
+    except TypeError:
+        chosen = None
+    if chosen is None or isinstance(keys, str):
+        raise ValueError(f"keys must be a list of names from {list(OBSERVATION_KEYS)}, got {keys!r:.80}")
+    unknown = [k for k in chosen if k not in OBSERVATION_KEYS]
+    if unknown or not chosen:
+        raise ValueError(f"keys {unknown or list(chosen)} invalid; choose from {list(OBSERVATION_KEYS)}")
+
+
 class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Replace a ``SemReloc`` observation by spatial belief features for a policy.
 
@@ -126,23 +155,8 @@ class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             n_heading_bins=n_heading_bins, max_hypotheses=max_hypotheses,
         )  # fmt: skip
         gym.Wrapper.__init__(self, env)
-        for name, v in (
-            ("ego_size", ego_size),
-            ("global_size", global_size),
-            ("n_heading_bins", n_heading_bins),
-            ("max_hypotheses", max_hypotheses),
-        ):
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"{name} must be a positive integer, got {v!r}")
-        for name, v in (("ego_size", ego_size), ("global_size", global_size)):
-            if v > 512:  # the images are (channels, size, size) per step
-                raise ValueError(f"{name} must be at most 512 cells, got {v!r}")
-        if not (is_real(ego_cell_m) and math.isfinite(ego_cell_m) and 0.01 <= ego_cell_m <= 10.0):
-            raise ValueError(f"ego_cell_m must be a number in [0.01, 10] m, got {ego_cell_m!r}")
+        check_arguments(keys, ego_size, ego_cell_m, global_size, n_heading_bins, max_hypotheses)
         self.keys = OBSERVATION_KEYS if keys is None else tuple(keys)
-        unknown = [k for k in self.keys if k not in OBSERVATION_KEYS]
-        if unknown or not self.keys:
-            raise ValueError(f"keys {unknown or list(self.keys)} invalid; choose from {list(OBSERVATION_KEYS)}")
         base = env.unwrapped
         for attr in ("lidar", "camera", "action_space", "mcl", "grid"):
             if not hasattr(base, attr):
