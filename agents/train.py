@@ -172,10 +172,27 @@ class TrainConfig:
         return dataclasses.asdict(self)
 
 
-def make_env(env_kwargs: dict[str, Any] | None = None, belief: bool = True, env_id: str = ENV_ID) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)``, wrapped in `BeliefObservation` when ``belief``."""
+def make_env(
+    env_kwargs: dict[str, Any] | None = None,
+    belief: bool = True,
+    env_id: str = ENV_ID,
+    belief_bounds: dict[str, float] | None = None,
+) -> gym.Env:
+    """``gym.make(env_id, **env_kwargs)``, wrapped in `BeliefObservation` (with ``belief_bounds``, its
+    keyword arguments, if given) when ``belief``."""
     env = gym.make(env_id, **dict(env_kwargs or {}))
-    return BeliefObservation(env) if belief else env
+    return BeliefObservation(env, **dict(belief_bounds or {})) if belief else env
+
+
+def belief_bounds_of(space: gym.spaces.Space) -> dict[str, float] | None:
+    """The `BeliefObservation` keyword arguments that give ``space``'s ``belief`` bounds (None if it has
+    no such entry). The default entropy bound is ``log`` of the particle count, so a model trained with
+    one count observes another count's env through these (its entropies clipped to its bound)."""
+    box = space.spaces.get("belief") if isinstance(space, gym.spaces.Dict) else None
+    if not isinstance(box, gym.spaces.Box) or box.shape != (6,):
+        return None
+    high = box.high.astype(np.float64)
+    return {"pos_std_max_m": float(high[0]), "entropy_max_nats": float(high[2]), "max_clusters": float(high[3])}
 
 
 def make_venv(config: TrainConfig):
@@ -325,10 +342,21 @@ def evaluate(
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
     env = make_env(env_kwargs, env_id=env_id)
-    if isinstance(model_or_policy, BaseAlgorithm) and model_or_policy.observation_space != env.observation_space:
+    model_space = model_or_policy.observation_space if isinstance(model_or_policy, BaseAlgorithm) else None
+    if model_space is not None and model_space != env.observation_space:
+        bounds = belief_bounds_of(model_space)  # e.g. trained with another particle count
+        if bounds is not None:
+            env.close()
+            env = make_env(env_kwargs, env_id=env_id, belief_bounds=bounds)
+    if model_space is not None and model_space != env.observation_space:
         env.close()
+        ours, theirs = env.observation_space, model_space
+        keys = sorted(
+            k for k in set(getattr(ours, "spaces", {})) | set(getattr(theirs, "spaces", {}))
+            if getattr(ours, "spaces", {}).get(k) != getattr(theirs, "spaces", {}).get(k)
+        )  # fmt: skip
         raise ValueError(
-            f"the model observes {model_or_policy.observation_space}, the env gives {env.observation_space}: "
+            f"the model's observation differs from the env's in {keys or 'its type'} (model: {theirs}, env: {ours}): "
             f"evaluate it with the env id and env_kwargs it was trained with (this is {env_id})"
         )
     act, reset_policy = _as_action_fn(model_or_policy, deterministic)

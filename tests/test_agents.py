@@ -299,3 +299,24 @@ def test_train_ppo_evaluates_on_its_env_id_and_refuses_a_missing_model(tmp_path,
     argv = ["--load", str(tmp_path / "model.zip"), "--config.env-id", "SemReloc-v1", "--eval-episodes", "1"]
     mod.run(parse(mod.Args, [*argv, "--config.log-dir", str(tmp_path / "run")]), argv)
     assert seen == ["SemReloc-v1"] * 3
+
+
+def test_a_model_trained_at_one_particle_count_is_evaluated_at_another():
+    # issue 9's report: a model trained with 1000 particles could not be evaluated at the env's 2000
+    # (BeliefObservation's entropy bound is log of the particle count)
+    from stable_baselines3 import PPO
+
+    from agents.train import belief_bounds_of, evaluate, make_env
+
+    kw = {"layout": "twin_rooms", "map_source": "perfect", "max_episode_steps": 5}
+    small = make_env({**kw, "relocalizer": {"n_particles": 300}})
+    model = PPO("MultiInputPolicy", small, n_steps=16, batch_size=16, seed=0, device="cpu")
+    bounds = belief_bounds_of(model.observation_space)
+    assert bounds["entropy_max_nats"] == pytest.approx(math.log(300), rel=1e-6)
+    out = evaluate(model, {**kw, "relocalizer": {"n_particles": 600}}, n_episodes=1)
+    assert 0.0 <= out["success_rate"] <= 1.0
+    with pytest.raises(
+        ValueError, match=r"differs from the env's in \['semantic', 'semantic_class', 'semantic_range'\]"
+    ):
+        evaluate(model, {**kw, "relocalizer": {"n_particles": 300}}, n_episodes=1, env_id="SemReloc-v1")
+    small.close()
