@@ -137,7 +137,7 @@ def test_evaluate_model_is_deterministic_and_checks_spaces(smoke):
     model, _, _ = smoke
     a = evaluate(model, FAST, n_episodes=2, seed=5)
     assert a == evaluate(model, FAST, n_episodes=2, seed=5)
-    with pytest.raises(ValueError, match="observes"):
+    with pytest.raises(ValueError, match=r"observation differs from the env.s in \[.lidar.\]"):
         evaluate(model, {**FAST, "lidar": {"n_beams": 30}}, n_episodes=1)
     with pytest.raises(TypeError):
         evaluate(object(), FAST, n_episodes=1)
