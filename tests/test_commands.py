@@ -149,3 +149,16 @@ def test_the_demo_refuses_a_negative_seed_and_an_unknown_layout_before_it_runs()
         Args(seed=-1)
     with pytest.raises(ValueError, match="layout: unknown layout 'nope'"):
         Args(layout="nope")
+
+
+def test_paper_scripts_refuse_what_they_would_fail_on_or_misreport():
+    # a new user's trial: K = 0.5 failed inside the K sweep after the tables had run, and --mcl's
+    # n_particles silently replaced --particles while the report said 2000
+    from agents.experiments.paper004 import Args as Args004
+    from filters.experiments.paper000 import Args as Args000
+
+    with pytest.raises(ValueError, match=r"K must be >= 1 .* got \[0.5\]"):
+        Args000(k_sweep=(0.5, math.inf))
+    assert Args000(k_sweep=(math.inf,)).k_sweep == (math.inf,)
+    with pytest.raises(ValueError, match="--particles"):
+        Args004(mcl={"n_particles": 500})

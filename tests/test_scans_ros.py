@@ -126,3 +126,40 @@ def test_no_return_policy():
     cleared = OccupancyMapper((1, 40), 0.1, params=OccupancyParams(max_range_m=1.0))
     cleared.update(pose, LaserScan(np.array([3.0]), np.zeros(1), 3.0))  # default: no return clears to the limit
     np.testing.assert_array_equal(cleared.logodds, far.logodds)
+
+
+def test_scans_and_maps_own_their_arrays():
+    # a new user's trial: a ROS-style loop that reuses one buffer changed every scan built from it, and a
+    # GridMap made the caller's array read-only and kept a view of it
+    angles = np.linspace(-np.pi, np.pi, 60, endpoint=False)
+    buf = np.ones(60)
+    scan = LaserScan(buf, angles, 8.0)
+    buf[:5] = np.nan
+    buf[5:10] = -3.0
+    assert np.all(scan.ranges == 1.0) and buf.flags.writeable
+    labels = np.ones(60, np.int64)
+    sem = SemanticScan(np.full(60, 2.0), angles, labels, 4.5)
+    labels[:] = 0
+    assert np.all(sem.labels == 1)
+    occ = np.zeros((10, 10), np.float32)
+    grid = GridMap(occ, 0.1)
+    assert occ.flags.writeable
+    occ[0, 0] = 1.0
+    assert grid.occupancy[0, 0] == 0.0 and not grid.occupied_mask().any()
+    assert GridMap(grid.occupancy, 0.1).occupancy is grid.occupancy  # a map's own array is not copied again
+    assert LaserScan(np.ones(60), angles, 5.0, range_min_m=np.int64(0)).range_min_m == 0.0
+    with pytest.raises(ValueError, match="range_min_m"):
+        LaserScan(np.ones(60), angles, 5.0, range_min_m=True)
+    with pytest.raises(ValueError, match="range_max_m must be a number, got str"):
+        LaserScan(np.ones(60), angles, "5")
+
+
+def test_simulated_scans_check_pose_and_rng():
+    from filters.simulators.grid_raycast import simulate_lidar
+
+    grid = GridMap(np.zeros((20, 20), np.float32), 0.1)
+    angles = np.linspace(-1, 1, 8)
+    with pytest.raises(ValueError, match="pose must be 3 finite numbers"):
+        simulate_lidar(grid, [np.nan, 1.0, 0.0], angles, 5.0)
+    with pytest.raises(TypeError, match="needs rng"):
+        simulate_lidar(grid, [1.0, 1.0, 0.0], angles, 5.0, noise_std_m=0.1)

@@ -173,3 +173,11 @@ def test_deterministic_on_same_data():
     np.testing.assert_array_equal(a.pose, b.pose)
     np.testing.assert_array_equal(a.landmarks, b.landmarks)
     assert np.linalg.norm(a.pose[:2] - run.true_poses[-1, :2]) < 2.0
+
+
+def test_initial_pose_cov_is_checked():
+    # a new user's trial: a NaN initial covariance built a wrong map without a word
+    with pytest.raises(ValueError, match="initial_pose_cov must be finite"):
+        EKFSLAM(UnicycleModel(), RangeBearingNoise(0.1, 0.01), initial_pose_cov=np.full((3, 3), np.nan))
+    with pytest.raises(ValueError, match="must be symmetric"):
+        EKFSLAM(UnicycleModel(), RangeBearingNoise(0.1, 0.01), initial_pose_cov=[[1, 0.5, 0], [0, 1, 0], [0, 0, 1]])

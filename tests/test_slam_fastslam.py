@@ -185,3 +185,26 @@ def test_resampling_threshold_skips_when_weights_even():
     f.update([[10.0, 0.0]], ids=[0])
     assert f.n_resamples == 0  # 4 of 5 particles keep equal weight: ESS ~ 4 > 2.5
     assert f.last_weights[0] < 1e-6
+
+
+def test_constructor_and_id_checks():
+    # a new user's trial: a NaN initial covariance, rng=None and n_particles=True were taken and failed later
+    with pytest.raises(ValueError, match="initial_pose_cov must be finite"):
+        FastSLAM(
+            UnicycleModel(),
+            TINY_NOISE,
+            FastSLAMConfig(),
+            np.random.default_rng(0),
+            initial_pose_cov=np.full((3, 3), np.nan),
+        )
+    with pytest.raises(ValueError, match="positive semi-definite"):
+        FastSLAM(UnicycleModel(), TINY_NOISE, FastSLAMConfig(), np.random.default_rng(0), initial_pose_cov=-np.eye(3))
+    with pytest.raises(TypeError, match="rng must be a numpy.random.Generator"):
+        FastSLAM(UnicycleModel(), TINY_NOISE, FastSLAMConfig(), None)
+    with pytest.raises(ValueError, match="n_particles must be a positive integer"):
+        FastSLAMConfig(n_particles=True)
+    known = FastSLAM(
+        UnicycleModel(), TINY_NOISE, FastSLAMConfig(association=AssociationConfig("known")), np.random.default_rng(0)
+    )
+    with pytest.raises(ValueError, match="at most 100,000"):
+        known.update(np.array([[1.0, 0.0]]), ids=[10**9])

@@ -77,6 +77,8 @@ class Args:
             raise ValueError("seeds, max_steps and particles must be >= 1 and cases not empty")
         from filters.localization.mcl import check_overrides
 
+        if isinstance(self.mcl, dict) and "n_particles" in self.mcl:
+            raise ValueError("mcl: set the particle count with --particles (the report states it)")
         check_overrides({"n_particles": self.particles, **self.mcl}, "mcl")
 
     def resolved(self) -> Args:

@@ -71,7 +71,8 @@ class Args:
     woc_k: float = 5.0
     """WOC scaling factor K for WOCPF in Tables 1-2 (paper: not stated; fixed a priori)"""
     k_sweep: tuple[float, ...] = (1.0, 1.5, 2.0, 3.0, 5.0, 10.0, 30.0, math.inf)
-    """K values for the sweep (inf = plain FastSLAM)"""
+    """K values for the sweep, each >= 1 (inf = plain FastSLAM); the i-th K's filter draws from seed 500 + i,
+    so a K's figures depend on its place in the list (give the whole default list to re-check one)"""
     version: int = 2
     """FastSLAM version for FastSLAM and WOCPF (2 = Gaussian proposal, the paper's step 4)"""
     association: str = "ml"
@@ -93,6 +94,9 @@ class Args:
             raise ValueError(f"version must be 1 or 2, got {self.version}")
         if self.runs < 1 or self.loops < 1 or min((self.particles, *self.table1_particles)) < 1 or not self.k_sweep:
             raise ValueError("runs, loops and particle counts must be >= 1 and k_sweep not empty")
+        bad = [k for k in self.k_sweep if not k >= 1.0]  # NaN fails too
+        if bad:
+            raise ValueError(f"k_sweep: WOC's K must be >= 1 (inf = plain FastSLAM), got {bad}")
 
     def resolved(self) -> Args:
         """Apply ``--quick`` and the default output paths (relative to the working directory)."""
@@ -297,7 +301,8 @@ def main(argv: list[str] | None = None) -> int:
     save_figure(fig, figdir / f"{out.stem}_table1.png", dpi=110)
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    kx = np.array([k if np.isfinite(k) else 2 * max(k2 for k2 in ks if np.isfinite(k2)) for k in ks])
+    finite = [k2 for k2 in ks if np.isfinite(k2)]
+    kx = np.array([k if np.isfinite(k) else 2 * max(finite, default=1.0) for k in ks])  # inf drawn right of the rest
     for key, lab in (("pose_err", "mean pose error"), ("lm_err", "mean landmark error")):
         m = [ci95([res[key] for res in tk[k]]) for k in ks]
         ax.errorbar(kx, [a for a, _ in m], yerr=[b for _, b in m], marker="o", capsize=3, label=lab)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from filters.arrays import frozen_array
 from filters.numbers import is_real
 
 NO_CLASS = 0
@@ -59,7 +60,7 @@ class GridMap:
     semantic_thresh: float = 0.5
 
     def __post_init__(self) -> None:
-        occ = np.asarray(self.occupancy, dtype=np.float32)
+        occ = frozen_array(self.occupancy, np.float32)  # the map's own: the caller's array stays as it was
         if occ.ndim != 2 or occ.size == 0:
             raise ValueError(f"occupancy must be a non-empty 2D array, got shape {occ.shape}")
         if not np.all(np.isfinite(occ)) or occ.min() < 0.0 or occ.max() > 1.0:
@@ -79,9 +80,9 @@ class GridMap:
         if isinstance(self.class_names, (str, bytes)):
             raise ValueError(f"class_names must be a sequence of names, got the string {self.class_names!r:.60}")
         names = tuple(str(n) for n in self.class_names)
-        sem = np.asarray(self.semantic, dtype=np.float32)
+        sem = frozen_array(self.semantic, np.float32)
         if sem.size == 0:
-            sem = np.zeros((len(names),) + occ.shape, np.float32)
+            sem = frozen_array(np.zeros((len(names),) + occ.shape, np.float32), np.float32)
         if sem.shape != (len(names),) + occ.shape:
             raise ValueError(
                 f"semantic must have shape {(len(names),) + occ.shape} (classes x occupancy shape), got {sem.shape}"
@@ -94,8 +95,6 @@ class GridMap:
             raise ValueError("need 0 <= free_thresh <= occupied_thresh <= 1")
         if not 0.0 <= self.semantic_thresh <= 1.0:
             raise ValueError(f"semantic_thresh must be in [0, 1], got {self.semantic_thresh!r}")
-        occ.setflags(write=False)
-        sem.setflags(write=False)
         object.__setattr__(self, "occupancy", occ)
         object.__setattr__(self, "semantic", sem)
         object.__setattr__(self, "origin_xy_m", origin)

@@ -22,6 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from filters.arrays import frozen_array
+from filters.numbers import is_real
+
 
 def _checked_sensor_pose(sensor_pose, what: str) -> np.ndarray:
     sp = np.asarray(sensor_pose, dtype=np.float64).reshape(-1)
@@ -49,8 +52,10 @@ def beam_endpoints(ranges: np.ndarray, angles: np.ndarray, sensor_pose: np.ndarr
 
 
 def _checked_beams(ranges, angles, range_max_m: float, what: str) -> tuple[np.ndarray, np.ndarray]:
-    r = np.asarray(ranges, dtype=np.float64).reshape(-1)
-    a = np.asarray(angles, dtype=np.float64).reshape(-1)
+    if not is_real(range_max_m):
+        raise ValueError(f"{what}: range_max_m must be a number, got {type(range_max_m).__name__} {range_max_m!r:.40}")
+    r = frozen_array(ranges, np.float64).reshape(-1)  # the scan's own: a reused buffer cannot change it
+    a = frozen_array(angles, np.float64).reshape(-1)
     if r.shape != a.shape:
         raise ValueError(f"{what}: ranges {r.shape} and angles {a.shape} differ in length")
     if not np.all(np.isfinite(r)):
@@ -88,7 +93,7 @@ class LaserScan:
     def __post_init__(self) -> None:
         r, a = _checked_beams(self.ranges, self.angles, self.range_max_m, "LaserScan")
         rmin = self.range_min_m
-        if not (isinstance(rmin, (int, float, np.floating)) and math.isfinite(rmin) and 0 <= rmin < self.range_max_m):
+        if not (is_real(rmin) and math.isfinite(rmin) and 0 <= rmin < self.range_max_m):
             raise ValueError(f"LaserScan: range_min_m must be in [0, range_max_m), got {rmin!r}")
         object.__setattr__(self, "ranges", r)
         object.__setattr__(self, "angles", a)

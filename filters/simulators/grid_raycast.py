@@ -80,7 +80,9 @@ def _cast(occ, ox, oy, res, x, y, angles, range_max, out_r, out_row, out_col):
 
 def cast_rays(grid: GridMap, pose, angles: np.ndarray, range_max_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ranges ``(B,)`` (metres, ``range_max_m`` = no return) and hit cells ``(row, col)`` (-1 = none)."""
-    p = np.asarray(pose, dtype=np.float64).reshape(3)
+    p = np.asarray(pose, dtype=np.float64).reshape(-1)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"pose must be 3 finite numbers (x m, y m, theta rad), got {pose!r:.80}")
     a = p[2] + np.asarray(angles, dtype=np.float64).reshape(-1)
     r = np.empty(a.size)
     row = np.empty(a.size, np.int64)
@@ -94,6 +96,8 @@ def _add_noise(r: np.ndarray, range_max_m: float, noise_std_m: float, rng) -> np
     """Gaussian noise on the beams that hit (kept below ``range_max_m``); no-returns unchanged."""
     if noise_std_m <= 0:
         return r
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"noise_std_m > 0 needs rng, a numpy.random.Generator; got {type(rng).__name__}")
     hit = r < range_max_m
     r = r.copy()
     r[hit] = np.clip(r[hit] + rng.normal(0.0, noise_std_m, int(hit.sum())), 0.0, range_max_m * (1 - 1e-9))

@@ -19,6 +19,7 @@ from filters.slam.association import AssociationConfig, innovation, inv2, nis_an
 from filters.slam.fastslam import SLAMEstimate
 from filters.slam.landmarks import (
     RangeBearingNoise,
+    checked_pose_cov,
     inverse_observation,
     observation_jacobians,
     validate_observations,
@@ -59,9 +60,7 @@ class EKFSLAM:
             raise ValueError(f"initial_pose must be a finite (3,) array, got {initial_pose!r}")
         self.x = pose0.copy()
         self.x[2] = wrap_angle(self.x[2])
-        self.P = np.zeros((3, 3)) if initial_pose_cov is None else np.array(initial_pose_cov, dtype=np.float64)
-        if self.P.shape != (3, 3):
-            raise ValueError("initial_pose_cov must be (3, 3)")
+        self.P = np.zeros((3, 3)) if initial_pose_cov is None else checked_pose_cov(initial_pose_cov)
         self.ids = np.zeros(0, dtype=np.int64)
         self._slot_of: dict[int, int] = {}
 

@@ -31,10 +31,12 @@ import numpy as np
 from scipy.special import logsumexp
 
 from filters.motion.velocity import MotionModel
+from filters.numbers import is_int
 from filters.pose import wrap_angle
 from filters.slam.association import AssociationConfig, gauss_logpdf, innovation, inv2, nis_and_logdet
 from filters.slam.landmarks import (
     RangeBearingNoise,
+    checked_pose_cov,
     inverse_observation,
     observation_jacobians,
     validate_observations,
@@ -68,8 +70,8 @@ class FastSLAMConfig:
     initial_capacity: int = 16
 
     def __post_init__(self) -> None:
-        if int(self.n_particles) != self.n_particles or self.n_particles < 1:
-            raise ValueError(f"n_particles must be a positive integer, got {self.n_particles}")
+        if not is_int(self.n_particles) or self.n_particles < 1:
+            raise ValueError(f"n_particles must be a positive integer, got {self.n_particles!r}")
         if self.version not in (1, 2):
             raise ValueError(f"version must be 1 or 2, got {self.version}")
         if not 0.0 < self.resample_ess_fraction <= 1.0:
@@ -163,6 +165,8 @@ class FastSLAM:
         self.obs_noise = obs_noise
         self.R = obs_noise.cov
         self.config = config
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         self.rng = rng
         self._resampler = get_resampler(config.resampler)
         n, c = config.n_particles, config.initial_capacity
@@ -172,9 +176,7 @@ class FastSLAM:
         self.poses = np.tile(pose0, (n, 1))
         self.pose_cov = np.zeros((n, 3, 3))
         if initial_pose_cov is not None:
-            p0 = np.asarray(initial_pose_cov, dtype=np.float64)
-            if p0.shape != (3, 3):
-                raise ValueError("initial_pose_cov must be (3, 3)")
+            p0 = checked_pose_cov(initial_pose_cov)
             if config.version == 2:
                 self.pose_cov[:] = p0
             else:

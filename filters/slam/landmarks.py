@@ -101,6 +101,10 @@ def inverse_observation(poses: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, n
     return np.broadcast_to(lm, shape + (2,)).copy(), g_x, g_z
 
 
+MAX_LANDMARK_ID = 100_000
+"""Largest landmark id known association takes: ids index the filters' landmark slots."""
+
+
 def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
     """Check one scan of range-bearing observations and return it as arrays.
 
@@ -135,4 +139,23 @@ def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
         raise ValueError(f"ids must have shape ({z.shape[0]},), got {ids_arr.shape}")
     if ids_arr.size and (not np.issubdtype(ids_arr.dtype, np.integer) or np.any(ids_arr < 0)):
         raise ValueError("landmark ids must be non-negative integers")
+    if ids_arr.size and ids_arr.max() > MAX_LANDMARK_ID:  # known ids index the filters' landmark slots
+        raise ValueError(
+            f"landmark ids must be at most {MAX_LANDMARK_ID:,} (they index map slots), got {ids_arr.max()}"
+        )
     return z, ids_arr.astype(np.int64)
+
+
+def checked_pose_cov(cov, what: str = "initial_pose_cov") -> np.ndarray:
+    """``cov`` as a ``(3, 3)`` float64 covariance: finite, symmetric (to 1e-9 relative) and positive
+    semi-definite; ValueError naming ``what`` otherwise."""
+    p = np.array(cov, dtype=np.float64)
+    if p.shape != (3, 3):
+        raise ValueError(f"{what} must be (3, 3), got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{what} must be finite, got {p.tolist()}")
+    if not np.allclose(p, p.T, rtol=1e-9, atol=1e-12):
+        raise ValueError(f"{what} must be symmetric, got {p.tolist()}")
+    if np.linalg.eigvalsh(p).min() < -1e-12 * max(1.0, float(np.abs(p).max())):
+        raise ValueError(f"{what} must be positive semi-definite, got {p.tolist()}")
+    return p
