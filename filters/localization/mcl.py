@@ -465,7 +465,9 @@ class MonteCarloLocalizer:
         rng: the ``numpy.random.Generator`` every random draw comes from.
         measurement_model: optional object with ``log_likelihood_terms(poses, lidar, semantic)
             -> (lidar_ll, semantic_ll, beams)`` replacing the likelihood-field model (for tests
-            and experiments); None = `LikelihoodFieldModel` from the config.
+            and experiments; ``beams`` carries the counts ``n_lidar``, ``n_semantic`` and
+            ``n_detections``, as `filters.localization.likelihood_field.BeamSet` does); None =
+            `LikelihoodFieldModel` from the config.
 
     The particle set is empty until `init_global` or `init_around`;
     `predict` and `update` raise ``ValueError`` on an empty set.
