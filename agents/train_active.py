@@ -167,7 +167,7 @@ class ActiveTrainConfig:
             raise ValueError(f"observation: unknown ActiveObservation arguments {unknown}; known {sorted(allowed)}")
         try:  # bad values fail here, not in every worker process
             check_active_arguments(**self.observation)
-        except ValueError as e:
+        except (ValueError, TypeError) as e:
             raise ValueError(f"observation: {e}") from None
         from semreloc_env.config import coerce_config
         from semreloc_env.envs.semreloc import RewardWeights

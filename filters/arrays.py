@@ -10,9 +10,10 @@ import numpy as np
 
 
 def frozen_array(values, dtype) -> np.ndarray:
-    """``values`` as a read-only array of ``dtype`` that nothing else can write: a copy, unless
-    ``values`` already is such an array (read-only, of ``dtype``, and not a view of a writable one),
-    so a caller that reuses its buffer cannot change what was built from it."""
+    """``values`` as a read-only array of ``dtype``: a copy, unless ``values`` already is a read-only
+    array of ``dtype`` that is not a view of a writable one (as this function's results are), so a
+    caller that reuses its buffer cannot change what was built from it. (NumPy lets the owner of a
+    read-only array make it writable again; nothing in this package does.)"""
     if isinstance(values, np.ndarray) and values.dtype == dtype and not values.flags.writeable:
         base = values.base
         if base is None or (isinstance(base, np.ndarray) and not base.flags.writeable and base.base is None):

@@ -159,6 +159,14 @@ def test_paper_scripts_refuse_what_they_would_fail_on_or_misreport():
 
     with pytest.raises(ValueError, match=r"K must be >= 1 .* got \[0.5\]"):
         Args000(k_sweep=(0.5, math.inf))
-    assert Args000(k_sweep=(math.inf,)).k_sweep == (math.inf,)
+    with pytest.raises(ValueError, match="woc_k"):
+        Args000(woc_k=0.5)
+    from filters.experiments.paper000 import sweep_x
+    from filters.experiments.paper001 import speed_reading
+
+    assert sweep_x([math.inf]).tolist() == [2.0]  # a sweep of inf alone crashed the figure
+    assert sweep_x([1.0, 5.0, math.inf]).tolist() == [1.0, 5.0, 10.0]
+    assert speed_reading(24.3).startswith("faster in this run")  # was "does not reduce work" beside +24 %
+    assert speed_reading(0.0).startswith("about as fast") and "add a little" in speed_reading(-14.0)
     with pytest.raises(ValueError, match="--particles"):
         Args004(mcl={"n_particles": 500})

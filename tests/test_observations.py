@@ -220,3 +220,13 @@ def test_active_observation_arguments_are_checked_without_an_env():
             check_arguments(**bad)
         with pytest.raises(ValueError, match="observation: " + match):
             ActiveTrainConfig(observation=bad)
+
+
+def test_active_observation_keys_may_be_any_iterable():
+    # a review: an iterator of keys was read by the check and then gave an empty observation
+    from semreloc_env.observations.active import OBSERVATION_KEYS
+
+    env = gym.make("SemReloc-v6", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 200})
+    wrapped = ActiveObservation(env, keys=iter(OBSERVATION_KEYS[:3]))
+    assert wrapped.keys == tuple(OBSERVATION_KEYS[:3])
+    assert set(wrapped.observation_space.spaces) == set(OBSERVATION_KEYS[:3])

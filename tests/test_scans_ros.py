@@ -147,6 +147,10 @@ def test_scans_and_maps_own_their_arrays():
     occ[0, 0] = 1.0
     assert grid.occupancy[0, 0] == 0.0 and not grid.occupied_mask().any()
     assert GridMap(grid.occupancy, 0.1).occupancy is grid.occupancy  # a map's own array is not copied again
+    mount = np.array([0.1, 0.0, 0.0])
+    mounted = LaserScan(np.ones(60), angles, 8.0, sensor_pose=mount)
+    mount[0] = 7.0
+    assert mounted.sensor_pose[0] == 0.1
     assert LaserScan(np.ones(60), angles, 5.0, range_min_m=np.int64(0)).range_min_m == 0.0
     with pytest.raises(ValueError, match="range_min_m"):
         LaserScan(np.ones(60), angles, 5.0, range_min_m=True)

@@ -179,5 +179,8 @@ def test_initial_pose_cov_is_checked():
     # a new user's trial: a NaN initial covariance built a wrong map without a word
     with pytest.raises(ValueError, match="initial_pose_cov must be finite"):
         EKFSLAM(UnicycleModel(), RangeBearingNoise(0.1, 0.01), initial_pose_cov=np.full((3, 3), np.nan))
+    ekf = EKFSLAM(UnicycleModel(), RangeBearingNoise(0.1, 0.01), EKFSLAMConfig(association=AssociationConfig("known")))
+    ekf.update(np.array([[1.0, 0.0]]), ids=[123_456])  # EKF-SLAM keeps ids in a dict: any id is fine
+    assert ekf.ids.tolist() == [123_456]
     with pytest.raises(ValueError, match="must be symmetric"):
         EKFSLAM(UnicycleModel(), RangeBearingNoise(0.1, 0.01), initial_pose_cov=[[1, 0.5, 0], [0, 1, 0], [0, 0, 1]])

@@ -94,9 +94,9 @@ class Args:
             raise ValueError(f"version must be 1 or 2, got {self.version}")
         if self.runs < 1 or self.loops < 1 or min((self.particles, *self.table1_particles)) < 1 or not self.k_sweep:
             raise ValueError("runs, loops and particle counts must be >= 1 and k_sweep not empty")
-        bad = [k for k in self.k_sweep if not k >= 1.0]  # NaN fails too
+        bad = [k for k in (*self.k_sweep, self.woc_k) if not k >= 1.0]  # NaN fails too
         if bad:
-            raise ValueError(f"k_sweep: WOC's K must be >= 1 (inf = plain FastSLAM), got {bad}")
+            raise ValueError(f"k_sweep, woc_k: WOC's K must be >= 1 (inf = plain FastSLAM), got {bad}")
 
     def resolved(self) -> Args:
         """Apply ``--quick`` and the default output paths (relative to the working directory)."""
@@ -226,6 +226,13 @@ def table1_job(job: tuple[Args, int]) -> dict:
     return out
 
 
+def sweep_x(ks) -> np.ndarray:
+    """Where the K sweep's figure draws each K: itself, and ``inf`` at twice the largest finite K (at 2
+    when the sweep has none)."""
+    finite = [k for k in ks if np.isfinite(k)]
+    return np.array([k if np.isfinite(k) else 2 * max(finite, default=1.0) for k in ks])
+
+
 def k_sweep_job(job: tuple[Args, int]) -> dict:
     """Run ``r`` of the K sweep (job ``(args, r)``, the same low-noise drive) -> ``{K: run_filter result}``."""
     args, r = job
@@ -301,8 +308,7 @@ def main(argv: list[str] | None = None) -> int:
     save_figure(fig, figdir / f"{out.stem}_table1.png", dpi=110)
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    finite = [k2 for k2 in ks if np.isfinite(k2)]
-    kx = np.array([k if np.isfinite(k) else 2 * max(finite, default=1.0) for k in ks])  # inf drawn right of the rest
+    kx = sweep_x(ks)
     for key, lab in (("pose_err", "mean pose error"), ("lm_err", "mean landmark error")):
         m = [ci95([res[key] for res in tk[k]]) for k in ks]
         ax.errorbar(kx, [a for a, _ in m], yerr=[b for _, b in m], marker="o", capsize=3, label=lab)

@@ -185,15 +185,22 @@ def _open_text(path: Path):
     return gzip.open(path, "rt", encoding="latin-1") if gz else open(path, encoding="latin-1")
 
 
+def _is_float(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
 def _floats(tokens: list[str], what: str, path: str, lineno: int) -> list[float]:
-    vals = []
-    for i, t in enumerate(tokens):
-        try:
-            vals.append(float(t))
-        except ValueError:
-            raise CarmenLogError(
-                path, lineno, f"{what}: non-numeric field {t!r:.40} at position {i} of {len(tokens)}"
-            ) from None
+    try:
+        vals = [float(t) for t in tokens]
+    except ValueError:
+        i = next(i for i, t in enumerate(tokens) if not _is_float(t))
+        raise CarmenLogError(
+            path, lineno, f"{what}: non-numeric field {tokens[i]!r:.40} at position {i} of {len(tokens)}"
+        ) from None
     bad = [i for i, v in enumerate(vals) if not math.isfinite(v)]
     if bad:
         i = bad[0]

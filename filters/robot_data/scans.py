@@ -27,10 +27,9 @@ from filters.numbers import is_real
 
 
 def _checked_sensor_pose(sensor_pose, what: str) -> np.ndarray:
-    sp = np.asarray(sensor_pose, dtype=np.float64).reshape(-1)
+    sp = frozen_array(sensor_pose, np.float64).reshape(-1)
     if sp.shape != (3,) or not np.all(np.isfinite(sp)):
         raise ValueError(f"{what}: sensor_pose must be 3 finite numbers (x m, y m, theta rad), got {sensor_pose!r}")
-    sp.setflags(write=False)
     return sp
 
 

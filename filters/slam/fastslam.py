@@ -44,6 +44,9 @@ from filters.slam.landmarks import (
 from filters.slam.weight_transforms import identity
 from filters.smc.resampling import effective_sample_size, get_resampler
 
+MAX_KNOWN_ID = 100_000
+"""Largest landmark id known association takes: ids index every particle's landmark slots."""
+
 
 @dataclass(frozen=True)
 class FastSLAMConfig:
@@ -269,6 +272,11 @@ class FastSLAM:
         """Associate each observation with a landmark slot, per particle (vectorised)."""
         n, k = self.n_particles, z.shape[0]
         if self.config.association.mode == "known":
+            if int(ids.max()) > MAX_KNOWN_ID:  # known ids index every particle's landmark arrays
+                raise ValueError(
+                    f"known-association landmark ids must be at most {MAX_KNOWN_ID:,} (they index map slots "
+                    f"of every particle), got {int(ids.max())}"
+                )
             self._ensure_capacity(int(ids.max()) + 1)
             slots = np.broadcast_to(ids, (n, k)).copy()
             matched = self.exists[:, ids]

@@ -101,10 +101,6 @@ def inverse_observation(poses: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, n
     return np.broadcast_to(lm, shape + (2,)).copy(), g_x, g_z
 
 
-MAX_LANDMARK_ID = 100_000
-"""Largest landmark id known association takes: ids index the filters' landmark slots."""
-
-
 def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
     """Check one scan of range-bearing observations and return it as arrays.
 
@@ -139,10 +135,6 @@ def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
         raise ValueError(f"ids must have shape ({z.shape[0]},), got {ids_arr.shape}")
     if ids_arr.size and (not np.issubdtype(ids_arr.dtype, np.integer) or np.any(ids_arr < 0)):
         raise ValueError("landmark ids must be non-negative integers")
-    if ids_arr.size and ids_arr.max() > MAX_LANDMARK_ID:  # known ids index the filters' landmark slots
-        raise ValueError(
-            f"landmark ids must be at most {MAX_LANDMARK_ID:,} (they index map slots), got {ids_arr.max()}"
-        )
     return z, ids_arr.astype(np.int64)
 
 

@@ -155,8 +155,9 @@ class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             n_heading_bins=n_heading_bins, max_hypotheses=max_hypotheses,
         )  # fmt: skip
         gym.Wrapper.__init__(self, env)
+        keys = None if keys is None or isinstance(keys, str) else tuple(keys)  # an iterator is read once
         check_arguments(keys, ego_size, ego_cell_m, global_size, n_heading_bins, max_hypotheses)
-        self.keys = OBSERVATION_KEYS if keys is None else tuple(keys)
+        self.keys = OBSERVATION_KEYS if keys is None else keys
         base = env.unwrapped
         for attr in ("lidar", "camera", "action_space", "mcl", "grid"):
             if not hasattr(base, attr):
