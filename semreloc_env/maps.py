@@ -199,12 +199,6 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
         grid = mapped(get_layout(source), lidar, camera)
     else:
         grid = load_map(Path(source))
-    if not grid.class_names and semantic:
-        raise ValueError(
-            f"map {source if not isinstance(source, GridMap) else '(GridMap)'} has no semantic classes "
-            "(a plain ROS map without a <name>.semantic.yaml sidecar): pass semantic=False for lidar-only "
-            f"relocalization, or give the map a sidecar with the classes {CLASS_NAMES} (docs/maps.md)"
-        )
     grid = env_classes(grid, source, semantic)  # the env's classes, in its order (empty layers if lidar-only)
     if not derived and not (isinstance(layout, MapLayout) and _same_map(layout.grid, grid)):
         check_map_matches_world(grid, layout)
@@ -226,6 +220,12 @@ def env_classes(grid: GridMap, source, semantic: bool = True) -> GridMap:
     if names == CLASS_NAMES:
         return grid
     where = f"map {source if not isinstance(source, GridMap) else '(GridMap)'}"
+    if not names and semantic:
+        raise ValueError(
+            f"{where} has no semantic classes (a plain ROS map without a <name>.semantic.yaml sidecar): pass "
+            f"semantic=False for lidar-only relocalization, or give the map a sidecar with the classes "
+            f"{CLASS_NAMES} (docs/maps.md)"
+        )
     unknown = [c for c in names if c not in CLASS_NAMES]
     if unknown:
         raise ValueError(f"{where}: classes {unknown} are not among the env's {CLASS_NAMES} (docs/maps.md)")

@@ -153,6 +153,7 @@ def test_malformed_layouts_name_the_entry(data, match):
         ({"class": "chair", "center": [1, 1], "size": [1, 1], "angle_rad": "1e-3"}, r"angle_rad.*'1e-3' \(YAML"),
         ({"class": "chair", "center": ["nan", 1], "size": [1, 1]}, r"got str 'nan'$"),
         ({"class": "chair", "polygon": np.array(0.5)}, r"objects\[0\]: expected a list of \[x, y\] points"),
+        ({"class": "chair", "polygon": [[1, 1], [2, 1], [2]]}, r"objects\[0\]\[2\]: expected an \[x, y\] point"),
         ({"class": "chair", "center": [1, 1], "size": [1e-7, 1e-7]}, "zero area.*too close"),
     ],
 )

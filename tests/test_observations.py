@@ -230,3 +230,5 @@ def test_active_observation_keys_may_be_any_iterable():
     wrapped = ActiveObservation(env, keys=iter(OBSERVATION_KEYS[:3]))
     assert wrapped.keys == tuple(OBSERVATION_KEYS[:3])
     assert set(wrapped.observation_space.spaces) == set(OBSERVATION_KEYS[:3])
+    with pytest.raises(ValueError, match="keys must be a list"):  # a string is not a list of keys
+        ActiveObservation(env, keys="ego")

@@ -208,5 +208,6 @@ def test_constructor_and_id_checks():
     )
     with pytest.raises(ValueError, match="at most 100,000"):
         known.update(np.array([[1.0, 0.0]]), ids=[10**9])
+    assert known.n_updates == 0  # the refused scan changed nothing
     ml = FastSLAM(UnicycleModel(), TINY_NOISE, FastSLAMConfig(), np.random.default_rng(0))
     ml.update(np.array([[1.0, 0.0]]), ids=[10**9])  # maximum-likelihood association ignores the ids

@@ -82,7 +82,8 @@ class GridMap:
         names = tuple(str(n) for n in self.class_names)
         sem = frozen_array(self.semantic, np.float32)
         if sem.size == 0:
-            sem = frozen_array(np.zeros((len(names),) + occ.shape, np.float32), np.float32)
+            sem = np.zeros((len(names),) + occ.shape, np.float32)
+            sem.setflags(write=False)
         if sem.shape != (len(names),) + occ.shape:
             raise ValueError(
                 f"semantic must have shape {(len(names),) + occ.shape} (classes x occupancy shape), got {sem.shape}"

@@ -225,6 +225,11 @@ class FastSLAM:
         z, ids = validate_observations(z, ids)
         if self.config.association.mode == "known" and ids is None and z.shape[0] > 0:
             raise ValueError("known association needs landmark ids with every scan")
+        if self.config.association.mode == "known" and ids is not None and ids.size and ids.max() > MAX_KNOWN_ID:
+            raise ValueError(  # known ids index every particle's landmark arrays
+                f"known-association landmark ids must be at most {MAX_KNOWN_ID:,} (they index map slots of every "
+                f"particle), got {int(ids.max())}"
+            )
         if z.shape[0] == 0:
             return
         self.n_updates += 1
@@ -272,11 +277,6 @@ class FastSLAM:
         """Associate each observation with a landmark slot, per particle (vectorised)."""
         n, k = self.n_particles, z.shape[0]
         if self.config.association.mode == "known":
-            if int(ids.max()) > MAX_KNOWN_ID:  # known ids index every particle's landmark arrays
-                raise ValueError(
-                    f"known-association landmark ids must be at most {MAX_KNOWN_ID:,} (they index map slots "
-                    f"of every particle), got {int(ids.max())}"
-                )
             self._ensure_capacity(int(ids.max()) + 1)
             slots = np.broadcast_to(ids, (n, k)).copy()
             matched = self.exists[:, ids]

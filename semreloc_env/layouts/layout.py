@@ -180,14 +180,19 @@ def _is_number(v) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
 
 
-_SEQUENCES = (list, tuple, np.ndarray)
+def _is_sequence(raw) -> bool:
+    """A list, a tuple or an ndarray of at least one dimension (what `_as_list` takes)."""
+    return isinstance(raw, (list, tuple)) or (isinstance(raw, np.ndarray) and raw.ndim >= 1)
+
+
+def _length(raw) -> int:
+    """``len(raw)`` for what `_as_list` takes, else 0 (counted before anything is validated)."""
+    return len(raw) if _is_sequence(raw) else 0
 
 
 def _as_list(raw, what: str, expected: str) -> list:
     """``raw`` as a list if it is a list, tuple or ndarray; LayoutError otherwise."""
-    if isinstance(raw, np.ndarray) and raw.ndim >= 1:
-        return list(raw)
-    if isinstance(raw, (list, tuple)):
+    if _is_sequence(raw):
         return list(raw)
     raise LayoutError(f"{what}: expected {expected}, got {type(raw).__name__} {raw!r:.80}")
 
@@ -204,11 +209,7 @@ def _points(raw, what: str, min_points: int) -> np.ndarray:
         for i, pt in enumerate(pts):
             if not (isinstance(pt, (list, tuple)) or (isinstance(pt, np.ndarray) and pt.ndim == 1)) or len(pt) != 2:
                 raise LayoutError(f"{what}[{i}]: expected an [x, y] point, got {pt!r:.80}")
-            for v in pt:
-                if not _is_number(v):
-                    raise LayoutError(
-                        f"{what}[{i}]: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{_yaml_hint(v)}"
-                    )
+            _check_numbers(pt, f"{what}[{i}]")
             flat.append(pt)
         p = np.array(flat, dtype=np.float64).reshape(-1, 2)
     if not np.all(np.isfinite(p)):
@@ -218,6 +219,13 @@ def _points(raw, what: str, min_points: int) -> np.ndarray:
     if len(p) < min_points:
         raise LayoutError(f"{what}: needs at least {min_points} points, got {len(p)}")
     return p
+
+
+def _check_numbers(pt, what: str) -> None:
+    """LayoutError naming ``what`` unless every coordinate of the point ``pt`` is a real number."""
+    for v in pt:
+        if not _is_number(v):
+            raise LayoutError(f"{what}: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{_yaml_hint(v)}")
 
 
 _EXPONENT_FORM = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
@@ -273,9 +281,7 @@ def _point(raw, what: str) -> np.ndarray:
     """One ``[x, y]`` point, validated as `_points` does; the message names ``what`` itself."""
     if not (isinstance(raw, (list, tuple)) or (isinstance(raw, np.ndarray) and raw.ndim == 1)) or len(raw) != 2:
         raise LayoutError(f"{what}: expected an [x, y] pair of numbers, got {raw!r:.80}")
-    for v in raw:
-        if not _is_number(v):
-            raise LayoutError(f"{what}: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{_yaml_hint(v)}")
+    _check_numbers(raw, what)
     return _points([raw], what, 1)[0]
 
 
@@ -376,9 +382,7 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     raw_walls = _optional_list(data, "walls")
     raw_objects = _optional_list(data, "objects")
     polygons = [o.get("polygon") for o in raw_objects if isinstance(o, Mapping)]
-    total = sum(
-        len(x) if isinstance(x, _SEQUENCES) and np.ndim(x) >= 1 else 0 for x in [data["outer"], *raw_walls, *polygons]
-    )
+    total = sum(_length(x) for x in [data["outer"], *raw_walls, *polygons])
     if total > MAX_VERTICES:
         raise LayoutError(f"layout has {total} vertices, more than the limit of {MAX_VERTICES}")
     outer = _ring(data["outer"], "outer")

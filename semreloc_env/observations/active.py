@@ -61,9 +61,10 @@ _SQRT2 = math.sqrt(2.0)
 
 def check_arguments(
     keys=None, ego_size=32, ego_cell_m=0.25, global_size=32, n_heading_bins=4, max_hypotheses=8
-) -> None:
-    """Raise ValueError for `ActiveObservation` arguments it would refuse (without an env, so that a
-    training run can check its settings before it starts workers)."""
+) -> tuple[str, ...]:
+    """The observation keys `ActiveObservation` takes from these arguments (``keys`` read once, so any
+    iterable will do), or ValueError for arguments it would refuse; needs no env, so a training run
+    can check its settings before it starts workers."""
     for name, v in (
         ("ego_size", ego_size),
         ("global_size", global_size),
@@ -86,6 +87,7 @@ def check_arguments(
     unknown = [k for k in chosen if k not in OBSERVATION_KEYS]
     if unknown or not chosen:
         raise ValueError(f"keys {unknown or list(chosen)} invalid; choose from {list(OBSERVATION_KEYS)}")
+    return chosen
 
 
 class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -155,9 +157,7 @@ class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             n_heading_bins=n_heading_bins, max_hypotheses=max_hypotheses,
         )  # fmt: skip
         gym.Wrapper.__init__(self, env)
-        keys = None if keys is None or isinstance(keys, str) else tuple(keys)  # an iterator is read once
-        check_arguments(keys, ego_size, ego_cell_m, global_size, n_heading_bins, max_hypotheses)
-        self.keys = OBSERVATION_KEYS if keys is None else keys
+        self.keys = check_arguments(keys, ego_size, ego_cell_m, global_size, n_heading_bins, max_hypotheses)
         base = env.unwrapped
         for attr in ("lidar", "camera", "action_space", "mcl", "grid"):
             if not hasattr(base, attr):
