@@ -61,6 +61,8 @@ def _layout_text(layout: Layout) -> str:
     parts = [type(layout).__name__]
     for f in dataclasses.fields(layout):
         v = getattr(layout, f.name)
+        if f.name == "blocks" and not v:
+            continue  # layouts without blocks keep the keys they had before blocks existed
         parts.append(f"{f.name}={grid_content_key(v) if isinstance(v, GridMap) else repr(v)}")
     return ";".join(parts)
 

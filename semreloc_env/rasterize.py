@@ -94,7 +94,8 @@ def rasterize(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5)
     """The perfect occupancy and semantic grids of ``layout``.
 
     Walls and object outlines mark the cells they pass through as occupied (1.0);
-    object interiors are occupied and carry their class (probability 1.0); free
+    object interiors are occupied and carry their class (probability 1.0), block interiors
+    are occupied without a class; free
     space inside the outer wall is 0.0; outside it the map is unknown (0.5).
     The grid covers the outer wall's bounds plus ``margin_m`` on each side.
 
@@ -111,9 +112,10 @@ def rasterize(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5)
     walls = np.zeros((h, w), bool)
     _mark_segments(walls, layout.wall_segments(), resolution_m, origin)
     sem = np.zeros((len(CLASS_NAMES), h, w), np.float32)
-    for obj in layout.objects:
-        poly = np.asarray(obj.polygon)
-        # only the object's bounding box of cells: linear in the layout, not objects x cells
+    solids = [(np.asarray(obj.polygon), obj.label) for obj in layout.objects]
+    solids += [(np.asarray(b), 0) for b in layout.blocks]  # solid, no class
+    for poly, label in solids:
+        # only the polygon's bounding box of cells: linear in the layout, not polygons x cells
         c0 = max(0, int(np.floor((poly[:, 0].min() - origin[0]) / resolution_m)) - 1)
         c1 = min(w, int(np.ceil((poly[:, 0].max() - origin[0]) / resolution_m)) + 2)
         r0 = max(0, int(np.floor((poly[:, 1].min() - origin[1]) / resolution_m)) - 1)
@@ -122,6 +124,7 @@ def rasterize(layout: Layout, resolution_m: float = 0.05, margin_m: float = 0.5)
         edges = np.stack([poly, np.roll(poly, -1, axis=0)], axis=1)
         _mark_segments(cells, edges, resolution_m, origin, (r0, c0))
         walls[r0:r1, c0:c1] |= cells
-        sem[obj.label - 1][r0:r1, c0:c1][cells] = 1.0
+        if label:
+            sem[label - 1][r0:r1, c0:c1][cells] = 1.0
     occ[walls] = 1.0
     return GridMap(occ, resolution_m, origin, sem, CLASS_NAMES)

@@ -28,7 +28,9 @@ def class_color(label: int) -> str:
 
 
 def draw_layout(ax, layout: Layout, extra_obstacles=()) -> None:
-    """Walls in black, objects filled in their class colour, extra obstacles hatched grey."""
+    """Walls in black, blocks filled dark grey, objects filled in their class colour, extra obstacles hatched grey."""
+    for block in layout.blocks:
+        ax.add_patch(Polygon(block, closed=True, facecolor="#555555", edgecolor="none"))
     ax.add_collection(LineCollection(layout.wall_segments(), colors="k", linewidths=2))
     for obj in layout.objects:
         ax.add_patch(Polygon(obj.polygon, closed=True, color=CLASS_COLORS[obj.cls], alpha=0.8))

@@ -67,11 +67,12 @@ class StaticGeometry:
         obstacles: obstacle polygons (layout objects first, then the extra obstacles, counter-clockwise).
         convex_parts: per obstacle, its convex pieces (pymunk polygons must be convex).
         scene: the segments every sensor casts against.
-        ring_edges: ``(E, 4)`` edges ``(x0, y0, x1, y1)`` of the outer wall (ring 0) and the obstacles.
-        ring_start: ``(n_obstacles + 2,)``: ring ``k``'s edges are ``ring_edges[ring_start[k]:ring_start[k + 1]]``.
-        ring_bbox: ``(n_obstacles + 1, 4)`` ``(x0, y0, x1, y1)`` of each ring.
-        obstacle_buckets: CSR ``(start, items)`` of the obstacles whose bounding box overlaps each
-            cell of the scene's bucket grid (items are ring indices ``k + 1``).
+        ring_edges: ``(E, 4)`` edges ``(x0, y0, x1, y1)`` of the outer wall (ring 0), the obstacles,
+            then the layout's blocks (solid too; their edges are among the ``walls``).
+        ring_start: ``(n_rings + 1,)``: ring ``k``'s edges are ``ring_edges[ring_start[k]:ring_start[k + 1]]``.
+        ring_bbox: ``(n_rings, 4)`` ``(x0, y0, x1, y1)`` of each ring.
+        obstacle_buckets: CSR ``(start, items)`` of the rings ``k >= 1`` whose bounding box overlaps each
+            cell of the scene's bucket grid (items are ring indices).
     """
 
     walls: np.ndarray
@@ -107,7 +108,9 @@ def static_geometry(layout: Layout, extra_obstacles=()) -> StaticGeometry:
         for a, b in zip(poly, np.roll(poly, -1, axis=0)):
             segments.append((a, b))
             owners.append(owner)
-    rings = [np.asarray(layout.outer, dtype=np.float64)] + obstacles
+    # blocks' edges are walls (`Layout.wall_segments`); their insides are solid like the obstacles'
+    blocks = [np.asarray(b, dtype=np.float64) for b in layout.blocks]
+    rings = [np.asarray(layout.outer, dtype=np.float64)] + obstacles + blocks
     edges = np.concatenate([np.hstack([r, np.roll(r, -1, axis=0)]) for r in rings])
     ring_start = np.concatenate([[0], np.cumsum([len(r) for r in rings])]).astype(np.int64)
     ring_bbox = np.array([[*r.min(axis=0), *r.max(axis=0)] for r in rings], dtype=np.float64)
@@ -256,7 +259,7 @@ class World:
             )
         geo = static_geometry(layout, extra_obstacles)
         self.geometry = geo
-        self._obstacles = list(geo.obstacles)
+        self._obstacles = list(geo.obstacles) + [np.asarray(b, dtype=np.float64) for b in layout.blocks]  # solid
         self.scene = geo.scene
         # pushed-out robots stop this far beyond their radius: a few ulps of the coordinates, at least 1 nm
         self._skin = 1e-9 + 8 * float(np.spacing(np.abs(self.scene.segments).max(initial=1.0)))

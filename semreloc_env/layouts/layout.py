@@ -14,11 +14,16 @@ File / dict format (JSON or YAML), all lengths in metres::
       - {class: chair, polygon: [[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]}
       - {class: cabinet, center: [3, 0.3], size: [1.0, 0.5], angle_rad: 0.0}  # box shorthand
       - {class: door, name: entrance, center: [0.05, 5], size: [0.1, 1.0]}  # names: optional, unique
+    blocks:                        # optional: solid blocks of no class (pillars, sealed cores)
+      - [[6, 6], [7, 6], [7, 7], [6, 7]]                  # a polygon
+      - {center: [10, 5], size: [2.0, 1.0], angle_rad: 0.0}  # or the box shorthand
 
 Classes: ``door``, ``chair``, ``trash_bin``, ``cabinet`` (paper 004). Every object is a solid
 obstacle for the robot and the lidar, a ``door`` too: the built-in layouts' doors are thin panels
 against a wall (the sign a camera recognises), not openings; a door object placed across a
-doorway closes it. Openings are gaps between ``walls``.
+doorway closes it. Openings are gaps between ``walls``. A ``block`` is solid space without a class:
+its edges are walls to every sensor (the camera labels them 0, as walls), and no robot is placed
+inside it (walls alone that enclose a space leave it free, so starts could be drawn in a sealed room).
 Every problem found raises `LayoutError` naming the offending entry.
 """
 
@@ -81,19 +86,23 @@ class Layout:
             it is reversed); the robot lives inside it.
         walls: interior walls, each an open polyline of >= 2 points.
         objects: the semantic objects.
+        blocks: solid polygons of no class (counter-clockwise): their edges are walls, their
+            inside is not free space.
     """
 
     name: str
     outer: tuple[Point, ...]
     walls: tuple[tuple[Point, ...], ...]
     objects: tuple[SemanticObject, ...]
+    blocks: tuple[tuple[Point, ...], ...] = ()
 
     def wall_segments(self) -> np.ndarray:
-        """``(M, 2, 2)`` float64: every wall segment (outer ring and interior polylines)."""
+        """``(M, 2, 2)`` float64: every wall segment (outer ring, interior polylines, then block edges)."""
         segs = [_ring_segments(self.outer)]
         for wall in self.walls:
             w = np.asarray(wall, dtype=np.float64)
             segs.append(np.stack([w[:-1], w[1:]], axis=1))
+        segs += [_ring_segments(b) for b in self.blocks]
         return np.concatenate(segs, axis=0)
 
     def object_segments(self) -> tuple[np.ndarray, np.ndarray]:
@@ -110,8 +119,8 @@ class Layout:
         return float(p[:, 0].min()), float(p[:, 0].max()), float(p[:, 1].min()), float(p[:, 1].max())
 
     def to_dict(self) -> dict:
-        """The plain-dict form accepted by `layout_from_dict` (round-trips)."""
-        return {
+        """The plain-dict form accepted by `layout_from_dict` (round-trips; ``blocks`` only if there are any)."""
+        out = {
             "name": self.name,
             "outer": [list(p) for p in self.outer],
             "walls": [[list(p) for p in w] for w in self.walls],
@@ -119,6 +128,9 @@ class Layout:
                 {"class": o.cls, "name": o.name, "polygon": [list(p) for p in o.polygon]} for o in self.objects
             ],
         }
+        if self.blocks:
+            out["blocks"] = [[list(p) for p in b] for b in self.blocks]
+        return out
 
 
 # --------------------------------------------------------------------------- limits
@@ -346,8 +358,30 @@ def _check_geometry(outer: np.ndarray, walls: list, walls_what: list, objects: l
             raise LayoutError(f"{walls_what[w]}: passes through {objects_what[k]}{_where(hit)}")
 
 
-_TOP_KEYS = {"name", "outer", "walls", "objects"}
+_TOP_KEYS = {"name", "outer", "walls", "objects", "blocks"}
 _OBJECT_KEYS = {"class", "name", "polygon", "center", "size", "angle_rad"}
+_BLOCK_KEYS = {"polygon", "center", "size", "angle_rad"}
+
+
+def _shape(entry: Mapping, what: str) -> np.ndarray:
+    """The polygon of an object or block entry: its ``polygon``, or the box of ``center`` and ``size``."""
+    if "polygon" in entry:
+        if "center" in entry or "size" in entry or "angle_rad" in entry:
+            raise LayoutError(f"{what}: give either 'polygon' or 'center' and 'size', not both")
+        return _ring(entry["polygon"], what)
+    if "center" in entry and "size" in entry:
+        return _ring(_box(entry, what), what)
+    raise LayoutError(f"{what}: needs 'polygon' or both 'center' and 'size'")
+
+
+def _block(raw, what: str) -> np.ndarray:
+    """A block: a polygon (a list of points) or a mapping with ``polygon`` or ``center`` and ``size``."""
+    if isinstance(raw, Mapping):
+        unknown = set(raw) - _BLOCK_KEYS
+        if unknown:
+            raise LayoutError(f"{what}: unknown keys {_key_list(unknown)}; allowed: {sorted(_BLOCK_KEYS)}")
+        return _shape(raw, what)
+    return _ring(raw, what)
 
 
 def _optional_list(data: Mapping, key: str) -> list:
@@ -363,8 +397,8 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     Checks, in ``O(n log n)`` time for ``n`` vertices in all (limit `MAX_VERTICES`):
     known keys; coordinates real numbers (not strings or bools), finite, within
     `MAX_COORDINATE_M`; polygons simple (not self-intersecting) with non-zero area;
-    whole walls and objects inside the outer wall; objects not overlapping each other
-    and no interior wall through an object (touching, within `TOLERANCE_M`, is fine).
+    whole walls, objects and blocks inside the outer wall; objects and blocks not overlapping
+    each other and no interior wall through one (touching, within `TOLERANCE_M`, is fine).
 
     Raises:
         LayoutError: the first problem found; the message names the entry.
@@ -381,7 +415,9 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         raise LayoutError(f"'name' must be a string, got {type(name).__name__}")
     raw_walls = _optional_list(data, "walls")
     raw_objects = _optional_list(data, "objects")
-    polygons = [o.get("polygon") for o in raw_objects if isinstance(o, Mapping)]
+    raw_blocks = _optional_list(data, "blocks")
+    polygons = [o.get("polygon") for o in [*raw_objects, *raw_blocks] if isinstance(o, Mapping)]
+    polygons += [b for b in raw_blocks if not isinstance(b, Mapping)]
     total = sum(_length(x) for x in [data["outer"], *raw_walls, *polygons])
     if total > MAX_VERTICES:
         raise LayoutError(f"layout has {total} vertices, more than the limit of {MAX_VERTICES}")
@@ -413,19 +449,12 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         cls = o.get("class")
         if not isinstance(cls, str) or cls not in CLASS_NAMES:
             raise LayoutError(f"{what}: unknown class {cls!r:.40}; known classes: {list(CLASS_NAMES)}")
-        if "polygon" in o:
-            if "center" in o or "size" in o or "angle_rad" in o:
-                raise LayoutError(f"{what}: give either 'polygon' or 'center' and 'size', not both")
-            poly = _ring(o["polygon"], what)
-        elif "center" in o and "size" in o:
-            poly = _ring(_box(o, what), what)
-        else:
-            raise LayoutError(f"{what}: needs 'polygon' or both 'center' and 'size'")
-        objects.append(poly)
+        objects.append(_shape(o, what))
         objects_what.append(what)
         classes.append(cls)
         names.append(obj_name or None)
-    _check_geometry(outer, walls, walls_what, objects, objects_what)
+    blocks = [_block(b, f"blocks[{i}]") for i, b in enumerate(raw_blocks)]
+    _check_geometry(outer, walls, walls_what, objects + blocks, objects_what + [f"blocks[{i}]" for i in range(len(blocks))])
     for i, cls in enumerate(classes):  # unnamed objects: "<class>_<index>", or "_2", "_3", ... after a name taken
         if names[i] is None:
             base = name_i = f"{cls}_{i}"
@@ -439,6 +468,7 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         tuple(map(tuple, outer.tolist())),
         tuple(tuple(map(tuple, w.tolist())) for w in walls),
         tuple(SemanticObject(c, tuple(map(tuple, p.tolist())), n) for c, p, n in zip(classes, objects, names)),
+        tuple(tuple(map(tuple, b.tolist())) for b in blocks),
     )
 
 

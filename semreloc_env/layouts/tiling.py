@@ -36,7 +36,7 @@ def tiled_layout(base: Layout, nx: int, ny: int, doorway_m: float = 0.8, name: s
         raise ValueError(f"doorway_m must be in (0, {min(w, h) / 2}), got {doorway_m!r}")
     gap_x = _gap_centre(base, along_x=True, doorway_m=doorway_m)  # on horizontal shared walls
     gap_y = _gap_centre(base, along_x=False, doorway_m=doorway_m)  # on vertical shared walls
-    walls, objects = [], []
+    walls, objects, blocks = [], [], []
     for i in range(nx):
         for j in range(ny):
             dx, dy = i * w, j * h
@@ -44,6 +44,7 @@ def tiled_layout(base: Layout, nx: int, ny: int, doorway_m: float = 0.8, name: s
                 walls.append([[x + dx, y + dy] for x, y in wall])
             for obj in base.objects:
                 objects.append({"class": obj.cls, "polygon": [[x + dx, y + dy] for x, y in obj.polygon]})
+            blocks += [[[x + dx, y + dy] for x, y in b] for b in base.blocks]
             # each shared wall once: the bottom and left sides of every tile off the border
             if j > 0:
                 y = y0 + dy
@@ -59,7 +60,7 @@ def tiled_layout(base: Layout, nx: int, ny: int, doorway_m: float = 0.8, name: s
                 ]
     big = [[x0, y0], [x0 + nx * w, y0], [x0 + nx * w, y0 + ny * h], [x0, y0 + ny * h]]
     return layout_from_dict(
-        {"name": name or f"{base.name}_x{nx}x{ny}", "outer": big, "walls": walls, "objects": objects}
+        {"name": name or f"{base.name}_x{nx}x{ny}", "outer": big, "walls": walls, "objects": objects, "blocks": blocks}
     )
 
 
@@ -73,7 +74,7 @@ def _gap_centre(base: Layout, along_x: bool, doorway_m: float, depth_m: float = 
     u, v = (0, 1) if along_x else (1, 0)  # coordinate along the wall, across it
     blocked = []
     shapes = [np.asarray(o.polygon, dtype=np.float64) for o in base.objects]
-    shapes += [np.asarray(w, dtype=np.float64) for w in base.walls]
+    shapes += [np.asarray(w, dtype=np.float64) for w in [*base.walls, *base.blocks]]
     for pts in shapes:
         across = pts[:, v]
         if min(abs(across - side_a).min(), abs(across - side_b).min()) <= depth_m:
