@@ -1,9 +1,8 @@
 """Layout blocks: solid polygons of no class (pillars, sealed cores)."""
 
+import gymnasium as gym
 import numpy as np
 import pytest
-
-import gymnasium as gym
 
 import semreloc_env  # noqa: F401
 from semreloc_env.layouts import LayoutError, get_layout, layout_from_dict

@@ -453,8 +453,9 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         objects_what.append(what)
         classes.append(cls)
         names.append(obj_name or None)
-    blocks = [_block(b, f"blocks[{i}]") for i, b in enumerate(raw_blocks)]
-    _check_geometry(outer, walls, walls_what, objects + blocks, objects_what + [f"blocks[{i}]" for i in range(len(blocks))])
+    blocks_what = [f"blocks[{i}]" for i in range(len(raw_blocks))]
+    blocks = [_block(b, what) for b, what in zip(raw_blocks, blocks_what)]
+    _check_geometry(outer, walls, walls_what, objects + blocks, objects_what + blocks_what)
     for i, cls in enumerate(classes):  # unnamed objects: "<class>_<index>", or "_2", "_3", ... after a name taken
         if names[i] is None:
             base = name_i = f"{cls}_{i}"
