@@ -205,8 +205,9 @@ def test_flaser_angles():
 @pytest.mark.parametrize(
     "text, match",
     [
-        ("PARAM robot_frontlaser_offset nan\n", "robot_frontlaser_offset"),
-        ("PARAM robot_front_laser_max inf\n", "robot_front_laser_max"),
+        ("PARAM robot_frontlaser_offset nan\n", "bad.log:1: .*robot_frontlaser_offset"),
+        ("PARAM robot_frontlaser_offset 1e308\n", "robot_frontlaser_offset must be a number within"),
+        ("PARAM robot_front_laser_max inf\n", "bad.log:1: .*robot_front_laser_max"),
         ("FLASER 0  0 0 0 0 0 0 1.0 host 1.0\nFLASER 0  0 0 0 0 0 0 1.0 host 1.0\n", "no range readings"),
         (
             "ROBOTLASER1 0 -1.57 3.14 1e308 8.0 0.01 0 3 1 1 1 0 0 0 0 0 0 0 0 0 0 0 0 1.0 host 1.0\n",
@@ -232,3 +233,20 @@ def test_a_corrupt_gzip_log_is_a_carmen_log_error(tmp_path):
         f.write_bytes(data)
         with pytest.raises(CarmenLogError, match="cannot read"):
             read_carmen(f)
+
+
+def test_a_lone_outlier_does_not_set_the_no_return_value(tmp_path):
+    # a laser reports no return as its maximum, which recurs; one corrupt 80 m reading does not
+    lines = [_flaser([1.0, 50.0, 2.0 + k / 10], (k, 0, 0), (k, 0, 0), float(k)) for k in range(6)]
+    lines.append(_flaser([1.0, 80.0, 2.0], (6, 0, 0), (6, 0, 0), 6.0))
+    f = tmp_path / "outlier.log"
+    f.write_text("\n".join(lines) + "\n")
+    with pytest.warns(UserWarning, match=r"1 reading\(s\) in 1 scan\(s\) exceed 50 m.* 80 m, is on line 7"):
+        log = read_carmen(f)
+    assert log.range_max_m == 50.0
+    assert not log.scan(6).valid[1] and not log.scan(0).valid[1] and log.scan(0).valid[0]
+    assert read_carmen(f, range_max_m=100.0).scan(6).valid[1]
+    # no recurring maximum (every reading within range): the largest reading, as before
+    g = tmp_path / "plain.log"
+    g.write_text("\n".join(_flaser([1.0 + k, 2.0], (k, 0, 0), (k, 0, 0), float(k)) for k in range(4)) + "\n")
+    assert read_carmen(g).range_max_m == 4.0

@@ -3,7 +3,8 @@
 Layouts: the first ``--layouts-per-kind`` held-out seeds
 (`semreloc_env.layout_sampling.HELD_OUT_LAYOUT_SEEDS`, never drawn for training) of
 ``procedural``, ``procedural_sym`` and ``procedural_lookalike``, then ``twin_rooms``, ``lab``,
-the changed lab (``scenario="changed"``) and every ``--layout-files`` entry. Each layout gets
+the changed lab (``scenario="changed"``), the first ``--ring-layouts`` held-out seeds of
+``procedural_ring`` (none by default) and every ``--layout-files`` entry. Each layout gets
 ``--starts`` start poses, drawn from a generator seeded by the layout's index and the start's;
 every policy runs from the same start with the same episode seed (sensor noise and filter
 draws), a global relocalization of at most ``--max-steps`` steps.
@@ -11,8 +12,9 @@ draws), a global relocalization of at most ``--max-steps`` steps.
 Starts "from which nothing telling is in sensor range": in a ``procedural_lookalike`` layout,
 every other start is drawn inside a room where the exact all-round view (lidar to its range, the
 semantic classes to the camera's) equals the view from the same place in another, identical
-room; spinning in place cannot tell them apart, only moving out can. These are flagged
-``uninformative`` and summarised on their own.
+room; spinning in place cannot tell them apart, only moving out can; in a ``procedural_ring``
+layout, every other start is one whose view equals that of a quarter-turned image of it. These are
+flagged ``uninformative`` and summarised on their own.
 
 Per policy (overall, per layout kind, and on the uninformative starts): success within the
 step limit (the env's own test, `agents.metrics`), wrong convergence (converged, wrong
@@ -71,6 +73,9 @@ class Args:
     settings and the same code: `policy_code` and `env_code`; a layout file's rows also need the same file bytes)"""
     layouts_per_kind: int = 10
     """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
+    ring_layouts: int = 0
+    """held-out seeds of procedural_ring (a ring corridor whose four quarters look alike; its cases come
+    after the built-in layouts', so the others keep their indices and episode seeds)"""
     seed_set: Literal["held_out", "tuning"] = "held_out"
     """held_out: the held-out layout seeds plus twin_rooms and the lab (what results are reported
     on); tuning: procedural seeds 0, 1, ... of the training range and other starts, for choosing
@@ -105,8 +110,8 @@ class Args:
     only the procedural held-out layouts and --layout-files)"""
     gif_case: int = -1
     """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases, in this
-    order, --starts per layout: the procedural kinds' layouts, twin_rooms, lab, lab changed, then the
-    layout files; episodes.json lists every case with its index)"""
+    order, --starts per layout: the procedural kinds' layouts, twin_rooms, lab, lab changed, the ring
+    layouts, then the layout files; episodes.json lists every case with its index)"""
     sample_learned: bool = False
     """learned policies sample their actions (seeded by the episode) instead of taking the most likely"""
     out: str = "out/evaluate_active"
@@ -126,7 +131,7 @@ class Args:
                 f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a "
                 f"ROS map (.yaml), got {self.map_source!r}"
             )
-        if self.layouts_per_kind or self.builtin_layouts or not self.layout_files:
+        if self.layouts_per_kind or self.ring_layouts or self.builtin_layouts or not self.layout_files:
             raise ValueError(
                 "map_source: one map for every case needs worlds that fit it: --layout-files alone "
                 "(--layouts-per-kind 0 --no-builtin-layouts)"
@@ -172,21 +177,22 @@ class Args:
         missing = [d for d in self.reuse if not (Path(d) / "episodes.json").is_file()]
         if missing:
             raise ValueError(f"reuse: no episodes.json in {missing}")
-        for name in ("layouts_per_kind", "starts", "max_steps", "particles"):
-            if getattr(self, name) < (0 if name == "layouts_per_kind" else 1):
-                raise ValueError(
-                    f"{name} must be >= {0 if name == 'layouts_per_kind' else 1}, got {getattr(self, name)}"
-                )
+        for name in ("layouts_per_kind", "ring_layouts", "starts", "max_steps", "particles"):
+            least = 0 if name in ("layouts_per_kind", "ring_layouts") else 1
+            if getattr(self, name) < least:
+                raise ValueError(f"{name} must be >= {least}, got {getattr(self, name)}")
         self.relocalizer_overrides()  # a bad JSON object or field is an error now, not in every worker
         from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
 
-        if self.seed_set == "held_out" and self.layouts_per_kind > len(HELD_OUT_LAYOUT_SEEDS):
+        for name in ("layouts_per_kind", "ring_layouts"):
+            if self.seed_set == "held_out" and getattr(self, name) > len(HELD_OUT_LAYOUT_SEEDS):
+                raise ValueError(
+                    f"{name}: at most {len(HELD_OUT_LAYOUT_SEEDS)} held-out seeds per kind, got {getattr(self, name)}"
+                )
+        if self.seed_set == "tuning" and self.layouts_per_kind < 1 and self.ring_layouts < 1:
             raise ValueError(
-                f"layouts_per_kind: at most {len(HELD_OUT_LAYOUT_SEEDS)} held-out seeds per kind, "
-                f"got {self.layouts_per_kind}"
+                "layouts_per_kind (or ring_layouts) must be >= 1 with seed_set tuning (it has no fixed layouts)"
             )
-        if self.seed_set == "tuning" and self.layouts_per_kind < 1:
-            raise ValueError("layouts_per_kind must be >= 1 with seed_set tuning (it has no fixed layouts)")
         from semreloc_env.layouts import find_layout_file
 
         # a path, or a name on $SEMRELOC_LAYOUT_PATH, as get_layout takes them
@@ -209,8 +215,10 @@ class Args:
                 get_layout(f)
             except LayoutError as e:
                 raise ValueError(f"layout_files: {e}") from None
-        if self.layouts_per_kind == 0 and not self.layout_files and not self.builtin_layouts:
-            raise ValueError("no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files")
+        if self.layouts_per_kind == 0 and self.ring_layouts == 0 and not self.layout_files and not self.builtin_layouts:
+            raise ValueError(
+                "no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files or --ring-layouts"
+            )
         self._check_map_source()
         for spec in self.policies:
             if "=" in spec:
@@ -231,7 +239,10 @@ draws again; v4, v5 and v6 change the relocalizer, so every episode.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
-BUILTIN_ROWS = (*PROCEDURAL_KINDS, "twin_rooms", "lab", "lab_changed", "all", "uninformative starts", "paired")
+RING_KIND = "procedural_ring"
+BUILTIN_ROWS = (
+    *PROCEDURAL_KINDS, "twin_rooms", "lab", "lab_changed", RING_KIND, "all", "uninformative starts", "paired"
+)  # fmt: skip
 """The rows (and summary keys) the built-in cases fill (`groups`); a layout file never shares one."""
 
 
@@ -284,6 +295,29 @@ def uninformative_start(layout_seed: int, world, rng, lidar_max: float, cam_max:
     return None
 
 
+def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries: int = 300):
+    """A pose in a `ring_layout` whose exact all-round view equals that of one of its quarter-turned
+    images about the hall's centre, or None if none was found in ``tries`` draws."""
+    x0, x1, y0, y1 = world.layout.bounds()
+    side = x1 - x0
+    labels = np.array([o.label for o in world.layout.objects], dtype=np.int64)
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    for _ in range(tries):
+        pose = world.sample_free_pose(rng, margin_m=0.3)
+        r0, l0 = _view(world, pose, lidar_max, cam_max, angles, labels)
+        for k in (1, 2, 3):
+            q = pose.copy()
+            for _turn in range(k):  # a quarter turn counter-clockwise about the centre
+                q = np.array([x0 + side - (q[1] - y0), y0 + (q[0] - x0), q[2] + math.pi / 2])
+            q[2] = math.remainder(q[2], 2 * math.pi)
+            if not world.is_free(q[:2], 0.3):
+                continue
+            r1, l1 = _view(world, q, lidar_max, cam_max, angles, labels)
+            if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
+                return pose
+    return None
+
+
 def build_cases(args: Args) -> list[dict]:
     """Every (layout, start) pair, in a fixed order."""
     from semreloc_env.config import CameraParams, LidarParams
@@ -297,6 +331,8 @@ def build_cases(args: Args) -> list[dict]:
     layouts = [(k, int(s), "nominal") for k in PROCEDURAL_KINDS for s in seeds]
     if not tuning and args.builtin_layouts:
         layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
+    ring_seeds = range(args.ring_layouts) if tuning else HELD_OUT_LAYOUT_SEEDS[: args.ring_layouts]
+    layouts += [(RING_KIND, int(s), "nominal") for s in ring_seeds]
     n_fixed = len(layouts)  # the layout files' cases come after these
     layouts += [(f, 0, "nominal") for f in args.layout_files]
     lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
@@ -313,6 +349,9 @@ def build_cases(args: Args) -> list[dict]:
             pose, flag = None, False
             if spec == "procedural_lookalike" and si % 2 == 0:
                 pose = uninformative_start(seed, world, rng, lidar_max, cam_max)
+                flag = pose is not None
+            elif spec == RING_KIND and not is_file and si % 2 == 0:
+                pose = uninformative_ring_start(world, rng, lidar_max, cam_max)
                 flag = pose is not None
             if pose is None:
                 pose = world.sample_free_pose(rng, margin_m=0.3)

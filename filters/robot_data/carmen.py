@@ -53,6 +53,7 @@ from __future__ import annotations
 import gzip
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -266,6 +267,32 @@ def _parse_robotlaser(tok, path, lineno):
     }
 
 
+MAX_LASER_OFFSET_M = 10.0
+"""Largest ``PARAM robot_frontlaser_offset`` taken (metres): a laser mounted on the robot."""
+
+
+def _clipped_max(ranges: np.ndarray, scans: list, spath: str) -> float:
+    """The no-return limit of a log that does not state it: the largest reading that is the longest
+    of at least three scans (of every scan, in a log of fewer): a laser reports no return as its
+    maximum, so that value recurs, where a lone corrupt reading does not. Readings above it then count as
+    no return, with a warning naming the first; with no recurring maximum, the largest reading."""
+    longest = ranges.max(axis=1)
+    values, counts = np.unique(longest, return_counts=True)
+    recurring = values[counts >= min(3, len(longest))]
+    if not recurring.size:
+        return float(longest.max())
+    limit = float(recurring.max())
+    above = np.flatnonzero(longest > limit)
+    if above.size:
+        warnings.warn(
+            f"{spath}: {int((ranges > limit).sum())} reading(s) in {above.size} scan(s) exceed {limit:g} m, the "
+            f"longest reading of many scans (the laser's no-return value), and count as no return; the first, "
+            f"{longest[above[0]]:g} m, is on line {scans[above[0]]['line']} (pass range_max_m to choose)",
+            stacklevel=3,
+        )
+    return limit
+
+
 def read_carmen(
     path: str | os.PathLike,
     laser: str = "auto",
@@ -281,8 +308,10 @@ def read_carmen(
         odometry: ``"auto"``, ``"anchored"``, ``"continuous"`` or ``"scan"``.
         range_max_m: no-return limit; default: ``PARAM robot_front_laser_max`` or
             ``laser_front_laser_max`` if present, the ``max_range`` of ``ROBOTLASER1``,
-            else the largest reading in the log (clipped no-return readings, e.g. 50.0 m
-            in the ACES log, then count as no return).
+            else the laser's no-return value: the largest reading that is the longest of at least
+            three scans (clipped no-return readings, e.g. 50.0 m in the ACES log, recur; readings
+            above it, such as a lone corrupt one, then count as no return, with a warning), or the
+            largest reading if none recurs.
         angles: ``(B,)`` beam angles in the laser frame (radians) overriding the default
             (`flaser_angles` for ``FLASER``, ``start + i * resolution`` for ``ROBOTLASER1``).
 
@@ -301,6 +330,7 @@ def read_carmen(
         raise FileNotFoundError(f"CARMEN log not found: {p}")
     spath = str(p)
     params: dict[str, str] = {}
+    param_lines: dict[str, int] = {}  # where each PARAM was set, for error messages
     comments: list[str] = []
     skipped: dict[str, int] = {}
     scans: list[dict] = []
@@ -321,7 +351,7 @@ def read_carmen(
                 if kind == "PARAM":
                     if len(tok) < 3:
                         raise CarmenLogError(spath, lineno, "PARAM: needs a name and a value")
-                    params[tok[1]] = tok[2]
+                    params[tok[1]], param_lines[tok[1]] = tok[2], lineno
                 elif kind == "ODOM":
                     _check_length(tok, 8, "ODOM", "x y theta tv rv accel", spath, lineno)
                     odom.append(_floats(tok[1:4], "ODOM pose", spath, lineno))
@@ -358,23 +388,29 @@ def read_carmen(
 
     # geometry
     if chosen == "FLASER":
+        raw, line = params.get("robot_frontlaser_offset", "0"), param_lines.get("robot_frontlaser_offset", 0)
         try:
-            off_x = float(params.get("robot_frontlaser_offset", 0.0))
+            off_x = float(raw)
         except ValueError:
             off_x = math.nan
-        if not math.isfinite(off_x):
-            raise CarmenLogError(spath, 0, "PARAM robot_frontlaser_offset is not a finite number")
+        if not (math.isfinite(off_x) and abs(off_x) <= MAX_LASER_OFFSET_M):
+            raise CarmenLogError(
+                spath,
+                line,
+                f"PARAM robot_frontlaser_offset must be a number within +-{MAX_LASER_OFFSET_M:g} m, got {raw}",
+            )
         sensor_pose = np.array([off_x, 0.0, 0.0])
         default_angles = flaser_angles(n_beams) if n_beams >= 2 else np.zeros(n_beams)
         geom_max = None
         for key in ("robot_front_laser_max", "laser_front_laser_max"):
             if key in params:
+                raw, line = params[key], param_lines[key]
                 try:
-                    geom_max = float(params[key])
+                    geom_max = float(raw)
                 except ValueError:
                     geom_max = math.nan
                 if not math.isfinite(geom_max):
-                    raise CarmenLogError(spath, 0, f"PARAM {key} is not a finite number")
+                    raise CarmenLogError(spath, line, f"PARAM {key} is not a finite number, got {raw}")
     else:
         start, _fov, res, geom_max = scans[0]["geometry"]
         sensor_pose = relative(robot_odom[0], laser_poses[0])
@@ -387,7 +423,7 @@ def read_carmen(
     else:
         beam_angles = default_angles
     if range_max_m is None:
-        range_max_m = geom_max if geom_max is not None and geom_max > 0 else float(ranges.max())
+        range_max_m = geom_max if geom_max is not None and geom_max > 0 else _clipped_max(ranges, scans, spath)
     if not range_max_m > 0:
         raise CarmenLogError(spath, 0, "cannot tell the laser's maximum range (all readings 0): pass range_max_m")
     robot_poses = compose(laser_poses, relative(sensor_pose, np.zeros(3)))

@@ -10,7 +10,16 @@ import numpy as np
 
 from .builtin import BUILTIN_LAYOUTS
 from .layout import CLASS_NAMES, Layout, LayoutError, SemanticObject, layout_from_dict, load_layout, point_in_polygon
-from .procedural import PROCEDURAL_VERSION, ProceduralParams, half_turn_asymmetry, lookalike_layout, procedural_layout
+from .procedural import (
+    PROCEDURAL_VERSION,
+    ProceduralParams,
+    RingParams,
+    half_turn_asymmetry,
+    lookalike_layout,
+    procedural_layout,
+    quarter_turn_asymmetry,
+    ring_layout,
+)
 
 __all__ = [
     "CLASS_NAMES",
@@ -21,6 +30,7 @@ __all__ = [
     "Layout",
     "LayoutError",
     "ProceduralParams",
+    "RingParams",
     "SemanticObject",
     "get_layout",
     "half_turn_asymmetry",
@@ -29,10 +39,12 @@ __all__ = [
     "lookalike_layout",
     "point_in_polygon",
     "procedural_layout",
+    "quarter_turn_asymmetry",
+    "ring_layout",
 ]
 
 BUILTIN_LAYOUTS_NAMES = tuple(BUILTIN_LAYOUTS)
-PROCEDURAL_LAYOUTS = ("procedural", "procedural_sym", "procedural_lookalike")
+PROCEDURAL_LAYOUTS = ("procedural", "procedural_sym", "procedural_lookalike", "procedural_ring")
 LAYOUT_NAMES = (*BUILTIN_LAYOUTS, *PROCEDURAL_LAYOUTS)
 
 
@@ -68,7 +80,8 @@ def get_layout(
 
     Args:
         spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"``,
-            ``"procedural_sym"`` or ``"procedural_lookalike"`` (generated from ``seed``), the name of a
+            ``"procedural_sym"``, ``"procedural_lookalike"`` or ``"procedural_ring"`` (`ring_layout`; all
+            generated from ``seed``), the name of a
             layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (`find_layout_file`), a path
             to a ``.json`` / ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a
             map: a ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
@@ -99,6 +112,8 @@ def get_layout(
         return layout_from_dict(spec)
     if isinstance(spec, str) and spec in BUILTIN_LAYOUTS:
         return layout_from_dict(BUILTIN_LAYOUTS[spec]())
+    if isinstance(spec, str) and spec == "procedural_ring":
+        return layout_from_dict(ring_layout(np.random.default_rng(seed)))
     if isinstance(spec, str) and spec in PROCEDURAL_LAYOUTS:
         params = ProceduralParams(
             symmetric=spec == "procedural_sym",

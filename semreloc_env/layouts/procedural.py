@@ -301,3 +301,177 @@ def _corridor_objects(rng, p, length, depth, corridor, south_doors, north_doors,
             taken.append(interval)
             break
     return out
+
+
+# ------------------------------------------------------------------------------------ ring layouts
+@dataclass(frozen=True)
+class RingParams:
+    """Knobs of `ring_layout` (metres).
+
+    Attributes:
+        side_m: range of the square hall's side.
+        corridor_m: range of the ring corridor's width (the solid core's side is ``side - 2 * corridor``).
+        objects_per_quarter: inclusive range of the furniture pieces of one quarter of the ring (the
+            other three quarters hold its quarter-turned copies).
+        telling_objects: inclusive range of the objects placed once, anywhere along the ring.
+        min_asymmetry_m: every quarter turn about the centre (90, 180 and 270 degrees) must move some
+            telling object at least this far from every object of its class (`quarter_turn_asymmetry`);
+            a draw that does not is drawn again from the same generator.
+    """
+
+    side_m: tuple[float, float] = (10.0, 14.0)
+    corridor_m: tuple[float, float] = (2.5, 3.5)
+    objects_per_quarter: tuple[int, int] = (1, 3)
+    telling_objects: tuple[int, int] = (1, 2)
+    min_asymmetry_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        (s0, s1), (c0, c1) = self.side_m, self.corridor_m
+        if not (0 < c0 <= c1 and 0 < s0 <= s1 and s0 - 2 * c1 >= 1.0 and c0 >= 2.0):
+            raise ValueError(
+                f"RingParams: need 2 <= corridor_m[0] <= corridor_m[1] and side_m[0] - 2 * corridor_m[1] >= 1 "
+                f"(a core of at least 1 m), got side_m={self.side_m!r}, corridor_m={self.corridor_m!r}"
+            )
+        for name in ("objects_per_quarter", "telling_objects"):
+            lo, hi = getattr(self, name)
+            if not (isinstance(lo, int) and isinstance(hi, int) and 0 <= lo <= hi):
+                raise ValueError(f"RingParams.{name} must be 0 <= lo <= hi, got {getattr(self, name)!r}")
+        if self.telling_objects[0] < 1:
+            raise ValueError("RingParams.telling_objects: at least one telling object, or the ring is symmetric")
+        m = self.min_asymmetry_m
+        if isinstance(m, bool) or not isinstance(m, (int, float)) or not (math.isfinite(m) and m >= 0):
+            raise ValueError(f"RingParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
+
+
+_RING_OBJECTS = {"cabinet": (1.0, 0.5), "door": (1.0, 0.1), "chair": (0.5, 0.5), "trash_bin": (0.4, 0.4)}
+"""Footprints (along the wall, away from it) of a ring layout's objects, metres."""
+
+_MAX_RING_DRAWS = 100
+"""Draws of the telling objects before `ring_layout` gives up on `RingParams.min_asymmetry_m`."""
+
+
+def _quarter_turn(points: np.ndarray, k: int, side: float) -> np.ndarray:
+    """``points`` ``(..., 2)`` turned by ``k`` quarter turns counter-clockwise about the centre of a
+    ``side`` x ``side`` square with a corner at the origin (exact for k = 0..3)."""
+    x, y = points[..., 0], points[..., 1]
+    for _ in range(k % 4):
+        x, y = side - y, x
+    return np.stack([x, y], axis=-1)
+
+
+def quarter_turn_asymmetry(objects: list, side: float) -> float:
+    """How far ``objects`` (layout-dict objects) are from mapping onto themselves under the quarter
+    turns about the centre of a ``side`` x ``side`` square, metres: for each turn (90, 180, 270
+    degrees), the largest distance from an object's turned centre to the nearest centre of its class;
+    the smallest of the three. 0 for no objects. Above a few tenths of a metre every turned image of
+    a pose sees some object where the pose does not."""
+    if not objects:
+        return 0.0
+    centres = np.array([o["center"] for o in objects], dtype=np.float64)
+    classes = np.array([o["class"] for o in objects])
+    worst_turn = math.inf
+    for k in (1, 2, 3):
+        images = _quarter_turn(centres, k, side)
+        far = 0.0
+        for i, cls in enumerate(classes):
+            same = centres[classes == cls]
+            far = max(far, float(np.min(np.hypot(*(same - images[i]).T))))
+        worst_turn = min(worst_turn, far)
+    return worst_turn
+
+
+def _against_wall(rng, cls: str, side: float, corridor: float, lo: float, hi: float, wall: str):
+    """A ``cls`` object against the south outer wall (``wall="outer"``) or the core's south face
+    (``"core"``), centred at an ``x`` in ``[lo, hi]`` (its footprint inside); ``(dict, x interval)``."""
+    along, away = _RING_OBJECTS[cls]
+    gap = 0.0 if cls in ("cabinet", "door") else float(rng.uniform(0.05, 0.25))  # chairs and bins stand off
+    cx = float(rng.uniform(lo + along / 2, hi - along / 2))
+    cy = gap + away / 2 if wall == "outer" else corridor - gap - away / 2
+    return {"class": cls, "center": [cx, cy], "size": [along, away]}, (cx - along / 2, cx + along / 2)
+
+
+def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> dict:
+    """A square hall around a solid square core: a ring corridor whose four quarters look alike.
+
+    The furniture of one quarter (the south corridor with its south-west corner) stands against the
+    outer wall or the core, and the other three quarters hold its quarter-turned copies: a pose and
+    its three images about the centre see the same, but for ``telling_objects`` objects placed once
+    along the ring, which must break every quarter turn by ``min_asymmetry_m``
+    (`quarter_turn_asymmetry`). Only driving round to them, or far enough to see that they are
+    missing, tells the quarters apart. Objects leave at least ``corridor - 1.6`` m of the corridor's
+    width free, and keep 0.3 m from each other along a wall.
+
+    Returns a layout dict (`semreloc_env.layouts.layout_from_dict` validates it); the same generator
+    state gives the same layout.
+    """
+    p = params or RingParams()
+    side = float(rng.uniform(*p.side_m))
+    corridor = float(rng.uniform(*p.corridor_m))
+    core = [
+        [corridor, corridor],
+        [side - corridor, corridor],
+        [side - corridor, side - corridor],
+        [corridor, side - corridor],
+    ]
+    classes = sorted(_RING_OBJECTS)
+
+    def place(n: int, taken: dict, x_range: tuple[float, float]) -> list:
+        out = []
+        for _ in range(n):
+            for _attempt in range(50):
+                cls = str(rng.choice(classes))
+                wall = str(rng.choice(["outer", "core"]))
+                lo, hi = x_range if wall == "outer" else (max(x_range[0], corridor), min(x_range[1], side - corridor))
+                if hi - lo < _RING_OBJECTS[cls][0] + 0.2:
+                    continue
+                obj, span = _against_wall(rng, cls, side, corridor, lo + 0.1, hi - 0.1, wall)
+                if any(not (span[1] + 0.3 <= a or b + 0.3 <= span[0]) for a, b in taken[wall]):
+                    continue
+                taken[wall].append(span)
+                out.append(obj)
+                break
+        return out
+
+    # one quarter: the south corridor from the west wall to where the south-east corner (the next
+    # quarter's) begins, less a margin, so that turned copies never meet
+    taken: dict[str, list] = {"outer": [], "core": []}
+    n = int(rng.integers(p.objects_per_quarter[0], p.objects_per_quarter[1] + 1))
+    quarter = place(n, taken, (0.0, side - corridor - 0.5))
+    objects = []
+    for k in range(4):
+        for o in quarter:
+            c = _quarter_turn(np.array(o["center"], dtype=np.float64), k, side)
+            w, h = o["size"]
+            objects.append(
+                {"class": o["class"], "center": [float(c[0]), float(c[1])], "size": [w, h] if k % 2 == 0 else [h, w]}
+            )
+    for _ in range(_MAX_RING_DRAWS):
+        # a telling object goes into one of the four quarters, placed in its south-quarter frame and turned there
+        extra = []
+        busy = {"outer": list(taken["outer"]), "core": list(taken["core"])}
+        for _t in range(int(rng.integers(p.telling_objects[0], p.telling_objects[1] + 1))):
+            k = int(rng.integers(0, 4))
+            for o in place(1, busy, (0.0, side - corridor - 0.5)):
+                c = _quarter_turn(np.array(o["center"], dtype=np.float64), k, side)
+                w, h = o["size"]
+                extra.append(
+                    {
+                        "class": o["class"],
+                        "center": [float(c[0]), float(c[1])],
+                        "size": [w, h] if k % 2 == 0 else [h, w],
+                    }
+                )
+        if extra and (p.min_asymmetry_m <= 0 or quarter_turn_asymmetry(objects + extra, side) >= p.min_asymmetry_m):
+            break
+    else:
+        raise ValueError(
+            f"ring_layout: no draw of telling objects in {_MAX_RING_DRAWS} broke every quarter turn by "
+            f"min_asymmetry_m={p.min_asymmetry_m} m; lower it or allow more telling objects"
+        )
+    return {
+        "name": "procedural_ring",
+        "outer": [[0.0, 0.0], [side, 0.0], [side, side], [0.0, side]],
+        "walls": [],
+        "objects": objects + extra,
+        "blocks": [core],
+    }
