@@ -375,3 +375,53 @@ def test_one_ros_map_for_every_case(tmp_path):
     lab_map = save_map(maps_for(get_layout("lab"), "perfect", LidarParams(), CameraParams()), tmp_path / "lab.yaml")
     with pytest.raises(ValueError, match="does not fit"):
         ev.Args(**kw, map_source=str(lab_map))
+
+
+MY_POLICY = '''
+import numpy as np
+
+from agents.policies import Policy
+from helper import TURN
+
+
+class TurnLeft(Policy):
+    """Always turns left (a user's own policy, defined outside the package)."""
+
+    def act(self, obs):
+        return TURN
+
+
+def broken(seed):
+    return object()
+'''
+
+
+def test_a_users_own_policy_class_is_evaluated_and_its_edits_rerun(tmp_path, capsys, monkeypatch):
+    # a new user's trial: a hand-written policy with the wrap/reset/act interface could not be passed
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "mypol.py").write_text(MY_POLICY)
+    (tmp_path / "mine" / "helper.py").write_text("TURN = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path / "mine"))
+    spec = f"left={tmp_path / 'mine' / 'mypol.py'}:TurnLeft"
+    common = ["--policies", "spin", spec, "--layouts-per-kind", "0", "--starts", "1", "--max-steps", "3"]
+    common += ["--particles", "100", "--map-source", "perfect", "--no-progress", "--workers", "1"]
+    assert ev.main([*common, "--out", str(tmp_path / "a")]) == 0
+    rows = json.loads((tmp_path / "a" / "episodes.json").read_text())
+    left = [r for r in rows if r["policy"] == "left"]
+    assert len(left) == 3 and all(r["actions"] == {"1": r["length"]} for r in left)
+    capsys.readouterr()
+    assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")]) == 0
+    assert "reused 6 episodes" in capsys.readouterr().out
+    ev.policy_code.cache_clear()
+    (tmp_path / "mine" / "helper.py").write_text("TURN = 2  # now right\n")  # a file it imports changed
+    assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")]) == 0
+    assert "reused 3 episodes" in capsys.readouterr().out  # spin's rows only
+    ev.policy_code.cache_clear()
+    for bad, match in [
+        (f"x={tmp_path / 'mine' / 'mypol.py'}:broken", r"lacks \['wrap', 'reset', 'act'\]"),
+        (f"x={tmp_path / 'mine' / 'mypol.py'}:Nope", "cannot build it with a seed: AttributeError"),
+        ("x=no_such_module_here:Policy", "cannot build it with a seed: ModuleNotFoundError"),
+        ("x=not a spec", "no policy file"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            ev.Args(policies=(bad,))

@@ -42,8 +42,10 @@ from __future__ import annotations
 import functools
 import hashlib
 import importlib
+import importlib.util
 import json
 import math
+import re
 import sys
 import time
 import types
@@ -65,8 +67,11 @@ class Args:
     """Evaluate active-relocalization policies on the same held-out (layout, start) pairs."""
 
     policies: tuple[str, ...] = DEFAULT_POLICIES
-    """names from agents.policies.POLICIES, or NAME=PATH for a trained policy saved by
-    agents.learned.save_policy (loaded with agents.load_policy); space-separated"""
+    """names from agents.policies.POLICIES, NAME=PATH for a trained policy saved by
+    agents.learned.save_policy (loaded with agents.load_policy), or NAME=MODULE:CLASS /
+    NAME=path/to/file.py:CLASS for your own: CLASS(seed) must give an object with wrap(env), reset() and
+    act(obs), as agents.policies.Policy (--reuse tracks edits to its file and to the modules loaded from
+    its folder); space-separated"""
     reuse: tuple[str, ...] = ()
     """folders of earlier runs with the same cases: their episodes.json rows are kept for the policies
     listed here, and only the other policies are run (a row is kept only if it was made with the same
@@ -167,10 +172,19 @@ class Args:
             raise ValueError(f"policies: {comma} holds a comma; separate the policies with spaces")
         unknown = [x for x in self.policies if x not in POLICIES and "=" not in x]
         if unknown:
-            raise ValueError(f"policies: unknown {unknown}; choose from {sorted(POLICIES)} or NAME=PATH")
-        bad_files = [x for x in self.policies if "=" in x and not Path(x.split("=", 1)[1]).is_file()]
+            raise ValueError(
+                f"policies: unknown {unknown}; choose from {sorted(POLICIES)}, NAME=PATH (a saved policy) or "
+                "NAME=MODULE:CLASS (your own)"
+            )
+        bad_files = [x for x in self.policies if is_learned(x) and not Path(x.split("=", 1)[1]).is_file()]
         if bad_files:
-            raise ValueError(f"policies: no policy file for {bad_files}")
+            raise ValueError(
+                f"policies: no policy file for {bad_files} (your own policy class: NAME=MODULE:CLASS or "
+                "NAME=path/to/file.py:CLASS)"
+            )
+        for x in self.policies:
+            if "=" in x and not is_learned(x):
+                check_user_policy(x)
         names = [x.partition("=")[0] for x in self.policies]
         if len(set(names)) < len(names) or not all(names):
             raise ValueError(f"policies: names must be unique and non-empty, got {names}")
@@ -221,7 +235,7 @@ class Args:
             )
         self._check_map_source()
         for spec in self.policies:
-            if "=" in spec:
+            if is_learned(spec):
                 from agents.learned import read_metadata
 
                 try:  # learned policies are loaded by their metadata (a bare SB3 checkpoint has none)
@@ -444,7 +458,7 @@ def settings(args: Args, spec: str) -> dict:
         "spec": spec,
         "code": policy_code(spec),
         "env_code": env_code(),
-        "sample_learned": args.sample_learned and "=" in spec,
+        "sample_learned": args.sample_learned and is_learned(spec),
         **({"seed_set": args.seed_set} if args.seed_set != "held_out" else {}),
         **({"action_type": args.action_type} if args.action_type != "discrete" else {}),
         **({"env_id": args.env_id} if args.env_id != ENV_ID else {}),
@@ -454,14 +468,100 @@ def settings(args: Args, spec: str) -> dict:
 
 _PROJECT = ("agents", "filters", "semreloc_env")
 
+_USER_SPEC = re.compile(r"^(?P<source>[A-Za-z_][\w.]*|.+\.py):(?P<attr>[A-Za-z_]\w*)$")
+
+
+def _user_target(spec: str) -> re.Match | None:
+    """For ``NAME=SOURCE:ATTR`` (SOURCE a module name or a ``.py`` file; not an existing file, which
+    would be a saved policy) the match, else None."""
+    rhs = spec.partition("=")[2]
+    if not rhs or Path(rhs).is_file():
+        return None
+    return _USER_SPEC.match(rhs)
+
+
+def is_learned(spec: str) -> bool:
+    """Whether ``spec`` is ``NAME=PATH``, a policy saved by `agents.learned.save_policy`."""
+    return "=" in spec and _user_target(spec) is None
+
+
+def _user_module(source: str) -> types.ModuleType:
+    """The module of a user policy: a ``.py`` file (loaded under a name of its own) or a module
+    importable from the current folder or ``sys.path``."""
+    if source.endswith(".py"):
+        path = Path(source).resolve()
+        if not path.is_file():
+            raise ValueError(f"no such file {source!r}")
+        name = "semreloc_user_" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
+        if name not in sys.modules:
+            loader = importlib.util.spec_from_file_location(name, path)
+            module = importlib.util.module_from_spec(loader)
+            sys.modules[name] = module
+            try:
+                loader.loader.exec_module(module)
+            except BaseException:
+                del sys.modules[name]
+                raise
+        return sys.modules[name]
+    if "" not in sys.path and str(Path.cwd()) not in sys.path:
+        sys.path.append(str(Path.cwd()))  # as `python -m` would find it
+    return importlib.import_module(source)
+
+
+def user_factory(spec: str):
+    """The callable ``f(seed) -> policy`` a ``NAME=MODULE:CLASS`` spec names."""
+    m = _user_target(spec)
+    if m is None:
+        raise ValueError(f"{spec!r} is not NAME=MODULE:CLASS")
+    return getattr(_user_module(m["source"]), m["attr"])
+
+
+def check_user_policy(spec: str) -> None:
+    """ValueError unless ``spec`` (``NAME=MODULE:CLASS`` or ``NAME=file.py:CLASS``) builds, called with a
+    seed, an object with ``wrap(env)``, ``reset()`` and ``act(obs)``."""
+    if _user_target(spec) is None:
+        raise ValueError(
+            f"policies: {spec}: expected NAME=PATH (a file saved by agents.learned.save_policy), "
+            "NAME=MODULE:CLASS or NAME=path/to/file.py:CLASS"
+        )
+    try:
+        policy = user_factory(spec)(0)
+    except Exception as e:  # the user's import or constructor
+        raise ValueError(f"policies: {spec}: cannot build it with a seed: {type(e).__name__}: {e}") from None
+    missing = [m for m in ("wrap", "reset", "act") if not callable(getattr(policy, m, None))]
+    if missing:
+        raise ValueError(
+            f"policies: {spec}: a policy needs wrap(env), reset() and act(obs) (agents.policies.Policy); "
+            f"{type(policy).__name__} lacks {missing}"
+        )
+
+
+def _local_files(module: types.ModuleType) -> list[Path]:
+    """A user policy's module file and those of every loaded module from its folder (tree): what its
+    imports brought in from there, also names imported from them (``from helper import TURN``)."""
+    root = Path(module.__file__).resolve().parent
+    files = {Path(module.__file__).resolve()}
+    for mod in list(sys.modules.values()):
+        f = getattr(mod, "__file__", None)
+        if f and Path(f).suffix == ".py" and Path(f).resolve().is_relative_to(root):
+            files.add(Path(f).resolve())
+    return sorted(files)
+
 
 def policy_modules(spec: str) -> list[str]:
     """The project modules (`agents`, `filters`, `semreloc_env`) the policy of ``spec`` draws on: its
     class's module and, transitively, those its module-level imports come from (for a learned
     policy: `agents.learned`, the motion options and the feature extractor, which it imports when
-    loading and wrapping)."""
+    loading and wrapping; for a user's class, the project modules its module imports)."""
     name, _, path = spec.partition("=")
-    if path:
+    if _user_target(spec) is not None:
+        module = _user_module(_user_target(spec)["source"])
+        todo = [
+            m
+            for v in vars(module).values()
+            if isinstance(m := (v.__name__ if isinstance(v, types.ModuleType) else getattr(v, "__module__", None)), str)
+        ]
+    elif path:
         todo = ["agents.learned", "agents.options", "agents.viewpoint", "agents.active_features"]
     else:
         from agents.policies import POLICIES
@@ -527,18 +627,24 @@ def policy_code(spec: str) -> str:
     h = hashlib.sha256()
     for mod in policy_modules(spec):
         h.update(mod.encode() + b"\0" + Path(importlib.import_module(mod).__file__).read_bytes())
-    path = spec.partition("=")[2]
-    if path:
-        h.update(Path(path).read_bytes())
+    user = _user_target(spec)
+    if user is not None:  # the user's module and the modules it imports from its own folder
+        for f in _local_files(_user_module(user["source"])):
+            h.update(f.name.encode() + b"\0" + f.read_bytes())
+    elif "=" in spec:
+        h.update(Path(spec.partition("=")[2]).read_bytes())
     return h.hexdigest()[:16]
 
 
 def make_policy(spec: str, seed: int, sample: bool = False):
-    """The policy named by ``spec``: a baseline name of agents.policies.POLICIES or NAME=PATH (a learned
-    policy, sampling its actions from a generator seeded with ``seed`` if ``sample``)."""
+    """The policy named by ``spec``: a baseline name of agents.policies.POLICIES, NAME=PATH (a learned
+    policy, sampling its actions from a generator seeded with ``seed`` if ``sample``) or NAME=MODULE:CLASS
+    (``CLASS(seed)``, your own)."""
     from agents.policies import POLICIES
 
     name, _, path = spec.partition("=")
+    if _user_target(spec) is not None:
+        return user_factory(spec)(seed)
     if path:
         from agents.learned import LearnedPolicy
 
