@@ -312,6 +312,11 @@ DISTRIBUTION_FIELDS = ("kinds", "files", "kind_weights", "layout_seeds", "partic
 """Fields that shape what a run trains on: a resumed run that changes them is told so."""
 
 
+MODEL_FIELDS = ("n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda", "ent_coef",
+                "clip_range", "vf_coef", "features_dim", "net_arch", "cnn_channels")  # fmt: skip
+"""Fields a checkpoint carries (PPO's settings and the network): a resumed run keeps the checkpoint's."""
+
+
 class RunFolderError(ValueError):
     """``--out`` or ``--resume`` does not fit: a run in the way, a missing checkpoint, other spaces."""
 
@@ -394,7 +399,36 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
             + "; ".join(f"{f} {saved[f]!r} -> {now[f]!r}" for f in changed),
             flush=True,
         )
+    kept = [f for f in MODEL_FIELDS if f in saved and saved[f] != now[f]]
+    if kept:
+        print(
+            f"note: {path} keeps its own PPO and network settings (a checkpoint carries them), not this "
+            "command's: " + "; ".join(f"{f} {saved[f]!r} (given {now[f]!r})" for f in kept),
+            flush=True,
+        )
     return path
+
+
+def resumed_config(resume: Path, config: ActiveTrainConfig) -> ActiveTrainConfig:
+    """``config`` with the `MODEL_FIELDS` the checkpoint ``resume`` was trained with (its run's config),
+    which are what a resumed run trains with: what its ``config.json`` records."""
+    saved = run_config_of(resume) or {}
+    kept = {f: saved[f] for f in MODEL_FIELDS if f in saved}
+    for f in ("net_arch", "cnn_channels"):
+        if f in kept:
+            kept[f] = tuple(kept[f])
+    return dataclasses.replace(config, **kept)
+
+
+def _checkpoints_overwritten(out: Path, decisions: int, config: ActiveTrainConfig) -> list[str]:
+    """The checkpoints in ``out/checkpoints`` that a run resumed at ``decisions`` would write again
+    (`CheckpointCallback` names them by the decision count, which carries on)."""
+    if config.checkpoint_every is None:
+        return []
+    step = max(1, config.checkpoint_every // config.n_envs) * config.n_envs
+    last = decisions + config.total_timesteps + config.n_steps * config.n_envs  # learn() ends on a rollout
+    names = {f"ppo_{n}_steps.zip" for n in range(decisions + step, last + 1, step)}
+    return sorted(f.name for f in (out / "checkpoints").glob("ppo_*_steps.zip") if f.name in names)
 
 
 def train_active(
@@ -411,7 +445,10 @@ def train_active(
     run, env steps) and ``learning_curve.png``.
     ``resume``: a checkpoint to continue from; ``total_timesteps`` more decisions are trained (the
     step count carries on), and the earlier run's ``progress.csv``, ``timing.json``, ``config.json``,
-    ``policy.zip`` and ``learning_curve.png`` in ``out`` are kept as ``*_before_<decisions>.*``.
+    ``policy.zip`` and ``learning_curve.png`` in ``out`` are kept as ``*_before_<decisions>.*``;
+    RunFolderError instead of overwriting such files or the checkpoints of a later point of the run
+    (resume into a new ``out`` then). The checkpoint's PPO and network settings (`MODEL_FIELDS`) are
+    kept, whatever ``config`` says (a note names the differences), and ``config.json`` records them.
     """
     out = Path(out)
     if resume is None:
@@ -423,9 +460,20 @@ def train_active(
     venv = make_active_venv(config)
     if resume is not None:
         model = PPO.load(resume, env=venv, device=config.device)
-        for name in ("progress.csv", "timing.json", "config.json", "policy.zip", "learning_curve.png"):
+        n = int(model.num_timesteps)
+        names = ("progress.csv", "timing.json", "config.json", "policy.zip", "learning_curve.png")
+        taken = [f"{Path(m).stem}_before_{n}{Path(m).suffix}" for m in names]
+        taken = [t for t in taken if (out / t).exists()] + _checkpoints_overwritten(out, n, config)
+        if taken:  # resuming would overwrite an earlier run's files
+            venv.close()
+            raise RunFolderError(
+                f"--resume {resume} into {out} would overwrite {', '.join(taken)} (this folder continued from "
+                f"{n} decisions before, or holds later checkpoints): give a new --out"
+            )
+        config = resumed_config(resume, config)  # before its run's config.json is moved aside
+        for name in names:
             if (out / name).exists():
-                (out / name).rename(out / f"{Path(name).stem}_before_{model.num_timesteps}{Path(name).suffix}")
+                (out / name).rename(out / f"{Path(name).stem}_before_{n}{Path(name).suffix}")
     else:
         model = build_model(config, venv)
     (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))

@@ -493,3 +493,33 @@ def test_a_policy_of_continuous_actions_wraps_a_continuous_env(tmp_path):
     a = np.asarray(policy.act(obs), dtype=np.float32)
     assert env.action_space.contains(a)  # SB3 clips a Box policy's actions to the space
     env.step(a)
+
+
+def test_resume_never_overwrites_an_earlier_run_and_keeps_the_checkpoints_settings(smoke_run, tmp_path, capsys):
+    # a new user's trial: resuming twice from one checkpoint replaced the first run's *_before_* files,
+    # resuming with checkpoints rewrote the run's later ones, and PPO settings given on resume were
+    # ignored while config.json recorded them
+    import dataclasses
+    import shutil
+
+    from agents.train_active import RunFolderError
+
+    out, _ = smoke_run
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    ckpt = run / "checkpoints" / "ppo_64_steps.zip"  # 128 exists too
+    config = ActiveTrainConfig(**json.loads((run / "config.json").read_text()))
+    files = {f: f.read_bytes() for f in run.rglob("*") if f.is_file() and "events" not in f.name}
+    with pytest.raises(RunFolderError, match=r"would overwrite ppo_128_steps.zip"):
+        train_active(dataclasses.replace(config, total_timesteps=64), run, resume=ckpt)
+    assert {f: f.read_bytes() for f in files} == files  # nothing moved or written
+    given = dataclasses.replace(config, total_timesteps=32, checkpoint_every=None, learning_rate=0.01, net_arch=(64,))
+    capsys.readouterr()
+    train_active(given, run, resume=ckpt)
+    note = capsys.readouterr().out
+    assert "keeps its own PPO and network settings" in note and "learning_rate 0.0003 (given 0.01)" in note
+    recorded = json.loads((run / "config.json").read_text())
+    assert recorded["learning_rate"] == 3e-4 and recorded["net_arch"] == [8]
+    with pytest.raises(RunFolderError, match=r"would overwrite progress_before_64.csv"):
+        train_active(given, run, resume=ckpt)  # again from the same checkpoint
+    train_active(given, tmp_path / "branch", resume=ckpt)  # into a new folder: fine
