@@ -71,14 +71,13 @@ class SB3VecEnvAdapter(VecEnv):
         return [self.envs[i] for i in self._get_indices(indices)]
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        return [
-            getattr(env.unwrapped, attr_name) if attr_name != "render_mode" else env.render_mode
-            for env in self._targets(indices)
-        ]
+        """As `DummyVecEnv`: the attribute from the outermost wrapper that has it, else the env."""
+        return [env.get_wrapper_attr(attr_name) for env in self._targets(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        """As `DummyVecEnv`: set on each robot's outermost wrapper."""
         for env in self._targets(indices):
-            setattr(env.unwrapped, attr_name, value)
+            setattr(env, attr_name, value)
 
     def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
         return [getattr(env, method_name)(*args, **kwargs) for env in self._targets(indices)]

@@ -155,6 +155,12 @@ def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():
         n_done += int(da.sum())
     assert n_done >= r
     assert adapter.get_attr("layout")[0].name == "twin_rooms"
+    # a new user's trial: attributes of a wrapper were looked up on the bare env only (DummyVecEnv's
+    # get_attr finds them on the wrappers)
+    assert adapter.get_attr("observation_space") == dummy.get_attr("observation_space")
+    adapter.set_attr("my_flag", 3)
+    dummy.set_attr("my_flag", 3)
+    assert adapter.get_attr("my_flag") == dummy.get_attr("my_flag") == [3, 3]
     adapter.close()
 
 
@@ -169,3 +175,17 @@ def test_the_loop_env_runs_the_newest_env_unless_told_and_each_vector_id_its_own
         assert venv.unwrapped.envs[0].spec.id == vid.replace("Vec", "")
         with pytest.raises(TypeError, match="runs SemReloc"):
             gym.make_vec(vid, num_envs=1, vectorization_mode="vector_entry_point", env_id="SemReloc-v0")
+
+
+def test_reset_takes_one_options_dict_per_robot():
+    # a new user's trial: a list of options was checked robot by robot, then passed whole to every robot
+    venv = SemRelocLoopVectorEnv(num_envs=2, **VKW)
+    poses = [[2.0, 2.0, 0.0], None]
+    _, infos = venv.reset(seed=0, options=[{"pose": poses[0]}, None])
+    np.testing.assert_allclose(infos["pose"][0][:2], [2.0, 2.0], atol=1e-9)
+    single = gym.make("SemReloc-v1", **KW)
+    _, info = single.reset(seed=1)
+    np.testing.assert_array_equal(infos["pose"][1], info["pose"])  # robot 1 as with no options
+    with pytest.raises(ValueError, match="got 3 options dicts for 2 robots"):
+        venv.reset(seed=0, options=[None, None, None])
+    venv.close()

@@ -134,7 +134,14 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 ) from None
             if len(seeds) != self.num_envs:
                 raise ValueError(f"got {len(seeds)} seeds for {self.num_envs} robots")
-        per_robot = options if isinstance(options, list) else [options] * self.num_envs
+        if isinstance(options, (list, tuple)):
+            if len(options) != self.num_envs:
+                raise ValueError(
+                    f"got {len(options)} options dicts for {self.num_envs} robots (one dict, or one per robot)"
+                )
+            per_robot = list(options)
+        else:
+            per_robot = [options] * self.num_envs
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
             try:
                 env.unwrapped.check_reset(seed=s, options=o)
@@ -143,15 +150,17 @@ class SemRelocLoopVectorEnv(VectorEnv):
         return seeds
 
     # ------------------------------------------------------------------ API
-    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | list[dict | None] | None = None):
         """Reset every robot: ``seed`` int gives robot ``i`` the seed ``seed + i``; a list gives each its own.
+        ``options``: one dict for every robot, or a list of one dict (or None) per robot.
 
         Seeds and options are checked for every robot before any is reset (ValueError)."""
         seeds = self.check_seeds(seed, options)
+        per_robot = list(options) if isinstance(options, (list, tuple)) else [options] * self.num_envs
         super().reset(seed=seeds[0])
         obs_list, infos = [], {}
-        for i, (env, s) in enumerate(zip(self.envs, seeds)):
-            obs, info = env.reset(seed=s, options=options)
+        for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
+            obs, info = env.reset(seed=s, options=o)
             obs_list.append(obs)
             infos = self._add_info(infos, info, i)
         self._done[:] = False
