@@ -7,6 +7,8 @@ cases are treated alike everywhere.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 
@@ -18,3 +20,18 @@ def is_int(v) -> bool:
 def is_real(v) -> bool:
     """``v`` is a Python or NumPy integer or float, not a bool (NaN and inf included)."""
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+_EXPONENT_FORM = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+
+
+def yaml_number_hint(v) -> str:
+    """A hint for a string written in exponent form, which YAML 1.1 (PyYAML) reads as a number only
+    with a dot and a signed exponent (``1.0e-3``, ``1.0e+3``; ``1e-3`` and ``1.0e3`` are strings);
+    "" for anything else. For error messages about YAML files."""
+    if not (isinstance(v, str) and _EXPONENT_FORM.fullmatch(v.strip())):
+        return ""
+    return (
+        " (YAML reads a number in exponent form as a string unless it has a dot and a signed exponent:"
+        " write 1.0e-3 or 1.0e+3)"
+    )

@@ -225,3 +225,21 @@ def test_a_layout_too_small_for_the_robot_is_a_layout_error(tmp_path):
     path.write_text('{"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]}')
     with pytest.raises(LayoutError, match="no free space"):
         gym.make("SemReloc-v6", layout=str(path))
+
+
+def test_a_key_given_twice_in_a_layout_file_is_an_error_not_a_lost_entry(tmp_path):
+    # a new user's trial: the parsers kept the last of two `objects:` keys (or of two "class" keys)
+    (tmp_path / "d.yaml").write_text(
+        "outer: [[0, 0], [5, 0], [5, 5], [0, 5]]\nobjects:\n  - {class: chair, center: [1, 1], size: [0.5, 0.5]}\n"
+        "objects:\n  - {class: cabinet, center: [3, 1], size: [0.5, 0.5]}\n"
+    )
+    with pytest.raises(
+        LayoutError, match=r"d.yaml: line 4: key 'objects' given twice in one mapping \(first on line 2\)"
+    ):
+        load_layout(tmp_path / "d.yaml")
+    (tmp_path / "d.json").write_text(
+        '{"outer": [[0, 0], [5, 0], [5, 5], [0, 5]], '
+        '"objects": [{"class": "chair", "class": "door", "name": "c1", "center": [1, 1], "size": [0.5, 0.5]}]}'
+    )
+    with pytest.raises(LayoutError, match=r"d.json: key 'class' given twice in one object \(the one named 'c1'\)"):
+        load_layout(tmp_path / "d.json")

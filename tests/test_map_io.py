@@ -184,6 +184,10 @@ def _yaml_with(**override: str | None) -> str:
 YAML_CASES = {
     **{f"missing {k}": (_yaml_with(**{k: None}), f"missing key '{k}'") for k in GOOD_KEYS},
     "non-numeric resolution": (_yaml_with(resolution="resolution: fine"), "resolution must be a number"),
+    "exponent without a dot": (
+        _yaml_with(resolution="resolution: 5e-2"),
+        "resolution must be a number, got '5e-2'",
+    ),
     "negative resolution": (_yaml_with(resolution="resolution: -0.05"), "resolution must be positive"),
     "nonzero yaw": (_yaml_with(origin="origin: [0.0, 0.0, 0.3]"), "origin yaw is 0.3 rad; rotated maps are not"),
     "short origin": (_yaml_with(origin="origin: [0.0, 0.0]"), "origin must be a list"),
@@ -323,3 +327,21 @@ def test_build_maps_command_names_both_maps_after_the_layout(tmp_path, capsys):
     names = sorted(p.name for p in tmp_path.glob("*.yaml"))
     assert "twin_rooms.yaml" in names and "twin_rooms.perfect.yaml" in names, names
     assert not any(n.startswith(("door", "chair", "trash_bin", "cabinet")) for n in names), names
+
+
+def test_a_yml_map_finds_its_sidecar_under_either_spelling(tmp_path):
+    # a new user's trial: name.semantic.yml beside name.yml was silently ignored
+    grid = _example_grid(np.random.default_rng(1))
+    path = save_map(grid, tmp_path / "b.yml")
+    assert semantic_yaml_path(path).name == "b.semantic.yml" and semantic_yaml_path(path).exists()
+    assert load_map(path).class_names == grid.class_names
+    semantic_yaml_path(path).rename(tmp_path / "b.semantic.yaml")  # the other spelling
+    assert semantic_yaml_path(path).name == "b.semantic.yaml"
+    assert load_map(path).class_names == grid.class_names
+
+
+def test_a_16_bit_class_image_says_class_images_are_8_bit(tmp_path):
+    path = tmp_path / "c.pgm"
+    path.write_bytes(b"P5 2 1 65535\n" + bytes(4))
+    with pytest.raises(MapFormatError, match="maxval 65535: an 8-bit greymap .* semantic class image"):
+        read_pgm(path)

@@ -45,6 +45,7 @@ import numpy as np
 import yaml
 
 from filters.mapping.grid import GridMap
+from filters.numbers import yaml_number_hint
 
 __all__ = [
     "MapFormatError",
@@ -179,7 +180,10 @@ def read_pgm(path: str | os.PathLike) -> np.ndarray:
         tokens, _ = _pgm_tokens(data, 3, 2, path)
         if len(tokens) == 3 and tokens[2].isdigit() and int(tokens[2]) > 255:
             raise MapFormatError(
-                path, f"bad PGM header: maxval {int(tokens[2])}; read_pgm reads 8-bit greymaps (use read_map_image)"
+                path,
+                f"bad PGM header: maxval {int(tokens[2])}: an 8-bit greymap (maxval <= 255) is needed here, as a "
+                "semantic class image must be (a 16-bit occupancy image is read through its map YAML: load_map, "
+                "or read_map_image)",
             )
     vals, maxval = _parse_pgm(data, path)
     img = vals.astype(np.uint8)
@@ -258,7 +262,7 @@ def _require(doc: dict, key: str, path: Path):
 
 def _number(value, key: str, path: Path) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise MapFormatError(path, f"{key} must be a number, got {value!r}")
+        raise MapFormatError(path, f"{key} must be a number, got {value!r}{yaml_number_hint(value)}")
     v = float(value)
     if not math.isfinite(v):
         raise MapFormatError(path, f"{key} must be finite, got {value!r}")
@@ -295,9 +299,13 @@ def _image_path(doc: dict, yaml_path: Path, key: str = "image") -> Path:
 
 
 def semantic_yaml_path(path_yaml: str | os.PathLike) -> Path:
-    """The semantic sidecar of a map YAML: ``dir/name.yaml`` -> ``dir/name.semantic.yaml``."""
+    """The semantic sidecar of a map YAML: ``dir/name.yaml`` -> ``dir/name.semantic.yaml`` (``.yml``:
+    ``.semantic.yml``); if only the other spelling exists (``name.semantic.yml`` beside ``name.yaml``),
+    that file."""
     p = Path(path_yaml)
-    return p.with_name(p.stem + ".semantic.yaml")
+    own = p.with_name(p.stem + ".semantic" + (".yml" if p.suffix.lower() == ".yml" else ".yaml"))
+    other = own.with_suffix(".yaml" if own.suffix == ".yml" else ".yml")
+    return other if not own.exists() and other.exists() else own
 
 
 def _safe_name(name: str) -> str:
