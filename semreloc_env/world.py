@@ -239,6 +239,17 @@ def _array_like(value) -> bool:
     return all(isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) for v in value)
 
 
+def check_substep(robot: RobotParams, physics: PhysicsParams) -> None:
+    """ValueError if the robot at full speed moves its radius or more per physics substep (it could
+    pass through thin walls)."""
+    max_step = robot.max_linear_mps * physics.dt_s / physics.substeps
+    if max_step >= robot.radius_m:
+        raise ValueError(
+            f"the robot would move {max_step:.3f} m per physics substep, not less than its radius "
+            f"{robot.radius_m} m: it could pass through thin walls; raise physics.substeps or control_hz"
+        )
+
+
 class World:
     """A layout in pymunk plus the robot. Poses are ``(x, y, theta)``, metres and radians.
 
@@ -251,12 +262,7 @@ class World:
         self.layout = layout
         self.robot_params = robot
         self.physics = physics
-        max_step = robot.max_linear_mps * physics.dt_s / physics.substeps
-        if max_step >= robot.radius_m:
-            raise ValueError(
-                f"the robot would move {max_step:.3f} m per physics substep, not less than its radius "
-                f"{robot.radius_m} m: it could pass through thin walls; raise physics.substeps or control_hz"
-            )
+        check_substep(robot, physics)
         geo = static_geometry(layout, extra_obstacles)
         self.geometry = geo
         self._obstacles = list(geo.obstacles) + [np.asarray(b, dtype=np.float64) for b in layout.blocks]  # solid

@@ -306,3 +306,21 @@ def test_9b_a_semreloc_env_pickles_mid_episode_and_its_copy_goes_on_alike():
     ref = [env.step(a) for a in actions]
     for c in copies:
         assert_identical([c.step(a) for a in actions], ref)
+
+
+def test_arguments_a_new_user_found_accepted_or_checked_late():
+    # layout_seed with a layout that has none was silently ignored; an impossible robot speed was
+    # refused only at the first reset; a kidnap pose outside the building was said to overlap a wall
+    import gymnasium as gym
+
+    with pytest.raises(ValueError, match=r"layout_seed=7 seeds only the procedural layouts"):
+        gym.make("SemReloc-v6", layout="lab", layout_seed=7)
+    gym.make("SemReloc-v6", layout="lab", layout_seed=7, scenario="changed")  # it places the obstacles
+    env = gym.make("SemReloc-v6", layout="procedural", layout_seed=7)
+    with pytest.raises(ValueError, match=r"layout_seed=3 seeds only"):
+        env.unwrapped.set_layout("twin_rooms", 3)
+    with pytest.raises(ValueError, match=r"would move 2.000 m per physics substep"):
+        gym.make("SemReloc-v6", robot={"max_linear_mps": 100.0})
+    env = gym.make("SemReloc-v6", layout="lab")
+    with pytest.raises(ValueError, match=r"kidnap_pose \[50.0, 2.0, 0.0\] is not free: .*outside the outer wall"):
+        env.reset(seed=0, options={"kidnap_at_step": 5, "kidnap_pose": [50.0, 2.0, 0.0]})

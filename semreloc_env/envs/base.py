@@ -19,7 +19,7 @@ from filters.motion.odometry import OdometryMotionConfig
 from ..config import CameraParams, LidarParams, PhysicsParams, RobotParams, coerce_config, default_odometry_noise
 from ..layouts import PROCEDURAL_VERSION, Layout, get_layout
 from ..sensors import Lidar, Odometry, SemanticCamera
-from ..world import World, build_world
+from ..world import World, build_world, check_substep
 from .spaces import decode_action, make_action_space, make_observation, make_observation_space
 
 
@@ -67,6 +67,7 @@ class SemRelocBase(gym.Env):
         self.layout = get_layout(layout, seed=self.layout_seed, procedural_version=self.procedural_version)
         self.robot_params = coerce_config(RobotParams, robot, "robot")
         self.physics_params = coerce_config(PhysicsParams, physics, "physics")
+        check_substep(self.robot_params, self.physics_params)  # now, not at the first reset
         # one frame per control step: videos (RecordVideo) and human mode play in real time
         self.metadata = {**type(self).metadata, "render_fps": self.physics_params.control_hz}
         self.lidar = Lidar(coerce_config(LidarParams, lidar, "lidar"))

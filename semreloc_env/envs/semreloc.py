@@ -14,7 +14,7 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
-from ..layouts import LAYOUT_NAMES, get_layout
+from ..layouts import LAYOUT_NAMES, PROCEDURAL_LAYOUTS, Layout, get_layout
 from ..map_world import check_map_matches_world
 from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
@@ -97,6 +97,18 @@ class RewardWeights:
             real = isinstance(v, (int, float)) and not isinstance(v, bool)
             if not (real and math.isfinite(v) and abs(v) <= 1e6):
                 raise ValueError(f"reward weight {f.name} must be a finite number within +-1e6, got {v!r}")
+
+
+def check_seed_use(layout, layout_seed, scenario: str) -> None:
+    """ValueError if a nonzero ``layout_seed`` would be ignored: it seeds only the procedural layouts
+    and the ``"changed"`` scenario's obstacles. (A `Layout` object passes with any seed: `RandomLayout`
+    hands over the drawn layout with the seed it was drawn from.)"""
+    procedural = isinstance(layout, str) and layout in PROCEDURAL_LAYOUTS
+    if scenario != "changed" and check_layout_seed(layout_seed) and not (procedural or isinstance(layout, Layout)):
+        raise ValueError(
+            f"layout_seed={layout_seed} seeds only the procedural layouts {list(PROCEDURAL_LAYOUTS)} (and the "
+            f"'changed' scenario's obstacles); layout {str(layout)!r:.80} does not use it"
+        )
 
 
 class SemRelocEnv(SemRelocBase):
@@ -193,6 +205,9 @@ class SemRelocEnv(SemRelocBase):
     ## Reset options
     ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1, at most the time limit when
     made by ``gym.make``: at that step the robot is teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
+    A global episode (``tracking`` not set) ends at its first correct convergence, often before
+    ``kidnap_at_step``: then no kidnap happens (``info["kidnapped"]`` stays False). To kidnap a
+    localized robot, reset with ``tracking=True``.
     A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
     checks them in its outermost wrapper (`semreloc_env.wrappers.CheckedReset`), so the
     time limit keeps counting the old episode.
@@ -275,6 +290,7 @@ class SemRelocEnv(SemRelocBase):
     ):
         if scenario not in SCENARIOS:
             raise ValueError(f"unknown scenario {scenario!r}; choose one of {list(SCENARIOS)}")
+        check_seed_use(layout, layout_seed, scenario)
         if not (
             isinstance(map_source, (GridMap, Path))
             or map_source in MAP_SOURCES
@@ -324,6 +340,7 @@ class SemRelocEnv(SemRelocBase):
                 rotated); nothing changes then.
         """
         layout_seed = check_layout_seed(layout_seed)
+        check_seed_use(layout, layout_seed, self.scenario)
         new_layout = get_layout(layout, seed=layout_seed, procedural_version=self.procedural_version)
         if grid is None:
             if not (isinstance(self.map_source, str) and self.map_source in MAP_SOURCES):
@@ -360,7 +377,10 @@ class SemRelocEnv(SemRelocBase):
                 raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
             kp = as_pose(kp, "kidnap_pose")
             if not world.is_free(kp[:2]):
-                raise ValueError(f"kidnap_pose {kp.tolist()} is not free: it overlaps a wall or object")
+                raise ValueError(
+                    f"kidnap_pose {kp.tolist()} is not free: the robot (radius {self.robot_params.radius_m} m) "
+                    "would overlap a wall or object, or lie outside the outer wall"
+                )
         if not self.grid.free_mask().any():
             raise ValueError("the relocalizer's map has no free cell: nowhere to put particles")
 
