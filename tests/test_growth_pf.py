@@ -122,3 +122,15 @@ def test_normalise_log_weights_is_stable():
     w = normalise_log_weights(np.array([-1e4, -1e4 + 1.0, -np.inf]))
     np.testing.assert_allclose(w, [1 / (1 + np.e), np.e / (1 + np.e), 0.0])
     np.testing.assert_allclose(normalise_log_weights(np.full(4, -np.inf)), 0.25)
+
+
+def test_particle_counts_must_be_integers_and_nan_brightness_is_named():
+    # a new user's trial: PFConfig(n_particles=50.0) or True passed, failing later with a TypeError;
+    # NaN brightness was reported as a wrong shape
+    from filters.smc.firefly import firefly_move
+
+    for bad in (50.0, True, float("nan")):
+        with pytest.raises(ValueError, match="n_particles must be a positive integer"):
+            PFConfig(n_particles=bad)
+    with pytest.raises(ValueError, match="log_brightness holds NaN for 1 of 3 fireflies"):
+        firefly_move(np.zeros((3, 1)), np.array([0.0, np.nan, 1.0]), 0.1, np.random.default_rng(0))

@@ -167,3 +167,11 @@ def test_simulated_scans_check_pose_and_rng():
         simulate_lidar(grid, [np.nan, 1.0, 0.0], angles, 5.0)
     with pytest.raises(TypeError, match="needs rng"):
         simulate_lidar(grid, [1.0, 1.0, 0.0], angles, 5.0, noise_std_m=0.1)
+
+
+def test_from_ros_checks_its_numbers_as_the_constructor_does():
+    # a new user's trial: range_max=True became 1.0 m, and a 2-D ranges array was flattened silently
+    with pytest.raises(ValueError, match="range_max must be a number, got bool"):
+        LaserScan.from_ros([1.0, 2.0], 0.0, 0.1, 0.0, True)
+    with pytest.raises(ValueError, match=r"ranges must be 1-D .* got shape \(2, 2\)"):
+        LaserScan.from_ros([[1.0, 2.0], [3.0, 4.0]], 0.0, 0.1, 0.0, 10.0)

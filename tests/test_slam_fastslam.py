@@ -211,3 +211,42 @@ def test_constructor_and_id_checks():
     assert known.n_updates == 0  # the refused scan changed nothing
     ml = FastSLAM(UnicycleModel(), TINY_NOISE, FastSLAMConfig(), np.random.default_rng(0))
     ml.update(np.array([[1.0, 0.0]]), ids=[10**9])  # maximum-likelihood association ignores the ids
+
+
+@pytest.mark.parametrize("kind", ["fastslam1", "fastslam2", "ekf"])
+def test_predict_refuses_what_would_make_the_state_non_finite_and_changes_nothing(kind):
+    # a new user's trial: dt = inf turned the pose into [inf, nan, nan] with only RuntimeWarnings
+    from filters.slam.ekf_slam import EKFSLAM
+
+    noise = RangeBearingNoise(0.1, 0.02)
+    if kind == "ekf":
+        f = EKFSLAM(UnicycleModel(), noise)
+    else:
+        f = FastSLAM(UnicycleModel(), noise, FastSLAMConfig(20, version=int(kind[-1])), np.random.default_rng(0))
+    f.predict([1.0, 0.1], 0.1)
+    state = (f.x.copy(), f.P.copy()) if kind == "ekf" else (f.poses.copy(), f.pose_cov.copy())
+    for u, dt, match in [
+        ([1.0, 0.0], math.inf, "dt must be a finite number > 0"),
+        ([1.0, 0.0], True, "dt must be a finite number > 0"),
+        ([1.0, 0.0], 0.0, "dt must be a finite number > 0"),
+        ([1.0, math.nan], 0.1, "control u must be a 1-D array of finite numbers"),
+        ("fast", 0.1, "control u must be"),
+        ([1e308, 0.0], 1e10, "moves the pose"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            f.predict(u, dt)
+    after = (f.x, f.P) if kind == "ekf" else (f.poses, f.pose_cov)
+    for a, b in zip(state, after):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_model_and_config_numbers_are_checked():
+    for bad in [dict(sigma_v_mps=math.inf), dict(sigma_w_radps=math.nan), dict(sigma_v_mps="0.1")]:
+        with pytest.raises(ValueError, match="invalid unicycle model parameters"):
+            UnicycleModel(**bad)
+    with pytest.raises(ValueError, match="invalid bicycle model parameters"):
+        BicycleModel(wheelbase_m=math.inf)
+    with pytest.raises(ValueError, match="version must be 1 or 2, got True"):
+        FastSLAMConfig(version=True)
+    with pytest.raises(ValueError, match="initial_capacity must be an integer >= 1, got 2.5"):
+        FastSLAMConfig(initial_capacity=2.5)

@@ -12,11 +12,13 @@ Every model offers
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from filters.numbers import is_real
 from filters.pose import wrap_angle
 
 
@@ -55,8 +57,9 @@ class BicycleModel:
     sigma_g_rad: float = float(np.deg2rad(3.0))
 
     def __post_init__(self) -> None:
-        if not (self.wheelbase_m > 0 and self.sigma_v_mps >= 0 and self.sigma_g_rad >= 0):
-            raise ValueError(f"invalid bicycle model parameters: {self}")
+        values = (self.wheelbase_m, self.sigma_v_mps, self.sigma_g_rad)
+        if not (all(is_real(v) and math.isfinite(v) for v in values) and values[0] > 0 and min(values[1:]) >= 0):
+            raise ValueError(f"invalid bicycle model parameters (finite, wheelbase > 0, sigmas >= 0): {self}")
 
     @property
     def control_cov(self) -> np.ndarray:
@@ -114,8 +117,9 @@ class UnicycleModel:
     sigma_w_radps: float = 0.05
 
     def __post_init__(self) -> None:
-        if not (self.sigma_v_mps >= 0 and self.sigma_w_radps >= 0):
-            raise ValueError(f"invalid unicycle model parameters: {self}")
+        values = (self.sigma_v_mps, self.sigma_w_radps)
+        if not (all(is_real(v) and math.isfinite(v) for v in values) and min(values) >= 0):
+            raise ValueError(f"invalid unicycle model parameters (finite sigmas >= 0): {self}")
 
     @property
     def control_cov(self) -> np.ndarray:

@@ -130,9 +130,14 @@ class LaserScan:
             range_max: longest valid range (m).
             sensor_pose: the laser frame's pose in the robot (``base_link``) frame, ``(x, y, yaw)``.
         """
-        r = np.asarray(ranges, dtype=np.float64).reshape(-1)
-        for name, v in (("angle_min", angle_min), ("angle_increment", angle_increment)):
-            if not math.isfinite(v):
+        r = np.asarray(ranges, dtype=np.float64)
+        if r.ndim != 1:
+            raise ValueError(f"LaserScan.from_ros: ranges must be 1-D (one reading per beam), got shape {r.shape}")
+        for name, v in (("angle_min", angle_min), ("angle_increment", angle_increment), ("range_min", range_min),
+                        ("range_max", range_max)):  # fmt: skip
+            if not is_real(v):
+                raise ValueError(f"LaserScan.from_ros: {name} must be a number, got {type(v).__name__} {v!r:.40}")
+            if not math.isfinite(v) and name.startswith("angle"):
                 raise ValueError(f"LaserScan.from_ros: {name} must be finite, got {v!r}")
         if angle_increment == 0:
             raise ValueError("LaserScan.from_ros: angle_increment must be non-zero")

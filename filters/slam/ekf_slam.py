@@ -19,6 +19,7 @@ from filters.slam.association import AssociationConfig, innovation, inv2, nis_an
 from filters.slam.fastslam import SLAMEstimate
 from filters.slam.landmarks import (
     RangeBearingNoise,
+    checked_control,
     checked_pose_cov,
     inverse_observation,
     observation_jacobians,
@@ -70,12 +71,15 @@ class EKFSLAM:
 
     def predict(self, u, dt: float) -> None:
         """Propagate the pose by control ``u`` over ``dt`` seconds; landmarks are static."""
-        if not dt > 0:
-            raise ValueError(f"dt must be positive, got {dt}")
+        u, dt = checked_control(u, dt)
         pose = self.x[None, :3]
-        fx, fu = self.motion.jacobians(pose, u, dt)
-        fx, fu = fx[0], fu[0]
-        self.x[:3] = self.motion.mean(pose, u, dt)[0]
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below, by name
+            fx, fu = self.motion.jacobians(pose, u, dt)
+            fx, fu = fx[0], fu[0]
+            new = self.motion.mean(pose, u, dt)[0]
+        if not (np.all(np.isfinite(new)) and np.all(np.isfinite(fx)) and np.all(np.isfinite(fu))):
+            raise ValueError(f"control u={u.tolist()} over dt={dt} s moves the pose off any finite value")
+        self.x[:3] = new
         P = self.P
         P[:3, :3] = fx @ P[:3, :3] @ fx.T + fu @ self.motion.control_cov @ fu.T
         if P.shape[0] > 3:

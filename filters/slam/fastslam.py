@@ -36,6 +36,7 @@ from filters.pose import wrap_angle
 from filters.slam.association import AssociationConfig, gauss_logpdf, innovation, inv2, nis_and_logdet
 from filters.slam.landmarks import (
     RangeBearingNoise,
+    checked_control,
     checked_pose_cov,
     inverse_observation,
     observation_jacobians,
@@ -75,12 +76,12 @@ class FastSLAMConfig:
     def __post_init__(self) -> None:
         if not is_int(self.n_particles) or self.n_particles < 1:
             raise ValueError(f"n_particles must be a positive integer, got {self.n_particles!r}")
-        if self.version not in (1, 2):
-            raise ValueError(f"version must be 1 or 2, got {self.version}")
+        if not is_int(self.version) or self.version not in (1, 2):
+            raise ValueError(f"version must be 1 or 2, got {self.version!r}")
         if not 0.0 < self.resample_ess_fraction <= 1.0:
             raise ValueError(f"resample_ess_fraction must be in (0, 1], got {self.resample_ess_fraction}")
-        if self.initial_capacity < 1:
-            raise ValueError("initial_capacity must be >= 1")
+        if not is_int(self.initial_capacity) or self.initial_capacity < 1:
+            raise ValueError(f"initial_capacity must be an integer >= 1, got {self.initial_capacity!r}")
         get_resampler(self.resampler)  # unknown name -> ValueError now, not mid-run
 
 
@@ -210,15 +211,19 @@ class FastSLAM:
 
     def predict(self, u, dt: float) -> None:
         """Move every particle by control ``u`` (model units) over ``dt`` seconds."""
-        if not dt > 0:
-            raise ValueError(f"dt must be positive, got {dt}")
-        if self.config.version == 1:
-            self.poses = self.motion.sample(self.poses, u, dt, self.rng)
-        else:
-            fx, fu = self.motion.jacobians(self.poses, u, dt)
-            q = self.motion.control_cov
-            self.pose_cov = fx @ self.pose_cov @ np.swapaxes(fx, 1, 2) + fu @ q @ np.swapaxes(fu, 1, 2)
-            self.poses = self.motion.mean(self.poses, u, dt)
+        u, dt = checked_control(u, dt)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below, by name
+            if self.config.version == 1:
+                poses = self.motion.sample(self.poses, u, dt, self.rng)
+                cov = self.pose_cov
+            else:
+                fx, fu = self.motion.jacobians(self.poses, u, dt)
+                q = self.motion.control_cov
+                cov = fx @ self.pose_cov @ np.swapaxes(fx, 1, 2) + fu @ q @ np.swapaxes(fu, 1, 2)
+                poses = self.motion.mean(self.poses, u, dt)
+        if not (np.all(np.isfinite(poses)) and np.all(np.isfinite(cov))):
+            raise ValueError(f"control u={u.tolist()} over dt={dt} s moves the poses off any finite value")
+        self.poses, self.pose_cov = poses, cov
 
     def update(self, z=None, ids=None) -> None:
         """Incorporate one scan ``z (K, 2)`` (range m, bearing rad); ``ids (K,)`` for known association."""

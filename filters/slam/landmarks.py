@@ -12,10 +12,12 @@ Every function broadcasts over leading axes, so ``poses[:, None, :]`` against
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from filters.numbers import is_real
 from filters.pose import wrap_angle
 
 
@@ -136,6 +138,21 @@ def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
     if ids_arr.size and (not np.issubdtype(ids_arr.dtype, np.integer) or np.any(ids_arr < 0)):
         raise ValueError("landmark ids must be non-negative integers")
     return z, ids_arr.astype(np.int64)
+
+
+def checked_control(u, dt) -> tuple[np.ndarray, float]:
+    """``(u as a finite float64 1-D array, dt as a float)``; ValueError unless ``dt`` is a finite
+    number > 0 and ``u`` finite numbers (the SLAM filters' ``predict`` checks with this before they
+    move anything; the motion model fixes how many, e.g. ``(v, omega)`` or ``(dx, dy, dtheta)``)."""
+    if not (is_real(dt) and math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a finite number > 0 (seconds), got {dt!r}")
+    try:
+        a = np.asarray(u, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"control u must be numbers, got {u!r:.80}") from None
+    if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
+        raise ValueError(f"control u must be a 1-D array of finite numbers, got {u!r:.80}")
+    return a, float(dt)
 
 
 def checked_pose_cov(cov, what: str = "initial_pose_cov") -> np.ndarray:

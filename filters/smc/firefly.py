@@ -127,8 +127,13 @@ def firefly_move(
         raise ValueError(f"x must be a non-empty (N, d) array, got shape {x.shape}")
     n, d = x.shape
     log_i = np.asarray(log_brightness, dtype=np.float64)
-    if log_i.shape != (n,) or np.any(np.isnan(log_i)):
-        raise ValueError(f"log_brightness must be (N,)={n} without NaN, got shape {log_i.shape}")
+    if log_i.shape != (n,):
+        raise ValueError(f"log_brightness must be (N,)={n}, got shape {log_i.shape}")
+    if np.any(np.isnan(log_i)):
+        raise ValueError(
+            f"log_brightness holds NaN for {int(np.isnan(log_i).sum())} of {n} fireflies (a likelihood that "
+            "overflowed or an observation far outside the model's range?)"
+        )
     if mode not in MOVE_MODES:
         raise ValueError(f"unknown firefly move mode {mode!r}; choose one of {MOVE_MODES}")
     if mode == "auto":

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
+from filters.numbers import is_int
 from filters.smc.models.base import StateSpaceModel
 from filters.smc.resampling import effective_sample_size, get_resampler
 
@@ -37,7 +38,7 @@ class PFConfig:
     resample_threshold: float = 1.0
 
     def __post_init__(self) -> None:
-        if int(self.n_particles) != self.n_particles or self.n_particles < 1:
+        if not is_int(self.n_particles) or self.n_particles < 1:
             raise ValueError(f"n_particles must be a positive integer, got {self.n_particles!r}")
         if not self.resample_threshold >= 0:
             raise ValueError(f"resample_threshold must be >= 0, got {self.resample_threshold!r}")
