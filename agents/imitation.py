@@ -274,8 +274,10 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
             beta *= config.beta_decay
     finally:
         venv.close()
-    timing = {"wall_s": time.time() - t0, "learner_cpu_s": time.process_time() - c0, "rounds": rows}
-    (out / "timing.json").write_text(json.dumps(timing, indent=1))
+    # the final round fits nothing: its loss is null in the JSON (NaN is not JSON; "nan" in the CSV)
+    json_rows = [{**row, "loss": None if row["loss"] != row["loss"] else row["loss"]} for row in rows]
+    timing = {"wall_s": time.time() - t0, "learner_cpu_s": time.process_time() - c0, "rounds": json_rows}
+    (out / "timing.json").write_text(json.dumps(timing, indent=1, allow_nan=False))
     plot_imitation_curve(rows, out / "learning_curve.png")
     return save_policy(
         model,

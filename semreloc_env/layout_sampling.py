@@ -248,6 +248,7 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
         base = self.env.unwrapped
         base.check_reset(seed=seed)  # the seed before it re-seeds the layout stream
         saved = (self._rng, self.current, base.layout, base.layout_seed, base.grid)
+        draw = None
         try:
             if seed is not None:
                 self._rng = np.random.default_rng([int(seed), _SALT])
@@ -257,9 +258,11 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
             base.set_layout(draw.layout, draw.seed, grid=self._grid(draw), check_map=False)  # maps_for's
             self.current = draw
             obs, info = self.env.reset(seed=seed, options=options)
-        except Exception:
+        except Exception as e:
             self._rng, self.current, layout, layout_seed, grid = saved
             base.set_layout(layout, layout_seed, grid=grid, check_map=False)  # the map it had
+            if draw is not None and isinstance(e, ValueError) and options:  # an option that fits another layout
+                raise ValueError(f"{e} (in the layout drawn for this reset: {draw.kind}, seed {draw.seed})") from None
             raise
         info["layout"] = draw.as_dict()
         return obs, info

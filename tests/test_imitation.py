@@ -2,6 +2,7 @@
 reloaded through agents.load_policy, and its configuration checks."""
 
 import csv
+import json
 
 import gymnasium as gym
 import numpy as np
@@ -94,6 +95,9 @@ def test_dagger_smoke_run_writes_its_rounds_and_a_loadable_policy(dagger_run):
     assert samples[0] > 0 and samples == sorted(samples)  # the data set grows
     assert all(0.0 <= float(r["agreement"]) <= 1.0 for r in rows)
     assert rows[-1]["loss"] == "nan" and float(rows[0]["loss"]) > 0  # the final round fits nothing
+    # strict JSON (a new user's trial: NaN is not JSON, jq refused timing.json)
+    timing = json.loads((out / "timing.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
+    assert timing["rounds"][-1]["loss"] is None and timing["rounds"][0]["loss"] > 0
     assert (out / "learning_curve.png").stat().st_size > 0
     meta = read_metadata(path)
     assert meta["options"] == [] and meta["repeat"] == 1
