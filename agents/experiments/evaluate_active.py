@@ -88,7 +88,9 @@ class Args:
     starts: int = 10
     """start poses per layout"""
     layout_files: tuple[str, ...] = ()
-    """layout files (.json / .yaml) to add"""
+    """layout files (.json / .yaml) to add (a file's starts and episode seeds follow from its position in
+    the case list: adding or reordering files gives the later files other starts, and --reuse then keeps
+    none of their rows)"""
     max_steps: int = 200
     """steps per episode (success must come within them)"""
     action_type: Literal["discrete", "continuous"] = "discrete"
