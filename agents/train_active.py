@@ -409,14 +409,31 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
     return path
 
 
-def resumed_config(resume: Path, config: ActiveTrainConfig) -> ActiveTrainConfig:
-    """``config`` with the `MODEL_FIELDS` the checkpoint ``resume`` was trained with (its run's config),
-    which are what a resumed run trains with: what its ``config.json`` records."""
-    saved = run_config_of(resume) or {}
-    kept = {f: saved[f] for f in MODEL_FIELDS if f in saved}
-    for f in ("net_arch", "cnn_channels"):
-        if f in kept:
-            kept[f] = tuple(kept[f])
+def resumed_config(model: PPO, config: ActiveTrainConfig) -> ActiveTrainConfig:
+    """``config`` with the `MODEL_FIELDS` a loaded checkpoint ``model`` carries, which are what a resumed
+    run trains with (and what its ``config.json`` records), also for a bare checkpoint without a run
+    config."""
+    kw = model.policy_kwargs or {}
+    extractor = kw.get("features_extractor_kwargs") or {}
+    clip = model.clip_range(1.0) if callable(model.clip_range) else model.clip_range
+    lr = model.learning_rate(1.0) if callable(model.learning_rate) else model.learning_rate
+    kept = {
+        "n_steps": int(model.n_steps),
+        "batch_size": int(model.batch_size),
+        "n_epochs": int(model.n_epochs),
+        "learning_rate": float(lr),
+        "gamma": float(model.gamma),
+        "gae_lambda": float(model.gae_lambda),
+        "ent_coef": float(model.ent_coef),
+        "clip_range": float(clip),
+        "vf_coef": float(model.vf_coef),
+    }
+    if "features_dim" in extractor:
+        kept["features_dim"] = int(extractor["features_dim"])
+    if "cnn_channels" in extractor:
+        kept["cnn_channels"] = tuple(int(c) for c in extractor["cnn_channels"])
+    if isinstance(kw.get("net_arch"), (list, tuple)) and all(isinstance(v, int) for v in kw["net_arch"]):
+        kept["net_arch"] = tuple(kw["net_arch"])
     return dataclasses.replace(config, **kept)
 
 
@@ -460,6 +477,7 @@ def train_active(
     venv = make_active_venv(config)
     if resume is not None:
         model = PPO.load(resume, env=venv, device=config.device)
+        config = resumed_config(model, config)  # its n_steps also bounds the checkpoints it will write
         n = int(model.num_timesteps)
         names = ("progress.csv", "timing.json", "config.json", "policy.zip", "learning_curve.png")
         taken = [f"{Path(m).stem}_before_{n}{Path(m).suffix}" for m in names]
@@ -470,7 +488,6 @@ def train_active(
                 f"--resume {resume} into {out} would overwrite {', '.join(taken)} (this folder continued from "
                 f"{n} decisions before, or holds later checkpoints): give a new --out"
             )
-        config = resumed_config(resume, config)  # before its run's config.json is moved aside
         for name in names:
             if (out / name).exists():
                 (out / name).rename(out / f"{Path(name).stem}_before_{n}{Path(name).suffix}")

@@ -250,3 +250,17 @@ def test_a_lone_outlier_does_not_set_the_no_return_value(tmp_path):
     g = tmp_path / "plain.log"
     g.write_text("\n".join(_flaser([1.0 + k, 2.0], (k, 0, 0), (k, 0, 0), float(k)) for k in range(4)) + "\n")
     assert read_carmen(g).range_max_m == 4.0
+
+
+def test_long_real_readings_in_many_scans_are_not_taken_for_corrupt_ones(tmp_path):
+    # a review: centimetre-rounded readings made some scan maximum recur, and every longer, valid
+    # reading became "no return"
+    rng = np.random.default_rng(0)
+    lines = []
+    for k in range(300):
+        far = 9.0 + rng.uniform(0, 3) if k % 25 == 0 else rng.uniform(4, 6)
+        lines.append(_flaser([1.0, round(far, 2), 2.0], (k, 0, 0), (k, 0, 0), float(k)))
+    f = tmp_path / "long.log"
+    f.write_text("\n".join(lines) + "\n")
+    log = read_carmen(f)
+    assert log.range_max_m == pytest.approx(log.ranges.max())

@@ -409,6 +409,8 @@ def test_a_users_own_policy_class_is_evaluated_and_its_edits_rerun(tmp_path, cap
     rows = json.loads((tmp_path / "a" / "episodes.json").read_text())
     left = [r for r in rows if r["policy"] == "left"]
     assert len(left) == 3 and all(r["actions"] == {"1": r["length"]} for r in left)
+    ev.policy_code.cache_clear()  # the fingerprint does not depend on what was loaded when it was taken
+    assert {r["settings"]["code"] for r in left} == {ev.policy_code(spec)}
     capsys.readouterr()
     assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "b")]) == 0
     assert "reused 6 episodes" in capsys.readouterr().out

@@ -286,9 +286,7 @@ def test_a_rejected_random_layout_reset_changes_nothing():
             a.reset(**bad)
         assert base.layout is layout and base.grid is grid
     # a pose that fits one layout and not another names the layout drawn (a new user's trial)
-    with pytest.raises(
-        ValueError, match=r"is not free.*\(in the layout drawn for this reset: \w+, seed \d+\)"
-    ):
+    with pytest.raises(ValueError, match=r"is not free.*\(in the layout drawn for this reset: \w+, seed \d+\)"):
         a.reset(options={"pose": [0.01, 0.01, 0.0]})
     assert base.layout is layout and base.grid is grid
     _, _, _, _, info_a = a.step(0)

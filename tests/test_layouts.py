@@ -243,3 +243,14 @@ def test_a_key_given_twice_in_a_layout_file_is_an_error_not_a_lost_entry(tmp_pat
     )
     with pytest.raises(LayoutError, match=r"d.json: key 'class' given twice in one object \(the one named 'c1'\)"):
         load_layout(tmp_path / "d.json")
+
+
+def test_yaml_anchors_and_merge_keys_still_load(tmp_path):
+    # the duplicate-key check must leave YAML's merge key alone (a review found it broke anchors)
+    (tmp_path / "m.yaml").write_text(
+        "outer: [[0, 0], [8, 0], [8, 8], [0, 8]]\nobjects:\n  - &c {class: chair, center: [1, 1], size: [0.5, 0.5]}\n"
+        "  - {<<: *c, center: [5, 5]}\n"
+    )
+    layout = load_layout(tmp_path / "m.yaml")
+    assert [o.cls for o in layout.objects] == ["chair", "chair"]
+    assert layout.objects[1].centroid() == pytest.approx([5.0, 5.0])

@@ -345,3 +345,9 @@ def test_a_16_bit_class_image_says_class_images_are_8_bit(tmp_path):
     path.write_bytes(b"P5 2 1 65535\n" + bytes(4))
     with pytest.raises(MapFormatError, match="maxval 65535: an 8-bit greymap .* semantic class image"):
         read_pgm(path)
+
+
+def test_an_exponent_without_a_dot_gets_the_yaml_hint(tmp_path):
+    path = _write_map(tmp_path, yaml_text=_yaml_with(resolution="resolution: 5e-2"))
+    with pytest.raises(MapFormatError, match=r"got '5e-2' \(YAML reads a number in exponent form as a string"):
+        load_map(path)

@@ -55,6 +55,18 @@ def test_furniture_is_quarter_turn_symmetric_but_the_telling_objects_break_every
         sym.append(ok)
     assert sum(sym) % 4 == 0 and not all(sym)
     assert quarter_turn_asymmetry(objs, side) >= RingParams().min_asymmetry_m
+    # independently: every turn moves some telling object 1 m or more from every object of its class
+    for k in (1, 2, 3):
+        far = []
+        for o, is_sym in zip(objs, sym):
+            if is_sym:
+                continue
+            c = np.array(o["center"])
+            for _ in range(k):
+                c = _turn(c, side)
+            same = centres[[cl == o["class"] for cl in classes]]
+            far.append(np.min(np.hypot(*(same - c).T)) >= 1.0)
+        assert any(far)
     get_layout("procedural_ring", seed=seed)  # validates: no overlaps, all inside
 
 

@@ -70,8 +70,8 @@ class Args:
     """names from agents.policies.POLICIES, NAME=PATH for a trained policy saved by
     agents.learned.save_policy (loaded with agents.load_policy), or NAME=MODULE:CLASS /
     NAME=path/to/file.py:CLASS for your own: CLASS(seed) must give an object with wrap(env), reset() and
-    act(obs), as agents.policies.Policy (--reuse tracks edits to its file and to the modules loaded from
-    its folder); space-separated"""
+    act(obs), as agents.policies.Policy (--reuse tracks edits to the .py files of its folder, or of its
+    top package); space-separated"""
     reuse: tuple[str, ...] = ()
     """folders of earlier runs with the same cases: their episodes.json rows are kept for the policies
     listed here, and only the other policies are run (a row is kept only if it was made with the same
@@ -314,6 +314,8 @@ def uninformative_start(layout_seed: int, world, rng, lidar_max: float, cam_max:
 def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries: int = 300):
     """A pose in a `ring_layout` whose exact all-round view equals that of one of its quarter-turned
     images about the hall's centre, or None if none was found in ``tries`` draws."""
+    from semreloc_env.layouts.procedural import quarter_turn
+
     x0, x1, y0, y1 = world.layout.bounds()
     side = x1 - x0
     labels = np.array([o.label for o in world.layout.objects], dtype=np.int64)
@@ -321,11 +323,9 @@ def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries
     for _ in range(tries):
         pose = world.sample_free_pose(rng, margin_m=0.3)
         r0, l0 = _view(world, pose, lidar_max, cam_max, angles, labels)
-        for k in (1, 2, 3):
-            q = pose.copy()
-            for _turn in range(k):  # a quarter turn counter-clockwise about the centre
-                q = np.array([x0 + side - (q[1] - y0), y0 + (q[0] - x0), q[2] + math.pi / 2])
-            q[2] = math.remainder(q[2], 2 * math.pi)
+        for k in (1, 2, 3):  # k quarter turns counter-clockwise about the hall's centre
+            xy = quarter_turn(pose[:2] - (x0, y0), k, side) + (x0, y0)
+            q = np.array([xy[0], xy[1], math.remainder(pose[2] + k * math.pi / 2, 2 * math.pi)])
             if not world.is_free(q[:2], 0.3):
                 continue
             r1, l1 = _view(world, q, lidar_max, cam_max, angles, labels)
@@ -539,15 +539,17 @@ def check_user_policy(spec: str) -> None:
 
 
 def _local_files(module: types.ModuleType) -> list[Path]:
-    """A user policy's module file and those of every loaded module from its folder (tree): what its
-    imports brought in from there, also names imported from them (``from helper import TURN``)."""
-    root = Path(module.__file__).resolve().parent
-    files = {Path(module.__file__).resolve()}
-    for mod in list(sys.modules.values()):
-        f = getattr(mod, "__file__", None)
-        if f and Path(f).suffix == ".py" and Path(f).resolve().is_relative_to(root):
-            files.add(Path(f).resolve())
-    return sorted(files)
+    """The files a user policy's fingerprint covers, whatever is loaded when it is taken: the ``.py``
+    files of its module's folder (for a module in a package, of the top package's folder tree), less
+    the project's own packages (`policy_modules` covers those)."""
+    top = sys.modules.get(module.__name__.partition(".")[0], module)
+    package = getattr(top, "__path__", None)
+    if package is not None and module is not top:
+        files = [f for root in package for f in Path(root).rglob("*.py")]
+    else:
+        files = list(Path(module.__file__).resolve().parent.glob("*.py"))
+    project = [Path(importlib.import_module(p).__file__).resolve().parent for p in _PROJECT]
+    return sorted({f.resolve() for f in files if not any(f.resolve().is_relative_to(p) for p in project)})
 
 
 def policy_modules(spec: str) -> list[str]:

@@ -272,17 +272,21 @@ MAX_LASER_OFFSET_M = 10.0
 
 
 def _clipped_max(ranges: np.ndarray, scans: list, spath: str) -> float:
-    """The no-return limit of a log that does not state it: the largest reading that is the longest
-    of at least three scans (of every scan, in a log of fewer): a laser reports no return as its
-    maximum, so that value recurs, where a lone corrupt reading does not. Readings above it then count as
-    no return, with a warning naming the first; with no recurring maximum, the largest reading."""
+    """The no-return limit of a log that does not state it. A laser reports no return as its maximum, so
+    in a log that has any, one value is the longest reading of many scans: of at least 5 % of them (and
+    of 3). If one such value exists and readings above it occur in at most 1 % of the scans (and in 1),
+    it is the limit, and those readings, such as a lone corrupt one, count as no return, with a warning
+    naming the first; otherwise the largest reading is."""
     longest = ranges.max(axis=1)
+    n = len(longest)
     values, counts = np.unique(longest, return_counts=True)
-    recurring = values[counts >= min(3, len(longest))]
+    recurring = values[counts >= max(min(3, n), 0.05 * n)]
     if not recurring.size:
         return float(longest.max())
     limit = float(recurring.max())
     above = np.flatnonzero(longest > limit)
+    if above.size > max(1, 0.01 * n):  # long readings in many scans: real ones, not corrupt outliers
+        return float(longest.max())
     if above.size:
         warnings.warn(
             f"{spath}: {int((ranges > limit).sum())} reading(s) in {above.size} scan(s) exceed {limit:g} m, the "
@@ -309,9 +313,9 @@ def read_carmen(
         range_max_m: no-return limit; default: ``PARAM robot_front_laser_max`` or
             ``laser_front_laser_max`` if present, the ``max_range`` of ``ROBOTLASER1``,
             else the laser's no-return value: the largest reading that is the longest of at least
-            three scans (clipped no-return readings, e.g. 50.0 m in the ACES log, recur; readings
-            above it, such as a lone corrupt one, then count as no return, with a warning), or the
-            largest reading if none recurs.
+            5 % of the scans (clipped no-return readings, e.g. 50.0 m in the ACES log, recur), if
+            readings above it occur in at most 1 % of the scans (such as a lone corrupt one: they
+            then count as no return, with a warning); else the largest reading.
         angles: ``(B,)`` beam angles in the laser frame (radians) overriding the default
             (`flaser_angles` for ``FLASER``, ``start + i * resolution`` for ``ROBOTLASER1``).
 

@@ -17,7 +17,7 @@ import numpy as np
 from filters.motion.odometry import OdometryMotionConfig
 
 from ..config import CameraParams, LidarParams, PhysicsParams, RobotParams, coerce_config, default_odometry_noise
-from ..layouts import PROCEDURAL_VERSION, Layout, get_layout
+from ..layouts import PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, get_layout
 from ..sensors import Lidar, Odometry, SemanticCamera
 from ..world import World, build_world, check_substep
 from .spaces import decode_action, make_action_space, make_observation, make_observation_space
@@ -28,6 +28,18 @@ def check_layout_seed(value) -> int:
     if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0:
         return int(value)
     raise ValueError(f"layout_seed must be an integer >= 0, got {type(value).__name__} {value!r:.60}")
+
+
+def check_seed_use(layout, layout_seed, scenario: str) -> None:
+    """ValueError if a nonzero ``layout_seed`` would be ignored: it seeds only the procedural layouts
+    and the ``"changed"`` scenario's obstacles. (A `Layout` object passes with any seed: `RandomLayout`
+    hands over the drawn layout with the seed it was drawn from.)"""
+    procedural = isinstance(layout, str) and layout in PROCEDURAL_LAYOUTS
+    if scenario != "changed" and check_layout_seed(layout_seed) and not (procedural or isinstance(layout, Layout)):
+        raise ValueError(
+            f"layout_seed={layout_seed} seeds only the procedural layouts {list(PROCEDURAL_LAYOUTS)} (and the "
+            f"'changed' scenario's obstacles); layout {str(layout)!r:.80} does not use it"
+        )
 
 
 class SemRelocBase(gym.Env):

@@ -117,6 +117,16 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 raise ValueError(f"robot {i}: {e}{_float_array_hint(actions, env.action_space)}") from None
         return acts
 
+    def _per_robot(self, options) -> list:
+        """One options dict (or None) per robot, from one for all or a list of one per robot."""
+        if isinstance(options, (list, tuple)):
+            if len(options) != self.num_envs:
+                raise ValueError(
+                    f"got {len(options)} options dicts for {self.num_envs} robots (one dict, or one per robot)"
+                )
+            return list(options)
+        return [options] * self.num_envs
+
     def check_seeds(self, seed, options=None) -> list[int | None]:
         """Per-robot seeds of ``seed`` (see `reset`), every robot's seed and options checked first.
 
@@ -134,14 +144,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 ) from None
             if len(seeds) != self.num_envs:
                 raise ValueError(f"got {len(seeds)} seeds for {self.num_envs} robots")
-        if isinstance(options, (list, tuple)):
-            if len(options) != self.num_envs:
-                raise ValueError(
-                    f"got {len(options)} options dicts for {self.num_envs} robots (one dict, or one per robot)"
-                )
-            per_robot = list(options)
-        else:
-            per_robot = [options] * self.num_envs
+        per_robot = self._per_robot(options)
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
             try:
                 env.unwrapped.check_reset(seed=s, options=o)
@@ -156,7 +159,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
 
         Seeds and options are checked for every robot before any is reset (ValueError)."""
         seeds = self.check_seeds(seed, options)
-        per_robot = list(options) if isinstance(options, (list, tuple)) else [options] * self.num_envs
+        per_robot = self._per_robot(options)
         super().reset(seed=seeds[0])
         obs_list, infos = [], {}
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):

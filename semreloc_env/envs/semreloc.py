@@ -14,12 +14,12 @@ from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
 
-from ..layouts import LAYOUT_NAMES, PROCEDURAL_LAYOUTS, Layout, get_layout
+from ..layouts import LAYOUT_NAMES, get_layout
 from ..map_world import check_map_matches_world
 from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
-from .base import SemRelocBase, check_layout_seed
+from .base import SemRelocBase, check_layout_seed, check_seed_use
 
 RELOCALIZER_V1 = MCLConfig(
     n_particles=None,
@@ -97,18 +97,6 @@ class RewardWeights:
             real = isinstance(v, (int, float)) and not isinstance(v, bool)
             if not (real and math.isfinite(v) and abs(v) <= 1e6):
                 raise ValueError(f"reward weight {f.name} must be a finite number within +-1e6, got {v!r}")
-
-
-def check_seed_use(layout, layout_seed, scenario: str) -> None:
-    """ValueError if a nonzero ``layout_seed`` would be ignored: it seeds only the procedural layouts
-    and the ``"changed"`` scenario's obstacles. (A `Layout` object passes with any seed: `RandomLayout`
-    hands over the drawn layout with the seed it was drawn from.)"""
-    procedural = isinstance(layout, str) and layout in PROCEDURAL_LAYOUTS
-    if scenario != "changed" and check_layout_seed(layout_seed) and not (procedural or isinstance(layout, Layout)):
-        raise ValueError(
-            f"layout_seed={layout_seed} seeds only the procedural layouts {list(PROCEDURAL_LAYOUTS)} (and the "
-            f"'changed' scenario's obstacles); layout {str(layout)!r:.80} does not use it"
-        )
 
 
 class SemRelocEnv(SemRelocBase):

@@ -23,7 +23,7 @@ from filters.smc.resampling import effective_sample_size
 from ..config import coerce_config
 from ..landmark_sensor import LandmarkSensor, LandmarkSensorParams
 from ..layouts import CLASS_NAMES
-from .base import SemRelocBase
+from .base import SemRelocBase, check_seed_use
 
 DEFAULT_OBS_NOISE = RangeBearingNoise(sigma_r_m=0.15, sigma_b_rad=0.05)
 """The filter's range-bearing noise: about 1.5x the spread of the default landmark sensor's
@@ -205,6 +205,7 @@ class SemSlamEnv(SemRelocBase):
         reward_weights: dict | SlamRewardWeights | None = None,
         render_mode: str | None = None,
     ):
+        check_seed_use(layout, layout_seed, "nominal")
         super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
         self.slam_params = coerce_config(SlamParams, slam, "slam")
         self.fastslam_config = self.slam_params.fastslam_config()

@@ -487,6 +487,8 @@ def _yaml_without_duplicates(text: str):
     def mapping(loader, node, deep=False):
         seen = {}
         for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # `<<: *anchor`: keys it brings may be overridden
+                continue
             key = loader.construct_object(key_node, deep=deep)
             if key in seen:
                 raise _DuplicateKey(

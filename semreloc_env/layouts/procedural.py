@@ -259,8 +259,12 @@ def half_turn_asymmetry(objects: list, length: float, height: float) -> float:
     if not objects:
         return 0.0
     centres = np.array([o["center"] for o in objects], dtype=np.float64)
+    return _farthest_from_class(objects, centres, np.array([length, height]) - centres)
+
+
+def _farthest_from_class(objects: list, centres: np.ndarray, images: np.ndarray) -> float:
+    """The largest distance from an object's image ``images[i]`` to the nearest centre of its class."""
     classes = np.array([o["class"] for o in objects])
-    images = np.array([length, height]) - centres
     worst = 0.0
     for i, cls in enumerate(classes):
         same = centres[classes == cls]
@@ -350,7 +354,7 @@ _MAX_RING_DRAWS = 100
 """Draws of the telling objects before `ring_layout` gives up on `RingParams.min_asymmetry_m`."""
 
 
-def _quarter_turn(points: np.ndarray, k: int, side: float) -> np.ndarray:
+def quarter_turn(points: np.ndarray, k: int, side: float) -> np.ndarray:
     """``points`` ``(..., 2)`` turned by ``k`` quarter turns counter-clockwise about the centre of a
     ``side`` x ``side`` square with a corner at the origin (exact for k = 0..3)."""
     x, y = points[..., 0], points[..., 1]
@@ -359,25 +363,25 @@ def _quarter_turn(points: np.ndarray, k: int, side: float) -> np.ndarray:
     return np.stack([x, y], axis=-1)
 
 
+def _turned(obj: dict, k: int, side: float) -> dict:
+    """A box object dict turned by ``k`` quarter turns about the centre of the ``side`` square (its
+    size's axes swap at odd turns)."""
+    c = quarter_turn(np.array(obj["center"], dtype=np.float64), k, side)
+    w, h = obj["size"]
+    return {"class": obj["class"], "center": [float(c[0]), float(c[1])], "size": [w, h] if k % 2 == 0 else [h, w]}
+
+
 def quarter_turn_asymmetry(objects: list, side: float) -> float:
     """How far ``objects`` (layout-dict objects) are from mapping onto themselves under the quarter
     turns about the centre of a ``side`` x ``side`` square, metres: for each turn (90, 180, 270
-    degrees), the largest distance from an object's turned centre to the nearest centre of its class;
-    the smallest of the three. 0 for no objects. Above a few tenths of a metre every turned image of
-    a pose sees some object where the pose does not."""
+    degrees), the largest distance from an object's turned centre to the nearest centre of its class
+    (`half_turn_asymmetry`'s measure); the smallest of the three. 0 for no objects. It is map-wide: above
+    a few tenths of a metre no turn maps the furniture onto itself, so some place tells every pose from
+    its turned images, though a pose far from that place sees what they see."""
     if not objects:
         return 0.0
     centres = np.array([o["center"] for o in objects], dtype=np.float64)
-    classes = np.array([o["class"] for o in objects])
-    worst_turn = math.inf
-    for k in (1, 2, 3):
-        images = _quarter_turn(centres, k, side)
-        far = 0.0
-        for i, cls in enumerate(classes):
-            same = centres[classes == cls]
-            far = max(far, float(np.min(np.hypot(*(same - images[i]).T))))
-        worst_turn = min(worst_turn, far)
-    return worst_turn
+    return min(_farthest_from_class(objects, centres, quarter_turn(centres, k, side)) for k in (1, 2, 3))
 
 
 def _against_wall(rng, cls: str, side: float, corridor: float, lo: float, hi: float, wall: str):
@@ -437,33 +441,25 @@ def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> d
     taken: dict[str, list] = {"outer": [], "core": []}
     n = int(rng.integers(p.objects_per_quarter[0], p.objects_per_quarter[1] + 1))
     quarter = place(n, taken, (0.0, side - corridor - 0.5))
-    objects = []
-    for k in range(4):
-        for o in quarter:
-            c = _quarter_turn(np.array(o["center"], dtype=np.float64), k, side)
-            w, h = o["size"]
-            objects.append(
-                {"class": o["class"], "center": [float(c[0]), float(c[1])], "size": [w, h] if k % 2 == 0 else [h, w]}
-            )
+    objects = [_turned(o, k, side) for k in range(4) for o in quarter]
+    placed = False
     for _ in range(_MAX_RING_DRAWS):
         # a telling object goes into one of the four quarters, placed in its south-quarter frame and turned there
         extra = []
         busy = {"outer": list(taken["outer"]), "core": list(taken["core"])}
         for _t in range(int(rng.integers(p.telling_objects[0], p.telling_objects[1] + 1))):
             k = int(rng.integers(0, 4))
-            for o in place(1, busy, (0.0, side - corridor - 0.5)):
-                c = _quarter_turn(np.array(o["center"], dtype=np.float64), k, side)
-                w, h = o["size"]
-                extra.append(
-                    {
-                        "class": o["class"],
-                        "center": [float(c[0]), float(c[1])],
-                        "size": [w, h] if k % 2 == 0 else [h, w],
-                    }
-                )
+            extra += [_turned(o, k, side) for o in place(1, busy, (0.0, side - corridor - 0.5))]
+        placed |= bool(extra)
         if extra and (p.min_asymmetry_m <= 0 or quarter_turn_asymmetry(objects + extra, side) >= p.min_asymmetry_m):
             break
     else:
+        if not placed:
+            raise ValueError(
+                f"ring_layout: no room for a telling object in {_MAX_RING_DRAWS} draws beside the quarter's "
+                f"furniture (side {side:.2f} m, corridor {corridor:.2f} m); allow fewer objects per quarter or a "
+                "larger hall"
+            )
         raise ValueError(
             f"ring_layout: no draw of telling objects in {_MAX_RING_DRAWS} broke every quarter turn by "
             f"min_asymmetry_m={p.min_asymmetry_m} m; lower it or allow more telling objects"
