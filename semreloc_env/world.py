@@ -347,7 +347,7 @@ class World:
         if not self.is_free(p[:2]):
             raise ValueError(
                 f"pose {p.tolist()} is not free: the robot (radius {self.robot_params.radius_m} m) "
-                "would overlap a wall or object, or lie outside the outer wall"
+                "would overlap a wall, object or block, or lie outside the outer wall"
             )
         self.body.position = (float(p[0]), float(p[1]))
         self.body.angle = float(wrap_angle(p[2]))

@@ -105,3 +105,12 @@ def test_bad_blocks_are_named(blocks, message):
 def test_a_wall_through_a_block_is_refused():
     with pytest.raises(LayoutError, match=r"walls\[0\]: passes through blocks\[0\]"):
         layout_from_dict({**HALL, "walls": [[[3, 5], [7, 5]]]})
+
+
+def test_box_blocks_count_toward_the_vertex_limit(monkeypatch):
+    import semreloc_env.layouts.layout as layout_module
+
+    monkeypatch.setattr(layout_module, "MAX_VERTICES", 20)
+    boxes = [{"center": [1.0 + 1.5 * i, 5.0], "size": [0.5, 0.5]} for i in range(5)]  # 4 + 5 x 4 = 24
+    with pytest.raises(LayoutError, match="24 vertices, more than the limit of 20"):
+        layout_from_dict({"outer": HALL["outer"], "blocks": boxes})

@@ -382,6 +382,7 @@ import numpy as np
 
 from agents.policies import Policy
 from helper import TURN
+from sub.deep import DEPTH  # noqa: F401  (a module in a subfolder: part of the fingerprint)
 
 
 class TurnLeft(Policy):
@@ -393,6 +394,15 @@ class TurnLeft(Policy):
 
 def broken(seed):
     return object()
+
+
+class NoAct(Policy):
+    pass
+
+
+class Bad(Policy):
+    def act(self, obs):
+        return 7
 '''
 
 
@@ -401,7 +411,8 @@ def test_a_users_own_policy_class_is_evaluated_and_its_edits_rerun(tmp_path, cap
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "mypol.py").write_text(MY_POLICY)
     (tmp_path / "mine" / "helper.py").write_text("TURN = 1\n")
-    monkeypatch.syspath_prepend(str(tmp_path / "mine"))
+    (tmp_path / "mine" / "sub").mkdir()
+    (tmp_path / "mine" / "sub" / "deep.py").write_text("DEPTH = 1\n")  # found as a sibling import finds it
     spec = f"left={tmp_path / 'mine' / 'mypol.py'}:TurnLeft"
     common = ["--policies", "spin", spec, "--layouts-per-kind", "0", "--starts", "1", "--max-steps", "3"]
     common += ["--particles", "100", "--map-source", "perfect", "--no-progress", "--workers", "1"]
@@ -419,11 +430,23 @@ def test_a_users_own_policy_class_is_evaluated_and_its_edits_rerun(tmp_path, cap
     assert ev.main([*common, "--reuse", str(tmp_path / "a"), "--out", str(tmp_path / "c")]) == 0
     assert "reused 3 episodes" in capsys.readouterr().out  # spin's rows only
     ev.policy_code.cache_clear()
+    assert ev.main([*common, "--out", str(tmp_path / "d")]) == 0
+    capsys.readouterr()
+    ev.policy_code.cache_clear()
+    (tmp_path / "mine" / "sub" / "deep.py").write_text("DEPTH = 2\n")  # a subfolder's module changed
+    assert ev.main([*common, "--reuse", str(tmp_path / "d"), "--out", str(tmp_path / "e")]) == 0
+    assert "reused 3 episodes" in capsys.readouterr().out
+    ev.policy_code.cache_clear()
+    bad = f"bad={tmp_path / 'mine' / 'mypol.py'}:Bad"  # an invalid action names the policy and the case
+    with pytest.raises(ValueError, match=r"policy 'bad' on case 0 \(twin_rooms\): .*invalid action 7"):
+        ev.run_case((ev.build_cases(ev.Args(layouts_per_kind=0, starts=1))[0], (bad,), ev.Args(policies=(bad,))))
     for bad, match in [
         (f"x={tmp_path / 'mine' / 'mypol.py'}:broken", r"lacks \['wrap', 'reset', 'act'\]"),
-        (f"x={tmp_path / 'mine' / 'mypol.py'}:Nope", "cannot build it with a seed: AttributeError"),
-        ("x=no_such_module_here:Policy", "cannot build it with a seed: ModuleNotFoundError"),
+        (f"x={tmp_path / 'mine' / 'mypol.py'}:NoAct", r"NoAct lacks \['act'\]"),
+        (f"x={tmp_path / 'mine' / 'mypol.py'}:Nope", "mypol.py has no 'Nope'"),
+        ("x=no_such_module_here:Policy", "cannot import no_such_module_here: ModuleNotFoundError"),
         ("x=not a spec", "no policy file"),
+        (f"x={tmp_path / 'mine' / 'mypol.py'}", "name the class too"),
     ]:
         with pytest.raises(ValueError, match=match):
             ev.Args(policies=(bad,))

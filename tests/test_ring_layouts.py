@@ -129,3 +129,24 @@ def test_evaluate_active_adds_ring_cases_after_the_others_and_flags_lookalike_st
             r1, l1 = _view(world, q, lmax, cmax, angles, labels)
             same.append(np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1))
         assert any(same)
+
+
+def test_ring_params_types_and_an_honest_error_when_nothing_fits():
+    # a new user's trial: infinite or string ranges failed deep inside NumPy, numpy ints were refused
+    for kwargs, match in [
+        ({"side_m": (10.0, math.inf)}, "side_m must be two finite numbers"),
+        ({"side_m": ("10", "12")}, "side_m must be two finite numbers"),
+        ({"objects_per_quarter": (True, True)}, "objects_per_quarter"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            RingParams(**kwargs)
+    RingParams(objects_per_quarter=(np.int64(1), np.int64(2)), min_asymmetry_m=np.float32(1.0))
+    tight = RingParams(side_m=(5.0, 5.0), corridor_m=(2.0, 2.0), objects_per_quarter=(3, 3))
+    errors = []
+    for seed in range(30):
+        try:
+            ring_layout(np.random.default_rng(seed), tight)
+        except ValueError as e:
+            errors.append(str(e))
+    assert any("no room for a telling object" in e for e in errors)  # not "broke every quarter turn" then
+    assert all("no room for a telling object" in e or "broke every quarter turn" in e for e in errors)

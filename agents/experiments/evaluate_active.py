@@ -45,6 +45,7 @@ import importlib
 import importlib.util
 import json
 import math
+import os
 import re
 import sys
 import time
@@ -80,7 +81,8 @@ class Args:
     """held-out seeds per procedural kind (procedural, procedural_sym, procedural_lookalike)"""
     ring_layouts: int = 0
     """held-out seeds of procedural_ring (a ring corridor whose four quarters look alike; its cases come
-    after the built-in layouts', so the others keep their indices and episode seeds)"""
+    after the built-in layouts', so those and the procedural cases keep their indices and episode seeds;
+    --layout-files cases come after the ring cases, so they move)"""
     seed_set: Literal["held_out", "tuning"] = "held_out"
     """held_out: the held-out layout seeds plus twin_rooms and the lab (what results are reported
     on); tuning: procedural seeds 0, 1, ... of the training range and other starts, for choosing
@@ -178,6 +180,9 @@ class Args:
                 f"policies: unknown {unknown}; choose from {sorted(POLICIES)}, NAME=PATH (a saved policy) or "
                 "NAME=MODULE:CLASS (your own)"
             )
+        py = [x for x in self.policies if is_learned(x) and x.endswith(".py")]
+        if py:
+            raise ValueError(f"policies: {py}: name the class too, NAME=path/to/file.py:CLASS")
         bad_files = [x for x in self.policies if is_learned(x) and not Path(x.split("=", 1)[1]).is_file()]
         if bad_files:
             raise ValueError(
@@ -401,7 +406,13 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
     for spec in policies:
         name = spec.partition("=")[0]
         env = case_env(case, args)
-        policy = make_policy(spec, case["episode_seed"], args.sample_learned)
+        try:
+            policy = make_policy(spec, case["episode_seed"], args.sample_learned)
+        except Exception as e:  # a user's constructor that fails for this seed
+            raise ValueError(
+                f"policy {name!r} on case {case['case']}: cannot build it with seed {case['episode_seed']}: "
+                f"{type(e).__name__}: {e}"
+            ) from None
         env = policy.wrap(env)
         policy.reset()
         tracker = EpisodeTracker()
@@ -412,9 +423,12 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
         actions: dict[str, int] = {}  # discrete actions taken (for learned policies: options included)
         while True:
             action = policy.act(obs)
+            try:
+                obs, reward, term, trunc, info = env.step(action)
+            except ValueError as e:  # the env refused the action: say whose, and where
+                raise ValueError(f"policy {name!r} on case {case['case']} ({case['kind']}): {e}") from None
             key = str(int(action)) if isinstance(action, (int, np.integer)) else motion_kind(action)
             actions[key] = actions.get(key, 0) + 1
-            obs, reward, term, trunc, info = env.step(action)
             tracker.observe(info, reward)
             collisions += bool(info["collided"])
             if term or trunc:
@@ -495,6 +509,8 @@ def _user_module(source: str) -> types.ModuleType:
         if not path.is_file():
             raise ValueError(f"no such file {source!r}")
         name = "semreloc_user_" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
+        if str(path.parent) not in sys.path:
+            sys.path.append(str(path.parent))  # its sibling modules import as they would beside it
         if name not in sys.modules:
             loader = importlib.util.spec_from_file_location(name, path)
             module = importlib.util.module_from_spec(loader)
@@ -526,11 +542,23 @@ def check_user_policy(spec: str) -> None:
             f"policies: {spec}: expected NAME=PATH (a file saved by agents.learned.save_policy), "
             "NAME=MODULE:CLASS or NAME=path/to/file.py:CLASS"
         )
+    target = _user_target(spec)
     try:
-        policy = user_factory(spec)(0)
-    except Exception as e:  # the user's import or constructor
+        module = _user_module(target["source"])
+    except Exception as e:  # a missing file or module, or its import failing
+        raise ValueError(f"policies: {spec}: cannot import {target['source']}: {type(e).__name__}: {e}") from None
+    factory = getattr(module, target["attr"], None)
+    if factory is None:
+        raise ValueError(f"policies: {spec}: {target['source']} has no {target['attr']!r}")
+    try:
+        policy = factory(0)
+    except Exception as e:  # the user's constructor
         raise ValueError(f"policies: {spec}: cannot build it with a seed: {type(e).__name__}: {e}") from None
+    from agents.policies import Policy
+
     missing = [m for m in ("wrap", "reset", "act") if not callable(getattr(policy, m, None))]
+    if isinstance(policy, Policy) and type(policy).act is Policy.act:
+        missing.append("act")  # the base class's act only raises NotImplementedError
     if missing:
         raise ValueError(
             f"policies: {spec}: a policy needs wrap(env), reset() and act(obs) (agents.policies.Policy); "
@@ -540,16 +568,21 @@ def check_user_policy(spec: str) -> None:
 
 def _local_files(module: types.ModuleType) -> list[Path]:
     """The files a user policy's fingerprint covers, whatever is loaded when it is taken: the ``.py``
-    files of its module's folder (for a module in a package, of the top package's folder tree), less
-    the project's own packages (`policy_modules` covers those)."""
+    files of its module's folder tree (for a module in a package, of the top package's), less the
+    project's own packages (`policy_modules` covers those) and hidden, cache and installed-package
+    folders."""
     top = sys.modules.get(module.__name__.partition(".")[0], module)
     package = getattr(top, "__path__", None)
-    if package is not None and module is not top:
-        files = [f for root in package for f in Path(root).rglob("*.py")]
-    else:
-        files = list(Path(module.__file__).resolve().parent.glob("*.py"))
+    roots = list(package) if package is not None and module is not top else [Path(module.__file__).parent]
     project = [Path(importlib.import_module(p).__file__).resolve().parent for p in _PROJECT]
-    return sorted({f.resolve() for f in files if not any(f.resolve().is_relative_to(p) for p in project)})
+    skip = {"__pycache__", "site-packages", "node_modules"}
+    files: set[Path] = set()
+    for root in roots:
+        for folder, dirs, names in os.walk(Path(root).resolve()):
+            here = Path(folder)
+            dirs[:] = [d for d in dirs if not d.startswith(".") and d not in skip and here / d not in project]
+            files.update(here / n for n in names if n.endswith(".py"))
+    return sorted(f for f in files if not any(f.is_relative_to(p) for p in project))
 
 
 def policy_modules(spec: str) -> list[str]:
@@ -816,7 +849,7 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
 
 def paired_table(comparisons: list[dict]) -> str:
     lines = [
-        "### paired: success of the learned policy minus the other's, same cases",
+        "### paired: success of the learned (or your own) policy minus the other's, same cases",
         "",
         "| policy | against | difference [paired bootstrap 95 %] | only it solved | only other solved | McNemar p |",
         "|---|---|---|---|---|---|",

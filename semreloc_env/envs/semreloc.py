@@ -367,7 +367,7 @@ class SemRelocEnv(SemRelocBase):
             if not world.is_free(kp[:2]):
                 raise ValueError(
                     f"kidnap_pose {kp.tolist()} is not free: the robot (radius {self.robot_params.radius_m} m) "
-                    "would overlap a wall or object, or lie outside the outer wall"
+                    "would overlap a wall, object or block, or lie outside the outer wall"
                 )
         if not self.grid.free_mask().any():
             raise ValueError("the relocalizer's map has no free cell: nowhere to put particles")

@@ -140,7 +140,8 @@ MAX_COORDINATE_M = 2e9
 resolves 0.25 micrometres there."""
 
 MAX_VERTICES = 1_000_000
-"""Most vertices a layout may hold in total (outer wall, walls and objects together);
+"""Most vertices a layout may hold in total (outer wall, walls, objects and blocks together, a box
+shorthand counting 4);
 validation runs in ``O(n log n)`` time and ``O(n)`` memory up to this size."""
 
 TOLERANCE_M = 1e-6
@@ -406,9 +407,10 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     raw_walls = _optional_list(data, "walls")
     raw_objects = _optional_list(data, "objects")
     raw_blocks = _optional_list(data, "blocks")
-    polygons = [o.get("polygon") for o in [*raw_objects, *raw_blocks] if isinstance(o, Mapping)]
-    polygons += [b for b in raw_blocks if not isinstance(b, Mapping)]
-    total = sum(_length(x) for x in [data["outer"], *raw_walls, *polygons])
+    entries = [o for o in [*raw_objects, *raw_blocks] if isinstance(o, Mapping)]
+    polygons = [o.get("polygon") for o in entries] + [b for b in raw_blocks if not isinstance(b, Mapping)]
+    boxes = 4 * sum("polygon" not in o for o in entries)  # the center/size shorthand makes 4 vertices
+    total = boxes + sum(_length(x) for x in [data["outer"], *raw_walls, *polygons])
     if total > MAX_VERTICES:
         raise LayoutError(f"layout has {total} vertices, more than the limit of {MAX_VERTICES}")
     outer = _ring(data["outer"], "outer")

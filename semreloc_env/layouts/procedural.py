@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from filters.numbers import is_int, is_real
+
 PROCEDURAL_VERSION = 2
 """The procedural generator's version, as `semreloc_env.layouts.get_layout` takes it: 2 checks that a
 lookalike layout's corridor objects break its half turn (`ProceduralParams.min_asymmetry_m`); 1 is the
@@ -315,9 +317,11 @@ class RingParams:
     Attributes:
         side_m: range of the square hall's side.
         corridor_m: range of the ring corridor's width (the solid core's side is ``side - 2 * corridor``).
-        objects_per_quarter: inclusive range of the furniture pieces of one quarter of the ring (the
-            other three quarters hold its quarter-turned copies).
-        telling_objects: inclusive range of the objects placed once, anywhere along the ring.
+        objects_per_quarter: inclusive range of the furniture pieces drawn for one quarter of the ring
+            (the other three quarters hold its quarter-turned copies); a piece that finds no room in
+            50 tries is left out, so crowded quarters hold fewer.
+        telling_objects: inclusive range of the objects placed once, anywhere along the ring (as many
+            as find room).
         min_asymmetry_m: every quarter turn about the centre (90, 180 and 270 degrees) must move some
             telling object at least this far from every object of its class (`quarter_turn_asymmetry`);
             a draw that does not is drawn again from the same generator.
@@ -330,6 +334,10 @@ class RingParams:
     min_asymmetry_m: float = 1.0
 
     def __post_init__(self) -> None:
+        for name in ("side_m", "corridor_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_real(x) and math.isfinite(x) for x in v)):
+                raise ValueError(f"RingParams.{name} must be two finite numbers (lo, hi), got {v!r}")
         (s0, s1), (c0, c1) = self.side_m, self.corridor_m
         if not (0 < c0 <= c1 and 0 < s0 <= s1 and s0 - 2 * c1 >= 1.0 and c0 >= 2.0):
             raise ValueError(
@@ -338,12 +346,12 @@ class RingParams:
             )
         for name in ("objects_per_quarter", "telling_objects"):
             lo, hi = getattr(self, name)
-            if not (isinstance(lo, int) and isinstance(hi, int) and 0 <= lo <= hi):
+            if not (is_int(lo) and is_int(hi) and 0 <= lo <= hi):
                 raise ValueError(f"RingParams.{name} must be 0 <= lo <= hi, got {getattr(self, name)!r}")
         if self.telling_objects[0] < 1:
             raise ValueError("RingParams.telling_objects: at least one telling object, or the ring is symmetric")
         m = self.min_asymmetry_m
-        if isinstance(m, bool) or not isinstance(m, (int, float)) or not (math.isfinite(m) and m >= 0):
+        if not (is_real(m) and math.isfinite(m) and m >= 0):
             raise ValueError(f"RingParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
 
 
