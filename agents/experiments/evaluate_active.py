@@ -537,12 +537,12 @@ def user_factory(spec: str):
 def check_user_policy(spec: str) -> None:
     """ValueError unless ``spec`` (``NAME=MODULE:CLASS`` or ``NAME=file.py:CLASS``) builds, called with a
     seed, an object with ``wrap(env)``, ``reset()`` and ``act(obs)``."""
-    if _user_target(spec) is None:
+    target = _user_target(spec)
+    if target is None:
         raise ValueError(
             f"policies: {spec}: expected NAME=PATH (a file saved by agents.learned.save_policy), "
             "NAME=MODULE:CLASS or NAME=path/to/file.py:CLASS"
         )
-    target = _user_target(spec)
     try:
         module = _user_module(target["source"])
     except Exception as e:  # a missing file or module, or its import failing
@@ -591,13 +591,9 @@ def policy_modules(spec: str) -> list[str]:
     policy: `agents.learned`, the motion options and the feature extractor, which it imports when
     loading and wrapping; for a user's class, the project modules its module imports)."""
     name, _, path = spec.partition("=")
-    if _user_target(spec) is not None:
-        module = _user_module(_user_target(spec)["source"])
-        todo = [
-            m
-            for v in vars(module).values()
-            if isinstance(m := (v.__name__ if isinstance(v, types.ModuleType) else getattr(v, "__module__", None)), str)
-        ]
+    user = _user_target(spec)
+    if user is not None:
+        todo = _module_names(_user_module(user["source"]))
     elif path:
         todo = ["agents.learned", "agents.options", "agents.viewpoint", "agents.active_features"]
     else:
@@ -610,11 +606,17 @@ def policy_modules(spec: str) -> list[str]:
         if mod in seen or not mod.startswith(_PROJECT):
             continue
         seen.add(mod)
-        for v in vars(importlib.import_module(mod)).values():
-            m = v.__name__ if isinstance(v, types.ModuleType) else getattr(v, "__module__", None)
-            if isinstance(m, str) and m.startswith(_PROJECT) and m not in seen:
-                todo.append(m)
+        todo += [m for m in _module_names(importlib.import_module(mod)) if m.startswith(_PROJECT) and m not in seen]
     return sorted(seen)
+
+
+def _module_names(module: types.ModuleType) -> list[str]:
+    """The modules ``module``'s module-level names come from (imported modules, and the modules of
+    imported classes and functions)."""
+    names = (
+        v.__name__ if isinstance(v, types.ModuleType) else getattr(v, "__module__", None) for v in vars(module).values()
+    )
+    return [m for m in names if isinstance(m, str)]
 
 
 @functools.cache

@@ -239,10 +239,9 @@ def _check_numbers(pt, what: str) -> None:
     """LayoutError naming ``what`` unless every coordinate of the point ``pt`` is a real number."""
     for v in pt:
         if not _is_number(v):
-            raise LayoutError(f"{what}: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{_yaml_hint(v)}")
-
-
-_yaml_hint = yaml_number_hint
+            raise LayoutError(
+                f"{what}: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{yaml_number_hint(v)}"
+            )
 
 
 def _ring(raw, what: str) -> np.ndarray:
@@ -276,7 +275,7 @@ def _ring(raw, what: str) -> np.ndarray:
 def _real(entry: Mapping, key: str, what: str, default: float | None = None) -> float:
     v = entry.get(key, default)
     if not _is_number(v) or not math.isfinite(v):
-        raise LayoutError(f"{what}.{key} must be a finite number, got {v!r:.80}{_yaml_hint(v)}")
+        raise LayoutError(f"{what}.{key} must be a finite number, got {v!r:.80}{yaml_number_hint(v)}")
     return float(v)
 
 

@@ -392,7 +392,7 @@ def quarter_turn_asymmetry(objects: list, side: float) -> float:
     return min(_farthest_from_class(objects, centres, quarter_turn(centres, k, side)) for k in (1, 2, 3))
 
 
-def _against_wall(rng, cls: str, side: float, corridor: float, lo: float, hi: float, wall: str):
+def _against_wall(rng, cls: str, corridor: float, lo: float, hi: float, wall: str):
     """A ``cls`` object against the south outer wall (``wall="outer"``) or the core's south face
     (``"core"``), centred at an ``x`` in ``[lo, hi]`` (its footprint inside); ``(dict, x interval)``."""
     along, away = _RING_OBJECTS[cls]
@@ -436,7 +436,7 @@ def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> d
                 lo, hi = x_range if wall == "outer" else (max(x_range[0], corridor), min(x_range[1], side - corridor))
                 if hi - lo < _RING_OBJECTS[cls][0] + 0.2:
                     continue
-                obj, span = _against_wall(rng, cls, side, corridor, lo + 0.1, hi - 0.1, wall)
+                obj, span = _against_wall(rng, cls, corridor, lo + 0.1, hi - 0.1, wall)
                 if any(not (span[1] + 0.3 <= a or b + 0.3 <= span[0]) for a, b in taken[wall]):
                     continue
                 taken[wall].append(span)
@@ -446,9 +446,10 @@ def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> d
 
     # one quarter: the south corridor from the west wall to where the south-east corner (the next
     # quarter's) begins, less a margin, so that turned copies never meet
+    quarter_x = (0.0, side - corridor - 0.5)
     taken: dict[str, list] = {"outer": [], "core": []}
     n = int(rng.integers(p.objects_per_quarter[0], p.objects_per_quarter[1] + 1))
-    quarter = place(n, taken, (0.0, side - corridor - 0.5))
+    quarter = place(n, taken, quarter_x)
     objects = [_turned(o, k, side) for k in range(4) for o in quarter]
     placed = False
     for _ in range(_MAX_RING_DRAWS):
@@ -457,7 +458,7 @@ def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> d
         busy = {"outer": list(taken["outer"]), "core": list(taken["core"])}
         for _t in range(int(rng.integers(p.telling_objects[0], p.telling_objects[1] + 1))):
             k = int(rng.integers(0, 4))
-            extra += [_turned(o, k, side) for o in place(1, busy, (0.0, side - corridor - 0.5))]
+            extra += [_turned(o, k, side) for o in place(1, busy, quarter_x)]
         placed |= bool(extra)
         if extra and (p.min_asymmetry_m <= 0 or quarter_turn_asymmetry(objects + extra, side) >= p.min_asymmetry_m):
             break
