@@ -17,6 +17,7 @@ import dataclasses
 import functools
 import inspect
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -356,9 +357,12 @@ def run_config_of(checkpoint: Path) -> dict[str, Any] | None:
 
 def _comparable(config: dict[str, Any]) -> dict[str, Any]:
     """``config`` with ``observation`` completed by `ActiveObservation`'s defaults (so ``{}`` equals the
-    defaults given explicitly), an older run's ``explorer_option`` as ``options``, and tuples as lists,
-    as ``config.json`` holds them."""
+    defaults given explicitly), an older run's ``explorer_option`` as ``options``, layout ``files`` as
+    absolute paths (so ``./a.json`` equals ``a.json``; relative ones are taken from the current
+    directory), and tuples as lists, as ``config.json`` holds them."""
     out = json.loads(json.dumps(config))
+    if isinstance(out.get("files"), list):
+        out["files"] = [os.path.abspath(f) if isinstance(f, str) else f for f in out["files"]]
     if "options" not in out and "explorer_option" in out:  # runs saved before options existed
         out["options"] = list(option_names(None, out.pop("explorer_option")))
     if isinstance(out.get("observation"), dict):

@@ -65,6 +65,7 @@ class StaticGeometry:
     Attributes:
         walls: ``(K, 2, 2)`` wall segments.
         obstacles: obstacle polygons (layout objects first, then the extra obstacles, counter-clockwise).
+        blocks: the layout's block polygons (solid, no class).
         convex_parts: per obstacle, its convex pieces (pymunk polygons must be convex).
         scene: the segments every sensor casts against.
         ring_edges: ``(E, 4)`` edges ``(x0, y0, x1, y1)`` of the outer wall (ring 0), the obstacles,
@@ -77,6 +78,7 @@ class StaticGeometry:
 
     walls: np.ndarray
     obstacles: tuple[np.ndarray, ...]
+    blocks: tuple[np.ndarray, ...]
     convex_parts: tuple[list[list[tuple[float, float]]], ...]
     scene: SegmentScene
     ring_edges: np.ndarray
@@ -129,6 +131,7 @@ def static_geometry(layout: Layout, extra_obstacles=()) -> StaticGeometry:
     geo = StaticGeometry(
         walls=walls,
         obstacles=tuple(obstacles),
+        blocks=tuple(blocks),
         convex_parts=tuple(_convex_parts(p) for p in obstacles),
         scene=scene,
         ring_edges=np.ascontiguousarray(edges),
@@ -265,7 +268,7 @@ class World:
         check_substep(robot, physics)
         geo = static_geometry(layout, extra_obstacles)
         self.geometry = geo
-        self._obstacles = list(geo.obstacles) + [np.asarray(b, dtype=np.float64) for b in layout.blocks]  # solid
+        self._obstacles = [*geo.obstacles, *geo.blocks]  # solid
         self.scene = geo.scene
         # pushed-out robots stop this far beyond their radius: a few ulps of the coordinates, at least 1 nm
         self._skin = 1e-9 + 8 * float(np.spacing(np.abs(self.scene.segments).max(initial=1.0)))

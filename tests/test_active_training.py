@@ -212,6 +212,16 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     assert "holds a training run already" in capsys.readouterr().err
 
 
+def test_resume_compares_layout_files_by_path_not_spelling(monkeypatch, tmp_path):
+    """``./a.json`` and ``a.json`` (and its absolute path) are one file to a resumed run: no note."""
+    from agents.train_active import _comparable
+
+    monkeypatch.chdir(tmp_path)
+    spellings = ["a.json", "./a.json", str(tmp_path / "a.json"), "sub/../a.json"]
+    assert len({json.dumps(_comparable({"files": [f]})) for f in spellings}) == 1
+    assert _comparable({"files": ["a.json"]}) != _comparable({"files": ["b.json"]})
+
+
 def test_kind_weights_per_kind_give_files_weight_one(tmp_path):
     from semreloc_env.layouts import get_layout
 

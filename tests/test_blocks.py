@@ -102,6 +102,17 @@ def test_bad_blocks_are_named(blocks, message):
         layout_from_dict({**HALL, "blocks": blocks})
 
 
+def test_blocks_that_fill_the_outer_wall_are_refused_when_parsed():
+    # before, a block equal to the outer wall passed validation and failed only at reset
+    full = {"name": "full", "outer": HALL["outer"], "blocks": [HALL["outer"]]}
+    with pytest.raises(LayoutError, match=r"blocks\[0\]: objects and blocks fill the outer wall"):
+        layout_from_dict(full)
+    halves = [[[0, 0], [5, 0], [5, 10], [0, 10]], [[5, 0], [10, 0], [10, 10], [5, 10]]]
+    with pytest.raises(LayoutError, match="fill the outer wall"):
+        layout_from_dict({**full, "blocks": halves})
+    layout_from_dict({**full, "blocks": [[[0, 0], [9.8, 0], [9.8, 10], [0, 10]]]})  # a 0.2 m strip is floor
+
+
 def test_a_wall_through_a_block_is_refused():
     with pytest.raises(LayoutError, match=r"walls\[0\]: passes through blocks\[0\]"):
         layout_from_dict({**HALL, "walls": [[[3, 5], [7, 5]]]})

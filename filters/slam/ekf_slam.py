@@ -19,6 +19,7 @@ from filters.slam.association import AssociationConfig, innovation, inv2, nis_an
 from filters.slam.fastslam import SLAMEstimate
 from filters.slam.landmarks import (
     RangeBearingNoise,
+    check_finite_motion,
     checked_control,
     checked_pose_cov,
     inverse_observation,
@@ -77,8 +78,7 @@ class EKFSLAM:
             fx, fu = self.motion.jacobians(pose, u, dt)
             fx, fu = fx[0], fu[0]
             new = self.motion.mean(pose, u, dt)[0]
-        if not (np.all(np.isfinite(new)) and np.all(np.isfinite(fx)) and np.all(np.isfinite(fu))):
-            raise ValueError(f"control u={u.tolist()} over dt={dt} s moves the pose off any finite value")
+        check_finite_motion(u, dt, "pose", new, fx, fu)
         self.x[:3] = new
         P = self.P
         P[:3, :3] = fx @ P[:3, :3] @ fx.T + fu @ self.motion.control_cov @ fu.T

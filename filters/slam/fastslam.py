@@ -36,6 +36,7 @@ from filters.pose import wrap_angle
 from filters.slam.association import AssociationConfig, gauss_logpdf, innovation, inv2, nis_and_logdet
 from filters.slam.landmarks import (
     RangeBearingNoise,
+    check_finite_motion,
     checked_control,
     checked_pose_cov,
     inverse_observation,
@@ -221,8 +222,7 @@ class FastSLAM:
                 q = self.motion.control_cov
                 cov = fx @ self.pose_cov @ np.swapaxes(fx, 1, 2) + fu @ q @ np.swapaxes(fu, 1, 2)
                 poses = self.motion.mean(self.poses, u, dt)
-        if not (np.all(np.isfinite(poses)) and np.all(np.isfinite(cov))):
-            raise ValueError(f"control u={u.tolist()} over dt={dt} s moves the poses off any finite value")
+        check_finite_motion(u, dt, "poses", poses, cov)
         self.poses, self.pose_cov = poses, cov
 
     def update(self, z=None, ids=None) -> None:

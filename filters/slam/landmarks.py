@@ -155,6 +155,13 @@ def checked_control(u, dt) -> tuple[np.ndarray, float]:
     return a, float(dt)
 
 
+def check_finite_motion(u: np.ndarray, dt: float, what: str, *results: np.ndarray) -> None:
+    """ValueError unless every array of ``results`` (what ``predict`` computed from the checked control
+    ``u`` over ``dt``) is finite; ``what`` names the moved state ("pose", "poses") in the message."""
+    if not all(np.all(np.isfinite(r)) for r in results):
+        raise ValueError(f"control u={u.tolist()} over dt={dt} s moves the {what} off any finite value")
+
+
 def checked_pose_cov(cov, what: str = "initial_pose_cov") -> np.ndarray:
     """``cov`` as a ``(3, 3)`` float64 covariance: finite, symmetric (to 1e-9 relative) and positive
     semi-definite; ValueError naming ``what`` otherwise."""

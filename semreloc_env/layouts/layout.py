@@ -150,6 +150,9 @@ TOLERANCE_M = 1e-6
 ZERO_AREA_M2 = 1e-12
 """A polygon whose area is below this (m^2) is degenerate."""
 
+MIN_FREE_AREA_M2 = 0.01
+"""A layout whose objects and blocks leave less floor than this (m^2) inside the outer wall is refused."""
+
 
 # --------------------------------------------------------------------------- geometry
 def _ring_segments(ring: Sequence[Point]) -> np.ndarray:
@@ -339,6 +342,12 @@ def _check_geometry(outer: np.ndarray, walls: list, walls_what: list, objects: l
         if i < j and not cores[i].intersection(cores[j]).is_empty:
             hit = shifted(cores[i].intersection(cores[j]))
             raise LayoutError(f"{objects_what[j]}: overlaps {objects_what[i]}{_where(hit)}")
+    # objects do not overlap (checked above), so their areas add up; a room they fill leaves no floor
+    if outer_poly.area - sum(g.area for g in obj_geoms) <= MIN_FREE_AREA_M2:
+        raise LayoutError(
+            f"{objects_what[int(np.argmax([g.area for g in obj_geoms]))]}: objects and blocks fill the "
+            f"outer wall (less than {MIN_FREE_AREA_M2} m^2 of floor left)"
+        )
     if wall_geoms:
         core_tree = shapely.STRtree(cores)
         pairs = core_tree.query(wall_geoms, predicate="intersects")
