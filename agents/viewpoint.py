@@ -24,7 +24,7 @@ alone (never the true pose):
    ``l``'s pose in the filter's likelihood fields (lidar field for every ray that hits,
    the class field for the labelled rays in the camera's field of view; the per-ray mean times
    the number of beams the filter uses; with ``negative_evidence`` and a relocalizer that weighs
-   it, as `SemReloc-v5`'s and `-v6`'s do, also ``k``'s unlabelled camera returns, sampled as the filter
+   it, as `SemReloc-v5`'s to `-v7`'s do, also ``k``'s unlabelled camera returns, sampled as the filter
    samples them and scored in its negative-evidence table at ``l``'s pose: objects ``l`` would
    see there that ``k``'s scan shows to be absent). Raised to
    ``likelihood_scale * views`` (``views`` filter updates at the viewpoint) and times the prior
@@ -359,7 +359,7 @@ class ViewpointPlanner(Policy):
             ``inf``: any path).
         negative_evidence: score viewpoints with the relocalizer's negative evidence (objects a
             hypothesis would see that the scan shows to be absent) when its model has it on
-            (`NegativeEvidenceConfig.p_detect > 0`, as in `SemReloc-v6`); False: lidar and
+            (`NegativeEvidenceConfig.p_detect > 0`, as in `SemReloc-v7`); False: lidar and
             labelled rays only, as before this option.
     """
 

@@ -207,7 +207,7 @@ def test_added_weight_is_the_hypothesis_weight_times_the_capped_ratio(monkeypatc
     ``H * exp(min(ratio, 0))``, H the hypothesis's weight before the audit, against the kept set."""
     found = {}
 
-    def fixed(model, window, scale, poses, logw, mean, *args):
+    def fixed(model, window, scale, poses, logw, mean, *args, **kwargs):
         found["h"] = mean
         return Alternative(pose=mirror(mean), log_ratio=ratio)
 
@@ -297,7 +297,7 @@ def test_doubt_the_audit_adds_ends_a_held_convergence(monkeypatch):
     monkeypatch.setattr(
         audit_module,
         "best_alternative",
-        lambda model, window, scale, poses, logw, mean, *a: Alternative(mirror(mean), -2.5),
+        lambda model, window, scale, poses, logw, mean, *a, **kw: Alternative(mirror(mean), -2.5),
     )
     grid = symmetric_room()
     pose = np.array([3.0, 2.5, 0.3])
@@ -327,3 +327,55 @@ def test_trig_must_be_the_poses_cos_and_sin_arrays_and_beam_sets_are_read_only()
     for name in ("lx", "ly", "table", "nx", "ny", "n_starts"):
         with pytest.raises(ValueError, match="read-only"):
             getattr(beams, name)[...] = 0
+
+
+def test_a_convergence_reached_between_updates_waits_for_the_audit():
+    """With ``audited_convergence`` a set that meets the criterion without an update having audited it is not
+    called converged (v6 called it so at once); the next update's audit decides. Without the audit (after
+    init_around) the gate does not apply."""
+    grid = symmetric_room()
+    pose = np.array([3.0, 2.5, 0.3])
+    for gate in (False, True):
+        cfg = MCLConfig(n_particles=300, use_semantic=False, audit_window=20, audited_convergence=gate)
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(0))
+        mcl.init_around(mirror(pose), (0.03, 0.03, 0.01))
+        mcl._audit_on = True  # as after an init_global whose particles a prediction gathered at the image
+        assert mcl._summary().converged
+        assert mcl.belief().converged is (not gate)
+    d = mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, np.random.default_rng(1)), force=True)
+    assert d.n_audit_injected > 0 and not mcl.belief().converged  # the audit found the true place too
+    tracking = MonteCarloLocalizer(
+        grid, MCLConfig(n_particles=300, use_semantic=False, audit_window=20, audited_convergence=True),
+        np.random.default_rng(0),
+    )  # fmt: skip
+    tracking.init_around(pose, (0.03, 0.03, 0.01))
+    assert tracking.belief().converged
+
+
+def test_local_search_refines_each_place_on_its_own():
+    """Of two places, the one whose first pose is a rough guess is refined toward its best fit instead of
+    being dropped for the near misses of the other; each place at most once, ``keep`` respected."""
+    rng = np.random.default_rng(0)
+    peaks = np.array([[1.0, 1.0, 0.0], [6.0, 2.0, 1.0]])
+
+    class Peaks:  # a window log-likelihood with two peaks of equal height
+        def log_likelihood_terms(self, poses, lidar, semantic):
+            d = np.min([np.sum((poses - p) ** 2, axis=1) for p in peaks], axis=0)
+            return -10.0 * d, np.zeros(poses.shape[0]), None
+
+    window = [(None, None, np.zeros(3), None)]
+    start = np.array([[1.02, 1.0, 0.0], [1.05, 1.01, 0.0], [6.3, 2.2, 1.1]])  # two near misses and a rough guess
+    ll = window_log_likelihood(Peaks(), start, window, 1.0)
+    got, got_ll = audit_module._local_search(Peaks(), window, 1.0, start, ll, rng, lambda p: p[:, 0] < 100, [], 16)
+    assert got.shape == (2, 3)  # the two near misses are one place
+    assert np.hypot(*(got[1, :2] - peaks[1, :2])) < np.hypot(*(start[2, :2] - peaks[1, :2]))
+    assert got_ll[1] > ll[2] and got_ll[0] >= ll[0]
+    nothing, _ = audit_module._local_search(Peaks(), window, 1.0, start, ll, rng, lambda p: p[:, 0] < 3, [], 16)
+    assert nothing[1].tolist() == start[2].tolist()  # no perturbation allowed there: the guess stays
+
+
+@pytest.mark.parametrize("bad", [{"audit_places": -1}, {"audit_places": 1.5}, {"audit_places": 257},
+                                 {"audited_convergence": 1}])  # fmt: skip
+def test_bad_v7_audit_options_are_rejected(bad):
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        MCLConfig(**bad)

@@ -1,4 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v6 (v5's relocalizer whose belief holds a
+"""The registered ids behave as their Version History says: SemReloc-v7 (v6's relocalizer whose convergence audit
+searches more places and comes before "converged"), SemReloc-v6 (v5's relocalizer whose belief holds a
 convergence), SemReloc-v5 (v4's relocalizer with the convergence audit), SemReloc-v4 (v3's relocalizer with
 evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that break their half turn),
 SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out) against SemReloc-v1 /
@@ -38,6 +39,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v7",
         "SemReloc-v6",
         "SemReloc-v5",
         "SemReloc-v4",
@@ -53,6 +55,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v7", typed),
         ("SemReloc-v6", typed),
         ("SemReloc-v5", typed),
         ("SemReloc-v4", typed),
@@ -300,3 +303,29 @@ def test_v6_is_v5_whose_belief_holds_a_convergence():
         np.testing.assert_array_equal(w6, w5)
         assert c6 or not c5
     assert sum(c for _, _, c, _ in runs["SemReloc-v6"]) > sum(c for _, _, c, _ in runs["SemReloc-v5"])
+
+
+def test_v7_is_v6_whose_audit_searches_more_places_and_comes_first():
+    """v7's relocalizer is v6's with ``audit_places`` 16 and ``audited_convergence``; with both off, v7 gives
+    v6's episode bit for bit; on, the same episode up to the first audit."""
+    v7, v6 = make("SemReloc-v7", **FAST).unwrapped, make("SemReloc-v6", **FAST).unwrapped
+    assert (v7.mcl_config.audit_places, v6.mcl_config.audit_places) == (16, 0)
+    assert (v7.mcl_config.audited_convergence, v6.mcl_config.audited_convergence) == (True, False)
+    assert v7.mcl_config == v6.mcl_config.__class__(
+        **{**v6.mcl_config.as_dict(), "audit_places": 16, "audited_convergence": True}
+    )
+    for vec_id, places in (("SemRelocVec-v7", 16), ("SemRelocVec-v6", 0)):
+        venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+        assert venv.envs[0].unwrapped.mcl_config.audit_places == places
+        venv.close()
+    off = {**FAST, "relocalizer": {**FAST["relocalizer"], "audit_places": 0, "audited_convergence": False}}
+    actions = ACTIONS + [0, 0, 1] * 20
+    a = rollout(make("SemReloc-v7", **off), actions=actions)
+    b = rollout(make("SemReloc-v6", **FAST), actions=actions)
+    c = rollout(make("SemReloc-v7", **FAST), actions=actions)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+    audited = [i for i, x in enumerate(b) if "audit_log_ratio" in x[4]["mcl"]]
+    assert audited
+    for x, z in zip(b[: audited[0]], c[: audited[0]]):  # the same episode until the first audit
+        np.testing.assert_equal(x, z)

@@ -101,10 +101,11 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: Literal["SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"] = "SemReloc-v6"
-    """the env the episodes run in: SemReloc-v6 (the newest), SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to
-    repeat the tables made with them; the same worlds and sensors, the relocalizer without the hold of a
-    convergence (v5), also without the convergence audit (v4) and without negative evidence (v3))"""
+    env_id: Literal["SemReloc-v7", "SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"] = "SemReloc-v7"
+    """the env the episodes run in: SemReloc-v7 (the newest), SemReloc-v6, SemReloc-v5, SemReloc-v4 or
+    SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the relocalizer with the
+    audit's coarse-to-fine search only (v6), also without the hold of a convergence (v5), without the
+    convergence audit (v4) and without negative evidence (v3))"""
     relocalizer: JsonDict = field(default_factory=dict)
     """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
@@ -251,12 +252,12 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v6"
+ENV_ID = "SemReloc-v7"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
-generator, as v3's, v4's, v5's and v6's do.
+generator, as v3's to v7's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
-draws again; v4, v5 and v6 change the relocalizer, so every episode.)"""
+draws again; v4 to v7 change the relocalizer, so every episode.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")

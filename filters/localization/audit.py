@@ -55,6 +55,12 @@ REFERENCE_PARTICLES = 64
 """The hypothesis's heaviest particles (and alternatives among the particles) evaluated."""
 CANDIDATES_KEPT = 50
 """Scan-proposal candidates (the best fitting the newest scans) evaluated over the window."""
+PLACE_M, PLACE_RAD = 1.0, 0.5
+"""Two starting poses of the local search are different places when this far apart (m) or turned (rad)."""
+LOCAL_STEPS = ((0.15, 0.15, 0.08), (0.07, 0.07, 0.04), (0.03, 0.03, 0.015))
+"""Standard deviations of the local search's perturbations (m, m, rad), one round each."""
+LOCAL_DRAWS = 8
+"""Perturbations of each place, per round of the local search."""
 
 
 @dataclass(frozen=True)
@@ -128,6 +134,7 @@ def best_alternative(
     rng: np.random.Generator,
     min_dist_m: float,
     min_heading_rad: float,
+    places: int = 0,
 ) -> Alternative | None:
     """The pose outside the hypothesis at ``mean`` that best explains ``window`` (None if there is
     no candidate or particle outside it, or the hypothesis explains nothing finitely).
@@ -140,6 +147,9 @@ def best_alternative(
             log-likelihood of the newest scans (only their order matters).
         rng: draws the perturbations.
         min_dist_m, min_heading_rad: what counts as outside (`outside`).
+        places: before the coarse-to-fine search, refine the best-fitting poses of this many different
+            places each on its own (`_local_search`), on either side; 0: the coarse-to-fine search only,
+            whose first round keeps the five best poses of what may be one or two places.
     """
     out = outside(poses, mean, min_dist_m, min_heading_rad)
     ref = np.vstack([mean[None], poses[_heaviest(logw, ~out, REFERENCE_PARTICLES)]])
@@ -154,22 +164,33 @@ def best_alternative(
         return outside(p, mean, min_dist_m, min_heading_rad)
 
     steps = back_steps(window)
-    _, l_ref = _refined_best(model, window, scale, ref, rng, lambda p: ~is_out(p), steps)
-    pose, l_alt = _refined_best(model, window, scale, alts, rng, is_out, steps)
+    _, l_ref = _refined_best(model, window, scale, ref, rng, lambda p: ~is_out(p), steps, places)
+    pose, l_alt = _refined_best(model, window, scale, alts, rng, is_out, steps, places)
     if not (np.isfinite(l_ref) and np.isfinite(l_alt)):
         return None
     return Alternative(pose=pose, log_ratio=float(l_alt - l_ref))
 
 
 def _refined_best(
-    model, window: Window, scale: float, poses: np.ndarray, rng: np.random.Generator, keep, steps: list[np.ndarray]
+    model,
+    window: Window,
+    scale: float,
+    poses: np.ndarray,
+    rng: np.random.Generator,
+    keep,
+    steps: list[np.ndarray],
+    places: int = 0,
 ):
     """``(pose, window log-likelihood)`` of the best pose found from ``poses`` by a coarse-to-fine random
     search: in each round of `REFINE_STEPS`, `REFINE_DRAWS` perturbations of each of the `REFINE_BEST`
     best poses so far, limited to those where ``keep`` is True. The hypothesis and its alternatives
-    are searched alike, so neither wins by the search alone."""
+    are searched alike, so neither wins by the search alone. With ``places`` the best poses of that many
+    places are first refined each on its own (`_local_search`) and join the poses searched."""
     best_poses = np.asarray(poses, dtype=np.float64)
     best_ll = window_log_likelihood(model, best_poses, window, scale, steps)
+    if places:
+        local, local_ll = _local_search(model, window, scale, best_poses, best_ll, rng, keep, steps, places)
+        best_poses, best_ll = np.vstack([best_poses, local]), np.concatenate([best_ll, local_ll])
     for std in REFINE_STEPS:
         top = best_poses[np.argsort(-best_ll, kind="stable")[:REFINE_BEST]]
         tried = (top[:, None, :] + rng.normal(0.0, std, (top.shape[0], REFINE_DRAWS, 3))).reshape(-1, 3)
@@ -179,6 +200,40 @@ def _refined_best(
         best_ll = np.concatenate([best_ll, window_log_likelihood(model, tried, window, scale, steps)])
     i = int(np.argmax(best_ll))
     return best_poses[i].copy(), float(best_ll[i])
+
+
+def _local_search(
+    model, window: Window, scale: float, poses: np.ndarray, ll: np.ndarray, rng, keep, steps, places: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(poses (P, 3), window log-likelihoods (P,))``: the best-fitting pose of each of up to ``places``
+    different places among ``poses`` (``ll`` their window log-likelihoods; places at least `PLACE_M` or
+    `PLACE_RAD` apart, best first), each refined on its own by `LOCAL_STEPS` rounds of `LOCAL_DRAWS`
+    perturbations (where ``keep`` is True), so that a place whose first pose was a rough guess is not
+    dropped for the near misses of a better-guessed one."""
+    order = np.argsort(-np.where(np.isfinite(ll), ll, -np.inf), kind="stable")
+    picked: list[int] = []
+    for i in order:
+        if len(picked) == places or not np.isfinite(ll[i]):
+            break
+        if picked and not outside(poses[picked], poses[i], PLACE_M, PLACE_RAD).all():
+            continue
+        picked.append(int(i))
+    best, best_ll = poses[picked].copy(), ll[picked].copy()
+    k = len(picked)
+    if k == 0:
+        return best, best_ll
+    rows = np.arange(k)
+    for std in LOCAL_STEPS:
+        tried = best[:, None, :] + rng.normal(0.0, std, (k, LOCAL_DRAWS, 3))
+        tried[..., 2] = wrap_angle(tried[..., 2])
+        flat = tried.reshape(-1, 3)
+        t_ll = np.where(keep(flat), window_log_likelihood(model, flat, window, scale, steps), -np.inf)
+        t_ll = t_ll.reshape(k, LOCAL_DRAWS)
+        j = np.argmax(t_ll, axis=1)
+        better = t_ll[rows, j] > best_ll
+        best[better] = tried[rows, j][better]
+        best_ll[better] = t_ll[rows, j][better]
+    return best, best_ll
 
 
 def shaped_like(

@@ -136,7 +136,8 @@ class BeliefConfig:
                 raise ValueError(
                     "BeliefConfig.converged_hold_weight must be None (no hold) or a number in "
                     f"(0, converged_min_weight] with converged_rule 'hypothesis'; got {h!r} with converged_min_weight "
-                    f"{self.converged_min_weight!r} and rule {self.converged_rule!r} (SemReloc-v6 holds at 0.85: "
+                    f"{self.converged_min_weight!r} and rule {self.converged_rule!r} (SemReloc-v6 and -v7 hold at "
+                    "0.85: "
                     "to lower converged_min_weight below it or use the 'spread' rule, also set converged_hold_weight)"
                 )
             object.__setattr__(self, "converged_hold_weight", float(h))

@@ -80,7 +80,9 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    which the set meets the "converged" criterion and did not before (a place an audit cleared is
    not audited again for ``audit_window`` updates), a pose outside the converged hypothesis
    that explains the last ``audit_window`` updates' scans within ``audit_margin`` (tempered nats)
-   of it becomes a second hypothesis (`filters.localization.audit`; docs/relocalizer.md).
+   of it becomes a second hypothesis (`filters.localization.audit`; docs/relocalizer.md). With
+   ``audited_convergence`` the belief is called converged only after such an update: a set that
+   comes to meet the criterion between updates (a prediction alone) waits for the next update's audit.
 10. **Surprise**, if ``surprise_ratio``: once the belief has been converged since the last init, an
    update with the lidar whose scans fit the particles far worse than of late (``w_avg <
    surprise_ratio * w_fast``, the augmented-MCL averages) is taken for a jump the odometry did not
@@ -153,6 +155,8 @@ def _fox_bound_table(epsilon: float, z: float, size: int) -> np.ndarray:
 
 MAX_AUDIT_WINDOW = 1000
 """Most measurement updates `MCLConfig.audit_window` may look back over."""
+MAX_AUDIT_PLACES = 256
+"""Most places `MCLConfig.audit_places` may refine one by one."""
 
 _SUBCONFIGS = {
     "lidar_field": LikelihoodFieldConfig,
@@ -246,6 +250,15 @@ class MCLConfig:
             and still be added.
         audit_candidates: scan-proposal candidates the audit draws (the best 50 outside the
             hypothesis are evaluated over the window, with the heaviest particles outside it).
+        audit_places: before its coarse-to-fine search, the audit refines the best-fitting poses of this
+            many different places on each side on their own (`filters.localization.audit._local_search`),
+            so that a look-alike place whose candidates were rough guesses is not dropped for the near
+            misses of another; 0 (before ``SemReloc-v7``): the coarse-to-fine search only.
+        audited_convergence: with the audit on, the belief is called converged only after an update
+            that audited it (or kept a convergence an update audited): a set that comes to meet the
+            criterion between updates (a prediction moving particles from one cluster to another)
+            waits for the next update's audit. False (before ``SemReloc-v7``): it was called converged
+            at once, and audited only at the next update.
         surprise_ratio: in ``[0, 1)`` (0 = off): the *surprise* test (module docstring, step 10). After
             the belief has been converged once since the last init, an update that used the lidar and
             whose average beam likelihood ``w_avg`` falls below ``surprise_ratio`` times ``w_fast`` (the
@@ -300,6 +313,8 @@ class MCLConfig:
     audit_window: int = 0
     audit_margin: float = 1.0
     audit_candidates: int = 2000
+    audited_convergence: bool = False
+    audit_places: int = 0
     surprise_ratio: float = 0.0
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
@@ -322,6 +337,11 @@ class MCLConfig:
             raise ValueError(f"MCLConfig.audit_window must be an int in [0, {MAX_AUDIT_WINDOW}], got {k!r}")
         object.__setattr__(self, "audit_window", int(k))
         names = ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates")
+        if not (is_int(self.audit_places) and 0 <= self.audit_places <= MAX_AUDIT_PLACES):
+            raise ValueError(
+                f"MCLConfig.audit_places must be an int in [0, {MAX_AUDIT_PLACES}], got {self.audit_places!r}"
+            )
+        object.__setattr__(self, "audit_places", int(self.audit_places))
         for name in (*names, "audit_candidates"):
             v = getattr(self, name)
             if name == "n_particles" and v is None:
@@ -371,7 +391,7 @@ class MCLConfig:
             raise ValueError(f"MCLConfig.resample_mode must be 'global' or 'clustered', got {self.resample_mode!r}")
         if self.injection not in ("uniform", "scan"):
             raise ValueError(f"MCLConfig.injection must be 'uniform' or 'scan', got {self.injection!r}")
-        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path"):
+        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
@@ -998,7 +1018,7 @@ class MonteCarloLocalizer:
         ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
         alt = audit.best_alternative(
             self.measurement_model, self._window, c.likelihood_scale, self._poses, self._logw, hyp.mean,
-            cand, np.asarray(ll_l) + np.asarray(ll_s), self.rng, *outside_args,
+            cand, np.asarray(ll_l) + np.asarray(ll_s), self.rng, *outside_args, places=c.audit_places,
         )  # fmt: skip
         if alt is None or alt.log_ratio < -c.audit_margin:
             self._cleared = (hyp.mean, self.n_updates)
@@ -1031,12 +1051,17 @@ class MonteCarloLocalizer:
         (`converged_updates`); after an init, ``k`` updates must run first. With
         ``belief.converged_hold_weight`` a set that does not meet the criterion is ``converged`` while
         the last update's was and its heaviest hypothesis stays at that place with at least the hold
-        weight (the hold's place moves with that hypothesis from update to update)."""
+        weight (the hold's place moves with that hypothesis from update to update). With
+        ``audited_convergence`` a set that meets the criterion is ``converged`` only once an update's
+        audit has seen it (or a held convergence keeps it)."""
         self._require_particles()
         b = self._summary()
-        k = self.config.belief.converged_min_updates
+        c = self.config
+        k = c.belief.converged_min_updates
         if k > 1 and b.converged and self.converged_updates < k:
             b = replace(b, converged=False)
+        if b.converged and c.audited_convergence and c.audit_window and self._audit_on and not self._was_converged:
+            b = replace(b, converged=False)  # not audited yet: the next update's audit decides
         if not b.converged and self._holds(b):
             b = replace(b, converged=True)
         return b

@@ -1,4 +1,4 @@
-"""``SemReloc-v6`` (and ``-v5``, ``-v4``, ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v7`` (and ``-v6``, ``-v5``, ``-v4``, ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ its hypothesis that explains the last 20 updates' scans within 1 nat of it is ad
 hypothesis; docs/relocalizer.md, "Convergence audit"). Chosen on the tuning cases of
 ``scripts/evaluate_active.py --seed-set tuning``; evaluated on the held-out ones."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(
+RELOCALIZER_V6 = dataclasses.replace(
     RELOCALIZER_V5,
     belief=dataclasses.replace(RELOCALIZER_V5.belief, converged_hold_weight=0.85),
     surprise_ratio=0.3,
@@ -67,6 +67,18 @@ far worse than of late ends the hold and restarts the convergence audit's window
 docs/relocalizer.md, "Holding a convergence". Chosen on tuning seeds 100-111 of the lab,
 ``three_rooms``, ``twin_rooms`` and procedural layouts; evaluated on the seeds of
 ``scripts/evaluate_relocalizer.py`` and the held-out pairs of ``scripts/evaluate_active.py``."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V6, audited_convergence=True, audit_places=16)
+"""The relocalizer of SemReloc-v7: `RELOCALIZER_V6` whose convergence audit searches harder and comes
+first. The audit refines the best poses of 16 different places on each side on their own before its
+coarse-to-fine search (`MCLConfig.audit_places`): in every wrong first convergence of the tuning pairs
+traced on v6, a look-alike place that explained the window's scans as well as the hypothesis had been
+dropped after one rough guess. And a set that comes to meet the "converged" criterion between updates
+(a prediction alone) is called converged only after the next update's audit
+(`MCLConfig.audited_convergence`); v6 called it converged at once, for up to a few steps, in layouts no
+sensor can tell apart. Chosen on the tuning cases of ``scripts/evaluate_active.py --seed-set tuning``
+and layouts written by a reviewer; evaluated on the held-out pairs (docs/relocalizer.md, "Audit
+first, search wider")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -201,6 +213,17 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v7: the convergence audit searches harder and comes first (`DEFAULT_RELOCALIZER`:
+      `RELOCALIZER_V6` with ``audit_places=16`` and ``audited_convergence=True``). The audit refines
+      the best-fitting poses of 16 different places on each side one by one before its
+      coarse-to-fine search, so a look-alike place that explains the recent scans as well as the
+      hypothesis is found more often; and a belief whose set comes to meet the "converged" criterion
+      between two measurement updates (particles moved by a prediction alone) waits for the next
+      update's audit before it is called converged (v6 called it converged at once, and audited it
+      at the next update). Fewer first convergences at a look-alike place (docs/relocalizer.md,
+      "Audit first, search wider"). The filter draws more random numbers in an audit, so episodes
+      differ from v6's from the first audit on. Worlds, sensors, observations, rewards and info keys
+      are v6's (`SemRelocEnvV6` is v6).
     * v6: a convergence holds (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V5` with
       ``belief.converged_hold_weight=0.85`` and ``surprise_ratio=0.3``): once the belief is
       converged, it stays so while its heaviest hypothesis stays at the same place (within 1 m and
@@ -475,10 +498,19 @@ class SemRelocEnv(SemRelocBase):
         return state
 
 
-class SemRelocEnvV5(SemRelocEnv):
+class SemRelocEnvV6(SemRelocEnv):
+    """``SemReloc-v6``: `SemRelocEnv` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
+    coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
+    identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
+    ``SemReloc-v7``."""
+
+    default_relocalizer = RELOCALIZER_V6
+
+
+class SemRelocEnvV5(SemRelocEnvV6):
     """``SemReloc-v5``: `SemRelocEnv` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
-    results made with v5 can be reproduced; new work should use ``SemReloc-v6``."""
+    results made with v5 can be reproduced; new work should use ``SemReloc-v7``."""
 
     default_relocalizer = RELOCALIZER_V5
 
@@ -486,7 +518,7 @@ class SemRelocEnvV5(SemRelocEnv):
 class SemRelocEnvV4(SemRelocEnvV5):
     """``SemReloc-v4``: `SemRelocEnvV5` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
     audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
-    reproduced; new work should use ``SemReloc-v6``."""
+    reproduced; new work should use ``SemReloc-v7``."""
 
     default_relocalizer = RELOCALIZER_V4
 
@@ -494,7 +526,7 @@ class SemRelocEnvV4(SemRelocEnvV5):
 class SemRelocEnvV3(SemRelocEnvV4):
     """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v6``."""
+    v3 can be reproduced; new work should use ``SemReloc-v7``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -502,7 +534,7 @@ class SemRelocEnvV3(SemRelocEnvV4):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v6``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v7``."""
 
     procedural_version = 1
 
@@ -511,7 +543,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v6``."""
+    v1 keep working; new work should use ``SemReloc-v7``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -519,6 +551,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v6``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v7``."""
 
     default_relocalizer = LEGACY_RELOCALIZER
