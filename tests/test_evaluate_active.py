@@ -437,6 +437,10 @@ def test_a_users_own_policy_class_is_evaluated_and_its_edits_rerun(tmp_path, cap
     assert ev.main([*common, "--reuse", str(tmp_path / "d"), "--out", str(tmp_path / "e")]) == 0
     assert "reused 3 episodes" in capsys.readouterr().out
     ev.policy_code.cache_clear()
+    (tmp_path / "mine" / "unrelated.py").write_text("X = 1\n")  # a file beside it that it does not import
+    assert ev.main([*common, "--reuse", str(tmp_path / "e"), "--out", str(tmp_path / "f")]) == 0
+    assert "reused 6 episodes" in capsys.readouterr().out
+    ev.policy_code.cache_clear()
     bad = f"bad={tmp_path / 'mine' / 'mypol.py'}:Bad"  # an invalid action names the policy and the case
     with pytest.raises(ValueError, match=r"policy 'bad' on case 0 \(twin_rooms\): .*invalid action 7"):
         ev.run_case((ev.build_cases(ev.Args(layouts_per_kind=0, starts=1))[0], (bad,), ev.Args(policies=(bad,))))

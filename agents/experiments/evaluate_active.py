@@ -39,13 +39,13 @@ The same arguments give the same numbers whatever the runner (``--executor``, ``
 
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import importlib
 import importlib.util
 import json
 import math
-import os
 import re
 import sys
 import time
@@ -568,22 +568,64 @@ def check_user_policy(spec: str) -> None:
 
 
 def _local_files(module: types.ModuleType) -> list[Path]:
-    """The files a user policy's fingerprint covers, whatever is loaded when it is taken: the ``.py``
-    files of its module's folder tree (for a module in a package, of the top package's), less the
-    project's own packages (`policy_modules` covers those) and hidden, cache and installed-package
-    folders."""
+    """The files a user policy's fingerprint covers, whatever is loaded when it is taken: its module's
+    file and, transitively, the ``.py`` files of the modules it imports (anywhere in a file, by ``import``
+    or ``from ... import``, relative imports included) that lie in its folder tree (a file's folder, or
+    for a module of a package the folder holding the top package), less the project's own packages
+    (`policy_modules` covers those). Other files in the folder do not count, so a scratch folder's
+    unrelated files do not make ``--reuse`` run the policy again."""
+    start = Path(module.__file__).resolve()
     top = sys.modules.get(module.__name__.partition(".")[0], module)
     package = getattr(top, "__path__", None)
-    roots = list(package) if package is not None and module is not top else [Path(module.__file__).parent]
+    base = Path(next(iter(package))).resolve().parent if package is not None and module is not top else start.parent
     project = [Path(importlib.import_module(p).__file__).resolve().parent for p in _PROJECT]
-    skip = {"__pycache__", "site-packages", "node_modules"}
-    files: set[Path] = set()
-    for root in roots:
-        for folder, dirs, names in os.walk(Path(root).resolve()):
-            here = Path(folder)
-            dirs[:] = [d for d in dirs if not d.startswith(".") and d not in skip and here / d not in project]
-            files.update(here / n for n in names if n.endswith(".py"))
-    return sorted(f for f in files if not any(f.is_relative_to(p) for p in project))
+    seen: set[Path] = set()
+    todo = [start]
+    while todo:
+        f = todo.pop()
+        if f in seen or any(f.is_relative_to(p) for p in project):
+            continue
+        seen.add(f)
+        try:
+            tree = ast.parse(f.read_bytes(), str(f))
+        except (SyntaxError, ValueError):  # the import itself reports a broken file
+            continue
+        for name in _imported_names(tree, f, base):
+            parts = name.split(".")
+            for found in (base.joinpath(*parts).with_suffix(".py"), base.joinpath(*parts, "__init__.py")):
+                if found.is_file():
+                    todo.append(found.resolve())
+            todo.extend(  # each package an import passes through runs its __init__
+                base.joinpath(*parts[:k], "__init__.py").resolve()
+                for k in range(1, len(parts))
+                if base.joinpath(*parts[:k], "__init__.py").is_file()
+            )
+    return sorted(seen)
+
+
+def _imported_names(tree: ast.AST, path: Path, base: Path) -> list[str]:
+    """Dotted names (relative to ``base``) that the imports of a parsed file may load: ``import a.b`` gives
+    ``a.b``; ``from a import b`` gives ``a`` and ``a.b`` (``b`` may be a module); relative imports are
+    resolved from the file's folder."""
+    out: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                folder = path.parent
+                for _ in range(node.level - 1):
+                    folder = folder.parent
+                if not folder.is_relative_to(base):
+                    continue
+                prefix = ".".join(folder.relative_to(base).parts)
+                module = ".".join(p for p in (prefix, node.module or "") if p)
+            else:
+                module = node.module or ""
+            if module:
+                out.append(module)
+            out += [f"{module}.{a.name}" if module else a.name for a in node.names if a.name != "*"]
+    return out
 
 
 def policy_modules(spec: str) -> list[str]:

@@ -23,7 +23,8 @@ see `filters.experiments.cli`).
 Executors (``RunnerConfig.executor``):
 
 * ``"sequential"``: ``[fn(j) for j in jobs]`` in this process.
-* ``"process"``: a `concurrent.futures.ProcessPoolExecutor` of ``workers`` processes.
+* ``"process"``: a `concurrent.futures.ProcessPoolExecutor` of ``workers`` processes, started from a clean
+  process (``forkserver``; ``spawn`` where there is none), never forked from the caller.
 * ``"ray"``: one Ray task per job (``num_cpus=1`` each). If Ray is not initialised yet, the runner
   calls ``ray.init(address=address)`` for a cluster (``"auto"``, ``"ray://head:10001"``, ...) or,
   with no address, ``ray.init(num_cpus=workers, include_dashboard=False)`` on this machine, and
@@ -122,7 +123,7 @@ def run_jobs(
             return out
         if kind == "process":
             out = []
-            with ProcessPoolExecutor(max_workers=config.workers) as pool:
+            with ProcessPoolExecutor(max_workers=config.workers, mp_context=_worker_context()) as pool:
                 for result in pool.map(fn, jobs, chunksize=1):
                     out.append(result)
                     tick()
@@ -131,6 +132,17 @@ def run_jobs(
     finally:
         if bar is not None:
             bar.close()
+
+
+def _worker_context():
+    """Workers start from a clean process (``forkserver``, else ``spawn``), not forked from this one: a
+    fork copies the state of thread pools the caller started (torch's OpenMP pool, once a policy's
+    constructor or a model load has run a tensor operation), and forked workers then wait forever on
+    their first matrix product."""
+    import multiprocessing
+
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
 
 
 def _run_ray(fn: Callable, jobs: list, config: RunnerConfig, tick: Callable[[], None]) -> list:
