@@ -16,6 +16,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
+from filters.numbers import is_int
 from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
 
@@ -30,6 +31,13 @@ class SB3VecEnvAdapter(VecEnv):
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self._actions: np.ndarray | None = None
         self._keys = tuple(venv.single_observation_space.spaces)
+
+    def seed(self, seed: int | None = None):
+        """SB3's seeding (robot ``i`` gets ``seed + i`` at the next reset); ValueError unless ``seed`` is None
+        or an int."""
+        if seed is not None and not is_int(seed):
+            raise ValueError(f"seed must be None or an int, got {seed!r:.80}")
+        return super().seed(None if seed is None else int(seed))
 
     def _stack(self, obs_list: list[dict]) -> dict[str, np.ndarray]:
         return {k: np.stack([o[k] for o in obs_list]) for k in self._keys}

@@ -6,6 +6,7 @@ import pytest
 
 import semreloc_env  # noqa: F401
 from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+from semreloc_env.observations import ActiveObservation
 
 KW = dict(layout="twin_rooms", relocalizer={"n_particles": 300}, max_episode_steps=25)
 VKW = dict(KW, env_id="SemReloc-v1")  # the loop env over the single envs these tests compare with
@@ -73,6 +74,17 @@ def test_bad_arguments():
     venv.reset(seed=0)
     with pytest.raises(ValueError, match="actions"):
         venv.step([0])
+    # a new user's trial: errors that named neither the argument nor the shape wanted
+    with pytest.raises(TypeError, match="wrapper must be a callable env -> env"):
+        SemRelocLoopVectorEnv(num_envs=2, wrapper=[ActiveObservation], **VKW)
+    cont = SemRelocLoopVectorEnv(num_envs=2, action_type="continuous", **VKW)
+    cont.reset(seed=0)
+    with pytest.raises(ValueError, match=r"actions must have shape \(2, 2\) \(one \(2,\) action per robot\)"):
+        cont.step(np.array([0.5, 0.5], np.float32))
+    from agents.vec_env import SB3VecEnvAdapter
+
+    with pytest.raises(ValueError, match="seed must be None or an int, got 'a'"):
+        SB3VecEnvAdapter(venv).seed("a")
 
 
 def test_rejected_steps_and_resets_move_no_robot():

@@ -12,6 +12,7 @@ from semreloc_env.observations import (
     hypotheses_of,
 )
 from semreloc_env.observations.rasters import MapRasters, egocentric_raster
+from semreloc_env.wrappers import FlatObservation
 
 SMALL = {"name": "small", "outer": [[0, 0], [4, 0], [4, 3], [0, 3]], "walls": [], "objects": []}
 BIG = {
@@ -186,6 +187,9 @@ def test_what_reads_scans_in_metres_refuses_an_env_wrapped_by_active_observation
     once = _env("lab", 200)  # ActiveObservation over the raw env
     with pytest.raises(ValueError, match="ActiveObservation needs the env's own observations.*already"):
         ActiveObservation(once)
+    flat = FlatObservation(gym.make("SemReloc-v7", layout="lab", map_source="perfect"))
+    with pytest.raises(ValueError, match=r"\(Box, from FlatObservation\) lacks the entries \['lidar'"):
+        ActiveObservation(flat)
     for name in ("wall_follow", "spin", "viewpoint"):
         with pytest.raises(ValueError, match="own observations"):
             POLICIES[name](0).wrap(once)

@@ -75,6 +75,11 @@ class SemRelocLoopVectorEnv(VectorEnv):
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
         if kwargs.get("render_mode") is not None:
             raise ValueError("SemRelocLoopVectorEnv does not render; make single envs to render")
+        if wrapper is not None and not callable(wrapper):
+            raise TypeError(
+                f"wrapper must be a callable env -> env (e.g. semreloc_env.observations.ActiveObservation), "
+                f"got {type(wrapper).__name__} {wrapper!r:.60}"
+            )
         extra = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
         self.envs = [gym.make(env_id, **kwargs, **extra) for _ in range(int(num_envs))]
         if wrapper is not None:
@@ -104,6 +109,12 @@ class SemRelocLoopVectorEnv(VectorEnv):
         acts = list(actions)
         if len(acts) != self.num_envs:
             raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
+        one = self.single_action_space
+        if isinstance(actions, np.ndarray) and isinstance(one, gym.spaces.Box) and actions.shape[1:] != one.shape:
+            raise ValueError(
+                f"actions must have shape {(self.num_envs, *one.shape)} (one {one.shape} action per robot), "
+                f"got shape {actions.shape}"
+            )
         for i, (env, a) in enumerate(zip(self.envs, acts)):
             if skip_done and self._done[i]:
                 continue

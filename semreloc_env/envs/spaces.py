@@ -118,8 +118,11 @@ def require_raw_observation(env, who: str) -> None:
     differ = [k for k, space in raw.spaces.items() if have.get(k) != space]
     if differ:
         hint = " (is it wrapped by ActiveObservation already?)" if "ego" in have or "global" in have else ""
+        missing = [k for k in differ if k not in have]
+        what = f"lacks the entries {missing}" if missing else f"changes the entries {differ}"
         raise ValueError(
-            f"{who} needs the env's own observations (scans in metres){hint}; this env's {differ} differ from "
+            f"{who} needs the env's own observations (scans in metres){hint}; this env's observation "
+            f"({type(env.observation_space).__name__}, from {type(env).__name__}) {what} of "
             f"{type(env.unwrapped).__name__}'s: wrap the raw env instead"
         )
 

@@ -162,6 +162,7 @@ class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         for attr in ("lidar", "camera", "action_space", "mcl", "grid"):
             if not hasattr(base, attr):
                 raise TypeError(f"ActiveObservation needs a SemReloc env; {type(base).__name__} has no {attr!r}")
+
         self.ego_size, self.ego_cell_m, self.global_size = int(ego_size), float(ego_cell_m), int(global_size)
         self.n_heading_bins, self.max_hypotheses = int(n_heading_bins), int(max_hypotheses)
         n_cls = len(CLASS_NAMES)
