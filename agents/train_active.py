@@ -84,8 +84,8 @@ class ActiveTrainConfig:
     empty: the four primitive actions only"""
     belief_mass_weight: float = 0.5
     """weight of the belief_mass reward term (gain mode: change of the belief mass within 0.5 m of the
-    truth, a shaping term, potential-based only approximately under PPO's discount: docs/active.md, "Rewards"); 0
-    turns it off"""
+    truth, a shaping term, potential-based only approximately under PPO's discount: docs/active.md,
+    "Rewards"); 0 turns it off"""
     reward_weights: JsonDict = field(default_factory=lambda: {"collision": -0.1})
     """overrides of the env's `RewardWeights` (default: collisions cost -0.1 a step instead of -0.5, so
     that driving is not learned away before localizing is); on the command line the whole dict as one
