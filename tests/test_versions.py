@@ -250,19 +250,25 @@ def test_v5_is_v4_with_the_convergence_audit():
     assert v5.mcl_config == v4.mcl_config.__class__(
         **{**v4.mcl_config.as_dict(), "audit_window": 20, "audit_margin": v5.mcl_config.audit_margin}
     )
-    off = {**FAST, "relocalizer": {**FAST["relocalizer"], "audit_window": 0}}
+    off = _same_until_the_first_audit("SemReloc-v5", "SemReloc-v4", {"audit_window": 0})
+    assert all("audit_log_ratio" not in x[4]["mcl"] for x in off)  # NaN (no audit) is left out of info
+
+
+def _same_until_the_first_audit(new_id: str, old_id: str, off: dict) -> list:
+    """``new_id`` with the relocalizer overrides ``off`` gives ``old_id``'s episode bit for bit; at its defaults
+    the same episode up to the first audit of either (some audit runs). Returns the run with ``off``."""
+    kw = {**FAST, "relocalizer": {**FAST["relocalizer"], **off}}
     actions = ACTIONS + [0, 0, 1] * 20
-    a = rollout(make("SemReloc-v5", **off), actions=actions)
-    b = rollout(make("SemReloc-v4", **FAST), actions=actions)
-    c = rollout(make("SemReloc-v5", **FAST), actions=actions)
+    a = rollout(make(new_id, **kw), actions=actions)
+    b = rollout(make(old_id, **FAST), actions=actions)
+    c = rollout(make(new_id, **FAST), actions=actions)
     for x, y in zip(a, b):
         np.testing.assert_equal(x, y)
-    audited = [i for i, x in enumerate(c) if "audit_log_ratio" in x[4]["mcl"]]
+    audited = [i for run in (b, c) for i, x in enumerate(run) if "audit_log_ratio" in x[4]["mcl"]]
     assert audited  # the belief became converged and was audited
-    first = audited[0]
-    for x, z in zip(a[:first], c[:first]):  # the same episode until the first audit
+    for x, z in zip(b[: min(audited)], c[: min(audited)]):
         np.testing.assert_equal(x, z)
-    assert all("audit_log_ratio" not in x[4]["mcl"] for x in a)  # NaN (no audit) is left out of info
+    return a
 
 
 def test_v6_is_v5_whose_belief_holds_a_convergence():
@@ -318,14 +324,4 @@ def test_v7_is_v6_whose_audit_searches_more_places_and_comes_first():
         venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
         assert venv.envs[0].unwrapped.mcl_config.audit_places == places
         venv.close()
-    off = {**FAST, "relocalizer": {**FAST["relocalizer"], "audit_places": 0, "audited_convergence": False}}
-    actions = ACTIONS + [0, 0, 1] * 20
-    a = rollout(make("SemReloc-v7", **off), actions=actions)
-    b = rollout(make("SemReloc-v6", **FAST), actions=actions)
-    c = rollout(make("SemReloc-v7", **FAST), actions=actions)
-    for x, y in zip(a, b):
-        np.testing.assert_equal(x, y)
-    audited = [i for i, x in enumerate(b) if "audit_log_ratio" in x[4]["mcl"]]
-    assert audited
-    for x, z in zip(b[: audited[0]], c[: audited[0]]):  # the same episode until the first audit
-        np.testing.assert_equal(x, z)
+    _same_until_the_first_audit("SemReloc-v7", "SemReloc-v6", {"audit_places": 0, "audited_convergence": False})
