@@ -454,3 +454,29 @@ def test_a_users_own_policy_class_is_evaluated_and_its_edits_rerun(tmp_path, cap
     ]:
         with pytest.raises(ValueError, match=match):
             ev.Args(policies=(bad,))
+
+
+def test_a_package_policys_fingerprint_covers_what_it_imports_and_the_packages_on_its_path(tmp_path, monkeypatch):
+    """``pkg:Class`` and ``pkg.sub.mod:Class``: the package's ``__init__`` files, absolute and relative imports
+    inside the package; not a file it does not import, not installed packages (a review)."""
+    pkg = tmp_path / "mypkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text(
+        "import numpy\nfrom agents.policies import Policy\nfrom mypkg import helper\nfrom . import rel\n\n\n"
+        "class P(Policy):\n    def act(self, obs):\n        return helper.X + rel.Y\n"
+    )
+    (pkg / "helper.py").write_text("X = 0\n")
+    (pkg / "rel.py").write_text("Y = 0\n")
+    (pkg / "unused.py").write_text("Z = 1\n")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "sub" / "pol.py").write_text("from ..helper import X\nfrom agents.policies import Policy as Q\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    names = {}
+    for spec in ("a=mypkg:P", "b=mypkg.sub.pol:Q"):
+        module = ev._user_module(ev._user_target(spec)["source"])
+        names[spec] = [f.relative_to(tmp_path).as_posix() for f in ev._local_files(module)]
+    assert names["a=mypkg:P"] == ["mypkg/__init__.py", "mypkg/helper.py", "mypkg/rel.py"]
+    assert names["b=mypkg.sub.pol:Q"] == [
+        "mypkg/__init__.py", "mypkg/helper.py", "mypkg/rel.py", "mypkg/sub/__init__.py", "mypkg/sub/pol.py"
+    ]  # fmt: skip

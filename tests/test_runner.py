@@ -75,3 +75,28 @@ def test_runner_options_on_the_command_line():
     assert args.runner == RunnerConfig(executor="process", workers=2, progress=False)
     with pytest.raises(SystemExit):
         parse(paper001.Args, ["--workers", "0"])
+
+
+def _environ_of_worker(key):
+    import os
+
+    return os.environ.get(key)
+
+
+def test_process_workers_see_the_callers_environment_when_the_pool_starts(monkeypatch):
+    """Workers start from a clean process (forkserver), which would otherwise keep the environment of
+    the first pool's time: a cache folder or layout path set later must reach them (a review)."""
+    config = RunnerConfig(executor="process", workers=2, progress=False)
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", "/first")
+    assert run_jobs(_environ_of_worker, ["SEMRELOC_LAYOUT_PATH"] * 2, config) == ["/first"] * 2
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", "/second")
+    assert run_jobs(_environ_of_worker, ["SEMRELOC_LAYOUT_PATH"] * 2, config) == ["/second"] * 2
+    monkeypatch.delenv("SEMRELOC_LAYOUT_PATH")
+    assert run_jobs(_environ_of_worker, ["SEMRELOC_LAYOUT_PATH"], config) == [None]
+
+
+def test_a_job_function_workers_cannot_import_is_named():
+    config = RunnerConfig(executor="process", workers=2, progress=False)
+    local = eval("lambda x: x")  # noqa: S307  (not importable by name, like a function of `python -c`)
+    with pytest.raises(Exception, match="pickle|importable by name"):
+        run_jobs(local, [1], config)

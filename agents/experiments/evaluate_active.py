@@ -571,24 +571,32 @@ def _local_files(module: types.ModuleType) -> list[Path]:
     """The files a user policy's fingerprint covers, whatever is loaded when it is taken: its module's
     file and, transitively, the ``.py`` files of the modules it imports (anywhere in a file, by ``import``
     or ``from ... import``, relative imports included) that lie in its folder tree (a file's folder, or
-    for a module of a package the folder holding the top package), less the project's own packages
-    (`policy_modules` covers those). Other files in the folder do not count, so a scratch folder's
+    for a module of a package the top package's folder, with the ``__init__.py`` of every package on its
+    dotted name), less the project's own packages (`policy_modules` covers those) and whatever lies
+    outside that tree (installed packages). Other files in the folder do not count, so a scratch folder's
     unrelated files do not make ``--reuse`` run the policy again."""
     start = Path(module.__file__).resolve()
-    top = sys.modules.get(module.__name__.partition(".")[0], module)
+    dotted = module.__name__.split(".")
+    top = sys.modules.get(dotted[0], module)
     package = getattr(top, "__path__", None)
-    base = Path(next(iter(package))).resolve().parent if package is not None and module is not top else start.parent
+    if package is not None:  # a module of a package, or the package itself
+        root = Path(next(iter(package))).resolve()  # the top package's folder: imports resolve from its parent
+        base = root.parent
+        start_files = [base.joinpath(*dotted[:k], "__init__.py") for k in range(1, len(dotted) + 1)]
+    else:
+        root = base = start.parent  # a file: its folder is on the import path
+        start_files = []
     project = [Path(importlib.import_module(p).__file__).resolve().parent for p in _PROJECT]
     seen: set[Path] = set()
-    todo = [start]
+    todo = [start, *(f.resolve() for f in start_files if f.is_file())]  # and each package its import runs
     while todo:
         f = todo.pop()
-        if f in seen or any(f.is_relative_to(p) for p in project):
+        if f in seen or not f.is_relative_to(root) or any(f.is_relative_to(p) for p in project):
             continue
         seen.add(f)
         try:
             tree = ast.parse(f.read_bytes(), str(f))
-        except (SyntaxError, ValueError):  # the import itself reports a broken file
+        except (SyntaxError, ValueError, OSError):  # the import itself reports a broken or unreadable file
             continue
         for name in _imported_names(tree, f, base):
             parts = name.split(".")

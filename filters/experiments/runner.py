@@ -14,7 +14,8 @@ Use::
 
     from filters.experiments.runner import RunnerConfig, run_jobs
 
-    results = run_jobs(my_job, [(seed, r) for r in range(100)], RunnerConfig(workers=2), desc="runs")
+    if __name__ == "__main__":  # process workers import the script that started them: guard its top level
+        results = run_jobs(my_job, [(seed, r) for r in range(100)], RunnerConfig(workers=2), desc="runs")
 
 A command line gets the runner's options by holding a ``runner: filters.experiments.cli.Runner`` field in its tyro
 ``Args`` dataclass (``--executor``, ``--workers``, ``--address``, ``--progress/--no-progress``;
@@ -37,9 +38,11 @@ Executors (``RunnerConfig.executor``):
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -123,15 +126,38 @@ def run_jobs(
             return out
         if kind == "process":
             out = []
-            with ProcessPoolExecutor(max_workers=config.workers, mp_context=_worker_context()) as pool:
-                for result in pool.map(fn, jobs, chunksize=1):
-                    out.append(result)
-                    tick()
+            pool = ProcessPoolExecutor(
+                max_workers=config.workers,
+                mp_context=_worker_context(),
+                initializer=_set_environ,
+                initargs=(dict(os.environ),),
+            )
+            try:
+                with pool:
+                    for result in pool.map(fn, jobs, chunksize=1):
+                        out.append(result)
+                        tick()
+            except BrokenProcessPool as e:
+                raise RuntimeError(
+                    f"a worker process died ({e}). Process workers start from a clean process: the job function "
+                    f"({getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', fn)}) must be importable by "
+                    "name (not defined in `python -c`, a notebook or a function), and a script that calls run_jobs "
+                    "needs `if __name__ == \"__main__\":` around its top level; or use the sequential executor"
+                ) from e
             return out
         return _run_ray(fn, jobs, config, tick)
     finally:
         if bar is not None:
             bar.close()
+
+
+def _set_environ(environ: dict[str, str]) -> None:
+    """A worker's environment variables := the caller's when it started the pool (a ``forkserver`` worker
+    otherwise has those of the server, started once per process: a ``SEMRELOC_CACHE_DIR`` or
+    ``SEMRELOC_LAYOUT_PATH`` set later would not reach it)."""
+    for key in set(os.environ) - set(environ):
+        del os.environ[key]
+    os.environ.update(environ)
 
 
 def _worker_context():

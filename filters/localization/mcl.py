@@ -187,7 +187,7 @@ class MCLConfig:
         lidar_field: lidar likelihood field.
         semantic_field: per-class semantic likelihood fields.
         negative_evidence: evidence from mapped objects the camera did not see
-            (`NegativeEvidenceConfig`; off by default, on in ``SemReloc-v4`` to ``-v6``).
+            (`NegativeEvidenceConfig`; off by default, on in ``SemReloc-v4`` to ``-v7``).
         motion: odometry motion noise.
         belief: bins and thresholds of `MonteCarloLocalizer.belief`.
         use_semantic: multiply in the semantic factor (False = lidar-only MCL).
