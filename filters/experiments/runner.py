@@ -142,7 +142,7 @@ def run_jobs(
                     f"a worker process died ({e}). Process workers start from a clean process: the job function "
                     f"({getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', fn)}) must be importable by "
                     "name (not defined in `python -c`, a notebook or a function), and a script that calls run_jobs "
-                    "needs `if __name__ == \"__main__\":` around its top level; or use the sequential executor"
+                    'needs `if __name__ == "__main__":` around its top level; or use the sequential executor'
                 ) from e
             return out
         return _run_ray(fn, jobs, config, tick)
