@@ -374,8 +374,24 @@ def test_local_search_refines_each_place_on_its_own():
     assert nothing[1].tolist() == start[2].tolist()  # no perturbation allowed there: the guess stays
 
 
+def test_audit_candidates_follow_the_free_area_on_large_maps():
+    grid = symmetric_room()
+    fixed = MonteCarloLocalizer(grid, MCLConfig(audit_candidates=300), np.random.default_rng(0))
+    assert fixed.audit_candidate_count() == 300
+    area = fixed.free_area_m2
+    dense = MonteCarloLocalizer(
+        grid, MCLConfig(audit_candidates=300, audit_candidates_per_m2=50.0), np.random.default_rng(0)
+    )
+    assert dense.audit_candidate_count() == round(50.0 * area) > 300
+    sparse = MonteCarloLocalizer(
+        grid, MCLConfig(audit_candidates=300, audit_candidates_per_m2=0.1), np.random.default_rng(0)
+    )
+    assert sparse.audit_candidate_count() == 300  # never fewer than audit_candidates
+
+
 @pytest.mark.parametrize("bad", [{"audit_places": -1}, {"audit_places": 1.5}, {"audit_places": 257},
-                                 {"audited_convergence": 1}])  # fmt: skip
+                                 {"audited_convergence": 1}, {"audit_candidates_per_m2": -1.0},
+                                 {"audit_candidates_per_m2": float("nan")}])  # fmt: skip
 def test_bad_v7_audit_options_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         MCLConfig(**bad)

@@ -312,16 +312,17 @@ def test_v6_is_v5_whose_belief_holds_a_convergence():
 
 
 def test_v7_is_v6_whose_audit_searches_more_places_and_comes_first():
-    """v7's relocalizer is v6's with ``audit_places`` 16 and ``audited_convergence``; with both off, v7 gives
-    v6's episode bit for bit; on, the same episode up to the first audit."""
+    """v7's relocalizer is v6's with ``audit_places`` 16, ``audited_convergence`` and 14 audit candidates per m^2;
+    with all three off, v7 gives v6's episode bit for bit; on, the same episode up to the first audit."""
     v7, v6 = make("SemReloc-v7", **FAST).unwrapped, make("SemReloc-v6", **FAST).unwrapped
     assert (v7.mcl_config.audit_places, v6.mcl_config.audit_places) == (16, 0)
     assert (v7.mcl_config.audited_convergence, v6.mcl_config.audited_convergence) == (True, False)
     assert v7.mcl_config == v6.mcl_config.__class__(
-        **{**v6.mcl_config.as_dict(), "audit_places": 16, "audited_convergence": True}
+        **{**v6.mcl_config.as_dict(), "audit_places": 16, "audited_convergence": True, "audit_candidates_per_m2": 14.0}
     )
     for vec_id, places in (("SemRelocVec-v7", 16), ("SemRelocVec-v6", 0)):
         venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
         assert venv.envs[0].unwrapped.mcl_config.audit_places == places
         venv.close()
-    _same_until_the_first_audit("SemReloc-v7", "SemReloc-v6", {"audit_places": 0, "audited_convergence": False})
+    v7_off = {"audit_places": 0, "audited_convergence": False, "audit_candidates_per_m2": 0.0}
+    _same_until_the_first_audit("SemReloc-v7", "SemReloc-v6", v7_off)

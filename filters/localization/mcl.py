@@ -250,6 +250,9 @@ class MCLConfig:
             and still be added.
         audit_candidates: scan-proposal candidates the audit draws (the best 50 outside the
             hypothesis are evaluated over the window, with the heaviest particles outside it).
+        audit_candidates_per_m2: at least this many candidates per m^2 of the map's free space (more
+            than ``audit_candidates`` on large maps, so they cover a large hall as densely as a small
+            one; at most `MAX_PARTICLES`); 0 (before ``SemReloc-v7``): ``audit_candidates`` on any map.
         audit_places: before its coarse-to-fine search, the audit refines the best-fitting poses of this
             many different places on each side on their own (`filters.localization.audit._local_search`),
             so that a look-alike place whose candidates were rough guesses is not dropped for the near
@@ -313,6 +316,7 @@ class MCLConfig:
     audit_window: int = 0
     audit_margin: float = 1.0
     audit_candidates: int = 2000
+    audit_candidates_per_m2: float = 0.0
     audited_convergence: bool = False
     audit_places: int = 0
     surprise_ratio: float = 0.0
@@ -374,6 +378,7 @@ class MCLConfig:
             "proposal_weight": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
             "global_particles_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "audit_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            "audit_candidates_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "surprise_ratio": (lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = off)"),
             "max_update_log_ratio": (lambda v: v > 0 and not math.isnan(v), "> 0 (inf = no cap)"),
         }
@@ -999,6 +1004,13 @@ class MonteCarloLocalizer:
         self._logw = logw - self._lse(logw)
         return m
 
+    def audit_candidate_count(self) -> int:
+        """Scan-proposal candidates an audit draws on this map (`MCLConfig.audit_candidates_per_m2`)."""
+        c = self.config
+        if c.audit_candidates_per_m2 <= 0.0:
+            return c.audit_candidates
+        return int(min(max(c.audit_candidates, round(c.audit_candidates_per_m2 * self.free_area_m2)), MAX_PARTICLES))
+
     def _audit(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> tuple[float, int]:
         """The convergence audit of one update (`MCLConfig.audit_window`); ``(log ratio, added)``."""
         c = self.config
@@ -1014,7 +1026,7 @@ class MonteCarloLocalizer:
                 return math.nan, 0  # cleared within the window: the same scans would be audited again
         if self._proposal is None:
             self._proposal = ScanProposal(self.grid, self.sample_free)
-        cand = self._proposal.candidates(c.audit_candidates, semantic, c.proposal_semantic_frac, self.rng)
+        cand = self._proposal.candidates(self.audit_candidate_count(), semantic, c.proposal_semantic_frac, self.rng)
         ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
         alt = audit.best_alternative(
             self.measurement_model, self._window, c.likelihood_scale, self._poses, self._logw, hyp.mean,

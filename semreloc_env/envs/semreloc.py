@@ -68,7 +68,9 @@ docs/relocalizer.md, "Holding a convergence". Chosen on tuning seeds 100-111 of 
 ``three_rooms``, ``twin_rooms`` and procedural layouts; evaluated on the seeds of
 ``scripts/evaluate_relocalizer.py`` and the held-out pairs of ``scripts/evaluate_active.py``."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V6, audited_convergence=True, audit_places=16)
+DEFAULT_RELOCALIZER = dataclasses.replace(
+    RELOCALIZER_V6, audited_convergence=True, audit_places=16, audit_candidates_per_m2=14.0
+)
 """The relocalizer of SemReloc-v7: `RELOCALIZER_V6` whose convergence audit searches harder and comes
 first. The audit refines the best poses of 16 different places on each side on their own before its
 coarse-to-fine search (`MCLConfig.audit_places`): in every wrong first convergence of the tuning pairs
@@ -76,7 +78,9 @@ traced on v6, a look-alike place that explained the window's scans as well as th
 dropped after one rough guess. And a set that comes to meet the "converged" criterion between updates
 (a prediction alone) is called converged only after the next update's audit
 (`MCLConfig.audited_convergence`); v6 called it converged at once, for up to a few steps, in layouts no
-sensor can tell apart. Chosen on the tuning cases of ``scripts/evaluate_active.py --seed-set tuning``
+sensor can tell apart. And the audit draws at least 14 scan-proposal candidates per m^2 of free space
+(`MCLConfig.audit_candidates_per_m2`; a lab-size map keeps its 2000), so they cover a large hall as
+densely as the maps the audit was tuned on. Chosen on the tuning cases of ``scripts/evaluate_active.py --seed-set tuning``
 and layouts written by a reviewer; evaluated on the held-out pairs (docs/relocalizer.md, "Audit
 first, search wider")."""
 
@@ -214,14 +218,16 @@ class SemRelocEnv(SemRelocBase):
 
     ## Version History
     * v7: the convergence audit searches harder and comes first (`DEFAULT_RELOCALIZER`:
-      `RELOCALIZER_V6` with ``audit_places=16`` and ``audited_convergence=True``). The audit refines
+      `RELOCALIZER_V6` with ``audit_places=16``, ``audited_convergence=True`` and
+      ``audit_candidates_per_m2=14``). The audit refines
       the best-fitting poses of 16 different places on each side one by one before its
       coarse-to-fine search, so a look-alike place that explains the recent scans as well as the
       hypothesis is found more often; and a belief whose set comes to meet the "converged" criterion
       between two measurement updates (particles moved by a prediction alone) waits for the next
       update's audit before it is called converged (v6 called it converged at once, and audited it
-      at the next update). Fewer first convergences at a look-alike place (docs/relocalizer.md,
-      "Audit first, search wider"). The filter draws more random numbers in an audit, so episodes
+      at the next update); and on maps larger than the lab the audit draws more candidates, 14 per
+      m^2 of free space (2000 on any map before). Fewer first convergences at a look-alike place
+      (docs/relocalizer.md, "Audit first, search wider"). The filter draws more random numbers in an audit, so episodes
       differ from v6's from the first audit on. Worlds, sensors, observations, rewards and info keys
       are v6's (`SemRelocEnvV6` is v6).
     * v6: a convergence holds (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V5` with
