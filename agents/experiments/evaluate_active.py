@@ -588,16 +588,18 @@ def _local_files(module: types.ModuleType) -> list[Path]:
         start_files = []
     project = [Path(importlib.import_module(p).__file__).resolve().parent for p in _PROJECT]
     seen: set[Path] = set()
+    skipped: set[Path] = set()
     todo = [start, *(f.resolve() for f in start_files if f.is_file())]  # and each package its import runs
     while todo:
         f = todo.pop()
-        if f in seen or not f.is_relative_to(root) or any(f.is_relative_to(p) for p in project):
+        if f in seen or f in skipped or not f.is_relative_to(root) or any(f.is_relative_to(p) for p in project):
             continue
-        seen.add(f)
         try:
             tree = ast.parse(f.read_bytes(), str(f))
         except (SyntaxError, ValueError, OSError):  # the import itself reports a broken or unreadable file
+            skipped.add(f)
             continue
+        seen.add(f)
         for name in _imported_names(tree, f, base):
             parts = name.split(".")
             for found in (base.joinpath(*parts).with_suffix(".py"), base.joinpath(*parts, "__init__.py")):

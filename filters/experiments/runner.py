@@ -139,10 +139,13 @@ def run_jobs(
                         tick()
             except BrokenProcessPool as e:
                 raise RuntimeError(
-                    f"a worker process died ({e}). Process workers start from a clean process: the job function "
-                    f"({getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', fn)}) must be importable by "
-                    "name (not defined in `python -c`, a notebook or a function), and a script that calls run_jobs "
-                    'needs `if __name__ == "__main__":` around its top level; or use the sequential executor'
+                    f"a worker process died or could not return its result ({e}; the chained error below may say "
+                    "more). Possible causes: it ran out of memory or crashed; a job's result or exception cannot be "
+                    "unpickled; or, since workers start from a clean process, the job function "
+                    f"({getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', fn)}) is not importable by "
+                    "name (defined in `python -c`, a notebook or a function), or the script that calls run_jobs "
+                    'lacks `if __name__ == "__main__":` around its top level. The sequential executor runs '
+                    "without workers"
                 ) from e
             return out
         return _run_ray(fn, jobs, config, tick)
