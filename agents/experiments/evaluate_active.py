@@ -528,29 +528,33 @@ def _user_module(source: str) -> types.ModuleType:
 
 
 def user_factory(spec: str):
-    """The callable ``f(seed) -> policy`` a ``NAME=MODULE:CLASS`` spec names."""
+    """The callable ``f(seed) -> policy`` a ``NAME=MODULE:CLASS`` spec names; ValueError saying whether the
+    spec, the import or the name failed."""
     m = _user_target(spec)
     if m is None:
         raise ValueError(f"{spec!r} is not NAME=MODULE:CLASS")
-    return getattr(_user_module(m["source"]), m["attr"])
+    try:
+        module = _user_module(m["source"])
+    except Exception as e:  # a missing file or module, or its import failing
+        raise ValueError(f"cannot import {m['source']}: {type(e).__name__}: {e}") from None
+    factory = getattr(module, m["attr"], None)
+    if factory is None:
+        raise ValueError(f"{m['source']} has no {m['attr']!r}")
+    return factory
 
 
 def check_user_policy(spec: str) -> None:
     """ValueError unless ``spec`` (``NAME=MODULE:CLASS`` or ``NAME=file.py:CLASS``) builds, called with a
     seed, an object with ``wrap(env)``, ``reset()`` and ``act(obs)``."""
-    target = _user_target(spec)
-    if target is None:
+    if _user_target(spec) is None:
         raise ValueError(
             f"policies: {spec}: expected NAME=PATH (a file saved by agents.learned.save_policy), "
             "NAME=MODULE:CLASS or NAME=path/to/file.py:CLASS"
         )
     try:
-        module = _user_module(target["source"])
-    except Exception as e:  # a missing file or module, or its import failing
-        raise ValueError(f"policies: {spec}: cannot import {target['source']}: {type(e).__name__}: {e}") from None
-    factory = getattr(module, target["attr"], None)
-    if factory is None:
-        raise ValueError(f"policies: {spec}: {target['source']} has no {target['attr']!r}")
+        factory = user_factory(spec)
+    except ValueError as e:
+        raise ValueError(f"policies: {spec}: {e}") from None
     try:
         policy = factory(0)
     except Exception as e:  # the user's constructor
@@ -582,14 +586,13 @@ def _local_files(module: types.ModuleType) -> list[Path]:
     if package is not None:  # a module of a package, or the package itself
         root = Path(next(iter(package))).resolve()  # the top package's folder: imports resolve from its parent
         base = root.parent
-        start_files = [base.joinpath(*dotted[:k], "__init__.py") for k in range(1, len(dotted) + 1)]
+        todo = [start, *_files_loaded(base, dotted)]  # and each package its import runs
     else:
         root = base = start.parent  # a file: its folder is on the import path
-        start_files = []
+        todo = [start]
     project = [Path(importlib.import_module(p).__file__).resolve().parent for p in _PROJECT]
     seen: set[Path] = set()
     skipped: set[Path] = set()
-    todo = [start, *(f.resolve() for f in start_files if f.is_file())]  # and each package its import runs
     while todo:
         f = todo.pop()
         if f in seen or f in skipped or not f.is_relative_to(root) or any(f.is_relative_to(p) for p in project):
@@ -601,16 +604,16 @@ def _local_files(module: types.ModuleType) -> list[Path]:
             continue
         seen.add(f)
         for name in _imported_names(tree, f, base):
-            parts = name.split(".")
-            for found in (base.joinpath(*parts).with_suffix(".py"), base.joinpath(*parts, "__init__.py")):
-                if found.is_file():
-                    todo.append(found.resolve())
-            todo.extend(  # each package an import passes through runs its __init__
-                base.joinpath(*parts[:k], "__init__.py").resolve()
-                for k in range(1, len(parts))
-                if base.joinpath(*parts[:k], "__init__.py").is_file()
-            )
+            todo += _files_loaded(base, name.split("."))
     return sorted(seen)
+
+
+def _files_loaded(base: Path, parts: list[str]) -> list[Path]:
+    """The existing files below ``base`` that importing the dotted name ``parts`` runs: the module's file
+    (or its package's ``__init__.py``) and the ``__init__.py`` of each package the name passes through."""
+    found = [base.joinpath(*parts).with_suffix(".py"), base.joinpath(*parts, "__init__.py")]
+    found += [base.joinpath(*parts[:k], "__init__.py") for k in range(1, len(parts))]
+    return [f.resolve() for f in found if f.is_file()]
 
 
 def _imported_names(tree: ast.AST, path: Path, base: Path) -> list[str]:

@@ -343,9 +343,10 @@ def _check_geometry(outer: np.ndarray, walls: list, walls_what: list, objects: l
             hit = shifted(cores[i].intersection(cores[j]))
             raise LayoutError(f"{objects_what[j]}: overlaps {objects_what[i]}{_where(hit)}")
     # objects do not overlap (checked above), so their areas add up; a room they fill leaves no floor
-    if outer_poly.area - sum(g.area for g in obj_geoms) <= MIN_FREE_AREA_M2:
+    areas = [g.area for g in obj_geoms]
+    if outer_poly.area - sum(areas) <= MIN_FREE_AREA_M2:
         raise LayoutError(
-            f"{objects_what[int(np.argmax([g.area for g in obj_geoms]))]}: objects and blocks fill the "
+            f"{objects_what[int(np.argmax(areas))]}: objects and blocks fill the "
             f"outer wall (less than {MIN_FREE_AREA_M2} m^2 of floor left)"
         )
     if wall_geoms:
