@@ -46,6 +46,7 @@ import importlib
 import importlib.util
 import json
 import math
+import os
 import re
 import sys
 import time
@@ -724,8 +725,10 @@ def policy_code(spec: str) -> str:
         h.update(mod.encode() + b"\0" + Path(importlib.import_module(mod).__file__).read_bytes())
     user = _user_target(spec)
     if user is not None:  # the user's module and the modules it imports from its own folder
-        for f in _local_files(_user_module(user["source"])):
-            h.update(f.name.encode() + b"\0" + f.read_bytes())
+        files = _local_files(_user_module(user["source"]))
+        common = Path(os.path.commonpath([f.parent for f in files])) if files else Path()
+        for f in files:  # keyed by the path within the policy's folder tree: a file moved there counts
+            h.update(f.relative_to(common).as_posix().encode() + b"\0" + f.read_bytes())
     elif "=" in spec:
         h.update(Path(spec.partition("=")[2]).read_bytes())
     return h.hexdigest()[:16]
