@@ -94,7 +94,9 @@ class TrainConfig:
         vec_env: ``"dummy"`` (one process), ``"subproc"`` (one process per env) or ``"batched"``
             (`semreloc_env.envs.batched.SemRelocLoopVectorEnv` through `agents.vec_env.SB3VecEnvAdapter`:
             one process, the same episodes as ``"dummy"``).
-        total_timesteps: env steps to train for (summed over envs).
+        total_timesteps: env steps to train for (summed over envs). SB3 stops at the end of a rollout,
+            so a run trains a whole number of rollouts (``n_steps * n_envs`` steps each), at least one:
+            a smaller value still trains one rollout (the progress bar then shows e.g. "512/64").
         seed: seeds PPO (network init, action sampling, minibatches) and the envs (``seed + k``).
         n_steps: steps per env per rollout (rollout size ``n_steps * n_envs``).
         batch_size: minibatch size.

@@ -53,7 +53,8 @@ class BeliefObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     log of the largest particle count the env's relocalizer may hold.
 
     The wrapped env must put ``belief`` in ``info`` at every reset and step (``SemReloc-v2``
-    does); a missing key raises ``KeyError``. Rewards, termination and ``info`` pass through
+    does); a `SemSlam` env is refused with ``TypeError``, and a missing key at a reset or step raises a
+    ``KeyError`` that names the keys the info has. Rewards, termination and ``info`` pass through
     unchanged.
 
     Args:
@@ -81,6 +82,10 @@ class BeliefObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             raise TypeError(f"BeliefObservation needs a Dict observation space, got {env.observation_space}")
         if "belief" in env.observation_space.spaces:
             raise ValueError("the observation already has a 'belief' key")
+        from semreloc_env.envs.semslam import SemSlamEnv
+
+        if isinstance(env.unwrapped, SemSlamEnv):  # its info holds a map estimate, no belief
+            raise TypeError("BeliefObservation needs a SemReloc env (info['belief']); SemSlamEnv has no belief")
         if entropy_max_nats is None:
             cfg = getattr(env.unwrapped, "mcl_config", None)
             n_max = 10_000
@@ -122,6 +127,11 @@ class BeliefObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return np.clip(raw, self.belief_low, self.belief_high)
 
     def _augment(self, obs: dict, info: dict) -> dict:
+        if "belief" not in info:
+            raise KeyError(
+                f"BeliefObservation needs info['belief'] at every reset and step (SemReloc envs give it); "
+                f"{type(self.env.unwrapped).__name__}'s info has {sorted(info)}"
+            )
         out = dict(obs)
         out["belief"] = self.belief_features(info["belief"])
         return out

@@ -170,3 +170,12 @@ def test_paper_scripts_refuse_what_they_would_fail_on_or_misreport():
     assert speed_reading(0.0).startswith("about as fast") and "add a little" in speed_reading(-14.0)
     with pytest.raises(ValueError, match="--particles"):
         Args004(mcl={"n_particles": 500})
+
+
+def test_train_ppo_help_lists_every_built_in_layout(capsys):
+    from semreloc_env.layouts import LAYOUT_NAMES
+
+    with pytest.raises(SystemExit):
+        _main(ENTRY_POINTS["semreloc-train-ppo"])(["--help"])
+    text = re.sub(r"[\s│]+", "", capsys.readouterr().out)  # the help is wrapped in a box
+    assert [n for n in LAYOUT_NAMES if n.replace("_", "") not in text.replace("_", "")] == []

@@ -221,3 +221,7 @@ def test_firefly_bad_input_raises(growth_run):
         fa_config(10, move_mode="nope")
     with pytest.raises(ValueError):
         ifa_config(10, state_reference="truth")
+    for field, bad in [("alpha0", np.nan), ("gamma", np.nan), ("mutation_mu", np.nan), ("beta0", -5.0),
+                       ("n_moves", 1.5), ("ewa_beta", np.nan), ("scale_alpha_by_obs_noise", 1)]:  # fmt: skip
+        with pytest.raises(ValueError, match=rf"FireflyConfig\.{field} must"):
+            ifa_config(10, **{field: bad})

@@ -92,5 +92,10 @@ def test_bad_input_raises():
         FireflySLAMConfig(move_mode="swarm")
     with pytest.raises(ValueError):
         FireflySLAMConfig(ewa_beta=1.0)
+    # a NaN or inf setting used to be accepted and surface steps later as NaN poses (a new user's trial)
+    for field, bad in [("alpha0", np.nan), ("gamma", np.nan), ("beta0", np.inf), ("mutation_mu", np.nan),
+                       ("beta0", -5.0), ("pairwise_max_n", 0), ("use_ewa", "yes")]:  # fmt: skip
+        with pytest.raises(ValueError, match=rf"FireflySLAMConfig\.{field} must"):
+            FireflySLAMConfig(**{field: bad})
     with pytest.raises(ValueError):
         IFAFastSLAM(MOTION, NOISE, FastSLAMConfig(n_particles=0), np.random.default_rng(0))

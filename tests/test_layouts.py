@@ -192,6 +192,8 @@ def test_malformed_files(tmp_path):
         load_layout(sofa)
     with pytest.raises(LayoutError, match="not found"):
         load_layout(tmp_path / "missing.json")
+    with pytest.raises(LayoutError, match="is a folder; give one layout file in it"):
+        load_layout(tmp_path)
     with pytest.raises(LayoutError, match="unknown layout"):
         get_layout("hall")
 

@@ -403,6 +403,8 @@ def test_particle_counts_have_an_upper_bound():
     m = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=100), np.random.default_rng(0))
     with pytest.raises(ValueError, match="particle count"):
         m.init_global(10**12)
+    with pytest.raises(ValueError, match=r"min_particles \(500\) must be <= max_particles \(30\)"):
+        MCLConfig(min_particles=500, max_particles=30)  # the values are named (a new user's trial)
 
 
 def test_converged_min_updates_asks_the_criterion_to_hold_after_the_last_k_updates():

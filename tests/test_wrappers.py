@@ -92,6 +92,16 @@ def test_belief_observation_rejects_bad_envs_and_bounds():
         BeliefObservation(BeliefObservation(gym.make("SemReloc-v7", **FAST)))
     with pytest.raises(TypeError):
         BeliefObservation(gym.make("CartPole-v1"))
+    with pytest.raises(TypeError, match="SemSlamEnv has no belief"):  # used to fail at reset with KeyError: 'belief'
+        BeliefObservation(gym.make("SemSlam-v1", layout="twin_rooms"))
+
+    class NoBelief(gym.Wrapper):  # another Dict env whose info lacks the belief: the keys it has are named
+        def reset(self, **kw):
+            obs, info = self.env.reset(**kw)
+            return obs, {k: v for k, v in info.items() if k != "belief"}
+
+    with pytest.raises(KeyError, match="needs info\\['belief'\\].*'pose_error'"):
+        BeliefObservation(NoBelief(gym.make("SemReloc-v7", **FAST))).reset(seed=0)
     for bad in (0.0, True, "a"):
         with pytest.raises(ValueError, match="pos_std_max_m"):
             BeliefObservation(gym.make("SemReloc-v7", **FAST), pos_std_max_m=bad)

@@ -147,6 +147,10 @@ class BeliefConfig:
 class Hypothesis:
     """One cluster of the particle set (units: metres, radians).
 
+    A cluster is a connected patch of occupied pose-histogram bins, so a set spread over the whole map
+    (as after a global reset) is one wide hypothesis of weight ~1: read its weight with its spread
+    (`pos_std_m`), as the "converged" test does.
+
     Attributes:
         weight: total normalised weight of its particles, in ``(0, 1]``.
         mean: ``(3,)`` weighted mean pose (circular mean of theta).

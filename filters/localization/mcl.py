@@ -356,7 +356,10 @@ class MCLConfig:
                 raise ValueError(f"MCLConfig.{name} must be an int in [1, {MAX_PARTICLES:,}], got {v!r}")
             object.__setattr__(self, name, int(v))
         if self.min_particles > self.max_particles:
-            raise ValueError("MCLConfig: min_particles must be <= max_particles")
+            raise ValueError(
+                f"MCLConfig: min_particles ({self.min_particles}) must be <= max_particles ({self.max_particles}); "
+                "a default you did not set may be the one in the way (SemReloc envs: min_particles=500): set both"
+            )
         h = self.holdoff_min_detections
         if not (is_int(h) and h >= 0):
             raise ValueError(f"MCLConfig.holdoff_min_detections must be an int >= 0, got {h!r}")

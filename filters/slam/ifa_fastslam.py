@@ -43,11 +43,11 @@ from filters.slam.association import innovation
 from filters.slam.fastslam import Association, FastSLAM, FastSLAMConfig
 from filters.slam.landmarks import RangeBearingNoise, predict_observation
 from filters.smc.firefly import (
-    MOVE_MODES,
     LogBrightnessFn,
     StepFactorFn,
     adaptive_step,
     apply_mutation,
+    check_firefly_settings,
     ewa_resample,
     firefly_move,
     fixed_step,
@@ -77,12 +77,7 @@ class FireflySLAMConfig:
     mutation_mu: float = 0.01
 
     def __post_init__(self) -> None:
-        if self.move_mode not in MOVE_MODES:
-            raise ValueError(f"unknown move_mode {self.move_mode!r}; choose one of {MOVE_MODES}")
-        if self.alpha0 < 0 or self.beta0 < 0 or self.gamma < 0 or self.mutation_mu < 0:
-            raise ValueError(f"firefly parameters must be non-negative: {self}")
-        if not 0.0 <= self.ewa_beta < 1.0:
-            raise ValueError(f"ewa_beta must be in [0, 1), got {self.ewa_beta}")
+        check_firefly_settings(self)
 
 
 class FireflyFastSLAM(FastSLAM):

@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from filters.numbers import is_int, is_real
 from filters.smc.models.base import StateSpaceModel
 from filters.smc.pf import BootstrapPF, PFConfig, normalise_log_weights
 
@@ -233,6 +234,26 @@ def apply_mutation(
     return out
 
 
+def check_firefly_settings(config) -> None:
+    """ValueError naming the field unless ``config``'s firefly settings (shared by `FireflyConfig` and
+    `filters.slam.ifa_fastslam.FireflySLAMConfig`) are usable: ``alpha0``, ``beta0``, ``gamma`` and
+    ``mutation_mu`` finite numbers >= 0, ``ewa_beta`` in [0, 1), ``pairwise_max_n`` an int >= 1, ``use_ewa``
+    a bool and ``move_mode`` one of `MOVE_MODES` (a NaN would only surface steps later, as NaN poses)."""
+    name = type(config).__name__
+    if config.move_mode not in MOVE_MODES:
+        raise ValueError(f"{name}.move_mode: unknown {config.move_mode!r}; choose one of {MOVE_MODES}")
+    for field in ("alpha0", "beta0", "gamma", "mutation_mu"):
+        v = getattr(config, field)
+        if not (is_real(v) and np.isfinite(v) and v >= 0):
+            raise ValueError(f"{name}.{field} must be a finite number >= 0, got {v!r}")
+    if not (is_real(config.ewa_beta) and 0.0 <= config.ewa_beta < 1.0):
+        raise ValueError(f"{name}.ewa_beta must be in [0, 1), got {config.ewa_beta!r}")
+    if not (is_int(config.pairwise_max_n) and config.pairwise_max_n >= 1):
+        raise ValueError(f"{name}.pairwise_max_n must be an int >= 1, got {config.pairwise_max_n!r}")
+    if not isinstance(config.use_ewa, (bool, np.bool_)):
+        raise ValueError(f"{name}.use_ewa must be a bool, got {config.use_ewa!r}")
+
+
 # ---- the filters ----------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FireflyConfig(PFConfig):
@@ -264,12 +285,14 @@ class FireflyConfig(PFConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.move_mode not in MOVE_MODES:
-            raise ValueError(f"unknown move_mode {self.move_mode!r}; choose one of {MOVE_MODES}")
+        check_firefly_settings(self)
         if self.state_reference not in ("propagated", "posterior"):
             raise ValueError(f"state_reference must be 'propagated' or 'posterior', got {self.state_reference!r}")
-        if self.n_moves < 0 or not 0.0 <= self.ewa_beta < 1.0 or self.alpha0 < 0 or self.mutation_mu < 0:
-            raise ValueError(f"invalid firefly configuration: {self}")
+        if not (is_int(self.n_moves) and self.n_moves >= 0):
+            raise ValueError(f"FireflyConfig.n_moves must be an int >= 0, got {self.n_moves!r}")
+        if not isinstance(self.scale_alpha_by_obs_noise, (bool, np.bool_)):
+            v = self.scale_alpha_by_obs_noise
+            raise ValueError(f"FireflyConfig.scale_alpha_by_obs_noise must be a bool, got {v!r}")
 
 
 def fa_config(n_particles: int = 100, **kw) -> FireflyConfig:

@@ -168,6 +168,9 @@ class SemRelocEnv(SemRelocBase):
     ## Episode End
     Terminated on success (see Rewards) in a global relocalization, or in a tracking
     episode after the kidnap. Truncated by the time limit (``max_episode_steps``, 400 at registration).
+    ``step()`` after ``terminated`` is allowed and continues the same episode (the robot drives, the
+    filter updates, ``terminated`` stays True and the success reward is not paid again): the relocalizer
+    evaluation watches the belief on that way. Call ``reset()`` to start a new episode.
 
     ## Info
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
@@ -496,10 +499,11 @@ class SemRelocEnv(SemRelocBase):
         state["particles"] = self.mcl.poses
         state["estimate"] = self._belief.estimate
         err = self.pose_error()
+        best = self._belief.best
+        hyp = f"  best hypothesis {100 * best.weight:.0f} % (std {best.pos_std_m:.1f} m)" if best is not None else ""
         state["title"] = (
             f"{self.layout.name}  step {self._steps}  error {err['position']:.2f} m / {math.degrees(err['heading']):.0f} deg"
-            f"  best hypothesis {100 * (self._belief.best.weight if self._belief.best else 0):.0f} %"
-            f"  {'converged' if self._belief.converged else ''}"
+            f"{hyp}  {'converged' if self._belief.converged else ''}"
         )
         return state
 

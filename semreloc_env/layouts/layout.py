@@ -516,6 +516,8 @@ def _yaml_without_duplicates(text: str):
 def load_layout(path: str | Path) -> Layout:
     """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text; ``~`` is expanded)."""
     path = Path(path).expanduser()
+    if path.is_dir():
+        raise LayoutError(f"{path} is a folder; give one layout file in it (.json, .yaml or .yml)")
     if not path.is_file():
         raise LayoutError(f"layout file not found: {path}")
     if path.suffix.lower() not in (".yaml", ".yml", ".json"):
