@@ -151,6 +151,21 @@ def test_malformed_lines(tmp_path, line, match):
     assert e.value.line in (0, 3)
 
 
+def test_a_last_line_cut_off_says_so(tmp_path):
+    """A recorder stopped mid-write leaves a last line without its newline: the error names that cause
+    (a new user's trial); a malformed line that ends in a newline gets the plain message."""
+    ok = _flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 0.0) + "\n"
+    cut = _flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 1.0)[:-9]
+    (tmp_path / "cut.log").write_text(ok + cut)
+    with pytest.raises(CarmenLogError, match="last line, without a newline at its end: cut off") as e:
+        read_carmen(tmp_path / "cut.log")
+    assert e.value.line == 2
+    (tmp_path / "bad.log").write_text(ok + cut + "\n")
+    with pytest.raises(CarmenLogError) as e:
+        read_carmen(tmp_path / "bad.log")
+    assert "cut off" not in str(e.value)
+
+
 def test_robotlaser_field_count(tmp_path):
     head = "ROBOTLASER1 0 -1.5 3.1 0.01 80 0.01 0 2 1.0 2.0 0"  # 2 readings, no remissions
     tail = " 0 0 0 0 0 0 0 0 0 0 0 1.0"  # laser and robot pose, tv rv fwd side turn_axis, timestamp

@@ -352,21 +352,31 @@ def read_carmen(
                     continue
                 tok = s.split()
                 kind = tok[0]
-                if kind == "PARAM":
-                    if len(tok) < 3:
-                        raise CarmenLogError(spath, lineno, "PARAM: needs a name and a value")
-                    params[tok[1]], param_lines[tok[1]] = tok[2], lineno
-                elif kind == "ODOM":
-                    _check_length(tok, 8, "ODOM", "x y theta tv rv accel", spath, lineno)
-                    odom.append(_floats(tok[1:4], "ODOM pose", spath, lineno))
-                elif kind in _LASERS and (chosen is None or kind == chosen):
-                    chosen = kind
-                    rec = (_parse_flaser if kind == "FLASER" else _parse_robotlaser)(tok, spath, lineno)
-                    rec["line"] = lineno
-                    scans.append(rec)
-                    odom_before.append(len(odom))
-                else:
-                    skipped[kind] = skipped.get(kind, 0) + 1
+                try:
+                    if kind == "PARAM":
+                        if len(tok) < 3:
+                            raise CarmenLogError(spath, lineno, "PARAM: needs a name and a value")
+                        params[tok[1]], param_lines[tok[1]] = tok[2], lineno
+                    elif kind == "ODOM":
+                        _check_length(tok, 8, "ODOM", "x y theta tv rv accel", spath, lineno)
+                        odom.append(_floats(tok[1:4], "ODOM pose", spath, lineno))
+                    elif kind in _LASERS and (chosen is None or kind == chosen):
+                        chosen = kind
+                        rec = (_parse_flaser if kind == "FLASER" else _parse_robotlaser)(tok, spath, lineno)
+                        rec["line"] = lineno
+                        scans.append(rec)
+                        odom_before.append(len(odom))
+                    else:
+                        skipped[kind] = skipped.get(kind, 0) + 1
+                except CarmenLogError as e:
+                    if line.endswith("\n"):
+                        raise
+                    raise CarmenLogError(  # only a file's last line can lack its newline
+                        spath,
+                        lineno,
+                        f"{e.problem} (the log's last line, without a newline at its end: cut off when the "
+                        "recorder stopped? Delete that line to read the rest)",
+                    ) from None
     except (EOFError, OSError, gzip.BadGzipFile) as e:  # truncated or corrupt .gz, unreadable file
         raise CarmenLogError(spath, 0, f"cannot read the log: {type(e).__name__}: {e}") from None
     if not scans:
