@@ -359,7 +359,7 @@ class ViewpointPlanner(Policy):
             ``inf``: any path).
         negative_evidence: score viewpoints with the relocalizer's negative evidence (objects a
             hypothesis would see that the scan shows to be absent) when its model has it on
-            (`NegativeEvidenceConfig.p_detect > 0`, as in `SemReloc-v7`); False: lidar and
+            (`NegativeEvidenceConfig.p_detect > 0`, as in `SemReloc-v7` and `-v8`); False: lidar and
             labelled rays only, as before this option.
     """
 

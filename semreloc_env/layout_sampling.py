@@ -234,7 +234,10 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
         grid = self._maps.get(key)
         if grid is None:
             base = self.env.unwrapped
-            grid = maps_for(draw.layout, base.map_source, base.lidar.params, base.camera.params)
+            grid = maps_for(
+                draw.layout, base.map_source, base.lidar.params, base.camera.params,
+                mapping_version=getattr(base, "mapping_run_version", None),
+            )  # fmt: skip
             self._maps[key] = grid
             if len(self._maps) > self.cache_size:
                 self._maps.popitem(last=False)

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from filters.mapping.grid import GridMap
-from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper
+from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper, SemanticParams
 
 from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES, Layout, LayoutError
@@ -30,8 +30,18 @@ from .rasterize import raster_geometry
 from .sensors import Lidar, SemanticCamera
 from .world import build_world
 
-MAPPING_RUN_VERSION = "2"
-"""Bump when the mapping run's output changes for the same inputs (keys the on-disk map cache)."""
+MAPPING_RUN_VERSIONS = ("2", "3")
+"""The mapping runs an env can ask for (`build_maps`' ``version``; each keys its own cached maps):
+
+* ``"2"`` (``SemReloc-v7`` and before): a camera beam without a return lowers every class along the
+  camera's whole range. The camera reads an object nearer than its minimum range (0.5 m) as no
+  return, so where the drive passes that close to an object its beams cleared the object and the
+  space behind it: a cabinet against a wall could lose all its class cells, or some of them, as its
+  twin elsewhere kept them, and the relocalizer then preferred the twin's place.
+* ``"3"`` (``SemReloc-v8``): the camera's no-return beams update nothing (as the lidar's already did).
+"""
+MAPPING_RUN_VERSION = MAPPING_RUN_VERSIONS[-1]
+"""The newest mapping run. Add a version when its output changes for the same inputs."""
 
 CHUNK_POSES = 2048
 """Poses sensed and integrated per batch by `build_maps` (bounds its memory)."""
@@ -217,13 +227,16 @@ def build_maps(
     camera: CameraParams | None = None,
     rng: np.random.Generator | None = None,
     resolution_m: float = 0.05,
+    version: str = MAPPING_RUN_VERSION,
 ) -> GridMap:
     """Run the mapping drive on ``layout`` and return the occupancy + semantic map.
 
     Sensors are simulated with their configured noise; ``rng`` (default: seed 0)
     drives that noise, so the same generator gives the same map. The raster is that of
-    `rasterize`.
+    `rasterize`. ``version``: one of `MAPPING_RUN_VERSIONS` (default the newest).
     """
+    if version not in MAPPING_RUN_VERSIONS:
+        raise ValueError(f"mapping run version must be one of {MAPPING_RUN_VERSIONS}, got {version!r}")
     rng = rng if rng is not None else np.random.default_rng(0)
     lidar_s = Lidar(lidar or LidarParams())
     camera_s = SemanticCamera(camera or CameraParams())
@@ -231,7 +244,8 @@ def build_maps(
     shape, origin = raster_geometry(layout, resolution_m)
     # the simulated lidar's dropouts read as "no return" in front of real walls: they must not clear
     occ = OccupancyMapper(shape, resolution_m, origin, OccupancyParams(clear_no_return=False))
-    sem = SemanticMapper(shape, resolution_m, origin, CLASS_NAMES)
+    # ... nor the camera's, which also reads an object nearer than its minimum range as no return
+    sem = SemanticMapper(shape, resolution_m, origin, CLASS_NAMES, SemanticParams(clear_no_return=version == "2"))
     poses, lidar_due = mapping_drive(layout)
     for lo in range(0, len(poses), CHUNK_POSES):
         chunk = poses[lo : lo + CHUNK_POSES]

@@ -1,7 +1,7 @@
 """Where an env's map comes from: a mapping run (default), the rasterised layout, a map file, or another layout.
 
 Mapping-run maps are cached in memory (per process) and on disk, keyed by the layout's
-content, the sensor parameters, the resolution and `MAPPING_RUN_VERSION`,
+content, the sensor parameters, the resolution and the mapping run's version (`MAPPING_RUN_VERSIONS`),
 so a process that meets a layout again loads its map in milliseconds. The disk cache lives
 in ``$SEMRELOC_CACHE_DIR/maps`` (default ``~/.cache/semreloc/maps``); set
 ``SEMRELOC_CACHE_DIR`` to an empty string to switch it off. Files are written atomically;
@@ -45,11 +45,14 @@ def cache_dir() -> Path | None:
     return Path(root) / "maps" if root else None
 
 
-def map_key(layout: Layout, lidar: LidarParams, camera: CameraParams, resolution_m: float = 0.05) -> str:
-    """Hex key of a mapping-run map: layout content, sensor parameters, resolution and code version."""
+def map_key(
+    layout: Layout, lidar: LidarParams, camera: CameraParams, resolution_m: float = 0.05, version: str | None = None
+) -> str:
+    """Hex key of a mapping-run map: layout content, sensor parameters, resolution and the mapping run's
+    version (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`; None: the newest)."""
     from .mapping_run import MAPPING_RUN_VERSION
 
-    text = repr((MAPPING_RUN_VERSION, _layout_text(layout), lidar, camera, float(resolution_m), CLASS_NAMES))
+    text = repr((version or MAPPING_RUN_VERSION, _layout_text(layout), lidar, camera, float(resolution_m), CLASS_NAMES))
     return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
 
 
@@ -107,9 +110,13 @@ def _load(path: Path) -> GridMap | None:
         return None
 
 
-def mapped(layout: Layout, lidar: LidarParams, camera: CameraParams) -> GridMap:
-    """The mapping-run map of ``layout`` with these sensors (seed 0): from memory, disk, or a new run."""
-    key = map_key(layout, lidar, camera)
+def mapped(layout: Layout, lidar: LidarParams, camera: CameraParams, version: str | None = None) -> GridMap:
+    """The mapping-run map of ``layout`` with these sensors (seed 0): from memory, disk, or a new run.
+    ``version``: the mapping run's (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`; None: the newest)."""
+    from .mapping_run import MAPPING_RUN_VERSION
+
+    version = version or MAPPING_RUN_VERSION
+    key = map_key(layout, lidar, camera, version=version)
     grid = _memory.get(key)
     if grid is not None:
         _memory.move_to_end(key)
@@ -120,7 +127,7 @@ def mapped(layout: Layout, lidar: LidarParams, camera: CameraParams) -> GridMap:
     if grid is None:
         from .mapping_run import build_maps
 
-        grid = build_maps(layout, lidar, camera)
+        grid = build_maps(layout, lidar, camera, version=version)
         if path is not None:
             try:
                 _save(path, grid)
@@ -170,7 +177,14 @@ def names_a_layout(source) -> bool:
     return False
 
 
-def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, semantic: bool = True) -> GridMap:
+def maps_for(
+    layout: Layout,
+    source,
+    lidar: LidarParams,
+    camera: CameraParams,
+    semantic: bool = True,
+    mapping_version: str | None = None,
+) -> GridMap:
     """The GridMap an env's filter uses.
 
     Args:
@@ -183,6 +197,7 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
             (`env_classes`); a map without classes (a plain ROS map, no semantic sidecar) or with only
             some of them needs ``semantic=False``.
         semantic: whether the relocalizer uses the semantic factor.
+        mapping_version: the mapping run's version for the sources that run one (`mapped`; None: the newest).
 
     Raises:
         ValueError: classes that do not fit, or a map (file, GridMap or other layout) whose extent
@@ -196,9 +211,9 @@ def maps_for(layout: Layout, source, lidar: LidarParams, camera: CameraParams, s
     elif isinstance(source, str) and source == "perfect":
         grid, derived = _perfect(layout), True
     elif isinstance(source, str) and source == "mapping":
-        grid, derived = mapped(layout, lidar, camera), True
+        grid, derived = mapped(layout, lidar, camera, mapping_version), True
     elif names_a_layout(source):
-        grid = mapped(get_layout(source), lidar, camera)
+        grid = mapped(get_layout(source), lidar, camera, mapping_version)
     else:
         grid = load_map(Path(source))
     grid = env_classes(grid, source, semantic)  # the env's classes, in its order (empty layers if lidar-only)

@@ -178,6 +178,20 @@ def test_semantic_no_return_beams_clear_and_mark_nothing():
     assert np.all(m.logodds[:, 0, 11:] == 0)
 
 
+def test_semantic_no_return_beams_update_nothing_without_clear_no_return():
+    """``clear_no_return=False`` (the mapping run since version 3): a camera that reads a too-close object as
+    no return must not clear that object; returned beams in the same scans update as before."""
+    pose = np.array([0.05, 0.05, 0.0])
+    scan = SemanticScan([9.0, 0.55, 9.0], [0.0, 0.0, 0.0], [0, 2, 1], 1.02)
+    keep = SemanticMapper((1, 30), 0.1, (0.0, 0.0), CLASSES, SemanticParams(clear_no_return=False))
+    keep.update(pose, scan)
+    returned = SemanticMapper((1, 30), 0.1, (0.0, 0.0), CLASSES)
+    returned.update(pose, SemanticScan([0.55], [0.0], [2], 1.02))
+    np.testing.assert_array_equal(keep.logodds, returned.logodds)
+    keep.update_arrays(pose[None], np.array([[9.0, 9.0]]), np.array([[0, 1]]), np.zeros(2), 1.02)
+    np.testing.assert_array_equal(keep.logodds, returned.logodds)  # the array path drops them too
+
+
 def test_bad_parameters_and_inputs_raise():
     with pytest.raises(ValueError, match="l_free_outside < l_free_inside"):
         SemanticParams(l_free_inside=-0.6, l_free_outside=-0.2)

@@ -1,4 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v7 (v6's relocalizer whose convergence audit
+"""The registered ids behave as their Version History says: SemReloc-v8 (v7 with the maps of the mapping run's
+version 3), SemReloc-v7 (v6's relocalizer whose convergence audit
 searches more places and comes before "converged"), SemReloc-v6 (v5's relocalizer whose belief holds a
 convergence), SemReloc-v5 (v4's relocalizer with the convergence audit), SemReloc-v4 (v3's relocalizer with
 evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that break their half turn),
@@ -39,6 +40,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v8",
         "SemReloc-v7",
         "SemReloc-v6",
         "SemReloc-v5",
@@ -55,6 +57,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v8", typed),
         ("SemReloc-v7", typed),
         ("SemReloc-v6", typed),
         ("SemReloc-v5", typed),
@@ -326,3 +329,56 @@ def test_v7_is_v6_whose_audit_searches_more_places_and_comes_first():
         venv.close()
     v7_off = {"audit_places": 0, "audited_convergence": False, "audit_candidates_per_m2": 0.0}
     _same_until_the_first_audit("SemReloc-v7", "SemReloc-v6", v7_off)
+
+
+def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
+    """v8 differs from v7 only in the mapping run behind ``map_source="mapping"`` (version 3: the camera's
+    no-return beams, objects nearer than its minimum range among them, update nothing): the same relocalizer,
+    the same episode bit for bit on a map that is not a mapping run's, and on a layout whose mapping drive
+    passes within the camera's minimum range of a cabinet against a block, more of the cabinet mapped (an
+    outside trial's layout, cut down: v7's map lost most of it, and the belief converged at its twin)."""
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.mapping_run import build_maps
+
+    v8, v7 = make("SemReloc-v8", **FAST).unwrapped, make("SemReloc-v7", **FAST).unwrapped
+    v6 = make("SemReloc-v6", **FAST).unwrapped
+    assert (v8.mapping_run_version, v7.mapping_run_version, v6.mapping_run_version) == ("3", "2", "2")
+    assert v8.mcl_config == v7.mcl_config
+    for vec_id, version in (("SemRelocVec-v8", "3"), ("SemRelocVec-v7", "2")):
+        venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+        assert venv.envs[0].unwrapped.mapping_run_version == version
+        venv.close()
+    a, b = rollout(make("SemReloc-v8", **FAST)), rollout(make("SemReloc-v7", **FAST))
+    for (o1, r1, t1, u1, i1), (o2, r2, t2, u2, i2) in zip(a, b):
+        for k in o1:
+            np.testing.assert_array_equal(o1[k], o2[k])
+        assert (r1, t1, u1) == (r2, t2, u2)
+        np.testing.assert_array_equal(i1["belief"]["estimate"], i2["belief"]["estimate"])
+
+    # an outside trial's layout: two halls alike up to a translation of 11 m (a door panel tells them apart)
+    cab, chair, bin_ = "cabinet", "chair", "trash_bin"
+    objects = [(cab, 0.3, 6.0, 0.6, 1.2), (chair, 3, 5, 0.5, 0.5), (chair, 6.5, 8, 0.5, 0.5), (bin_, 8, 3, 0.4, 0.4),
+               (cab, 6, 2.3, 1.2, 0.6), ("door", 1.2, 10.95, 0.9, 0.1)]  # fmt: skip
+    objects += [(c, x + 11, y, w, h) for c, x, y, w, h in objects[:5]]
+    halls = get_layout({
+        "name": "translated_halls", "outer": [[0, 0], [20, 0], [20, 11], [0, 11]],
+        "walls": [[[0, 2], [4, 2]], [[5, 2], [15, 2]], [[16, 2], [20, 2]]],
+        "blocks": [[[9, 2], [11, 2], [11, 11], [9, 11]]],
+        "objects": [{"class": c, "center": [x, y], "size": [w, h]} for c, x, y, w, h in objects],
+    })  # fmt: skip
+    maps = {v: build_maps(halls, version=v) for v in ("2", "3")}
+    np.testing.assert_array_equal(maps["2"].occupancy, maps["3"].occupancy)  # the lidar's map is the same
+
+    def cabinet_cells(g, x):  # class cells of the cabinet against the west wall of a hall
+        k, res, (ox, oy) = g.class_names.index("cabinet"), g.resolution_m, g.origin_xy_m
+        rows, cols = (
+            slice(round((5.4 - oy) / res), round((6.6 - oy) / res)),
+            slice(round((x - ox) / res), round((x + 0.6 - ox) / res)),
+        )
+        return int((g.semantic[k][rows, cols] > g.semantic_thresh).sum())
+
+    old, new = ([cabinet_cells(maps[v], x) for x in (0, 11)] for v in ("2", "3"))  # (west hall, east hall)
+    assert old[1] == 0 < old[0]  # v7's map lost the east hall's cabinet (the drive passed within 0.5 m of it)
+    assert min(new) > 0.8 * max(new)  # v8's maps both, about alike
+    with pytest.raises(ValueError, match="mapping run version must be one of"):
+        build_maps(halls, version="9")

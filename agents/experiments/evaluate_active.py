@@ -102,11 +102,14 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: Literal["SemReloc-v7", "SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"] = "SemReloc-v7"
-    """the env the episodes run in: SemReloc-v7 (the newest), SemReloc-v6, SemReloc-v5, SemReloc-v4 or
-    SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the relocalizer with the
-    audit's coarse-to-fine search only (v6), also without the hold of a convergence (v5), without the
-    convergence audit (v4) and without negative evidence (v3))"""
+    env_id: Literal["SemReloc-v8", "SemReloc-v7", "SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"] = (
+        "SemReloc-v8"
+    )
+    """the env the episodes run in: SemReloc-v8 (the newest), SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or
+    SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the maps of the mapping
+    run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search only (v6), also
+    without the hold of a convergence (v5), without the convergence audit (v4) and without negative
+    evidence (v3))"""
     relocalizer: JsonDict = field(default_factory=dict)
     """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
@@ -148,9 +151,15 @@ class Args:
                 "(--layouts-per-kind 0 --no-builtin-layouts)"
             )
         semantic = self.relocalizer.get("use_semantic", True) if isinstance(self.relocalizer, dict) else True
+        import gymnasium as gym
+        from gymnasium.envs.registration import load_env_creator
+
+        import semreloc_env  # noqa: F401  (registers the ids)
+
+        version = getattr(load_env_creator(gym.spec(self.env_id).entry_point), "mapping_run_version", None)
         for f in self.layout_files:
             try:
-                maps_for(get_layout(f), self.map_source, LidarParams(), CameraParams(), semantic=semantic)
+                maps_for(get_layout(f), self.map_source, LidarParams(), CameraParams(), semantic, version)
             except (LayoutError, ValueError, OSError) as e:  # MapFormatError is a ValueError
                 hint = " (lidar only: --relocalizer '{\"use_semantic\": false}')" if semantic else ""
                 raise ValueError(f"map_source {self.map_source!r} for layout file {f!r}: {e}{hint}") from None
@@ -253,7 +262,7 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v7"
+ENV_ID = "SemReloc-v8"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
 generator, as v3's to v7's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3

@@ -130,6 +130,10 @@ class SemanticParams:
         l_min, l_max: clamp after every cell update, ``l_min < 0 < l_max``. Defaults ``-2.0``, ``3.5``.
         max_range_m: beams are used up to this length, metres (see `OccupancyParams`);
             default ``inf``: the scan's own ``range_max_m``.
+        clear_no_return: beams without a return (``range >= scan.range_max_m``) lower every class up
+            to the limit (default True). Set False for a camera whose too-close returns read as no
+            return (a depth camera below its minimum range): such a beam would otherwise clear the
+            object in front of it and everything behind it, up to the camera's range.
     """
 
     l_hit: float = 0.85
@@ -140,6 +144,7 @@ class SemanticParams:
     l_min: float = -2.0
     l_max: float = 3.5
     max_range_m: float = math.inf
+    clear_no_return: bool = True
 
     def __post_init__(self) -> None:
         for name in ("l_hit", "l_other_hit", "l_free_inside", "l_free_outside", "l_unlabelled_end", "l_min", "l_max"):
@@ -561,8 +566,12 @@ class SemanticMapper(_RasterMapper):
             self._integrate(beams, lab.astype(np.int64).ravel())
 
     def _integrate(self, beams, labels: np.ndarray) -> None:
-        u0, v0, du, dv, t_end, returned, _ = beams
+        u0, v0, du, dv, t_end, returned, no_return = beams
         p = self.params
+        if not p.clear_no_return:  # as OccupancyMapper: the sensor's no-return beams update nothing
+            u0, v0, du, dv, t_end, returned, labels = (a[~no_return] for a in (*beams[:6], labels))
+            if t_end.size == 0:
+                return
         end_label = np.where(returned, labels, -1).astype(np.int64)
         free_delta = np.where(labels > 0, p.l_free_inside, p.l_free_outside).astype(np.float64)
         _semantic_kernel(self._L, u0, v0, du, dv, t_end, end_label, free_delta, p.l_hit, p.l_other_hit,

@@ -1,4 +1,4 @@
-"""``SemReloc-v7`` (and ``-v6``, ``-v5``, ``-v4``, ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v8`` (and ``-v7``, ``-v6``, ``-v5``, ``-v4``, ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ docs/relocalizer.md, "Holding a convergence". Chosen on tuning seeds 100-111 of 
 DEFAULT_RELOCALIZER = dataclasses.replace(
     RELOCALIZER_V6, audited_convergence=True, audit_places=16, audit_candidates_per_m2=14.0
 )
-"""The relocalizer of SemReloc-v7: `RELOCALIZER_V6` whose convergence audit searches harder and comes
+"""The relocalizer of SemReloc-v7 and -v8: `RELOCALIZER_V6` whose convergence audit searches harder and comes
 first. The audit refines the best poses of 16 different places on each side on their own before its
 coarse-to-fine search (`MCLConfig.audit_places`): in every wrong first convergence of the tuning pairs
 traced on v6, a look-alike place that explained the window's scans as well as the hypothesis had been
@@ -220,6 +220,15 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v8: the map of ``map_source="mapping"`` (the default) comes from the mapping run's version 3
+      (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`): camera beams without a return no longer lower
+      every class along the camera's range. The camera reads an object nearer than its 0.5 m minimum
+      range as no return, so where the mapping drive passed that close to an object its beams had
+      cleared the object's class cells and the space behind it: a cabinet against a wall could lose all
+      of them (an outside trial: one of two translated halls lost its cabinet, and the belief converged
+      in the other hall, 11 m away). The relocalizer, worlds, sensors, observations, rewards and info
+      keys are v7's; only the filter's map differs (`SemRelocEnvV7` is v7). Other map sources
+      (``"perfect"``, map files, GridMaps) give v7's episodes.
     * v7: the convergence audit searches harder and comes first (`DEFAULT_RELOCALIZER`:
       `RELOCALIZER_V6` with ``audit_places=16``, ``audited_convergence=True`` and
       ``audit_candidates_per_m2=14``). The audit refines
@@ -290,6 +299,9 @@ class SemRelocEnv(SemRelocBase):
     _world_option_keys = frozenset({"pose", "kidnap_pose"})
     default_relocalizer: MCLConfig = DEFAULT_RELOCALIZER
     """What ``relocalizer=None`` stands for and a dict of overrides applies to."""
+    mapping_run_version: str = "3"
+    """The mapping run (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`) behind ``map_source="mapping"``
+    and maps built from another layout."""
 
     def __init__(
         self,
@@ -338,7 +350,9 @@ class SemRelocEnv(SemRelocBase):
         self.reward_weights = coerce_config(RewardWeights, reward_weights, "reward_weights")
         self.scenario = scenario
         self.map_source = map_source
-        self.grid = maps_for(self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic)
+        self.grid = maps_for(
+            self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic, self.mapping_run_version
+        )
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
 
@@ -367,7 +381,10 @@ class SemRelocEnv(SemRelocBase):
                 raise ValueError(
                     f"set_layout needs a grid: the env's map_source {self.map_source!r} is fixed to one layout"
                 )
-            grid = maps_for(new_layout, self.map_source, self.lidar.params, self.camera.params)
+            grid = maps_for(
+                new_layout, self.map_source, self.lidar.params, self.camera.params,
+                mapping_version=self.mapping_run_version,
+            )  # fmt: skip
         else:
             if not isinstance(grid, GridMap):
                 raise ValueError(f"grid must be a GridMap or None, got {type(grid).__name__}")
@@ -508,11 +525,20 @@ class SemRelocEnv(SemRelocBase):
         return state
 
 
-class SemRelocEnvV6(SemRelocEnv):
-    """``SemReloc-v6``: `SemRelocEnv` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
+class SemRelocEnvV7(SemRelocEnv):
+    """``SemReloc-v7``: `SemRelocEnv` with the maps of the mapping run's version 2, whose camera beams
+    without a return (objects nearer than the camera's minimum range among them) cleared the classes along
+    the camera's range. Otherwise identical to ``SemReloc-v8``. Kept so that results made with v7 can be
+    reproduced; new work should use ``SemReloc-v8``."""
+
+    mapping_run_version = "2"
+
+
+class SemRelocEnvV6(SemRelocEnvV7):
+    """``SemReloc-v6``: `SemRelocEnvV7` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
     coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
     identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
-    ``SemReloc-v7``."""
+    ``SemReloc-v8``."""
 
     default_relocalizer = RELOCALIZER_V6
 
@@ -520,7 +546,7 @@ class SemRelocEnvV6(SemRelocEnv):
 class SemRelocEnvV5(SemRelocEnvV6):
     """``SemReloc-v5``: `SemRelocEnv` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
-    results made with v5 can be reproduced; new work should use ``SemReloc-v7``."""
+    results made with v5 can be reproduced; new work should use ``SemReloc-v8``."""
 
     default_relocalizer = RELOCALIZER_V5
 
@@ -528,7 +554,7 @@ class SemRelocEnvV5(SemRelocEnvV6):
 class SemRelocEnvV4(SemRelocEnvV5):
     """``SemReloc-v4``: `SemRelocEnvV5` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
     audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
-    reproduced; new work should use ``SemReloc-v7``."""
+    reproduced; new work should use ``SemReloc-v8``."""
 
     default_relocalizer = RELOCALIZER_V4
 
@@ -536,7 +562,7 @@ class SemRelocEnvV4(SemRelocEnvV5):
 class SemRelocEnvV3(SemRelocEnvV4):
     """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v7``."""
+    v3 can be reproduced; new work should use ``SemReloc-v8``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -544,7 +570,7 @@ class SemRelocEnvV3(SemRelocEnvV4):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v7``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v8``."""
 
     procedural_version = 1
 
@@ -553,7 +579,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v7``."""
+    v1 keep working; new work should use ``SemReloc-v8``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -561,6 +587,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v7``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v8``."""
 
     default_relocalizer = LEGACY_RELOCALIZER

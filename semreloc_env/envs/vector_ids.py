@@ -13,6 +13,12 @@ def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
     return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
 
 
+def semreloc_vec_v8(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v8``: ``num_envs`` ``SemReloc-v8`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v8"``)."""
+    return _loop("SemReloc-v8", num_envs, kwargs)
+
+
 def semreloc_vec_v7(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
     """``SemRelocVec-v7``: ``num_envs`` ``SemReloc-v7`` robots in one process
     (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v7"``)."""

@@ -7,8 +7,8 @@ layout) with ``--perfect``. Prints how well the mapped grids match the layout.
     python scripts/build_maps.py --layout lab --out maps/        # or: semreloc-build-maps --layout lab
     python scripts/build_maps.py --layout my_floor.yaml --seed 3 --out maps/
 
-Use the result with ``gym.make("SemReloc-v7", layout="lab", map_source="maps/lab.yaml")``
-(procedural layouts come from the newest generator, as ``SemReloc-v7``'s do).
+Use the result with ``gym.make("SemReloc-v8", layout="lab", map_source="maps/lab.yaml")``
+(procedural layouts come from the newest generator, as ``SemReloc-v8``'s do).
 """
 
 from __future__ import annotations
