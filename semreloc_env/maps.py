@@ -52,7 +52,16 @@ def map_key(
     version (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`; None: the newest)."""
     from .mapping_run import MAPPING_RUN_VERSION
 
-    text = repr((version or MAPPING_RUN_VERSION, _layout_text(layout), lidar, camera, float(resolution_m), CLASS_NAMES))
+    text = repr(
+        (
+            MAPPING_RUN_VERSION if version is None else version,
+            _layout_text(layout),
+            lidar,
+            camera,
+            float(resolution_m),
+            CLASS_NAMES,
+        )
+    )
     return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
 
 
@@ -115,7 +124,7 @@ def mapped(layout: Layout, lidar: LidarParams, camera: CameraParams, version: st
     ``version``: the mapping run's (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`; None: the newest)."""
     from .mapping_run import MAPPING_RUN_VERSION
 
-    version = version or MAPPING_RUN_VERSION
+    version = MAPPING_RUN_VERSION if version is None else version
     key = map_key(layout, lidar, camera, version=version)
     grid = _memory.get(key)
     if grid is not None:

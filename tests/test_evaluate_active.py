@@ -480,16 +480,12 @@ def test_a_package_policys_fingerprint_covers_what_it_imports_and_the_packages_o
     assert names["b=mypkg.sub.pol:Q"] == [
         "mypkg/__init__.py", "mypkg/helper.py", "mypkg/rel.py", "mypkg/sub/__init__.py", "mypkg/sub/pol.py"
     ]  # fmt: skip
-    ev.policy_code.cache_clear()
-    before = ev.policy_code("b=mypkg.sub.pol:Q")
-    # two files of the same name in different folders: swapping their contents is a change of code
+    # the fingerprint keys each file by its path in the tree, so same-named files in two folders count apart
     (pkg / "sub" / "helper.py").write_text("X = 1\n")
     (pkg / "sub" / "pol.py").write_text(
         "from ..helper import X\nfrom . import helper\nfrom agents.policies import Policy as Q\n"
     )
-    ev.policy_code.cache_clear()
-    swapped = ev.policy_code("b=mypkg.sub.pol:Q")
-    (pkg / "helper.py").write_text("X = 1\n")
-    (pkg / "sub" / "helper.py").write_text("X = 0\n")
-    ev.policy_code.cache_clear()
-    assert len({before, swapped, ev.policy_code("b=mypkg.sub.pol:Q")}) == 3
+    module = ev._user_module(ev._user_target("b=mypkg.sub.pol:Q")["source"])
+    assert [key for key, _ in ev._keyed(ev._local_files(module))] == [
+        "__init__.py", "helper.py", "rel.py", "sub/__init__.py", "sub/helper.py", "sub/pol.py"
+    ]  # fmt: skip

@@ -348,6 +348,18 @@ def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
         venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
         assert venv.envs[0].unwrapped.mapping_run_version == version
         venv.close()
+    # each version's env gets its mapping run's map, also for a layout set later; v7's keeps the key it had
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.maps import map_key, mapped
+
+    sensors = (LidarParams(), CameraParams())
+    assert map_key(get_layout("lab"), *sensors, version="2") == "0dc7b7f6ab70a8810d1b227a455888b5"
+    for env_id, version in (("SemReloc-v8", "3"), ("SemReloc-v7", "2")):
+        env = make(env_id, layout="twin_rooms").unwrapped
+        assert env.grid is mapped(get_layout("twin_rooms"), *sensors, version)
+        env.set_layout("three_rooms")
+        assert env.grid is mapped(get_layout("three_rooms"), *sensors, version)
+    assert mapped(get_layout("twin_rooms"), *sensors, "2") is not mapped(get_layout("twin_rooms"), *sensors, "3")
     a, b = rollout(make("SemReloc-v8", **FAST)), rollout(make("SemReloc-v7", **FAST))
     for (o1, r1, t1, u1, i1), (o2, r2, t2, u2, i2) in zip(a, b):
         for k in o1:

@@ -264,10 +264,10 @@ class Args:
 
 ENV_ID = "SemReloc-v8"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
-generator, as v3's to v7's do.
+generator, as v3's to v8's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
-draws again; v4 to v7 change the relocalizer, so every episode.)"""
+draws again; v4 to v7 change the relocalizer and v8 the maps, so every episode.)"""
 
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
@@ -618,6 +618,13 @@ def _local_files(module: types.ModuleType) -> list[Path]:
     return sorted(seen)
 
 
+def _keyed(files: list[Path]) -> list[tuple[str, Path]]:
+    """``(key, file)`` for the fingerprint: each file keyed by its path below the files' common folder (not its
+    bare name, so that two ``helper.py`` in different folders, or a file moved within the tree, count apart)."""
+    common = Path(os.path.commonpath([f.parent for f in files])) if files else Path()
+    return [(f.relative_to(common).as_posix(), f) for f in files]
+
+
 def _files_loaded(base: Path, parts: list[str]) -> list[Path]:
     """The existing files below ``base`` that importing the dotted name ``parts`` runs: the module's file
     (or its package's ``__init__.py``) and the ``__init__.py`` of each package the name passes through."""
@@ -734,10 +741,8 @@ def policy_code(spec: str) -> str:
         h.update(mod.encode() + b"\0" + Path(importlib.import_module(mod).__file__).read_bytes())
     user = _user_target(spec)
     if user is not None:  # the user's module and the modules it imports from its own folder
-        files = _local_files(_user_module(user["source"]))
-        common = Path(os.path.commonpath([f.parent for f in files])) if files else Path()
-        for f in files:  # keyed by the path within the policy's folder tree: a file moved there counts
-            h.update(f.relative_to(common).as_posix().encode() + b"\0" + f.read_bytes())
+        for key, f in _keyed(_local_files(_user_module(user["source"]))):
+            h.update(key.encode() + b"\0" + f.read_bytes())
     elif "=" in spec:
         h.update(Path(spec.partition("=")[2]).read_bytes())
     return h.hexdigest()[:16]

@@ -375,7 +375,7 @@ def read_carmen(
                         spath,
                         lineno,
                         f"{e.problem} (the log's last line, without a newline at its end: cut off when the "
-                        "recorder stopped? Delete that line to read the rest)",
+                        "recorder stopped, or malformed? Delete or fix that line to read the rest)",
                     ) from None
     except (EOFError, OSError, gzip.BadGzipFile) as e:  # truncated or corrupt .gz, unreadable file
         raise CarmenLogError(spath, 0, f"cannot read the log: {type(e).__name__}: {e}") from None

@@ -220,7 +220,7 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
-    * v8: the map of ``map_source="mapping"`` (the default) comes from the mapping run's version 3
+    * v8: the map of ``map_source="mapping"`` (the default) or of another layout comes from the mapping run's version 3
       (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`): camera beams without a return no longer lower
       every class along the camera's range. The camera reads an object nearer than its 0.5 m minimum
       range as no return, so where the mapping drive passed that close to an object its beams had
@@ -544,7 +544,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
 
 
 class SemRelocEnvV5(SemRelocEnvV6):
-    """``SemReloc-v5``: `SemRelocEnv` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
+    """``SemReloc-v5``: `SemRelocEnvV6` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
     results made with v5 can be reproduced; new work should use ``SemReloc-v8``."""
 
