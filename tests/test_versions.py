@@ -394,3 +394,15 @@ def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
     assert min(new) > 0.8 * max(new)  # v8's maps both, about alike
     with pytest.raises(ValueError, match="mapping run version must be one of"):
         build_maps(halls, version="9")
+
+
+def test_build_maps_command_offers_every_mapping_run_version(tmp_path, capsys):
+    import typing
+
+    from semreloc_env.mapping_run import MAPPING_RUN_VERSIONS
+    from semreloc_env.tools import build_maps as cli
+
+    assert typing.get_args(typing.get_type_hints(cli.Args)["mapping_version"]) == MAPPING_RUN_VERSIONS
+    assert cli.Args().mapping_version == MAPPING_RUN_VERSIONS[-1]
+    assert cli.main(["--layout", "twin_rooms", "--mapping-version", "2", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "twin_rooms.yaml").is_file()

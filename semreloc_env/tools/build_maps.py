@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -41,6 +42,9 @@ class Args:
     """also save the rasterised layout"""
     out: str = "maps"
     """output folder"""
+    mapping_version: Literal["2", "3"] = "3"
+    """the mapping run's version (semreloc_env.mapping_run.MAPPING_RUN_VERSIONS): 3 as SemReloc-v8, 2 as v7 and
+    older (its camera beams without a return cleared the classes along their range)"""
 
     def __post_init__(self) -> None:
         if not self.resolution > 0:
@@ -54,7 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    grid = build_maps(layout, rng=np.random.default_rng(args.seed), resolution_m=args.resolution)
+    grid = build_maps(
+        layout, rng=np.random.default_rng(args.seed), resolution_m=args.resolution, version=args.mapping_version
+    )
     name = layout.name if not layout.name.startswith("procedural") else f"{layout.name}_{args.layout_seed}"
     path = save_map(grid, out / f"{name}.yaml")
     truth = rasterize(layout, args.resolution)
