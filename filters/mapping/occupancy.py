@@ -287,6 +287,15 @@ def beam_cells(
 class _RasterMapper:
     """Raster bookkeeping and beam geometry shared by both mappers."""
 
+    @staticmethod
+    def _drop_no_return(beams: tuple, *per_beam: np.ndarray) -> tuple | None:
+        """``beams`` (as `_beams` gives them) followed by the ``per_beam`` arrays, all without the sensor's
+        no-return beams (``clear_no_return=False``: such a beam updates nothing); None if no beam is left."""
+        keep = ~beams[6]
+        if not keep.any():
+            return None
+        return tuple(a[keep] for a in (*beams, *per_beam))
+
     def __init__(self, shape: tuple[int, int], resolution_m: float, origin_xy_m=(0.0, 0.0)) -> None:
         shape = tuple(int(s) for s in shape)
         if len(shape) != 2 or min(shape) <= 0:
@@ -458,12 +467,12 @@ class OccupancyMapper(_RasterMapper):
     def _integrate(self, beams) -> None:
         if beams is None:
             return
-        u0, v0, du, dv, t_end, returned, no_return = beams
         p = self.params
-        if not p.clear_no_return:  # drop the sensor's no-return beams; returns beyond max_range_m still clear
-            u0, v0, du, dv, t_end, returned = (a[~no_return] for a in beams[:6])
-            if t_end.size == 0:
+        if not p.clear_no_return:  # returns beyond max_range_m still clear
+            beams = self._drop_no_return(beams)
+            if beams is None:
                 return
+        u0, v0, du, dv, t_end, returned, _ = beams
         _occupancy_kernel(self._L, u0, v0, du, dv, t_end, returned, p.l_free, p.l_occ, p.l_min, p.l_max,
                           *_buffers(float(t_end.max())))  # fmt: skip
 
@@ -566,12 +575,13 @@ class SemanticMapper(_RasterMapper):
             self._integrate(beams, lab.astype(np.int64).ravel())
 
     def _integrate(self, beams, labels: np.ndarray) -> None:
-        u0, v0, du, dv, t_end, returned, no_return = beams
         p = self.params
-        if not p.clear_no_return:  # as OccupancyMapper: the sensor's no-return beams update nothing
-            u0, v0, du, dv, t_end, returned, labels = (a[~no_return] for a in (*beams[:6], labels))
-            if t_end.size == 0:
+        if not p.clear_no_return:
+            kept = self._drop_no_return(beams, labels)
+            if kept is None:
                 return
+            beams, labels = kept[:-1], kept[-1]
+        u0, v0, du, dv, t_end, returned, _ = beams
         end_label = np.where(returned, labels, -1).astype(np.int64)
         free_delta = np.where(labels > 0, p.l_free_inside, p.l_free_outside).astype(np.float64)
         _semantic_kernel(self._L, u0, v0, du, dv, t_end, end_label, free_delta, p.l_hit, p.l_other_hit,
