@@ -5,7 +5,7 @@ Importing the package registers the environments::
     import gymnasium as gym
     import semreloc_env  # noqa: F401
 
-    env = gym.make("SemReloc-v8", layout="twin_rooms")
+    env = gym.make("SemReloc-v9", layout="twin_rooms")
 """
 
 from gymnasium.envs.registration import WrapperSpec, register, registry
@@ -26,6 +26,7 @@ __all__ = [
 ]
 
 ENV_IDS = (
+    "SemReloc-v9",
     "SemReloc-v8",
     "SemReloc-v7",
     "SemReloc-v6",
@@ -43,6 +44,7 @@ running old policies (each env's Version History says what changed): ``SemReloc-
 the flat observation, ``SemReloc-v0`` also the first release's relocalizer."""
 
 VECTOR_ENV_IDS = (
+    "SemRelocVec-v9",
     "SemRelocVec-v8",
     "SemRelocVec-v7",
     "SemRelocVec-v6",
@@ -52,14 +54,15 @@ VECTOR_ENV_IDS = (
     "SemRelocVec-v2",
     "SemRelocVec-v1",
 )
-"""Ids for ``gym.make_vec``: R robots of ``SemReloc-v8`` / ``-v7`` / ``-v6`` / ``-v5`` / ``-v4`` / ``-v3`` / ``-v2`` /
-``-v1`` in one process."""
+"""Ids for ``gym.make_vec``: R robots of ``SemReloc-v9`` / ``-v8`` / ``-v7`` / ``-v6`` / ``-v5`` / ``-v4`` / ``-v3`` /
+``-v2`` / ``-v1`` in one process."""
 
 # outermost: reset arguments are checked before TimeLimit zeroes its counter (wrappers.CheckedReset)
 _CHECKED_RESET = (WrapperSpec("CheckedReset", "semreloc_env.wrappers:CheckedReset", {}),)
 
 _SINGLE = {
-    "SemReloc-v8": "semreloc_env.envs.semreloc:SemRelocEnv",
+    "SemReloc-v9": "semreloc_env.envs.semreloc:SemRelocEnv",
+    "SemReloc-v8": "semreloc_env.envs.semreloc:SemRelocEnvV8",
     "SemReloc-v7": "semreloc_env.envs.semreloc:SemRelocEnvV7",
     "SemReloc-v6": "semreloc_env.envs.semreloc:SemRelocEnvV6",
     "SemReloc-v5": "semreloc_env.envs.semreloc:SemRelocEnvV5",
@@ -75,18 +78,25 @@ for _id, _entry in _SINGLE.items():
     if _id not in registry:
         register(id=_id, entry_point=_entry, max_episode_steps=400, additional_wrappers=_CHECKED_RESET)
 
-# R robots in one process (a loop over SemReloc envs): gym.make_vec("SemRelocVec-v8", num_envs=R).
-# Separate ids because make_vec refuses a vector entry point on a spec with additional wrappers.
+# R robots in one process (a loop over SemReloc envs): gym.make_vec("SemRelocVec-v9", num_envs=R).
+# Separate ids because make_vec refuses a vector entry point on a spec with additional wrappers; their
+# single-env entry point refuses (a single env from them would lack CheckedReset): use SemReloc-* for that.
 _VECTOR = {
-    "SemRelocVec-v8": ("semreloc_env.envs.semreloc:SemRelocEnv", "semreloc_env.envs.vector_ids:semreloc_vec_v8"),
-    "SemRelocVec-v7": ("semreloc_env.envs.semreloc:SemRelocEnvV7", "semreloc_env.envs.vector_ids:semreloc_vec_v7"),
-    "SemRelocVec-v6": ("semreloc_env.envs.semreloc:SemRelocEnvV6", "semreloc_env.envs.vector_ids:semreloc_vec_v6"),
-    "SemRelocVec-v5": ("semreloc_env.envs.semreloc:SemRelocEnvV5", "semreloc_env.envs.vector_ids:semreloc_vec_v5"),
-    "SemRelocVec-v4": ("semreloc_env.envs.semreloc:SemRelocEnvV4", "semreloc_env.envs.vector_ids:semreloc_vec_v4"),
-    "SemRelocVec-v3": ("semreloc_env.envs.semreloc:SemRelocEnvV3", "semreloc_env.envs.vector_ids:semreloc_vec_v3"),
-    "SemRelocVec-v2": ("semreloc_env.envs.semreloc:SemRelocEnvV2", "semreloc_env.envs.vector_ids:semreloc_vec_v2"),
-    "SemRelocVec-v1": ("semreloc_env.envs.semreloc:SemRelocEnvV1", "semreloc_env.envs.vector_ids:semreloc_vec_v1"),
+    "SemRelocVec-v9": "semreloc_env.envs.vector_ids:semreloc_vec_v9",
+    "SemRelocVec-v8": "semreloc_env.envs.vector_ids:semreloc_vec_v8",
+    "SemRelocVec-v7": "semreloc_env.envs.vector_ids:semreloc_vec_v7",
+    "SemRelocVec-v6": "semreloc_env.envs.vector_ids:semreloc_vec_v6",
+    "SemRelocVec-v5": "semreloc_env.envs.vector_ids:semreloc_vec_v5",
+    "SemRelocVec-v4": "semreloc_env.envs.vector_ids:semreloc_vec_v4",
+    "SemRelocVec-v3": "semreloc_env.envs.vector_ids:semreloc_vec_v3",
+    "SemRelocVec-v2": "semreloc_env.envs.vector_ids:semreloc_vec_v2",
+    "SemRelocVec-v1": "semreloc_env.envs.vector_ids:semreloc_vec_v1",
 }
-for _id, (_entry, _vector_entry) in _VECTOR.items():
+for _id, _vector_entry in _VECTOR.items():
     if _id not in registry:
-        register(id=_id, entry_point=_entry, vector_entry_point=_vector_entry, max_episode_steps=400)
+        register(
+            id=_id,
+            entry_point="semreloc_env.envs.vector_ids:single_env_refused",
+            vector_entry_point=_vector_entry,
+            max_episode_steps=400,
+        )

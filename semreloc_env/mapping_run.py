@@ -38,7 +38,7 @@ MAPPING_RUN_VERSIONS = ("2", "3")
   return, so where the drive passes that close to an object its beams cleared the object and the
   space behind it: a cabinet against a wall could lose all its class cells, or some of them, as its
   twin elsewhere kept them, and the relocalizer then preferred the twin's place.
-* ``"3"`` (``SemReloc-v8``): the camera's no-return beams update nothing (as the lidar's already did).
+* ``"3"`` (``SemReloc-v8`` and ``-v9``): the camera's no-return beams update nothing (as the lidar's already did).
 """
 MAPPING_RUN_VERSION = MAPPING_RUN_VERSIONS[-1]
 """The newest mapping run. Add a version when its output changes for the same inputs."""

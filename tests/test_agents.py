@@ -150,7 +150,7 @@ def _preprocessed(space, raw: dict) -> dict:
     return preprocess_obs({k: torch.as_tensor(v) for k, v in raw.items()}, space, normalize_images=False)
 
 
-@pytest.mark.parametrize("env_id", ["SemReloc-v8", "SemReloc-v1"])
+@pytest.mark.parametrize("env_id", ["SemReloc-v9", "SemReloc-v1"])
 def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
     space = make_env(FAST, env_id=env_id).observation_space
     torch.manual_seed(0)
@@ -280,7 +280,7 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
 
 
 def test_train_ppo_evaluates_on_its_env_id_and_refuses_a_missing_model(tmp_path, monkeypatch):
-    # a new user's trial: --config.env-id SemReloc-v1 trained, then evaluated on SemReloc-v8 and failed;
+    # a new user's trial: --config.env-id SemReloc-v1 trained, then evaluated on SemReloc-v9 and failed;
     # --load of a missing file gave stable-baselines3's traceback
     import stable_baselines3
 

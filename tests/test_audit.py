@@ -9,6 +9,7 @@ import filters.localization.audit as audit_module
 from filters.localization.audit import Alternative, best_alternative, outside, shaped_like, window_log_likelihood
 from filters.localization.likelihood_field import LikelihoodFieldModel
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
+from filters.mapping.grid import GridMap
 from filters.pose import compose, relative
 from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
 from tests.test_mcl import CAMERA_ANGLES, LIDAR_ANGLES, mirror, symmetric_room
@@ -45,12 +46,24 @@ def test_outside_is_distance_or_heading():
     assert outside(poses, mean, 1.0, 0.5).tolist() == [False, True, False, True]  # heading wraps at pi
 
 
-def _converged_at_the_image(audit_window: int, seed: int = 0, updates: int = 3):
-    """Lidar-only filter in the half-turn symmetric room, its particles tight around the image of the
-    true pose (which fits the scans as well): one update after a short drive."""
-    grid = symmetric_room()
+def padded(grid: GridMap, cells: int = 20) -> GridMap:
+    """``grid`` with ``cells`` free cells added on every side (same world coordinates): beams that end
+    just past its outer walls then fall on the map, as in a mapping run's maps, not off it."""
+    occ = np.pad(grid.occupancy, cells)
+    sem = np.pad(grid.semantic, ((0, 0), (cells, cells), (cells, cells)))
+    r = grid.resolution_m
+    return GridMap(occ, r, (grid.origin_xy_m[0] - cells * r, grid.origin_xy_m[1] - cells * r), sem, grid.class_names)
+
+
+def _converged_at_the_image(audit_window: int, seed: int = 0, updates: int = 3, pad: bool = False, **overrides):
+    """Lidar-only filter in the half-turn symmetric room (``pad``: with a free margin round it), its
+    particles tight around the image of the true pose (which fits the scans as well): one update after a
+    short drive."""
+    grid = padded(symmetric_room()) if pad else symmetric_room()
     pose = np.array([3.0, 2.5, 0.3])
-    cfg = MCLConfig(n_particles=300, use_semantic=False, audit_window=audit_window, audit_candidates=20000)
+    cfg = MCLConfig(
+        n_particles=300, use_semantic=False, audit_window=audit_window, **{"audit_candidates": 20000, **overrides}
+    )
     mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(seed))
     mcl.init_around(mirror(pose), (0.03, 0.03, 0.01))
     mcl._audit_on = True  # as after an init_global whose belief collapsed onto the image
@@ -82,6 +95,60 @@ def test_audit_finds_the_look_alike_place_the_belief_missed():
     assert min(np.hypot(*(means[:, :2] - pose[:2]).T)) < 0.3  # the true place is one of them
     assert all(h.weight > 0.1 for h in b.hypotheses)
     assert on.weights.sum() == pytest.approx(1.0) and np.all(np.isfinite(on.poses))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_screen_finds_the_place_no_candidate_lies_near(seed):
+    """With 3 scan-proposal candidates and every particle at the image, nothing seeds the audit near the
+    true place: without the screen it finds nothing within the margin and the belief stays converged at
+    the wrong place; with it (``audit_screen``, SemReloc-v9) the true place is found and added."""
+    _, pose, d_plain = _converged_at_the_image(20, seed=seed, updates=1, pad=True, audit_candidates=3)
+    assert d_plain[0].n_audit_injected == 0
+
+    on, pose, d_on = _converged_at_the_image(20, seed=seed, updates=1, pad=True, audit_candidates=3, audit_screen=True)
+    assert d_on[0].n_audit_injected == on.config.cluster_min_particles and abs(d_on[0].audit_log_ratio) < 1.0
+    means = np.array([h.mean for h in on.belief().hypotheses])
+    assert not on.belief().converged and min(np.hypot(*(means[:, :2] - pose[:2]).T)) < 0.3
+
+
+def test_screened_places_refines_the_grid_to_the_look_alike():
+    """Straight from `screened_places`: one of its places is the true pose to within 5 cm and 0.03 rad,
+    refined on the filter's own fields, and none lies inside the hypothesis."""
+    mcl, pose, _ = _converged_at_the_image(20, seed=0, updates=3, pad=True, audit_candidates=3)
+    hyp = mcl.belief().hypotheses[0].mean
+    got = audit_module.screened_places(
+        mcl.measurement_model, mcl._window, mcl.config.likelihood_scale, hyp, np.random.default_rng(0), 0.5, 0.35
+    )
+    assert 0 < got.shape[0] <= audit_module.SCREEN_PLACES and outside(got, hyp, 0.5, 0.35).all()
+    d = np.hypot(got[:, 0] - pose[0], got[:, 1] - pose[1]) + np.abs(np.angle(np.exp(1j * (got[:, 2] - pose[2]))))
+    assert d.min() < 0.08
+
+
+def test_pose_grid_covers_clear_free_space_once_per_map():
+    mcl, _, _ = _converged_at_the_image(0, updates=1)
+    model = mcl.measurement_model
+    g = audit_module.pose_grid(model)
+    assert g is audit_module.pose_grid(model) and not g.flags.writeable
+    assert len(np.unique(g[:, 2])) == audit_module.SCREEN_HEADINGS
+    row, col = model.grid.world_to_cell(g[:, :2])
+    assert model.grid.free_mask()[row, col].all()
+    assert (model.distance_fields_m[0][row, col] >= audit_module.SCREEN_CLEARANCE_M).all()
+    # spaced as asked: neighbouring grid points SCREEN_SPACING_M apart (to the map's resolution)
+    xs = np.unique(g[:, 0])
+    assert np.diff(xs).min() == pytest.approx(audit_module.SCREEN_SPACING_M, abs=model.grid.resolution_m)
+
+
+def test_thinned_window_follows_the_same_path():
+    """A thinned window's entries are evaluated at the same poses as in the whole window."""
+    path = np.array([[1.0, 2.0, 0.3], [1.5, 2.2, 0.9], [1.6, 2.9, -2.8], [2.0, 3.1, -2.5], [2.4, 3.0, -1.0]])
+    deltas = [np.zeros(3)] + [relative(a, b) for a, b in zip(path[:-1], path[1:])]
+    window = [(float(p[0]) + 0.25, None, d, None) for p, d in zip(path, deltas)]
+    thin = audit_module._thinned(window, 3)
+    assert [w[0] for w in thin] == [window[i][0] for i in (0, 2, 4)]
+    model = _Recorder()
+    window_log_likelihood(model, path[-1][None], thin, 1.0)
+    np.testing.assert_allclose([c[0][0] for c in model.calls], path[[4, 2, 0]], atol=1e-12)
+    assert audit_module._thinned(window, 5) is window
 
 
 def test_added_hypothesis_weighs_the_ratio_times_the_hypothesis_at_most_as_much():
@@ -182,6 +249,7 @@ def test_best_alternative_with_nothing_outside_is_none():
         {"audit_margin": float("nan")},
         {"audit_margin": float("inf")},
         {"audit_candidates": 0},
+        {"audit_screen": 1},
     ],
 )
 def test_bad_audit_options_are_rejected(bad):

@@ -1,10 +1,10 @@
-"""The registered ids behave as their Version History says: SemReloc-v8 (v7 with the maps of the mapping run's
-version 3), SemReloc-v7 (v6's relocalizer whose convergence audit
-searches more places and comes before "converged"), SemReloc-v6 (v5's relocalizer whose belief holds a
-convergence), SemReloc-v5 (v4's relocalizer with the convergence audit), SemReloc-v4 (v3's relocalizer with
-evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that break their half turn),
-SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out) against SemReloc-v1 /
-SemSlam-v0 (flat observation, None)."""
+"""The registered ids behave as their Version History says: SemReloc-v9 (v8 whose convergence audit also
+screens the whole map), SemReloc-v8 (v7 with the maps of the mapping run's version 3), SemReloc-v7 (v6's
+relocalizer whose convergence audit searches more places and comes before "converged"), SemReloc-v6 (v5's
+relocalizer whose belief holds a convergence), SemReloc-v5 (v4's relocalizer with the convergence audit),
+SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts
+that break their half turn), SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out)
+against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
 
 import warnings
 
@@ -40,6 +40,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v9",
         "SemReloc-v8",
         "SemReloc-v7",
         "SemReloc-v6",
@@ -57,6 +58,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v9", typed),
         ("SemReloc-v8", typed),
         ("SemReloc-v7", typed),
         ("SemReloc-v6", typed),
@@ -406,3 +408,17 @@ def test_build_maps_command_offers_every_mapping_run_version(tmp_path, capsys):
     assert cli.Args().mapping_version == MAPPING_RUN_VERSIONS[-1]
     assert cli.main(["--layout", "twin_rooms", "--mapping-version", "2", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "twin_rooms.yaml").is_file()
+
+
+def test_v9_is_v8_whose_audit_screens_the_whole_map():
+    """v9's relocalizer is v8's with ``audit_screen``; with it off, v9 gives v8's episode bit for bit; on,
+    the same episode up to the first audit. The maps are v8's."""
+    v9, v8 = make("SemReloc-v9", **FAST).unwrapped, make("SemReloc-v8", **FAST).unwrapped
+    assert (v9.mcl_config.audit_screen, v8.mcl_config.audit_screen) == (True, False)
+    assert v9.mcl_config == v8.mcl_config.__class__(**{**v8.mcl_config.as_dict(), "audit_screen": True})
+    assert v9.mapping_run_version == v8.mapping_run_version == "3"
+    for vec_id, screen in (("SemRelocVec-v9", True), ("SemRelocVec-v8", False)):
+        venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+        assert venv.envs[0].unwrapped.mcl_config.audit_screen is screen
+        venv.close()
+    _same_until_the_first_audit("SemReloc-v9", "SemReloc-v8", {"audit_screen": False})

@@ -102,11 +102,12 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: Literal["SemReloc-v8", "SemReloc-v7", "SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"] = (
-        "SemReloc-v8"
-    )
-    """the env the episodes run in: SemReloc-v8 (the newest), SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or
-    SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the maps of the mapping
+    env_id: Literal[
+        "SemReloc-v9", "SemReloc-v8", "SemReloc-v7", "SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"
+    ] = "SemReloc-v9"
+    """the env the episodes run in: SemReloc-v9 (the newest), SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5,
+    SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the
+    relocalizer's audit without its screen of the whole map (v8 and older), the maps of the mapping
     run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search only (v6), also
     without the hold of a convergence (v5), without the convergence audit (v4) and without negative
     evidence (v3))"""
@@ -262,7 +263,7 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v8"
+ENV_ID = "SemReloc-v9"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
 generator, as v3's to v8's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3

@@ -257,6 +257,10 @@ class MCLConfig:
             many different places on each side on their own (`filters.localization.audit._local_search`),
             so that a look-alike place whose candidates were rough guesses is not dropped for the near
             misses of another; 0 (before ``SemReloc-v7``): the coarse-to-fine search only.
+        audit_screen: the audit also screens the whole map for alternatives
+            (`filters.localization.audit.screened_places`: a pose grid scored with blurred fields, the
+            best places refined), so a look-alike place no candidate or particle lies near is still
+            found; needs the model to be a `LikelihoodFieldModel`. False before ``SemReloc-v9``.
         audited_convergence: with the audit on, the belief is called converged only after an update
             that audited it (or kept a convergence an update audited): a set that comes to meet the
             criterion between updates (a prediction moving particles from one cluster to another)
@@ -319,6 +323,7 @@ class MCLConfig:
     audit_candidates_per_m2: float = 0.0
     audited_convergence: bool = False
     audit_places: int = 0
+    audit_screen: bool = False
     surprise_ratio: float = 0.0
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
@@ -399,7 +404,9 @@ class MCLConfig:
             raise ValueError(f"MCLConfig.resample_mode must be 'global' or 'clustered', got {self.resample_mode!r}")
         if self.injection not in ("uniform", "scan"):
             raise ValueError(f"MCLConfig.injection must be 'uniform' or 'scan', got {self.injection!r}")
-        for name in ("use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence"):
+        for name in (
+            "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
+        ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
@@ -526,6 +533,11 @@ class MonteCarloLocalizer:
             if measurement_model is not None
             else LikelihoodFieldModel(grid, c.lidar_field, c.semantic_field, c.backend, c.negative_evidence)
         )
+        if c.audit_screen and not isinstance(self.measurement_model, LikelihoodFieldModel):
+            raise TypeError(
+                "MCLConfig.audit_screen needs a LikelihoodFieldModel as the measurement model (it screens the "
+                f"map with blurred copies of its fields), got {type(self.measurement_model).__name__}"
+            )
         self._resample = get_resampler(c.resampler)
         self._belief_backend = "numba" if c.fast_path else "numpy"
         self._lse = fast_logsumexp if c.fast_path else logsumexp  # the same bits (filters.smc.logsumexp)
@@ -1031,9 +1043,14 @@ class MonteCarloLocalizer:
             self._proposal = ScanProposal(self.grid, self.sample_free)
         cand = self._proposal.candidates(self.audit_candidate_count(), semantic, c.proposal_semantic_frac, self.rng)
         ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
+        extra = None
+        if c.audit_screen:
+            extra = audit.screened_places(
+                self.measurement_model, self._window, c.likelihood_scale, hyp.mean, self.rng, *outside_args
+            )
         alt = audit.best_alternative(
             self.measurement_model, self._window, c.likelihood_scale, self._poses, self._logw, hyp.mean,
-            cand, np.asarray(ll_l) + np.asarray(ll_s), self.rng, *outside_args, places=c.audit_places,
+            cand, np.asarray(ll_l) + np.asarray(ll_s), self.rng, *outside_args, places=c.audit_places, extra=extra,
         )  # fmt: skip
         if alt is None or alt.log_ratio < -c.audit_margin:
             self._cleared = (hyp.mean, self.n_updates)

@@ -9,9 +9,9 @@ one env (see ``docs/performance.md``). What it gives today is the Gymnasium vect
 next-step autoreset, per-robot results equal bit for bit to R separate envs seeded
 ``seed + i``, and no subprocesses.
 
-Create it with ``gym.make_vec("SemRelocVec-v8", num_envs=R, vectorization_mode="vector_entry_point")``
+Create it with ``gym.make_vec("SemRelocVec-v9", num_envs=R, vectorization_mode="vector_entry_point")``
 (or another ``SemRelocVec-*`` id, each running its ``SemReloc-*``) or directly (``env_id`` defaults to
-the newest, ``"SemReloc-v8"``); `agents.vec_env.SB3VecEnvAdapter` turns it into a stable-baselines3
+the newest, ``"SemReloc-v9"``); `agents.vec_env.SB3VecEnvAdapter` turns it into a stable-baselines3
 ``VecEnv``.
 
 Autoreset follows Gymnasium's ``NEXT_STEP`` mode: a robot whose episode ended
@@ -22,6 +22,7 @@ ignores that robot's action and returns its reset observation with reward 0,
 
 from __future__ import annotations
 
+import dataclasses
 from copy import deepcopy
 from typing import Any
 
@@ -34,7 +35,7 @@ from filters.numbers import is_int
 
 from .spaces import decode_action
 
-SINGLE_ENV_ID = "SemReloc-v8"
+SINGLE_ENV_ID = "SemReloc-v9"
 
 
 def _float_array_hint(actions, space) -> str:
@@ -52,7 +53,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
 
     Args:
         num_envs: number of robots R (>= 1).
-        env_id: the single-robot env each robot runs (default ``"SemReloc-v8"``, the newest; any
+        env_id: the single-robot env each robot runs (default ``"SemReloc-v9"``, the newest; any
             ``SemReloc-*`` id), made with ``gym.make`` so it carries the same wrappers (``CheckedReset``,
             ``TimeLimit``). (Before this default was the newest it was ``"SemReloc-v1"``.)
         max_episode_steps: time limit per robot (default: the single env's registration).
@@ -89,9 +90,22 @@ class SemRelocLoopVectorEnv(VectorEnv):
         self.single_action_space = self.envs[0].action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.spec = None
+        self._spec = None
         self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
         self._done = np.zeros(self.num_envs, dtype=np.bool_)
+
+    @property
+    def spec(self):
+        """The spec ``gym.make_vec`` gave (None if built directly), its ``max_episode_steps`` the limit each
+        robot runs with: make_vec copies the registration's into the spec, not the one passed to it."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, value) -> None:
+        limit = self.envs[0].spec.max_episode_steps if self.envs[0].spec is not None else None
+        if value is not None and limit is not None and value.max_episode_steps != limit:
+            value = dataclasses.replace(value, max_episode_steps=limit)
+        self._spec = value
 
     # ------------------------------------------------------------------ checks
     def check_actions(self, actions, skip_done: bool = False) -> list:

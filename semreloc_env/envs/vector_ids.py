@@ -5,12 +5,37 @@ from __future__ import annotations
 from .batched import SemRelocLoopVectorEnv
 
 
+def single_env_refused(**kwargs):
+    """The ``entry_point`` of every ``SemRelocVec-*`` id: those ids make R robots in one process, with
+    ``gym.make_vec(id, num_envs=R)``; a single env, or Gymnasium's own vector envs, come from the
+    ``SemReloc-*`` id, whose spec adds the reset check (`semreloc_env.wrappers.CheckedReset`) that a
+    vector id's spec cannot carry (``make_vec`` refuses a vector entry point on a spec with wrappers).
+
+    Raises:
+        gymnasium.error.Error: always, naming the ids to use instead.
+    """
+    from gymnasium.error import Error
+
+    raise Error(
+        "SemRelocVec-* ids make R robots in one process: gym.make_vec('SemRelocVec-vN', num_envs=R) "
+        "(vectorization_mode 'vector_entry_point', their default). For one env use gym.make('SemReloc-vN'); "
+        "for Gymnasium's sync or async vector envs gym.make_vec('SemReloc-vN', num_envs=R, "
+        "vectorization_mode='sync')"
+    )
+
+
 def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
     if "env_id" in kwargs:
         raise TypeError(
             f"{env_id.replace('-', 'Vec-')} runs {env_id}; for another single env use SemRelocLoopVectorEnv(env_id=...)"
         )
     return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
+
+
+def semreloc_vec_v9(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v9``: ``num_envs`` ``SemReloc-v9`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v9"``)."""
+    return _loop("SemReloc-v9", num_envs, kwargs)
 
 
 def semreloc_vec_v8(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
