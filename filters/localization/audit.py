@@ -232,6 +232,19 @@ def _refined_best(
     return best_poses[i].copy(), float(best_ll[i])
 
 
+def _distinct_places(poses: np.ndarray, ll: np.ndarray, places: int) -> list[int]:
+    """Indices of the best (by ``ll``, finite only) poses of up to ``places`` different places, best first: a
+    pose joins if it lies `PLACE_M` or `PLACE_RAD` from every pose already picked."""
+    picked: list[int] = []
+    for i in np.argsort(-np.where(np.isfinite(ll), ll, -np.inf), kind="stable"):
+        if len(picked) == places or not np.isfinite(ll[i]):
+            break
+        if picked and not outside(poses[picked], poses[i], PLACE_M, PLACE_RAD).all():
+            continue
+        picked.append(int(i))
+    return picked
+
+
 def _local_search(
     model, window: Window, scale: float, poses: np.ndarray, ll: np.ndarray, rng, keep, steps, places: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -240,14 +253,7 @@ def _local_search(
     `PLACE_RAD` apart, best first), each refined on its own by `LOCAL_STEPS` rounds of `LOCAL_DRAWS`
     perturbations (where ``keep`` is True), so that a place whose first pose was a rough guess is not
     dropped for the near misses of a better-guessed one."""
-    order = np.argsort(-np.where(np.isfinite(ll), ll, -np.inf), kind="stable")
-    picked: list[int] = []
-    for i in order:
-        if len(picked) == places or not np.isfinite(ll[i]):
-            break
-        if picked and not outside(poses[picked], poses[i], PLACE_M, PLACE_RAD).all():
-            continue
-        picked.append(int(i))
+    picked = _distinct_places(poses, ll, places)
     if not picked:
         return poses[picked].copy(), ll[picked].copy()
     return _hill_climb(model, window, scale, poses[picked], rng, keep, steps, LOCAL_STEPS, ll[picked])
@@ -281,14 +287,7 @@ def screened_places(
         return np.zeros((0, 3))
     blurred = screen_model(model)
     short = [(lid, sem, d, _positive(b, SCREEN_LIDAR_STRIDE)) for lid, sem, d, b in _thinned(window, SCREEN_ENTRIES)]
-    score = window_log_likelihood(blurred, grid_poses, short, scale)
-    picked: list[int] = []
-    for i in np.argsort(-score, kind="stable"):
-        if len(picked) == SCREEN_PLACES or not np.isfinite(score[i]):
-            break
-        if picked and not outside(grid_poses[picked], grid_poses[i], PLACE_M, PLACE_RAD).all():
-            continue
-        picked.append(int(i))
+    picked = _distinct_places(grid_poses, window_log_likelihood(blurred, grid_poses, short, scale), SCREEN_PLACES)
     if not picked:
         return np.zeros((0, 3))
 
