@@ -256,3 +256,13 @@ def test_yaml_anchors_and_merge_keys_still_load(tmp_path):
     layout = load_layout(tmp_path / "m.yaml")
     assert [o.cls for o in layout.objects] == ["chair", "chair"]
     assert layout.objects[1].centroid() == pytest.approx([5.0, 5.0])
+
+
+def test_every_layout_file_the_docs_ship_loads():
+    """The outside testers' layouts in docs/layouts are what the docs' commands evaluate: each must load."""
+    from pathlib import Path
+
+    files = sorted((Path(__file__).resolve().parents[1] / "docs" / "layouts").rglob("*.json"))
+    assert len(files) >= 20
+    for f in files:
+        assert get_layout(str(f)).objects, f
