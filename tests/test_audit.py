@@ -204,6 +204,35 @@ def test_audit_keeps_a_belief_nothing_else_explains():
     assert audited == [(5, False), (6, True), (7, False), (8, False), (9, False), (10, False)]
 
 
+@pytest.mark.parametrize("pause", [100, 0])
+def test_the_screen_pauses_after_it_found_nothing(pause, monkeypatch):
+    """Converged at a place nothing else explains: the first audit screens and clears it; the belief comes
+    back to "converged" there after the cleared window, and the next audits search without the screen
+    for ``audit_screen_pause`` updates (0: every audit screens)."""
+    calls = []
+    real = audit_module.screened_places
+    monkeypatch.setattr(audit_module, "screened_places", lambda *a, **k: calls.append(1) or real(*a, **k))
+    grid = padded(symmetric_room())
+    pose = np.array([2.2, 3.0, -1.2])
+    cfg = MCLConfig(n_particles=300, audit_window=3, audit_screen=True, audit_screen_pause=pause)
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(4))
+    mcl.init_around(pose, (0.03, 0.03, 0.01))
+    mcl._audit_on = True  # as after an init_global
+    rng = np.random.default_rng(5)
+    audited = []
+    for _ in range(12):
+        mcl._was_converged = False  # the belief drops out of "converged" and back (simulated)
+        new = compose(pose, np.array([0.12, 0.0, 0.0]))
+        mcl.predict(relative(pose, new))
+        pose = new
+        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
+        d = mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0))
+        audited.append(not math.isnan(d.audit_log_ratio))
+        assert d.n_audit_injected == 0
+    assert sum(audited) >= 3  # audited again each time the cleared window (3 updates) had passed
+    assert len(calls) == (1 if pause else sum(audited))
+
+
 def test_no_audit_after_init_around():
     """Tracking: the caller said where the robot is, so a look-alike place is no alternative; the audit
     runs only after init_global (and again after the next one)."""
@@ -250,6 +279,8 @@ def test_best_alternative_with_nothing_outside_is_none():
         {"audit_margin": float("inf")},
         {"audit_candidates": 0},
         {"audit_screen": 1},
+        {"audit_screen_pause": -1},
+        {"audit_screen_pause": 2.0},
     ],
 )
 def test_bad_audit_options_are_rejected(bad):

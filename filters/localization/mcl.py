@@ -261,6 +261,11 @@ class MCLConfig:
             (`filters.localization.audit.screened_places`: a pose grid scored with blurred fields, the
             best places refined), so a look-alike place no candidate or particle lies near is still
             found; needs the model to be a `LikelihoodFieldModel`. False before ``SemReloc-v9``.
+        audit_screen_pause: after an audit whose screen found no place within ``audit_margin``, the
+            audits of the next this-many updates search without it (the first audit after an init, a
+            surprise or an audit that added a place always screens): a belief that stays at a place the
+            screen cleared is audited again each time it comes back to "converged", and the screen would
+            find nothing new (0: every audit screens).
         audited_convergence: with the audit on, the belief is called converged only after an update
             that audited it (or kept a convergence an update audited): a set that comes to meet the
             criterion between updates (a prediction moving particles from one cluster to another)
@@ -324,6 +329,7 @@ class MCLConfig:
     audited_convergence: bool = False
     audit_places: int = 0
     audit_screen: bool = False
+    audit_screen_pause: int = 100
     surprise_ratio: float = 0.0
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
@@ -346,6 +352,10 @@ class MCLConfig:
             raise ValueError(f"MCLConfig.audit_window must be an int in [0, {MAX_AUDIT_WINDOW}], got {k!r}")
         object.__setattr__(self, "audit_window", int(k))
         names = ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates")
+        p = self.audit_screen_pause
+        if not (is_int(p) and p >= 0):
+            raise ValueError(f"MCLConfig.audit_screen_pause must be an int >= 0 (updates), got {p!r}")
+        object.__setattr__(self, "audit_screen_pause", int(p))
         if not (is_int(self.audit_places) and 0 <= self.audit_places <= MAX_AUDIT_PLACES):
             raise ValueError(
                 f"MCLConfig.audit_places must be an int in [0, {MAX_AUDIT_PLACES}], got {self.audit_places!r}"
@@ -563,6 +573,7 @@ class MonteCarloLocalizer:
         """The last ``audit_window`` updates' scans and odometry (`filters.localization.audit.Window`)."""
         self._was_converged = False
         self._cleared: tuple[np.ndarray, int] | None = None  # (mean, n_updates) of the last hypothesis an audit cleared
+        self._screen_cleared: int | None = None  # n_updates of the last audit whose screen found nothing
         self._audit_on = False  # the convergence audit runs after init_global only
         self.converged_updates = 0
         """Consecutive measurement updates, the latest included, after which the set met the
@@ -810,6 +821,7 @@ class MonteCarloLocalizer:
             )
             if surprise:
                 self._held, self._window, self._cleared, self._was_converged = None, [], None, False
+                self._screen_cleared = None
             if self._w_slow == 0.0:  # pf.c: the averages start at the first average
                 self._w_slow = self._w_fast = w_avg
             else:
@@ -1043,8 +1055,10 @@ class MonteCarloLocalizer:
             self._proposal = ScanProposal(self.grid, self.sample_free)
         cand = self._proposal.candidates(self.audit_candidate_count(), semantic, c.proposal_semantic_frac, self.rng)
         ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
+        last = self._screen_cleared
+        screen = c.audit_screen and (last is None or self.n_updates - last >= c.audit_screen_pause)
         extra = None
-        if c.audit_screen:
+        if screen:
             extra = audit.screened_places(
                 self.measurement_model, self._window, c.likelihood_scale, hyp.mean, self.rng, *outside_args
             )
@@ -1054,8 +1068,10 @@ class MonteCarloLocalizer:
         )  # fmt: skip
         if alt is None or alt.log_ratio < -c.audit_margin:
             self._cleared = (hyp.mean, self.n_updates)
+            self._screen_cleared = self.n_updates if screen else last
             return (math.nan if alt is None else alt.log_ratio), 0
         self._cleared = None
+        self._screen_cleared = None
         m = c.cluster_min_particles
         new = audit.shaped_like(self._poses, np.exp(self._logw), hyp.mean, alt.pose, m, self.rng, *outside_args)
         added = math.log(hyp.weight) + min(alt.log_ratio, 0.0)  # at most the hypothesis's weight
