@@ -84,10 +84,11 @@ densely as the maps the audit was tuned on. Chosen on the tuning cases of ``scri
 and layouts written by a reviewer; evaluated on the held-out pairs (docs/relocalizer.md, "Audit
 first, search wider")."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V7, audit_screen=True)
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V7, audit_screen=True, audit_screen_pause=100)
 """The relocalizer of SemReloc-v9: `RELOCALIZER_V7` whose convergence audit also screens the whole map for
 a look-alike place (`MCLConfig.audit_screen`, `filters.localization.audit.screened_places`): a grid of
-poses scored with blurred likelihood fields, the best places refined. In 6 of the 7 wrong first
+poses scored with blurred likelihood fields, the best places refined; not again for 100 updates after a
+screen that found nothing (`MCLConfig.audit_screen_pause`). In 6 of the 7 wrong first
 convergences of the explorer on 900 tuning pairs of v8, the true place explained the audit's window as
 well as the hypothesis, but no scan-proposal candidate or particle lay within 0.24-0.9 m and 0.2-0.45 rad
 of it, so the audit never found it (docs/relocalizer.md, "An audit that screens the whole map"). Chosen
@@ -236,8 +237,10 @@ class SemRelocEnv(SemRelocBase):
       and the particles, which can all lie 0.3-0.9 m and 0.2-0.5 rad from a look-alike place: too far
       for a window whose log-likelihood drops by tens of nats within 0.1 m. v9 also scores a grid of
       poses over the map's free space (0.3 m, 12 headings) with blurred fields and refines the best
-      places. Fewer first convergences at a look-alike place (docs/relocalizer.md, "An audit that
-      screens the whole map"); an audit costs about 16 ms more. The filter draws more random numbers in
+      places; after a screen that found nothing, the audits of the next 100 updates search without it
+      (``audit_screen_pause``). Fewer first convergences at a look-alike place (docs/relocalizer.md, "An
+      audit that screens the whole map"); a screened audit costs about 15 ms more, so a short episode
+      that ends at its first convergence costs about 1 ms more per step. The filter draws more random numbers in
       an audit, so episodes differ from v8's from the first audit on. Maps, worlds, sensors,
       observations, rewards and info keys are v8's (`SemRelocEnvV8` is v8).
     * v8: the map of ``map_source="mapping"`` (the default) or of another layout comes from the mapping run's version 3
