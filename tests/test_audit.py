@@ -494,3 +494,20 @@ def test_audit_candidates_follow_the_free_area_on_large_maps():
 def test_bad_v7_audit_options_are_rejected(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         MCLConfig(**bad)
+
+
+def test_distinct_places_matches_the_plain_greedy_rule():
+    """The compiled pick equals the rule written out with `outside` (best first, a pose joins if it is a
+    place apart from every one picked), on random poses with headings across the wrap and -inf scores."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        poses = np.column_stack([rng.uniform(0, 4, 300), rng.uniform(0, 3, 300), rng.uniform(-np.pi, np.pi, 300)])
+        ll = rng.normal(0, 5, 300)
+        ll[rng.random(300) < 0.1] = -np.inf
+        want: list[int] = []
+        for i in np.argsort(-ll, kind="stable"):
+            if len(want) == 16 or not np.isfinite(ll[i]):
+                break
+            if not want or outside(poses[want], poses[i], audit_module.PLACE_M, audit_module.PLACE_RAD).all():
+                want.append(int(i))
+        assert audit_module._distinct_places(poses, ll, 16) == want

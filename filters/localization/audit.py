@@ -33,9 +33,11 @@ docs/relocalizer.md, "Convergence audit", has the measurements behind the defaul
 from __future__ import annotations
 
 import dataclasses
+import math
 import weakref
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from filters.localization.likelihood_field import BeamSet, LikelihoodFieldModel, cached_model
@@ -234,15 +236,33 @@ def _refined_best(
 
 def _distinct_places(poses: np.ndarray, ll: np.ndarray, places: int) -> list[int]:
     """Indices of the best (by ``ll``, finite only) poses of up to ``places`` different places, best first: a
-    pose joins if it lies `PLACE_M` or `PLACE_RAD` from every pose already picked."""
-    picked: list[int] = []
-    for i in np.argsort(-np.where(np.isfinite(ll), ll, -np.inf), kind="stable"):
-        if len(picked) == places or not np.isfinite(ll[i]):
+    pose joins if it lies `PLACE_M` or `PLACE_RAD` from every pose already picked (`outside`'s test)."""
+    finite = np.isfinite(ll)
+    order = np.argsort(-np.where(finite, ll, -np.inf), kind="stable")
+    p = np.ascontiguousarray(poses, dtype=np.float64)
+    return _distinct_kernel(p, order, finite, places, PLACE_M, PLACE_RAD).tolist()
+
+
+@numba.njit(cache=True, nogil=True)
+def _distinct_kernel(poses, order, finite, places, place_m, place_rad):  # pragma: no cover - compiled
+    picked = np.empty(places, dtype=np.int64)
+    n = 0
+    two_pi = 2.0 * np.pi
+    for i in order:
+        if n == places or not finite[i]:
             break
-        if picked and not outside(poses[picked], poses[i], PLACE_M, PLACE_RAD).all():
-            continue
-        picked.append(int(i))
-    return picked
+        alone = True
+        for j in range(n):
+            q = picked[j]
+            far = math.hypot(poses[q, 0] - poses[i, 0], poses[q, 1] - poses[i, 1]) > place_m
+            turn = abs((poses[q, 2] - poses[i, 2] + np.pi) % two_pi - np.pi) > place_rad
+            if not (far or turn):
+                alone = False
+                break
+        if alone:
+            picked[n] = i
+            n += 1
+    return picked[:n]
 
 
 def _local_search(
