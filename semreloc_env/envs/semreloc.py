@@ -239,8 +239,8 @@ class SemRelocEnv(SemRelocBase):
       poses over the map's free space (0.3 m, 12 headings) with blurred fields and refines the best
       places; after a screen that found nothing, the audits of the next 100 updates search without it
       (``audit_screen_pause``). Fewer first convergences at a look-alike place (docs/relocalizer.md, "An
-      audit that screens the whole map"); a screened audit costs about 15 ms more, so a short episode
-      that ends at its first convergence costs about 1 ms more per step. The filter draws more random numbers in
+      audit that screens the whole map"); a screened audit costs about 11 ms more, so a short episode
+      that ends at its first convergence costs about 0.6 ms more per step. The filter draws more random numbers in
       an audit, so episodes differ from v8's from the first audit on. Maps, worlds, sensors,
       observations, rewards and info keys are v8's (`SemRelocEnvV8` is v8).
     * v8: the map of ``map_source="mapping"`` (the default) or of another layout comes from the mapping run's version 3
