@@ -511,3 +511,13 @@ def test_distinct_places_matches_the_plain_greedy_rule():
             if not want or outside(poses[want], poses[i], audit_module.PLACE_M, audit_module.PLACE_RAD).all():
                 want.append(int(i))
         assert audit_module._distinct_places(poses, ll, 16) == want
+
+
+def test_screen_model_is_built_once_per_model_and_blurred():
+    model = LikelihoodFieldModel(padded(symmetric_room()))
+    blurred = audit_module.screen_model(model)
+    for _ in range(6):  # other maps' models through the process-wide cache do not evict it
+        LikelihoodFieldModel(symmetric_room())
+    assert audit_module.screen_model(model) is blurred and blurred.grid is model.grid
+    assert blurred.lidar_config.sigma_hit_m == blurred.semantic_config.sigma_hit_m == audit_module.SCREEN_SIGMA_M
+    assert not blurred.negative_config.enabled

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from filters.localization.likelihood_field import BeamSet, LikelihoodFieldModel, cached_model
+from filters.localization.likelihood_field import BeamSet, LikelihoodFieldModel
 from filters.mapping.grid import GridMap
 from filters.pose import compose, relative, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
@@ -393,13 +393,21 @@ def pose_grid(model: LikelihoodFieldModel) -> np.ndarray:
     return got
 
 
+_screen_models: weakref.WeakKeyDictionary[LikelihoodFieldModel, LikelihoodFieldModel] = weakref.WeakKeyDictionary()
+
+
 def screen_model(model: LikelihoodFieldModel) -> LikelihoodFieldModel:
-    """``model`` with its lidar and semantic hit scores blurred to `SCREEN_SIGMA_M` and no negative evidence
-    (shared per process)."""
-    blur = {}
-    for name, cfg in (("lidar", model.lidar_config), ("semantic", model.semantic_config)):
-        blur[name] = dataclasses.replace(cfg, sigma_hit_m=max(cfg.sigma_hit_m, SCREEN_SIGMA_M))
-    return cached_model(model.grid, blur["lidar"], blur["semantic"], model.backend)
+    """``model`` with its lidar and semantic hit scores blurred to `SCREEN_SIGMA_M` and no negative evidence,
+    built once per model and kept while the model lives (not in `cached_model`'s few slots, which envs on
+    many layouts would make it rebuild at each audit)."""
+    got = _screen_models.get(model)
+    if got is None:
+        blur = {}
+        for name, cfg in (("lidar", model.lidar_config), ("semantic", model.semantic_config)):
+            blur[name] = dataclasses.replace(cfg, sigma_hit_m=max(cfg.sigma_hit_m, SCREEN_SIGMA_M))
+        got = LikelihoodFieldModel(model.grid, blur["lidar"], blur["semantic"], model.backend)
+        _screen_models[model] = got
+    return got
 
 
 def shaped_like(
