@@ -7,7 +7,7 @@ import pytest
 
 import filters.localization.audit as audit_module
 from filters.localization.audit import Alternative, best_alternative, outside, shaped_like, window_log_likelihood
-from filters.localization.likelihood_field import LikelihoodFieldModel
+from filters.localization.likelihood_field import LikelihoodFieldModel, cached_model
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import compose, relative
@@ -516,8 +516,8 @@ def test_distinct_places_matches_the_plain_greedy_rule():
 def test_screen_model_is_built_once_per_model_and_blurred():
     model = LikelihoodFieldModel(padded(symmetric_room()))
     blurred = audit_module.screen_model(model)
-    for _ in range(6):  # other maps' models through the process-wide cache do not evict it
-        LikelihoodFieldModel(symmetric_room())
+    for k in range(6):  # more maps through the process-wide model cache (4 slots) do not evict it
+        cached_model(padded(symmetric_room(), cells=k + 1))
     assert audit_module.screen_model(model) is blurred and blurred.grid is model.grid
     assert blurred.lidar_config.sigma_hit_m == blurred.semantic_config.sigma_hit_m == audit_module.SCREEN_SIGMA_M
     assert not blurred.negative_config.enabled
