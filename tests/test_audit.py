@@ -170,16 +170,22 @@ def test_added_hypothesis_weighs_the_ratio_times_the_hypothesis_at_most_as_much(
         assert spread(mcl.poses[-m:]) < 0.2
 
 
+def _at_the_cabinet(grid, cfg):
+    """A filter tracking a pose that faces the cabinet's box, near the wall stub's free side (a place nothing
+    else explains), audited as after an init_global; returns ``(mcl, pose, rng for the scans)``."""
+    pose = np.array([2.2, 3.0, -1.2])
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(4))
+    mcl.init_around(pose, (0.03, 0.03, 0.01))
+    mcl._audit_on = True  # as after an init_global
+    return mcl, pose, np.random.default_rng(5)
+
+
 def test_audit_keeps_a_belief_nothing_else_explains():
     """Converged at the true place of a room that is not symmetric for the window's scans: the audit
     runs once, finds nothing within the margin, adds nothing, and does not run again while converged."""
     grid = symmetric_room()
-    pose = np.array([2.2, 3.0, -1.2])  # facing the cabinet's box, near the wall stub's free side
     cfg = MCLConfig(n_particles=300, audit_window=5)
-    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(4))
-    mcl.init_around(pose, (0.03, 0.03, 0.01))
-    mcl._audit_on = True  # as after an init_global
-    rng = np.random.default_rng(5)
+    mcl, pose, rng = _at_the_cabinet(grid, cfg)
     diags = []
     for _ in range(4):
         new = compose(pose, np.array([0.12, 0.0, 0.0]))
@@ -213,12 +219,8 @@ def test_the_screen_pauses_after_it_found_nothing(pause, monkeypatch):
     real = audit_module.screened_places
     monkeypatch.setattr(audit_module, "screened_places", lambda *a, **k: calls.append(1) or real(*a, **k))
     grid = padded(symmetric_room())
-    pose = np.array([2.2, 3.0, -1.2])
     cfg = MCLConfig(n_particles=300, audit_window=3, audit_screen=True, audit_screen_pause=pause)
-    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(4))
-    mcl.init_around(pose, (0.03, 0.03, 0.01))
-    mcl._audit_on = True  # as after an init_global
-    rng = np.random.default_rng(5)
+    mcl, pose, rng = _at_the_cabinet(grid, cfg)
     audited = []
     for _ in range(12):
         mcl._was_converged = False  # the belief drops out of "converged" and back (simulated)
