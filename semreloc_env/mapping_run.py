@@ -22,7 +22,13 @@ import numba
 import numpy as np
 
 from filters.mapping.grid import GridMap
-from filters.mapping.occupancy import OccupancyMapper, OccupancyParams, SemanticMapper, SemanticParams
+from filters.mapping.occupancy import (
+    OccupancyMapper,
+    OccupancyParams,
+    SemanticMapper,
+    SemanticParams,
+    drop_unsupported_class_cells,
+)
 
 from .config import CameraParams, LidarParams
 from .layouts import CLASS_NAMES, Layout, LayoutError
@@ -30,7 +36,7 @@ from .rasterize import raster_geometry
 from .sensors import Lidar, SemanticCamera
 from .world import build_world
 
-MAPPING_RUN_VERSIONS = ("2", "3")
+MAPPING_RUN_VERSIONS = ("2", "3", "4")
 """The mapping runs an env can ask for (`build_maps`' ``version``; each keys its own cached maps):
 
 * ``"2"`` (``SemReloc-v7`` and before): a camera beam without a return lowers every class along the
@@ -39,9 +45,17 @@ MAPPING_RUN_VERSIONS = ("2", "3")
   space behind it: a cabinet against a wall could lose all its class cells, or some of them, as its
   twin elsewhere kept them, and the relocalizer then preferred the twin's place.
 * ``"3"`` (``SemReloc-v8`` and ``-v9``): the camera's no-return beams update nothing (as the lidar's already did).
+* ``"4"`` (``SemReloc-v10``): version 3, then class cells that no confidently marked cell of their
+  class backs up are dropped (`filters.mapping.occupancy.drop_unsupported_class_cells` with
+  `STRAY_SUPPORT_P` and `STRAY_RADIUS_M`): the camera's whole-object mislabels left 1-20 stray
+  class cells per map, on other objects' surfaces, where the relocalizer matched them.
 """
 MAPPING_RUN_VERSION = MAPPING_RUN_VERSIONS[-1]
 """The newest mapping run. Add a version when its output changes for the same inputs."""
+
+STRAY_SUPPORT_P, STRAY_RADIUS_M = 0.9, 0.1
+"""Version 4 keeps a class cell only if a cell of its class within this distance (m) has at least this
+probability (docs/maps.md, "Stray class cells")."""
 
 CHUNK_POSES = 2048
 """Poses sensed and integrated per batch by `build_maps` (bounds its memory)."""
@@ -254,4 +268,7 @@ def build_maps(
         occ.update_arrays(lchunk, ranges, lidar_s.angles, lidar_s.params.range_max_m)
         s_ranges, labels = camera_s.read_many(world, chunk, rng)
         sem.update_arrays(chunk, s_ranges, labels, camera_s.angles, camera_s.params.range_max_m)
-    return occ.to_grid(sem)
+    grid = occ.to_grid(sem)
+    if version not in ("2", "3"):
+        grid = drop_unsupported_class_cells(grid, STRAY_SUPPORT_P, STRAY_RADIUS_M)
+    return grid

@@ -235,6 +235,53 @@ def test_the_screen_pauses_after_it_found_nothing(pause, monkeypatch):
     assert len(calls) == (1 if pause else sum(audited))
 
 
+@pytest.mark.parametrize("follow_place", [False, True])
+def test_the_screen_pause_follows_the_place_it_cleared(follow_place, monkeypatch):
+    """With ``audit_screen_pause_place`` the pause holds only while the hypothesis stays at the place the
+    screen cleared, whose mean is carried along the odometry; a convergence elsewhere is screened again."""
+    calls = []
+    real = audit_module.screened_places
+    monkeypatch.setattr(audit_module, "screened_places", lambda *a, **k: calls.append(1) or real(*a, **k))
+    grid = padded(symmetric_room())
+    cfg = MCLConfig(
+        n_particles=300, audit_window=3, audit_screen=True, audit_screen_pause=100,
+        audit_screen_pause_place=follow_place,
+    )  # fmt: skip
+    mcl, pose, rng = _at_the_cabinet(grid, cfg)
+    moves = []
+    for i in range(8):
+        mcl._was_converged = False  # the belief drops out of "converged" and back (simulated)
+        new = compose(pose, np.array([0.12, 0.0, 0.0]))
+        step = relative(pose, new)
+        cleared = mcl._screen_cleared
+        mcl.predict(step)
+        if cleared is not None:  # the cleared mean moves with the odometry
+            assert np.allclose(mcl._screen_cleared[1], compose(cleared[1], step))
+        pose = new
+        if i == 4:  # as if the place the screen cleared had been elsewhere: the belief's place is new
+            moves.append(len(calls))
+            mcl._screen_cleared = (mcl._screen_cleared[0], mcl._screen_cleared[1] + np.array([2.0, 0.0, 0.0]))
+        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
+        mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0))
+    assert moves == [1]  # one screen before the move, then paused at the same place
+    assert len(calls) == (2 if follow_place else 1)
+
+
+def test_a_custom_model_is_refused_only_when_the_screen_can_run():
+    class Model:  # any object with log_likelihood_terms serves the filter
+        def __init__(self, grid):
+            self.inner = LikelihoodFieldModel(grid)
+
+        def log_likelihood_terms(self, poses, lidar, semantic=None):
+            return self.inner.log_likelihood_terms(poses, lidar, semantic)
+
+    grid = symmetric_room()
+    with pytest.raises(TypeError, match="audit_screen=False"):
+        MonteCarloLocalizer(grid, MCLConfig(audit_window=5, audit_screen=True), np.random.default_rng(0), Model(grid))
+    mcl = MonteCarloLocalizer(grid, MCLConfig(audit_window=0, audit_screen=True), np.random.default_rng(0), Model(grid))
+    assert mcl.config.audit_screen
+
+
 def test_no_audit_after_init_around():
     """Tracking: the caller said where the robot is, so a look-alike place is no alternative; the audit
     runs only after init_global (and again after the next one)."""

@@ -362,3 +362,35 @@ def test_surface_mask_and_tolerant_precision_recall():
     assert p == 0.0 and r == 1.0
     with pytest.raises(ValueError):
         tolerant_precision_recall(seen, seen[:-1])
+
+
+def test_drop_unsupported_class_cells_keeps_objects_and_drops_stray_cells():
+    """A class cell stays if a cell of its class within the radius is confidently marked (itself included);
+    a weakly marked cell with no such neighbour is set to the threshold (no longer that class)."""
+    from filters.mapping.occupancy import drop_unsupported_class_cells
+
+    sem = np.full((2, 20, 20), 0.2, np.float32)
+    sem[0, 5:8, 5:8] = 0.97  # an object, confidently mapped ...
+    sem[0, 4, 5:8] = 0.6  # ... with a weakly mapped rim one cell off
+    sem[0, 15, 15] = 0.7  # a stray cell of class 0, far from any confident one
+    sem[0, 5, 11] = 0.75  # weak, three cells from the object: farther than 0.1 m
+    sem[1, 6, 6] = 0.7  # a stray cell of class 1 on the class-0 object
+    sem[1, 10, 10] = 0.95  # a lone but confident cell: kept
+    grid = GridMap(np.zeros((20, 20), np.float32), 0.05, semantic=sem, class_names=("a", "b"))
+    out = drop_unsupported_class_cells(grid, 0.9, 0.1)
+    kept0 = out.class_mask(0)
+    assert kept0[5:8, 5:8].all() and kept0[4, 5:8].all()
+    assert not kept0[15, 15] and not kept0[5, 11]
+    assert not out.class_mask(1)[6, 6] and out.class_mask(1)[10, 10]
+    assert out.semantic[0, 15, 15] == grid.semantic_thresh
+    np.testing.assert_array_equal(out.occupancy, grid.occupancy)
+    changed = out.semantic != grid.semantic
+    assert changed.sum() == 3  # nothing else touched
+    assert np.array_equal(grid.semantic, sem)  # the input map is unchanged
+    # radius 0: only confident cells stay
+    assert drop_unsupported_class_cells(grid, 0.9, 0.0).class_mask(0).sum() == 9
+    for bad in ({"support_p": 0.5}, {"support_p": 1.5}, {"support_p": float("nan")}, {"radius_m": -0.1}):
+        with pytest.raises(ValueError):
+            drop_unsupported_class_cells(grid, **{"support_p": 0.9, "radius_m": 0.1, **bad})
+    empty = GridMap(np.zeros((4, 4), np.float32), 0.05)
+    assert drop_unsupported_class_cells(empty) is empty

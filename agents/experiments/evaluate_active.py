@@ -103,10 +103,18 @@ class Args:
     particles: int = 2000
     """relocalizer particles"""
     env_id: Literal[
-        "SemReloc-v9", "SemReloc-v8", "SemReloc-v7", "SemReloc-v6", "SemReloc-v5", "SemReloc-v4", "SemReloc-v3"
-    ] = "SemReloc-v9"
-    """the env the episodes run in: SemReloc-v9 (the newest), SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5,
-    SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the
+        "SemReloc-v10",
+        "SemReloc-v9",
+        "SemReloc-v8",
+        "SemReloc-v7",
+        "SemReloc-v6",
+        "SemReloc-v5",
+        "SemReloc-v4",
+        "SemReloc-v3",
+    ] = "SemReloc-v10"
+    """the env the episodes run in: SemReloc-v10 (the newest), SemReloc-v9, SemReloc-v8, SemReloc-v7, SemReloc-v6,
+    SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the
+    maps of the mapping run's version 3, with stray class cells, and the screen's pause blind to place (v9), the
     relocalizer's audit without its screen of the whole map (v8 and older), the maps of the mapping
     run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search only (v6), also
     without the hold of a convergence (v5), without the convergence audit (v4) and without negative
@@ -263,9 +271,9 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v9"
+ENV_ID = "SemReloc-v10"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
-generator, as v3's to v9's do.
+generator, as v3's to v10's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
 draws again; v4 to v7 change the relocalizer and v8 the maps, so every episode.)"""

@@ -113,7 +113,7 @@ def run_episode(job: tuple) -> dict:
     success_step = None
     for step in range(1, max_steps + 1):
         obs, _, terminated, truncated, info = env.step(policy(obs))
-        # not computed in this step: key left out (SemReloc-v9, -v8, -v7, -v6, -v5, -v4, -v3, -v2) or None (v1, v0)
+        # not computed in this step: key left out (SemReloc-v2 and newer) or None (v1, v0)
         w = info["mcl"].get("mean_lidar_beam_likelihood") if info["mcl"]["updated"] else None
         weights.append(np.nan if w is None else w)
         errors.append(info["pose_error"]["position"])

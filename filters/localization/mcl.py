@@ -266,6 +266,10 @@ class MCLConfig:
             surprise or an audit that added a place always screens): a belief that stays at a place the
             screen cleared is audited again each time it comes back to "converged", and the screen would
             find nothing new (0: every audit screens).
+        audit_screen_pause_place: the pause holds only while the hypothesis stays at the place that
+            screen cleared (its mean carried along the odometry since; farther than the audit's
+            ``outside`` limits: screen again). False in ``SemReloc-v9``, whose pause ignored where the
+            belief was.
         audited_convergence: with the audit on, the belief is called converged only after an update
             that audited it (or kept a convergence an update audited): a set that comes to meet the
             criterion between updates (a prediction moving particles from one cluster to another)
@@ -330,6 +334,7 @@ class MCLConfig:
     audit_places: int = 0
     audit_screen: bool = False
     audit_screen_pause: int = 100
+    audit_screen_pause_place: bool = False
     surprise_ratio: float = 0.0
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
@@ -416,6 +421,7 @@ class MCLConfig:
             raise ValueError(f"MCLConfig.injection must be 'uniform' or 'scan', got {self.injection!r}")
         for name in (
             "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
+            "audit_screen_pause_place",
         ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
@@ -543,10 +549,11 @@ class MonteCarloLocalizer:
             if measurement_model is not None
             else LikelihoodFieldModel(grid, c.lidar_field, c.semantic_field, c.backend, c.negative_evidence)
         )
-        if c.audit_screen and not isinstance(self.measurement_model, LikelihoodFieldModel):
+        if c.audit_screen and c.audit_window > 0 and not isinstance(self.measurement_model, LikelihoodFieldModel):
             raise TypeError(
                 "MCLConfig.audit_screen needs a LikelihoodFieldModel as the measurement model (it screens the "
-                f"map with blurred copies of its fields), got {type(self.measurement_model).__name__}"
+                f"map with blurred copies of its fields), got {type(self.measurement_model).__name__}; "
+                "set audit_screen=False (or audit_window=0) for another model"
             )
         self._resample = get_resampler(c.resampler)
         self._belief_backend = "numba" if c.fast_path else "numpy"
@@ -573,7 +580,8 @@ class MonteCarloLocalizer:
         """The last ``audit_window`` updates' scans and odometry (`filters.localization.audit.Window`)."""
         self._was_converged = False
         self._cleared: tuple[np.ndarray, int] | None = None  # (mean, n_updates) of the last hypothesis an audit cleared
-        self._screen_cleared: int | None = None  # n_updates of the last audit whose screen found nothing
+        # (n_updates, hypothesis mean carried along the odometry since) of the last audit whose screen found nothing
+        self._screen_cleared: tuple[int, np.ndarray] | None = None
         self._audit_on = False  # the convergence audit runs after init_global only
         self.converged_updates = 0
         """Consecutive measurement updates, the latest included, after which the set met the
@@ -720,6 +728,8 @@ class MonteCarloLocalizer:
             raise ValueError(f"odometry delta {delta!r} moves particles to non-finite poses")
         self._poses = poses
         self._since_update = compose(self._since_update, d)
+        if self._screen_cleared is not None:
+            self._screen_cleared = (self._screen_cleared[0], compose(self._screen_cleared[1], d))
 
     def moved_enough(self) -> bool:
         """Whether the motion since the last update passes the ``update_min_*`` gate."""
@@ -1056,7 +1066,11 @@ class MonteCarloLocalizer:
         cand = self._proposal.candidates(self.audit_candidate_count(), semantic, c.proposal_semantic_frac, self.rng)
         ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
         last = self._screen_cleared
-        screen = c.audit_screen and (last is None or self.n_updates - last >= c.audit_screen_pause)
+        screen = c.audit_screen and (
+            last is None
+            or self.n_updates - last[0] >= c.audit_screen_pause
+            or (c.audit_screen_pause_place and audit.outside(hyp.mean[None], last[1], *outside_args)[0])
+        )
         extra = None
         if screen:
             extra = audit.screened_places(
@@ -1068,7 +1082,7 @@ class MonteCarloLocalizer:
         )  # fmt: skip
         if alt is None or alt.log_ratio < -c.audit_margin:
             self._cleared = (hyp.mean, self.n_updates)
-            self._screen_cleared = self.n_updates if screen else last
+            self._screen_cleared = (self.n_updates, hyp.mean.copy()) if screen else last
             return (math.nan if alt is None else alt.log_ratio), 0
         self._cleared = None
         self._screen_cleared = None

@@ -37,15 +37,18 @@ No randomness anywhere.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba
 import numpy as np
+from scipy import ndimage
 from scipy.special import expit
 
 from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
+from filters.numbers import is_real
 from filters.pose import compose
 from filters.robot_data.scans import LaserScan, SemanticScan
 
@@ -619,6 +622,38 @@ class SemanticMapper(_RasterMapper):
             free_thresh=free_thresh,
             semantic_thresh=semantic_thresh,
         )
+
+
+def drop_unsupported_class_cells(grid: GridMap, support_p: float = 0.9, radius_m: float = 0.1) -> GridMap:
+    """``grid`` without the class cells no confident cell of their class backs up.
+
+    A class-``k`` cell (probability above ``grid.semantic_thresh``) stays if some class-``k`` cell
+    within ``radius_m`` (Chebyshev distance, rounded to whole cells) has probability at least
+    ``support_p``, itself included; the others get probability ``grid.semantic_thresh`` (no longer
+    that class). The occupancy and every other field are ``grid``'s.
+
+    Why: a detector that mislabels a whole object in one frame gives each surface cell it saw one hit
+    of the wrong class (`SemanticParams.l_hit`: enough to mark it), and cells the drive saw rarely keep
+    it. Such stray cells are few and isolated; an object's own cells are backed by confidently marked
+    neighbours (docs/maps.md, "Stray class cells", has the counts).
+
+    Raises:
+        ValueError: ``support_p`` not in ``(grid.semantic_thresh, 1]`` or ``radius_m`` negative.
+    """
+    if not (is_real(support_p) and grid.semantic_thresh < support_p <= 1.0):
+        raise ValueError(f"support_p must be in ({grid.semantic_thresh}, 1], got {support_p!r}")
+    if not (is_real(radius_m) and math.isfinite(radius_m) and radius_m >= 0):
+        raise ValueError(f"radius_m must be a number >= 0, got {radius_m!r}")
+    if grid.semantic.shape[0] == 0:
+        return grid
+    r = int(round(radius_m / grid.resolution_m))
+    sem = np.array(grid.semantic, dtype=np.float32)
+    box = np.ones((2 * r + 1, 2 * r + 1), bool)
+    for k in range(sem.shape[0]):
+        marked = sem[k] > grid.semantic_thresh
+        backed = ndimage.binary_dilation(sem[k] >= support_p, box) if r else sem[k] >= support_p
+        sem[k][marked & ~backed] = grid.semantic_thresh
+    return dataclasses.replace(grid, semantic=sem)
 
 
 def build_grid_map(
