@@ -570,3 +570,24 @@ def test_screen_model_is_built_once_per_model_and_blurred():
     assert audit_module.screen_model(model) is blurred and blurred.grid is model.grid
     assert blurred.lidar_config.sigma_hit_m == blurred.semantic_config.sigma_hit_m == audit_module.SCREEN_SIGMA_M
     assert not blurred.negative_config.enabled
+
+
+def test_screen_model_shares_the_distance_fields_and_scores_as_a_new_model():
+    model = LikelihoodFieldModel(padded(symmetric_room()))
+    blurred = audit_module.screen_model(model)
+    assert blurred.distance_fields_m is model.distance_fields_m
+    fresh = LikelihoodFieldModel(model.grid, blurred.lidar_config, blurred.semantic_config, model.backend)
+    np.testing.assert_array_equal(fresh.distance_fields_m, blurred.distance_fields_m)
+    rng = np.random.default_rng(1)
+    poses = np.column_stack([rng.uniform(0.5, 3.5, 50), rng.uniform(0.5, 2.5, 50), rng.uniform(-3, 3, 50)])
+    pose = np.array([1.0, 1.5, 0.3])
+    lidar = simulate_lidar(model.grid, pose, LIDAR_ANGLES, 8.0)
+    semantic = simulate_semantic(model.grid, pose, CAMERA_ANGLES, 5.0)
+    for a, b in zip(
+        blurred.log_likelihood_terms(poses, lidar, semantic)[:2], fresh.log_likelihood_terms(poses, lidar, semantic)[:2]
+    ):
+        np.testing.assert_array_equal(a, b)
+    assert model.lidar_config.sigma_hit_m != blurred.lidar_config.sigma_hit_m  # the filter's own model is unchanged
+    assert model._tables is not blurred._tables
+    with pytest.raises(TypeError, match="LikelihoodFieldConfig"):
+        model.reconfigured({"sigma_hit_m": 0.5}, model.semantic_config)

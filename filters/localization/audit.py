@@ -397,15 +397,16 @@ _screen_models: weakref.WeakKeyDictionary[LikelihoodFieldModel, LikelihoodFieldM
 
 
 def screen_model(model: LikelihoodFieldModel) -> LikelihoodFieldModel:
-    """``model`` with its lidar and semantic hit scores blurred to `SCREEN_SIGMA_M` and no negative evidence,
-    built once per model and kept while the model lives (not in `cached_model`'s few slots, which envs on
-    many layouts would make it rebuild at each audit)."""
+    """``model`` with its lidar and semantic hit scores blurred to `SCREEN_SIGMA_M` and no negative evidence
+    (`LikelihoodFieldModel.reconfigured`: its distance fields are the model's), built once per model and
+    kept while the model lives (not in `cached_model`'s few slots, which envs on many layouts would make it
+    rebuild at each audit)."""
     got = _screen_models.get(model)
     if got is None:
         blur = {}
         for name, cfg in (("lidar", model.lidar_config), ("semantic", model.semantic_config)):
             blur[name] = dataclasses.replace(cfg, sigma_hit_m=max(cfg.sigma_hit_m, SCREEN_SIGMA_M))
-        got = LikelihoodFieldModel(model.grid, blur["lidar"], blur["semantic"], model.backend)
+        got = model.reconfigured(blur["lidar"], blur["semantic"])
         _screen_models[model] = got
     return got
 

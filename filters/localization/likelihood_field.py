@@ -41,6 +41,7 @@ without the tables, used to test the kernel.
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import math
@@ -452,6 +453,25 @@ class LikelihoodFieldModel:
         self._tables: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._negative_table: np.ndarray | None = None
         self._kernel_beams: weakref.WeakKeyDictionary[BeamSet, tuple] = weakref.WeakKeyDictionary()
+
+    def reconfigured(
+        self,
+        lidar: LikelihoodFieldConfig,
+        semantic: LikelihoodFieldConfig,
+        negative: NegativeEvidenceConfig | None = None,
+    ) -> LikelihoodFieldModel:
+        """A model of the same map and backend with other field parameters, sharing this model's distance
+        fields (a few ms per class on a lab-size map, not computed again); the same numbers as
+        ``LikelihoodFieldModel(self.grid, lidar, semantic, self.backend, negative)``."""
+        for name, cfg in (("lidar", lidar), ("semantic", semantic)):
+            if not isinstance(cfg, LikelihoodFieldConfig):
+                raise TypeError(f"{name} must be a LikelihoodFieldConfig, got {type(cfg).__name__}")
+        new = copy.copy(self)
+        new.lidar_config, new.semantic_config = lidar, semantic
+        new.negative_config = _negative_in_effect(negative)
+        new._tables, new._negative_table = {}, None
+        new._kernel_beams = weakref.WeakKeyDictionary()
+        return new
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
