@@ -52,8 +52,9 @@ alone (never the true pose):
    ``clearance_stop_m`` behind).
 
 When one hypothesis is left (nothing to tell apart), no viewpoint resolves anything within the
-horizon, or a goal where the robot already stands did not settle the belief twice in a row, it
-drives as `agents.baselines.WallFollowExplorer` for ``explore_steps`` steps, then plans again.
+horizon, a goal where the robot already stands did not settle the belief twice in a row, or the lidar
+made it turn away from its path ``max_blocked_turns`` times on the same spot, it drives as
+`agents.baselines.WallFollowExplorer` for ``explore_steps`` steps, then plans again.
 """
 
 from __future__ import annotations
@@ -72,6 +73,15 @@ from filters.simulators.grid_raycast import cast_many_labelled
 from .baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer, all_round_angles
 from .info_gain import belief_sample, hypothesis_bins
 from .policies import Policy, _sector_min
+
+STUCK_M = 0.5
+"""Safety turns closer than this (m) to the first of a run count toward ``max_blocked_turns``."""
+
+
+def _moved(pose: np.ndarray, dx: float, dy: float, dth: float) -> np.ndarray:
+    """``pose`` moved by the robot-frame increment ``(dx, dy, dth)`` (metres, radians)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.array([pose[0] + c * dx - s * dy, pose[1] + s * dx + c * dy, wrap_angle(pose[2] + dth)])
 
 
 @numba.njit(cache=True)
@@ -329,6 +339,10 @@ class ViewpointPlanner(Policy):
         replan_every: steps (observations the planner took in) after which a plan is made again
             even if its goal was not reached.
         explore_steps: steps driven as the explorer before planning again.
+        max_blocked_turns: after this many safety turns (the lidar saw something in the way of a forward
+            step) within `STUCK_M` of each other, drive as the explorer for ``explore_steps`` steps
+            (0: never, as before this option: each safety turn only makes the planner plan again, and a
+            path cutting a corner could keep the robot turning on the spot to the end of an episode).
         stay_m: a goal closer than this counts as staying where the robot is.
         max_stays: after this many such plans in a row (the belief did not settle where the model
             said it would), explore instead.
@@ -393,6 +407,7 @@ class ViewpointPlanner(Policy):
         reverse_rad: float = 0.0,
         reverse_max_m: float = math.inf,
         negative_evidence: bool = True,
+        max_blocked_turns: int = 6,
     ):
         super().__init__(seed)
         if not isinstance(negative_evidence, (bool, np.bool_)):
@@ -412,6 +427,10 @@ class ViewpointPlanner(Policy):
         for name, v in ints.items():
             if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        v = max_blocked_turns
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 0:
+            raise ValueError(f"max_blocked_turns must be an integer >= 0 (0: off), got {v!r}")
+        self.max_blocked_turns = int(v)
         positive = {
             "horizon_m": horizon_m,
             "plan_cell_m": plan_cell_m,
@@ -478,6 +497,9 @@ class ViewpointPlanner(Policy):
         self._path = np.zeros((0, 2))  # remaining path, robot frame at planning time (metres)
         self._goal_heading = 0.0
         self._pose = np.zeros(3)  # the robot's pose in that frame, from the odometry
+        self._odo = np.zeros(3)  # the robot's pose in the frame of the episode's start, from the odometry
+        self._blocked_from: np.ndarray | None = None  # where (``_odo``) the current run of safety turns began
+        self._blocked_turns = 0
         self._since_plan = 0
         self._stays = 0
         self._progress_window = max(2, int(1.5 / self.plan_cell_m))
@@ -674,10 +696,8 @@ class ViewpointPlanner(Policy):
     # ------------------------------------------------------------------ acting
     def _integrate(self, odom: np.ndarray) -> None:
         dx, dy, dth = (float(v) for v in odom[:3])
-        c, s = math.cos(self._pose[2]), math.sin(self._pose[2])
-        self._pose = np.array(
-            [self._pose[0] + c * dx - s * dy, self._pose[1] + s * dx + c * dy, wrap_angle(self._pose[2] + dth)]
-        )
+        self._pose = _moved(self._pose, dx, dy, dth)
+        self._odo = _moved(self._odo, dx, dy, dth)
 
     def _follow(self) -> int | None:
         """The next discrete action along the stored path; None when the goal is reached.
@@ -828,7 +848,23 @@ class ViewpointPlanner(Policy):
             left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
             a = TURN_LEFT if left >= right else TURN_RIGHT
             self._since_plan = self.replan_every  # plan again next step
+            self._count_blocked_turn()
         return a
+
+    def _count_blocked_turn(self) -> None:
+        """With ``max_blocked_turns``: that many safety turns within `STUCK_M` of where the first of them
+        was made mean the plans keep leading into something the lidar sees in the way (a path cutting a
+        corner the map rounds off, say), and each new plan turns the robot back toward it: drive as the
+        explorer for ``explore_steps`` steps instead, then plan again from wherever that led."""
+        if not self.max_blocked_turns:
+            return
+        start = self._blocked_from
+        if start is None or math.hypot(self._odo[0] - start[0], self._odo[1] - start[1]) > STUCK_M:
+            self._blocked_from, self._blocked_turns = self._odo.copy(), 0
+        self._blocked_turns += 1
+        if self._blocked_turns >= self.max_blocked_turns:
+            self._exploring, self._since_plan = True, 0
+            self._blocked_from, self._blocked_turns = None, 0
 
     def _blocked(self, ranges: np.ndarray, behind: bool = False) -> bool:
         """Whether a lidar return ahead lies within ``clearance_stop_m`` forward of the robot's

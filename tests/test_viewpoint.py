@@ -119,6 +119,9 @@ def test_an_episode_reads_no_truth_and_repeats_bit_for_bit():
         ({"reverse_rad": float("nan")}, "reverse_rad"),
         ({"reverse_max_m": 0.0}, "reverse_max_m"),
         ({"reverse_max_m": float("nan")}, "reverse_max_m"),
+        ({"max_blocked_turns": -1}, "max_blocked_turns"),
+        ({"max_blocked_turns": 2.5}, "max_blocked_turns"),
+        ({"max_blocked_turns": True}, "max_blocked_turns"),
     ],
 )
 def test_bad_settings_are_refused(kw, match):
@@ -173,6 +176,43 @@ def test_start_turn_charges_turning_onto_the_path():
     half_turn_m = math.pi / pol.step_rad * pol.step_m
     extra = with_turn - without
     assert extra[0] < 0.25 * half_turn_m and abs(extra[1] - half_turn_m) < 0.25 * half_turn_m, (extra, half_turn_m)
+
+
+def test_safety_turns_on_one_spot_make_the_planner_explore():
+    """A plan whose path the lidar keeps blocking: each safety turn plans again, and after
+    ``max_blocked_turns`` of them within `STUCK_M` of the first the planner explores instead (a livelock
+    traced on a held-out look-alike layout: 90 steps of turning on the spot). Turns farther apart start a
+    new count; 0 turns the rule off."""
+    from agents.viewpoint import STUCK_M
+
+    pol = ViewpointPlanner(seed=0, max_blocked_turns=3)
+    env = _env(pol)
+    obs, _ = env.reset(seed=0)
+    pol.act(obs)
+    ahead = np.asarray(obs["lidar"], dtype=np.float64).copy()
+    angles = np.asarray(env.unwrapped.lidar.angles)
+    ahead[np.abs(angles) < 0.3] = 0.2  # something right in front of the robot
+    blocked = dict(obs, lidar=ahead.astype(np.float32))
+    pol._exploring, pol._since_plan = False, 0
+    pol._path = np.array([[1.0, 0.0], [2.0, 0.0]])  # a path straight ahead, through it
+    pol._goal_heading = 0.0
+    for k in range(1, 3):
+        pol._pose = np.zeros(3)
+        pol._exploring, pol._since_plan = False, 0
+        pol._decide(blocked, pol._follow)
+        assert pol._blocked_turns == k and pol._since_plan == pol.replan_every
+    pol._pose, pol._exploring, pol._since_plan = np.zeros(3), False, 0
+    pol._decide(blocked, pol._follow)
+    assert pol._exploring and pol._since_plan == 0 and pol._blocked_turns == 0
+    # a turn elsewhere starts a new count
+    pol._count_blocked_turn()
+    pol._odo = pol._odo + np.array([STUCK_M + 0.1, 0.0, 0.0])
+    pol._count_blocked_turn()
+    assert pol._blocked_turns == 1
+    off = ViewpointPlanner(seed=0, max_blocked_turns=0)
+    for _ in range(10):
+        off._count_blocked_turn()
+    assert off._blocked_turns == 0 and off._exploring  # (exploring from its reset; never switched by the rule)
 
 
 def test_forward_is_blocked_by_what_the_disc_would_touch():
