@@ -256,6 +256,23 @@ def test_train_ppo_cli_takes_the_train_config_and_formats_missing_values():
     assert line == "| p | 25 % | 50 % | 25 % | - | 1.23 | -0.50 |"
 
 
+def test_train_ppo_takes_every_map_source_the_env_does(tmp_path):
+    """--map-source: mapping, perfect, another layout's name or file, a ROS map; anything else is refused
+    before a run starts (it took only mapping and perfect)."""
+    import agents.tools.train_ppo as mod
+    from filters.mapping.ros_map import save_map
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.rasterize import rasterize
+
+    ros = str(save_map(rasterize(get_layout("lab")), tmp_path / "lab.yaml"))
+    cfg = mod.TrainConfig(log_dir=str(tmp_path / "run"))
+    for src in ("mapping", "perfect", "three_rooms", ros):
+        assert mod.Args(config=cfg, map_source=src).map_source == src
+    for bad in ("mappping", str(tmp_path / "none.yaml"), ""):
+        with pytest.raises(ValueError, match="map_source must be"):
+            mod.Args(config=cfg, map_source=bad)
+
+
 def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path, monkeypatch):
     import agents.tools.train_ppo as mod
 

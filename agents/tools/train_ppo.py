@@ -30,7 +30,6 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 
@@ -62,8 +61,10 @@ class Args:
     .json/.yaml file"""
     lidar_only: bool = False
     """run the relocalizer without the semantic factor (semantic=False)"""
-    map_source: Literal["mapping", "perfect"] = "mapping"
-    """map the filter uses: mapping (simulated mapping run) or perfect (rasterised layout)"""
+    map_source: str = "mapping"
+    """map the filter uses: mapping (the simulated mapping run's), perfect (the rasterised layout), another
+    layout (a built-in name or a layout file: its mapping run's map, as for a changed world) or a ROS map
+    (.yaml) that fits the layout"""
     n_particles: int = 1000
     """particles of the relocalizer"""
     max_episode_steps: int = 200
@@ -83,6 +84,14 @@ class Args:
             raise ValueError("config.log_dir: the command needs a run folder")
         if self.config.env_kwargs:
             raise ValueError("config.env_kwargs: set the env through layout, lidar_only, map_source, ...")
+        from semreloc_env.maps import is_ros_map_file, names_a_layout
+
+        src = self.map_source
+        if src not in ("mapping", "perfect") and not (names_a_layout(src) or is_ros_map_file(src)):
+            raise ValueError(
+                f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a ROS "
+                f"map (.yaml), got {src!r}"
+            )
         if self.n_particles < 1 or self.max_episode_steps < 1 or self.eval_episodes < 1:
             raise ValueError(
                 f"n_particles, max_episode_steps and eval_episodes must be >= 1, got "
