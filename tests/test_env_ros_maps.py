@@ -108,3 +108,10 @@ def test_a_sidecar_with_some_classes_or_another_order(tmp_path):
     unknown = dataclasses.replace(grid, class_names=("door", "chair", "sofa", "cabinet"))
     with pytest.raises(ValueError, match=r"classes \['sofa'\] are not among the env's"):
         gym.make("SemReloc-v10", map_source=str(save_map(unknown, tmp_path / "sofa" / "s.yaml")), semantic=False, **kw)
+
+
+def test_a_folder_as_map_source_says_to_give_a_file_in_it(tmp_path):
+    _plain_map(tmp_path)
+    for src in (tmp_path, str(tmp_path)):
+        with pytest.raises(ValueError, match="is a folder; give one map file in it"):
+            gym.make("SemReloc-v10", map_source=src)
