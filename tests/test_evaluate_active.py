@@ -310,7 +310,7 @@ def test_env_id_and_relocalizer_overrides_reach_the_env_and_the_rows_settings():
         env = ev.case_env(case, args)
         assert env.unwrapped.mcl_config.negative_evidence.p_detect == p_detect
         assert env.unwrapped.mcl_config.n_particles == 100
-    assert "env_id" not in ev.settings(plain, "spin") and "relocalizer" not in ev.settings(plain, "spin")
+    assert ev.settings(plain, "spin")["env_id"] == ev.ENV_ID and "relocalizer" not in ev.settings(plain, "spin")
     assert ev.settings(v3, "spin")["env_id"] == "SemReloc-v3"  # so --reuse never mixes rows of two envs
     assert ev.settings(half, "spin")["relocalizer"]["negative_evidence"] == {"p_detect": 0.5}
 

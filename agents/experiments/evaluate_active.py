@@ -497,7 +497,7 @@ def settings(args: Args, spec: str) -> dict:
         "sample_learned": args.sample_learned and is_learned(spec),
         **({"seed_set": args.seed_set} if args.seed_set != "held_out" else {}),
         **({"action_type": args.action_type} if args.action_type != "discrete" else {}),
-        **({"env_id": args.env_id} if args.env_id != ENV_ID else {}),
+        "env_id": args.env_id,
         **({"relocalizer": args.relocalizer_overrides()} if args.relocalizer else {}),
     }
 
