@@ -192,6 +192,23 @@ def test_semantic_no_return_beams_update_nothing_without_clear_no_return():
     np.testing.assert_array_equal(keep.logodds, returned.logodds)  # the array path drops them too
 
 
+def test_semantic_beams_below_a_minimum_range_leave_their_labels_out_too():
+    """A semantic scan type with a minimum range (``range_min_m``, as `LaserScan` has): beams below it update
+    nothing, and the labels of the others stay with their beams (they were dropped from the beams only)."""
+    import dataclasses
+
+    @dataclasses.dataclass(frozen=True)
+    class NearBlindScan(SemanticScan):
+        range_min_m: float = 0.3
+
+    pose = np.array([0.05, 0.05, 0.0])
+    blind = SemanticMapper((1, 30), 0.1, (0.0, 0.0), CLASSES)
+    blind.update(pose, NearBlindScan([0.1, 0.55], [0.0, 0.0], [1, 2], 3.0))  # the first beam is too short
+    want = SemanticMapper((1, 30), 0.1, (0.0, 0.0), CLASSES)
+    want.update(pose, SemanticScan([0.55], [0.0], [2], 3.0))
+    np.testing.assert_array_equal(blind.logodds, want.logodds)
+
+
 def test_bad_parameters_and_inputs_raise():
     with pytest.raises(ValueError, match="l_free_outside < l_free_inside"):
         SemanticParams(l_free_inside=-0.6, l_free_outside=-0.2)

@@ -350,8 +350,11 @@ class _RasterMapper:
             and tuple(other.origin_xy_m) == self._origin
         )
 
-    def _beams(self, poses: np.ndarray, scans: Sequence, max_range_m: float):
-        """Concatenate the beams of ``scans`` into cell-unit start points, directions, lengths and returns."""
+    def _beams(self, poses: np.ndarray, scans: Sequence, max_range_m: float, labels: np.ndarray | None = None):
+        """Concatenate the beams of ``scans`` into cell-unit start points, directions, lengths and returns.
+
+        Beams below a scan's ``range_min_m`` are left out; ``labels`` (one per beam of ``scans``, in order),
+        if given, are left out with them and returned after the beams: ``(beams, labels)``."""
         poses = np.asarray(poses, dtype=np.float64)
         if poses.ndim != 2 or poses.shape[1] != 3:
             raise ValueError(f"poses must have shape (N, 3), got {poses.shape}")
@@ -379,9 +382,11 @@ class _RasterMapper:
         ok = ranges >= rmin  # below the sensor's minimum range: invalid, no update
         if not ok.all():
             u0, v0, th, t_end, returned, no_return = (a[ok] for a in (u0, v0, th, t_end, returned, no_return))
+            labels = None if labels is None else labels[ok]
             if t_end.size == 0:
                 return None
-        return u0, v0, np.cos(th), np.sin(th), t_end, returned, no_return
+        beams = (u0, v0, np.cos(th), np.sin(th), t_end, returned, no_return)
+        return beams if labels is None else (beams, labels)
 
     def _beam_arrays(self, poses, ranges, angles, range_max_m: float, max_range_m: float):
         """`_beams` for scans given as arrays: ``ranges (N, B)``, ``angles (B,)`` or ``(N, B)``
@@ -558,10 +563,11 @@ class SemanticMapper(_RasterMapper):
                 raise TypeError(f"SemanticMapper needs SemanticScan objects, got {type(s).__name__}")
             if s.labels.size and s.labels.max() > n_cls:
                 raise ValueError(f"scan label {int(s.labels.max())} but the mapper has {n_cls} classes")
-        beams = self._beams(poses, scans, self.params.max_range_m)
-        if beams is None:
+        labels = np.concatenate([s.labels for s in scans]).astype(np.int64)
+        kept = self._beams(poses, scans, self.params.max_range_m, labels)
+        if kept is None:
             return
-        self._integrate(beams, np.concatenate([s.labels for s in scans]).astype(np.int64))
+        self._integrate(*kept)
 
     def update_arrays(
         self, poses: np.ndarray, ranges: np.ndarray, labels: np.ndarray, angles: np.ndarray, range_max_m: float
