@@ -55,7 +55,8 @@ MAPPING_RUN_VERSION = MAPPING_RUN_VERSIONS[-1]
 
 STRAY_SUPPORT_P, STRAY_RADIUS_M = 0.9, 0.1
 """Version 4 keeps a class cell only if a cell of its class within this distance (m) has at least this
-probability (docs/maps.md, "Stray class cells")."""
+probability (docs/maps.md, "Stray class cells"). Changing them needs a new version: the map cache's keys
+(`semreloc_env.maps.map_key`) hold the version, not these."""
 
 CHUNK_POSES = 2048
 """Poses sensed and integrated per batch by `build_maps` (bounds its memory)."""

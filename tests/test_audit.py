@@ -238,7 +238,9 @@ def test_the_screen_pauses_after_it_found_nothing(pause, monkeypatch):
 @pytest.mark.parametrize("follow_place", [False, True])
 def test_the_screen_pause_follows_the_place_it_cleared(follow_place, monkeypatch):
     """With ``audit_screen_pause_place`` the pause holds only while the hypothesis stays at the place the
-    screen cleared, whose mean is carried along the odometry; a convergence elsewhere is screened again."""
+    screen cleared, whose mean is carried along the odometry: turning by 2 rad on the spot (audited again after
+    1.2 and 1.8 rad, farther than the audit's 45 deg) is the same place, no new screen; a convergence elsewhere
+    is screened again."""
     calls = []
     real = audit_module.screened_places
     monkeypatch.setattr(audit_module, "screened_places", lambda *a, **k: calls.append(1) or real(*a, **k))
@@ -248,22 +250,32 @@ def test_the_screen_pause_follows_the_place_it_cleared(follow_place, monkeypatch
         audit_screen_pause_place=follow_place,
     )  # fmt: skip
     mcl, pose, rng = _at_the_cabinet(grid, cfg)
-    moves = []
-    for i in range(8):
+    audits = []
+
+    def step(move, still_cleared=True):
+        nonlocal pose
         mcl._was_converged = False  # the belief drops out of "converged" and back (simulated)
-        new = compose(pose, np.array([0.12, 0.0, 0.0]))
-        step = relative(pose, new)
-        cleared = mcl._screen_cleared
-        mcl.predict(step)
-        if cleared is not None:  # the cleared mean moves with the odometry
-            assert np.allclose(mcl._screen_cleared[1], compose(cleared[1], step))
+        new = compose(pose, np.array(move))
+        mcl.predict(relative(pose, new))
         pose = new
-        if i == 4:  # as if the place the screen cleared had been elsewhere: the belief's place is new
-            moves.append(len(calls))
-            mcl._screen_cleared = (mcl._screen_cleared[0], mcl._screen_cleared[1] + np.array([2.0, 0.0, 0.0]))
         lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
-        mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0))
-    assert moves == [1]  # one screen before the move, then paused at the same place
+        d = mcl.update(lidar, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0))
+        audits.append(not math.isnan(d.audit_log_ratio))
+        assert d.n_audit_injected == 0 or not still_cleared
+
+    step([0.05, 0.0, 0.0])
+    assert len(calls) == 1 and mcl._screen_cleared is not None
+    start = mcl._screen_cleared[1].copy()
+    for _ in range(20):  # turn on the spot, 0.1 rad a step
+        step([0.02, 0.0, -0.1])
+    assert sum(audits[1:]) >= 3 and len(calls) == 1  # audited again at the same place: no screen
+    turned = mcl._screen_cleared[1][2] - start[2]
+    assert abs(math.remainder(turned + 2.0, 2 * math.pi)) < 0.01  # the cleared mean turned with the robot
+    # as if the screen had cleared another place: the belief's place is new
+    mcl._screen_cleared = (mcl._screen_cleared[0], mcl._screen_cleared[1] + np.array([2.0, 0.0, 0.0]))
+    n = len(audits)
+    while sum(audits[n:]) == 0:  # up to the next audit (none within the window of the last)
+        step([0.02, 0.0, -0.1], still_cleared=False)
     assert len(calls) == (2 if follow_place else 1)
 
 

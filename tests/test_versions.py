@@ -361,7 +361,7 @@ def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
 
     sensors = (LidarParams(), CameraParams())
     assert map_key(get_layout("lab"), *sensors, version="2") == "0dc7b7f6ab70a8810d1b227a455888b5"
-    for env_id, version in (("SemReloc-v8", "3"), ("SemReloc-v7", "2")):
+    for env_id, version in (("SemReloc-v10", "4"), ("SemReloc-v9", "3"), ("SemReloc-v8", "3"), ("SemReloc-v7", "2")):
         env = make(env_id, layout="twin_rooms").unwrapped
         assert env.grid is mapped(get_layout("twin_rooms"), *sensors, version)
         env.set_layout("three_rooms")

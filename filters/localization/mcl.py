@@ -268,8 +268,8 @@ class MCLConfig:
             find nothing new (0: every audit screens).
         audit_screen_pause_place: the pause holds only while the hypothesis stays at the place that
             screen cleared (its mean carried along the odometry since; farther than the audit's
-            ``outside`` limits: screen again). False in ``SemReloc-v9``, whose pause ignored where the
-            belief was.
+            ``outside`` limits: screen again). False before ``SemReloc-v10`` (v9's pause ignored where the
+            belief was). The mean is carried without motion noise, as `filters.pose.compose` moves a pose.
         audited_convergence: with the audit on, the belief is called converged only after an update
             that audited it (or kept a convergence an update audited): a set that comes to meet the
             criterion between updates (a prediction moving particles from one cluster to another)

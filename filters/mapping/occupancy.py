@@ -652,12 +652,12 @@ def drop_unsupported_class_cells(grid: GridMap, support_p: float = 0.9, radius_m
         raise ValueError(f"radius_m must be a number >= 0, got {radius_m!r}")
     if grid.semantic.shape[0] == 0:
         return grid
-    r = int(round(radius_m / grid.resolution_m))
+    r = min(int(round(radius_m / grid.resolution_m)), max(grid.shape))  # farther reaches every cell anyway
     sem = np.array(grid.semantic, dtype=np.float32)
-    box = np.ones((2 * r + 1, 2 * r + 1), bool)
     for k in range(sem.shape[0]):
         marked = sem[k] > grid.semantic_thresh
-        backed = ndimage.binary_dilation(sem[k] >= support_p, box) if r else sem[k] >= support_p
+        strong = (sem[k] >= support_p).astype(np.uint8)
+        backed = ndimage.maximum_filter(strong, size=2 * r + 1, mode="constant") > 0  # a square of side 2r+1 cells
         sem[k][marked & ~backed] = grid.semantic_thresh
     return dataclasses.replace(grid, semantic=sem)
 

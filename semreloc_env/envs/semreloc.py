@@ -1,4 +1,4 @@
-"""``SemReloc-v9`` (and ``-v8``, ``-v7``, ``-v6``, ``-v5``, ``-v4``, ``-v3``, ``-v2``, ``-v1``, ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v10`` (and ``-v9`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -591,7 +591,7 @@ class SemRelocEnvV7(SemRelocEnvV8):
     """``SemReloc-v7``: `SemRelocEnvV8` with the maps of the mapping run's version 2, whose camera beams
     without a return (objects nearer than the camera's minimum range among them) cleared the classes along
     the camera's range. Otherwise identical to ``SemReloc-v8``. Kept so that results made with v7 can be
-    reproduced; new work should use ``SemReloc-v9``."""
+    reproduced; new work should use ``SemReloc-v10``."""
 
     mapping_run_version = "2"
 
@@ -600,7 +600,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
     """``SemReloc-v6``: `SemRelocEnvV7` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
     coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
     identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
-    ``SemReloc-v9``."""
+    ``SemReloc-v10``."""
 
     default_relocalizer = RELOCALIZER_V6
 
@@ -608,7 +608,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
 class SemRelocEnvV5(SemRelocEnvV6):
     """``SemReloc-v5``: `SemRelocEnvV6` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
-    results made with v5 can be reproduced; new work should use ``SemReloc-v9``."""
+    results made with v5 can be reproduced; new work should use ``SemReloc-v10``."""
 
     default_relocalizer = RELOCALIZER_V5
 
@@ -616,7 +616,7 @@ class SemRelocEnvV5(SemRelocEnvV6):
 class SemRelocEnvV4(SemRelocEnvV5):
     """``SemReloc-v4``: `SemRelocEnvV5` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
     audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
-    reproduced; new work should use ``SemReloc-v9``."""
+    reproduced; new work should use ``SemReloc-v10``."""
 
     default_relocalizer = RELOCALIZER_V4
 
@@ -624,7 +624,7 @@ class SemRelocEnvV4(SemRelocEnvV5):
 class SemRelocEnvV3(SemRelocEnvV4):
     """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v9``."""
+    v3 can be reproduced; new work should use ``SemReloc-v10``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -632,7 +632,7 @@ class SemRelocEnvV3(SemRelocEnvV4):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v9``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v10``."""
 
     procedural_version = 1
 
@@ -641,7 +641,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v9``."""
+    v1 keep working; new work should use ``SemReloc-v10``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -649,6 +649,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v9``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v10``."""
 
     default_relocalizer = LEGACY_RELOCALIZER
