@@ -60,6 +60,11 @@ import numpy as np
 from filters.experiments.cli import JsonDict, Runner, command_line, parse, usage_error
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import wilson_interval
+from semreloc_env import ENV_IDS
+
+EVALUATED_ENV_IDS = tuple(i for i in ENV_IDS if i.startswith("SemReloc-v") and int(i.rsplit("v", 1)[1]) >= 3)
+"""The ids ``--env-id`` takes: ``SemReloc-v3`` and newer (typed observations, the look-alike generator of v3)."""
+EvaluatedEnvId = Literal[EVALUATED_ENV_IDS]
 
 DEFAULT_POLICIES = ("random", "spin", "spin_backup", "wall_follow", "info_gain")
 
@@ -102,16 +107,7 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: Literal[
-        "SemReloc-v10",
-        "SemReloc-v9",
-        "SemReloc-v8",
-        "SemReloc-v7",
-        "SemReloc-v6",
-        "SemReloc-v5",
-        "SemReloc-v4",
-        "SemReloc-v3",
-    ] = "SemReloc-v10"
+    env_id: EvaluatedEnvId = "SemReloc-v10"
     """the env the episodes run in: SemReloc-v10 (the newest), SemReloc-v9, SemReloc-v8, SemReloc-v7, SemReloc-v6,
     SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the
     maps of the mapping run's version 3, with stray class cells, and the screen's pause blind to place (v9), the
