@@ -500,6 +500,7 @@ class ViewpointPlanner(Policy):
         self._odo = np.zeros(3)  # the robot's pose in the frame of the episode's start, from the odometry
         self._blocked_from: np.ndarray | None = None  # where (``_odo``) the current run of safety turns began
         self._blocked_turns = 0
+        self._escaping = False  # exploring because of `max_blocked_turns`
         self._since_plan = 0
         self._stays = 0
         self._progress_window = max(2, int(1.5 / self.plan_cell_m))
@@ -804,6 +805,7 @@ class ViewpointPlanner(Policy):
             ok, self._stays = False, 0
             self.last_plan["fallback"] = True
         self._exploring = not ok
+        self._escaping = False
         self._since_plan = 0
 
     def observe(self, obs: dict) -> None:
@@ -847,15 +849,18 @@ class ViewpointPlanner(Policy):
         if forward and self._blocked(ranges):
             left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
             a = TURN_LEFT if left >= right else TURN_RIGHT
-            self._since_plan = self.replan_every  # plan again next step
-            self._count_blocked_turn()
+            if not self._escaping:  # plan again next step (an exploration the rule began runs its course)
+                self._since_plan = self.replan_every
+            if not self._exploring:
+                self._count_blocked_turn()
         return a
 
     def _count_blocked_turn(self) -> None:
-        """With ``max_blocked_turns``: that many safety turns within `STUCK_M` of where the first of them
-        was made mean the plans keep leading into something the lidar sees in the way (a path cutting a
-        corner the map rounds off, say), and each new plan turns the robot back toward it: drive as the
-        explorer for ``explore_steps`` steps instead, then plan again from wherever that led."""
+        """With ``max_blocked_turns``: that many safety turns while following plans, within `STUCK_M` of
+        where the first of them was made, mean the plans keep leading into something the lidar sees in the
+        way (a path cutting a corner the map rounds off, say), and each new plan turns the robot back toward
+        it: drive as the explorer for ``explore_steps`` steps instead (its own safety turns do not cut that
+        short), then plan again from wherever that led."""
         if not self.max_blocked_turns:
             return
         start = self._blocked_from
@@ -863,7 +868,7 @@ class ViewpointPlanner(Policy):
             self._blocked_from, self._blocked_turns = self._odo.copy(), 0
         self._blocked_turns += 1
         if self._blocked_turns >= self.max_blocked_turns:
-            self._exploring, self._since_plan = True, 0
+            self._exploring, self._escaping, self._since_plan = True, True, 0
             self._blocked_from, self._blocked_turns = None, 0
 
     def _blocked(self, ranges: np.ndarray, behind: bool = False) -> bool:

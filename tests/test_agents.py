@@ -268,9 +268,12 @@ def test_train_ppo_takes_every_map_source_the_env_does(tmp_path):
     cfg = mod.TrainConfig(log_dir=str(tmp_path / "run"))
     for src in ("mapping", "perfect", "three_rooms", ros):
         assert mod.Args(config=cfg, map_source=src).map_source == src
-    for bad in ("mappping", str(tmp_path / "none.yaml"), ""):
+    for bad in ("mappping", str(tmp_path), ""):
         with pytest.raises(ValueError, match="map_source must be"):
             mod.Args(config=cfg, map_source=bad)
+    for missing in ("none.yaml", "none.json"):
+        with pytest.raises(ValueError, match="no such file"):
+            mod.Args(config=cfg, map_source=str(tmp_path / missing))
 
 
 def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path, monkeypatch):

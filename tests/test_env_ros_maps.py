@@ -110,8 +110,14 @@ def test_a_sidecar_with_some_classes_or_another_order(tmp_path):
         gym.make("SemReloc-v10", map_source=str(save_map(unknown, tmp_path / "sofa" / "s.yaml")), semantic=False, **kw)
 
 
-def test_a_folder_as_map_source_says_to_give_a_file_in_it(tmp_path):
+def test_a_folder_as_map_source_says_to_give_a_file_in_it(tmp_path, monkeypatch):
     _plain_map(tmp_path)
     for src in (tmp_path, str(tmp_path)):
         with pytest.raises(ValueError, match="is a folder; give one map file in it"):
             gym.make("SemReloc-v10", map_source=src)
+    # a folder in the working directory that shares a map source's name does not shadow it
+    monkeypatch.chdir(tmp_path)
+    for name in ("mapping", "perfect", "twin_rooms"):
+        (tmp_path / name).mkdir()
+        env = gym.make("SemReloc-v10", layout="twin_rooms", map_source=name, relocalizer={"n_particles": 100})
+        assert env.unwrapped.map_source == name

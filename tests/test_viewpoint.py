@@ -204,15 +204,26 @@ def test_safety_turns_on_one_spot_make_the_planner_explore():
     pol._pose, pol._exploring, pol._since_plan = np.zeros(3), False, 0
     pol._decide(blocked, pol._follow)
     assert pol._exploring and pol._since_plan == 0 and pol._blocked_turns == 0
+    # that exploration runs its course: a safety turn of the explorer's (a return beside the front, which its
+    # own look ahead does not see) neither cuts it short nor counts
+    beside = np.full(angles.size, 8.0)
+    beside[int(np.argmin(np.abs(angles + 1.26)))] = 0.22
+    beside_obs = dict(obs, lidar=beside.astype(np.float32))
+    assert pol.explorer(beside_obs) == 0 and pol._blocked(beside)
+    for k in range(1, pol.explore_steps):
+        pol._since_plan = k
+        assert pol._decide(beside_obs, pol._follow) in (1, 2)  # the safety turn
+        assert pol._exploring and pol._since_plan == k and pol._blocked_turns == 0
     # a turn elsewhere starts a new count
     pol._count_blocked_turn()
     pol._odo = pol._odo + np.array([STUCK_M + 0.1, 0.0, 0.0])
     pol._count_blocked_turn()
     assert pol._blocked_turns == 1
     off = ViewpointPlanner(seed=0, max_blocked_turns=0)
+    off._exploring = False
     for _ in range(10):
         off._count_blocked_turn()
-    assert off._blocked_turns == 0 and off._exploring  # (exploring from its reset; never switched by the rule)
+    assert off._blocked_turns == 0 and not off._exploring
 
 
 def test_forward_is_blocked_by_what_the_disc_would_touch():

@@ -87,6 +87,8 @@ class Args:
         from semreloc_env.maps import is_ros_map_file, names_a_layout
 
         src = self.map_source
+        if src.lower().endswith((".json", ".yaml", ".yml")) and not Path(src).expanduser().is_file():
+            raise ValueError(f"map_source {src!r}: no such file")
         if src not in ("mapping", "perfect") and not (names_a_layout(src) or is_ros_map_file(src)):
             raise ValueError(
                 f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a ROS "

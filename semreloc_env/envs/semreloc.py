@@ -362,16 +362,19 @@ class SemRelocEnv(SemRelocBase):
         if scenario not in SCENARIOS:
             raise ValueError(f"unknown scenario {scenario!r}; choose one of {list(SCENARIOS)}")
         check_seed_use(layout, layout_seed, scenario)
-        if isinstance(map_source, (str, Path)) and str(map_source) and Path(map_source).expanduser().is_dir():
+        named = isinstance(map_source, str) and (map_source in MAP_SOURCES or names_a_layout(map_source))
+        if (
+            not named
+            and isinstance(map_source, (str, Path))
+            and str(map_source)
+            and Path(map_source).expanduser().is_dir()
+        ):
             raise ValueError(
                 f"map_source {str(map_source)!r} is a folder; give one map file in it (a ROS map .yaml/.yml with "
                 "its image, or a layout file)"
             )
         if not (
-            isinstance(map_source, (GridMap, Path))
-            or map_source in MAP_SOURCES
-            or names_a_layout(map_source)
-            or str(map_source).endswith((".yaml", ".yml", ".json"))
+            named or isinstance(map_source, (GridMap, Path)) or str(map_source).endswith((".yaml", ".yml", ".json"))
         ):
             raise ValueError(
                 f"map_source must be one of {list(MAP_SOURCES)}, a map .yaml/.yml path, a GridMap, or a layout "
