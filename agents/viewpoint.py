@@ -52,9 +52,9 @@ alone (never the true pose):
    ``clearance_stop_m`` behind).
 
 When one hypothesis is left (nothing to tell apart), no viewpoint resolves anything within the
-horizon, a goal where the robot already stands did not settle the belief twice in a row, or the lidar
-made it turn away from its path ``max_blocked_turns`` times on the same spot, it drives as
-`agents.baselines.WallFollowExplorer` for ``explore_steps`` steps, then plans again.
+horizon, a goal where the robot already stands did not settle the belief twice in a row, or (an option,
+off by default) the lidar made it turn away from its path ``max_blocked_turns`` times on the same spot, it
+drives as `agents.baselines.WallFollowExplorer` for ``explore_steps`` steps, then plans again.
 """
 
 from __future__ import annotations
@@ -340,9 +340,11 @@ class ViewpointPlanner(Policy):
             even if its goal was not reached.
         explore_steps: steps driven as the explorer before planning again.
         max_blocked_turns: after this many safety turns (the lidar saw something in the way of a forward
-            step) within `STUCK_M` of each other, drive as the explorer for ``explore_steps`` steps
-            (0: never, as before this option: each safety turn only makes the planner plan again, and a
-            path cutting a corner could keep the robot turning on the spot to the end of an episode).
+            step) while following plans, within `STUCK_M` of each other, drive as the explorer for
+            ``explore_steps`` steps (0, the default: never; each safety turn only makes the planner plan
+            again, and a path cutting a corner can keep the robot turning on the spot to the end of an
+            episode). 6 ended such a livelock on a held-out pair but did not help on the tuning pairs
+            (docs/active.md, at a glance), so it is off.
         stay_m: a goal closer than this counts as staying where the robot is.
         max_stays: after this many such plans in a row (the belief did not settle where the model
             said it would), explore instead.
@@ -407,7 +409,7 @@ class ViewpointPlanner(Policy):
         reverse_rad: float = 0.0,
         reverse_max_m: float = math.inf,
         negative_evidence: bool = True,
-        max_blocked_turns: int = 6,
+        max_blocked_turns: int = 0,
     ):
         super().__init__(seed)
         if not isinstance(negative_evidence, (bool, np.bool_)):

@@ -185,7 +185,7 @@ def test_safety_turns_on_one_spot_make_the_planner_explore():
     new count; 0 turns the rule off."""
     from agents.viewpoint import STUCK_M
 
-    pol = ViewpointPlanner(seed=0, max_blocked_turns=3)
+    pol = ViewpointPlanner(seed=0, max_blocked_turns=3)  # an option, off by default
     env = _env(pol)
     obs, _ = env.reset(seed=0)
     pol.act(obs)
