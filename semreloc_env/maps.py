@@ -186,6 +186,16 @@ def names_a_layout(source) -> bool:
     return False
 
 
+def check_map_source_name(source: str) -> None:
+    """ValueError unless ``source`` is a map source a command line can name: one of `MAP_SOURCES`, a layout
+    (`names_a_layout`) or a ROS map file (`is_ros_map_file`)."""
+    if not (source in MAP_SOURCES or names_a_layout(source) or is_ros_map_file(source)):
+        raise ValueError(
+            f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a ROS map "
+            f"(.yaml), got {source!r}"
+        )
+
+
 def maps_for(
     layout: Layout,
     source,

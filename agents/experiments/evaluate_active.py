@@ -143,13 +143,9 @@ class Args:
             return
         from semreloc_env.config import CameraParams, LidarParams
         from semreloc_env.layouts import LayoutError, get_layout
-        from semreloc_env.maps import is_ros_map_file, maps_for, names_a_layout
+        from semreloc_env.maps import check_map_source_name, maps_for
 
-        if not (names_a_layout(self.map_source) or is_ros_map_file(self.map_source)):
-            raise ValueError(
-                f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a "
-                f"ROS map (.yaml), got {self.map_source!r}"
-            )
+        check_map_source_name(self.map_source)
         if self.layouts_per_kind or self.ring_layouts or self.builtin_layouts or not self.layout_files:
             raise ValueError(
                 "map_source: one map for every case needs worlds that fit it: --layout-files alone "

@@ -84,16 +84,12 @@ class Args:
             raise ValueError("config.log_dir: the command needs a run folder")
         if self.config.env_kwargs:
             raise ValueError("config.env_kwargs: set the env through layout, lidar_only, map_source, ...")
-        from semreloc_env.maps import is_ros_map_file, names_a_layout
+        from semreloc_env.maps import check_map_source_name
 
         src = self.map_source
         if src.lower().endswith((".json", ".yaml", ".yml")) and not Path(src).expanduser().is_file():
             raise ValueError(f"map_source {src!r}: no such file")
-        if src not in ("mapping", "perfect") and not (names_a_layout(src) or is_ros_map_file(src)):
-            raise ValueError(
-                f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a ROS "
-                f"map (.yaml), got {src!r}"
-            )
+        check_map_source_name(src)
         if self.n_particles < 1 or self.max_episode_steps < 1 or self.eval_episodes < 1:
             raise ValueError(
                 f"n_particles, max_episode_steps and eval_episodes must be >= 1, got "
