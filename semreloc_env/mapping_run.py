@@ -36,7 +36,7 @@ from .rasterize import raster_geometry
 from .sensors import Lidar, SemanticCamera
 from .world import build_world
 
-MAPPING_RUN_VERSIONS = ("2", "3", "4")
+MAPPING_RUN_VERSIONS = ("2", "3", "4", "5")
 """The mapping runs an env can ask for (`build_maps`' ``version``; each keys its own cached maps):
 
 * ``"2"`` (``SemReloc-v7`` and before): a camera beam without a return lowers every class along the
@@ -49,6 +49,11 @@ MAPPING_RUN_VERSIONS = ("2", "3", "4")
   class backs up are dropped (`filters.mapping.occupancy.drop_unsupported_class_cells` with
   `STRAY_SUPPORT_P` and `STRAY_RADIUS_M`): the camera's whole-object mislabels left 1-20 stray
   class cells per map, on other objects' surfaces, where the relocalizer matched them.
+* ``"5"`` (``SemReloc-v11``): version 4, then the lidar's no-return beams clear the cells no beam
+  observed, up to the first surface (`filters.mapping.occupancy.OccupancyMapper.clear_unobserved`): space
+  farther than the lidar's range from every surface (the middle of a hall more than 16 m across) was left
+  unknown, so the relocalizer could neither start nor inject particles there. Elsewhere the maps are
+  version 4's but for unknown cells the pass reaches (docs/maps.md, "Unobserved space").
 """
 MAPPING_RUN_VERSION = MAPPING_RUN_VERSIONS[-1]
 """The newest mapping run. Add a version when its output changes for the same inputs."""
@@ -262,13 +267,19 @@ def build_maps(
     # ... nor the camera's, which also reads an object nearer than its minimum range as no return
     sem = SemanticMapper(shape, resolution_m, origin, CLASS_NAMES, SemanticParams(clear_no_return=version == "2"))
     poses, lidar_due = mapping_drive(layout)
+    rmax = lidar_s.params.range_max_m
+    no_returns = []  # version 5's second pass: (lidar poses, no-return mask) per chunk
     for lo in range(0, len(poses), CHUNK_POSES):
         chunk = poses[lo : lo + CHUNK_POSES]
         lchunk = chunk[lidar_due[lo : lo + CHUNK_POSES]]
         ranges = lidar_s.read_many(world, lchunk, rng)
-        occ.update_arrays(lchunk, ranges, lidar_s.angles, lidar_s.params.range_max_m)
+        occ.update_arrays(lchunk, ranges, lidar_s.angles, rmax)
         s_ranges, labels = camera_s.read_many(world, chunk, rng)
         sem.update_arrays(chunk, s_ranges, labels, camera_s.angles, camera_s.params.range_max_m)
+        if version not in ("2", "3", "4"):
+            no_returns.append((lchunk, ranges >= rmax))
+    for lchunk, none in no_returns:
+        occ.clear_unobserved_arrays(lchunk, np.where(none, rmax, 0.0), lidar_s.angles, rmax)
     grid = occ.to_grid(sem)
     if version not in ("2", "3"):
         grid = drop_unsupported_class_cells(grid, STRAY_SUPPORT_P, STRAY_RADIUS_M)

@@ -20,7 +20,7 @@ from semreloc_env.wrappers import ActionRepeat
 
 def _env(**kw):
     kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 50, **kw}
-    return gym.make("SemReloc-v10", **kw)
+    return gym.make("SemReloc-v11", **kw)
 
 
 def test_action_repeat_sums_rewards_and_terms_and_stops_at_the_episode_end():

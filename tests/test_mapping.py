@@ -411,3 +411,71 @@ def test_drop_unsupported_class_cells_keeps_objects_and_drops_stray_cells():
             drop_unsupported_class_cells(grid, **{"support_p": 0.9, "radius_m": 0.1, **bad})
     empty = GridMap(np.zeros((4, 4), np.float32), 0.05)
     assert drop_unsupported_class_cells(empty) is empty
+
+
+def _corridor_mapper() -> OccupancyMapper:
+    """A 0.1 m raster 10 m long whose wall at x = 3 m the returns marked, with the space before it seen once."""
+    m = OccupancyMapper((5, 100), 0.1, params=OccupancyParams(clear_no_return=False))
+    m.update(np.array([0.05, 0.25, 0.0]), LaserScan([2.9], [0.0], 8.0))  # return at x = 2.95 m, in the cell 2.9..3.0
+    return m
+
+
+def test_clear_unobserved_stops_at_a_marked_surface_and_clears_only_what_returns_left_unfree():
+    m = _corridor_mapper()
+    before = m.logodds.copy()
+    dropout = LaserScan([8.0], [0.0], 8.0)  # no return although the wall is at 3 m
+    m.clear_unobserved(np.array([[0.05, 0.25, 0.0]]), [dropout])
+    after = m.logodds
+    lo = OccupancyParams().l_free_unobserved
+    # up to the cell before the wall's neighbour: at most l_free_unobserved; the wall and everything behind it untouched
+    np.testing.assert_array_equal(after[2, :28], np.minimum(before[2, :28], lo))
+    np.testing.assert_array_equal(after[2, 28:], before[2, 28:])
+    assert after[2, 29] > 0 and (after[2, 31:] == 0).all()
+    np.testing.assert_array_equal(np.delete(after, 2, axis=0), np.delete(before, 2, axis=0))  # other rows: not crossed
+
+    # a beam with a return clears nothing in this pass; an open side (no surface) is cleared out to the range
+    m.clear_unobserved(np.array([[0.05, 0.25, 0.0]]), [LaserScan([1.0], [0.0], 8.0)])
+    np.testing.assert_array_equal(m.logodds, after)
+    m2 = _corridor_mapper()
+    m2.clear_unobserved(np.array([[2.55, 0.25, 0.0]]), [LaserScan([8.0], [np.pi / 2], 0.2)])  # up the 0.5 m strip
+    assert (m2.logodds[2:, 25] == lo).all() and (m2.logodds[:2, 25] == 0).all()  # rows 2-4 (y 0.2-0.5 m), not below
+
+
+def test_clear_unobserved_freezes_its_stopping_cells_until_the_next_update_and_matches_the_array_form():
+    rng = np.random.default_rng(3)
+    poses = np.column_stack([rng.uniform(0.5, 2.5, 40), rng.uniform(0.1, 0.4, 40), rng.uniform(-np.pi, np.pi, 40)])
+    angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
+    ranges = np.where(rng.random((40, 24)) < 0.5, 8.0, rng.uniform(0.2, 3.0, (40, 24)))
+    one, chunked, arrays = _corridor_mapper(), _corridor_mapper(), _corridor_mapper()
+    one.clear_unobserved(poses, [LaserScan(r, angles, 8.0) for r in ranges])
+    for lo in range(0, 40, 7):  # later chunks stop at the cells of the pass's start, not at the first chunks' output
+        chunked.clear_unobserved(poses[lo : lo + 7], [LaserScan(r, angles, 8.0) for r in ranges[lo : lo + 7]])
+    arrays.clear_unobserved_arrays(poses, ranges, angles, 8.0)
+    np.testing.assert_array_equal(chunked.logodds, one.logodds)
+    np.testing.assert_array_equal(arrays.logodds, one.logodds)
+    assert not np.array_equal(one.logodds, _corridor_mapper().logodds)
+    # an update in between starts a new pass: its surface now stops the beams
+    beam = (np.array([[0.05, 0.25, 0.0]]), [LaserScan([8.0], [0.0], 8.0)])
+    m = _corridor_mapper()
+    m.clear_unobserved(*beam)
+    for _ in range(3):  # a surface at x = 1.05 m (cell 10), seen often enough to outweigh the first pass
+        m.update(np.array([0.05, 0.25, 0.0]), LaserScan([1.0], [0.0], 8.0))
+    before = m.logodds.copy()
+    assert before[2, 10] > 0
+    m.clear_unobserved(*beam)
+    np.testing.assert_array_equal(m.logodds[2, 9:], before[2, 9:])  # stopped next to the new surface
+    assert before[2, 15] == OccupancyParams().l_free_unobserved  # which the first pass had crossed
+
+
+def test_clear_unobserved_rejects_bad_input():
+    m = _corridor_mapper()
+    with pytest.raises(TypeError, match="LaserScan"):
+        m.clear_unobserved(np.zeros((1, 3)), [SemanticScan([1.0], [0.0], [1], 4.0)])
+    with pytest.raises(ValueError, match="poses"):
+        m.clear_unobserved_arrays(np.full((1, 3), np.nan), np.array([[8.0]]), np.array([0.0]), 8.0)
+    with pytest.raises(ValueError, match="l_free_unobserved"):
+        OccupancyParams(l_free_unobserved=0.0)
+    before = m.logodds.copy()
+    with pytest.raises(ValueError):
+        m.clear_unobserved_arrays(np.zeros((1, 3)), np.array([[np.inf]]), np.array([0.0]), 8.0)
+    np.testing.assert_array_equal(m.logodds, before)  # nothing lost

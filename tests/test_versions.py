@@ -1,4 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v10 (v9 with maps without stray class
+"""The registered ids behave as their Version History says: SemReloc-v11 (v10 with maps whose space beyond the
+lidar's returns is cleared by its beams without a return), SemReloc-v10 (v9 with maps without stray class
 cells and a screen pause that follows the place), SemReloc-v9 (v8 whose convergence audit also
 screens the whole map), SemReloc-v8 (v7 with the maps of the mapping run's version 3), SemReloc-v7 (v6's
 relocalizer whose convergence audit searches more places and comes before "converged"), SemReloc-v6 (v5's
@@ -43,6 +44,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v11",
         "SemReloc-v10",
         "SemReloc-v9",
         "SemReloc-v8",
@@ -62,6 +64,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v11", typed),
         ("SemReloc-v10", typed),
         ("SemReloc-v9", typed),
         ("SemReloc-v8", typed),
@@ -361,7 +364,8 @@ def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
 
     sensors = (LidarParams(), CameraParams())
     assert map_key(get_layout("lab"), *sensors, version="2") == "0dc7b7f6ab70a8810d1b227a455888b5"
-    for env_id, version in (("SemReloc-v10", "4"), ("SemReloc-v9", "3"), ("SemReloc-v8", "3"), ("SemReloc-v7", "2")):
+    versions = {"SemReloc-v11": "5", "SemReloc-v10": "4", "SemReloc-v9": "3", "SemReloc-v8": "3", "SemReloc-v7": "2"}
+    for env_id, version in versions.items():
         env = make(env_id, layout="twin_rooms").unwrapped
         assert env.grid is mapped(get_layout("twin_rooms"), *sensors, version)
         env.set_layout("three_rooms")
@@ -459,3 +463,42 @@ def test_v10_is_v9_with_maps_without_stray_class_cells():
     kept = sum(new.class_mask(k).sum() for k in range(len(new.class_names)))
     before = sum(old.class_mask(k).sum() for k in range(len(old.class_names)))
     assert 0.95 * before < kept < before
+
+
+def test_v11_is_v10_with_maps_whose_unobserved_space_is_cleared():
+    """v11 differs from v10 only in its maps (the mapping run's version 5). On the lab the two maps are the same,
+    so are the episodes, bit for bit; in the third outside tester's 24 m x 16 m hall, v10's map leaves unknown
+    the free space farther than the lidar's 8 m from every surface, v11's marks it free, and neither marks free
+    a cell the world holds an obstacle in; occupancy above 0.5 and every class cell stay as they were."""
+    from semreloc_env.mapping_run import build_maps
+    from semreloc_env.world import build_world
+
+    v11, v10 = make("SemReloc-v11", layout="lab").unwrapped, make("SemReloc-v10", layout="lab").unwrapped
+    assert (v11.mapping_run_version, v10.mapping_run_version) == ("5", "4")
+    assert v11.mcl_config == v10.mcl_config
+    for vec_id, version in (("SemRelocVec-v11", "5"), ("SemRelocVec-v10", "4")):
+        venv = gym.make_vec(vec_id, num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+        assert venv.envs[0].unwrapped.mapping_run_version == version
+        venv.close()
+    np.testing.assert_array_equal(v11.grid.occupancy, v10.grid.occupancy)
+    a, b = rollout(make("SemReloc-v11", layout="lab")), rollout(make("SemReloc-v10", layout="lab"))
+    for (o1, r1, t1, u1, i1), (o2, r2, t2, u2, i2) in zip(a, b, strict=True):
+        for k in o1:
+            np.testing.assert_array_equal(o1[k], o2[k])
+        assert (r1, t1, u1) == (r2, t2, u2)
+        np.testing.assert_array_equal(i1["belief"]["estimate"], i2["belief"]["estimate"])
+
+    hall = semreloc_env.load_layout(DOCS_LAYOUTS / "outside_v8" / "b8_hall_wall_huggers.json")
+    old, new = build_maps(hall, version="4"), build_maps(hall, version="5")
+    world = build_world(hall)
+    rows, cols = np.indices(old.shape)
+    xy = old.cell_centers(rows.ravel(), cols.ravel())
+    open_space = world.free_points(xy, margin_m=0.3).reshape(old.shape)  # the robot fits with 0.3 m to spare
+    solid = ~world.free_points(xy, margin_m=-world.robot_params.radius_m).reshape(old.shape)  # inside an obstacle
+    assert (open_space & ~old.free_mask()).sum() > 5000  # 16.5 m^2 in 0.05 m cells
+    assert (open_space & ~new.free_mask()).sum() == 0
+    assert not (new.free_mask() & solid).any() and not (old.free_mask() & solid).any()
+    np.testing.assert_array_equal(new.occupied_mask(), old.occupied_mask())
+    changed = new.occupancy != old.occupancy
+    assert (old.occupancy[changed] <= 0.5).all() and (new.occupancy[changed] < old.occupancy[changed]).all()
+    np.testing.assert_array_equal(new.semantic, old.semantic)

@@ -107,9 +107,10 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: EvaluatedEnvId = "SemReloc-v10"
-    """the env the episodes run in: SemReloc-v10 (the newest), SemReloc-v9, SemReloc-v8, SemReloc-v7, SemReloc-v6,
-    SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same worlds and sensors, the
+    env_id: EvaluatedEnvId = "SemReloc-v11"
+    """the env the episodes run in: SemReloc-v11 (the newest), SemReloc-v10, SemReloc-v9, SemReloc-v8, SemReloc-v7,
+    SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same worlds and
+    sensors, the maps of the mapping run's version 4, with space beyond the lidar's returns left unknown (v10), the
     maps of the mapping run's version 3, with stray class cells, and the screen's pause blind to place (v9), the
     relocalizer's audit without its screen of the whole map (v8 and older), the maps of the mapping
     run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search only (v6), also
@@ -263,7 +264,7 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v10"
+ENV_ID = "SemReloc-v11"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
 generator, as v3's to v10's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3

@@ -9,7 +9,8 @@ cell's Bayes update, which in log-odds form is a sum of per-frame increments
 * `OccupancyMapper` (lidar, `LaserScan`): every cell a beam
   passes through gets ``l_free``, the cell its return lies in gets ``l_occ``. A beam
   without a return (``range >= range_max_m``) clears cells up to ``range_max_m`` and marks
-  nothing.
+  nothing; for a lidar whose dropouts read as no return, `OccupancyMapper.clear_unobserved` is a
+  second pass in which such beams clear only cells nothing observed, up to the first surface.
 * `SemanticMapper` (semantic pseudo-laser, `SemanticScan`), one
   log-odds grid per class. A beam labelled ``k + 1`` ("inside a detection") raises class
   ``k`` at its end cell by ``l_hit`` and lowers every other class there by ``l_other_hit``;
@@ -90,6 +91,10 @@ class OccupancyParams:
             no return although a surface is in range: a dropout would otherwise clear the wall
             it missed and the space behind it. Returns beyond ``max_range_m`` are real returns
             and clear up to ``max_range_m`` either way.
+        l_free_unobserved: the most log-odds a cell keeps once a no-return beam of
+            `OccupancyMapper.clear_unobserved` crossed it; ``< 0``. Default ``-1.6`` (four ``l_free``, ``p =
+            0.17``: free under the 0.196 threshold): such a beam is no dropout (it stops at the first known
+            surface), and the space it clears is where returns pass too rarely to make cells free.
     """
 
     l_occ: float = 0.85
@@ -98,14 +103,17 @@ class OccupancyParams:
     l_max: float = 3.5
     max_range_m: float = math.inf
     clear_no_return: bool = True
+    l_free_unobserved: float = -1.6
 
     def __post_init__(self) -> None:
-        for name in ("l_occ", "l_free", "l_min", "l_max"):
+        for name in ("l_occ", "l_free", "l_min", "l_max", "l_free_unobserved"):
             _finite(name, getattr(self, name))
         if not self.l_occ > 0:
             raise ValueError(f"l_occ must be > 0, got {self.l_occ}")
         if not self.l_free < 0:
             raise ValueError(f"l_free must be < 0, got {self.l_free}")
+        if not self.l_free_unobserved < 0:
+            raise ValueError(f"l_free_unobserved must be < 0, got {self.l_free_unobserved}")
         if not self.l_min < 0 < self.l_max:
             raise ValueError(f"need l_min < 0 < l_max, got {self.l_min}, {self.l_max}")
         if not self.max_range_m > 0:
@@ -234,6 +242,21 @@ def _occupancy_kernel(L, u0, v0, du, dv, t_end, hit, l_free, l_occ, lo, hi, br, 
             d = l_occ if (hit[b] and j == n - 1) else l_free
             x = L[r, c] + d
             L[r, c] = lo if x < lo else (hi if x > hi else x)
+    return 0
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _no_return_kernel(L, blocked, u0, v0, du, dv, t_end, l_at_most, br, bc, bt):  # pragma: no cover - compiled
+    h, w = L.shape
+    for b in range(u0.shape[0]):
+        n = _walk(u0[b], v0[b], du[b], dv[b], t_end[b], br, bc, bt)
+        for j in range(n):
+            r = br[j]
+            c = bc[j]
+            if r < 0 or r >= h or c < 0 or c >= w or blocked[r, c]:
+                break
+            if L[r, c] > l_at_most:
+                L[r, c] = l_at_most
     return 0
 
 
@@ -450,6 +473,7 @@ class OccupancyMapper(_RasterMapper):
         super().__init__(shape, resolution_m, origin_xy_m)
         self.params = params if params is not None else OccupancyParams()
         self._L = np.zeros(self._shape, np.float64)
+        self._blocked: np.ndarray | None = None  # cells that stop `clear_unobserved`'s beams, this pass
 
     @classmethod
     def like(cls, grid: GridMap, params: OccupancyParams | None = None) -> OccupancyMapper:
@@ -472,7 +496,41 @@ class OccupancyMapper(_RasterMapper):
         ``poses (N, 3)``, beam angles ``(B,)`` (or ``(N, B)``) in the robot frame, one ``range_max_m``."""
         self._integrate(self._beam_arrays(poses, ranges, angles, range_max_m, self.params.max_range_m))
 
+    def clear_unobserved(self, poses: np.ndarray, scans: Sequence[LaserScan]) -> None:
+        """A second pass over scans for a lidar whose dropouts read as no return (``clear_no_return=False``).
+
+        Each no-return beam of ``scans[i]`` (taken at ``poses[i]``) walks out to its maximum range and stops
+        at the first cell within one cell (8-neighbourhood) of a cell whose log-odds was above 0 when this
+        pass began; every cell it crosses before that gets log-odds at most ``l_free_unobserved`` (free).
+        So a dropout in front of a wall stops at the wall and clears nothing behind it, while space that
+        returns reach rarely or never (the middle of a hall more than twice the lidar's range across, where
+        only the far ends of a few beams pass) is cleared by the beams that saw nothing there.
+
+        The pass begins at the first call after an update: call it after every scan's `update_many`, in as
+        many chunks as memory needs; the cells that stop it stay those of that moment until the next update.
+        """
+        for s in scans:
+            if not isinstance(s, LaserScan):
+                raise TypeError(f"OccupancyMapper needs LaserScan objects, got {type(s).__name__}")
+        self._clear_unobserved(self._beams(poses, scans, self.params.max_range_m))
+
+    def clear_unobserved_arrays(
+        self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, range_max_m: float
+    ) -> None:
+        """`clear_unobserved` for scans held as arrays (as `update_arrays` takes them)."""
+        self._clear_unobserved(self._beam_arrays(poses, ranges, angles, range_max_m, self.params.max_range_m))
+
+    def _clear_unobserved(self, beams) -> None:
+        if self._blocked is None:
+            self._blocked = ndimage.maximum_filter((self._L > 0.0).astype(np.uint8), size=3, mode="constant") > 0
+        if beams is None or not beams[6].any():
+            return
+        u0, v0, du, dv, t_end, _, k = beams
+        _no_return_kernel(self._L, self._blocked, u0[k], v0[k], du[k], dv[k], t_end[k], self.params.l_free_unobserved,
+                          *_buffers(float(t_end[k].max())))  # fmt: skip
+
     def _integrate(self, beams) -> None:
+        self._blocked = None
         if beams is None:
             return
         p = self.params
