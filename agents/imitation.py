@@ -41,7 +41,7 @@ from filters.numbers import is_int, is_real
 
 from .learned import save_policy
 from .options import TeacherLabels  # noqa: F401  (documented here: agents.imitation.TeacherLabels)
-from .train_active import ENV_ID, ActiveTrainConfig, build_model, check_fresh_out, make_active_venv
+from .train_active import ActiveTrainConfig, build_model, check_fresh_out, make_active_venv
 
 
 def _default_train() -> ActiveTrainConfig:
@@ -285,5 +285,5 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
         observation=t.observation,
         repeat=1,
         options=(),
-        extra={"env_id": ENV_ID, "imitation": config.as_dict(), "timing": timing},
+        extra={"env_id": t.env_id, "imitation": config.as_dict(), "timing": timing},
     )

@@ -21,7 +21,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import gymnasium as gym
 import torch
@@ -32,8 +32,8 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-import semreloc_env  # noqa: F401  (registers the env ids)
 from filters.experiments.cli import JsonDict
+from semreloc_env import ENV_IDS  # (importing semreloc_env registers the env ids)
 from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
 from semreloc_env.observations import ActiveObservation
 from semreloc_env.observations.active import check_arguments as check_active_arguments
@@ -47,6 +47,10 @@ from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
 
 ENV_ID = "SemReloc-v11"
+TRAINABLE_ENV_IDS = tuple(i for i in ENV_IDS if i.startswith("SemReloc-v") and int(i.rsplit("v", 1)[1]) >= 2)
+"""The envs `ActiveTrainConfig.env_id` may name: ``SemReloc-v2`` and newer (the typed observation
+`ActiveObservation` reads), newest first."""
+TrainableEnvId = Literal[TRAINABLE_ENV_IDS]
 TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
 """Layout kinds drawn for training: procedural only, so ``lab``, ``twin_rooms`` and the changed
 lab of the evaluation are layouts the policy has never seen (as are the held-out seeds)."""
@@ -72,6 +76,9 @@ class ActiveTrainConfig:
     layout_seeds: tuple[int, int] = (0, 100)
     """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
     mapping-run cache serve repeats"""
+    env_id: TrainableEnvId = ENV_ID
+    """the registered env the robot trains in (``SemReloc-v2`` or newer: the typed observation); default the
+    newest. A run resumed in another env is told so"""
     particles: int = 1000
     """the relocalizer's particle count while training (the observation does not depend on it)"""
     max_episode_steps: int = 200
@@ -140,6 +147,8 @@ class ActiveTrainConfig:
     def __post_init__(self) -> None:
         if self.vec_env not in ("subproc", "dummy"):
             raise ValueError(f"vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
+        if self.env_id not in TRAINABLE_ENV_IDS:
+            raise ValueError(f"env_id must be one of {TRAINABLE_ENV_IDS}, got {self.env_id!r}")
         for name in ("particles", "max_episode_steps", "repeat", "n_envs", "total_timesteps", "n_steps"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
@@ -217,7 +226,7 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str,
     ``teacher``: if not None, `agents.options.TeacherLabels` (the viewpoint planner with these
     arguments) goes in before `ActionRepeat`, and every info carries ``teacher_action``."""
     env = gym.make(
-        ENV_ID,
+        config.env_id,
         relocalizer={"n_particles": config.particles},
         reward_weights=dict(config.reward_weights),
         max_episode_steps=config.max_episode_steps,
@@ -309,7 +318,7 @@ def plot_learning_curve(progress_csv: str | Path, path: str | Path, repeat: int 
 
 SPACE_FIELDS = ("options", "repeat", "observation")
 """Fields of `ActiveTrainConfig` that shape the policy's spaces: a resumed run must keep them."""
-DISTRIBUTION_FIELDS = ("kinds", "files", "kind_weights", "layout_seeds", "particles", "max_episode_steps",
+DISTRIBUTION_FIELDS = ("env_id", "kinds", "files", "kind_weights", "layout_seeds", "particles", "max_episode_steps",
                        "belief_mass_weight", "reward_weights")  # fmt: skip
 """Fields that shape what a run trains on: a resumed run that changes them is told so."""
 
@@ -387,6 +396,11 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
     saved = run_config_of(path)
     if saved is None:
         return path
+    if "env_id" not in saved:  # runs made before env_id was a field: their saved policy names the env
+        try:
+            saved["env_id"] = read_metadata(run_folder_of(path) / "policy.zip")["extra"]["env_id"]
+        except (FileNotFoundError, ValueError, KeyError, TypeError):
+            pass
     saved, now = _comparable(saved), _comparable(config.as_dict())
     differ = [f for f in SPACE_FIELDS if f in saved and saved[f] != now[f]]
     if differ:
@@ -544,5 +558,5 @@ def train_active(
         observation=config.observation,
         repeat=config.repeat,
         options=config.options,
-        extra={"env_id": ENV_ID, "config": config.as_dict(), "timing": timing},
+        extra={"env_id": config.env_id, "config": config.as_dict(), "timing": timing},
     )

@@ -199,7 +199,7 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     old = tmp_path / "old"  # a run saved before `options` existed: explorer_option stands for them
     (old / "checkpoints").mkdir(parents=True)
     (old / "checkpoints" / ckpt.name).write_bytes(ckpt.read_bytes())
-    saved = {k: v for k, v in json.loads((out / "config.json").read_text()).items() if k != "options"}
+    saved = {k: v for k, v in json.loads((out / "config.json").read_text()).items() if k not in ("options", "env_id")}
     (old / "config.json").write_text(json.dumps({**saved, "explorer_option": True}))
     assert check_resume(old / "checkpoints" / ckpt.name, config) is not None
     with pytest.raises(RunFolderError, match="options"):
@@ -207,6 +207,15 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     capsys.readouterr()
     check_resume(ckpt, dataclasses.replace(config, kinds=("procedural_sym",)))
     assert "kinds ['procedural'] -> ['procedural_sym']" in capsys.readouterr().out
+    # another env is said too, also for a run whose config.json predates the field (its policy.zip names the env)
+    assert config.env_id == "SemReloc-v11"
+    check_resume(ckpt, dataclasses.replace(config, env_id="SemReloc-v10"))
+    assert "env_id 'SemReloc-v11' -> 'SemReloc-v10'" in capsys.readouterr().out
+    (old / "policy.zip").write_bytes(policy.read_bytes())
+    check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, env_id="SemReloc-v10"))
+    assert "env_id 'SemReloc-v11' -> 'SemReloc-v10'" in capsys.readouterr().out
+    check_resume(old / "checkpoints" / ckpt.name, config)
+    assert "env_id" not in capsys.readouterr().out
     assert not (tmp_path / "new").exists()
     assert tool.main(["--out", str(out), "--config.particles", "100"]) == 2
     assert "holds a training run already" in capsys.readouterr().err
