@@ -401,6 +401,12 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
             saved["env_id"] = read_metadata(run_folder_of(path) / "policy.zip")["extra"]["env_id"]
         except (FileNotFoundError, ValueError, KeyError, TypeError):
             pass
+    if "env_id" not in saved:
+        print(
+            f"note: {path}'s run does not record its env (runs saved before ActiveTrainConfig.env_id and without "
+            f"a policy.zip; they trained in the newest env of their code); this run trains in {config.env_id}",
+            flush=True,
+        )
     saved, now = _comparable(saved), _comparable(config.as_dict())
     differ = [f for f in SPACE_FIELDS if f in saved and saved[f] != now[f]]
     if differ:

@@ -1,6 +1,7 @@
 """Active-relocalization training: ActionRepeat, the CNN + MLP extractor, a PPO smoke run saved and
 reloaded through agents.load_policy, the shipped policy, and evaluate_active with learned policies."""
 
+import dataclasses
 import json
 import zipfile
 
@@ -88,6 +89,8 @@ def test_config_rejects_bad_values():
         ({"device": "bogus"}, "device"),
         ({"kinds": ("nosuch",), "kind_weights": (1.0,)}, "kinds"),
         ({"kinds": (), "files": ("/no/such/layout.json",), "kind_weights": None}, "layout"),
+        ({"env_id": "SemReloc-v1"}, "env_id"),  # the flat observation: ActiveObservation needs v2 or newer
+        ({"env_id": "SemSlam-v1"}, "env_id"),
     ]:
         with pytest.raises((ValueError, OSError), match=match):
             ActiveTrainConfig(**bad)
@@ -105,12 +108,16 @@ def test_training_envs_draw_layout_files(tmp_path):
     env = make_active_env(config, seed=0)
     env.reset(seed=0)
     assert env.unwrapped.layout.name == "mine"
+    assert env.unwrapped.spec.id == "SemReloc-v11"  # the newest unless told
+    older = make_active_env(dataclasses.replace(config, env_id="SemReloc-v10"), seed=0)
+    assert older.unwrapped.spec.id == "SemReloc-v10" and older.unwrapped.mapping_run_version == "4"
 
 
 @pytest.fixture(scope="module")
 def smoke_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("active")
     config = ActiveTrainConfig(
+        env_id="SemReloc-v10",  # not the default, so that the tests see it recorded
         kinds=("procedural",),
         kind_weights=None,
         layout_seeds=(0, 2),
@@ -143,6 +150,7 @@ def test_ppo_smoke_run_writes_logs_checkpoints_and_a_loadable_policy(smoke_run):
     assert timing["decisions"] >= 128 and timing["env_steps_max"] == 3 * timing["decisions"]
     meta = read_metadata(path)
     assert meta["repeat"] == 3 and meta["explorer_option"] and meta["extra"]["config"]["particles"] == 200
+    assert meta["extra"]["env_id"] == meta["extra"]["config"]["env_id"] == "SemReloc-v10"
 
 
 def test_resume_continues_the_step_count_and_keeps_the_earlier_logs(smoke_run, tmp_path):
@@ -208,14 +216,17 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     check_resume(ckpt, dataclasses.replace(config, kinds=("procedural_sym",)))
     assert "kinds ['procedural'] -> ['procedural_sym']" in capsys.readouterr().out
     # another env is said too, also for a run whose config.json predates the field (its policy.zip names the env)
-    assert config.env_id == "SemReloc-v11"
-    check_resume(ckpt, dataclasses.replace(config, env_id="SemReloc-v10"))
-    assert "env_id 'SemReloc-v11' -> 'SemReloc-v10'" in capsys.readouterr().out
+    assert config.env_id == "SemReloc-v10"
+    check_resume(ckpt, dataclasses.replace(config, env_id="SemReloc-v11"))
+    assert "env_id 'SemReloc-v10' -> 'SemReloc-v11'" in capsys.readouterr().out
     (old / "policy.zip").write_bytes(policy.read_bytes())
-    check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, env_id="SemReloc-v10"))
-    assert "env_id 'SemReloc-v11' -> 'SemReloc-v10'" in capsys.readouterr().out
+    check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, env_id="SemReloc-v11"))
+    assert "env_id 'SemReloc-v10' -> 'SemReloc-v11'" in capsys.readouterr().out
     check_resume(old / "checkpoints" / ckpt.name, config)
     assert "env_id" not in capsys.readouterr().out
+    (old / "policy.zip").unlink()  # an interrupted run of those days: nothing records its env
+    check_resume(old / "checkpoints" / ckpt.name, config)
+    assert "does not record its env" in capsys.readouterr().out
     assert not (tmp_path / "new").exists()
     assert tool.main(["--out", str(out), "--config.particles", "100"]) == 2
     assert "holds a training run already" in capsys.readouterr().err

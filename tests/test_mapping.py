@@ -441,14 +441,47 @@ def test_clear_unobserved_stops_at_a_marked_surface_and_clears_only_what_returns
     assert (m2.logodds[2:, 25] == lo).all() and (m2.logodds[:2, 25] == 0).all()  # rows 2-4 (y 0.2-0.5 m), not below
 
 
-def test_clear_unobserved_freezes_its_stopping_cells_until_the_next_update_and_matches_the_array_form():
+def test_clear_unobserved_stops_at_a_surface_whose_cell_ended_free_leaning():
+    # a reviewer's case: an object's face cell is crossed by more beams than end in it, so its log-odds is below
+    # 0 and the cells behind it (inside the object) are unknown; a dropout must still stop at the face
+    m = _corridor_mapper()
+    for _ in range(3):  # beams through the wall's cell (x 2.9-3.0 m) to a return farther on
+        m.update(np.array([0.05, 0.25, 0.0]), LaserScan([4.0], [0.0], 8.0))
+    assert m.logodds[2, 29] < 0 and (m.logodds[2, 41:] == 0).all()
+    before = m.logodds.copy()
+    m.clear_unobserved(np.array([[0.05, 0.25, 0.0]]), [LaserScan([8.0], [0.0], 8.0)])
+    np.testing.assert_array_equal(m.logodds[2, 28:], before[2, 28:])  # stopped next to the cell a return ended in
+    assert (m.logodds[2, :28] == OccupancyParams().l_free_unobserved).all()
+
+
+def test_clear_unobserved_enters_the_raster_from_outside_and_survives_pickling():
+    import pickle
+
+    m = _corridor_mapper()
+    m.clear_unobserved(np.array([[-1.0, 0.15, 0.0]]), [LaserScan([8.0], [0.0], 8.0)])  # starts 1 m left of the raster
+    assert (m.logodds[1, :28] == OccupancyParams().l_free_unobserved).all() and m.logodds[1, 28:].max() <= 0
+    fresh, copied = _corridor_mapper(), pickle.loads(pickle.dumps(_corridor_mapper()))
+    state = fresh.__getstate__()
+    assert state["_blocked"] is None
+    old = pickle.loads(pickle.dumps(fresh))
+    del old.__dict__["_ended"]  # as pickled before returns were recorded
+    old.__setstate__(old.__dict__.copy())
+    beams = (np.array([[0.05, 0.25, 0.0]]), [LaserScan([8.0], [0.0], 8.0)])
+    for other in (copied, old):
+        fresh_copy = pickle.loads(pickle.dumps(fresh))
+        fresh_copy.clear_unobserved(*beams)
+        other.clear_unobserved(*beams)
+        np.testing.assert_array_equal(other.logodds, fresh_copy.logodds)
+
+
+def test_clear_unobserved_in_chunks_matches_one_call_and_the_array_form_and_stops_at_new_returns():
     rng = np.random.default_rng(3)
     poses = np.column_stack([rng.uniform(0.5, 2.5, 40), rng.uniform(0.1, 0.4, 40), rng.uniform(-np.pi, np.pi, 40)])
     angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
     ranges = np.where(rng.random((40, 24)) < 0.5, 8.0, rng.uniform(0.2, 3.0, (40, 24)))
     one, chunked, arrays = _corridor_mapper(), _corridor_mapper(), _corridor_mapper()
     one.clear_unobserved(poses, [LaserScan(r, angles, 8.0) for r in ranges])
-    for lo in range(0, 40, 7):  # later chunks stop at the cells of the pass's start, not at the first chunks' output
+    for lo in range(0, 40, 7):  # in chunks: the same (the pass adds no returns)
         chunked.clear_unobserved(poses[lo : lo + 7], [LaserScan(r, angles, 8.0) for r in ranges[lo : lo + 7]])
     arrays.clear_unobserved_arrays(poses, ranges, angles, 8.0)
     np.testing.assert_array_equal(chunked.logodds, one.logodds)
@@ -475,6 +508,8 @@ def test_clear_unobserved_rejects_bad_input():
         m.clear_unobserved_arrays(np.full((1, 3), np.nan), np.array([[8.0]]), np.array([0.0]), 8.0)
     with pytest.raises(ValueError, match="l_free_unobserved"):
         OccupancyParams(l_free_unobserved=0.0)
+    with pytest.raises(ValueError, match="l_free_unobserved"):
+        OccupancyParams(l_free_unobserved=-50.0)  # below l_min: the clamp would not hold
     before = m.logodds.copy()
     with pytest.raises(ValueError):
         m.clear_unobserved_arrays(np.zeros((1, 3)), np.array([[np.inf]]), np.array([0.0]), 8.0)

@@ -48,7 +48,7 @@ def test_map_from_scans_can_clear_what_the_returns_left_unknown(aces, aces_map):
     np.testing.assert_array_equal(cleared.occupied_mask(), aces_map.occupied_mask())
     gained = cleared.free_mask() & ~aces_map.free_mask()
     assert not (aces_map.free_mask() & ~cleared.free_mask()).any()
-    assert 100 < gained.sum() < 0.01 * aces_map.free_mask().sum()  # a few hundred cells at the ends of corridors
+    assert 0 < gained.sum() < 0.001 * aces_map.free_mask().sum()  # a few cells: the returns reached nearly everywhere
 
 
 def test_map_from_scans_saves_a_ros_map(tmp_path):

@@ -110,7 +110,7 @@ def map_from_scans(
             unknown, up to the first surface (`OccupancyMapper.clear_unobserved`; what the simulator's
             mapping run does since its version 5). Off by default: a no-return reading of a real laser can
             also be glass or a black surface, which no return marked and such a beam would clear behind.
-            On the ACES log it adds 0.3 % free cells (620 no-return beams of 79,200).
+            On the ACES log it adds 11 free cells (620 no-return beams of 79,200; returns reached nearly everywhere).
 
     Returns:
         The map (no semantic classes).

@@ -112,10 +112,10 @@ class OccupancyParams:
             raise ValueError(f"l_occ must be > 0, got {self.l_occ}")
         if not self.l_free < 0:
             raise ValueError(f"l_free must be < 0, got {self.l_free}")
-        if not self.l_free_unobserved < 0:
-            raise ValueError(f"l_free_unobserved must be < 0, got {self.l_free_unobserved}")
         if not self.l_min < 0 < self.l_max:
             raise ValueError(f"need l_min < 0 < l_max, got {self.l_min}, {self.l_max}")
+        if not self.l_min <= self.l_free_unobserved < 0:
+            raise ValueError(f"need l_min <= l_free_unobserved < 0, got {self.l_min}, {self.l_free_unobserved}")
         if not self.max_range_m > 0:
             raise ValueError(f"max_range_m must be > 0, got {self.max_range_m}")
 
@@ -230,7 +230,7 @@ def _buffers(t_end_max: float):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _occupancy_kernel(L, u0, v0, du, dv, t_end, hit, l_free, l_occ, lo, hi, br, bc, bt):  # pragma: no cover
+def _occupancy_kernel(L, ended, u0, v0, du, dv, t_end, hit, l_free, l_occ, lo, hi, br, bc, bt):  # pragma: no cover
     h, w = L.shape
     for b in range(u0.shape[0]):
         n = _walk(u0[b], v0[b], du[b], dv[b], t_end[b], br, bc, bt)
@@ -239,7 +239,10 @@ def _occupancy_kernel(L, u0, v0, du, dv, t_end, hit, l_free, l_occ, lo, hi, br, 
             c = bc[j]
             if r < 0 or r >= h or c < 0 or c >= w:
                 continue
-            d = l_occ if (hit[b] and j == n - 1) else l_free
+            end = hit[b] and j == n - 1
+            if end:
+                ended[r, c] = True
+            d = l_occ if end else l_free
             x = L[r, c] + d
             L[r, c] = lo if x < lo else (hi if x > hi else x)
     return 0
@@ -250,10 +253,16 @@ def _no_return_kernel(L, blocked, u0, v0, du, dv, t_end, l_at_most, br, bc, bt):
     h, w = L.shape
     for b in range(u0.shape[0]):
         n = _walk(u0[b], v0[b], du[b], dv[b], t_end[b], br, bc, bt)
+        entered = False
         for j in range(n):
             r = br[j]
             c = bc[j]
-            if r < 0 or r >= h or c < 0 or c >= w or blocked[r, c]:
+            if r < 0 or r >= h or c < 0 or c >= w:
+                if entered:  # a straight beam that left the raster does not come back
+                    break
+                continue
+            entered = True
+            if blocked[r, c]:
                 break
             if L[r, c] > l_at_most:
                 L[r, c] = l_at_most
@@ -473,7 +482,18 @@ class OccupancyMapper(_RasterMapper):
         super().__init__(shape, resolution_m, origin_xy_m)
         self.params = params if params is not None else OccupancyParams()
         self._L = np.zeros(self._shape, np.float64)
-        self._blocked: np.ndarray | None = None  # cells that stop `clear_unobserved`'s beams, this pass
+        self._ended = np.zeros(self._shape, np.bool_)  # cells a return ended in (`clear_unobserved` stops there)
+        self._blocked: np.ndarray | None = None  # `clear_unobserved`'s stopping cells, until the next update
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_blocked"] = None  # derived: rebuilt on use
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        state.setdefault("_ended", state["_L"] > 0.0)  # pickled before returns were recorded: the best guess
+        state["_blocked"] = None
+        self.__dict__.update(state)
 
     @classmethod
     def like(cls, grid: GridMap, params: OccupancyParams | None = None) -> OccupancyMapper:
@@ -500,14 +520,14 @@ class OccupancyMapper(_RasterMapper):
         """A second pass over scans for a lidar whose dropouts read as no return (``clear_no_return=False``).
 
         Each no-return beam of ``scans[i]`` (taken at ``poses[i]``) walks out to its maximum range and stops
-        at the first cell within one cell (8-neighbourhood) of a cell whose log-odds was above 0 when this
-        pass began; every cell it crosses before that gets log-odds at most ``l_free_unobserved`` (free).
-        So a dropout in front of a wall stops at the wall and clears nothing behind it, while space that
-        returns reach rarely or never (the middle of a hall more than twice the lidar's range across, where
-        only the far ends of a few beams pass) is cleared by the beams that saw nothing there.
-
-        The pass begins at the first call after an update: call it after every scan's `update_many`, in as
-        many chunks as memory needs; the cells that stop it stay those of that moment until the next update.
+        at the first cell within one cell (8-neighbourhood) of a cell any return of the updates so far ended
+        in; every cell it crosses before that gets log-odds at most ``l_free_unobserved`` (free). So a dropout
+        in front of a surface stops at it and clears nothing behind it (also where the surface's cells ended
+        up free-leaning, crossed by more beams than ended in them), while space that returns reach rarely or
+        never (the middle of a hall more than twice the lidar's range across, where only the far ends of a few
+        beams pass) is cleared by the beams that saw nothing there. Cells outside the raster are skipped until
+        the beam enters it. Call it after the scans' updates, in as many chunks as memory needs (the pass
+        adds no returns, so the order of chunks does not matter).
         """
         for s in scans:
             if not isinstance(s, LaserScan):
@@ -521,8 +541,8 @@ class OccupancyMapper(_RasterMapper):
         self._clear_unobserved(self._beam_arrays(poses, ranges, angles, range_max_m, self.params.max_range_m))
 
     def _clear_unobserved(self, beams) -> None:
-        if self._blocked is None:
-            self._blocked = ndimage.maximum_filter((self._L > 0.0).astype(np.uint8), size=3, mode="constant") > 0
+        if self._blocked is None:  # a cache: only updates add returns
+            self._blocked = ndimage.maximum_filter(self._ended.view(np.uint8), size=3, mode="constant") > 0
         if beams is None or not beams[6].any():
             return
         u0, v0, du, dv, t_end, _, k = beams
@@ -539,7 +559,7 @@ class OccupancyMapper(_RasterMapper):
             if beams is None:
                 return
         u0, v0, du, dv, t_end, returned, _ = beams
-        _occupancy_kernel(self._L, u0, v0, du, dv, t_end, returned, p.l_free, p.l_occ, p.l_min, p.l_max,
+        _occupancy_kernel(self._L, self._ended, u0, v0, du, dv, t_end, returned, p.l_free, p.l_occ, p.l_min, p.l_max,
                           *_buffers(float(t_end.max())))  # fmt: skip
 
     def to_grid(

@@ -242,8 +242,8 @@ class SemRelocEnv(SemRelocBase):
       to call free (`filters.mapping.occupancy.OccupancyMapper.clear_unobserved`). Space farther than the
       lidar's 8 m from every surface (the middle of an outside tester's 24 m x 16 m hall: 16.5 m^2) was left
       unknown, so the relocalizer could neither draw its first particles nor inject any there. Elsewhere a
-      map changes in a few shadowed cells near objects, if at all (the lab's, ``open_hall``'s and
-      ``three_rooms``' not at all; 39 of 120 held-out procedural maps in 1-12 cells), so episodes on a
+      map changes in a few shadowed cells near objects, if at all (the lab's, ``twin_rooms``', ``open_hall``'s
+      and ``three_rooms``' not at all; 7 of 120 held-out procedural maps in 1-8 cells), so episodes on a
       changed map differ from v10's. The relocalizer, worlds, sensors, observations, rewards and info keys
       are v10's (`SemRelocEnvV10` is v10); docs/maps.md, "Unobserved space".
     * v10: the map of ``map_source="mapping"`` (the default) or of another layout comes from the mapping run's
