@@ -410,6 +410,18 @@ class SemRelocEnv(SemRelocBase):
         self.grid = maps_for(
             self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic, self.mapping_run_version
         )
+        if not self.grid.free_mask().any():
+            from_run = isinstance(map_source, str) and map_source != "perfect" and not is_ros_map_file(map_source)
+            why = (
+                f": its mapping run marks space free only along the lidar's beams (lidar range_max_m "
+                f"{self.lidar.params.range_max_m} m, robot radius {self.robot_params.radius_m} m)"
+                if from_run
+                else ""
+            )
+            raise ValueError(
+                f"the map of layout {self.layout.name!r} has no free cell, so the relocalizer has nowhere to put "
+                f"particles{why}"
+            )
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
 
