@@ -603,3 +603,40 @@ def test_screen_model_shares_the_distance_fields_and_scores_as_a_new_model():
     assert model._tables is not blurred._tables
     with pytest.raises(TypeError, match="LikelihoodFieldConfig"):
         model.reconfigured({"sigma_hit_m": 0.5}, model.semantic_config)
+
+
+def test_blur_margin_keeps_a_look_alike_place_whose_map_differs_by_the_mapping_drives_noise():
+    """A fifth outside tester's corridor pods (two identical room-and-corridor pods, one turned 195 deg): the
+    maps of the two corridors differ by the mapping drive's noise, the filter's fields read that as evidence,
+    and an explorer's belief converges 19 m from the truth; the screen's blurred fields find the places alike,
+    so with ``audit_blur_margin`` the audit keeps the other place and the belief does not converge."""
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
+
+    layout = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v11" / "d9_rotated_pods_195.json"
+    first = {}
+    for blur in (0.0, 1.0):
+        env = gym.make("SemReloc-v11", layout=str(layout), max_episode_steps=200, action_type="continuous",
+                       relocalizer={"n_particles": 2000, "audit_blur_margin": blur})  # fmt: skip
+        policy = POLICIES["wall_follow"](50010)
+        env = policy.wrap(env)
+        policy.reset()
+        obs, info = env.reset(
+            seed=50010, options={"pose": [3.7233174439008456, 0.9621222297495011, 0.41715919580284133]}
+        )
+        for _ in range(200):
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            if info["belief"]["converged"]:
+                first[blur] = info["pose_error"]["position"]
+                break
+            if terminated or truncated:
+                break
+    assert first[0.0] > 10.0  # converged at the other pod
+    assert 1.0 not in first  # never converged
+    with pytest.raises(ValueError, match="audit_blur_margin"):
+        MCLConfig(audit_blur_margin=-1.0)
+    assert MCLConfig().audit_blur_margin == 0.0  # off unless asked for, in every env

@@ -98,7 +98,9 @@ evaluated on the held-out pairs."""
 DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V9, audit_screen_pause_place=True)
 """The relocalizer of SemReloc-v10 and -v11: `RELOCALIZER_V9` whose screen pauses only while the belief stays at the
 place the last screen cleared (`MCLConfig.audit_screen_pause_place`; v9 skipped the screen for 100 updates
-after it found nothing, wherever the belief converged next)."""
+after it found nothing, wherever the belief converged next). ``audit_blur_margin`` (off) trades successes for
+fewer wrong convergences between places a robot's map holds slightly differently (docs/relocalizer.md,
+"Corridor pods: look-alike places whose maps differ")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
