@@ -210,9 +210,8 @@ def test_maps_without_free_space_and_zero_particles_are_errors():
         rasterize(layout).origin_xy_m,
         class_names=("door", "chair", "trash_bin", "cabinet"),
     )
-    env = gym.make("SemReloc-v11", layout="twin_rooms", map_source=full)
-    with pytest.raises(ValueError, match="free"):
-        env.reset(seed=0)
+    with pytest.raises(ValueError, match="no free cell, so the relocalizer has nowhere to put particles$"):
+        gym.make("SemReloc-v11", layout="twin_rooms", map_source=full)  # refused at once, not at the first reset
     with pytest.raises((ValueError, TypeError), match="n_particles"):
         gym.make("SemReloc-v11", map_source="perfect", relocalizer={"n_particles": 0})
     wrong_classes = GridMap(np.zeros(shape, np.float32), 0.05, class_names=("sofa",))

@@ -277,8 +277,9 @@ class MCLConfig:
             not converged. Two places alike in the world differ in a map a robot built (the mapping drive saw
             them from other poses, with noise): cell-sized differences the filter's fields read as several
             nats over a window, the blurred ones hardly. Off in every env (on a fifth outside tester's corridor
-            pods 1.0 removed the wrong convergences, 2 of 180 episodes, and a third of the successes; on 900
-            tuning pairs it cost the viewpoint planner 13 of 890: docs/relocalizer.md, "Corridor pods").
+            pods 1.0 removed the wrong convergences, 2 of 180 episodes, and a third of the successes; it cost
+            the viewpoint planner 13 of 890 successes on 900 tuning pairs and 12 of 915 on the 930 held-out
+            ones: docs/relocalizer.md, "Corridor pods").
         audited_convergence: with the audit on, the belief is called converged only after an update
             that audited it (or kept a convergence an update audited): a set that comes to meet the
             criterion between updates (a prediction moving particles from one cluster to another)
