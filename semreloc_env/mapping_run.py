@@ -51,9 +51,9 @@ MAPPING_RUN_VERSIONS = ("2", "3", "4", "5")
   class cells per map, on other objects' surfaces, where the relocalizer matched them.
 * ``"5"`` (``SemReloc-v11``): version 4, then the lidar's no-return beams clear the cells no beam
   observed, up to the first surface (`filters.mapping.occupancy.OccupancyMapper.clear_unobserved`): space
-  farther than the lidar's range from every surface (the middle of a hall more than 16 m across) was left
-  unknown, so the relocalizer could neither start nor inject particles there. Elsewhere the maps are
-  version 4's but for unknown cells the pass reaches (docs/maps.md, "Unobserved space").
+  that returns cross too rarely to mark free (near and beyond the lidar's range from every surface: the middle
+  of a large hall) was left unknown, so the relocalizer could neither start nor inject particles there.
+  Elsewhere the maps are version 4's but for unknown cells the pass reaches (docs/maps.md, "Unobserved space").
 """
 MAPPING_RUN_VERSION = MAPPING_RUN_VERSIONS[-1]
 """The newest mapping run. Add a version when its output changes for the same inputs."""

@@ -610,6 +610,7 @@ def test_blur_margin_keeps_a_look_alike_place_whose_map_differs_by_the_mapping_d
     maps of the two corridors differ by the mapping drive's noise, the filter's fields read that as evidence,
     and an explorer's belief converges 19 m from the truth; the screen's blurred fields find the places alike,
     so with ``audit_blur_margin`` the audit keeps the other place and the belief does not converge."""
+    import warnings
     from pathlib import Path
 
     import gymnasium as gym
@@ -639,4 +640,10 @@ def test_blur_margin_keeps_a_look_alike_place_whose_map_differs_by_the_mapping_d
     assert 1.0 not in first  # never converged
     with pytest.raises(ValueError, match="audit_blur_margin"):
         MCLConfig(audit_blur_margin=-1.0)
-    assert MCLConfig().audit_blur_margin == 0.0  # off unless asked for, in every env
+    with pytest.raises(ValueError, match="audit_blur_margin needs the audit's screen"):
+        MCLConfig(audit_blur_margin=1.0, audit_window=20)  # without audit_screen it would do nothing
+    for env_id in semreloc_env.ENV_IDS:  # off unless asked for, in every env
+        if env_id.startswith("SemReloc-"):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DeprecationWarning)
+                assert gym.make(env_id, map_source="perfect").unwrapped.mcl_config.audit_blur_margin == 0.0

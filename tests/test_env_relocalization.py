@@ -212,6 +212,10 @@ def test_maps_without_free_space_and_zero_particles_are_errors():
     )
     with pytest.raises(ValueError, match="no free cell, so the relocalizer has nowhere to put particles$"):
         gym.make("SemReloc-v11", layout="twin_rooms", map_source=full)  # refused at once, not at the first reset
+    env = gym.make("SemReloc-v11", layout="lab", map_source="perfect").unwrapped
+    with pytest.raises(ValueError, match="no free cell"):
+        env.set_layout("twin_rooms", grid=full)
+    assert env.layout.name == "lab"  # nothing changed
     with pytest.raises((ValueError, TypeError), match="n_particles"):
         gym.make("SemReloc-v11", map_source="perfect", relocalizer={"n_particles": 0})
     wrong_classes = GridMap(np.zeros(shape, np.float32), 0.05, class_names=("sofa",))

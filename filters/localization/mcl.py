@@ -273,13 +273,15 @@ class MCLConfig:
         audit_blur_margin: with the screen on, an alternative the audit found more than ``audit_margin``
             below the hypothesis on the filter's fields is kept anyway when, on the screen's blurred fields
             (`filters.localization.audit.screen_model`), it is at most this far below it (tempered nats;
-            0: off): its particles are added with the weight the blurred ratio gives it, and the belief is
-            not converged. Two places alike in the world differ in a map a robot built (the mapping drive saw
-            them from other poses, with noise): cell-sized differences the filter's fields read as several
-            nats over a window, the blurred ones hardly. Off in every env (on a fifth outside tester's corridor
-            pods 1.0 removed the wrong convergences, 2 of 180 episodes, and a third of the successes; it cost
-            the viewpoint planner 13 of 890 successes on 900 tuning pairs and 12 of 915 on the 930 held-out
-            ones: docs/relocalizer.md, "Corridor pods").
+            0: off; needs ``audit_screen`` and ``audit_window``): its particles are added with the weight the
+            blurred ratio gives it (which the update's ``audit_log_ratio`` then reports), and the belief is
+            not converged. The hypothesis is scored there at its mean, not refined. Two places alike in the
+            world differ in a map a robot built (the mapping drive saw them from other poses, with noise):
+            cell-sized differences the filter's fields read as several nats over a window, the blurred ones
+            hardly. Off in every env (on a fifth outside tester's corridor pods 1.0 removed the wrong
+            convergences, 2 of 180 episodes, and 27 % of the successes; it cost the viewpoint planner 13 of
+            890 successes on 900 tuning pairs and 12 of 915 on the 930 held-out ones: docs/relocalizer.md,
+            "Corridor pods").
         audited_convergence: with the audit on, the belief is called converged only after an update
             that audited it (or kept a convergence an update audited): a set that comes to meet the
             criterion between updates (a prediction moving particles from one cluster to another)
@@ -439,6 +441,11 @@ class MCLConfig:
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
             raise ValueError(f"MCLConfig.backend must be 'numba' or 'numpy', got {self.backend!r}")
+        if self.audit_blur_margin > 0 and not (self.audit_screen and self.audit_window > 0):
+            raise ValueError(
+                "MCLConfig.audit_blur_margin needs the audit's screen (audit_screen=True and audit_window > 0), "
+                f"got audit_screen={self.audit_screen}, audit_window={self.audit_window}"
+            )
 
     def as_dict(self) -> dict:
         """Nested plain dict (sub-configs as dicts); ``MCLConfig(**cfg.as_dict())`` round-trips."""
@@ -1094,7 +1101,7 @@ class MonteCarloLocalizer:
         )  # fmt: skip
         ratio = math.nan if alt is None else alt.log_ratio
         kept = alt is not None and ratio >= -c.audit_margin
-        if alt is not None and not kept and c.audit_blur_margin > 0 and c.audit_screen:
+        if alt is not None and not kept and c.audit_blur_margin > 0:
             blurred = audit.window_log_likelihood(
                 audit.screen_model(self.measurement_model), np.stack([hyp.mean, alt.pose]), self._window,
                 c.likelihood_scale,
@@ -1114,7 +1121,7 @@ class MonteCarloLocalizer:
         self._poses = np.ascontiguousarray(np.vstack([self._poses, new]))
         self._logw = logw - self._lse(logw)
         self._was_converged = False
-        return alt.log_ratio, m
+        return ratio, m  # the blurred fields' ratio when they kept the alternative
 
     # ------------------------------------------------------------ summary
     def _summary(self) -> Belief:

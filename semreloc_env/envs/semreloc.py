@@ -241,9 +241,9 @@ class SemRelocEnv(SemRelocBase):
     * v11: the map of ``map_source="mapping"`` (the default) or of another layout comes from the mapping run's
       version 5 (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`): after the scans, the lidar's beams without
       a return clear, up to the first surface the returns marked, the cells that returns crossed too rarely
-      to call free (`filters.mapping.occupancy.OccupancyMapper.clear_unobserved`). Space farther than the
-      lidar's 8 m from every surface (the middle of an outside tester's 24 m x 16 m hall: 16.5 m^2) was left
-      unknown, so the relocalizer could neither draw its first particles nor inject any there. Elsewhere a
+      to call free (`filters.mapping.occupancy.OccupancyMapper.clear_unobserved`). Space that returns
+      cross too rarely (the middle of an outside tester's 24 m x 16 m hall, 6-8 m from the walls: 16.5 m^2)
+      was left unknown, so the relocalizer could neither draw its first particles nor inject any there. Elsewhere a
       map changes in a few shadowed cells near objects, if at all (the lab's, ``twin_rooms``', ``open_hall``'s
       and ``three_rooms``' not at all; 7 of 120 held-out procedural maps in 1-8 cells), so episodes on a
       changed map differ from v10's. The relocalizer, worlds, sensors, observations, rewards and info keys
@@ -412,20 +412,26 @@ class SemRelocEnv(SemRelocBase):
         self.grid = maps_for(
             self.layout, map_source, self.lidar.params, self.camera.params, cfg.use_semantic, self.mapping_run_version
         )
-        if not self.grid.free_mask().any():
-            from_run = isinstance(map_source, str) and map_source != "perfect" and not is_ros_map_file(map_source)
-            why = (
-                f": its mapping run marks space free only along the lidar's beams (lidar range_max_m "
-                f"{self.lidar.params.range_max_m} m, robot radius {self.robot_params.radius_m} m)"
-                if from_run
-                else ""
-            )
-            raise ValueError(
-                f"the map of layout {self.layout.name!r} has no free cell, so the relocalizer has nowhere to put "
-                f"particles{why}"
-            )
+        self._check_free(self.grid, self.layout, map_source)
         self._obstacles = changed_obstacles(self.layout, self.layout_seed) if scenario == "changed" else []
         self.mcl: MonteCarloLocalizer | None = None
+
+    def _check_free(self, grid: GridMap, layout, map_source) -> None:
+        """ValueError if ``grid`` has no free cell (the relocalizer would have nowhere to put particles)."""
+        if grid.free_mask().any():
+            return
+        from_run = (
+            isinstance(map_source, (str, Path)) and str(map_source) != "perfect" and not is_ros_map_file(map_source)
+        )
+        why = (
+            f": a mapping run marks space free only along its lidar's beams (lidar range_max_m "
+            f"{self.lidar.params.range_max_m} m)"
+            if from_run
+            else ""
+        )
+        raise ValueError(
+            f"the map of layout {layout.name!r} has no free cell, so the relocalizer has nowhere to put particles{why}"
+        )
 
     def set_layout(self, layout, layout_seed: int = 0, grid: GridMap | None = None, *, check_map: bool = True) -> None:
         """Use another layout from the next `reset` on (the running episode keeps its world).
@@ -442,11 +448,12 @@ class SemRelocEnv(SemRelocBase):
             ValueError: ``grid`` is None and the env's map is a fixed file or GridMap (it belongs
                 to one layout), or the grid's classes do not fit (`semreloc_env.maps.env_classes`), or it is not a map of the layout
                 (`semreloc_env.map_world.check_map_matches_world`: another place, shifted or
-                rotated); nothing changes then.
+                rotated), or it has no free cell; nothing changes then.
         """
         layout_seed = check_layout_seed(layout_seed)
         check_seed_use(layout, layout_seed, self.scenario)
         new_layout = get_layout(layout, seed=layout_seed, procedural_version=self.procedural_version)
+        source = self.map_source if grid is None else None  # what the map comes from, for `_check_free`'s message
         if grid is None:
             if not (isinstance(self.map_source, str) and self.map_source in MAP_SOURCES):
                 raise ValueError(
@@ -462,6 +469,7 @@ class SemRelocEnv(SemRelocBase):
             grid = env_classes(grid, "(the grid given to set_layout)", self.mcl_config.use_semantic)
             if check_map:  # ~5 ms
                 check_map_matches_world(grid, new_layout)
+        self._check_free(grid, new_layout, source)
         obstacles = changed_obstacles(new_layout, layout_seed) if self.scenario == "changed" else []
         self.layout, self.layout_seed, self.grid, self._obstacles = new_layout, layout_seed, grid, obstacles
         if self._renderer is not None:  # drawn for the old layout
