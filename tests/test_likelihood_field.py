@@ -228,3 +228,16 @@ def test_kernel_sums_beams_in_one_fixed_order_whatever_the_compilation():
         )
         assert out_l[0] == _fixed_order_sum(vals[:n_lidar])
         assert out_s[0] == _fixed_order_sum(vals[n_lidar:])
+
+
+def test_tolerance_flattens_the_hit_score_near_the_cells_and_is_off_by_default():
+    plain, tolerant = LikelihoodFieldConfig(), LikelihoodFieldConfig(tolerance_m=0.05)
+    d = np.array([0.0, 0.02, 0.05, 0.1, 0.3, 5.0])
+    lp, lt = plain.log_p(d, 8.0), tolerant.log_p(d, 8.0)
+    assert lt[0] == lt[1] == lt[2] == lp[0]  # within 5 cm of a surface: as on it
+    np.testing.assert_allclose(lt[3:5], plain.log_p(d[3:5] - 0.05, 8.0))  # beyond: shifted by the tolerance
+    assert lt[5] == lp[5]  # far off: the random-measurement floor either way
+    np.testing.assert_array_equal(LikelihoodFieldConfig(tolerance_m=0.0).log_p(d, 8.0), lp)
+    for bad in (-0.1, math.nan, math.inf, True, "0.1"):
+        with pytest.raises(ValueError, match="tolerance_m"):
+            LikelihoodFieldConfig(tolerance_m=bad)

@@ -73,6 +73,9 @@ class LikelihoodFieldConfig:
         beam_stride: use every ``beam_stride``-th beam of the scan (>= 1).
         max_beams: at most this many beams (evenly spread over the ones left after the
             stride and dropping no-return / unlabelled beams); 0 = no cap.
+        tolerance_m: end points within this distance of the field's cells score as if on them (the hit
+            score's distance is ``max(d - tolerance_m, 0)``; metres, >= 0; 0: off), so a map whose
+            surfaces lie a cell or so off (a robot's map of identical places) moves no weight.
     """
 
     sigma_hit_m: float = 0.2
@@ -81,6 +84,7 @@ class LikelihoodFieldConfig:
     max_dist_m: float = 2.0
     beam_stride: int = 1
     max_beams: int = 60
+    tolerance_m: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("sigma_hit_m", "max_dist_m"):
@@ -91,6 +95,9 @@ class LikelihoodFieldConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"LikelihoodFieldConfig.{name} must be a number >= 0, got {v!r}")
+        v = self.tolerance_m
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"LikelihoodFieldConfig.tolerance_m must be a number >= 0, got {v!r}")
         if not self.z_hit + self.z_rand > 0:
             raise ValueError("LikelihoodFieldConfig: z_hit + z_rand must be > 0")
         if not (isinstance(self.beam_stride, int) and self.beam_stride >= 1):
@@ -101,6 +108,8 @@ class LikelihoodFieldConfig:
     def log_p(self, dist_m: np.ndarray, range_max_m: float) -> np.ndarray:
         """``log p`` of beams whose end points lie ``dist_m`` from the field's cells (capped here)."""
         d = np.minimum(np.asarray(dist_m, dtype=np.float64), self.max_dist_m)
+        if self.tolerance_m > 0:
+            d = np.maximum(d - self.tolerance_m, 0.0)
         with np.errstate(divide="ignore"):
             log_hit = np.log(self.z_hit) - d * d / (2.0 * self.sigma_hit_m**2)
             log_rand = np.log(self.z_rand / range_max_m)
