@@ -33,7 +33,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from filters.experiments.cli import JsonDict
-from semreloc_env import ENV_IDS  # (importing semreloc_env registers the env ids)
+from semreloc_env import semreloc_ids_since  # (importing semreloc_env registers the env ids)
 from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
 from semreloc_env.observations import ActiveObservation
 from semreloc_env.observations.active import check_arguments as check_active_arguments
@@ -47,7 +47,7 @@ from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
 
 ENV_ID = "SemReloc-v11"
-TRAINABLE_ENV_IDS = tuple(i for i in ENV_IDS if i.startswith("SemReloc-v") and int(i.rsplit("v", 1)[1]) >= 2)
+TRAINABLE_ENV_IDS = semreloc_ids_since(2)
 """The envs `ActiveTrainConfig.env_id` may name: ``SemReloc-v2`` and newer (the typed observation
 `ActiveObservation` reads), newest first."""
 TrainableEnvId = Literal[TRAINABLE_ENV_IDS]
@@ -400,13 +400,12 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
         try:
             saved["env_id"] = read_metadata(run_folder_of(path) / "policy.zip")["extra"]["env_id"]
         except (FileNotFoundError, ValueError, KeyError, TypeError):
-            pass
-    if "env_id" not in saved:
-        print(
-            f"note: {path}'s run does not record its env (runs saved before ActiveTrainConfig.env_id and without "
-            f"a policy.zip; they trained in the newest env of their code); this run trains in {config.env_id}",
-            flush=True,
-        )
+            print(
+                f"note: {path}'s run does not record its env (runs saved before ActiveTrainConfig.env_id and "
+                f"without a policy.zip; they trained in the newest env of their code); this run trains in "
+                f"{config.env_id}",
+                flush=True,
+            )
     saved, now = _comparable(saved), _comparable(config.as_dict())
     differ = [f for f in SPACE_FIELDS if f in saved and saved[f] != now[f]]
     if differ:

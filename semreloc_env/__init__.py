@@ -23,6 +23,7 @@ __all__ = [
     "build_world",
     "get_layout",
     "load_layout",
+    "semreloc_ids_since",
 ]
 
 ENV_IDS = (
@@ -60,6 +61,12 @@ VECTOR_ENV_IDS = (
 )
 """Ids for ``gym.make_vec``: R robots of ``SemReloc-v11`` / ``-v10`` / ``-v9`` / ``-v8`` / ``-v7`` / ``-v6`` / ``-v5`` /
 ``-v4`` / ``-v3`` / ``-v2`` / ``-v1`` in one process."""
+
+
+def semreloc_ids_since(version: int) -> tuple[str, ...]:
+    """The ``SemReloc-vN`` ids of `ENV_IDS` with ``N >= version``, newest first."""
+    return tuple(i for i in ENV_IDS if i.startswith("SemReloc-v") and int(i.rsplit("v", 1)[1]) >= version)
+
 
 # outermost: reset arguments are checked before TimeLimit zeroes its counter (wrappers.CheckedReset)
 _CHECKED_RESET = (WrapperSpec("CheckedReset", "semreloc_env.wrappers:CheckedReset", {}),)

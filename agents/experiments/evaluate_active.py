@@ -60,9 +60,9 @@ import numpy as np
 from filters.experiments.cli import JsonDict, Runner, command_line, parse, usage_error
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import wilson_interval
-from semreloc_env import ENV_IDS
+from semreloc_env import semreloc_ids_since
 
-EVALUATED_ENV_IDS = tuple(i for i in ENV_IDS if i.startswith("SemReloc-v") and int(i.rsplit("v", 1)[1]) >= 3)
+EVALUATED_ENV_IDS = semreloc_ids_since(3)
 """The ids ``--env-id`` takes: ``SemReloc-v3`` and newer (typed observations, the look-alike generator of v3)."""
 EvaluatedEnvId = Literal[EVALUATED_ENV_IDS]
 

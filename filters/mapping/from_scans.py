@@ -119,9 +119,10 @@ def map_from_scans(
         raise ValueError(f"save_to must be a .yaml or .yml path, got {str(save_to)!r}")
     shape, origin = raster_for(poses, scans, resolution_m, margin_m)
     mapper = OccupancyMapper(shape, resolution_m, origin, params if params is not None else LOG_OCCUPANCY_PARAMS)
-    mapper.update_many(np.asarray(poses, dtype=np.float64), scans)
+    poses = np.asarray(poses, dtype=np.float64)
+    mapper.update_many(poses, scans)
     if clear_unobserved:
-        mapper.clear_unobserved(np.asarray(poses, dtype=np.float64), scans)
+        mapper.clear_unobserved(poses, scans)
     grid = mapper.to_grid(occupied_thresh=occupied_thresh, free_thresh=free_thresh)
     if save_to is not None:
         save_map(grid, save_to, mode=mode)

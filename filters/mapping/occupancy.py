@@ -456,6 +456,12 @@ class _RasterMapper:
         return pose[None, :], [scan]
 
 
+def _check_laser_scans(scans: Sequence) -> None:
+    for s in scans:
+        if not isinstance(s, LaserScan):
+            raise TypeError(f"OccupancyMapper needs LaserScan objects, got {type(s).__name__}")
+
+
 class OccupancyMapper(_RasterMapper):
     """Log-odds occupancy grid from lidar scans at known poses.
 
@@ -506,9 +512,7 @@ class OccupancyMapper(_RasterMapper):
 
     def update_many(self, poses: np.ndarray, scans: Sequence[LaserScan]) -> None:
         """Integrate scans ``scans[i]`` taken at ``poses[i]`` (``(N, 3)``), in order, in one compiled pass."""
-        for s in scans:
-            if not isinstance(s, LaserScan):
-                raise TypeError(f"OccupancyMapper needs LaserScan objects, got {type(s).__name__}")
+        _check_laser_scans(scans)
         self._integrate(self._beams(poses, scans, self.params.max_range_m))
 
     def update_arrays(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, range_max_m: float) -> None:
@@ -529,9 +533,7 @@ class OccupancyMapper(_RasterMapper):
         the beam enters it. Call it after the scans' updates, in as many chunks as memory needs (the pass
         adds no returns, so the order of chunks does not matter).
         """
-        for s in scans:
-            if not isinstance(s, LaserScan):
-                raise TypeError(f"OccupancyMapper needs LaserScan objects, got {type(s).__name__}")
+        _check_laser_scans(scans)
         self._clear_unobserved(self._beams(poses, scans, self.params.max_range_m))
 
     def clear_unobserved_arrays(
