@@ -36,7 +36,7 @@ from .rasterize import raster_geometry
 from .sensors import Lidar, SemanticCamera
 from .world import build_world
 
-MAPPING_RUN_VERSIONS = ("2", "3", "4", "5")
+MAPPING_RUN_VERSIONS = ("2", "3", "4", "5", "6")
 """The mapping runs an env can ask for (`build_maps`' ``version``; each keys its own cached maps):
 
 * ``"2"`` (``SemReloc-v7`` and before): a camera beam without a return lowers every class along the
@@ -54,6 +54,10 @@ MAPPING_RUN_VERSIONS = ("2", "3", "4", "5")
   that returns cross too rarely to mark free (near and beyond the lidar's range from every surface: the middle
   of a large hall) was left unknown, so the relocalizer could neither start nor inject particles there.
   Elsewhere the maps are version 4's but for unknown cells the pass reaches (docs/maps.md, "Unobserved space").
+* ``"6"`` (``SemReloc-v12``): version 5 on a drive that also enters passages between its lattice's rows and
+  columns (`mapping_drive`'s ``narrow``): a corridor about 1 m wide could get no waypoint, so its walls were
+  mapped only from its ends, in dashes that differed between two identical corridors, and the relocalizer
+  read the difference as evidence for one of them (docs/maps.md, "Narrow passages").
 """
 MAPPING_RUN_VERSION = MAPPING_RUN_VERSIONS[-1]
 """The newest mapping run. Add a version when its output changes for the same inputs."""
@@ -146,25 +150,92 @@ def _greedy_tour(indptr, indices, n):  # pragma: no cover - compiled
     return out_nodes[:m], out_driven[:m]
 
 
-def _lattice(layout: Layout, spacing_m: float):
-    """Free waypoints ``(V, 2)`` in boustrophedon order and the CSR adjacency of free straight hops."""
+FILL_STEP_FRACTION = 0.25
+"""Version 6's narrow-passage waypoints are picked from a lattice this fraction of the waypoint spacing."""
+FILL_COVER_FRACTION = 1.0
+"""A feasible point farther than this fraction of the spacing from every waypoint is not covered (on an open
+floor no point is farther than ``sqrt(2) / 2 = 0.71`` of it from the lattice's nearest waypoint)."""
+
+
+@numba.njit(cache=True, nogil=True)
+def _greedy_cover(xy, r):  # pragma: no cover - compiled
+    """Mask of the points (in order) kept by a greedy pass: a point is kept when it lies farther than ``r`` from
+    every point kept before it."""
+    n = xy.shape[0]
+    keep = np.zeros(n, np.bool_)
+    kept = np.empty(n, np.int64)
+    m = 0
+    r2 = r * r
+    for i in range(n):
+        far = True
+        for q in range(m):
+            j = kept[q]
+            dx = xy[i, 0] - xy[j, 0]
+            dy = xy[i, 1] - xy[j, 1]
+            if dx * dx + dy * dy <= r2:
+                far = False
+                break
+        if far:
+            keep[i] = True
+            kept[m] = i
+            m += 1
+    return keep
+
+
+def _boustrophedon(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, cols)`` of the True cells of ``free`` ``(Y, X)``: even rows left to right, odd rows right to left."""
+    ny, nx = free.shape
+    cols = np.where((np.arange(ny) % 2 == 0)[:, None], np.arange(nx)[None, :], np.arange(nx)[::-1])
+    jj = np.repeat(np.arange(ny), nx)
+    ii = cols.ravel()
+    keep = free[jj, ii]
+    return jj[keep], ii[keep]
+
+
+def _narrow_waypoints(world, layout: Layout, pts: np.ndarray, spacing_m: float) -> np.ndarray:
+    """``(U, 2)`` extra waypoints where the lattice ``pts`` leaves feasible floor uncovered (version 6).
+
+    Passages narrower than about ``spacing_m`` plus the robot's clearance can fall between the lattice's rows
+    and columns: a 1 m corridor got no waypoint, so the drive never entered it and mapped its walls only from
+    its ends, in dashes (docs/maps.md, "Narrow passages"). Feasible points of a `FILL_STEP_FRACTION` lattice
+    farther than `FILL_COVER_FRACTION` of the spacing from every waypoint are kept greedily, in boustrophedon
+    order, each farther than that from the ones kept before it.
+    """
+    from scipy.spatial import cKDTree
+
+    step = spacing_m * FILL_STEP_FRACTION
+    x0, x1, y0, y1 = layout.bounds()
+    xs = np.arange(x0 + step / 2, x1, step)
+    ys = np.arange(y0 + step / 2, y1, step)
+    gx, gy = np.meshgrid(xs, ys)
+    free = world.free_points(np.stack([gx.ravel(), gy.ravel()], 1), margin_m=0.1).reshape(gy.shape)
+    jj, ii = _boustrophedon(free)
+    fine = np.stack([xs[ii], ys[jj]], axis=1)
+    r = spacing_m * FILL_COVER_FRACTION
+    if len(pts):
+        dist, _ = cKDTree(pts).query(fine, distance_upper_bound=r)
+        fine = fine[~np.isfinite(dist)]
+    return fine[_greedy_cover(np.ascontiguousarray(fine), r)]
+
+
+def _lattice(layout: Layout, spacing_m: float, narrow: bool = False):
+    """Free waypoints ``(V, 2)`` in boustrophedon order and the CSR adjacency of free straight hops.
+
+    ``narrow`` (version 6): `_narrow_waypoints` follow the lattice's, each joined by straight free hops to every
+    waypoint within ``sqrt(2) * spacing_m`` (the lattice's own diagonal hop)."""
     world = build_world(layout)
     x0, x1, y0, y1 = layout.bounds()
     xs = np.arange(x0 + spacing_m / 2, x1, spacing_m)
     ys = np.arange(y0 + spacing_m / 2, y1, spacing_m)
     gx, gy = np.meshgrid(xs, ys)
     free = world.free_points(np.stack([gx.ravel(), gy.ravel()], 1), margin_m=0.1).reshape(gy.shape)
-    # boustrophedon numbering: even rows left to right, odd rows right to left
-    cols = np.where((np.arange(len(ys)) % 2 == 0)[:, None], np.arange(len(xs))[None, :], np.arange(len(xs))[::-1])
-    jj = np.repeat(np.arange(len(ys)), len(xs))
-    ii = cols.ravel()
-    keep = free[jj, ii]
-    jj, ii = jj[keep], ii[keep]
-    if ii.size == 0:
+    jj, ii = _boustrophedon(free)
+    pts = np.stack([xs[ii], ys[jj]], axis=1)
+    extra = _narrow_waypoints(world, layout, pts, spacing_m) if narrow else np.zeros((0, 2))
+    if ii.size + len(extra) == 0:
         raise LayoutError(f"layout {layout.name!r} has no free space for a mapping run (the robot fits nowhere)")
     index = np.full(free.shape, -1, np.int64)
     index[jj, ii] = np.arange(ii.size)
-    pts = np.stack([xs[ii], ys[jj]], axis=1)
     a_parts, b_parts = [], []
     for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
         ni, nj = ii + di, jj + dj
@@ -174,6 +245,16 @@ def _lattice(layout: Layout, spacing_m: float):
         has = nb >= 0
         a_parts.append(np.flatnonzero(has))
         b_parts.append(nb[has])
+    if len(extra):
+        from scipy.spatial import cKDTree
+
+        n0 = len(pts)
+        pts = np.concatenate([pts, extra])
+        near = cKDTree(pts).query_pairs(math.sqrt(2.0) * spacing_m * (1 + 1e-9), output_type="ndarray")
+        near = near[near[:, 1] >= n0]  # pairs with a new waypoint (query_pairs gives i < j)
+        near = near[np.lexsort((near[:, 1], near[:, 0]))]
+        a_parts.append(near[:, 0])
+        b_parts.append(near[:, 1])
     a, b = np.concatenate(a_parts), np.concatenate(b_parts)
     t = np.linspace(0.0, 1.0, 9)
     ok = np.ones(a.size, bool)
@@ -185,21 +266,25 @@ def _lattice(layout: Layout, spacing_m: float):
     src, dst = np.concatenate([a, b]), np.concatenate([b, a])
     order = np.lexsort((dst, src))  # neighbours of each node in ascending index
     src, dst = src[order], dst[order]
-    indptr = np.zeros(ii.size + 1, np.int64)
+    indptr = np.zeros(len(pts) + 1, np.int64)
     np.add.at(indptr, src + 1, 1)
     return pts, np.cumsum(indptr), np.ascontiguousarray(dst)
 
 
-def mapping_path(layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8) -> np.ndarray:
+def mapping_path(
+    layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8, narrow: bool = False
+) -> np.ndarray:
     """Known poses ``(P, 3)`` of a mapping drive covering the layout's free space.
 
     Waypoints: a ``spacing_m`` lattice of poses with at least robot-radius + 0.1 m
     clearance; the greedy nearest-unvisited tour of the module docstring over straight
     8-neighbour hops that stay free, sampled every ``step_m`` with the heading along the
     hop; at each waypoint's first visit the robot turns through ``turns`` headings starting
-    from its arrival heading (0 after a jump). Every free waypoint is visited.
+    from its arrival heading (0 after a jump). Every free waypoint is visited. ``narrow`` (the mapping run's
+    version 6): waypoints are added where passages between the lattice's rows and columns have none
+    (`_narrow_waypoints`).
     """
-    return mapping_drive(layout, spacing_m, step_m, turns)[0]
+    return mapping_drive(layout, spacing_m, step_m, turns, narrow)[0]
 
 
 LIDAR_TURN_STRIDE = 4
@@ -209,13 +294,13 @@ sees the same surfaces from every heading, so more scans would only cost time (t
 
 
 def mapping_drive(
-    layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8
+    layout: Layout, spacing_m: float = 0.6, step_m: float = 0.2, turns: int = 8, narrow: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(poses (P, 3), lidar_due (P,) bool)``: `mapping_path` and where the lidar is integrated
     (every pose except the turn headings between each `LIDAR_TURN_STRIDE`-th)."""
     if not (isinstance(turns, int) and turns >= 1) or not (spacing_m > 0 and step_m > 0):
         raise ValueError(f"need spacing_m > 0, step_m > 0 and an int turns >= 1, got {spacing_m}, {step_m}, {turns}")
-    pts, indptr, indices = _lattice(layout, spacing_m)
+    pts, indptr, indices = _lattice(layout, spacing_m, narrow)
     nodes, driven = _greedy_tour(indptr, indices, len(pts))
     prev, nxt, drv = nodes[:-1], nodes[1:], driven[1:]
     d = pts[nxt] - pts[prev]
@@ -266,7 +351,7 @@ def build_maps(
     occ = OccupancyMapper(shape, resolution_m, origin, OccupancyParams(clear_no_return=False))
     # ... nor the camera's, which also reads an object nearer than its minimum range as no return
     sem = SemanticMapper(shape, resolution_m, origin, CLASS_NAMES, SemanticParams(clear_no_return=version == "2"))
-    poses, lidar_due = mapping_drive(layout)
+    poses, lidar_due = mapping_drive(layout, narrow=version not in ("2", "3", "4", "5"))
     rmax = lidar_s.params.range_max_m
     no_returns = []  # version 5's second pass: (lidar poses, no-return mask) per chunk
     for lo in range(0, len(poses), CHUNK_POSES):

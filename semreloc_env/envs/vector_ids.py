@@ -32,6 +32,12 @@ def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
     return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
 
 
+def semreloc_vec_v12(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v12``: ``num_envs`` ``SemReloc-v12`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v12"``)."""
+    return _loop("SemReloc-v12", num_envs, kwargs)
+
+
 def semreloc_vec_v11(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
     """``SemRelocVec-v11``: ``num_envs`` ``SemReloc-v11`` robots in one process
     (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v11"``)."""
