@@ -1,6 +1,7 @@
 """The mapping run of paper 004 §2: drive through a layout with known poses, build the maps.
 
-The robot visits a lattice of free waypoints, turning on the spot at each first visit so
+The robot visits a lattice of free waypoints (since version 6 also waypoints in passages that fall
+between the lattice's rows and columns), turning on the spot at each first visit so
 the forward camera sees every direction. The tour is greedy: from the current waypoint,
 a breadth-first search over the lattice (straight 8-neighbour hops that stay free) finds
 the nearest unvisited waypoint (ties: lowest boustrophedon index), and the robot drives
@@ -192,6 +193,18 @@ def _boustrophedon(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return jj[keep], ii[keep]
 
 
+def _feasible_lattice(world, layout: Layout, step_m: float):
+    """``(points (V, 2), feasible (Y, X), rows (V,), cols (V,))``: the points of a ``step_m`` lattice over the
+    layout's bounds where the robot fits with 0.1 m to spare, in boustrophedon order (`_boustrophedon`)."""
+    x0, x1, y0, y1 = layout.bounds()
+    xs = np.arange(x0 + step_m / 2, x1, step_m)
+    ys = np.arange(y0 + step_m / 2, y1, step_m)
+    gx, gy = np.meshgrid(xs, ys)
+    free = world.free_points(np.stack([gx.ravel(), gy.ravel()], 1), margin_m=0.1).reshape(gy.shape)
+    jj, ii = _boustrophedon(free)
+    return np.stack([xs[ii], ys[jj]], axis=1), free, jj, ii
+
+
 def _narrow_waypoints(world, layout: Layout, pts: np.ndarray, spacing_m: float) -> np.ndarray:
     """``(U, 2)`` extra waypoints where the lattice ``pts`` leaves feasible floor uncovered (version 6).
 
@@ -203,14 +216,7 @@ def _narrow_waypoints(world, layout: Layout, pts: np.ndarray, spacing_m: float) 
     """
     from scipy.spatial import cKDTree
 
-    step = spacing_m * FILL_STEP_FRACTION
-    x0, x1, y0, y1 = layout.bounds()
-    xs = np.arange(x0 + step / 2, x1, step)
-    ys = np.arange(y0 + step / 2, y1, step)
-    gx, gy = np.meshgrid(xs, ys)
-    free = world.free_points(np.stack([gx.ravel(), gy.ravel()], 1), margin_m=0.1).reshape(gy.shape)
-    jj, ii = _boustrophedon(free)
-    fine = np.stack([xs[ii], ys[jj]], axis=1)
+    fine, _, _, _ = _feasible_lattice(world, layout, spacing_m * FILL_STEP_FRACTION)
     r = spacing_m * FILL_COVER_FRACTION
     if len(pts):
         dist, _ = cKDTree(pts).query(fine, distance_upper_bound=r)
@@ -224,13 +230,7 @@ def _lattice(layout: Layout, spacing_m: float, narrow: bool = False):
     ``narrow`` (version 6): `_narrow_waypoints` follow the lattice's, each joined by straight free hops to every
     waypoint within ``sqrt(2) * spacing_m`` (the lattice's own diagonal hop)."""
     world = build_world(layout)
-    x0, x1, y0, y1 = layout.bounds()
-    xs = np.arange(x0 + spacing_m / 2, x1, spacing_m)
-    ys = np.arange(y0 + spacing_m / 2, y1, spacing_m)
-    gx, gy = np.meshgrid(xs, ys)
-    free = world.free_points(np.stack([gx.ravel(), gy.ravel()], 1), margin_m=0.1).reshape(gy.shape)
-    jj, ii = _boustrophedon(free)
-    pts = np.stack([xs[ii], ys[jj]], axis=1)
+    pts, free, jj, ii = _feasible_lattice(world, layout, spacing_m)
     extra = _narrow_waypoints(world, layout, pts, spacing_m) if narrow else np.zeros((0, 2))
     if ii.size + len(extra) == 0:
         raise LayoutError(f"layout {layout.name!r} has no free space for a mapping run (the robot fits nowhere)")
@@ -239,7 +239,7 @@ def _lattice(layout: Layout, spacing_m: float, narrow: bool = False):
     a_parts, b_parts = [], []
     for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
         ni, nj = ii + di, jj + dj
-        ok = (ni >= 0) & (ni < len(xs)) & (nj >= 0) & (nj < len(ys))
+        ok = (ni >= 0) & (ni < free.shape[1]) & (nj >= 0) & (nj < free.shape[0])
         nb = np.full(ii.shape, -1, np.int64)
         nb[ok] = index[nj[ok], ni[ok]]
         has = nb >= 0

@@ -609,7 +609,8 @@ def test_blur_margin_keeps_a_look_alike_place_whose_map_differs_by_the_mapping_d
     """A fifth outside tester's corridor pods (two identical room-and-corridor pods, one turned 195 deg): the
     maps of the two corridors differ by the mapping drive's noise, the filter's fields read that as evidence,
     and an explorer's belief converges 19 m from the truth; the screen's blurred fields find the places alike,
-    so with ``audit_blur_margin`` the audit keeps the other place and the belief does not converge."""
+    so with ``audit_blur_margin`` the audit keeps the other place and the belief does not converge. (On
+    ``SemReloc-v11``'s maps: v12's drive maps the corridors alike, test_versions.py.)"""
     import warnings
     from pathlib import Path
 

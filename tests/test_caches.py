@@ -7,14 +7,14 @@ import semreloc_env  # noqa: F401
 
 
 def test_envs_on_the_same_map_share_one_likelihood_model_across_resets():
-    a = gym.make("SemReloc-v11", map_source="perfect").unwrapped
-    b = gym.make("SemReloc-v11", map_source="perfect").unwrapped
+    a = gym.make("SemReloc-v12", map_source="perfect").unwrapped
+    b = gym.make("SemReloc-v12", map_source="perfect").unwrapped
     a.reset(seed=0)
     model = a.mcl.measurement_model
     a.reset(seed=1)
     b.reset(seed=2)
     assert a.mcl.measurement_model is model and b.mcl.measurement_model is model
-    c = gym.make("SemReloc-v11", map_source="perfect", relocalizer={"lidar_field": {"sigma_hit_m": 0.3}}).unwrapped
+    c = gym.make("SemReloc-v12", map_source="perfect", relocalizer={"lidar_field": {"sigma_hit_m": 0.3}}).unwrapped
     c.reset(seed=0)
     assert c.mcl.measurement_model is not model
     assert np.isclose(c.mcl.measurement_model.lidar_config.sigma_hit_m, 0.3)
@@ -78,6 +78,42 @@ def test_mapping_tour_visits_every_free_waypoint_without_all_pairs_paths():
     steps = np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)
     assert np.mean(steps <= 0.2 + 1e-9) > 0.99
     assert 0.2 < lidar_due.mean() < 0.6
+
+
+def test_the_narrow_drive_enters_a_corridor_between_the_lattices_rows():
+    """Two rooms joined by a 1 m corridor whose free band (0.3 m clearance) lies between the 0.6 m lattice's rows
+    2.1 and 2.7 m: the plain drive has no waypoint in it, the narrow drive (mapping run version 6) does, keeps
+    every lattice waypoint first and in order, and adds only feasible waypoints, none within the lattice's
+    spacing of another's."""
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.mapping_run import _lattice, mapping_drive
+    from semreloc_env.world import build_world
+
+    outer = [[0, 0], [4, 0], [4, 1.9], [10, 1.9], [10, 0], [14, 0], [14, 4], [10, 4], [10, 2.9], [4, 2.9]]
+    outer += [[4, 4], [0, 4]]
+    layout = get_layout({"name": "corridor", "outer": outer})
+    world = build_world(layout)
+    plain, _, _ = _lattice(layout, 0.6)
+    pts, indptr, indices = _lattice(layout, 0.6, narrow=True)
+    np.testing.assert_array_equal(pts[: len(plain)], plain)
+    extra = pts[len(plain) :]
+    in_corridor = (extra[:, 0] > 4.3) & (extra[:, 0] < 9.7)
+    assert in_corridor.sum() >= 6  # one every 0.75 m along 5.4 m (0.15 m lattice points more than 0.6 m apart)
+    assert not ((plain[:, 0] > 4.3) & (plain[:, 0] < 9.7)).any()
+    assert world.free_points(extra, margin_m=0.1).all()
+    d = np.linalg.norm(extra[:, None] - extra[None], axis=2) + np.eye(len(extra)) * 9
+    assert d.min() > 0.6
+    # the corridor's waypoints are joined: one drive, no jump between the rooms
+    from semreloc_env.mapping_run import _greedy_tour
+
+    _, driven = _greedy_tour(indptr, indices, len(pts))
+    assert driven[1:].all()
+    for narrow in (False, True):
+        poses, _ = mapping_drive(layout, narrow=narrow)
+        inside = (poses[:, 0] > 4.5) & (poses[:, 0] < 9.5)
+        assert inside.any() == narrow
+        a, b = mapping_drive(layout, narrow=narrow)[0], mapping_drive(layout, narrow=narrow)[0]
+        np.testing.assert_array_equal(a, b)
 
 
 def test_tiled_layout_repeats_the_base_and_checks_its_arguments():

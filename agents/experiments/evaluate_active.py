@@ -107,10 +107,11 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: EvaluatedEnvId = "SemReloc-v11"
-    """the env the episodes run in: SemReloc-v11 (the newest), SemReloc-v10, SemReloc-v9, SemReloc-v8, SemReloc-v7,
-    SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same worlds and
-    sensors, the maps of the mapping run's version 4, with space beyond the lidar's returns left unknown (v10), the
+    env_id: EvaluatedEnvId = "SemReloc-v12"
+    """the env the episodes run in: SemReloc-v12 (the newest), SemReloc-v11, SemReloc-v10, SemReloc-v9, SemReloc-v8,
+    SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; the same
+    worlds and sensors, the maps of the mapping run's version 5, whose drive skips passages between its lattice's
+    rows and columns (v11), also with space beyond the lidar's returns left unknown (v10), the
     maps of the mapping run's version 3, with stray class cells, and the screen's pause blind to place (v9), the
     relocalizer's audit without its screen of the whole map (v8 and older), the maps of the mapping
     run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search only (v6), also
@@ -264,9 +265,9 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v11"
+ENV_ID = "SemReloc-v12"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
-generator, as v3's to v11's do.
+generator, as v3's to v12's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
 draws again; v4 to v7 change the relocalizer and v8 the maps, so every episode.)"""

@@ -245,7 +245,7 @@ class SemRelocEnv(SemRelocBase):
       ends only, in dashes, so two identical corridors got maps whose difference the relocalizer read as
       evidence (an outside tester's corridor pods: a scan scored at its true pose and at the look-alike
       pose differed by 0.085 tempered nats, standard deviation over 400 poses, against 0.015 now and 0.030
-      on the layout's perfect raster). Every map changes (the drive is 2-11 % longer), so episodes differ
+      on the layout's perfect raster). Every map changes (the drive is 0-38 % longer, most walls come out more complete), so episodes differ
       from v11's. The relocalizer, worlds, sensors, observations, rewards and info keys are v11's
       (`SemRelocEnvV11` is v11); docs/maps.md, "Narrow passages".
     * v11: the map of ``map_source="mapping"`` (the default) or of another layout comes from the mapping run's
@@ -634,7 +634,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
     """``SemReloc-v9``: `SemRelocEnvV10` with the maps of the mapping run's version 3 (stray class cells kept)
     and the relocalizer of v9 (`RELOCALIZER_V9`: the screen's pause ignores where the belief is). Otherwise
     identical to ``SemReloc-v10``. Kept so that results made with v9 can be reproduced; new work should use
-    ``SemReloc-v11``."""
+    ``SemReloc-v12``."""
 
     default_relocalizer = RELOCALIZER_V9
     mapping_run_version = "3"
@@ -661,7 +661,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
     """``SemReloc-v6``: `SemRelocEnvV7` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
     coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
     identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
-    ``SemReloc-v11``."""
+    ``SemReloc-v12``."""
 
     default_relocalizer = RELOCALIZER_V6
 
