@@ -233,7 +233,12 @@ def _lattice(layout: Layout, spacing_m: float, narrow: bool = False):
     pts, free, jj, ii = _feasible_lattice(world, layout, spacing_m)
     extra = _narrow_waypoints(world, layout, pts, spacing_m) if narrow else np.zeros((0, 2))
     if ii.size + len(extra) == 0:
-        raise LayoutError(f"layout {layout.name!r} has no free space for a mapping run (the robot fits nowhere)")
+        step = spacing_m * FILL_STEP_FRACTION if narrow else spacing_m
+        hint = "" if narrow else " (the mapping run's version 6 also looks between the lattice's points)"
+        raise LayoutError(
+            f"layout {layout.name!r} has no free space for a mapping run: no point of its {step:g} m waypoint "
+            f"lattice has the robot's disc 0.1 m clear of every wall and object{hint}"
+        )
     index = np.full(free.shape, -1, np.int64)
     index[jj, ii] = np.arange(ii.size)
     a_parts, b_parts = [], []

@@ -114,6 +114,19 @@ def test_the_narrow_drive_enters_a_corridor_between_the_lattices_rows():
         assert inside.any() == narrow
         a, b = mapping_drive(layout, narrow=narrow)[0], mapping_drive(layout, narrow=narrow)[0]
         np.testing.assert_array_equal(a, b)
+    # a layout that is only such a corridor: version 5's drive found no waypoint, version 6's drives it
+    import pytest
+
+    from semreloc_env.layouts import LayoutError
+
+    only = get_layout({"name": "only_corridor", "outer": [[0, 1.9], [8, 1.9], [8, 2.9], [0, 2.9]]})
+    with pytest.raises(LayoutError, match="0.6 m waypoint lattice.*version 6 also looks"):
+        mapping_drive(only)
+    poses, _ = mapping_drive(only, narrow=True)
+    assert poses[:, 0].min() < 1.0 and poses[:, 0].max() > 7.0
+    tiny = get_layout({"name": "tiny", "outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]})  # the robot's disc only
+    with pytest.raises(LayoutError, match="0.15 m waypoint lattice has the robot's disc 0.1 m clear"):
+        mapping_drive(tiny, narrow=True)
 
 
 def test_tiled_layout_repeats_the_base_and_checks_its_arguments():
