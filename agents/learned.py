@@ -98,7 +98,9 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
                 raise ValueError(
                     f"{path} has no {META_NAME}: not saved by agents.learned.save_policy; a bare checkpoint of a "
                     "train_active run loads with its settings given: load_policy(path, observation={}, repeat=4) "
-                    "(the run's --config.observation and --config.repeat)"
+                    "(the run's --config.observation and --config.repeat). A model of scripts/train_ppo.py is no "
+                    "such policy (it sees BeliefObservation's vector): evaluate it with `train_ppo.py --load` or "
+                    "agents.train.evaluate(stable_baselines3.PPO.load(path), env_kwargs)"
                 )
             meta = json.loads(z.read(META_NAME))
     except zipfile.BadZipFile as e:

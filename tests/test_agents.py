@@ -229,6 +229,10 @@ def test_train_config_rejects_bad_values():
         TrainConfig(vec_env="threads")
     with pytest.raises(ValueError):
         TrainConfig(n_envs=0)
+    # an outside tester's trial: an unknown id failed after the run folder was made, a SemSlam id deep in its init
+    for bad in ("SemReloc-v99", "SemSlam-v1"):
+        with pytest.raises(ValueError, match="env_id must be one of"):
+            TrainConfig(env_id=bad)
     assert gym.spaces.Discrete(4).contains(int(WallFollowExplorer()({"lidar": np.full(60, 8.0)})))
 
 

@@ -648,3 +648,40 @@ def test_blur_margin_keeps_a_look_alike_place_whose_map_differs_by_the_mapping_d
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", DeprecationWarning)
                 assert gym.make(env_id, map_source="perfect").unwrapped.mcl_config.audit_blur_margin == 0.0
+
+
+def test_a_surprise_turns_the_audit_on_in_a_tracking_episode():
+    """An outside tester's four-fold symmetric hall: a tracking start, then a kidnapping into the hall's middle.
+    Without ``audit_after_surprise`` (v11's relocalizer) no convergence of a tracking episode is audited, and the
+    explorer's belief converges at a quarter-turned image of the truth for many steps; with it (v12's default)
+    the kidnapping's surprise turns the audit on, the audit finds the image, and the belief does not converge at
+    a wrong place after the first steps past the kidnapping (the old place stays converged until a surprise)."""
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
+
+    hall = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v11" / "d1_warehouse_hall_32.json"
+    wrong, audited = {}, {}
+    for on in (False, True):
+        env = gym.make("SemReloc-v12", layout=str(hall), action_type="continuous", max_episode_steps=300,
+                       relocalizer={"audit_after_surprise": on})  # fmt: skip
+        policy = POLICIES["wall_follow"](1)
+        env = policy.wrap(env)
+        policy.reset()
+        options = {"tracking": True, "pose": [4.0, 28.0, 0.0], "kidnap_at_step": 60, "kidnap_pose": [16.0, 16.0, 0.0]}
+        obs, info = env.reset(seed=1, options=options)
+        wrong[on], audited[on] = 0, 0
+        for t in range(1, 301):
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            audited[on] += "audit_log_ratio" in info["mcl"]  # left out of info when no audit ran
+            if t > 70 and info["belief"]["converged"] and info["pose_error"]["position"] > 0.5:
+                wrong[on] += 1
+            if terminated or truncated:
+                break
+    assert audited[False] == 0 and wrong[False] > 20  # v11: converged at an image of the truth, never audited
+    assert audited[True] > 0 and wrong[True] == 0
+    with pytest.raises(ValueError, match="audit_after_surprise needs the surprise test and the audit"):
+        MCLConfig(audit_after_surprise=True, audit_window=20)  # no surprise test: it would do nothing

@@ -85,6 +85,19 @@ def test_bad_arguments():
 
     with pytest.raises(ValueError, match="seed must be None or an int, got 'a'"):
         SB3VecEnvAdapter(venv).seed("a")
+    # an outside tester's trial: an array of seeds was refused deep in Gymnasium, a set (no order) accepted,
+    # max_episode_steps=2.5 ran 2-step episodes (gym.make refuses it), a wrapper returning None failed later
+    obs_array, _ = venv.reset(seed=np.array([4, 9]))
+    obs_list, _ = venv.reset(seed=[4, 9])
+    for k in obs_list:
+        np.testing.assert_array_equal(obs_array[k], obs_list[k])
+    with pytest.raises(ValueError, match="a list of 2 seeds, got {"):
+        venv.reset(seed={4, 9})
+    for bad, err in ((2.5, TypeError), ("5", TypeError), (True, TypeError), (0, ValueError)):
+        with pytest.raises(err, match="max_episode_steps must be an int >= 1 or None"):
+            SemRelocLoopVectorEnv(num_envs=1, **{**VKW, "max_episode_steps": bad})
+    with pytest.raises(TypeError, match="wrapper must return the wrapped env"):
+        SemRelocLoopVectorEnv(num_envs=1, wrapper=lambda env: None, **VKW)
 
 
 def test_rejected_steps_and_resets_move_no_robot():

@@ -9,6 +9,7 @@ SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 
 that break their half turn), SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out)
 against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
 
+import dataclasses
 import warnings
 from pathlib import Path
 
@@ -525,7 +526,9 @@ def test_v12_is_v11_with_maps_from_a_drive_that_enters_narrow_passages():
 
     v12, v11 = make("SemReloc-v12", **FAST).unwrapped, make("SemReloc-v11", **FAST).unwrapped
     assert (v12.mapping_run_version, v11.mapping_run_version) == ("6", "5")
-    assert v12.mcl_config == v11.mcl_config
+    # and a surprise turns the audit on in a tracking episode (tests/test_audit.py); global starts are v11's
+    assert not v11.mcl_config.audit_after_surprise
+    assert v12.mcl_config == dataclasses.replace(v11.mcl_config, audit_after_surprise=True)
     venv = gym.make_vec("SemRelocVec-v12", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
     assert venv.envs[0].unwrapped.mapping_run_version == "6"
     venv.close()

@@ -81,10 +81,18 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 f"wrapper must be a callable env -> env (e.g. semreloc_env.observations.ActiveObservation), "
                 f"got {type(wrapper).__name__} {wrapper!r:.60}"
             )
+        if max_episode_steps is not None and not is_int(max_episode_steps):  # 2.5 or "5" is no step count
+            raise TypeError(f"max_episode_steps must be an int >= 1 or None, got {max_episode_steps!r:.60}")
+        if max_episode_steps is not None and max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be an int >= 1 or None, got {max_episode_steps!r}")
         extra = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
         self.envs = [gym.make(env_id, **kwargs, **extra) for _ in range(int(num_envs))]
         if wrapper is not None:
             self.envs = [wrapper(env) for env in self.envs]
+            if not isinstance(self.envs[0], gym.Env):
+                raise TypeError(
+                    f"wrapper must return the wrapped env (a gymnasium.Env), returned {type(self.envs[0]).__name__}"
+                )
         self.num_envs = int(num_envs)
         self.single_observation_space = self.envs[0].observation_space
         self.single_action_space = self.envs[0].action_space
@@ -158,7 +166,8 @@ class SemRelocLoopVectorEnv(VectorEnv):
         ``options`` is one dict for all robots or a list of one per robot."""
         if seed is None or is_int(seed):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
-        elif isinstance(seed, (str, bytes, dict, float, bool, np.floating, np.bool_)):
+        elif isinstance(seed, (str, bytes, dict, set, frozenset, float, bool, np.floating, np.bool_)):
+            # a set has no order: which robot would get which seed?
             raise ValueError(f"seed must be None, an int or a list of {self.num_envs} seeds, got {seed!r:.80}")
         else:
             try:
@@ -169,6 +178,8 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 ) from None
             if len(seeds) != self.num_envs:
                 raise ValueError(f"got {len(seeds)} seeds for {self.num_envs} robots")
+            # NumPy integers (an array of seeds) as Python ints; anything else the robot's own check refuses
+            seeds = [int(s) if is_int(s) else s for s in seeds]
         per_robot = self._per_robot(options)
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
             try:

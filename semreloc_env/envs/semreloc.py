@@ -95,12 +95,17 @@ of it, so the audit never found it (docs/relocalizer.md, "An audit that screens 
 on the tuning cases of ``scripts/evaluate_active.py --seed-set tuning`` and layouts of outside testers;
 evaluated on the held-out pairs."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V9, audit_screen_pause_place=True)
-"""The relocalizer of SemReloc-v10 to -v12: `RELOCALIZER_V9` whose screen pauses only while the belief stays at the
+RELOCALIZER_V10 = dataclasses.replace(RELOCALIZER_V9, audit_screen_pause_place=True)
+"""The relocalizer of SemReloc-v10 and -v11: `RELOCALIZER_V9` whose screen pauses only while the belief stays at the
 place the last screen cleared (`MCLConfig.audit_screen_pause_place`; v9 skipped the screen for 100 updates
 after it found nothing, wherever the belief converged next). ``audit_blur_margin`` (off) trades successes for
 fewer wrong convergences between places a robot's map holds slightly differently (docs/relocalizer.md,
 "Corridor pods: look-alike places whose maps differ")."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V10, audit_after_surprise=True)
+"""The relocalizer of SemReloc-v12: `RELOCALIZER_V10` whose convergence audit also runs in a tracking episode
+once a surprise (a kidnapping) has shown the pose lost (`MCLConfig.audit_after_surprise`). A global start
+audits every convergence as v10's does, with the same bits."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -246,8 +251,14 @@ class SemRelocEnv(SemRelocBase):
       evidence (an outside tester's corridor pods: a scan scored at its true pose and at the look-alike
       pose differed by 0.085 tempered nats, standard deviation over 400 poses, against 0.015 now and 0.030
       on the layout's perfect raster). Every map changes (the drive is 0-38 % longer, most walls come out more complete), so episodes differ
-      from v11's. The relocalizer, worlds, sensors, observations, rewards and info keys are v11's
-      (`SemRelocEnvV11` is v11); docs/maps.md, "Narrow passages".
+      from v11's. And in a tracking episode (``options={"tracking": True}``) the convergence audit starts at
+      the first surprise, a scan the belief explains far worse than of late (a kidnapping): the belief's next
+      convergence is a relocalization and is audited as a global start's are (`DEFAULT_RELOCALIZER`:
+      `RELOCALIZER_V10` with ``audit_after_surprise``). v11 audited no convergence in a tracking episode,
+      and after a kidnapping into an outside tester's four-fold symmetric hall the explorer's belief
+      converged at a quarter-turned image of the truth in 5 of 16 episodes (0 of 16 now; docs/relocalizer.md,
+      "After a kidnapping"). Global starts give v11's episodes on v12's maps. Worlds, sensors, observations,
+      rewards and info keys are v11's (`SemRelocEnvV11` is v11); docs/maps.md, "Narrow passages".
     * v11: the map of ``map_source="mapping"`` (the default) or of another layout comes from the mapping run's
       version 5 (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`): after the scans, the lidar's beams without
       a return clear, up to the first surface the returns marked, the cells that returns crossed too rarely
@@ -616,16 +627,18 @@ class SemRelocEnv(SemRelocBase):
 
 class SemRelocEnvV11(SemRelocEnv):
     """``SemReloc-v11``: `SemRelocEnv` with the maps of the mapping run's version 5 (a drive that skips passages
-    between its lattice's rows and columns). Otherwise identical to ``SemReloc-v12``. Kept so that results made
-    with v11 can be reproduced; new work should use ``SemReloc-v12``."""
+    between its lattice's rows and columns) and the relocalizer of v10 and v11 (`RELOCALIZER_V10`: no audit in
+    a tracking episode, also after a surprise). Otherwise identical to ``SemReloc-v12``. Kept so that results
+    made with v11 can be reproduced; new work should use ``SemReloc-v12``."""
 
+    default_relocalizer = RELOCALIZER_V10
     mapping_run_version = "5"
 
 
-class SemRelocEnvV10(SemRelocEnv):
-    """``SemReloc-v10``: `SemRelocEnv` with the maps of the mapping run's version 4 (space the lidar's returns
-    did not reach left unknown, and the drive of v11). Otherwise identical to ``SemReloc-v11``. Kept so that
-    results made with v10 can be reproduced; new work should use ``SemReloc-v12``."""
+class SemRelocEnvV10(SemRelocEnvV11):
+    """``SemReloc-v10``: `SemRelocEnvV11` with the maps of the mapping run's version 4 (space the lidar's returns
+    did not reach left unknown). Otherwise identical to ``SemReloc-v11``. Kept so that results made with v10
+    can be reproduced; new work should use ``SemReloc-v12``."""
 
     mapping_run_version = "4"
 
