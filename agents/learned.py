@@ -193,6 +193,14 @@ class LearnedPolicy:
             TypeError: a vector env (one policy per env).
         """
         require_single_env(env, "a learned policy")
+        layer = env
+        while isinstance(layer, gym.Wrapper):
+            if isinstance(layer, ActiveObservation):
+                raise ValueError(
+                    "the env is already wrapped (ActiveObservation, as wrap() returns): give wrap() the SemReloc "
+                    "env itself, once"
+                )
+            layer = layer.env
         discrete_model = isinstance(self.model.action_space, spaces.Discrete)
         if self.options or (discrete_model and isinstance(env.action_space, spaces.Box)):
             from .options import MotionOptions, has_semreloc_actions

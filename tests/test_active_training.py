@@ -285,8 +285,13 @@ def test_load_policy_errors(smoke_run, tmp_path):
         for name in src.namelist():
             if name != META_NAME:
                 dst.writestr(name, src.read(name))
-    with pytest.raises(ValueError, match="no semreloc_policy.json"):
+    with pytest.raises(ValueError, match="no semreloc_policy.json.*A model of scripts/train_ppo.py is no such policy"):
         load_policy(bare)
+    # an outside tester's trial: wrapping twice said the action space was wrong
+    policy = load_policy(path)
+    once = policy.wrap(gym.make("SemReloc-v12", layout="twin_rooms", map_source="perfect"))
+    with pytest.raises(ValueError, match="already wrapped"):
+        policy.wrap(once)
     for name, meta, keep_model, match in [
         ("badjson.zip", "{nope", True, "not valid JSON"),
         ("list.zip", "[1]", True, "JSON object"),
