@@ -161,25 +161,36 @@ floor no point is farther than ``sqrt(2) / 2 = 0.71`` of it from the lattice's n
 @numba.njit(cache=True, nogil=True)
 def _greedy_cover(xy, r):  # pragma: no cover - compiled
     """Mask of the points (in order) kept by a greedy pass: a point is kept when it lies farther than ``r`` from
-    every point kept before it."""
+    every point kept before it. The kept points are filed in ``r``-sized cells, so a point is compared with those
+    of the 3 x 3 cells around its own only (no two kept points share much of a cell): linear in the points."""
     n = xy.shape[0]
     keep = np.zeros(n, np.bool_)
-    kept = np.empty(n, np.int64)
-    m = 0
+    if n == 0:
+        return keep
+    x0, y0 = xy[:, 0].min(), xy[:, 1].min()
+    nx = int((xy[:, 0].max() - x0) / r) + 1
+    ny = int((xy[:, 1].max() - y0) / r) + 1
+    head = np.full(nx * ny, -1, np.int64)  # per cell: the last point kept in it, then `nxt` back through the rest
+    nxt = np.full(n, -1, np.int64)
     r2 = r * r
     for i in range(n):
+        cx = int((xy[i, 0] - x0) / r)
+        cy = int((xy[i, 1] - y0) / r)
         far = True
-        for q in range(m):
-            j = kept[q]
-            dx = xy[i, 0] - xy[j, 0]
-            dy = xy[i, 1] - xy[j, 1]
-            if dx * dx + dy * dy <= r2:
-                far = False
-                break
+        for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
+            for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
+                j = head[gy * nx + gx]
+                while j >= 0 and far:
+                    dx = xy[i, 0] - xy[j, 0]
+                    dy = xy[i, 1] - xy[j, 1]
+                    if dx * dx + dy * dy <= r2:
+                        far = False
+                    j = nxt[j]
         if far:
             keep[i] = True
-            kept[m] = i
-            m += 1
+            c = cy * nx + cx
+            nxt[i] = head[c]
+            head[c] = i
     return keep
 
 
@@ -331,6 +342,11 @@ def mapping_drive(
     return out, q_all % LIDAR_TURN_STRIDE == 0
 
 
+def narrow_drive(version: str) -> bool:
+    """Whether the mapping run's ``version`` drives into narrow passages too (`mapping_drive`'s ``narrow``: 6 on)."""
+    return int(version) >= 6
+
+
 def build_maps(
     layout: Layout,
     lidar: LidarParams | None = None,
@@ -356,7 +372,7 @@ def build_maps(
     occ = OccupancyMapper(shape, resolution_m, origin, OccupancyParams(clear_no_return=False))
     # ... nor the camera's, which also reads an object nearer than its minimum range as no return
     sem = SemanticMapper(shape, resolution_m, origin, CLASS_NAMES, SemanticParams(clear_no_return=version == "2"))
-    poses, lidar_due = mapping_drive(layout, narrow=version not in ("2", "3", "4", "5"))
+    poses, lidar_due = mapping_drive(layout, narrow=narrow_drive(version))
     rmax = lidar_s.params.range_max_m
     no_returns = []  # version 5's second pass: (lidar poses, no-return mask) per chunk
     for lo in range(0, len(poses), CHUNK_POSES):

@@ -562,5 +562,6 @@ def test_v12_is_v11_with_maps_from_a_drive_that_enters_narrow_passages():
             diffs.append(cfg.likelihood_scale * (ll_l[0] - ll_l[1]))
         spread[env_id] = float(np.std(diffs))
     assert wall["SemReloc-v11"] < 0.6 and wall["SemReloc-v12"] > 0.9  # dashes, then a whole wall
-    # the lidar's per-scan difference between the places (tempered nats): 0.08 on v11's maps, under 0.02 on v12's
+    # the lidar's per-scan difference between the places (tempered nats, sd over 120 poses): 0.141 on v11's maps,
+    # 0.007 on v12's
     assert spread["SemReloc-v12"] < 0.3 * spread["SemReloc-v11"]

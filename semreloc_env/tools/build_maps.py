@@ -24,7 +24,7 @@ from filters.experiments.cli import parse
 from filters.mapping.metrics import semantic_surface_quality
 from filters.mapping.ros_map import save_map
 from semreloc_env.layouts import get_layout
-from semreloc_env.mapping_run import build_maps, mapping_path
+from semreloc_env.mapping_run import build_maps, mapping_path, narrow_drive
 from semreloc_env.rasterize import rasterize
 
 
@@ -65,9 +65,11 @@ def main(argv: list[str] | None = None) -> int:
         layout, rng=np.random.default_rng(args.seed), resolution_m=args.resolution, version=args.mapping_version
     )
     name = layout.name if not layout.name.startswith("procedural") else f"{layout.name}_{args.layout_seed}"
+    seconds = time.perf_counter() - t0
     path = save_map(grid, out / f"{name}.yaml")
     truth = rasterize(layout, args.resolution)
-    print(f"{layout.name}: {len(mapping_path(layout))} poses mapped in {time.perf_counter() - t0:.1f} s -> {path}")
+    n_poses = len(mapping_path(layout, narrow=narrow_drive(args.mapping_version)))
+    print(f"{layout.name}: {n_poses} poses mapped in {seconds:.1f} s -> {path}")
     for cls, q in semantic_surface_quality(grid, truth).items():
         print(
             f"  {cls:10s} IoU vs visible surface {q['iou']:.2f}, precision {q['precision']:.2f}, "
