@@ -25,7 +25,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from semreloc_env.envs.spaces import require_single_env
+from semreloc_env.envs.spaces import require_raw_observation, require_single_env
 from semreloc_env.observations import ActiveObservation
 
 META_NAME = "semreloc_policy.json"
@@ -193,14 +193,7 @@ class LearnedPolicy:
             TypeError: a vector env (one policy per env).
         """
         require_single_env(env, "a learned policy")
-        layer = env
-        while isinstance(layer, gym.Wrapper):
-            if isinstance(layer, ActiveObservation):
-                raise ValueError(
-                    "the env is already wrapped (ActiveObservation, as wrap() returns): give wrap() the SemReloc "
-                    "env itself, once"
-                )
-            layer = layer.env
+        require_raw_observation(env, "a learned policy")  # before the action check: an env wrap() returned fails here
         discrete_model = isinstance(self.model.action_space, spaces.Discrete)
         if self.options or (discrete_model and isinstance(env.action_space, spaces.Box)):
             from .options import MotionOptions, has_semreloc_actions

@@ -290,7 +290,7 @@ def test_load_policy_errors(smoke_run, tmp_path):
     # an outside tester's trial: wrapping twice said the action space was wrong
     policy = load_policy(path)
     once = policy.wrap(gym.make("SemReloc-v12", layout="twin_rooms", map_source="perfect"))
-    with pytest.raises(ValueError, match="already wrapped"):
+    with pytest.raises(ValueError, match="own observations.*wrapped by ActiveObservation already"):
         policy.wrap(once)
     for name, meta, keep_model, match in [
         ("badjson.zip", "{nope", True, "not valid JSON"),
