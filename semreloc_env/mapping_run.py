@@ -167,15 +167,16 @@ def _greedy_cover(xy, r):  # pragma: no cover - compiled
     keep = np.zeros(n, np.bool_)
     if n == 0:
         return keep
+    cell = r * (1.0 + 1e-6)  # a hair wider than r: a point within r of another is in a neighbouring cell
     x0, y0 = xy[:, 0].min(), xy[:, 1].min()
-    nx = int((xy[:, 0].max() - x0) / r) + 1
-    ny = int((xy[:, 1].max() - y0) / r) + 1
+    nx = int((xy[:, 0].max() - x0) / cell) + 1
+    ny = int((xy[:, 1].max() - y0) / cell) + 1
     head = np.full(nx * ny, -1, np.int64)  # per cell: the last point kept in it, then `nxt` back through the rest
     nxt = np.full(n, -1, np.int64)
     r2 = r * r
     for i in range(n):
-        cx = int((xy[i, 0] - x0) / r)
-        cy = int((xy[i, 1] - y0) / r)
+        cx = int((xy[i, 0] - x0) / cell)
+        cy = int((xy[i, 1] - y0) / cell)
         far = True
         for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
             for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
