@@ -156,11 +156,11 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.vec_env not in VEC_ENVS:
             raise ValueError(f"vec_env must be one of {list(VEC_ENVS)}, got {self.vec_env!r}")
-        from semreloc_env import ENV_IDS
+        from semreloc_env import semreloc_ids_since
 
-        trainable = [i for i in ENV_IDS if i.startswith("SemReloc-")]  # a SemSlam env takes other arguments
+        trainable = semreloc_ids_since(0)  # a SemSlam env takes other arguments
         if self.env_id not in trainable:
-            raise ValueError(f"env_id must be one of {trainable}, got {self.env_id!r}")
+            raise ValueError(f"env_id must be one of {list(trainable)}, got {self.env_id!r}")
         positive = ("n_envs", "total_timesteps", "n_steps", "batch_size", "n_epochs", "torch_threads", "eval_episodes")
         for name in positive:
             if int(getattr(self, name)) < 1:

@@ -21,6 +21,7 @@ import math
 
 import numba
 import numpy as np
+from scipy.spatial import cKDTree
 
 from filters.mapping.grid import GridMap
 from filters.mapping.occupancy import (
@@ -226,8 +227,6 @@ def _narrow_waypoints(world, layout: Layout, pts: np.ndarray, spacing_m: float) 
     farther than `FILL_COVER_FRACTION` of the spacing from every waypoint are kept greedily, in boustrophedon
     order, each farther than that from the ones kept before it.
     """
-    from scipy.spatial import cKDTree
-
     fine, _, _, _ = _feasible_lattice(world, layout, spacing_m * FILL_STEP_FRACTION)
     r = spacing_m * FILL_COVER_FRACTION
     if len(pts):
@@ -263,8 +262,6 @@ def _lattice(layout: Layout, spacing_m: float, narrow: bool = False):
         a_parts.append(np.flatnonzero(has))
         b_parts.append(nb[has])
     if len(extra):
-        from scipy.spatial import cKDTree
-
         n0 = len(pts)
         pts = np.concatenate([pts, extra])
         near = cKDTree(pts).query_pairs(math.sqrt(2.0) * spacing_m * (1 + 1e-9), output_type="ndarray")
