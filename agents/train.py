@@ -202,9 +202,16 @@ def belief_bounds_of(space: gym.spaces.Space) -> dict[str, float] | None:
     return {"pos_std_max_m": float(high[0]), "entropy_max_nats": float(high[2]), "max_clusters": float(high[3])}
 
 
-def make_venv(config: TrainConfig):
-    """The training ``VecEnv`` of ``config``: env ``k`` seeded ``config.seed + k``, each in SB3's ``Monitor``."""
+def make_venv(config: TrainConfig, n_envs: int | None = None, seed: int | None = None):
+    """The training ``VecEnv`` of ``config``: env ``k`` seeded ``seed + k``, each in SB3's ``Monitor``.
+
+    ``n_envs`` / ``seed`` default to ``config.n_envs`` / ``config.seed``; the evaluation env is the same
+    kind with one env seeded ``config.eval_seed`` (SB3's ``EvalCallback`` warns when the kinds differ).
+    A ``"subproc"`` config's evaluation env is a ``DummyVecEnv`` all the same: one env needs no process.
+    """
     env_kwargs = dict(config.env_kwargs)
+    n_envs = config.n_envs if n_envs is None else n_envs
+    seed = config.seed if seed is None else seed
     if config.vec_env == "batched":
         from stable_baselines3.common.monitor import Monitor
 
@@ -214,19 +221,19 @@ def make_venv(config: TrainConfig):
 
         venv = SB3VecEnvAdapter(
             SemRelocLoopVectorEnv(
-                num_envs=config.n_envs,
+                num_envs=n_envs,
                 env_id=config.env_id,
                 wrapper=lambda e: Monitor(BeliefObservation(e)),
                 **env_kwargs,
             )
         )
-        venv.seed(config.seed)
+        venv.seed(seed)
         return venv
     return make_vec_env(
         lambda: make_env(env_kwargs, env_id=config.env_id),
-        n_envs=config.n_envs,
-        seed=config.seed,
-        vec_env_cls=VEC_ENVS[config.vec_env],
+        n_envs=n_envs,
+        seed=seed,
+        vec_env_cls=VEC_ENVS[config.vec_env] if n_envs > 1 else DummyVecEnv,
     )
 
 
@@ -277,9 +284,7 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
             )
         )
     if config.eval_every is not None:
-        eval_venv = make_vec_env(
-            lambda: make_env(config.env_kwargs, env_id=config.env_id), n_envs=1, seed=config.eval_seed
-        )
+        eval_venv = make_venv(config, n_envs=1, seed=config.eval_seed)
         eval_dir = str(Path(config.log_dir) / "eval")
         cbs.append(
             EvalCallback(

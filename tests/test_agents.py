@@ -344,3 +344,32 @@ def test_a_model_trained_at_one_particle_count_is_evaluated_at_another():
     ):
         evaluate(model, {**kw, "relocalizer": {"n_particles": 300}}, n_episodes=1, env_id="SemReloc-v1")
     small.close()
+
+
+def test_batched_training_evaluates_on_a_batched_env_of_one(tmp_path, recwarn):
+    """SB3's EvalCallback warns when the training and evaluation envs are of different kinds (it
+    did with ``vec_env="batched"``); the evaluation env is now the training env's kind."""
+    from agents.train import make_venv
+    from agents.vec_env import SB3VecEnvAdapter
+
+    config = TrainConfig(
+        env_kwargs=FAST,
+        n_envs=2,
+        vec_env="batched",
+        total_timesteps=64,
+        n_steps=32,
+        batch_size=32,
+        n_epochs=1,
+        log_dir=str(tmp_path),
+        seed=3,
+        eval_every=64,
+        eval_episodes=1,
+    )
+    eval_venv = make_venv(config, n_envs=1, seed=config.eval_seed)
+    assert isinstance(eval_venv, SB3VecEnvAdapter) and eval_venv.num_envs == 1
+    eval_venv.close()
+    model = train(config)
+    model.get_env().close()
+    assert not [w for w in recwarn if "not of the same type" in str(w.message)]
+    evals = np.load(tmp_path / "eval" / "evaluations.npz")
+    assert list(evals["timesteps"]) == [64]
