@@ -521,15 +521,20 @@ def test_hold_weight_takes_numpy_numbers_and_says_how_to_lower_the_convergence_w
         MCLConfig(belief={"converged_hold_weight": 0.85, "converged_rule": "nearest"})
 
 
+def _symmetric_grid() -> GridMap:
+    """`symmetric_room` with a block at x 1.0-1.3 m, y 3.5-4.0 m that breaks the half turn (no look-alike)."""
+    room = symmetric_room()
+    occ = np.array(room.occupancy, copy=True)
+    occ[70:80, 20:26] = 1.0
+    return GridMap(occ, RES, (0.0, 0.0), np.array(room.semantic), DEFAULT_CLASS_NAMES)
+
+
 def test_a_surprise_ends_the_hold_and_restarts_the_audit_window():
     """``surprise_ratio``: after the belief has been converged, an update whose scans fit far worse than of
     late (here: scans taken 4 m away, a kidnapping) is a surprise: the hold ends, the audit's window keeps
     only that update's scans, and the next convergence may be audited; nothing before the first convergence
     or with the test off."""
-    room = symmetric_room()
-    occ = np.array(room.occupancy, copy=True)
-    occ[70:80, 20:26] = 1.0  # a block at x 1.0-1.3, y 3.5-4.0 breaks the half turn (no look-alike to audit)
-    grid = GridMap(occ, RES, (0.0, 0.0), np.array(room.semantic), DEFAULT_CLASS_NAMES)
+    grid = _symmetric_grid()
     pose, away = np.array([4.0, 1.5, np.pi / 2]), np.array([8.5, 2.5, 0.0])
 
     def run(ratio, start_converged=True, augmented=True, camera_only_jump=False):
@@ -565,3 +570,35 @@ def test_a_surprise_ends_the_hold_and_restarts_the_audit_window():
         MCLConfig(surprise_ratio=1.0)
     with pytest.raises(ValueError, match="surprise_ratio"):
         MCLConfig(surprise_ratio=-0.1)
+
+
+def test_the_surprise_tests_own_average_is_not_restarted_by_an_injection():
+    """``surprise_own_average``: augmented MCL restarts its averages after any update whose ``w_fast`` fell
+    below ``w_slow`` (``pf.c``), and a restarted average starts at the next update's ``w_avg``: a kidnapping
+    right after a restart (or after turn-in-place updates without the lidar) set the new normal and raised no
+    surprise. The test's own average, restarted only at a surprise, still sees the jump."""
+    grid = _symmetric_grid()
+    pose, away = np.array([4.0, 1.5, np.pi / 2]), np.array([8.5, 2.5, 0.0])
+
+    def jump(own, turn_in_place=False):
+        cfg = MCLConfig(n_particles=400, augmented=True, surprise_ratio=0.3, surprise_own_average=own)
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
+        mcl.init_around(pose, [0.05, 0.05, 0.02])
+        for _ in range(6):
+            assert not mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), force=True).surprise
+        mcl._w_slow = mcl._w_fast = 0.0  # what pf.c's rule leaves after an update with w_fast < w_slow
+        if turn_in_place:  # updates without the lidar: the test is not judged, its average not fed
+            for _ in range(3):
+                assert not mcl.update(None, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0), force=True).surprise
+        d = mcl.update(simulate_lidar(grid, away, LIDAR_ANGLES, 8.0), force=True)
+        return d, mcl
+
+    assert not jump(False)[0].surprise  # disarmed by the restart: the jump became the new normal
+    for turn in (False, True):
+        d, mcl = jump(True, turn)
+        assert d.surprise and d.w_fast > 0.0  # ... and the augmented averages started at the jump's level
+        assert mcl._w_surprise == pytest.approx(d.w_fast)  # restarted at the surprise, at the same level
+    with pytest.raises(ValueError, match="surprise_own_average needs the surprise test"):
+        MCLConfig(surprise_own_average=True)
+    with pytest.raises(ValueError, match="surprise_own_average must be a bool"):
+        MCLConfig(surprise_ratio=0.3, surprise_own_average=1)

@@ -87,7 +87,8 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
 10. **Surprise**, if ``surprise_ratio``: once the belief has been converged since the last init, an
    update with the lidar whose scans fit the particles far worse than of late (``w_avg <
    surprise_ratio * w_fast``, the augmented-MCL averages) is taken for a jump the odometry did not
-   see (a kidnapping, a slip): a held convergence (``belief.converged_hold_weight``) ends, the
+   see (a kidnapping, a slip; with ``surprise_own_average`` the test keeps an average of its own,
+   which injections do not restart): a held convergence (``belief.converged_hold_weight``) ends, the
    audit's window drops the scans before it and the next convergence, or the current one, is audited.
 
 Particle counts: ``init_global`` and ``init_around`` draw ``n_particles``. With
@@ -304,6 +305,15 @@ class MCLConfig:
             kidnapping in an outside tester's four-fold symmetric hall the explorer's belief converged at a
             quarter-turned image of the truth in 5 of 16 episodes (docs/relocalizer.md, "After a kidnapping").
             Needs ``surprise_ratio`` and ``audit_window``.
+        surprise_own_average: the surprise test compares with an average of its own: the fast average
+            (``alpha_fast``) of ``w_avg`` over the updates that used the lidar, restarted at a surprise
+            and never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
+            ``w_fast``, which ``pf.c``'s rule restarts after every update whose ``w_fast`` fell below
+            ``w_slow`` by any amount; a restarted average starts at the next update's ``w_avg``, so a
+            kidnapping right after a restart, or after turn-in-place updates without the lidar, set the
+            new normal instead of raising a surprise (all three kidnappings after which v12's belief
+            converged at a wrong place, docs/relocalizer.md, "The surprise test's own average").
+            Needs ``surprise_ratio``.
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -358,6 +368,7 @@ class MCLConfig:
     audit_blur_margin: float = 0.0
     surprise_ratio: float = 0.0
     audit_after_surprise: bool = False
+    surprise_own_average: bool = False
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
@@ -444,7 +455,7 @@ class MCLConfig:
             raise ValueError(f"MCLConfig.injection must be 'uniform' or 'scan', got {self.injection!r}")
         for name in (
             "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
-            "audit_screen_pause_place", "audit_after_surprise",
+            "audit_screen_pause_place", "audit_after_surprise", "surprise_own_average",
         ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
@@ -454,6 +465,11 @@ class MCLConfig:
             raise ValueError(
                 "MCLConfig.audit_after_surprise needs the surprise test and the audit (surprise_ratio > 0 and "
                 f"audit_window > 0), got surprise_ratio={self.surprise_ratio}, audit_window={self.audit_window}"
+            )
+        if self.surprise_own_average and not self.surprise_ratio > 0:
+            raise ValueError(
+                "MCLConfig.surprise_own_average needs the surprise test (surprise_ratio > 0), got "
+                f"surprise_ratio={self.surprise_ratio}"
             )
         if self.audit_blur_margin > 0 and not (self.audit_screen and self.audit_window > 0):
             raise ValueError(
@@ -607,6 +623,7 @@ class MonteCarloLocalizer:
         self._detections_seen = 0
         self._w_slow = 0.0
         self._w_fast = 0.0
+        self._w_surprise = 0.0  # the surprise test's own average (`MCLConfig.surprise_own_average`)
         self.n_updates = 0
         """Measurement updates that ran since the last init."""
         self._window: audit.Window = []
@@ -856,12 +873,12 @@ class MonteCarloLocalizer:
             w_avg = float(_blas.dot(prior, per_beam))  # one order whatever the BLAS thread count
             # judged on updates that used the lidar only: a turn-in-place update's few camera beams
             # average too noisily to compare with the averages the lidar's updates made
-            surprise = (
-                self._ever_converged
-                and beams.n_lidar > 0
-                and self._w_fast > 0.0
-                and w_avg < c.surprise_ratio * self._w_fast
-            )
+            ref = self._w_surprise if c.surprise_own_average else self._w_fast
+            surprise = self._ever_converged and beams.n_lidar > 0 and ref > 0.0 and w_avg < c.surprise_ratio * ref
+            if c.surprise_own_average and beams.n_lidar > 0:
+                # restarted at a surprise (the level after the jump is the new normal), never by injections
+                fresh = surprise or self._w_surprise == 0.0
+                self._w_surprise = w_avg if fresh else self._w_surprise + c.alpha_fast * (w_avg - self._w_surprise)
             if surprise:
                 self._held, self._window, self._cleared, self._was_converged = None, [], None, False
                 self._screen_cleared = None
