@@ -587,7 +587,7 @@ def test_the_surprise_tests_own_average_is_not_restarted_by_an_injection():
         for _ in range(6):
             assert not mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0), force=True).surprise
         mcl._w_slow = mcl._w_fast = 0.0  # what pf.c's rule leaves after an update with w_fast < w_slow
-        if turn_in_place:  # updates without the lidar: the test is not judged, its average not fed
+        if turn_in_place:  # updates without the lidar: the test is not judged on them
             for _ in range(3):
                 assert not mcl.update(None, simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0), force=True).surprise
         d = mcl.update(simulate_lidar(grid, away, LIDAR_ANGLES, 8.0), force=True)

@@ -306,8 +306,8 @@ class MCLConfig:
             quarter-turned image of the truth in 5 of 16 episodes (docs/relocalizer.md, "After a kidnapping").
             Needs ``surprise_ratio`` and ``audit_window``.
         surprise_own_average: the surprise test compares with an average of its own: the fast average
-            (``alpha_fast``) of ``w_avg`` over the updates that used the lidar, restarted at a surprise
-            and never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
+            (``alpha_fast``) of ``w_avg`` over every update, as ``w_fast``, but restarted at a surprise and
+            never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
             ``w_fast``, which ``pf.c``'s rule restarts after every update whose ``w_fast`` fell below
             ``w_slow`` by any amount; a restarted average starts at the next update's ``w_avg``, so a
             kidnapping right after a restart, or after turn-in-place updates without the lidar, set the
@@ -875,8 +875,9 @@ class MonteCarloLocalizer:
             # average too noisily to compare with the averages the lidar's updates made
             ref = self._w_surprise if c.surprise_own_average else self._w_fast
             surprise = self._ever_converged and beams.n_lidar > 0 and ref > 0.0 and w_avg < c.surprise_ratio * ref
-            if c.surprise_own_average and beams.n_lidar > 0:
-                # restarted at a surprise (the level after the jump is the new normal), never by injections
+            if c.surprise_own_average:
+                # as w_fast, but restarted at a surprise (the level after the jump is the new normal) and never
+                # by an injection
                 fresh = surprise or self._w_surprise == 0.0
                 self._w_surprise = w_avg if fresh else self._w_surprise + c.alpha_fast * (w_avg - self._w_surprise)
             if surprise:
