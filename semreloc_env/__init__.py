@@ -5,7 +5,7 @@ Importing the package registers the environments::
     import gymnasium as gym
     import semreloc_env  # noqa: F401
 
-    env = gym.make("SemReloc-v12", layout="twin_rooms")
+    env = gym.make("SemReloc-v13", layout="twin_rooms")
 """
 
 from gymnasium.envs.registration import WrapperSpec, register, registry
@@ -23,10 +23,12 @@ __all__ = [
     "build_world",
     "get_layout",
     "load_layout",
+    "default_relocalizer",
     "semreloc_ids_since",
 ]
 
 ENV_IDS = (
+    "SemReloc-v13",
     "SemReloc-v12",
     "SemReloc-v11",
     "SemReloc-v10",
@@ -48,6 +50,7 @@ running old policies (each env's Version History says what changed): ``SemReloc-
 the flat observation, ``SemReloc-v0`` also the first release's relocalizer."""
 
 VECTOR_ENV_IDS = (
+    "SemRelocVec-v13",
     "SemRelocVec-v12",
     "SemRelocVec-v11",
     "SemRelocVec-v10",
@@ -61,8 +64,18 @@ VECTOR_ENV_IDS = (
     "SemRelocVec-v2",
     "SemRelocVec-v1",
 )
-"""Ids for ``gym.make_vec``: R robots of ``SemReloc-v12`` / ``-v11`` / ``-v10`` / ``-v9`` / ``-v8`` / ``-v7`` / ``-v6``
-/ ``-v5`` / ``-v4`` / ``-v3`` / ``-v2`` / ``-v1`` in one process."""
+"""Ids for ``gym.make_vec``: R robots of ``SemReloc-v13`` / ``-v12`` / ``-v11`` / ``-v10`` / ``-v9`` / ``-v8`` / ``-v7``
+/ ``-v6`` / ``-v5`` / ``-v4`` / ``-v3`` / ``-v2`` / ``-v1`` in one process."""
+
+
+def default_relocalizer(env_id: str):
+    """The `MCLConfig` a ``SemReloc-*`` id's relocalizer has unless ``relocalizer=`` overrides it (what
+    command-line overrides are checked against). ValueError for another id."""
+    from gymnasium.envs.registration import load_env_creator
+
+    if env_id not in ENV_IDS or not env_id.startswith("SemReloc-"):
+        raise ValueError(f"no SemReloc relocalizer for env id {env_id!r}; ids: {semreloc_ids_since(0)}")
+    return load_env_creator(registry[env_id].entry_point).default_relocalizer
 
 
 def semreloc_ids_since(version: int) -> tuple[str, ...]:
@@ -74,7 +87,8 @@ def semreloc_ids_since(version: int) -> tuple[str, ...]:
 _CHECKED_RESET = (WrapperSpec("CheckedReset", "semreloc_env.wrappers:CheckedReset", {}),)
 
 _SINGLE = {
-    "SemReloc-v12": "semreloc_env.envs.semreloc:SemRelocEnv",
+    "SemReloc-v13": "semreloc_env.envs.semreloc:SemRelocEnv",
+    "SemReloc-v12": "semreloc_env.envs.semreloc:SemRelocEnvV12",
     "SemReloc-v11": "semreloc_env.envs.semreloc:SemRelocEnvV11",
     "SemReloc-v10": "semreloc_env.envs.semreloc:SemRelocEnvV10",
     "SemReloc-v9": "semreloc_env.envs.semreloc:SemRelocEnvV9",
@@ -94,10 +108,11 @@ for _id, _entry in _SINGLE.items():
     if _id not in registry:
         register(id=_id, entry_point=_entry, max_episode_steps=400, additional_wrappers=_CHECKED_RESET)
 
-# R robots in one process (a loop over SemReloc envs): gym.make_vec("SemRelocVec-v12", num_envs=R).
+# R robots in one process (a loop over SemReloc envs): gym.make_vec("SemRelocVec-v13", num_envs=R).
 # Separate ids because make_vec refuses a vector entry point on a spec with additional wrappers; their
 # single-env entry point refuses (a single env from them would lack CheckedReset): use SemReloc-* for that.
 _VECTOR = {
+    "SemRelocVec-v13": "semreloc_env.envs.vector_ids:semreloc_vec_v13",
     "SemRelocVec-v12": "semreloc_env.envs.vector_ids:semreloc_vec_v12",
     "SemRelocVec-v11": "semreloc_env.envs.vector_ids:semreloc_vec_v11",
     "SemRelocVec-v10": "semreloc_env.envs.vector_ids:semreloc_vec_v10",

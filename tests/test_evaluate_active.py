@@ -173,6 +173,8 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
         ({"relocalizer": {"negative_evidence": {"p_detect": 2}}}, "p_detect"),
         ({"relocalizer": {"negative_evidence": {"bogus": 1}}}, "its keys are"),
         ({"relocalizer": {"n_particles": 10}}, "--particles"),
+        # checked on top of the env's relocalizer: v4's has no surprise test for the option to read
+        ({"env_id": "SemReloc-v4", "relocalizer": {"surprise_own_average": True}}, "needs the surprise test"),
     ]:
         with pytest.raises(ValueError, match=match):
             ev.Args(**kw)
@@ -313,6 +315,9 @@ def test_env_id_and_relocalizer_overrides_reach_the_env_and_the_rows_settings():
     assert ev.settings(plain, "spin")["env_id"] == ev.ENV_ID and "relocalizer" not in ev.settings(plain, "spin")
     assert ev.settings(v3, "spin")["env_id"] == "SemReloc-v3"  # so --reuse never mixes rows of two envs
     assert ev.settings(half, "spin")["relocalizer"]["negative_evidence"] == {"p_detect": 0.5}
+    # an override that needs other fields of the env's relocalizer (checked against plain MCLConfig, it was refused)
+    own = ev.Args(policies=("spin",), particles=100, env_id="SemReloc-v12", relocalizer={"surprise_own_average": True})
+    assert ev.case_env(case, own).unwrapped.mcl_config.surprise_own_average
 
 
 def test_one_map_for_worlds_that_differ_from_it(tmp_path):

@@ -11,7 +11,7 @@ KW = {"layout": "twin_rooms", "map_source": "perfect", "relocalizer": {"n_partic
 
 def _episode(name, seed=1, **kw):
     pol = POLICIES[name](seed)
-    env = pol.wrap(gym.make("SemReloc-v12", **{**KW, **kw}))
+    env = pol.wrap(gym.make("SemReloc-v13", **{**KW, **kw}))
     pol.reset()
     obs, _ = env.reset(seed=seed)
     actions = []
@@ -64,7 +64,7 @@ def test_baselines_drive_continuous_envs(name):
 
 def test_spin_then_back_up_spins_a_full_turn_then_reverses():
     pol = SpinThenBackUp()
-    env = pol.wrap(gym.make("SemReloc-v12", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
+    env = pol.wrap(gym.make("SemReloc-v13", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
     pol.reset()
     obs, _ = env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0)})  # room to back up
     acts = [pol.act(obs) for _ in range(73)]
@@ -79,7 +79,7 @@ class _NoTruth:
 
 def test_info_gain_planner_reads_the_belief_not_the_truth():
     pol = InfoGainPlanner(seed=0, n_particles=16)
-    env = pol.wrap(gym.make("SemReloc-v12", **KW))
+    env = pol.wrap(gym.make("SemReloc-v13", **KW))
     pol.reset()
     env.reset(seed=2)
     base = env.unwrapped
@@ -98,7 +98,7 @@ def test_info_gain_planner_expects_nothing_from_a_tight_belief():
     # a belief on one pose (tracking start) is one hypothesis: no primitive can gain
     pol = InfoGainPlanner(seed=0, n_particles=24)
     no_injection = {**KW.get("relocalizer", {}), "proposal_frac": 0.0, "augmented": False}
-    env = pol.wrap(gym.make("SemReloc-v12", **{**KW, "relocalizer": no_injection}))
+    env = pol.wrap(gym.make("SemReloc-v13", **{**KW, "relocalizer": no_injection}))
     pol.reset()
     env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0), "tracking": True})
     tight = pol.plan()
@@ -113,7 +113,7 @@ def test_baselines_reject_bad_seeds_other_envs_and_act_before_wrap(name):
         with pytest.raises(ValueError, match="seed"):
             POLICIES[name](seed)
     pol = POLICIES[name](0)
-    obs, _ = gym.make("SemReloc-v12", **KW).reset(seed=0)
+    obs, _ = gym.make("SemReloc-v13", **KW).reset(seed=0)
     with pytest.raises(RuntimeError, match="wrap"):
         pol.act(obs)
     with pytest.raises(TypeError, match="action space"):
@@ -131,8 +131,8 @@ def test_policies_refuse_vector_envs_by_name():
 
     import agents
 
-    vec = gym.make_vec("SemRelocVec-v12", num_envs=2, vectorization_mode="vector_entry_point", layout="twin_rooms")
-    sb3 = DummyVecEnv([lambda: gym.make("SemReloc-v12", layout="twin_rooms")])
+    vec = gym.make_vec("SemRelocVec-v13", num_envs=2, vectorization_mode="vector_entry_point", layout="twin_rooms")
+    sb3 = DummyVecEnv([lambda: gym.make("SemReloc-v13", layout="twin_rooms")])
     for policy in (POLICIES["wall_follow"](), POLICIES["viewpoint"](), agents.load_policy(agents.SHIPPED_POLICY)):
         for env in (vec, sb3):
             with pytest.raises(TypeError, match="one env at a time"):

@@ -46,6 +46,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v13",
         "SemReloc-v12",
         "SemReloc-v11",
         "SemReloc-v10",
@@ -67,6 +68,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v13", typed),
         ("SemReloc-v12", typed),
         ("SemReloc-v11", typed),
         ("SemReloc-v10", typed),
@@ -565,3 +567,41 @@ def test_v12_is_v11_with_maps_from_a_drive_that_enters_narrow_passages():
     # the lidar's per-scan difference between the places (tempered nats, sd over 120 poses): 0.141 on v11's maps,
     # 0.007 on v12's
     assert spread["SemReloc-v12"] < 0.3 * spread["SemReloc-v11"]
+
+
+def test_v13_is_v12_whose_surprise_test_keeps_its_own_average():
+    """v13 differs from v12 only in its relocalizer's surprise test (`MCLConfig.surprise_own_average`). A tracking
+    start in a held-out half-turn symmetric layout, then a kidnapping: augmented MCL had restarted its averages
+    just before (pf.c's rule), so v12's test took the kidnapped scans for the new normal, raised no surprise and
+    ran no audit, and the belief converged at a wrong place for many steps; v13's test raises the surprise, the
+    audit runs, and the belief does not converge at a wrong place."""
+    v13, v12 = make("SemReloc-v13", **FAST).unwrapped, make("SemReloc-v12", **FAST).unwrapped
+    assert v13.mcl_config == dataclasses.replace(v12.mcl_config, surprise_own_average=True)
+    assert v13.mapping_run_version == v12.mapping_run_version == "6"
+    venv = gym.make_vec("SemRelocVec-v13", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    assert venv.envs[0].unwrapped.mcl_config.surprise_own_average
+    venv.close()
+
+    from agents.policies import POLICIES
+
+    surprises, wrong = {}, {}
+    for env_id in ("SemReloc-v12", "SemReloc-v13"):
+        env = make(env_id, layout="procedural_sym", layout_seed=1_000_001, action_type="continuous",
+                   max_episode_steps=120)  # fmt: skip
+        policy = POLICIES["wall_follow"](6)
+        env = policy.wrap(env)
+        policy.reset()
+        start = [3.576013847763177, 2.4092756478046384, 1.8835095557959116]  # free poses of this layout
+        kidnap = [4.279667509118021, 6.8438457773019135, -0.06945666012141727]
+        options = {"tracking": True, "pose": start, "kidnap_at_step": 60, "kidnap_pose": kidnap}
+        obs, info = env.reset(seed=6, options=options)
+        surprises[env_id], wrong[env_id] = 0, 0
+        for t in range(1, 121):
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            surprises[env_id] += bool(info["mcl"].get("surprise", False))
+            if t > 70 and info["belief"]["converged"] and info["pose_error"]["position"] > 0.5:
+                wrong[env_id] += 1
+            if terminated or truncated:
+                break
+    assert surprises["SemReloc-v12"] == 0 and wrong["SemReloc-v12"] > 10
+    assert surprises["SemReloc-v13"] > 0 and wrong["SemReloc-v13"] == 0

@@ -76,10 +76,11 @@ class Args:
         if self.seeds < 1 or self.max_steps < 1 or self.particles < 1 or not self.cases:
             raise ValueError("seeds, max_steps and particles must be >= 1 and cases not empty")
         from filters.localization.mcl import check_overrides
+        from semreloc_env import default_relocalizer
 
         if isinstance(self.mcl, dict) and "n_particles" in self.mcl:
             raise ValueError("mcl: set the particle count with --particles (the report states it)")
-        check_overrides({"n_particles": self.particles, **self.mcl}, "mcl")
+        check_overrides({"n_particles": self.particles, **self.mcl}, "mcl", default_relocalizer(self.env_id))
 
     def resolved(self) -> Args:
         """Apply ``--quick`` and the default output folder (relative to the working directory)."""

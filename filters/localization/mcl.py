@@ -103,7 +103,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 from scipy.special import logsumexp
@@ -486,15 +486,24 @@ class MCLConfig:
         return out
 
 
-def check_overrides(overrides: dict, what: str) -> None:
+def check_overrides(overrides: dict, what: str, base: MCLConfig | None = None) -> None:
     """Raise ``ValueError`` naming ``what`` (a command's option) if ``overrides`` are not valid
-    `MCLConfig` fields and values; commands call it before any episode runs."""
+    `MCLConfig` fields and values on top of ``base`` (an env's default relocalizer, whose other fields an
+    override may depend on; default `MCLConfig()`); a dict for a sub-config overrides the fields it names.
+    Commands call it before any episode runs."""
     names = {f.name for f in fields(MCLConfig)}
     unknown = sorted(set(overrides) - names, key=str)
     if unknown:
         raise ValueError(f"{what}: unknown keys {unknown}; valid keys: {sorted(names)}")
     try:
-        MCLConfig(**overrides)
+        if base is None:
+            MCLConfig(**overrides)
+        else:
+            merged = {
+                k: {**asdict(getattr(base, k)), **v} if k in _SUBCONFIGS and isinstance(v, dict) else v
+                for k, v in overrides.items()
+            }
+            replace(base, **merged)
     except (TypeError, ValueError) as e:
         raise ValueError(f"{what}: {e}") from None
 
