@@ -18,6 +18,25 @@ def all_round_angles(n: int) -> np.ndarray:
     return -np.pi + 2 * np.pi * np.arange(n) / n
 
 
+MIN_ALL_ROUND_BEAMS = 8
+"""Fewest beams of an all-round lidar the hand-written policies read: every sector they look at (1 rad wide
+and more) then holds a beam."""
+
+
+def require_all_round_lidar(env, who: str) -> None:
+    """ValueError unless ``env``'s lidar sees all round with at least `MIN_ALL_ROUND_BEAMS` beams, as the
+    hand-written policies read it (beam ``k`` at ``-pi + 2 pi k / n``). Envs without a ``lidar`` pass."""
+    params = getattr(getattr(env.unwrapped, "lidar", None), "params", None)
+    if params is None:
+        return
+    if params.fov_rad < 2 * np.pi - 1e-9 or params.n_beams < MIN_ALL_ROUND_BEAMS:
+        raise ValueError(
+            f"{who} reads the lidar as seeing all round (fov 2 pi) with at least {MIN_ALL_ROUND_BEAMS} beams; "
+            f"this env's lidar has fov_rad={params.fov_rad:.4g} and n_beams={params.n_beams} "
+            "(make the env with the default lidar, or another policy)"
+        )
+
+
 class WallFollowExplorer:
     """Drive forward; when the front sector is blocked, turn toward the freer side.
 

@@ -31,7 +31,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .baselines import AS_BOX, WallFollowExplorer
+from .baselines import AS_BOX, WallFollowExplorer, require_all_round_lidar
 
 OPTIONS = ("explore", "viewpoint")
 """The motions that can be added, by name."""
@@ -100,6 +100,8 @@ class MotionOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
             )
         self.continuous = isinstance(env.action_space, spaces.Box)
         options = check_options(options)
+        if options:  # the explorer and the planner read the lidar
+            require_all_round_lidar(env, f"{type(self).__name__} {list(options)}")
         self.options = options
         self.action_space = spaces.Discrete(4 + len(options))
         self.explorer = WallFollowExplorer()

@@ -31,7 +31,7 @@ from gymnasium import spaces
 from filters.numbers import is_int, is_real
 from semreloc_env.envs.spaces import require_raw_observation, require_single_env
 
-from .baselines import AS_BOX, FORWARD, TURN_LEFT, WallFollowExplorer, all_round_angles
+from .baselines import AS_BOX, FORWARD, TURN_LEFT, WallFollowExplorer, all_round_angles, require_all_round_lidar
 
 BACKWARD = -1
 """A pseudo-action of the policies here: reverse at full speed (continuous actions only)."""
@@ -48,9 +48,14 @@ class Policy:
         self.env: gym.Env | None = None
         self.continuous = False
 
+    reads_lidar = True
+    """the policy reads the lidar as all-round (`agents.baselines.require_all_round_lidar`, checked by `wrap`)"""
+
     def wrap(self, env: gym.Env) -> gym.Env:
         require_single_env(env, type(self).__name__)
         require_raw_observation(env, type(self).__name__)
+        if self.reads_lidar:
+            require_all_round_lidar(env, type(self).__name__)
         space = env.action_space
         discrete_ok = isinstance(space, spaces.Discrete) and space.n >= 4 and space.start == 0
         if not (discrete_ok or (isinstance(space, spaces.Box) and space.shape == (2,))):
@@ -92,12 +97,16 @@ class Policy:
 class RandomPolicy(Policy):
     """Uniformly random forward / left / right / stop from its seeded generator."""
 
+    reads_lidar = False
+
     def act(self, obs: dict):
         return self.encode(int(self.rng.integers(0, 4)))
 
 
 class SpinPolicy(Policy):
     """Turn left in place, every step."""
+
+    reads_lidar = False
 
     def act(self, obs: dict):
         return self.encode(TURN_LEFT)

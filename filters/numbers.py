@@ -25,11 +25,16 @@ def is_real(v) -> bool:
 _EXPONENT_FORM = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
 
 
+def is_exponent_form(v: str) -> bool:
+    """``v`` is a number in exponent form (``5e-2``, ``-1e2``, ``1.5E+3``), as a string."""
+    return bool(_EXPONENT_FORM.fullmatch(v.strip()))
+
+
 def yaml_number_hint(v) -> str:
     """A hint for a string written in exponent form, which YAML 1.1 (PyYAML) reads as a number only
     with a dot and a signed exponent (``1.0e-3``, ``1.0e+3``; ``1e-3`` and ``1.0e3`` are strings);
     "" for anything else. For error messages about YAML files."""
-    if not (isinstance(v, str) and _EXPONENT_FORM.fullmatch(v.strip())):
+    if not (isinstance(v, str) and is_exponent_form(v)):
         return ""
     return (
         " (YAML reads a number in exponent form as a string unless it has a dot and a signed exponent:"

@@ -12,7 +12,10 @@ loaded with `filters.mapping.ros_map.load_map`) into a `MapLayout`, which
 * **objects**: if the map has semantic classes, the outer boundary of each connected
   component of a class mask (4-connected), simplified the same way, as a
   `SemanticObject` of that class. Components whose traced
-  outline is not a simple polygon after simplification are traced again unsimplified;
+  outline is not a simple polygon after simplification are traced again unsimplified. An object
+  is solid for the lidar and the robot like a wall, also where its cells are free in the occupancy
+  layer (an open doorway labelled door becomes a closed door): then the simulated lidar sees what
+  the relocalizer's lidar map does not have, and `layout_from_map` warns (`MapWorldWarning`);
 * **placement**: a robot pose is free only on a known-free cell of the map
   (`MapLayout.solid_at`), so start poses are not drawn inside thick walls or in unknown
   space; unknown cells are not solid for physics and sensing (only occupied cells are).
@@ -25,6 +28,7 @@ pose error after 30 steps.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,7 +41,11 @@ from filters.mapping.grid import GridMap
 from .layouts import CLASS_NAMES, Layout, SemanticObject
 from .layouts.layout import _ring
 
-__all__ = ["MapLayout", "layout_from_map", "trace_boundaries", "check_map_matches_world"]
+__all__ = ["MapLayout", "MapWorldWarning", "layout_from_map", "trace_boundaries", "check_map_matches_world"]
+
+
+class MapWorldWarning(UserWarning):
+    """A world built from a map differs from the map where it should not (`layout_from_map`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,6 +173,17 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
         raise ValueError(f"simplify_m must be a number >= 0, got {simplify_m!r}")
     class_cells = np.zeros(grid.shape, dtype=bool)
     objects = []
+    on_free = {c: int((grid.class_mask(k) & grid.free_mask()).sum()) for k, c in enumerate(grid.class_names)}
+    on_free = {c: n for c, n in on_free.items() if n}
+    if on_free:
+        warnings.warn(
+            f"map {name!r}: class cells lie on cells the occupancy layer calls free ({on_free}); the simulated world "
+            "makes every class region a solid object, which its lidar sees and its robot cannot pass, but the "
+            "relocalizer's lidar map does not have: mark those cells occupied in the map image if the lidar sees "
+            "the object there (docs/real_robot.md, section 6)",
+            MapWorldWarning,
+            stacklevel=2,
+        )
     for k, cls in enumerate(grid.class_names):
         mask = grid.class_mask(k)
         class_cells |= mask
@@ -201,8 +220,11 @@ def check_map_matches_world(
       reach more than ``extent_slack_m`` (or 20 % of the layout's size, whichever is larger)
       beyond them on any side.
     * Frame: points every cell along the layout's walls must lie within ``max_wall_dist_m`` of
-      an occupied map cell, for at least ``min_fraction`` of them. Moved furniture passes
-      (objects are not checked); a shifted, rotated or foreign map does not.
+      an occupied map cell, for at least ``min_fraction`` of them, and so must ``min_fraction`` of
+      those along the interior walls and blocks alone (so that a long outer wall cannot carry
+      interior walls that lie elsewhere). Moved furniture passes (objects are not checked); a
+      shifted, rotated or foreign map does not. Occupied map cells away from the layout's walls
+      (walls the world lacks) are not checked.
     """
     lx0, lx1, ly0, ly1 = layout.bounds()
     mx0, mx1, my0, my1 = grid.extent_m
@@ -217,26 +239,27 @@ def check_map_matches_world(
             f"{layout.name!r} (x [{lx0:.2f}, {lx1:.2f}] y [{ly0:.2f}, {ly1:.2f}] m): the map is of another place "
             "or another frame; to run in the world the map shows, pass the map as layout too (or leave layout unset)"
         )
-    if isinstance(layout, MapLayout):  # its outer "wall" is only the map's edge
-        segs = [np.stack([w[:-1], w[1:]], axis=1) for w in (np.asarray(w, np.float64) for w in layout.walls)]
-        segs = np.concatenate(segs) if segs else np.zeros((0, 2, 2))
-    else:
-        segs = layout.wall_segments()
-    pts = [np.zeros((0, 2))]
-    for a, b in segs:
-        n = max(2, int(math.ceil(np.linalg.norm(b - a) / res)) + 1)
-        pts.append(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a))
-    pts = np.concatenate(pts)
+    segs = layout.wall_segments()
+    n_outer = 0 if isinstance(layout, MapLayout) else len(layout.outer)  # a map's outer "wall" is only its edge
     occ = grid.occupied_mask()
     if not occ.any():
         raise ValueError(f"the map has no occupied cell: it cannot be a map of the world {layout.name!r}")
     dist = ndimage.distance_transform_edt(~occ, sampling=res)
-    row, col = grid.world_to_cell(pts)
-    row = np.clip(row, 0, grid.shape[0] - 1)
-    col = np.clip(col, 0, grid.shape[1] - 1)
-    frac = float(np.mean(dist[row, col] <= max_wall_dist_m))
-    if frac < min_fraction:
-        raise ValueError(
-            f"only {100 * frac:.0f} % of the walls of the world {layout.name!r} lie within {max_wall_dist_m} m of an "
-            f"occupied map cell (need {100 * min_fraction:.0f} %): map and world disagree in frame or shape"
-        )
+    interior = segs[len(layout.outer) :]
+    for part, part_segs in (("walls", segs[len(layout.outer) - n_outer :]), ("interior walls", interior)):
+        pts = [np.zeros((0, 2))]
+        for a, b in part_segs:
+            n = max(2, int(math.ceil(np.linalg.norm(b - a) / res)) + 1)
+            pts.append(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a))
+        pts = np.concatenate(pts)
+        if not len(pts):
+            continue
+        row, col = grid.world_to_cell(pts)
+        row = np.clip(row, 0, grid.shape[0] - 1)
+        col = np.clip(col, 0, grid.shape[1] - 1)
+        frac = float(np.mean(dist[row, col] <= max_wall_dist_m))
+        if frac < min_fraction:
+            raise ValueError(
+                f"only {100 * frac:.0f} % of the {part} of the world {layout.name!r} lie within {max_wall_dist_m} m "
+                f"of an occupied map cell (need {100 * min_fraction:.0f} %): map and world disagree in frame or shape"
+            )

@@ -344,14 +344,25 @@ class World:
         ok[ok] &= self.scene.distances(xy[ok]).min(axis=1) >= self.robot_params.radius_m + margin_m
         return ok
 
+    def not_free_reason(self, xy: np.ndarray) -> str:
+        """Why the robot may not stand at ``xy`` (for error messages); "" where it may (`is_free`)."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(2)
+        if self.is_free(xy):
+            return ""
+        solid_at = getattr(self.layout, "solid_at", None)
+        if solid_at is not None and bool(solid_at(xy[None])[0]):
+            return "it lies on a map cell that is not known free (occupied or unknown, or off the map)"
+        return (
+            f"the robot (radius {self.robot_params.radius_m} m) would overlap a wall, object or block, or lie "
+            "outside the outer wall"
+        )
+
     def set_pose(self, pose) -> None:
         """Teleport the robot. Raises ValueError (state unchanged) for a non-finite or blocked pose."""
         p = as_pose(pose, "pose")
-        if not self.is_free(p[:2]):
-            raise ValueError(
-                f"pose {p.tolist()} is not free: the robot (radius {self.robot_params.radius_m} m) "
-                "would overlap a wall, object or block, or lie outside the outer wall"
-            )
+        reason = self.not_free_reason(p[:2])
+        if reason:
+            raise ValueError(f"pose {p.tolist()} is not free: {reason}")
         self.body.position = (float(p[0]), float(p[1]))
         self.body.angle = float(wrap_angle(p[2]))
         self.body.velocity = (0.0, 0.0)
@@ -359,13 +370,18 @@ class World:
         self._reindex()
 
     def sample_free_pose(self, rng: np.random.Generator, margin_m: float = 0.1, max_tries: int = 10000) -> np.ndarray:
-        """A uniformly random free pose (rejection sampling inside the outer wall's bounds)."""
+        """A uniformly random free pose where the robot fits with ``margin_m`` to spare (rejection sampling
+        inside the outer wall's bounds). ValueError if ``max_tries`` draws found none."""
         x0, x1, y0, y1 = self.layout.bounds()
         for _ in range(max_tries):
             xy = rng.uniform((x0, y0), (x1, y1))
             if self.is_free(xy, margin_m):
                 return np.array([xy[0], xy[1], rng.uniform(-math.pi, math.pi)])
-        raise ValueError(f"layout {self.layout.name!r} has no free space for the robot")
+        raise ValueError(
+            f"layout {self.layout.name!r} has no free space for the robot: no place found where it fits "
+            f"(radius {self.robot_params.radius_m} m) with {margin_m} m to spare ({max_tries} random tries); "
+            "give a start pose (reset option pose) or make the layout roomier"
+        )
 
     # ---------------------------------------------------------------- motion
     def drive(self, v_mps: float, omega_rps: float) -> bool:

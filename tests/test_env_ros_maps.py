@@ -121,3 +121,22 @@ def test_a_folder_as_map_source_says_to_give_a_file_in_it(tmp_path, monkeypatch)
         (tmp_path / name).mkdir()
         env = gym.make("SemReloc-v13", layout="twin_rooms", map_source=name, relocalizer={"n_particles": 100})
         assert env.unwrapped.map_source == name
+
+
+def test_a_start_on_an_unknown_cell_of_a_map_world_says_so(tmp_path):
+    """A world built from a map: a pose on an unknown cell is refused as one (an outside tester got "would overlap
+    a wall, object or block", which the unknown cell is not)."""
+    grid = rasterize(get_layout("twin_rooms"))
+    occ = np.array(grid.occupancy, copy=True)
+    row, col = grid.world_to_cell(np.array([[3.0, 3.0]]))
+    occ[row[0] - 10 : row[0] + 10, col[0] - 10 : col[0] + 10] = 0.5  # unknown around (3, 3)
+    plain = dataclasses.replace(grid, occupancy=occ, semantic=np.zeros((0, 0, 0), np.float32), class_names=())
+    path = save_map(plain, tmp_path / "unknown.yaml")
+    env = gym.make("SemReloc-v13", map_source=str(path), semantic=False, relocalizer={"n_particles": 100})
+    with pytest.raises(ValueError, match=r"is not free: it lies on a map cell that is not known free"):
+        env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0)})
+    with pytest.raises(ValueError, match=r"kidnap_pose .* is not free: it lies on a map cell that is not known free"):
+        env.reset(seed=0, options={"kidnap_at_step": 5, "kidnap_pose": (3.0, 3.0, 0.0)})
+    with pytest.raises(ValueError, match=r"is not free: the robot \(radius 0.2 m\) would overlap a wall"):
+        env.reset(seed=0, options={"pose": (0.05, 3.0, 0.0)})  # in the outer wall's cells: occupied, not unknown
+    env.reset(seed=0, options={"pose": (1.0, 1.0, 0.0)})

@@ -330,3 +330,13 @@ def test_arguments_a_new_user_found_accepted_or_checked_late():
     env = gym.make("SemReloc-v13", layout="lab")
     with pytest.raises(ValueError, match=r"kidnap_pose \[50.0, 2.0, 0.0\] is not free: .*outside the outer wall"):
         env.reset(seed=0, options={"kidnap_at_step": 5, "kidnap_pose": [50.0, 2.0, 0.0]})
+
+
+def test_a_layout_too_tight_for_a_random_start_says_what_was_looked_for():
+    """A 0.5 m room passes the layout checks, and the robot (radius 0.2 m) fits at its centre, but a random start
+    needs 0.1 m to spare: the reset says so and how to start anyway (an outside tester's report)."""
+    env = gym.make("SemReloc-v13", layout={"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]},
+                   map_source="perfect", semantic=False, relocalizer={"n_particles": 50})  # fmt: skip
+    with pytest.raises(ValueError, match=r"no place found where it fits \(radius 0.2 m\) with 0.1 m to spare.*pose"):
+        env.reset(seed=0)
+    env.reset(seed=0, options={"pose": (0.25, 0.25, 0.0)})

@@ -196,6 +196,9 @@ def test_malformed_files(tmp_path):
         load_layout(tmp_path)
     with pytest.raises(LayoutError, match="unknown layout"):
         get_layout("hall")
+    for empty in ("", "  "):  # was read as the current folder ("is a folder")
+        with pytest.raises(LayoutError, match="the layout name is empty"):
+            get_layout(empty)
 
 
 def test_a_layout_path_may_start_with_a_tilde(tmp_path, monkeypatch):

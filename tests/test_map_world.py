@@ -179,4 +179,40 @@ def test_layouts_by_name_on_the_search_path(tmp_path, monkeypatch):
 
 def test_missing_map_file_is_still_file_not_found(tmp_path):
     with pytest.raises(FileNotFoundError, match="map YAML not found"):
-        gym.make("SemReloc-v12", layout="lab", map_source=str(tmp_path / "nope.yaml"))
+        gym.make("SemReloc-v13", layout="lab", map_source=str(tmp_path / "nope.yaml"))
+
+
+def test_a_class_region_on_free_cells_warns_that_the_world_makes_it_solid():
+    """An outside tester's cabinet drawn free in the occupancy layer: the world built from the map makes it a solid
+    object the relocalizer's lidar map lacks (0.4 m range differences); building it warns, naming the class."""
+    import warnings
+
+    from semreloc_env.map_world import MapWorldWarning, layout_from_map
+    from semreloc_env.rasterize import rasterize
+
+    grid = rasterize(get_layout("lab"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MapWorldWarning)
+        layout_from_map(grid)  # every class cell occupied: the world is the map's
+    k = grid.class_names.index("cabinet")
+    occ = np.array(grid.occupancy, copy=True)
+    occ[grid.class_mask(k)] = 0.0
+    freed = dataclasses.replace(grid, occupancy=occ)
+    with pytest.warns(MapWorldWarning, match=r"lie on cells the occupancy layer calls free \(\{'cabinet': \d+\}\)"):
+        layout = layout_from_map(freed)
+    assert any(o.cls == "cabinet" for o in layout.objects)  # still an object: solid, as the warning says
+
+
+def test_interior_walls_that_lie_elsewhere_fail_the_check_however_long_the_outer_wall():
+    """An outside tester moved a layout's interior walls 2-3 m and the map of the original still passed: the
+    outer wall made up 80 % of the wall length. The interior walls are now checked on their own too."""
+    from semreloc_env.layouts import layout_from_dict
+    from semreloc_env.map_world import check_map_matches_world
+    from semreloc_env.rasterize import rasterize
+
+    plan = get_layout("twin_rooms").to_dict()
+    grid = rasterize(layout_from_dict(plan))
+    check_map_matches_world(grid, layout_from_dict(plan))
+    moved = dict(plan, objects=[], walls=[[[8.5, 0.0], [8.5, 2.5]], [[8.5, 3.5], [8.5, 6.0]]])  # 2.5 m east
+    with pytest.raises(ValueError, match=r"only 14 % of the interior walls of the world"):
+        check_map_matches_world(grid, layout_from_dict(moved))

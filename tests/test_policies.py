@@ -137,3 +137,23 @@ def test_policies_refuse_vector_envs_by_name():
         for env in (vec, sb3):
             with pytest.raises(TypeError, match="one env at a time"):
                 policy.wrap(env)
+
+
+@pytest.mark.parametrize("lidar", [{"n_beams": 1}, {"n_beams": 4}, {"fov_rad": 1.5708, "n_beams": 30}])
+def test_policies_that_read_the_lidar_refuse_one_that_does_not_see_all_round(lidar):
+    """The hand-written policies read beam k at -pi + 2 pi k / n: with one beam they failed with NumPy's "zero-size
+    array" error, with a 90 deg lidar the explorer took side beams for its front (an outside tester)."""
+    from agents.options import MotionOptions
+
+    env = gym.make("SemReloc-v13", map_source="perfect", lidar=lidar, relocalizer={"n_particles": 50})
+    for name in ("wall_follow", "spin_backup", "viewpoint", "info_gain"):
+        with pytest.raises(ValueError, match=r"reads the lidar as seeing all round .* n_beams="):
+            POLICIES[name](0).wrap(env)
+    with pytest.raises(ValueError, match=r"MotionOptions \['explore'\] reads the lidar as seeing all round"):
+        MotionOptions(env, ("explore",))
+    for name in ("spin", "random"):  # they do not read it
+        policy = POLICIES[name](0)
+        wrapped = policy.wrap(env)
+        obs, _ = wrapped.reset(seed=0)
+        wrapped.step(policy.act(obs))
+    MotionOptions(env, ())

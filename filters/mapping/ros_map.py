@@ -45,7 +45,7 @@ import numpy as np
 import yaml
 
 from filters.mapping.grid import GridMap
-from filters.numbers import yaml_number_hint
+from filters.numbers import is_exponent_form, yaml_number_hint
 
 __all__ = [
     "MapFormatError",
@@ -261,6 +261,8 @@ def _require(doc: dict, key: str, path: Path):
 
 
 def _number(value, key: str, path: Path) -> float:
+    if isinstance(value, str) and is_exponent_form(value):
+        value = float(value)  # ROS reads map YAMLs with yaml-cpp, which takes 5e-2 for a number; PyYAML does not
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise MapFormatError(path, f"{key} must be a number, got {value!r}{yaml_number_hint(value)}")
     v = float(value)

@@ -529,11 +529,9 @@ class SemRelocEnv(SemRelocBase):
             if k is None:
                 raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
             kp = as_pose(kp, "kidnap_pose")
-            if not world.is_free(kp[:2]):
-                raise ValueError(
-                    f"kidnap_pose {kp.tolist()} is not free: the robot (radius {self.robot_params.radius_m} m) "
-                    "would overlap a wall, object or block, or lie outside the outer wall"
-                )
+            reason = world.not_free_reason(kp[:2])
+            if reason:
+                raise ValueError(f"kidnap_pose {kp.tolist()} is not free: {reason}")
         if not self.grid.free_mask().any():
             raise ValueError("the relocalizer's map has no free cell: nowhere to put particles")
 

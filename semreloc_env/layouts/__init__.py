@@ -94,6 +94,8 @@ def get_layout(
     """
     if procedural_version not in (1, 2) or isinstance(procedural_version, bool):
         raise ValueError(f"procedural_version must be 1 or 2, got {procedural_version!r:.60}")
+    if isinstance(spec, str) and not spec.strip():
+        raise LayoutError(f"the layout name is empty: give one of {list(LAYOUT_NAMES)}, a file path or a dict")
     if isinstance(spec, (str, Path)) and str(spec).startswith("~"):
         spec = Path(spec).expanduser()
     if isinstance(spec, Layout):
