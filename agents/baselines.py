@@ -18,23 +18,33 @@ def all_round_angles(n: int) -> np.ndarray:
     return -np.pi + 2 * np.pi * np.arange(n) / n
 
 
-MIN_ALL_ROUND_BEAMS = 8
-"""Fewest beams of an all-round lidar the hand-written policies read: every sector they look at (1 rad wide
-and more) then holds a beam."""
+FRONT = ((0.0, 0.5),)
+"""The sector ``(centre, half-width)`` in rad that the policies check before driving forward."""
 
 
-def require_all_round_lidar(env, who: str) -> None:
-    """ValueError unless ``env``'s lidar sees all round with at least `MIN_ALL_ROUND_BEAMS` beams, as the
-    hand-written policies read it (beam ``k`` at ``-pi + 2 pi k / n``). Envs without a ``lidar`` pass."""
-    params = getattr(getattr(env.unwrapped, "lidar", None), "params", None)
-    if params is None:
-        return
-    if params.fov_rad < 2 * np.pi - 1e-9 or params.n_beams < MIN_ALL_ROUND_BEAMS:
-        raise ValueError(
-            f"{who} reads the lidar as seeing all round (fov 2 pi) with at least {MIN_ALL_ROUND_BEAMS} beams; "
-            f"this env's lidar has fov_rad={params.fov_rad:.4g} and n_beams={params.n_beams} "
-            "(make the env with the default lidar, or another policy)"
-        )
+def sector_mask(angles: np.ndarray, centre_rad: float, half_rad: float) -> np.ndarray:
+    """Bool mask of the beams (robot-frame ``angles``) within ``half_rad`` of ``centre_rad``."""
+    return np.abs((np.asarray(angles) - centre_rad + np.pi) % (2 * np.pi) - np.pi) <= half_rad
+
+
+def lidar_beam_angles(env, who: str, sectors=FRONT) -> np.ndarray | None:
+    """The robot-frame angles of ``env``'s lidar beams (None for an env without a ``lidar``), for a policy
+    that reads the lidar; ValueError naming ``who`` if one of ``sectors`` (``(centre, half-width)`` in rad)
+    holds no beam, so the policy would be blind where it looks (one beam, or a lidar that sees ahead only
+    for a policy that backs up)."""
+    lidar = getattr(env.unwrapped, "lidar", None)
+    angles = getattr(lidar, "angles", None)
+    if angles is None:
+        return None
+    angles = np.asarray(angles, dtype=np.float64)
+    for centre, half in sectors:
+        if not sector_mask(angles, centre, half).any():
+            p = lidar.params
+            raise ValueError(
+                f"{who} needs a lidar beam within {half} rad of {centre:.3g} rad (0 = straight ahead, pi = behind); "
+                f"this env's lidar (fov_rad={p.fov_rad:.4g}, n_beams={p.n_beams}) has none there"
+            )
+    return angles
 
 
 class WallFollowExplorer:
@@ -64,14 +74,20 @@ class WallFollowExplorer:
         if angles is None:
             angles = all_round_angles(ranges.size)
         front = np.abs(angles) <= self.front
+        if not front.any():
+            raise ValueError(f"WallFollowExplorer: no lidar beam within {self.front} rad of straight ahead")
         if ranges[front].min() >= self.clearance:
             self._turning = 0
             return FORWARD
         if self._turning == 0:  # pick a side once and keep it until clear (no dithering)
-            left = ranges[(angles > 0) & (angles < np.pi / 2 + 0.3)].mean()
-            right = ranges[(angles < 0) & (angles > -np.pi / 2 - 0.3)].mean()
+            left = _mean(ranges[(angles > 0) & (angles < np.pi / 2 + 0.3)])
+            right = _mean(ranges[(angles < 0) & (angles > -np.pi / 2 - 0.3)])
             self._turning = TURN_LEFT if left >= right else TURN_RIGHT
         return self._turning
+
+
+def _mean(r: np.ndarray) -> float:
+    return float(r.mean()) if r.size else 0.0  # a side without beams counts as blocked
 
 
 class RandomWalk:

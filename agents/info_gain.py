@@ -241,6 +241,6 @@ class InfoGainPlanner(Policy):
         if not self._queue:
             self._queue = list(self.plan().actions[: self.replan_every])
         a = self._queue.pop(0)
-        if a == FORWARD and _sector_min(np.asarray(obs["lidar"]), 0.0, 0.5) < self.clearance_m:
+        if a == FORWARD and _sector_min(np.asarray(obs["lidar"]), 0.0, 0.5, self.beam_angles) < self.clearance_m:
             a, self._queue = TURN_LEFT, []
         return self.encode(a)

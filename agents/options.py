@@ -31,7 +31,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .baselines import AS_BOX, WallFollowExplorer, require_all_round_lidar
+from .baselines import AS_BOX, WallFollowExplorer, lidar_beam_angles
 
 OPTIONS = ("explore", "viewpoint")
 """The motions that can be added, by name."""
@@ -100,11 +100,10 @@ class MotionOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
             )
         self.continuous = isinstance(env.action_space, spaces.Box)
         options = check_options(options)
-        if options:  # the explorer and the planner read the lidar
-            require_all_round_lidar(env, f"{type(self).__name__} {list(options)}")
+        angles = lidar_beam_angles(env, f"{type(self).__name__} {list(options)}") if options else None
         self.options = options
         self.action_space = spaces.Discrete(4 + len(options))
-        self.explorer = WallFollowExplorer()
+        self.explorer = WallFollowExplorer(beam_angles=angles)
         self.planner = None
         if "viewpoint" in options:
             from .viewpoint import ViewpointPlanner

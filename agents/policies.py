@@ -31,7 +31,16 @@ from gymnasium import spaces
 from filters.numbers import is_int, is_real
 from semreloc_env.envs.spaces import require_raw_observation, require_single_env
 
-from .baselines import AS_BOX, FORWARD, TURN_LEFT, WallFollowExplorer, all_round_angles, require_all_round_lidar
+from .baselines import (
+    AS_BOX,
+    FORWARD,
+    FRONT,
+    TURN_LEFT,
+    WallFollowExplorer,
+    all_round_angles,
+    lidar_beam_angles,
+    sector_mask,
+)
 
 BACKWARD = -1
 """A pseudo-action of the policies here: reverse at full speed (continuous actions only)."""
@@ -47,15 +56,16 @@ class Policy:
         self.rng = np.random.default_rng(self.seed)
         self.env: gym.Env | None = None
         self.continuous = False
+        self.beam_angles: np.ndarray | None = None  # the env's lidar beams (robot frame, rad), set by `wrap`
 
-    reads_lidar = True
-    """the policy reads the lidar as all-round (`agents.baselines.require_all_round_lidar`, checked by `wrap`)"""
+    lidar_sectors: tuple[tuple[float, float], ...] = FRONT
+    """``(centre, half-width)`` rad of the lidar sectors the policy reads; `wrap` refuses a lidar with no beam in
+    one (`agents.baselines.lidar_beam_angles`) and keeps the beams' angles in ``beam_angles``"""
 
     def wrap(self, env: gym.Env) -> gym.Env:
         require_single_env(env, type(self).__name__)
         require_raw_observation(env, type(self).__name__)
-        if self.reads_lidar:
-            require_all_round_lidar(env, type(self).__name__)
+        self.beam_angles = lidar_beam_angles(env, type(self).__name__, self.lidar_sectors)
         space = env.action_space
         discrete_ok = isinstance(space, spaces.Discrete) and space.n >= 4 and space.start == 0
         if not (discrete_ok or (isinstance(space, spaces.Box) and space.shape == (2,))):
@@ -97,7 +107,7 @@ class Policy:
 class RandomPolicy(Policy):
     """Uniformly random forward / left / right / stop from its seeded generator."""
 
-    reads_lidar = False
+    lidar_sectors = ()
 
     def act(self, obs: dict):
         return self.encode(int(self.rng.integers(0, 4)))
@@ -106,17 +116,17 @@ class RandomPolicy(Policy):
 class SpinPolicy(Policy):
     """Turn left in place, every step."""
 
-    reads_lidar = False
+    lidar_sectors = ()
 
     def act(self, obs: dict):
         return self.encode(TURN_LEFT)
 
 
-def _sector_min(ranges: np.ndarray, centre_rad: float, half_rad: float) -> float:
-    """Smallest lidar range in a sector (beams spread over 360 deg from -pi, the env's default)."""
-    angles = all_round_angles(ranges.size)
-    d = np.abs((angles - centre_rad + np.pi) % (2 * np.pi) - np.pi)
-    return float(np.min(ranges[d <= half_rad]))
+def _sector_min(ranges: np.ndarray, centre_rad: float, half_rad: float, angles: np.ndarray | None = None) -> float:
+    """Smallest lidar range in a sector; inf if no beam lies in it. ``angles``: the beams' robot-frame angles
+    (default: spread over 360 deg from -pi, the env's default lidar)."""
+    in_sector = ranges[sector_mask(all_round_angles(ranges.size) if angles is None else angles, centre_rad, half_rad)]
+    return float(np.min(in_sector)) if in_sector.size else math.inf
 
 
 class SpinThenBackUp(Policy):
@@ -124,8 +134,10 @@ class SpinThenBackUp(Policy):
 
     With discrete actions, which cannot reverse, the back-up is a half turn and ``backup_m``
     forward. Driving stops early when the lidar sees an obstacle closer than ``clearance_m`` in
-    the direction of travel.
+    the direction of travel (so `wrap` wants a lidar beam ahead and one behind).
     """
+
+    lidar_sectors = ((0.0, 0.5), (math.pi, 0.5))
 
     def __init__(self, seed: int = 0, backup_m: float = 0.5, clearance_m: float = 0.45):
         super().__init__(seed)
@@ -153,7 +165,7 @@ class SpinThenBackUp(Policy):
         a = self._plan.pop(0)
         if a in (FORWARD, BACKWARD):
             centre = 0.0 if a == FORWARD else math.pi
-            if _sector_min(np.asarray(obs["lidar"]), centre, 0.5) < self.clearance_m:
+            if _sector_min(np.asarray(obs["lidar"]), centre, 0.5, self.beam_angles) < self.clearance_m:
                 self._plan = [x for x in self._plan if x not in (FORWARD, BACKWARD)]  # skip the drive
                 a = TURN_LEFT
         return self.encode(a)
@@ -165,6 +177,11 @@ class WallFollowPolicy(Policy):
     def __init__(self, seed: int = 0, **kwargs):
         super().__init__(seed)
         self.explorer = WallFollowExplorer(**kwargs)
+
+    def wrap(self, env: gym.Env) -> gym.Env:
+        env = super().wrap(env)
+        self.explorer.beam_angles = self.beam_angles
+        return env
 
     def reset(self) -> None:
         super().reset()

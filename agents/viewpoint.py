@@ -849,7 +849,8 @@ class ViewpointPlanner(Policy):
         ranges = self._ranges
         forward = a[0] > 0 if isinstance(a, np.ndarray) else a == FORWARD
         if forward and self._blocked(ranges):
-            left, right = _sector_min(ranges, math.pi / 2, 0.8), _sector_min(ranges, -math.pi / 2, 0.8)
+            b = self.beam_angles
+            left, right = _sector_min(ranges, math.pi / 2, 0.8, b), _sector_min(ranges, -math.pi / 2, 0.8, b)
             a = TURN_LEFT if left >= right else TURN_RIGHT
             if not self._escaping:  # plan again next step (an exploration the rule began runs its course)
                 self._since_plan = self.replan_every

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 import semreloc_env  # noqa: F401
+from agents.baselines import all_round_angles
 from agents.info_gain import InfoGainPlanner
 from agents.policies import POLICIES, SpinThenBackUp
 
@@ -139,21 +140,36 @@ def test_policies_refuse_vector_envs_by_name():
                 policy.wrap(env)
 
 
-@pytest.mark.parametrize("lidar", [{"n_beams": 1}, {"n_beams": 4}, {"fov_rad": 1.5708, "n_beams": 30}])
-def test_policies_that_read_the_lidar_refuse_one_that_does_not_see_all_round(lidar):
-    """The hand-written policies read beam k at -pi + 2 pi k / n: with one beam they failed with NumPy's "zero-size
-    array" error, with a 90 deg lidar the explorer took side beams for its front (an outside tester)."""
+def test_policies_read_the_env_lidar_beams_and_refuse_one_blind_where_they_look():
+    """The hand-written policies took beam k to lie at -pi + 2 pi k / n: with one beam they failed with NumPy's
+    "zero-size array" error, with a 90 deg lidar the explorer took side beams for its front (an outside tester).
+    They now read the env's beam angles, and `wrap` refuses a lidar with no beam where they look."""
     from agents.options import MotionOptions
 
-    env = gym.make("SemReloc-v13", map_source="perfect", lidar=lidar, relocalizer={"n_particles": 50})
+    blind = gym.make("SemReloc-v13", map_source="perfect", lidar={"n_beams": 1}, relocalizer={"n_particles": 50})
     for name in ("wall_follow", "spin_backup", "viewpoint", "info_gain"):
-        with pytest.raises(ValueError, match=r"reads the lidar as seeing all round .* n_beams="):
-            POLICIES[name](0).wrap(env)
-    with pytest.raises(ValueError, match=r"MotionOptions \['explore'\] reads the lidar as seeing all round"):
-        MotionOptions(env, ("explore",))
+        with pytest.raises(ValueError, match=r"needs a lidar beam within 0.5 rad of 0 rad .* n_beams=1\) has none"):
+            POLICIES[name](0).wrap(blind)
+    with pytest.raises(ValueError, match=r"MotionOptions \['explore'\] needs a lidar beam within 0.5 rad of 0"):
+        MotionOptions(blind, ("explore",))
     for name in ("spin", "random"):  # they do not read it
         policy = POLICIES[name](0)
-        wrapped = policy.wrap(env)
+        wrapped = policy.wrap(blind)
         obs, _ = wrapped.reset(seed=0)
         wrapped.step(policy.act(obs))
-    MotionOptions(env, ())
+
+    ahead = gym.make("SemReloc-v13", map_source="perfect", lidar={"fov_rad": 1.5708, "n_beams": 30},
+                     relocalizer={"n_particles": 50})  # fmt: skip
+    with pytest.raises(ValueError, match=r"SpinThenBackUp needs a lidar beam within 0.5 rad of 3.14 rad"):
+        POLICIES["spin_backup"](0).wrap(ahead)  # it backs up: it must see behind
+    policy = POLICIES["wall_follow"](0)
+    env = policy.wrap(ahead)
+    np.testing.assert_array_equal(policy.explorer.beam_angles, ahead.unwrapped.lidar.angles)
+    obs, _ = env.reset(seed=0)
+    for _ in range(30):
+        obs, *_ = env.step(policy.act(obs))
+    assert MotionOptions(ahead, ("explore",)).explorer.beam_angles is not None
+    default = gym.make("SemReloc-v13", map_source="perfect", relocalizer={"n_particles": 50})
+    policy = POLICIES["wall_follow"](0)
+    policy.wrap(default)  # the default lidar's angles are the all-round ones, bit for bit: episodes unchanged
+    np.testing.assert_array_equal(policy.explorer.beam_angles, all_round_angles(60))
