@@ -166,7 +166,7 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
         raise ValueError("the map has no free cell: no world to build")
     unknown = [c for c in grid.class_names if c not in CLASS_NAMES]
     if unknown:
-        raise ValueError(f"map classes {unknown} are not among the env's {CLASS_NAMES}")
+        raise ValueError(f"map {name!r}: classes {unknown} are not among the env's {CLASS_NAMES} (docs/maps.md)")
     res = grid.resolution_m
     tol = 0.5 * res if simplify_m is None else float(simplify_m)
     if not (math.isfinite(tol) and tol >= 0):

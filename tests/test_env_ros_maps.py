@@ -108,6 +108,8 @@ def test_a_sidecar_with_some_classes_or_another_order(tmp_path):
     unknown = dataclasses.replace(grid, class_names=("door", "chair", "sofa", "cabinet"))
     with pytest.raises(ValueError, match=r"classes \['sofa'\] are not among the env's"):
         gym.make("SemReloc-v13", map_source=str(save_map(unknown, tmp_path / "sofa" / "s.yaml")), semantic=False, **kw)
+    with pytest.raises(ValueError, match=r"map 's': classes \['sofa'\] are not among the env's"):  # the world from it
+        gym.make("SemReloc-v13", map_source=str(tmp_path / "sofa" / "s.yaml"), semantic=False)
 
 
 def test_a_folder_as_map_source_says_to_give_a_file_in_it(tmp_path, monkeypatch):
