@@ -251,11 +251,11 @@ class SemRelocEnv(SemRelocBase):
     * v13: the relocalizer's surprise test (a scan the belief explains far worse than of late: a kidnapping)
       compares with an average of its own (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V12` with
       ``surprise_own_average``). v12's compared with augmented MCL's fast average, which AMCL's rule restarts
-      after every update whose fast average fell below the slow one, by any amount (in tracking episodes
-      before 6-9 % of the lidar's updates); a restarted average starts at the next update's value, so a
-      kidnapping right after a restart, or after turn-in-place updates without the lidar, became the new
-      normal: no surprise, no audit, and the belief could converge at a wrong place (all three such
-      kidnappings in v12's evaluation; docs/relocalizer.md, "The surprise test's own average"). A global
+      after every update whose fast average fell below the slow one, by any amount (6-9 % of a tracking
+      episode's lidar updates came right after such a restart); a restarted average starts at the next
+      update's value, so a kidnapping right after a restart, or after turn-in-place updates without the lidar,
+      became the new normal: no surprise, no audit, and the belief could converge at a wrong place (the three
+      wrong re-convergences after kidnappings in v12's evaluation; docs/relocalizer.md, "The surprise test's own average"). A global
       episode runs as v12's up to its first convergence, so the evaluations' global starts, which end there
       when it is correct, are v12's. Maps, worlds, sensors, observations, rewards and info keys are v12's
       (`SemRelocEnvV12` is v12).
