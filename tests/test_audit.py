@@ -7,7 +7,7 @@ import pytest
 
 import filters.localization.audit as audit_module
 from filters.localization.audit import Alternative, best_alternative, outside, shaped_like, window_log_likelihood
-from filters.localization.likelihood_field import LikelihoodFieldModel, cached_model
+from filters.localization.likelihood_field import LikelihoodFieldModel, NegativeEvidenceConfig, cached_model
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.pose import compose, relative
@@ -414,40 +414,71 @@ def test_window_keeps_the_scans_each_update_used():
     assert drive_l is not None and drive_b.n_lidar == len(LIDAR_ANGLES)
 
 
-def test_window_shortcuts_give_the_bits_of_the_plain_computation():
+class _Unfused:
+    """A measurement model that only forwards `beam_log_likelihoods`: `window_log_likelihood` then scores
+    entry by entry as it did before its compiled path."""
+
+    def __init__(self, model):
+        self.beam_log_likelihoods = model.beam_log_likelihoods
+        self.log_likelihood_terms = model.log_likelihood_terms
+
+
+@pytest.mark.parametrize("negative", [None, NegativeEvidenceConfig(p_detect=0.8)])
+def test_window_shortcuts_give_the_bits_of_the_plain_computation(negative):
     """`window_log_likelihood` shares each entry's cos/sin between scoring and composing, takes the steps
-    back (`back_steps`) once per audit, and the model keeps each BeamSet's kernel inputs: the numbers are
-    those of scoring every entry with `beam_log_likelihoods` alone and composing with `compose`, bit for bit."""
+    back (`back_steps`) once per audit, the model keeps each BeamSet's kernel inputs, and with the numba
+    backend each entry is one compiled call (`LikelihoodFieldModel.add_window_entry`): the numbers are
+    those of scoring every entry with `beam_log_likelihoods` alone and composing with `compose`, bit for
+    bit; with negative evidence, an entry without lidar (a turn-in-place update), the audit's blurred
+    screen model, and for the returned poses of one entry too."""
     grid = symmetric_room()
-    model = LikelihoodFieldModel(grid)
+    model = LikelihoodFieldModel(grid, negative=negative)
     path = [np.array([1.2, 1.5, 0.2])]
-    for step in ([0.3, 0.05, 0.1], [0.0, 0.0, 0.4], [0.25, -0.02, -0.2]):
+    for step in ([0.3, 0.05, 0.1], [0.0, 0.0, 0.4], [0.25, -0.02, -0.2], [0.4, 0.0, 3.1]):
         path.append(compose(path[-1], np.array(step)))
     window = []
     for i, pose in enumerate(path):
-        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
+        lidar = None if i == 2 else simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
         semantic = simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0)
         _, _, beams = model.log_likelihood_terms(pose[None], lidar, semantic)
         window.append((lidar, semantic, np.zeros(3) if i == 0 else relative(path[i - 1], pose), beams))
+    assert any(e[3].n_negative for e in window) == (negative is not None) and window[2][3].n_lidar == 0
     poses = path[-1] + np.random.default_rng(0).normal(0.0, 0.2, (40, 3))
-    expected, p = np.zeros(40), poses.copy()
-    for i, (_, _, into, beams) in enumerate(reversed(window)):
-        ll_l, ll_s = model.beam_log_likelihoods(p, beams)
-        expected += 0.06 * (ll_l + ll_s)
-        if i + 1 < len(window):
-            p = compose(p, relative(into, np.zeros(3)))
-    steps = audit_module.back_steps(window)
-    assert len(steps) == len(window) - 1
-    for got in (
-        window_log_likelihood(model, poses, window, 0.06),
-        window_log_likelihood(model, poses, window, 0.06, steps),
-    ):
-        assert got.tobytes() == expected.tobytes()
+    poses[0, 2] = np.pi  # a heading on the wrap
+    for m in (model, audit_module.screen_model(model)):
+        expected, p = np.zeros(40), poses.copy()
+        for i, (_, _, into, beams) in enumerate(reversed(window)):
+            ll_l, ll_s = m.beam_log_likelihoods(p, beams)
+            expected += 0.06 * (ll_l + ll_s)
+            if i + 1 < len(window):
+                p = compose(p, relative(into, np.zeros(3)))
+        steps = audit_module.back_steps(window)
+        assert len(steps) == len(window) - 1
+        for got in (
+            window_log_likelihood(m, poses, window, 0.06),
+            window_log_likelihood(m, poses, window, 0.06, steps),
+            window_log_likelihood(_Unfused(m), poses, window, 0.06, steps),
+        ):
+            assert got.tobytes() == expected.tobytes()
     c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
     for a, b in zip(
         model.beam_log_likelihoods(poses, window[0][3], (c, s)), model.beam_log_likelihoods(poses, window[0][3])
     ):
         assert a.tobytes() == b.tobytes()
+    beams = max((e[3] for e in window), key=lambda b: b.n_negative)
+    total = np.zeros(40)
+    moved = model.add_window_entry(poses, (c, s), beams, 0.06, total, steps[0])
+    ll_l, ll_s = model.beam_log_likelihoods(poses, beams)
+    assert total.tobytes() == (0.06 * (ll_l + ll_s)).tobytes()
+    assert moved.tobytes() == compose(poses, steps[0]).tobytes()
+    assert model.add_window_entry(poses, (c, s), window[-1][3], 0.06, total, None) is None
+
+
+def test_the_compiled_window_entry_needs_the_numba_backend():
+    model = LikelihoodFieldModel(symmetric_room(), backend="numpy")
+    p = np.zeros((1, 3))
+    with pytest.raises(ValueError, match="numba backend"):
+        model.add_window_entry(p, (np.ones(1), np.zeros(1)), model.beams(None, None), 1.0, np.zeros(1), None)
 
 
 def test_doubt_the_audit_adds_ends_a_held_convergence(monkeypatch):

@@ -243,6 +243,8 @@ def count_detections(semantic: SemanticScan) -> int:
 _EMPTY_F = np.zeros(0)
 _EMPTY_F.setflags(write=False)
 _ZERO_START = np.zeros(1, np.int64)
+_NO_TABLE = np.zeros(1)
+_NO_STEP = np.zeros(3)
 _ZERO_START.setflags(write=False)
 
 
@@ -404,6 +406,73 @@ def negative_evidence_kernel(
                 low = min(low, table[idx[j]])
             acc += low
         out[i] += acc
+
+
+@numba.njit(cache=True, nogil=True)
+def window_entry_kernel(
+    p,
+    cos_t,
+    sin_t,
+    lu,
+    lv,
+    offset,
+    outside,
+    n_lidar,
+    flat,
+    nu,
+    nv,
+    starts,
+    table,
+    ox,
+    oy,
+    inv_res,
+    w,
+    h,
+    scale,
+    total,
+    step,
+    back,
+    out,
+):  # pragma: no cover - compiled
+    """One entry of a window log-likelihood (`filters.localization.audit.window_log_likelihood`) for the
+    poses ``p`` ``(M, 3)``, in one call: ``total[i] += scale * (lidar_ll + semantic_ll)`` of pose ``i`` as
+    `log_likelihood_kernel` then `negative_evidence_kernel` compute them (``lu.size == 0`` or
+    ``starts.size == 1``: that part is 0), then, if ``back``, ``out[i]`` = ``p[i]`` composed with the
+    robot-frame ``step`` (`filters.pose.compose`: the same operations, so the same bits).
+
+    ``cos_t``/``sin_t`` are NumPy's ``cos``/``sin`` of ``p[:, 2]``, passed in for the same bits as the
+    unfused calls."""
+    nb = lu.shape[0]
+    ns = nu.shape[0]
+    nneg = starts.shape[0] - 1
+    idx = np.empty(nb, np.int64)
+    acc = np.empty(16)
+    n_offset = np.zeros(ns, np.int64)
+    n_outside = np.full(ns, w * h, np.int64)
+    n_idx = np.empty(ns, np.int64)
+    two_pi = 2.0 * np.pi
+    for i in range(p.shape[0]):
+        pu, pv = (p[i, 0] - ox) * inv_res, (p[i, 1] - oy) * inv_res
+        ll_l = 0.0
+        ll_s = 0.0
+        if nb:
+            _beam_cells(pu, pv, cos_t[i], sin_t[i], lu, lv, offset, outside, w, h, idx)
+            ll_l = _gather_sum(flat, idx, 0, n_lidar, acc)
+            ll_s = _gather_sum(flat, idx, n_lidar, nb, acc)
+        if nneg:
+            _beam_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, n_offset, n_outside, w, h, n_idx)
+            a = 0.0
+            for b in range(nneg):
+                low = 0.0
+                for j in range(starts[b], starts[b + 1]):
+                    low = min(low, table[n_idx[j]])
+                a += low
+            ll_s += a
+        total[i] += scale * (ll_l + ll_s)
+        if back:
+            out[i, 0] = p[i, 0] + cos_t[i] * step[0] - sin_t[i] * step[1]
+            out[i, 1] = p[i, 1] + sin_t[i] * step[0] + cos_t[i] * step[1]
+            out[i, 2] = ((p[i, 2] + step[2]) + np.pi) % two_pi - np.pi
 
 
 def _checked_poses(poses: np.ndarray) -> np.ndarray:
@@ -646,6 +715,47 @@ class LikelihoodFieldModel:
                     raise ValueError(f"trig must be (cos, sin) of the poses' headings: two float64 arrays of shape {n}")
         return self._scored(p, beams, trig)
 
+    def add_window_entry(
+        self,
+        p: np.ndarray,
+        trig: tuple[np.ndarray, np.ndarray],
+        beams: BeamSet,
+        scale: float,
+        total: np.ndarray,
+        step: np.ndarray | None,
+    ) -> np.ndarray | None:
+        """One entry of `filters.localization.audit.window_log_likelihood` in one compiled call (numba
+        backend only): adds ``scale * (lidar_ll + semantic_ll)`` of `beams` for the checked poses ``p``
+        ``(M, 3)`` to ``total`` ``(M,)`` (the numbers `beam_log_likelihoods` gives, the same bits) and
+        returns ``p`` composed with the robot-frame ``step`` ``(3,)`` (`filters.pose.compose`, the same
+        bits), or None if ``step`` is None. ``trig``: NumPy's ``(cos, sin)`` of ``p[:, 2]``.
+
+        Raises:
+            ValueError: the model's backend is not ``"numba"``.
+        """
+        if self.backend != "numba":
+            raise ValueError(f"add_window_entry needs the numba backend, this model's is {self.backend!r}")
+        back = step is not None
+        out = np.empty_like(p) if back else p
+        negative = self._weighs_negative(beams)
+        if p.shape[0] and (beams.lx.size or negative or back):
+            flat, lu, lv, offset, outside, nu, nv = self._prepared(beams)
+            ox, oy = self.grid.origin_xy_m
+            h, w = self.grid.shape
+            starts, table = (beams.n_starts, self.negative_table()) if negative else (_ZERO_START, _NO_TABLE)
+            window_entry_kernel(
+                p, trig[0], trig[1], lu, lv, offset, outside, beams.n_lidar, flat, nu, nv, starts, table,
+                float(ox), float(oy), 1.0 / self.grid.resolution_m, w, h, float(scale), total,
+                step if back else _NO_STEP, back, out,
+            )  # fmt: skip
+        return out if back else None
+
+    def _weighs_negative(self, beams: BeamSet) -> bool:
+        """Whether `beams` has negative-evidence points this model weighs. A model without negative evidence
+        (the audit's blurred screen model, scoring the filter's beams) skips them: its table is all 0, so
+        adding them changed nothing."""
+        return bool(beams.n_negative) and self.negative_config.enabled
+
     def _prepared(self, beams: BeamSet) -> tuple:
         """The kernels' inputs that depend on the beams only, computed once per `BeamSet` (its arrays
         are never written): ``(flat, lu, lv, offset, outside, nu, nv)``."""
@@ -675,7 +785,8 @@ class LikelihoodFieldModel:
         n = p.shape[0]
         out_l = np.zeros(n)
         out_s = np.zeros(n)
-        if n and (beams.lx.size or beams.n_negative):
+        negative = self._weighs_negative(beams)
+        if n and (beams.lx.size or negative):
             flat, lu, lv, offset, outside, nu, nv = self._prepared(beams)
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
@@ -687,7 +798,7 @@ class LikelihoodFieldModel:
                     x, y, cos_t, sin_t, lu, lv, offset, outside, beams.n_lidar, flat,
                     float(ox), float(oy), inv_res, w, h, out_l, out_s,
                 )  # fmt: skip
-            if beams.n_negative:
+            if negative:
                 negative_evidence_kernel(
                     x, y, cos_t, sin_t, nu, nv, beams.n_starts, self.negative_table(),
                     float(ox), float(oy), inv_res, w, h, out_s,
