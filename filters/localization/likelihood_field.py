@@ -379,6 +379,19 @@ def log_likelihood_kernel(
         out_s[i] = _gather_sum(flat, idx, n_lidar, nb, acc)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _negative_sum(table, idx, starts):  # pragma: no cover - compiled
+    """Sum over beams ``b`` of the lowest ``table[idx[j]]`` of its points ``starts[b] <= j < starts[b + 1]``
+    (at most 0 each), beams in order."""
+    acc = 0.0
+    for b in range(starts.shape[0] - 1):
+        low = 0.0
+        for j in range(starts[b], starts[b + 1]):
+            low = min(low, table[idx[j]])
+        acc += low
+    return acc
+
+
 @numba.njit(cache=True, nogil=True)
 def negative_evidence_kernel(
     x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out
@@ -392,20 +405,13 @@ def negative_evidence_kernel(
     indices of a particle's points come first, then the look-ups.
     """
     ns = nu.shape[0]
-    nb = starts.shape[0] - 1
     offset = np.zeros(ns, np.int64)
     outside = np.full(ns, w * h, np.int64)
     idx = np.empty(ns, np.int64)
     for i in range(x.shape[0]):
         pu, pv = (x[i] - ox) * inv_res, (y[i] - oy) * inv_res
         _beam_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, offset, outside, w, h, idx)
-        acc = 0.0
-        for b in range(nb):
-            low = 0.0
-            for j in range(starts[b], starts[b + 1]):
-                low = min(low, table[idx[j]])
-            acc += low
-        out[i] += acc
+        out[i] += _negative_sum(table, idx, starts)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -461,13 +467,7 @@ def window_entry_kernel(
             ll_s = _gather_sum(flat, idx, n_lidar, nb, acc)
         if nneg:
             _beam_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, n_offset, n_outside, w, h, n_idx)
-            a = 0.0
-            for b in range(nneg):
-                low = 0.0
-                for j in range(starts[b], starts[b + 1]):
-                    low = min(low, table[n_idx[j]])
-                a += low
-            ll_s += a
+            ll_s += _negative_sum(table, n_idx, starts)
         total[i] += scale * (ll_l + ll_s)
         if back:
             out[i, 0] = p[i, 0] + cos_t[i] * step[0] - sin_t[i] * step[1]
