@@ -242,7 +242,10 @@ class SemRelocEnv(SemRelocBase):
     made by ``gym.make``: at that step the robot is teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
     A global episode (``tracking`` not set) ends at its first correct convergence, often before
     ``kidnap_at_step``: then no kidnap happens (``info["kidnapped"]`` stays False). To kidnap a
-    localized robot, reset with ``tracking=True``.
+    localized robot, reset with ``tracking=True``. The relocalizer notices a kidnap from the lidar's fit
+    (its surprise test, armed once the belief has been converged); one that only the objects' classes
+    reveal, or one into an exact look-alike, goes unnoticed (docs/relocalizer.md, "What the surprise test
+    cannot see"). One kidnap per episode; ``info["kidnapped"]`` says from which step.
     A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
     checks them in its outermost wrapper (`semreloc_env.wrappers.CheckedReset`), so the
     time limit keeps counting the old episode.
