@@ -50,10 +50,14 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from filters.experiments.stats import wilson_interval
+
+LAYOUT_FILE_SUFFIXES = (".json", ".yaml", ".yml")
+"""An episode's ``layout`` ending so is a layout file; its row is named by the file name's stem."""
 
 POLICIES = ("random", "spin", "wall_follow")
 
@@ -109,8 +113,8 @@ class EpisodeSpec:
 
     @property
     def row(self) -> str:
-        """The table row this episode belongs to."""
-        name = self.layout if self.layout not in ("procedural", "procedural_sym") else f"{self.layout}"
+        """The table row this episode belongs to (a layout file's row is named by its file name's stem)."""
+        name = Path(self.layout).stem if self.layout.endswith(LAYOUT_FILE_SUFFIXES) else self.layout
         if self.scenario != "nominal":
             name += f"_{self.scenario}"
         if self.kidnap_after_global:

@@ -172,3 +172,55 @@ def test_summary_and_tables_carry_the_kidnap_columns():
     assert "| 0 | 0 | 4 (4) | 4 (4) |" in kidnap_table(no_surprise, ["after"], ["lab_global_kidnap"])
     old = [{k: v for k, v in r.items() if k not in ("reconverged_wrong", "pre_kidnap_success")} for r in rs]
     assert table(old, ["after"], ["lab_global_kidnap"]).splitlines()[2].endswith("| — | — |")  # older results
+
+
+# ------------------------------------------------------------------ layout files of your own
+
+
+def test_layout_files_add_three_rows_named_by_the_file(tmp_path):
+    """``--layout-files``: a global, a tracking-then-kidnap and a global-then-kidnap row per file, named by its
+    stem; the episodes run on the file's layout and the table has the rows."""
+    import json
+    import shutil
+
+    from agents.experiments import evaluate_relocalizer as er
+
+    path = tmp_path / "my_offices.json"
+    shutil.copy("docs/layouts/twin_offices.json", path)
+    files, rows = er.file_rows([path])
+    assert files == {"my_offices": str(path)}
+    assert rows == ["my_offices", "my_offices_kidnap", "my_offices_global_kidnap"]
+    (s,) = specs_for("my_offices_global_kidnap", 1, 0, [0], {}, "after", files)
+    assert (s.layout, s.row, s.kidnap_after_global) == (str(path), "my_offices_global_kidnap", True)
+    out = tmp_path / "out"
+    argv = ["--variants", "after", "--rows", "none", "--layout-files", str(path), "--episodes", "1", "--log-starts",
+            "0", "--log-tracking-seeds", "0", "--workers", "1", "--no-progress", "--out", str(out)]  # fmt: skip
+    assert er.main(argv) == 0
+    results = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert sorted(r["row"] for r in results) == sorted(rows)
+    md = (out / "table.md").read_text()
+    assert all(f"| {row} | after | 1 |" in md for row in rows)
+
+
+def test_bad_layout_files_are_refused_before_any_episode(tmp_path):
+    from agents.experiments import evaluate_relocalizer as er
+
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"outer": [[0, 0], [1, 0]]}')
+    lab = tmp_path / "lab.json"
+    lab.write_text(open("docs/layouts/twin_offices.json").read())
+    twin = tmp_path / "sub"
+    twin.mkdir()
+    (twin / "lab2.json").write_text(lab.read_text())
+    (tmp_path / "lab2.json").write_text(lab.read_text())
+    for paths, match in [
+        ([bad], r"layout file '.*bad\.json'.*outer: needs at least 3 points"),
+        ([tmp_path / "missing.json"], "not found"),
+        ([lab], "row name 'lab' is taken \\(by a built-in row\\)"),
+        ([tmp_path / "lab2.json", twin / "lab2.json"], "row name 'lab2' is taken \\(by '"),
+        (["docs/layouts"], "must end in one of"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            er.file_rows(paths)
+    with pytest.raises(SystemExit):  # the command line refuses it while parsing
+        er.main(["--rows", "none", "--layout-files", str(bad), "--out", str(tmp_path / "o")])

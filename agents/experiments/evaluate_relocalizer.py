@@ -7,7 +7,7 @@ episode ``i`` with seed ``--seed-base + i``. Rows: the built-in layouts, the cha
 ``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30,
 200 steps after it), global-kidnap rows (``*_global_kidnap``: a global start, a teleport at
 step 150, 200 steps after it) and a tracking row (300 steps from the true pose: error and step
-time).
+time). ``--layout-files`` adds a global, a kidnap and a global-kidnap row for each layout file of yours.
 
 Tuning and reporting use disjoint seeds: defaults were chosen with ``--seed-base 5000
 --sym-seeds 100 101 102 103 104``; the report in docs/relocalizer_eval.md uses the defaults below.
@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.relocalizer_eval import (
+    LAYOUT_FILE_SUFFIXES,
     POLICIES,
     EpisodeSpec,
     count_pct,
@@ -47,6 +48,7 @@ VARIANTS = {"before": LEGACY_RELOCALIZER_OVERRIDES, "after": {}}
 """``before``: the relocalizer of SemReloc-v0 (the first release's defaults); ``after``: the env's defaults."""
 
 GLOBAL_ROWS = ("twin_rooms", "lab", "lab_changed", "procedural_sym", "three_rooms", "open_hall")
+"""Global starts, 400 steps (also the layouts the built-in rows name: a layout file's stem must differ)."""
 KIDNAP_ROWS = ("lab_kidnap", "three_rooms_kidnap")
 GLOBAL_KIDNAP_ROWS = ("lab_global_kidnap", "three_rooms_global_kidnap")
 """A global start, then a teleport at step ``GLOBAL_KIDNAP_STEP`` (global localization, then kidnapped)."""
@@ -54,13 +56,16 @@ GLOBAL_KIDNAP_STEP = 150
 TRACKING_ROWS = ("lab_tracking",)
 
 
-def specs_for(row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict, label: str) -> list[EpisodeSpec]:
+def specs_for(
+    row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict, label: str, files: dict[str, str] | None = None
+) -> list[EpisodeSpec]:
+    """The ``n`` episodes of ``row`` for one variant; ``files``: ``{row name: layout file}`` of `file_rows`."""
     global_kidnap = row.endswith("_global_kidnap")
     kidnap = row.endswith("_kidnap") and not global_kidnap
     tracking = row.endswith("_tracking")
     base = row.removesuffix("_global_kidnap").removesuffix("_kidnap").removesuffix("_tracking")
     scenario = "changed" if base == "lab_changed" else "nominal"
-    layout = "lab" if base == "lab_changed" else base
+    layout = "lab" if base == "lab_changed" else (files or {}).get(base, base)
     out = []
     for i in range(n):
         out.append(
@@ -79,6 +84,36 @@ def specs_for(row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict,
             )
         )
     return out
+
+
+def file_rows(paths) -> tuple[dict[str, str], list[str]]:
+    """``({row name: path}, rows)`` of ``--layout-files``: per file, named by its file name's stem, a global row,
+    a tracking-then-kidnap row (``*_kidnap``) and a global-then-kidnap row (``*_global_kidnap``).
+
+    Raises:
+        ValueError: a file that is not a valid layout (the message names it and the entry), two files with one
+            stem, or a stem a built-in row uses.
+    """
+    from semreloc_env.layouts import LayoutError, get_layout
+
+    files: dict[str, str] = {}
+    for path in paths:
+        path = str(path)
+        stem = Path(path).stem
+        if not path.endswith(LAYOUT_FILE_SUFFIXES):
+            raise ValueError(f"layout file {path!r}: must end in one of {LAYOUT_FILE_SUFFIXES}")
+        if stem in files or stem in GLOBAL_ROWS:
+            raise ValueError(
+                f"layout file {path!r}: its row name {stem!r} is taken "
+                f"({'by ' + repr(files[stem]) if stem in files else 'by a built-in row'}); rename the file"
+            )
+        try:
+            get_layout(path)
+        except (LayoutError, ValueError, OSError) as e:
+            raise ValueError(f"layout file {path!r}: {e}") from None
+        files[stem] = path
+    rows = [r for stem in files for r in (stem, f"{stem}_kidnap", f"{stem}_global_kidnap")]
+    return files, rows
 
 
 def table(results: list[dict], variants: list[str], rows: list[str]) -> str:
@@ -173,6 +208,9 @@ class Args:
     """JSON {"name": {MCLConfig overrides}} of more variants"""
     rows: tuple[str, ...] = GLOBAL_ROWS + KIDNAP_ROWS + GLOBAL_KIDNAP_ROWS + TRACKING_ROWS
     """rows to run ('none' = only the log rows)"""
+    layout_files: tuple[str, ...] = ()
+    """layout files of your own (.json / .yaml): each adds three rows named by the file name's stem: a global
+    start, a tracking start kidnapped at step 30, a global start kidnapped at step 150"""
     episodes: int = 200
     """episodes per row and variant"""
     before_episodes: int = 0
@@ -199,6 +237,7 @@ class Args:
             raise ValueError("episodes, before_episodes and log_starts must be >= 0 and sym_seeds not empty")
         if self.log_starts and not 1 <= self.log_steps <= 440:
             raise ValueError(f"log_steps must be in 1..440 (the log has 440 scans), got {self.log_steps}")
+        file_rows(self.layout_files)  # raises on a bad file, before any episode runs
 
     def all_variants(self) -> dict[str, dict]:
         """VARIANTS plus ``--extra``."""
@@ -213,14 +252,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(Args, argv, __doc__)
     variants = args.all_variants()
     names = list(args.variants)
-    rows = [r for r in args.rows if r and r != "none"]
+    files, extra_rows = file_rows(args.layout_files)
+    rows = [r for r in args.rows if r and r != "none"] + extra_rows
     specs = []
     for row in rows:  # grouped by row, so a worker meets few layouts (maps are cached per process)
         for v in names:
             n = args.before_episodes if v == "before" and args.before_episodes > 0 else args.episodes
             if row.endswith("_tracking"):
                 n = min(n, 30)  # tracking rows measure error and step time only
-            specs += specs_for(row, n, args.seed_base, list(args.sym_seeds), variants[v], v)
+            specs += specs_for(row, n, args.seed_base, list(args.sym_seeds), variants[v], v, files)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
