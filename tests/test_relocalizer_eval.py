@@ -224,3 +224,19 @@ def test_bad_layout_files_are_refused_before_any_episode(tmp_path):
             er.file_rows(paths)
     with pytest.raises(SystemExit):  # the command line refuses it while parsing
         er.main(["--rows", "none", "--layout-files", str(bad), "--out", str(tmp_path / "o")])
+
+
+def test_variants_are_checked_on_top_of_the_env_relocalizer_before_any_episode(tmp_path):
+    """A variant that turns the audit off but leaves an option on that needs it is refused while parsing, with
+    every option to switch off named (a documented command crashed inside its first episode)."""
+    from agents.experiments import evaluate_relocalizer as er
+
+    common = ["--rows", "none", "--log-starts", "0", "--log-tracking-seeds", "0", "--out", str(tmp_path / "o")]
+    with pytest.raises(SystemExit):
+        er.main(["--variants", "v4", "--extra", '{"v4": {"audit_window": 0}}', *common])
+    with pytest.raises(ValueError, match="variant 'v4': .*audit_after_surprise.*'audit_after_surprise': False"):
+        er.Args(variants=("v4",), extra='{"v4": {"audit_window": 0}}')
+    with pytest.raises(ValueError, match="audit_after_surprise needs.*; .*surprise_own_average needs"):
+        er.Args(variants=("v5",), extra='{"v5": {"surprise_ratio": 0.0}}')
+    ok = '{"v5": {"surprise_ratio": 0.0, "audit_after_surprise": false, "surprise_own_average": false}}'
+    assert er.main(["--variants", "v5", "--extra", ok, *common]) == 0

@@ -238,6 +238,12 @@ class Args:
         if self.log_starts and not 1 <= self.log_steps <= 440:
             raise ValueError(f"log_steps must be in 1..440 (the log has 440 scans), got {self.log_steps}")
         file_rows(self.layout_files)  # raises on a bad file, before any episode runs
+        from filters.localization.mcl import check_overrides
+        from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER
+
+        variants = self.all_variants()
+        for name in self.variants:  # on top of the env's relocalizer, as the episodes apply them
+            check_overrides(variants[name], f"variant {name!r}", DEFAULT_RELOCALIZER)
 
     def all_variants(self) -> dict[str, dict]:
         """VARIANTS plus ``--extra``."""
