@@ -268,7 +268,7 @@ class Args:
 
 ENV_ID = "SemReloc-v13"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
-generator, as v3's to v12's do.
+generator, as v3's to v13's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
 draws again; v4 to v7 change the relocalizer and v8 the maps, so every episode.)"""

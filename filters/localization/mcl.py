@@ -306,7 +306,7 @@ class MCLConfig:
             quarter-turned image of the truth in 5 of 16 episodes (docs/relocalizer.md, "After a kidnapping").
             Needs ``surprise_ratio`` and ``audit_window``.
         surprise_own_average: the surprise test compares with an average of its own: the fast average
-            (``alpha_fast``) of ``w_avg`` over every update, as ``w_fast``, but restarted at a surprise and
+            (``alpha_fast``) of ``w_avg`` over every update with beams, as ``w_fast``, but restarted at a surprise and
             never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
             ``w_fast``, which ``pf.c``'s rule restarts after every update whose ``w_fast`` fell below
             ``w_slow`` by any amount; a restarted average starts at the next update's ``w_avg``, so a
