@@ -206,8 +206,8 @@ def make_venv(config: TrainConfig, n_envs: int | None = None, seed: int | None =
     """The training ``VecEnv`` of ``config``: env ``k`` seeded ``seed + k``, each in SB3's ``Monitor``.
 
     ``n_envs`` / ``seed`` default to ``config.n_envs`` / ``config.seed``; the evaluation env is the same
-    kind with one env seeded ``config.eval_seed`` (SB3's ``EvalCallback`` warns when the kinds differ).
-    A ``"subproc"`` config's evaluation env is a ``DummyVecEnv`` all the same: one env needs no process.
+    kind with one env seeded ``config.eval_seed`` (SB3's ``EvalCallback`` warns when the kinds differ), but for
+    a ``"subproc"`` config a ``DummyVecEnv``: one env needs no process (`train` asks for that).
     """
     env_kwargs = dict(config.env_kwargs)
     n_envs = config.n_envs if n_envs is None else n_envs
@@ -233,7 +233,7 @@ def make_venv(config: TrainConfig, n_envs: int | None = None, seed: int | None =
         lambda: make_env(env_kwargs, env_id=config.env_id),
         n_envs=n_envs,
         seed=seed,
-        vec_env_cls=VEC_ENVS[config.vec_env] if n_envs > 1 else DummyVecEnv,
+        vec_env_cls=VEC_ENVS[config.vec_env],
     )
 
 
@@ -284,7 +284,8 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
             )
         )
     if config.eval_every is not None:
-        eval_venv = make_venv(config, n_envs=1, seed=config.eval_seed)
+        eval_kind = dataclasses.replace(config, vec_env="dummy") if config.vec_env == "subproc" else config
+        eval_venv = make_venv(eval_kind, n_envs=1, seed=config.eval_seed)
         eval_dir = str(Path(config.log_dir) / "eval")
         cbs.append(
             EvalCallback(

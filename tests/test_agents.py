@@ -373,3 +373,18 @@ def test_batched_training_evaluates_on_a_batched_env_of_one(tmp_path, recwarn):
     assert not [w for w in recwarn if "not of the same type" in str(w.message)]
     evals = np.load(tmp_path / "eval" / "evaluations.npz")
     assert list(evals["timesteps"]) == [64]
+
+
+def test_a_subproc_config_of_one_env_trains_in_a_subprocess(tmp_path):
+    """The evaluation env of a ``"subproc"`` config is a DummyVecEnv (one env needs no process), but the training
+    env is what the config asks for, also with one env (a review: the fallback had reached training too)."""
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    from agents.train import make_venv
+
+    config = TrainConfig(env_kwargs=FAST, n_envs=1, vec_env="subproc", log_dir=str(tmp_path))
+    venv = make_venv(config)
+    try:
+        assert isinstance(venv, SubprocVecEnv) and venv.num_envs == 1
+    finally:
+        venv.close()
