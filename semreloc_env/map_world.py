@@ -173,11 +173,15 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
         raise ValueError(f"simplify_m must be a number >= 0, got {simplify_m!r}")
     class_cells = np.zeros(grid.shape, dtype=bool)
     objects = []
-    on_free = {c: int((grid.class_mask(k) & grid.free_mask()).sum()) for k, c in enumerate(grid.class_names)}
+    # a class region one cell wider than its occupied cells is how maps are drawn (the mapping run's too): the
+    # world's object is then a cell larger than the lidar map's; farther out, the world has an obstacle the map lacks
+    away = grid.free_mask() & ~ndimage.binary_dilation(grid.occupied_mask(), np.ones((3, 3), bool))
+    on_free = {c: int((grid.class_mask(k) & away).sum()) for k, c in enumerate(grid.class_names)}
     on_free = {c: n for c, n in on_free.items() if n}
     if on_free:
         warnings.warn(
-            f"map {name!r}: class cells lie on cells the occupancy layer calls free ({on_free}); the simulated world "
+            f"map {name!r}: class cells lie on cells the occupancy layer calls free, farther than one cell from any "
+            f"occupied cell ({on_free}); the simulated world "
             "makes every class region a solid object, which its lidar sees and its robot cannot pass, but the "
             "relocalizer's lidar map does not have: mark those cells occupied in the map image if the lidar sees "
             "the object there (docs/real_robot.md, section 6)",
