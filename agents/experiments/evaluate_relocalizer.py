@@ -103,7 +103,7 @@ def file_rows(paths) -> tuple[dict[str, str], list[str]]:
         if not path.endswith(LAYOUT_FILE_SUFFIXES):
             raise ValueError(f"layout file {path!r}: must end in one of {LAYOUT_FILE_SUFFIXES}")
         if stem.endswith(("_kidnap", "_tracking")):
-            raise ValueError(f"layout file {path!r}: a row name ending in _kidnap or _tracking is a row kind's; rename it")
+            raise ValueError(f"layout file {path!r}: a name ending in _kidnap or _tracking names a row kind; rename it")
         if stem in files or stem in GLOBAL_ROWS:
             raise ValueError(
                 f"layout file {path!r}: its row name {stem!r} is taken "
