@@ -243,9 +243,10 @@ def count_detections(semantic: SemanticScan) -> int:
 _EMPTY_F = np.zeros(0)
 _EMPTY_F.setflags(write=False)
 _ZERO_START = np.zeros(1, np.int64)
-_NO_TABLE = np.zeros(1)
-_NO_STEP = np.zeros(3)
 _ZERO_START.setflags(write=False)
+_NO_TABLE = np.zeros(1)  # read-only, as `negative_table`'s: one compiled signature of `window_entry_kernel`
+_NO_TABLE.setflags(write=False)
+_NO_STEP = np.zeros(3)  # writable, as `audit.back_steps`' steps: likewise
 
 
 def negative_beams(labels: np.ndarray, ranges: np.ndarray, range_max_m: float, max_beams: int) -> np.ndarray:

@@ -461,26 +461,28 @@ class MCLConfig:
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
             raise ValueError(f"MCLConfig.backend must be 'numba' or 'numpy', got {self.backend!r}")
-        needs = []  # every option whose feature is off, in one message, with what to switch off
+        needs = {}  # option: (its "off" value, why it cannot stay on); all in one message
         if self.audit_after_surprise and not (self.surprise_ratio > 0 and self.audit_window > 0):
-            needs.append(
+            needs["audit_after_surprise"] = (
+                False,
                 "MCLConfig.audit_after_surprise needs the surprise test and the audit (surprise_ratio > 0 and "
-                f"audit_window > 0), got surprise_ratio={self.surprise_ratio}, audit_window={self.audit_window}"
+                f"audit_window > 0), got surprise_ratio={self.surprise_ratio}, audit_window={self.audit_window}",
             )
         if self.surprise_own_average and not self.surprise_ratio > 0:
-            needs.append(
+            needs["surprise_own_average"] = (
+                False,
                 "MCLConfig.surprise_own_average needs the surprise test (surprise_ratio > 0), got "
-                f"surprise_ratio={self.surprise_ratio}"
+                f"surprise_ratio={self.surprise_ratio}",
             )
         if self.audit_blur_margin > 0 and not (self.audit_screen and self.audit_window > 0):
-            needs.append(
+            needs["audit_blur_margin"] = (
+                0.0,
                 "MCLConfig.audit_blur_margin needs the audit's screen (audit_screen=True and audit_window > 0), "
-                f"got audit_screen={self.audit_screen}, audit_window={self.audit_window}"
+                f"got audit_screen={self.audit_screen}, audit_window={self.audit_window}",
             )
         if needs:
-            off = {"audit_after_surprise": False, "surprise_own_average": False, "audit_blur_margin": 0.0}
-            hint = {k: v for k, v in off.items() if any(f"MCLConfig.{k} " in n for n in needs)}
-            raise ValueError("; ".join(needs) + f" (to turn those off too, also set {hint})")
+            hint = {name: off for name, (off, _) in needs.items()}
+            raise ValueError("; ".join(why for _, why in needs.values()) + f" (to turn those off too, also set {hint})")
 
     def as_dict(self) -> dict:
         """Nested plain dict (sub-configs as dicts); ``MCLConfig(**cfg.as_dict())`` round-trips."""
