@@ -608,3 +608,56 @@ def test_the_surprise_tests_own_average_is_not_restarted_by_an_injection():
         MCLConfig(surprise_own_average=True)
     with pytest.raises(ValueError, match="surprise_own_average must be a bool"):
         MCLConfig(surprise_ratio=0.3, surprise_own_average=1)
+
+
+def test_the_semantic_surprise_test_sees_a_kidnapping_only_the_classes_reveal():
+    """``semantic_surprise_ratio``: the same walls and furniture, another class on the box in view (a kidnapping
+    into a look-alike room whose furniture is of other classes). The all-beam test does not see it: the lidar's
+    60 beams, which fit as before, outnumber the camera's. The camera's own test does, at the second such update
+    in a row; one such update alone (a mislabelled detection) or two with a fitting one between are no surprise."""
+    grid = _symmetric_grid()
+    chair = DEFAULT_CLASS_NAMES.index("chair")
+    sem = np.array(grid.semantic)
+    sem[chair], sem[CABINET] = sem[CABINET], 0.0
+    swapped = GridMap(np.array(grid.occupancy), RES, (0.0, 0.0), sem, DEFAULT_CLASS_NAMES)
+    pose = np.array([4.0, 1.5, np.pi])  # facing the cabinet, 1.5-2 m away
+    lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
+    seen, other = (simulate_semantic(g, pose, CAMERA_ANGLES, 5.0) for g in (grid, swapped))
+
+    def run(scans, **kw):
+        cfg = MCLConfig(n_particles=400, surprise_ratio=0.3, surprise_own_average=True,
+                        belief={"converged_hold_weight": 0.85}, **kw)  # fmt: skip
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
+        mcl.init_around(pose, [0.05, 0.05, 0.02])
+        return [mcl.update(lidar, s, force=True) for s in [seen] * 5 + scans]
+
+    on = {"semantic_surprise_ratio": 0.4}
+    steps = run([other, other], **on)
+    assert all(d.n_semantic_beams >= 3 and np.isfinite(d.w_semantic) and not d.surprise for d in steps[:5])
+    low = steps[5]
+    assert not low.surprise and low.w_semantic < 0.4 * steps[4].w_surprise  # low once: no surprise yet
+    assert steps[6].surprise and steps[6].semantic_surprise and steps[6].w_semantic < 0.4 * steps[4].w_semantic
+    assert not any(d.surprise for d in run([other, other]))  # off (v13): the lidar's beams outnumber the camera's
+    assert all(math.isnan(d.w_semantic) for d in run([other]))
+    assert not any(d.surprise for d in run([other, seen, other], **on))  # not in a row
+    assert run([other], semantic_surprise_updates=1, **on)[5].semantic_surprise
+    few = run([other, other], semantic_surprise_min_beams=99, **on)  # too few labelled beams to judge
+    assert not any(d.surprise for d in few) and all(math.isnan(d.w_semantic) for d in few)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"semantic_surprise_ratio": 0.4}, "semantic_surprise_ratio needs the surprise test with its own average"),
+        ({"semantic_surprise_ratio": 0.4, "surprise_ratio": 0.3}, "surprise_own_average=False"),
+        ({"semantic_surprise_ratio": 1.0}, r"semantic_surprise_ratio must be in \[0, 1\)"),
+        ({"semantic_surprise_ratio": float("nan")}, r"semantic_surprise_ratio must be in \[0, 1\)"),
+        ({"semantic_surprise_min_beams": 0}, "semantic_surprise_min_beams must be an int >= 1"),
+        ({"semantic_surprise_min_beams": 2.5}, "semantic_surprise_min_beams must be an int >= 1"),
+        ({"semantic_surprise_updates": 0}, "semantic_surprise_updates must be an int >= 1"),
+        ({"semantic_surprise_updates": True}, "semantic_surprise_updates must be an int >= 1"),
+    ],
+)
+def test_bad_semantic_surprise_settings_are_refused(kw, match):
+    with pytest.raises(ValueError, match=match):
+        MCLConfig(**kw)

@@ -1,5 +1,6 @@
-"""The registered ids behave as their Version History says: SemReloc-v12 (v11 with maps from a drive that also
-enters narrow passages), SemReloc-v11 (v10 with maps whose space beyond the
+"""The registered ids behave as their Version History says: SemReloc-v14 (v13 with a surprise test of the
+camera's own), SemReloc-v13 (v12 whose surprise test keeps its own average), SemReloc-v12 (v11 with maps from a
+drive that also enters narrow passages), SemReloc-v11 (v10 with maps whose space beyond the
 lidar's returns is cleared by its beams without a return), SemReloc-v10 (v9 with maps without stray class
 cells and a screen pause that follows the place), SemReloc-v9 (v8 whose convergence audit also
 screens the whole map), SemReloc-v8 (v7 with the maps of the mapping run's version 3), SemReloc-v7 (v6's
@@ -46,6 +47,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v14",
         "SemReloc-v13",
         "SemReloc-v12",
         "SemReloc-v11",
@@ -68,6 +70,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v14", typed),
         ("SemReloc-v13", typed),
         ("SemReloc-v12", typed),
         ("SemReloc-v11", typed),
@@ -103,7 +106,14 @@ def test_typed_observation_space():
 @pytest.mark.parametrize(
     "new_id, old_id, kw, start, info_key, missing",
     [
-        ("SemReloc-v2", "SemReloc-v1", FAST, START, "mcl", ("ess", "mean_lidar_beam_likelihood", "audit_log_ratio")),
+        (
+            "SemReloc-v2",
+            "SemReloc-v1",
+            FAST,
+            START,
+            "mcl",
+            ("ess", "mean_lidar_beam_likelihood", "audit_log_ratio", "w_semantic"),
+        ),
         ("SemSlam-v1", "SemSlam-v0", SLAM_FAST, SLAM_START, "slam_error", ("landmark",)),
     ],
 )
@@ -578,7 +588,9 @@ def test_v13_is_v12_whose_surprise_test_keeps_its_own_average():
     v13, v12 = make("SemReloc-v13", **FAST).unwrapped, make("SemReloc-v12", **FAST).unwrapped
     assert v13.mcl_config == dataclasses.replace(v12.mcl_config, surprise_own_average=True)
     assert v13.mapping_run_version == v12.mapping_run_version == "6"
-    venv = gym.make_vec("SemRelocVec-v13", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*out of date.*", category=DeprecationWarning)
+        venv = gym.make_vec("SemRelocVec-v13", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
     assert venv.envs[0].unwrapped.mcl_config.surprise_own_average
     venv.close()
 
@@ -605,3 +617,40 @@ def test_v13_is_v12_whose_surprise_test_keeps_its_own_average():
                 break
     assert surprises["SemReloc-v12"] == 0 and wrong["SemReloc-v12"] > 10
     assert surprises["SemReloc-v13"] > 0 and wrong["SemReloc-v13"] == 0
+
+
+def test_v14_is_v13_with_a_surprise_test_of_the_cameras_own():
+    """v14 differs from v13 only in its relocalizer's semantic surprise test (`MCLConfig.semantic_surprise_ratio`).
+    A tracking start in ``twin_rooms``, then a kidnapping to the half-turned image of the pose, where the walls and
+    furniture shapes are the same and the classes differ: v13 raises no surprise and its held convergence keeps
+    the belief in the old room for 44 steps while the camera contradicts it; v14's camera test raises one at
+    the second contradicting update, and the belief stops calling the old room converged."""
+    v14, v13 = make("SemReloc-v14", **FAST).unwrapped, make("SemReloc-v13", **FAST).unwrapped
+    assert v14.mcl_config == dataclasses.replace(v13.mcl_config, semantic_surprise_ratio=0.4)
+    assert v14.mapping_run_version == v13.mapping_run_version == "6"
+    venv = gym.make_vec("SemRelocVec-v14", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    assert venv.envs[0].unwrapped.mcl_config.semantic_surprise_ratio == 0.4
+    venv.close()
+
+    from agents.policies import POLICIES
+
+    surprises, wrong = {}, {}
+    for env_id in ("SemReloc-v13", "SemReloc-v14"):
+        env = make(env_id, layout="twin_rooms", max_episode_steps=120)
+        policy = POLICIES["wall_follow"](0)
+        env = policy.wrap(env)
+        policy.reset()
+        start = [1.669010996218475, 4.252202990915117, -1.6954030247145493]
+        kidnap = [10.511201514783071, 3.186554615799275, 1.4461896288752438]  # the image of the pose at step 29
+        options = {"tracking": True, "pose": start, "kidnap_at_step": 30, "kidnap_pose": kidnap}
+        obs, info = env.reset(seed=8, options=options)
+        surprises[env_id], wrong[env_id] = 0, 0
+        for t in range(1, 121):
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            if t >= 30:
+                surprises[env_id] += bool(info["mcl"]["semantic_surprise"])
+                wrong[env_id] += info["belief"]["converged"] and info["pose_error"]["position"] > 0.5
+            if terminated or truncated:
+                break
+    assert surprises["SemReloc-v13"] == 0 and wrong["SemReloc-v13"] > 30
+    assert surprises["SemReloc-v14"] > 0 and wrong["SemReloc-v14"] <= 6

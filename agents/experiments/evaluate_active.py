@@ -107,16 +107,17 @@ class Args:
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
     """relocalizer particles"""
-    env_id: EvaluatedEnvId = "SemReloc-v13"
-    """the env the episodes run in: SemReloc-v13 (the newest), SemReloc-v12, SemReloc-v11, SemReloc-v10, SemReloc-v9,
-    SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them;
-    v12 differs from v13 only in its relocalizer's surprise test, which no global start meets before its first
-    convergence; the same worlds and sensors, the maps of the mapping run's version 5, whose drive skips passages
-    between its lattice's rows and columns (v11), also with space beyond the lidar's returns left unknown (v10), the
-    maps of the mapping run's version 3, with stray class cells, and the screen's pause blind to place (v9), the
-    relocalizer's audit without its screen of the whole map (v8 and older), the maps of the mapping run's version 2 (v7
-    and older), the relocalizer with the audit's coarse-to-fine search only (v6), also without the hold of a convergence
-    (v5), without the convergence audit (v4) and without negative evidence (v3))"""
+    env_id: EvaluatedEnvId = "SemReloc-v14"
+    """the env the episodes run in: SemReloc-v14 (the newest), SemReloc-v13, SemReloc-v12, SemReloc-v11,
+    SemReloc-v10, SemReloc-v9, SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to
+    repeat the tables made with them; v13 and v12 differ from v14 only in their relocalizer's surprise tests, which
+    no global start meets before its first convergence; the same worlds and sensors, the maps of the mapping run's
+    version 5, whose drive skips passages between its lattice's rows and columns (v11), also with space beyond the
+    lidar's returns left unknown (v10), the maps of the mapping run's version 3, with stray class cells, and the
+    screen's pause blind to place (v9), the relocalizer's audit without its screen of the whole map (v8 and older),
+    the maps of the mapping run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search
+    only (v6), also without the hold of a convergence (v5), without the convergence audit (v4) and without negative
+    evidence (v3))"""
     relocalizer: JsonDict = field(default_factory=dict)
     """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
@@ -266,9 +267,9 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v13"
+ENV_ID = "SemReloc-v14"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
-generator, as v3's to v13's do.
+generator, as v3's to v14's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3
 gives the same episodes as v2 on every pair but those in the 30 look-alike pairs whose layouts it
 draws again; v4 to v7 change the relocalizer and v8 the maps, so every episode.)"""

@@ -314,6 +314,17 @@ class MCLConfig:
             new normal instead of raising a surprise (all three kidnappings after which v12's belief
             converged at a wrong place, docs/relocalizer.md, "The surprise test's own average").
             Needs ``surprise_ratio``.
+        semantic_surprise_ratio: in ``[0, 1)`` (0 = off): the camera's own surprise test. Once the belief has
+            been converged since the last init, an update with at least ``semantic_surprise_min_beams`` labelled
+            camera beams whose average semantic likelihood per labelled beam ``w_sem`` (the particles' prior
+            weights times ``exp(semantic_ll / n_semantic)``) falls below ``semantic_surprise_ratio`` times the
+            fast average (``alpha_fast``) of ``w_sem`` over the earlier such updates is a surprise too, with every
+            consequence of ``surprise_ratio``'s. It sees a kidnapping that only the objects' classes reveal (the
+            same walls and furniture shapes, other classes), which the all-beam test misses: there the lidar's
+            beams outnumber the labelled camera beams. The average restarts at any surprise. Needs
+            ``surprise_ratio`` and ``surprise_own_average``.
+        semantic_surprise_min_beams: labelled camera beams an update needs to be judged by (and to enter the
+            average of) the semantic surprise test: a few beams on one object average too noisily.
         max_update_log_ratio: cap on one update's tempered log-likelihood spread (inf = none).
         lidar_on_rotation: use the lidar factor in updates triggered by rotation alone.
         backend: ``"numba"`` or ``"numpy"`` (reference) measurement kernel.
@@ -369,6 +380,9 @@ class MCLConfig:
     surprise_ratio: float = 0.0
     audit_after_surprise: bool = False
     surprise_own_average: bool = False
+    semantic_surprise_ratio: float = 0.0
+    semantic_surprise_min_beams: int = 3
+    semantic_surprise_updates: int = 2
     max_update_log_ratio: float = math.inf
     lidar_on_rotation: bool = True
     backend: str = "numba"
@@ -417,6 +431,14 @@ class MCLConfig:
         if not (is_int(h) and h >= 0):
             raise ValueError(f"MCLConfig.holdoff_min_detections must be an int >= 0, got {h!r}")
         object.__setattr__(self, "holdoff_min_detections", int(h))
+        m = self.semantic_surprise_min_beams
+        if not (is_int(m) and m >= 1):
+            raise ValueError(f"MCLConfig.semantic_surprise_min_beams must be an int >= 1 (labelled beams), got {m!r}")
+        object.__setattr__(self, "semantic_surprise_min_beams", int(m))
+        k = self.semantic_surprise_updates
+        if not (is_int(k) and k >= 1):
+            raise ValueError(f"MCLConfig.semantic_surprise_updates must be an int >= 1, got {k!r}")
+        object.__setattr__(self, "semantic_surprise_updates", int(k))
         numbers = {  # name: (test, what it must be)
             "update_min_d_m": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "update_min_a_rad": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
@@ -437,6 +459,7 @@ class MCLConfig:
             "audit_blur_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0 (0 = off)"),
             "audit_candidates_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "surprise_ratio": (lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = off)"),
+            "semantic_surprise_ratio": (lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = off)"),
             "max_update_log_ratio": (lambda v: v > 0 and not math.isnan(v), "> 0 (inf = no cap)"),
         }
         for name, (ok, what) in numbers.items():
@@ -473,6 +496,13 @@ class MCLConfig:
                 False,
                 "MCLConfig.surprise_own_average needs the surprise test (surprise_ratio > 0), got "
                 f"surprise_ratio={self.surprise_ratio}",
+            )
+        if self.semantic_surprise_ratio > 0 and not (self.surprise_ratio > 0 and self.surprise_own_average):
+            needs["semantic_surprise_ratio"] = (
+                0.0,
+                "MCLConfig.semantic_surprise_ratio needs the surprise test with its own average (surprise_ratio > 0 "
+                f"and surprise_own_average=True), got surprise_ratio={self.surprise_ratio}, "
+                f"surprise_own_average={self.surprise_own_average}",
             )
         if self.audit_blur_margin > 0 and not (self.audit_screen and self.audit_window > 0):
             needs["audit_blur_margin"] = (
@@ -543,7 +573,13 @@ class UpdateDiagnostics:
             fewer than ``audit_window`` updates before, or nothing lay outside the hypothesis).
         n_audit_injected: particles the audit added around that alternative (0 or
             ``cluster_min_particles``).
-        surprise: this update was a surprise (`MCLConfig.surprise_ratio`).
+        surprise: this update was a surprise (`MCLConfig.surprise_ratio`, or the semantic test's).
+        semantic_surprise: the semantic surprise test found this update surprising
+            (`MCLConfig.semantic_surprise_ratio`; ``surprise`` is then True too).
+        w_surprise: the surprise test's own average after this update (`MCLConfig.surprise_own_average`; 0
+            when it is off).
+        w_semantic: this update's average semantic likelihood per labelled beam, as the semantic surprise
+            test judged it (NaN when it did not: the test is off, or too few labelled beams).
     """
 
     updated: bool = False
@@ -566,6 +602,9 @@ class UpdateDiagnostics:
     audit_log_ratio: float = float("nan")
     n_audit_injected: int = 0
     surprise: bool = False
+    semantic_surprise: bool = False
+    w_surprise: float = 0.0
+    w_semantic: float = float("nan")
 
     def as_dict(self) -> dict:
         """Plain Python values for a Gymnasium ``info``."""
@@ -640,6 +679,8 @@ class MonteCarloLocalizer:
         self._w_slow = 0.0
         self._w_fast = 0.0
         self._w_surprise = 0.0  # the surprise test's own average (`MCLConfig.surprise_own_average`)
+        self._w_sem_surprise = 0.0  # the semantic surprise test's average (`MCLConfig.semantic_surprise_ratio`)
+        self._sem_low_run = 0  # consecutive updates the semantic surprise test found low
         self.n_updates = 0
         """Measurement updates that ran since the last init."""
         self._window: audit.Window = []
@@ -882,7 +923,8 @@ class MonteCarloLocalizer:
             return diag
 
         p_inj = 0.0
-        surprise = False
+        surprise = semantic_surprise = False
+        w_sem = math.nan
         if (c.augmented or c.surprise_ratio > 0.0) and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
             prior = np.exp(self._logw)
@@ -891,11 +933,28 @@ class MonteCarloLocalizer:
             # average too noisily to compare with the averages the lidar's updates made
             ref = self._w_surprise if c.surprise_own_average else self._w_fast
             surprise = self._ever_converged and beams.n_lidar > 0 and ref > 0.0 and w_avg < c.surprise_ratio * ref
+            if c.semantic_surprise_ratio > 0.0 and beams.n_semantic >= c.semantic_surprise_min_beams:
+                per_sem = np.where(
+                    np.isfinite(ll_s), np.exp(np.where(np.isfinite(ll_s), ll_s, 0.0) / beams.n_semantic), 0.0
+                )
+                w_sem = float(_blas.dot(prior, per_sem))
+                ref_s = self._w_sem_surprise
+                low = self._ever_converged and ref_s > 0.0 and w_sem < c.semantic_surprise_ratio * ref_s
+                self._sem_low_run = self._sem_low_run + 1 if low else 0
+                semantic_surprise = self._sem_low_run >= c.semantic_surprise_updates
+            elif c.semantic_surprise_ratio > 0.0:
+                self._sem_low_run = 0
             if c.surprise_own_average:
                 # as w_fast, but restarted at a surprise (the level after the jump is the new normal) and never
                 # by an injection
+                surprise = surprise or semantic_surprise
                 fresh = surprise or self._w_surprise == 0.0
                 self._w_surprise = w_avg if fresh else self._w_surprise + c.alpha_fast * (w_avg - self._w_surprise)
+                if surprise:
+                    self._w_sem_surprise, self._sem_low_run = 0.0, 0
+                if math.isfinite(w_sem):
+                    a = self._w_sem_surprise
+                    self._w_sem_surprise = w_sem if a == 0.0 else a + c.alpha_fast * (w_sem - a)
             if surprise:
                 self._held, self._window, self._cleared, self._was_converged = None, [], None, False
                 self._screen_cleared = None
@@ -949,6 +1008,9 @@ class MonteCarloLocalizer:
             audit_log_ratio=audit_ratio,
             n_audit_injected=n_audit,
             surprise=surprise,
+            semantic_surprise=semantic_surprise,
+            w_surprise=self._w_surprise,
+            w_semantic=w_sem,
         )
         self.last_diagnostics = diag
         if c.belief.converged_min_updates > 1:

@@ -1,4 +1,4 @@
-"""``SemReloc-v13`` (and ``-v12`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v14`` (and ``-v13`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -107,10 +107,18 @@ RELOCALIZER_V12 = dataclasses.replace(RELOCALIZER_V10, audit_after_surprise=True
 once a surprise (a kidnapping) has shown the pose lost (`MCLConfig.audit_after_surprise`). A global start
 audits every convergence as v10's does, with the same bits."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V12, surprise_own_average=True)
+RELOCALIZER_V13 = dataclasses.replace(RELOCALIZER_V12, surprise_own_average=True)
 """The relocalizer of SemReloc-v13: `RELOCALIZER_V12` whose surprise test compares with an average of its own,
 which augmented MCL's injections do not restart (`MCLConfig.surprise_own_average`). A global episode runs as
 v12's up to its first convergence, which ends it when it is correct."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V13, semantic_surprise_ratio=0.4)
+"""The relocalizer of SemReloc-v14: `RELOCALIZER_V13` with the camera's own surprise test
+(`MCLConfig.semantic_surprise_ratio` 0.4: two updates in a row, each with at least 3 labelled camera beams, whose
+average semantic likelihood per labelled beam falls below 0.4 times its fast average are a surprise). It sees a
+kidnapping that only the objects' classes reveal, which the all-beam test does not. Chosen on class-only
+kidnappings in ``three_rooms`` and ``twin_rooms`` and tracking episodes in four built-in layouts; evaluated on an
+outside tester's layout (docs/relocalizer.md, "A surprise test of the camera's own")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -242,15 +250,25 @@ class SemRelocEnv(SemRelocBase):
     made by ``gym.make``: at that step the robot is teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
     A global episode (``tracking`` not set) ends at its first correct convergence, often before
     ``kidnap_at_step``: then no kidnap happens (``info["kidnapped"]`` stays False). To kidnap a
-    localized robot, reset with ``tracking=True``. The relocalizer notices a kidnap from the lidar's fit
-    (its surprise test, armed once the belief has been converged); one that only the objects' classes
-    reveal, or one into an exact look-alike, goes unnoticed (docs/relocalizer.md, "What the surprise test
-    cannot see"). One kidnap per episode; ``info["kidnapped"]`` says from which step.
+    localized robot, reset with ``tracking=True``. The relocalizer notices a kidnap from the scans' fit
+    (its surprise tests, armed once the belief has been converged), one that only the objects' classes reveal
+    once two camera updates in a row contradict the believed classes; one into an exact look-alike goes
+    unnoticed (docs/relocalizer.md, "What the surprise test cannot see", "A surprise test of the camera's own"). One kidnap per episode; ``info["kidnapped"]`` says from which step.
     A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
     checks them in its outermost wrapper (`semreloc_env.wrappers.CheckedReset`), so the
     time limit keeps counting the old episode.
 
     ## Version History
+    * v14: the relocalizer also has a surprise test of the camera's own (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V13`
+      with ``semantic_surprise_ratio=0.4``): two updates in a row whose labelled camera beams the belief explains
+      far worse than of late are a surprise, with the consequences of the all-beam test's. v13's test judged all
+      beams together, and the lidar's 60 outnumber the few labelled camera beams, so a kidnapping into a room of
+      the same walls and furniture shapes but other classes raised no surprise, and the belief's held convergence
+      kept it in the old room while the camera contradicted it (docs/relocalizer.md, "A surprise test of the
+      camera's own"). ``info["mcl"]`` gains ``semantic_surprise``, ``w_surprise`` and ``w_semantic`` (in every
+      version; ``w_semantic`` only in steps where that test judged an update). A global episode runs as v13's up
+      to its first convergence. Maps, worlds, sensors, observations and rewards are v13's (`SemRelocEnvV13` is
+      v13).
     * v13: the relocalizer's surprise test (a scan the belief explains far worse than of late: a kidnapping)
       compares with an average of its own (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V12` with
       ``surprise_own_average``). v12's compared with augmented MCL's fast average, which AMCL's rule restarts
@@ -642,10 +660,18 @@ class SemRelocEnv(SemRelocBase):
         return state
 
 
-class SemRelocEnvV12(SemRelocEnv):
+class SemRelocEnvV13(SemRelocEnv):
+    """``SemReloc-v13``: `SemRelocEnv` with the relocalizer of v13 (`RELOCALIZER_V13`: no surprise test of the
+    camera's own). Otherwise identical to ``SemReloc-v14``. Kept so that results made with v13 can be reproduced;
+    new work should use ``SemReloc-v14``."""
+
+    default_relocalizer = RELOCALIZER_V13
+
+
+class SemRelocEnvV12(SemRelocEnvV13):
     """``SemReloc-v12``: `SemRelocEnv` with the relocalizer of v12 (`RELOCALIZER_V12`: its surprise test compares
     with augmented MCL's fast average, which injections restart). Otherwise identical to ``SemReloc-v13``. Kept
-    so that results made with v12 can be reproduced; new work should use ``SemReloc-v13``."""
+    so that results made with v12 can be reproduced; new work should use ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V12
 
@@ -654,7 +680,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
     """``SemReloc-v11``: `SemRelocEnvV12` with the maps of the mapping run's version 5 (a drive that skips passages
     between its lattice's rows and columns) and the relocalizer of v10 and v11 (`RELOCALIZER_V10`: no audit in
     a tracking episode, also after a surprise). Otherwise identical to ``SemReloc-v12``. Kept so that results
-    made with v11 can be reproduced; new work should use ``SemReloc-v13``."""
+    made with v11 can be reproduced; new work should use ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V10
     mapping_run_version = "5"
@@ -663,7 +689,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
 class SemRelocEnvV10(SemRelocEnvV11):
     """``SemReloc-v10``: `SemRelocEnvV11` with the maps of the mapping run's version 4 (space the lidar's returns
     did not reach left unknown). Otherwise identical to ``SemReloc-v11``. Kept so that results made with v10
-    can be reproduced; new work should use ``SemReloc-v13``."""
+    can be reproduced; new work should use ``SemReloc-v14``."""
 
     mapping_run_version = "4"
 
@@ -681,7 +707,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
 class SemRelocEnvV8(SemRelocEnvV9):
     """``SemReloc-v8``: `SemRelocEnvV9` with the relocalizer of v7 and v8 (`RELOCALIZER_V7`: the convergence
     audit searches near its candidates and the particles only). Otherwise identical to ``SemReloc-v9``.
-    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v13``."""
+    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V7
 
@@ -690,7 +716,7 @@ class SemRelocEnvV7(SemRelocEnvV8):
     """``SemReloc-v7``: `SemRelocEnvV8` with the maps of the mapping run's version 2, whose camera beams
     without a return (objects nearer than the camera's minimum range among them) cleared the classes along
     the camera's range. Otherwise identical to ``SemReloc-v8``. Kept so that results made with v7 can be
-    reproduced; new work should use ``SemReloc-v13``."""
+    reproduced; new work should use ``SemReloc-v14``."""
 
     mapping_run_version = "2"
 
@@ -707,7 +733,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
 class SemRelocEnvV5(SemRelocEnvV6):
     """``SemReloc-v5``: `SemRelocEnvV6` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
-    results made with v5 can be reproduced; new work should use ``SemReloc-v13``."""
+    results made with v5 can be reproduced; new work should use ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V5
 
@@ -715,7 +741,7 @@ class SemRelocEnvV5(SemRelocEnvV6):
 class SemRelocEnvV4(SemRelocEnvV5):
     """``SemReloc-v4``: `SemRelocEnvV5` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
     audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
-    reproduced; new work should use ``SemReloc-v13``."""
+    reproduced; new work should use ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V4
 
@@ -723,7 +749,7 @@ class SemRelocEnvV4(SemRelocEnvV5):
 class SemRelocEnvV3(SemRelocEnvV4):
     """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v13``."""
+    v3 can be reproduced; new work should use ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -731,7 +757,7 @@ class SemRelocEnvV3(SemRelocEnvV4):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v13``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v14``."""
 
     procedural_version = 1
 
@@ -740,7 +766,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v13``."""
+    v1 keep working; new work should use ``SemReloc-v14``."""
 
     observation_layout = "flat"
     info_missing = "none"

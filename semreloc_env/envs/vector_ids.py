@@ -32,9 +32,14 @@ def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
     return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
 
 
+def semreloc_vec_v14(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v14``: ``num_envs`` ``SemReloc-v14`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v14"``)."""
+    return _loop("SemReloc-v14", num_envs, kwargs)
+
+
 def semreloc_vec_v13(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
-    """``SemRelocVec-v13``: ``num_envs`` ``SemReloc-v13`` robots in one process
-    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v13"``)."""
+    """``SemRelocVec-v13``: ``num_envs`` ``SemReloc-v13`` robots in one process."""
     return _loop("SemReloc-v13", num_envs, kwargs)
 
 
