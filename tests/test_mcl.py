@@ -624,18 +624,24 @@ def test_the_semantic_surprise_test_sees_a_kidnapping_only_the_classes_reveal():
     lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0)
     seen, other = (simulate_semantic(g, pose, CAMERA_ANGLES, 5.0) for g in (grid, swapped))
 
-    def run(scans, **kw):
+    blank = SemanticScan(other.ranges, other.angles, np.zeros_like(other.labels), other.range_max_m)
+    one = np.zeros_like(other.labels)
+    one[np.flatnonzero(other.labels)[0]] = other.labels[np.flatnonzero(other.labels)[0]]
+    glimpse = SemanticScan(other.ranges, other.angles, one, other.range_max_m)  # one labelled beam: not judged
+
+    def run(scans, belief=None, **kw):
         cfg = MCLConfig(n_particles=400, surprise_ratio=0.3, surprise_own_average=True,
-                        belief={"converged_hold_weight": 0.85}, **kw)  # fmt: skip
+                        belief=belief or {"converged_hold_weight": 0.85}, **kw)  # fmt: skip
         mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(5))
         mcl.init_around(pose, [0.05, 0.05, 0.02])
-        return [mcl.update(lidar, s, force=True) for s in [seen] * 5 + scans]
+        # a scan, or (lidar, scan): None for a turn in place without the lidar
+        return [mcl.update(*(s if isinstance(s, tuple) else (lidar, s)), force=True) for s in [seen] * 5 + scans]
 
     on = {"semantic_surprise_ratio": 0.4}
     steps = run([other, other], **on)
     assert all(d.n_semantic_beams >= 3 and np.isfinite(d.w_semantic) and not d.surprise for d in steps[:5])
     low = steps[5]
-    assert not low.surprise and low.w_semantic < 0.4 * steps[4].w_surprise  # low once: no surprise yet
+    assert not low.surprise and low.w_semantic < 0.4 * min(d.w_semantic for d in steps[:5])  # low once: no surprise
     assert steps[6].surprise and steps[6].semantic_surprise and steps[6].w_semantic < 0.4 * steps[4].w_semantic
     assert not any(d.surprise for d in run([other, other]))  # off (v13): the lidar's beams outnumber the camera's
     assert all(math.isnan(d.w_semantic) for d in run([other]))
@@ -643,6 +649,15 @@ def test_the_semantic_surprise_test_sees_a_kidnapping_only_the_classes_reveal():
     assert run([other], semantic_surprise_updates=1, **on)[5].semantic_surprise
     few = run([other, other], semantic_surprise_min_beams=99, **on)  # too few labelled beams to judge
     assert not any(d.surprise for d in few) and all(math.isnan(d.w_semantic) for d in few)
+    for between in (glimpse, (lidar, blank), (None, blank)):  # an update not judged breaks the run, beamless too
+        steps = run([other, between, other], **on)
+        assert math.isnan(steps[6].w_semantic) and not any(d.surprise for d in steps)
+    # after the surprise the contradicting level is the new normal: no second surprise while it lasts
+    steps = run([other] * 5, **on)
+    assert [d.semantic_surprise for d in steps[5:]] == [False, True, False, False, False]
+    # armed only once the belief has been converged: here it never is
+    never = run([other, other, other], belief={"converged_pos_std_m": 1e-6}, **on)
+    assert not any(d.surprise for d in never) and np.isfinite(never[5].w_semantic)
 
 
 @pytest.mark.parametrize(

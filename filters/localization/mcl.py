@@ -877,6 +877,7 @@ class MonteCarloLocalizer:
                 n_particles=n,
                 w_slow=self._w_slow,
                 w_fast=self._w_fast,
+                w_surprise=self._w_surprise,
             )
             self.last_diagnostics = diag
             return diag
@@ -931,6 +932,8 @@ class MonteCarloLocalizer:
         p_inj = 0.0
         surprise = semantic_surprise = False
         w_sem = math.nan
+        if beams.n_semantic < c.semantic_surprise_min_beams:
+            self._sem_low_run = 0  # not judged: breaks the semantic test's run (a beamless update too)
         if (c.augmented or c.surprise_ratio > 0.0) and n_beams:
             per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
             prior = np.exp(self._logw)
@@ -948,8 +951,6 @@ class MonteCarloLocalizer:
                 low = self._ever_converged and ref_s > 0.0 and w_sem < c.semantic_surprise_ratio * ref_s
                 self._sem_low_run = self._sem_low_run + 1 if low else 0
                 semantic_surprise = self._sem_low_run >= c.semantic_surprise_updates
-            elif c.semantic_surprise_ratio > 0.0:
-                self._sem_low_run = 0
             surprise = surprise or semantic_surprise
             if c.surprise_own_average:
                 # as w_fast, but restarted at a surprise (the level after the jump is the new normal) and never

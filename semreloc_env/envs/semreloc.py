@@ -698,7 +698,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
     """``SemReloc-v9``: `SemRelocEnvV10` with the maps of the mapping run's version 3 (stray class cells kept)
     and the relocalizer of v9 (`RELOCALIZER_V9`: the screen's pause ignores where the belief is). Otherwise
     identical to ``SemReloc-v10``. Kept so that results made with v9 can be reproduced; new work should use
-    ``SemReloc-v13``."""
+    ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V9
     mapping_run_version = "3"
@@ -725,7 +725,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
     """``SemReloc-v6``: `SemRelocEnvV7` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
     coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
     identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
-    ``SemReloc-v13``."""
+    ``SemReloc-v14``."""
 
     default_relocalizer = RELOCALIZER_V6
 
@@ -774,6 +774,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v13``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v14``."""
 
     default_relocalizer = LEGACY_RELOCALIZER
