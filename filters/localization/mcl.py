@@ -617,6 +617,13 @@ class UpdateDiagnostics:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
+def _beam_average(prior: np.ndarray, ll: np.ndarray, n_beams: int) -> float:
+    """``sum_i prior_i * exp(ll_i / n_beams)``: the particles' average likelihood per beam (0 where ``ll`` is not
+    finite), summed in one order whatever the BLAS thread count."""
+    fin = np.isfinite(ll)
+    return float(_blas.dot(prior, np.where(fin, np.exp(np.where(fin, ll, 0.0) / n_beams), 0.0)))
+
+
 class MonteCarloLocalizer:
     """Monte Carlo localization with a lidar x semantic likelihood field (paper 004).
 
@@ -935,18 +942,14 @@ class MonteCarloLocalizer:
         if beams.n_semantic < c.semantic_surprise_min_beams:
             self._sem_low_run = 0  # not judged: breaks the semantic test's run (a beamless update too)
         if (c.augmented or c.surprise_ratio > 0.0) and n_beams:
-            per_beam = np.where(np.isfinite(ll), np.exp(np.where(np.isfinite(ll), ll, 0.0) / n_beams), 0.0)
             prior = np.exp(self._logw)
-            w_avg = float(_blas.dot(prior, per_beam))  # one order whatever the BLAS thread count
+            w_avg = _beam_average(prior, ll, n_beams)
             # judged on updates that used the lidar only: a turn-in-place update's few camera beams
             # average too noisily to compare with the averages the lidar's updates made
             ref = self._w_surprise if c.surprise_own_average else self._w_fast
             surprise = self._ever_converged and beams.n_lidar > 0 and ref > 0.0 and w_avg < c.surprise_ratio * ref
             if c.semantic_surprise_ratio > 0.0 and beams.n_semantic >= c.semantic_surprise_min_beams:
-                per_sem = np.where(
-                    np.isfinite(ll_s), np.exp(np.where(np.isfinite(ll_s), ll_s, 0.0) / beams.n_semantic), 0.0
-                )
-                w_sem = float(_blas.dot(prior, per_sem))
+                w_sem = _beam_average(prior, ll_s, beams.n_semantic)
                 ref_s = self._w_sem_surprise
                 low = self._ever_converged and ref_s > 0.0 and w_sem < c.semantic_surprise_ratio * ref_s
                 self._sem_low_run = self._sem_low_run + 1 if low else 0
