@@ -716,3 +716,47 @@ def test_a_surprise_turns_the_audit_on_in_a_tracking_episode():
     assert audited[True] > 0 and wrong[True] == 0
     with pytest.raises(ValueError, match="audit_after_surprise needs the surprise test and the audit"):
         MCLConfig(audit_after_surprise=True, audit_window=20)  # no surprise test: it would do nothing
+
+
+def test_the_audit_a_surprise_turned_on_turns_off_once_it_clears():
+    """``audit_after_surprise_once``: a class-only kidnapping in ``twin_rooms`` (the half-turned twin room, whose
+    objects are of other classes). The camera's surprise turns the audit on; once an audit has cleared the new
+    convergence, the audit is off again, as before the surprise. Without the option the audit stays on, runs at
+    every later convergence, and here adds the twin room back to a belief that had converged at the truth."""
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
+
+    options = {
+        "tracking": True,
+        "pose": [1.2260018482137571, 2.307662350691447, -2.7008912275608106],
+        "kidnap_at_step": 30,
+        "kidnap_pose": [11.153919099259081, 4.092096969406136, 1.9407014260289839],
+    }
+    later, added, at_truth = {}, {}, {}
+    for once in (False, True):
+        env = gym.make("SemReloc-v14", layout="twin_rooms", max_episode_steps=200,
+                       relocalizer={"audit_after_surprise_once": once})  # fmt: skip
+        policy = POLICIES["viewpoint"](0)
+        env = policy.wrap(env)
+        policy.reset()
+        obs, info = env.reset(seed=9, options=options)
+        cleared, later[once], added[once], at_truth[once] = None, 0, 0, 0
+        for t in range(1, 201):
+            obs, _, _, truncated, info = env.step(policy.act(obs))  # on past success: the filter runs on
+            m = info["mcl"]
+            audited = "audit_log_ratio" in m or m["n_audit_injected"] > 0  # the ratio is left out when NaN
+            if audited and cleared is not None:
+                later[once] += 1
+                added[once] += m["n_audit_injected"] > 0
+            elif audited and info["kidnapped"] and m["n_audit_injected"] == 0:
+                cleared = t  # the first audit after the kidnapping that found no other place
+            at_truth[once] += info["belief"]["converged"] and info["pose_error"]["position"] < 0.5
+            if truncated:
+                break
+        assert cleared is not None
+    assert later[False] > 0 and added[False] > 0  # audited on: the twin room added back after the clear
+    assert later[True] == 0 and at_truth[True] > at_truth[False]
+    with pytest.raises(ValueError, match="audit_after_surprise_once needs audit_after_surprise=True"):
+        MCLConfig(audit_after_surprise_once=True)

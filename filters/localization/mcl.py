@@ -305,6 +305,12 @@ class MCLConfig:
             kidnapping in an outside tester's four-fold symmetric hall the explorer's belief converged at a
             quarter-turned image of the truth in 5 of 16 episodes (docs/relocalizer.md, "After a kidnapping").
             Needs ``surprise_ratio`` and ``audit_window``.
+        audit_after_surprise_once: the audit a surprise turned on (``audit_after_surprise``, in a tracking
+            episode) turns off again once it has cleared a convergence: the pose is found again, and the tracking
+            episode goes on as before its surprise. False before ``SemReloc-v15``: the audit stayed on until the
+            next init, and at each later convergence a window of scans without a telling object let it add a
+            look-alike place to a belief that had converged again at the truth (docs/relocalizer.md, "After a
+            surprise, an audit until it clears"). Needs ``audit_after_surprise``.
         surprise_own_average: the surprise test compares with an average of its own: the fast average
             (``alpha_fast``) of ``w_avg`` over every update with beams, as ``w_fast``, but restarted at a surprise and
             never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
@@ -385,6 +391,7 @@ class MCLConfig:
     audit_blur_margin: float = 0.0
     surprise_ratio: float = 0.0
     audit_after_surprise: bool = False
+    audit_after_surprise_once: bool = False
     surprise_own_average: bool = False
     semantic_surprise_ratio: float = 0.0
     semantic_surprise_min_beams: int = 3
@@ -484,7 +491,7 @@ class MCLConfig:
             raise ValueError(f"MCLConfig.injection must be 'uniform' or 'scan', got {self.injection!r}")
         for name in (
             "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
-            "audit_screen_pause_place", "audit_after_surprise", "surprise_own_average",
+            "audit_screen_pause_place", "audit_after_surprise", "audit_after_surprise_once", "surprise_own_average",
         ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
@@ -496,6 +503,12 @@ class MCLConfig:
                 False,
                 "MCLConfig.audit_after_surprise needs the surprise test and the audit (surprise_ratio > 0 and "
                 f"audit_window > 0), got surprise_ratio={self.surprise_ratio}, audit_window={self.audit_window}",
+            )
+        if self.audit_after_surprise_once and not self.audit_after_surprise:
+            needs["audit_after_surprise_once"] = (
+                False,
+                "MCLConfig.audit_after_surprise_once needs audit_after_surprise=True, got "
+                f"audit_after_surprise={self.audit_after_surprise}",
             )
         if self.surprise_own_average and not self.surprise_ratio > 0:
             needs["surprise_own_average"] = (
@@ -703,6 +716,7 @@ class MonteCarloLocalizer:
         # (n_updates, hypothesis mean carried along the odometry since) of the last audit whose screen found nothing
         self._screen_cleared: tuple[int, np.ndarray] | None = None
         self._audit_on = False  # the convergence audit runs after init_global (or a surprise: audit_after_surprise)
+        self._audit_by_surprise = False  # a surprise turned the audit on (`MCLConfig.audit_after_surprise_once`)
         self.converged_updates = 0
         """Consecutive measurement updates, the latest included, after which the set met the
         "converged" criterion (counted only when ``belief.converged_min_updates > 1``)."""
@@ -968,7 +982,8 @@ class MonteCarloLocalizer:
             if surprise:
                 self._held, self._window, self._cleared, self._was_converged = None, [], None, False
                 self._screen_cleared = None
-                self._audit_on = self._audit_on or c.audit_after_surprise
+                if c.audit_after_surprise and not self._audit_on:
+                    self._audit_on = self._audit_by_surprise = True
             if self._w_slow == 0.0:  # pf.c: the averages start at the first average
                 self._w_slow = self._w_fast = w_avg
             else:
@@ -1231,6 +1246,8 @@ class MonteCarloLocalizer:
                 ratio, kept = float(blurred[1] - blurred[0]), True
         if not kept:
             self._cleared = (hyp.mean, self.n_updates)
+            if self._audit_by_surprise and c.audit_after_surprise_once:
+                self._audit_on = self._audit_by_surprise = False  # found again: tracking as before the surprise
             self._screen_cleared = (self.n_updates, hyp.mean.copy()) if screen else last
             return (math.nan if alt is None else alt.log_ratio), 0
         self._cleared = None
