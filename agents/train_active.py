@@ -1,7 +1,7 @@
 """PPO for active relocalization: a new procedural layout every episode, spatial belief observations.
 
 `make_active_env` builds one training env:
-``SemReloc-v14`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
+``SemReloc-v15`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
 `RandomLayout` (a new layout per reset, never a held-out
 seed) -> `BeliefMassReward` (``mode="gain"``) -> `MotionOptions` (if ``options``) ->
 `ActionRepeat` -> `ActiveObservation`
@@ -46,7 +46,7 @@ from .learned import option_names, read_metadata, run_folder_of, save_policy, sa
 from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
 
-ENV_ID = "SemReloc-v14"
+ENV_ID = "SemReloc-v15"
 TRAINABLE_ENV_IDS = semreloc_ids_since(2)
 """The envs `ActiveTrainConfig.env_id` may name: ``SemReloc-v2`` and newer (the typed observation
 `ActiveObservation` reads), newest first."""

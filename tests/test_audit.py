@@ -736,7 +736,7 @@ def test_the_audit_a_surprise_turned_on_turns_off_once_it_clears():
     }
     later, added, at_truth = {}, {}, {}
     for once in (False, True):
-        env = gym.make("SemReloc-v14", layout="twin_rooms", max_episode_steps=200,
+        env = gym.make("SemReloc-v15", layout="twin_rooms", max_episode_steps=200,
                        relocalizer={"audit_after_surprise_once": once})  # fmt: skip
         policy = POLICIES["viewpoint"](0)
         env = policy.wrap(env)
@@ -760,3 +760,5 @@ def test_the_audit_a_surprise_turned_on_turns_off_once_it_clears():
     assert later[True] == 0 and at_truth[True] > at_truth[False]
     with pytest.raises(ValueError, match="audit_after_surprise_once needs audit_after_surprise=True"):
         MCLConfig(audit_after_surprise_once=True)
+    with pytest.raises(ValueError, match="'audit_after_surprise': False, 'audit_after_surprise_once': False"):
+        MCLConfig(surprise_ratio=0.3, audit_after_surprise=True, audit_after_surprise_once=True)  # no audit

@@ -119,17 +119,17 @@ def test_3_clear_errors_for_odd_env_input():
 @pytest.mark.parametrize("value", [None, math.nan, math.inf, "1"])
 def test_4_bad_reward_weight_is_rejected_at_construction(value):
     with pytest.raises(ValueError, match=r"reward_weights.time"):
-        gym.make("SemReloc-v14", reward_weights={"time": value}, **FAST)
+        gym.make("SemReloc-v15", reward_weights={"time": value}, **FAST)
     with pytest.raises(ValueError, match=r"reward_weights.time"):
         gym.make("SemSlam-v1", reward_weights={"time": value}, **SLAM_FAST)
 
 
 def test_4_reward_weights_and_sensor_ranges_far_beyond_any_robot_are_rejected():
     with pytest.raises(ValueError, match="reward weight time"):
-        gym.make("SemReloc-v14", reward_weights={"time": 1e308}, **FAST)
+        gym.make("SemReloc-v15", reward_weights={"time": 1e308}, **FAST)
     for sensor in ("lidar", "camera"):
         with pytest.raises(ValueError, match="range_max_m must be at most"):
-            gym.make("SemReloc-v14", **{**FAST, sensor: {"range_max_m": 1e300}})
+            gym.make("SemReloc-v15", **{**FAST, sensor: {"range_max_m": 1e300}})
 
 
 # ---------------------------------------------------------------- 5. sensor noise
@@ -177,7 +177,7 @@ def test_7_box_bounds_are_exact():
 
 
 # ---------------------------------------------------------------- 8. time limit
-@pytest.mark.parametrize("env_id, kw", [("SemSlam-v1", SLAM_FAST), ("SemReloc-v14", FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemSlam-v1", SLAM_FAST), ("SemReloc-v15", FAST)])
 def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
     env = gym.make(env_id, max_episode_steps=6, **kw)
     env.reset(seed=0)
@@ -266,12 +266,12 @@ def test_11_a_4000_vertex_outer_wall_validates():
 )
 def test_12_loose_types_are_rejected(kw, match):
     with pytest.raises(ValueError, match=match):
-        gym.make("SemReloc-v14", **{**FAST, **kw})
+        gym.make("SemReloc-v15", **{**FAST, **kw})
 
 
 def test_12_semantic_must_be_a_bool():
     with pytest.raises(ValueError, match=r"semantic must be True, False or None, got str 'no'"):
-        gym.make("SemReloc-v14", semantic="no", **FAST)
+        gym.make("SemReloc-v15", semantic="no", **FAST)
 
 
 def test_12_instances_are_checked_too():
@@ -295,15 +295,15 @@ def test_nested_overrides_keep_their_own_defaults():
     )
     assert cfg.lidar_field == DEFAULT_RELOCALIZER.lidar_field
     assert cfg.likelihood_scale == DEFAULT_RELOCALIZER.likelihood_scale
-    env = gym.make("SemReloc-v14", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
+    env = gym.make("SemReloc-v15", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
     assert env.unwrapped.mcl_config.semantic_field == cfg.semantic_field
 
 
 def test_9b_a_semreloc_env_pickles_mid_episode_and_its_copy_goes_on_alike():
-    """A SemReloc-v14 env (its relocalizer, its likelihood model with the per-BeamSet cache, the held
+    """A SemReloc-v15 env (its relocalizer, its likelihood model with the per-BeamSet cache, the held
     convergence and the audit's window) survives pickle and deepcopy mid-episode, and each copy then
     gives the episode the original gives."""
-    env = gym.make("SemReloc-v14", map_source="perfect", relocalizer={"n_particles": 300})
+    env = gym.make("SemReloc-v15", map_source="perfect", relocalizer={"n_particles": 300})
     env.reset(seed=3, options={"pose": [2.0, 5.0, 0.0]})
     for a in [0, 0, 1, 0, 2, 0, 0, 1] * 3:
         env.step(a)
@@ -320,14 +320,14 @@ def test_arguments_a_new_user_found_accepted_or_checked_late():
     import gymnasium as gym
 
     with pytest.raises(ValueError, match=r"layout_seed=7 seeds only the procedural layouts"):
-        gym.make("SemReloc-v14", layout="lab", layout_seed=7)
-    gym.make("SemReloc-v14", layout="lab", layout_seed=7, scenario="changed")  # it places the obstacles
-    env = gym.make("SemReloc-v14", layout="procedural", layout_seed=7)
+        gym.make("SemReloc-v15", layout="lab", layout_seed=7)
+    gym.make("SemReloc-v15", layout="lab", layout_seed=7, scenario="changed")  # it places the obstacles
+    env = gym.make("SemReloc-v15", layout="procedural", layout_seed=7)
     with pytest.raises(ValueError, match=r"layout_seed=3 seeds only"):
         env.unwrapped.set_layout("twin_rooms", 3)
     with pytest.raises(ValueError, match=r"would move 2.000 m per physics substep"):
-        gym.make("SemReloc-v14", robot={"max_linear_mps": 100.0})
-    env = gym.make("SemReloc-v14", layout="lab")
+        gym.make("SemReloc-v15", robot={"max_linear_mps": 100.0})
+    env = gym.make("SemReloc-v15", layout="lab")
     with pytest.raises(ValueError, match=r"kidnap_pose \[50.0, 2.0, 0.0\] is not free: .*outside the outer wall"):
         env.reset(seed=0, options={"kidnap_at_step": 5, "kidnap_pose": [50.0, 2.0, 0.0]})
 
@@ -335,7 +335,7 @@ def test_arguments_a_new_user_found_accepted_or_checked_late():
 def test_a_layout_too_tight_for_a_random_start_says_what_was_looked_for():
     """A 0.5 m room passes the layout checks, and the robot (radius 0.2 m) fits at its centre, but a random start
     needs 0.1 m to spare: the reset says so and how to start anyway (an outside tester's report)."""
-    env = gym.make("SemReloc-v14", layout={"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]},
+    env = gym.make("SemReloc-v15", layout={"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]},
                    map_source="perfect", semantic=False, relocalizer={"n_particles": 50})  # fmt: skip
     with pytest.raises(ValueError, match=r"no place found where it fits \(radius 0.2 m\) with 0.1 m to spare.*pose"):
         env.reset(seed=0)

@@ -235,12 +235,14 @@ def test_variants_are_checked_on_top_of_the_env_relocalizer_before_any_episode(t
     common = ["--rows", "none", "--log-starts", "0", "--log-tracking-seeds", "0", "--out", str(tmp_path / "o")]
     with pytest.raises(SystemExit):
         er.main(["--variants", "v4", "--extra", '{"v4": {"audit_window": 0}}', *common])
-    with pytest.raises(ValueError, match="variant 'v4': .*audit_after_surprise.*'audit_after_surprise': False"):
+    with pytest.raises(
+        ValueError, match="variant 'v4': .*'audit_after_surprise': False, 'audit_after_surprise_once': F"
+    ):
         er.Args(variants=("v4",), extra='{"v4": {"audit_window": 0}}')
     with pytest.raises(ValueError, match="audit_after_surprise needs.*; .*surprise_own_average needs.*; .*semantic"):
         er.Args(variants=("v5",), extra='{"v5": {"surprise_ratio": 0.0}}')
     ok = (
-        '{"v5": {"surprise_ratio": 0.0, "audit_after_surprise": false, "surprise_own_average": false, '
-        '"semantic_surprise_ratio": 0}}'
+        '{"v5": {"surprise_ratio": 0.0, "audit_after_surprise": false, "audit_after_surprise_once": false, '
+        '"surprise_own_average": false, "semantic_surprise_ratio": 0}}'
     )
     assert er.main(["--variants", "v5", "--extra", ok, *common]) == 0

@@ -11,11 +11,11 @@ FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
 
 
 def test_render_fps_follows_the_control_rate_per_instance():
-    fast = gym.make("SemReloc-v14", physics={"control_hz": 20.0}, **FAST)
+    fast = gym.make("SemReloc-v15", physics={"control_hz": 20.0}, **FAST)
     slow = gym.make("SemSlam-v1", physics={"control_hz": 5.0})
     assert fast.metadata["render_fps"] == 20.0 and fast.unwrapped.metadata["render_fps"] == 20.0
     assert slow.metadata["render_fps"] == 5.0
-    assert gym.make("SemReloc-v14", **FAST).metadata["render_fps"] == 10.0
+    assert gym.make("SemReloc-v15", **FAST).metadata["render_fps"] == 10.0
     assert type(fast.unwrapped).metadata["render_fps"] == 10  # the class default is untouched
 
 
@@ -30,7 +30,7 @@ def _frames(env, seed: int, actions) -> list[np.ndarray]:
 
 def test_static_layout_drawn_once_and_frames_carry_nothing_over():
     actions = [0, 0, 1, 0, 2, 0]
-    env = gym.make("SemReloc-v14", render_mode="rgb_array", **FAST)
+    env = gym.make("SemReloc-v15", render_mode="rgb_array", **FAST)
     many = _frames(env, 3, actions)
     renderer = env.unwrapped._renderer
     assert renderer.background_draws == 1
@@ -50,7 +50,7 @@ def test_record_video_writes_a_playable_mp4(tmp_path):
     pytest.importorskip("moviepy", reason="RecordVideo needs the 'video' extra (moviepy)")
     from moviepy import VideoFileClip
 
-    env = gym.make("SemReloc-v14", render_mode="rgb_array", max_episode_steps=12, physics={"control_hz": 5.0}, **FAST)
+    env = gym.make("SemReloc-v15", render_mode="rgb_array", max_episode_steps=12, physics={"control_hz": 5.0}, **FAST)
     folder = tmp_path / "videos"
     env = gym.wrappers.RecordVideo(env, str(folder), episode_trigger=lambda ep: ep == 0, disable_logger=True)
     env.reset(seed=0)
@@ -83,7 +83,7 @@ def test_human_mode_steps_under_agg_and_is_paced_to_render_fps(monkeypatch):
     monkeypatch.setattr(render.time, "monotonic", lambda: clock["t"])
     monkeypatch.setattr(render.time, "sleep", lambda s: sleeps.append(s))
     try:
-        env = gym.make("SemReloc-v14", render_mode="human", physics={"control_hz": 4.0}, **FAST)
+        env = gym.make("SemReloc-v15", render_mode="human", physics={"control_hz": 4.0}, **FAST)
         env.reset(seed=0)  # first frame: nothing to wait for
         clock["t"] = 0.05
         _, _, _, _, info = env.step(0)
@@ -96,7 +96,7 @@ def test_human_mode_steps_under_agg_and_is_paced_to_render_fps(monkeypatch):
 
 
 def test_renderer_rejects_bad_fps():
-    env = gym.make("SemReloc-v14", **FAST)
+    env = gym.make("SemReloc-v15", **FAST)
     with pytest.raises(ValueError, match="fps"):
         render.Renderer(env.unwrapped.layout, fps=0)
 
@@ -106,7 +106,7 @@ def test_an_env_that_has_rendered_pickles_and_deep_copies():
     import copy
     import pickle
 
-    env = gym.make("SemReloc-v14", render_mode="rgb_array", **FAST)
+    env = gym.make("SemReloc-v15", render_mode="rgb_array", **FAST)
     env.reset(seed=1)
     first = env.render()
     for twin in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):

@@ -1,14 +1,14 @@
-"""The registered ids behave as their Version History says: SemReloc-v14 (v13 with a surprise test of the
-camera's own), SemReloc-v13 (v12 whose surprise test keeps its own average), SemReloc-v12 (v11 with maps from a
-drive that also enters narrow passages), SemReloc-v11 (v10 with maps whose space beyond the
-lidar's returns is cleared by its beams without a return), SemReloc-v10 (v9 with maps without stray class
-cells and a screen pause that follows the place), SemReloc-v9 (v8 whose convergence audit also
-screens the whole map), SemReloc-v8 (v7 with the maps of the mapping run's version 3), SemReloc-v7 (v6's
+"""The registered ids behave as their Version History says: SemReloc-v15 (v14 whose audit after a surprise turns off
+once it clears), SemReloc-v14 (v13 with a surprise test of the camera's own), SemReloc-v13 (v12 whose surprise test
+keeps its own average), SemReloc-v12 (v11 with maps from a drive that also enters narrow passages), SemReloc-v11
+(v10 with maps whose space beyond the lidar's returns is cleared by its beams without a return), SemReloc-v10 (v9
+with maps without stray class cells and a screen pause that follows the place), SemReloc-v9 (v8 whose convergence
+audit also screens the whole map), SemReloc-v8 (v7 with the maps of the mapping run's version 3), SemReloc-v7 (v6's
 relocalizer whose convergence audit searches more places and comes before "converged"), SemReloc-v6 (v5's
 relocalizer whose belief holds a convergence), SemReloc-v5 (v4's relocalizer with the convergence audit),
-SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts
-that break their half turn), SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out)
-against SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
+SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that
+break their half turn), SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out) against
+SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
 
 import dataclasses
 import warnings
@@ -47,6 +47,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v15",
         "SemReloc-v14",
         "SemReloc-v13",
         "SemReloc-v12",
@@ -70,6 +71,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v15", typed),
         ("SemReloc-v14", typed),
         ("SemReloc-v13", typed),
         ("SemReloc-v12", typed),
@@ -654,3 +656,22 @@ def test_v14_is_v13_with_a_surprise_test_of_the_cameras_own():
                 break
     assert surprises["SemReloc-v13"] == 0 and wrong["SemReloc-v13"] > 30
     assert surprises["SemReloc-v14"] > 0 and wrong["SemReloc-v14"] <= 6
+
+
+def test_v15_is_v14_whose_audit_after_a_surprise_turns_off_once_it_clears():
+    """v15 differs from v14 only in its relocalizer's `MCLConfig.audit_after_surprise_once` (its effect on a
+    kidnapping: tests/test_audit.py). A global start's audit is on from the start, so its episode is v14's, bit
+    for bit; so is a tracking episode without a surprise."""
+    v15, v14 = make("SemReloc-v15", **FAST).unwrapped, make("SemReloc-v14", **FAST).unwrapped
+    assert v15.mcl_config == dataclasses.replace(v14.mcl_config, audit_after_surprise_once=True)
+    assert v15.mapping_run_version == v14.mapping_run_version == "6"
+    venv = gym.make_vec("SemRelocVec-v15", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    assert venv.envs[0].unwrapped.mcl_config.audit_after_surprise_once
+    venv.close()
+    actions = ACTIONS + [1] * 20 + [0] * 10
+    for options in (START, {**START, "tracking": True}):
+        a = rollout(make("SemReloc-v15", **FAST), options=options, actions=actions)
+        b = rollout(make("SemReloc-v14", **FAST), options=options, actions=actions)
+        assert any("audit_log_ratio" in step[-1]["mcl"] for step in a) == ("tracking" not in options)
+        for x, y in zip(a, b):
+            np.testing.assert_equal(x, y)

@@ -504,10 +504,10 @@ class MCLConfig:
                 "MCLConfig.audit_after_surprise needs the surprise test and the audit (surprise_ratio > 0 and "
                 f"audit_window > 0), got surprise_ratio={self.surprise_ratio}, audit_window={self.audit_window}",
             )
-        if self.audit_after_surprise_once and not self.audit_after_surprise:
+        if self.audit_after_surprise_once and (not self.audit_after_surprise or "audit_after_surprise" in needs):
             needs["audit_after_surprise_once"] = (
                 False,
-                "MCLConfig.audit_after_surprise_once needs audit_after_surprise=True, got "
+                "MCLConfig.audit_after_surprise_once needs audit_after_surprise=True (and what that needs), got "
                 f"audit_after_surprise={self.audit_after_surprise}",
             )
         if self.surprise_own_average and not self.surprise_ratio > 0:

@@ -32,9 +32,14 @@ def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
     return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
 
 
+def semreloc_vec_v15(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v15``: ``num_envs`` ``SemReloc-v15`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v15"``)."""
+    return _loop("SemReloc-v15", num_envs, kwargs)
+
+
 def semreloc_vec_v14(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
-    """``SemRelocVec-v14``: ``num_envs`` ``SemReloc-v14`` robots in one process
-    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v14"``)."""
+    """``SemRelocVec-v14``: ``num_envs`` ``SemReloc-v14`` robots in one process."""
     return _loop("SemReloc-v14", num_envs, kwargs)
 
 
