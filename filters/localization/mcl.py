@@ -77,7 +77,8 @@ Semantics of one `MonteCarloLocalizer.update` (see ``docs/relocalizer.md``):
    its correlated errors would be multiplied in again and again); the semantic factor
    (a narrow camera, which does see new things when turning) is always used.
 9. **Convergence audit**, if ``audit_window`` (after ``init_global``, and with ``audit_after_surprise`` after a
-   surprise, step 10): at each update after
+   surprise, step 10, until the next init or, with ``audit_after_surprise_once``, until it clears a
+   convergence): at each update after
    which the set meets the "converged" criterion and did not before (a place an audit cleared is
    not audited again for ``audit_window`` updates), a pose outside the converged hypothesis
    that explains the last ``audit_window`` updates' scans within ``audit_margin`` (tempered nats)
@@ -299,7 +300,8 @@ class MCLConfig:
             "converged" criterion, this one included. Particles and weights are touched only by that
             audit. ``UpdateDiagnostics.surprise`` records it.
         audit_after_surprise: a surprise also turns the convergence audit on after ``init_around`` (tracking),
-            where it is otherwise off, until the next init: a filter that lost its pose (a kidnapping) and
+            where it is otherwise off, until the next init (or, with ``audit_after_surprise_once``, until it has
+            cleared a convergence): a filter that lost its pose (a kidnapping) and
             converges again has relocalized globally, and that convergence gets the audit a global start's
             gets. False before ``SemReloc-v12``: in a tracking episode no convergence was audited, and after a
             kidnapping in an outside tester's four-fold symmetric hall the explorer's belief converged at a
