@@ -61,6 +61,17 @@ LAYOUT_FILE_SUFFIXES = (".json", ".yaml", ".yml")
 
 POLICIES = ("random", "spin", "wall_follow")
 
+TWIN_CENTRES = {"twin_rooms": (6.0, 3.0)}
+"""Layouts whose half turn about this centre (x m, y m) maps the walls and the furniture's shapes onto themselves
+and gives the furniture other classes: a kidnap to the image of the pose (`twin_image`) only the classes reveal."""
+
+
+def twin_image(layout: str, pose) -> list[float]:
+    """The half-turned image ``[x, y, theta]`` (m, rad in ``(-pi, pi]``) of ``pose`` in a layout of `TWIN_CENTRES`."""
+    cx, cy = TWIN_CENTRES[layout]
+    x, y, th = (float(v) for v in pose)
+    return [2.0 * cx - x, 2.0 * cy - y, math.atan2(math.sin(th + math.pi), math.cos(th + math.pi))]
+
 
 @dataclass(frozen=True)
 class EpisodeSpec:
@@ -69,7 +80,9 @@ class EpisodeSpec:
     ``*_kidnap``), with ``kidnap_after_global`` a global-start-then-kidnap episode (row
     ``*_global_kidnap``: no ``tracking`` reset option, a teleport at step ``kidnap_at_step``), and
     ``tracking`` a tracking episode (the belief starts at the true pose; only the error and the
-    step time are of interest). Inconsistent values raise ``ValueError``."""
+    step time are of interest). ``kidnap_to_twin``: a tracking-then-kidnap episode whose teleport goes to the
+    half-turned image of the pose after step ``kidnap_at_step - 1`` (`twin_image`; row ``*_twin_kidnap``): the
+    same scans for the lidar, other classes for the camera. Inconsistent values raise ``ValueError``."""
 
     layout: str
     seed: int
@@ -83,12 +96,13 @@ class EpisodeSpec:
     env_kwargs: dict = field(default_factory=dict)
     label: str = ""
     kidnap_after_global: bool = False
+    kidnap_to_twin: bool = False
 
     def __post_init__(self) -> None:
         def is_int(v) -> bool:
             return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
 
-        for name in ("tracking", "kidnap_after_global"):
+        for name in ("tracking", "kidnap_after_global", "kidnap_to_twin"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"EpisodeSpec.{name} must be True or False, got {getattr(self, name)!r:.60}")
         if not is_int(self.n_steps) or self.n_steps < 1:
@@ -105,6 +119,17 @@ class EpisodeSpec:
                 )
             if self.tracking:
                 raise ValueError("EpisodeSpec.kidnap_after_global starts from a global belief: tracking must be False")
+        if self.kidnap_to_twin:
+            if self.kidnap_at_step < 2 or self.kidnap_after_global:
+                raise ValueError(
+                    "EpisodeSpec.kidnap_to_twin needs a tracking start and kidnap_at_step >= 2 (the pose after step "
+                    f"kidnap_at_step - 1 is mirrored), got kidnap_at_step={self.kidnap_at_step}, "
+                    f"kidnap_after_global={self.kidnap_after_global}"
+                )
+            if self.layout not in TWIN_CENTRES:
+                raise ValueError(
+                    f"EpisodeSpec.kidnap_to_twin needs a layout of {sorted(TWIN_CENTRES)}, got {self.layout!r:.60}"
+                )
         if self.kidnap_at_step > self.n_steps:
             raise ValueError(
                 f"EpisodeSpec.kidnap_at_step {self.kidnap_at_step} is after the last step (n_steps {self.n_steps}): "
@@ -119,11 +144,14 @@ class EpisodeSpec:
             name += f"_{self.scenario}"
         if self.kidnap_after_global:
             return name + "_global_kidnap"
+        if self.kidnap_to_twin:
+            return name + "_twin_kidnap"
         return name + ("_kidnap" if self.kidnap_at_step else "_tracking" if self.tracking else "")
 
     @property
     def reset_options(self) -> dict | None:
-        """The ``options`` of the episode's ``env.reset``."""
+        """The ``options`` of the episode's ``env.reset`` (a ``kidnap_to_twin`` episode's ``kidnap_pose`` is added by
+        `run_episode`, which finds it by running the steps before the kidnap)."""
         if self.kidnap_after_global:
             return {"kidnap_at_step": self.kidnap_at_step}  # global start, teleport at kidnap_at_step
         if self.kidnap_at_step:
@@ -227,10 +255,17 @@ def run_episode(spec: EpisodeSpec) -> dict:
         relocalizer=dict(spec.mcl) or None,
         **spec.env_kwargs,
     )
-    obs, info = env.reset(seed=spec.seed, options=spec.reset_options)
+    k = spec.kidnap_at_step
+    options = spec.reset_options
+    if spec.kidnap_to_twin:  # the episode is deterministic: its first k - 1 steps say where the robot will be
+        obs, info = env.reset(seed=spec.seed, options={"tracking": True})
+        policy = make_policy(spec.policy, spec.seed)
+        for _ in range(k - 1):
+            obs, _, _, _, info = env.step(policy(obs))
+        options = {**options, "kidnap_pose": twin_image(spec.layout, info["pose"])}
+    obs, info = env.reset(seed=spec.seed, options=options)
     cfg = env.mcl_config
     policy = make_policy(spec.policy, spec.seed)
-    k = spec.kidnap_at_step
 
     def near(err: dict) -> bool:
         return err["position"] < 0.5 and err["heading"] < math.radians(15.0)
@@ -289,6 +324,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
         final_particles=int(n_particles[-1]),
         median_error_m=float(np.median(errors)) if errors else math.nan,
         kidnapped_at=kidnapped_at,
+        kidnap_pose=options.get("kidnap_pose") if options else None,
     )
     if k:
         out.update(

@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from agents.experiments.evaluate_relocalizer import GLOBAL_KIDNAP_ROWS, kidnap_table, specs_for, table
-from agents.relocalizer_eval import EpisodeSpec, make_policy, run_episode, score_steps, summarize
+from agents.experiments.evaluate_relocalizer import GLOBAL_KIDNAP_ROWS, Args, kidnap_table, specs_for, table
+from agents.relocalizer_eval import EpisodeSpec, make_policy, run_episode, score_steps, summarize, twin_image
 
 # ------------------------------------------------------------------ specs
 
@@ -37,11 +37,15 @@ def test_row_names_and_reset_options():
         ({"kidnap_at_step": True}, "kidnap_at_step must be an integer >= 0"),
         ({"kidnap_after_global": "yes", "kidnap_at_step": 5}, "kidnap_after_global must be True or False"),
         ({"n_steps": 0}, "n_steps must be an integer >= 1"),
+        ({"kidnap_to_twin": True, "kidnap_at_step": 30}, r"kidnap_to_twin needs a layout of \['twin_rooms'\]"),
+        ({"kidnap_to_twin": True, "layout": "twin_rooms"}, "kidnap_to_twin needs a tracking start"),
+        ({"kidnap_to_twin": True, "layout": "twin_rooms", "kidnap_at_step": 1}, "kidnap_at_step >= 2"),
+        ({"kidnap_to_twin": 1, "layout": "twin_rooms", "kidnap_at_step": 30}, "kidnap_to_twin must be True or False"),
     ],
 )
 def test_bad_specs_are_refused(kwargs, match):
     with pytest.raises(ValueError, match=match):
-        EpisodeSpec(layout="lab", seed=0, policy="spin", **kwargs)
+        EpisodeSpec(**{"layout": "lab", "seed": 0, "policy": "spin", **kwargs})
 
 
 def test_global_kidnap_rows_make_global_start_kidnap_specs():
@@ -84,6 +88,40 @@ def test_a_global_kidnap_spec_starts_global_and_teleports_at_k_also_after_termin
     for name in ("reconverged_wrong", "converged_at_kidnap"):
         assert isinstance(out[name], bool)
     assert out["recovery_steps"] >= 0 and out["stale_audits"] >= 0
+
+
+def test_a_twin_kidnap_teleports_to_the_half_turned_image_of_the_pose_before_it():
+    """``twin_rooms_twin_kidnap``: tracking, then at step 30 a teleport to the half-turned image of the pose after
+    step 29 (the other room: the same walls and furniture shapes, other classes). The default rows include it."""
+    from semreloc_env.envs.semreloc import SemRelocEnv
+
+    assert "twin_rooms_twin_kidnap" in Args().rows
+    (spec,) = specs_for("twin_rooms_twin_kidnap", 1, 3, [0], {}, "after")
+    assert (spec.row, spec.layout, spec.kidnap_at_step, spec.n_steps) == (
+        "twin_rooms_twin_kidnap",
+        "twin_rooms",
+        30,
+        230,
+    )
+    assert spec.kidnap_to_twin and spec.reset_options == {"tracking": True, "kidnap_at_step": 30}
+    assert twin_image("twin_rooms", [1.0, 2.0, 0.5]) == pytest.approx([11.0, 4.0, 0.5 - math.pi])
+    assert twin_image("twin_rooms", [1.0, 2.0, -0.5])[2] == pytest.approx(math.pi - 0.5)
+    short = EpisodeSpec(**{**spec.__dict__, "n_steps": 34})
+    out = run_episode(short)
+    env = SemRelocEnv(layout="twin_rooms")  # the steps before the kidnap, by hand
+    obs, info = env.reset(seed=short.seed, options={"tracking": True})
+    policy = make_policy(short.policy, short.seed)
+    for _ in range(29):
+        obs, _, _, _, info = env.step(policy(obs))
+    assert out["kidnapped_at"] == 30 and out["kidnap_pose"] == twin_image("twin_rooms", info["pose"])
+    assert out["converged_at_kidnap"] is True and out["pre_kidnap_success"] is True
+    obs, info = env.reset(seed=short.seed, options={**short.reset_options, "kidnap_pose": out["kidnap_pose"]})
+    policy = make_policy(short.policy, short.seed)
+    for _ in range(30):
+        before = info["pose"]
+        obs, _, _, _, info = env.step(policy(obs))
+    assert info["kidnapped"] and math.dist(info["pose"][:2], out["kidnap_pose"][:2]) < 0.1  # landed there
+    assert (before[0] - 6.0) * (out["kidnap_pose"][0] - 6.0) < 0.0  # from the other room (the wall at x = 6 m)
 
 
 # ------------------------------------------------------------------ scoring (no env)

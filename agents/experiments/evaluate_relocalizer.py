@@ -6,7 +6,9 @@ episodes pooled over the baseline policies (random walk, spin in place, wall fol
 episode ``i`` with seed ``--seed-base + i``. Rows: the built-in layouts, the changed lab,
 ``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30,
 200 steps after it), global-kidnap rows (``*_global_kidnap``: a global start, a teleport at
-step 150, 200 steps after it) and a tracking row (300 steps from the true pose: error and step
+step 150, 200 steps after it), a class-only kidnap row (``twin_rooms_twin_kidnap``: tracking, then a
+teleport at step 30 to the half-turned image of the pose in the other room, whose walls and furniture
+shapes are the same and whose classes differ) and a tracking row (300 steps from the true pose: error and step
 time). ``--layout-files`` adds a global, a kidnap and a global-kidnap row for each layout file of yours.
 
 Tuning and reporting use disjoint seeds: defaults were chosen with ``--seed-base 5000
@@ -53,6 +55,8 @@ KIDNAP_ROWS = ("lab_kidnap", "three_rooms_kidnap")
 GLOBAL_KIDNAP_ROWS = ("lab_global_kidnap", "three_rooms_global_kidnap")
 """A global start, then a teleport at step ``GLOBAL_KIDNAP_STEP`` (global localization, then kidnapped)."""
 GLOBAL_KIDNAP_STEP = 150
+TWIN_KIDNAP_ROWS = ("twin_rooms_twin_kidnap",)
+"""Tracking, then a teleport at step 30 to the half-turned image of the pose: a kidnap only the classes reveal."""
 TRACKING_ROWS = ("lab_tracking",)
 
 
@@ -61,9 +65,11 @@ def specs_for(
 ) -> list[EpisodeSpec]:
     """The ``n`` episodes of ``row`` for one variant; ``files``: ``{row name: layout file}`` of `file_rows`."""
     global_kidnap = row.endswith("_global_kidnap")
+    twin = row.endswith("_twin_kidnap")
     kidnap = row.endswith("_kidnap") and not global_kidnap
     tracking = row.endswith("_tracking")
-    base = row.removesuffix("_global_kidnap").removesuffix("_kidnap").removesuffix("_tracking")
+    base = row.removesuffix("_global_kidnap").removesuffix("_twin_kidnap").removesuffix("_kidnap")
+    base = base.removesuffix("_tracking")
     scenario = "changed" if base == "lab_changed" else "nominal"
     layout = "lab" if base == "lab_changed" else (files or {}).get(base, base)
     out = []
@@ -81,6 +87,7 @@ def specs_for(
                 mcl=mcl,
                 label=label,
                 kidnap_after_global=global_kidnap,
+                kidnap_to_twin=twin,
             )
         )
     return out
@@ -208,7 +215,7 @@ class Args:
     """names of VARIANTS (or of --extra) to run"""
     extra: str = "{}"
     """JSON {"name": {MCLConfig overrides}} of more variants"""
-    rows: tuple[str, ...] = GLOBAL_ROWS + KIDNAP_ROWS + GLOBAL_KIDNAP_ROWS + TRACKING_ROWS
+    rows: tuple[str, ...] = GLOBAL_ROWS + KIDNAP_ROWS + GLOBAL_KIDNAP_ROWS + TWIN_KIDNAP_ROWS + TRACKING_ROWS
     """rows to run ('none' = only the log rows)"""
     layout_files: tuple[str, ...] = ()
     """layout files of your own (.json / .yaml): each adds three rows named by the file name's stem: a global
