@@ -762,3 +762,52 @@ def test_the_audit_a_surprise_turned_on_turns_off_once_it_clears():
         MCLConfig(audit_after_surprise_once=True)
     with pytest.raises(ValueError, match="'audit_after_surprise': False, 'audit_after_surprise_once': False"):
         MCLConfig(surprise_ratio=0.3, audit_after_surprise=True, audit_after_surprise_once=True)  # no audit
+
+
+def test_a_second_surprise_turns_the_audit_on_again_and_an_init_forgets_who_turned_it_on():
+    """After the audit a surprise turned on has cleared and turned off (`audit_after_surprise_once`), a second
+    kidnapping's surprise turns it on again, and its next convergence is audited. An init forgets that a surprise
+    turned the audit on: a global start's audit stays on through its clears."""
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
+    from agents.relocalizer_eval import twin_image
+
+    options = {
+        "tracking": True,
+        "pose": [1.2260018482137571, 2.307662350691447, -2.7008912275608106],
+        "kidnap_at_step": 30,
+        "kidnap_pose": [11.153919099259081, 4.092096969406136, 1.9407014260289839],
+    }
+    env = gym.make("SemReloc-v15", layout="twin_rooms", max_episode_steps=200)
+    policy = POLICIES["viewpoint"](0)
+    env = policy.wrap(env)
+    policy.reset()
+    obs, info = env.reset(seed=9, options=options)
+    mcl = env.unwrapped.mcl
+    cleared = second = None
+    audited_after_second = 0
+    for t in range(1, 201):
+        if t == 120:
+            assert cleared is not None and not mcl._audit_on  # the first kidnapping's audit is off again
+            env.unwrapped.world.set_pose(twin_image("twin_rooms", info["pose"]))  # a second kidnapping
+        obs, _, _, truncated, info = env.step(policy.act(obs))
+        m = info["mcl"]
+        audited = "audit_log_ratio" in m or m["n_audit_injected"] > 0
+        if cleared is None and audited and info["kidnapped"] and m["n_audit_injected"] == 0:
+            cleared = t
+        if t >= 120 and m["surprise"] and second is None:
+            second = t
+            assert mcl._audit_on and mcl._audit_by_surprise
+        elif second is not None:
+            audited_after_second += audited
+        if truncated:
+            break
+    assert second is not None and audited_after_second > 0
+    mcl._audit_by_surprise = True  # as after a surprise: every init forgets it
+    mcl.init_global()
+    assert mcl._audit_on and not mcl._audit_by_surprise
+    mcl._audit_by_surprise = True
+    mcl.init_around(np.array(info["pose"]), [0.1, 0.1, 0.05])
+    assert not mcl._audit_on and not mcl._audit_by_surprise

@@ -1,11 +1,14 @@
 """agents.relocalizer_eval: episode specs (global start, then a kidnap), the per-episode scoring, the rows."""
 
 import math
+from pathlib import Path
 
 import pytest
 
 from agents.experiments.evaluate_relocalizer import GLOBAL_KIDNAP_ROWS, Args, kidnap_table, specs_for, table
 from agents.relocalizer_eval import EpisodeSpec, make_policy, run_episode, score_steps, summarize, twin_image
+
+TWIN_OFFICES = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "twin_offices.json"
 
 # ------------------------------------------------------------------ specs
 
@@ -224,7 +227,7 @@ def test_layout_files_add_three_rows_named_by_the_file(tmp_path):
     from agents.experiments import evaluate_relocalizer as er
 
     path = tmp_path / "my_offices.json"
-    shutil.copy("docs/layouts/twin_offices.json", path)
+    shutil.copy(TWIN_OFFICES, path)
     files, rows = er.file_rows([path])
     assert files == {"my_offices": str(path)}
     assert rows == ["my_offices", "my_offices_kidnap", "my_offices_global_kidnap"]
@@ -246,7 +249,7 @@ def test_bad_layout_files_are_refused_before_any_episode(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text('{"outer": [[0, 0], [1, 0]]}')
     lab = tmp_path / "lab.json"
-    lab.write_text(open("docs/layouts/twin_offices.json").read())
+    lab.write_text(TWIN_OFFICES.read_text())
     twin = tmp_path / "sub"
     twin.mkdir()
     (twin / "lab2.json").write_text(lab.read_text())

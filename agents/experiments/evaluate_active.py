@@ -110,14 +110,14 @@ class Args:
     env_id: EvaluatedEnvId = "SemReloc-v15"
     """the env the episodes run in: SemReloc-v15 (the newest), SemReloc-v14, SemReloc-v13, SemReloc-v12, SemReloc-v11,
     SemReloc-v10, SemReloc-v9, SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to
-    repeat the tables made with them; v14, v13 and v12 differ from v15 only in their relocalizer's surprise tests, which
-    no global start meets before its first convergence; the same worlds and sensors, the maps of the mapping run's
-    version 5, whose drive skips passages between its lattice's rows and columns (v11), also with space beyond the
-    lidar's returns left unknown (v10), the maps of the mapping run's version 3, with stray class cells, and the
-    screen's pause blind to place (v9), the relocalizer's audit without its screen of the whole map (v8 and older),
-    the maps of the mapping run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search
-    only (v6), also without the hold of a convergence (v5), without the convergence audit (v4) and without negative
-    evidence (v3))"""
+    repeat the tables made with them; v14 differs from v15 only in its audit after a surprise, v13 and v12 also in
+    their relocalizer's surprise tests, which no global start meets before its first convergence; the same worlds
+    and sensors, the maps of the mapping run's version 5, whose drive skips passages between its lattice's rows and
+    columns (v11), also with space beyond the lidar's returns left unknown (v10), the maps of the mapping run's
+    version 3, with stray class cells, and the screen's pause blind to place (v9), the relocalizer's audit without
+    its screen of the whole map (v8 and older), the maps of the mapping run's version 2 (v7 and older), the
+    relocalizer with the audit's coarse-to-fine search only (v6), also without the hold of a convergence (v5),
+    without the convergence audit (v4) and without negative evidence (v3))"""
     relocalizer: JsonDict = field(default_factory=dict)
     """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""

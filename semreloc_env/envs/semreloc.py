@@ -283,7 +283,8 @@ class SemRelocEnv(SemRelocBase):
       kept it in the old room while the camera contradicted it (docs/relocalizer.md, "A surprise test of the
       camera's own"). ``info["mcl"]`` gains ``semantic_surprise``, ``w_surprise`` and ``w_semantic`` (in every
       version; ``w_semantic`` only in steps where that test judged an update). A global episode runs as v13's up
-      to its first convergence. Maps, worlds, sensors, observations and rewards are v13's.
+      to its first convergence. Maps, worlds, sensors, observations and rewards are v13's (`SemRelocEnvV13` is
+      v13).
     * v13: the relocalizer's surprise test (a scan the belief explains far worse than of late: a kidnapping)
       compares with an average of its own (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V12` with
       ``surprise_own_average``). v12's compared with augmented MCL's fast average, which AMCL's rule restarts
