@@ -718,6 +718,16 @@ def test_a_surprise_turns_the_audit_on_in_a_tracking_episode():
         MCLConfig(audit_after_surprise=True, audit_window=20)  # no surprise test: it would do nothing
 
 
+TWIN_KIDNAP = {
+    "tracking": True,
+    "pose": [1.2260018482137571, 2.307662350691447, -2.7008912275608106],
+    "kidnap_at_step": 30,
+    "kidnap_pose": [11.153919099259081, 4.092096969406136, 1.9407014260289839],
+}
+"""A tracking start in ``twin_rooms``'s west room, kidnapped at step 30 to the half-turned image of the planner's
+pose after step 29 (seed 9): the same walls and furniture shapes, other classes."""
+
+
 def test_the_audit_a_surprise_turned_on_turns_off_once_it_clears():
     """``audit_after_surprise_once``: a class-only kidnapping in ``twin_rooms`` (the half-turned twin room, whose
     objects are of other classes). The camera's surprise turns the audit on; once an audit has cleared the new
@@ -728,12 +738,6 @@ def test_the_audit_a_surprise_turned_on_turns_off_once_it_clears():
     import semreloc_env  # noqa: F401
     from agents.policies import POLICIES
 
-    options = {
-        "tracking": True,
-        "pose": [1.2260018482137571, 2.307662350691447, -2.7008912275608106],
-        "kidnap_at_step": 30,
-        "kidnap_pose": [11.153919099259081, 4.092096969406136, 1.9407014260289839],
-    }
     later, added, at_truth = {}, {}, {}
     for once in (False, True):
         env = gym.make("SemReloc-v15", layout="twin_rooms", max_episode_steps=200,
@@ -741,7 +745,7 @@ def test_the_audit_a_surprise_turned_on_turns_off_once_it_clears():
         policy = POLICIES["viewpoint"](0)
         env = policy.wrap(env)
         policy.reset()
-        obs, info = env.reset(seed=9, options=options)
+        obs, info = env.reset(seed=9, options=TWIN_KIDNAP)
         cleared, later[once], added[once], at_truth[once] = None, 0, 0, 0
         for t in range(1, 201):
             obs, _, _, truncated, info = env.step(policy.act(obs))  # on past success: the filter runs on
@@ -774,17 +778,11 @@ def test_a_second_surprise_turns_the_audit_on_again_and_an_init_forgets_who_turn
     from agents.policies import POLICIES
     from agents.relocalizer_eval import twin_image
 
-    options = {
-        "tracking": True,
-        "pose": [1.2260018482137571, 2.307662350691447, -2.7008912275608106],
-        "kidnap_at_step": 30,
-        "kidnap_pose": [11.153919099259081, 4.092096969406136, 1.9407014260289839],
-    }
     env = gym.make("SemReloc-v15", layout="twin_rooms", max_episode_steps=200)
     policy = POLICIES["viewpoint"](0)
     env = policy.wrap(env)
     policy.reset()
-    obs, info = env.reset(seed=9, options=options)
+    obs, info = env.reset(seed=9, options=TWIN_KIDNAP)
     mcl = env.unwrapped.mcl
     cleared = second = None
     audited_after_second = 0
