@@ -8,6 +8,7 @@ import pytest
 from filters.localization import belief_kernels as K
 from filters.localization.belief import BeliefConfig, cluster_labels, cluster_stats, histogram_entropy, summarize
 from filters.pose import wrap_angle
+from filters.pose_kernels import wrap_angle_scalar
 
 
 def same_bits(a, b) -> None:
@@ -92,7 +93,7 @@ def test_seam_joins_components_like_the_reference():
 def test_wrap_kernel_is_wrap_angle():
     rng = np.random.default_rng(0)
     a = np.concatenate([rng.uniform(-20, 20, 5000), [np.pi, -np.pi, 0.0, -0.0, 3 * np.pi, -3 * np.pi, 1e-300]])
-    got = np.array([K._wrap(v) for v in a])
+    got = np.array([wrap_angle_scalar(v) for v in a])
     same_bits(got, wrap_angle(a))
 
 
@@ -116,3 +117,48 @@ def test_absurdly_spread_cloud_takes_the_coarser_raster_in_both_backends():
     assert n_a == n_b >= 1
     same_bits(lab_a, lab_b)
     same_bits(histogram_entropy(p, w, 0.5, math.pi / 8, "numba"), histogram_entropy(p, w, 0.5, math.pi / 8, "numpy"))
+
+
+def _components_oracle(occupied: np.ndarray, ny: int, nx: int, nt: int, wrap_t: bool) -> tuple[np.ndarray, int]:
+    """Connected components of the 26-neighbourhood graph (headings circular with ``wrap_t``), numbered by
+    their first cell in C order: scipy's graph components, not a flood fill."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    cells = np.flatnonzero(occupied)
+    y, x, t = np.unravel_index(cells, (ny, nx, nt))
+    src, dst = [], []
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            for dt in (-1, 0, 1):
+                yy, xx, tt = y + dy, x + dx, t + dt
+                if wrap_t:
+                    tt = tt % nt
+                ok = (yy >= 0) & (yy < ny) & (xx >= 0) & (xx < nx) & (tt >= 0) & (tt < nt)
+                nb = np.ravel_multi_index((yy[ok], xx[ok], tt[ok]), (ny, nx, nt))
+                keep = occupied[nb]
+                src.append(cells[ok][keep])
+                dst.append(nb[keep])
+    size = ny * nx * nt
+    graph = coo_matrix((np.ones(sum(map(len, src))), (np.concatenate(src), np.concatenate(dst))), (size, size))
+    _, comp = connected_components(graph, directed=False)
+    lab = np.zeros(size, dtype=np.int64)
+    first = {}
+    for c in cells:
+        lab[c] = first.setdefault(comp[c], len(first) + 1)
+    return lab, len(first)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_label_components_kernel_matches_a_graph_oracle(seed):
+    """Random rasters of every shape from 1 x 1 x 1 on, sparse to full, with and without the heading wrap."""
+    rng = np.random.default_rng(seed)
+    for _ in range(200):
+        ny, nx, nt = (int(v) for v in rng.integers(1, 8, 3))
+        occupied = rng.random(ny * nx * nt) < rng.uniform(0.0, 1.0)
+        for wrap_t in (False, True):
+            lab = np.zeros(ny * nx * nt, dtype=np.int64)
+            n = K.label_components(occupied, ny, nx, nt, wrap_t, lab)
+            want, n_want = _components_oracle(occupied, ny, nx, nt, wrap_t)
+            assert n == n_want
+            same_bits(lab, want)

@@ -24,23 +24,9 @@ import math
 import numba
 import numpy as np
 
+from filters.pose_kernels import wrap_angle_scalar as _wrap
+
 _TWO_PI = 2.0 * np.pi
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _wrap(a):  # pragma: no cover - compiled
-    """``filters.pose.wrap_angle`` for one float, bit for bit.
-
-    ``y % 2pi`` (floored modulo) is ``y`` itself when ``0 <= y < 2pi`` (``fmod`` is exact and
-    needs no sign fix; a zero becomes ``+0.0`` as in NumPy), so the slow ``fmod`` only runs for
-    headings outside ``[-pi, pi)``; the particles' headings are almost always inside.
-    """
-    y = a + np.pi
-    if 0.0 < y < _TWO_PI:
-        return y - np.pi
-    if y == 0.0:
-        return 0.0 - np.pi
-    return y % _TWO_PI - np.pi
 
 
 @numba.njit(cache=True, nogil=True)
@@ -118,44 +104,53 @@ def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - c
     ``1..n`` for occupied cells and 0 elsewhere; components are numbered in the order of their
     first cell in C order, which is the numbering ``scipy.ndimage.label`` plus the reference's
     seam merge produce. Returns ``n``.
+
+    A flood fill from each unlabelled occupied cell in C order; the stack holds each cell's
+    coordinates beside its index, so no visit divides to find them (a cell is pushed once, when
+    it is labelled).
     """
     size = ny * nx * nt
-    stack = np.empty(size, dtype=np.int64)
+    stack = np.empty((size, 3), dtype=np.int64)
     n = 0
-    for start in range(size):
-        if not occupied[start] or lab[start] != 0:
-            continue
-        n += 1
-        lab[start] = n
-        top = 0
-        stack[0] = start
-        top = 1
-        while top > 0:
-            top -= 1
-            c = stack[top]
-            t = c % nt
-            xy = c // nt
-            x = xy % nx
-            y = xy // nx
-            for dy in range(-1, 2):
-                yy = y + dy
-                if yy < 0 or yy >= ny:
+    start = 0
+    for y0 in range(ny):
+        for x0 in range(nx):
+            for t0 in range(nt):
+                c0 = start
+                start += 1
+                if not occupied[c0] or lab[c0] != 0:
                     continue
-                for dx in range(-1, 2):
-                    xx = x + dx
-                    if xx < 0 or xx >= nx:
-                        continue
-                    for dt in range(-1, 2):
-                        tt = t + dt
-                        if tt < 0 or tt >= nt:
-                            if not wrap_t:
-                                continue
-                            tt = (tt + nt) % nt
-                        cc = (yy * nx + xx) * nt + tt
-                        if occupied[cc] and lab[cc] == 0:
-                            lab[cc] = n
-                            stack[top] = cc
-                            top += 1
+                n += 1
+                lab[c0] = n
+                stack[0, 0] = y0
+                stack[0, 1] = x0
+                stack[0, 2] = t0
+                top = 1
+                while top > 0:
+                    top -= 1
+                    y = stack[top, 0]
+                    x = stack[top, 1]
+                    t = stack[top, 2]
+                    for yy in range(max(y - 1, 0), min(y + 2, ny)):
+                        for xx in range(max(x - 1, 0), min(x + 2, nx)):
+                            row = (yy * nx + xx) * nt
+                            for dt in range(-1, 2):
+                                tt = t + dt
+                                if tt < 0:
+                                    if not wrap_t:
+                                        continue
+                                    tt += nt
+                                elif tt >= nt:
+                                    if not wrap_t:
+                                        continue
+                                    tt -= nt
+                                cc = row + tt
+                                if occupied[cc] and lab[cc] == 0:
+                                    lab[cc] = n
+                                    stack[top, 0] = yy
+                                    stack[top, 1] = xx
+                                    stack[top, 2] = tt
+                                    top += 1
     return n
 
 
