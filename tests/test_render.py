@@ -115,3 +115,15 @@ def test_an_env_that_has_rendered_pickles_and_deep_copies():
         a, b = env.step(1)[0], twin.step(1)[0]
         np.testing.assert_array_equal(a["lidar"], b["lidar"])
         env.reset(seed=1)
+
+
+def test_title_calls_a_spread_belief_spread_not_a_hypothesis():
+    """A global start's uniform cloud is one connected cluster; its title says the belief is spread, not that a
+    hypothesis holds 100 %; a tracked belief's title names its heaviest hypothesis and its weight."""
+    env = gym.make("SemReloc-v15")
+    env.reset(seed=0)
+    title = env.unwrapped._render_state()["title"]
+    assert "belief spread (std" in title and "hypothesis" not in title
+    env.reset(seed=0, options={"tracking": True})
+    title = env.unwrapped._render_state()["title"]
+    assert "best hypothesis" in title and "spread" not in title and title.endswith("converged")

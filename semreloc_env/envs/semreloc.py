@@ -667,13 +667,27 @@ class SemRelocEnv(SemRelocBase):
         state["particles"] = self.mcl.poses
         state["estimate"] = self._belief.estimate
         err = self.pose_error()
-        best = self._belief.best
-        hyp = f"  best hypothesis {100 * best.weight:.0f} % (std {best.pos_std_m:.1f} m)" if best is not None else ""
+        hyp = _belief_title(self._belief)
         state["title"] = (
             f"{self.layout.name}  step {self._steps}  error {err['position']:.2f} m / {math.degrees(err['heading']):.0f} deg"
             f"{hyp}  {'converged' if self._belief.converged else ''}"
         )
         return state
+
+
+SPREAD_TITLE_STD_M = 1.0
+"""A heaviest hypothesis wider than this (position std, m) is titled as a spread belief, not a hypothesis."""
+
+
+def _belief_title(belief) -> str:
+    """The belief's part of a frame's title: the heaviest hypothesis and its weight, or, while that
+    hypothesis is wider than `SPREAD_TITLE_STD_M` (a uniform cloud is one connected cluster), the spread."""
+    best = belief.best
+    if best is None:
+        return ""
+    if best.pos_std_m >= SPREAD_TITLE_STD_M:
+        return f"  belief spread (std {best.pos_std_m:.1f} m, {belief.n_clusters} cluster{'s' * (belief.n_clusters != 1)})"
+    return f"  best hypothesis {100 * best.weight:.0f} % (std {best.pos_std_m:.1f} m)"
 
 
 class SemRelocEnvV14(SemRelocEnv):
