@@ -686,7 +686,9 @@ def _belief_title(belief) -> str:
     if best is None:
         return ""
     if best.pos_std_m >= SPREAD_TITLE_STD_M:
-        return f"  belief spread (std {best.pos_std_m:.1f} m, {belief.n_clusters} cluster{'s' * (belief.n_clusters != 1)})"
+        return (
+            f"  belief spread (std {best.pos_std_m:.1f} m, {belief.n_clusters} cluster{'s' * (belief.n_clusters != 1)})"
+        )
     return f"  best hypothesis {100 * best.weight:.0f} % (std {best.pos_std_m:.1f} m)"
 
 
