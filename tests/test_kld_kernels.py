@@ -88,7 +88,8 @@ def test_bound_table_holds_the_reference_values():
 
 def test_cdf_search_equals_searchsorted_on_ties():
     """Pointers that equal CDF entries exactly, repeated entries (zero weights) and the last entry
-    forced to 1 below a rounded-up sum: the kernel's search returns ``np.searchsorted``'s index."""
+    forced to 1 below a rounded-up sum: the kernel's search returns ``np.searchsorted``'s index for every
+    pointer a uniform draw can be (``[0, 1)``: an entry rounded up above 1 is never a pointer)."""
     rng = np.random.default_rng(2)
     for _ in range(20):
         w = rng.random(50) * (rng.random(50) < 0.7)
@@ -97,6 +98,7 @@ def test_cdf_search_equals_searchsorted_on_ties():
         cdf = np.cumsum(w)
         cdf[-1] = 1.0
         u = np.concatenate([cdf[:-1], rng.random(50), [0.0, np.nextafter(1.0, 0.0)]])
+        u = u[u < 1.0]
         want = np.minimum(np.searchsorted(cdf, u, side="right"), w.size - 1)
         poses = np.zeros((w.size, 3))
         idx = np.empty(u.size, dtype=np.int64)

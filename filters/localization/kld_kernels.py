@@ -7,7 +7,8 @@ draw (a cube and a square root per draw) before taking the first draw that meets
 
 * the CDF search is a binary search for the same partition point (``cdf[i] <= u``; the CDF is
   non-decreasing up to its last entry, set to 1, above every draw ``u < 1``, so the predicate is
-  monotone and every correct search finds the same index);
+  monotone and every correct search finds the same index), started from a guide table of the CDF
+  at ``K`` even steps (``K`` = the particle count), so it searches a few entries instead of all;
 * bins are ``floor(x / b)`` etc., single IEEE operations as in the reference, identified in a
   dense table offset by the *particle set's* smallest bin (any one-to-one key gives the same
   first-occurrence mask);
@@ -26,9 +27,30 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def _search_right(cdf, u):  # pragma: no cover - compiled
-    """``np.searchsorted(cdf, u, side="right")`` clipped to ``len(cdf) - 1``."""
-    lo, hi = 0, cdf.shape[0]
+def _guide(cdf):  # pragma: no cover - compiled
+    """``guide[b]`` = ``np.searchsorted(cdf, b / K, side="right")`` for ``b = 0 .. K``, ``K = len(cdf)``: where
+    to look for a uniform between ``b / K`` and ``(b + 1) / K`` (Chen and Asau's guide table)."""
+    k = cdf.shape[0]
+    guide = np.empty(k + 1, dtype=np.int64)
+    i = 0
+    for b in range(k + 1):
+        t = b / k
+        while i < k and cdf[i] <= t:
+            i += 1
+        guide[b] = i
+    return guide
+
+
+@numba.njit(cache=True, nogil=True)
+def _search_right(cdf, u, guide):  # pragma: no cover - compiled
+    """``np.searchsorted(cdf, u, side="right")`` clipped to ``len(cdf) - 1``, for ``0 <= u < 1``.
+
+    The answer lies between the guide's entries one bucket either side of ``u``'s (a bucket's worth of
+    slack for the rounding of ``u * K``), so the binary search runs over a few entries, not all."""
+    k = cdf.shape[0]
+    b = np.int64(u * k)
+    lo = guide[max(b - 1, 0)]
+    hi = guide[min(b + 2, k)]
     while lo < hi:
         mid = (lo + hi) >> 1
         if cdf[mid] <= u:
@@ -92,10 +114,11 @@ def kld_draw(poses, cdf, u, lo, bound, bin_xy_m, bin_theta_rad, extent, idx):  #
     """
     mx, my, mt, nx, ny, nt = extent
     seen = np.zeros(nx * ny * nt, dtype=np.bool_)
+    guide = _guide(cdf)
     k = 0
     m = u.shape[0]
     for j in range(m):
-        i = _search_right(cdf, u[j])
+        i = _search_right(cdf, u[j], guide)
         idx[j] = i
         bx = np.int64(math.floor(poses[i, 0] / bin_xy_m)) - mx
         by = np.int64(math.floor(poses[i, 1] / bin_xy_m)) - my
