@@ -211,6 +211,15 @@ def test_paired_comparison_counts_discordant_pairs_and_tests_them():
     assert lo <= cmp["difference"] <= hi and lo < hi
 
 
+def test_paired_comparison_of_a_single_case_has_no_interval():
+    """One (layout, start) pair: the difference and McNemar's p, no bootstrap interval (a tester's run with
+    --starts 1 on one layout file crashed here after every episode had run)."""
+    rows = [_row(0, "a", "success"), _row(0, "b", "unconverged")]
+    (cmp,) = ev.paired(rows, ["a"], ["a", "b"])
+    assert cmp["ci95"] is None and cmp["difference"] == 1.0 and (cmp["wins"], cmp["losses"]) == (1, 0)
+    assert "[n/a: one case]" in ev.paired_table([cmp])
+
+
 def test_summarise_counts_each_outcome_with_its_wilson_interval():
     outcomes = ["success", "success", "wrong", "unconverged", "success"]
     first = [True, False, True, False, False]  # a success whose belief was first sure of a wrong pose

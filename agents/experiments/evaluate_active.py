@@ -896,7 +896,8 @@ def _mean_difference(base: np.ndarray, new: np.ndarray, axis: int = -1) -> np.nd
 def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[dict]:
     """Success of each learned policy against each other policy on the same cases: the difference
     of the success rates with a paired bootstrap 95 % interval (``filters.experiments.stats``,
-    seeded) and McNemar's exact p-value (a binomial test on the discordant pairs)."""
+    seeded; None with a single case, which has no spread to resample) and McNemar's exact p-value (a
+    binomial test on the discordant pairs)."""
     from scipy.stats import binomtest
 
     from filters.experiments.stats import paired_bootstrap_interval
@@ -910,7 +911,11 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
                 continue
             x = np.array([by[(c, a)] for c in cases], dtype=np.float64)
             y = np.array([by[(c, b)] for c in cases], dtype=np.float64)
-            point, lo, hi = paired_bootstrap_interval(y, x, np.random.default_rng(0), statistic=_mean_difference)
+            if len(cases) > 1:
+                point, lo, hi = paired_bootstrap_interval(y, x, np.random.default_rng(0), statistic=_mean_difference)
+                ci95 = [lo, hi]
+            else:
+                point, ci95 = float(np.mean(x - y)), None
             wins, losses = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
             p = binomtest(wins, wins + losses).pvalue if wins + losses else 1.0
             out.append(
@@ -918,7 +923,7 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
                     "policy": a,
                     "against": b,
                     "difference": point,
-                    "ci95": [lo, hi],
+                    "ci95": ci95,
                     "wins": wins,
                     "losses": losses,
                     "mcnemar_p": p,
@@ -935,9 +940,9 @@ def paired_table(comparisons: list[dict]) -> str:
         "|---|---|---|---|---|---|",
     ]
     for c in comparisons:
-        lo, hi = c["ci95"]
+        ci = "n/a: one case" if c["ci95"] is None else "{:+.1f}, {:+.1f}".format(*(100 * v for v in c["ci95"]))
         lines.append(
-            f"| {c['policy']} | {c['against']} | {100 * c['difference']:+.1f} pp [{100 * lo:+.1f}, {100 * hi:+.1f}] | "
+            f"| {c['policy']} | {c['against']} | {100 * c['difference']:+.1f} pp [{ci}] | "
             f"{c['wins']} | {c['losses']} | {c['mcnemar_p']:.3g} |"
         )
     return "\n".join([*lines, ""])
