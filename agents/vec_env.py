@@ -88,7 +88,8 @@ class SB3VecEnvAdapter(VecEnv):
             setattr(env, attr_name, value)
 
     def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
-        return [getattr(env, method_name)(*args, **kwargs) for env in self._targets(indices)]
+        """As `DummyVecEnv`: the method of the outermost wrapper that has it, else the env's own."""
+        return [env.get_wrapper_attr(method_name)(*args, **kwargs) for env in self._targets(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         from stable_baselines3.common import env_util

@@ -186,6 +186,9 @@ def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():
     adapter.set_attr("my_flag", 3)
     dummy.set_attr("my_flag", 3)
     assert adapter.get_attr("my_flag") == dummy.get_attr("my_flag") == [3, 3]
+    # the env's own methods through the wrappers, as DummyVecEnv finds them (an outside tester's call)
+    assert _same(adapter.env_method("pose_error"), dummy.env_method("pose_error"))
+    assert adapter.env_method("pose_error", indices=[1]) == dummy.env_method("pose_error", indices=[1])
     adapter.close()
 
 
