@@ -27,6 +27,7 @@ from gymnasium import spaces
 
 from semreloc_env.envs.spaces import require_raw_observation, require_single_env
 from semreloc_env.observations import ActiveObservation
+from semreloc_env.wrappers import ActionRepeat
 
 META_NAME = "semreloc_policy.json"
 """Name of the metadata member inside a saved policy zip."""
@@ -189,10 +190,21 @@ class LearnedPolicy:
 
         Raises:
             ValueError: the env's action space or the wrapped observation space differs from the
-                model's (another action type, camera or lidar beam count, ...).
+                model's (another action type, camera or lidar beam count, ...), or the env repeats
+                actions already (`semreloc_env.wrappers.ActionRepeat`: `act` holds each decision
+                for ``repeat`` env steps itself, so the two would multiply).
             TypeError: a vector env (one policy per env).
         """
         require_single_env(env, "a learned policy")
+        inner = env
+        while isinstance(inner, gym.Wrapper):
+            if isinstance(inner, ActionRepeat):
+                raise ValueError(
+                    f"the env is wrapped by ActionRepeat(repeat={inner.repeat}); the policy holds each decision for "
+                    f"{self.repeat} env step(s) itself, so each would last {inner.repeat * self.repeat}: pass the env "
+                    "without ActionRepeat"
+                )
+            inner = inner.env
         require_raw_observation(env, "a learned policy")  # before the action check: an env wrap() returned fails here
         discrete_model = isinstance(self.model.action_space, spaces.Discrete)
         if self.options or (discrete_model and isinstance(env.action_space, spaces.Box)):
@@ -290,8 +302,10 @@ def load_policy(
         device: torch device to load onto.
         deterministic: see `LearnedPolicy`.
         observation: override (or, for a checkpoint without metadata, supply) the
-            `ActiveObservation` settings.
-        repeat: the same for the action repeat.
+            `ActiveObservation` settings; a checkpoint without metadata in a training run's
+            ``checkpoints/`` takes them from the run's ``config.json`` unless given.
+        repeat: the same for the action repeat (an override that differs from the training's
+            changes how long each decision is held: the policy then runs as it was not trained).
         explorer_option: the same for `agents.options.ExplorerOption` (without metadata:
             True when the model has five discrete actions, as `train_active`'s checkpoints do).
         seed: see `LearnedPolicy`.
@@ -309,10 +323,11 @@ def load_policy(
     if observation is None or repeat is None or (explorer_option is None and options is None):
         try:
             meta = read_metadata(path)
-        except ValueError:
-            if observation is None or repeat is None:
+        except ValueError:  # a bare checkpoint: its run's config.json says how it was trained, if there is one
+            saved = saved_run_config(path) if path.parent.name == "checkpoints" else None
+            meta = {k: saved[k] for k in ("observation", "repeat") if saved is not None and k in saved}
+            if (observation is None and "observation" not in meta) or (repeat is None and "repeat" not in meta):
                 raise
-            meta = {}
         observation = meta["observation"] if observation is None else observation
         repeat = meta["repeat"] if repeat is None else repeat
         if options is None and explorer_option is None and "options" in meta:

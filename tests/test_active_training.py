@@ -292,6 +292,9 @@ def test_load_policy_errors(smoke_run, tmp_path):
     once = policy.wrap(gym.make("SemReloc-v15", layout="twin_rooms", map_source="perfect"))
     with pytest.raises(ValueError, match="own observations.*wrapped by ActiveObservation already"):
         policy.wrap(once)
+    # an eleventh tester's: an env that repeats actions already made each decision last repeat x repeat steps
+    with pytest.raises(ValueError, match=r"ActionRepeat\(repeat=4\).*each would last"):
+        policy.wrap(ActionRepeat(gym.make("SemReloc-v15", layout="twin_rooms", map_source="perfect"), 4))
     for name, meta, keep_model, match in [
         ("badjson.zip", "{nope", True, "not valid JSON"),
         ("list.zip", "[1]", True, "JSON object"),
@@ -505,6 +508,29 @@ def test_bare_checkpoints_take_their_options_from_the_run(tmp_path):
     assert _checkpoint_options(ckpt, spaces.Discrete(6)) == ("viewpoint", "explore")
     (tmp_path / "run" / "config.json").write_text(json.dumps({"explorer_option": True}))
     assert _checkpoint_options(ckpt, spaces.Discrete(5)) == ("explore",)
+
+
+def test_a_bare_checkpoint_of_a_run_takes_its_repeat_and_observation_from_the_run(smoke_run, tmp_path):
+    """An eleventh tester's: a bare checkpoint needed repeat and observation passed by hand, and any value was
+    taken; in a run's checkpoints/ folder they now come from the run's config.json unless given."""
+    import json
+
+    _, path = smoke_run
+    ckpt = tmp_path / "run" / "checkpoints" / "ppo_512_steps.zip"
+    ckpt.parent.mkdir(parents=True)
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(ckpt, "w") as dst:
+        for name in src.namelist():
+            if name != META_NAME:
+                dst.writestr(name, src.read(name))
+    with pytest.raises(ValueError, match="no semreloc_policy.json"):
+        load_policy(ckpt)  # no record of the run either
+    saved = read_metadata(path)
+    config = {"repeat": 3, "observation": saved["observation"], "options": saved.get("options", [])}
+    (tmp_path / "run" / "config.json").write_text(json.dumps(config))
+    policy = load_policy(ckpt)
+    assert policy.repeat == 3 and policy.observation == saved["observation"]
+    assert load_policy(ckpt, repeat=2).repeat == 2  # an explicit override still wins
+    policy.wrap(_env())
 
 
 def test_a_policy_of_continuous_actions_wraps_a_continuous_env(tmp_path):
