@@ -177,6 +177,27 @@ def test_layouts_by_name_on_the_search_path(tmp_path, monkeypatch):
     assert env.unwrapped.layout.name == "lab"
 
 
+def test_a_search_path_file_named_like_a_built_in_warns_that_the_built_in_is_used(tmp_path, monkeypatch):
+    """An eleventh tester's lab.yaml on the search path: layout="lab" silently meant the built-in lab. It still
+    does (built-in and procedural names come first), with a warning naming the file; its path reaches it."""
+    import json
+    import warnings
+
+    mine = lab()
+    mine["name"] = "my_lab"
+    (tmp_path / "lab.json").write_text(json.dumps(mine))
+    (tmp_path / "procedural.json").write_text(json.dumps(mine))
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path))
+    with pytest.warns(UserWarning, match=r"layout 'lab' is the built-in one: .*lab.json .*not used"):
+        assert get_layout("lab").name == "lab"
+    with pytest.warns(UserWarning, match="'procedural' is the built-in one"):
+        get_layout("procedural", seed=3)
+    assert get_layout(str(tmp_path / "lab.json")).name == "my_lab"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        get_layout("twin_rooms")  # no file of its name: no warning
+
+
 def test_missing_map_file_is_still_file_not_found(tmp_path):
     with pytest.raises(FileNotFoundError, match="map YAML not found"):
         gym.make("SemReloc-v15", layout="lab", map_source=str(tmp_path / "nope.yaml"))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -65,6 +66,21 @@ def find_layout_file(name: str) -> Path | None:
     return None
 
 
+def _warn_if_shadowed(name: str) -> None:
+    """Warn when a file on the search path has the name of a built-in or procedural layout: the name means
+    the built-in one, never the file (which its path still reaches)."""
+    if not os.environ.get(LAYOUT_PATH_ENV):
+        return
+    found = find_layout_file(name)
+    if found is not None:
+        warnings.warn(
+            f"layout {name!r} is the built-in one: {found} on ${LAYOUT_PATH_ENV} has its name and is not used "
+            "(built-in and procedural names come first); give the file's path to use it, or rename it",
+            UserWarning,
+            stacklevel=3,
+        )
+
+
 def _is_ros_map(spec) -> bool:
     if not isinstance(spec, (str, Path)) or Path(spec).suffix.lower() not in (".yaml", ".yml"):
         return False
@@ -82,7 +98,8 @@ def get_layout(
         spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"``,
             ``"procedural_sym"``, ``"procedural_lookalike"`` or ``"procedural_ring"`` (`ring_layout`; all
             generated from ``seed``), the name of a
-            layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (`find_layout_file`), a path
+            layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (`find_layout_file`; the built-in and
+            procedural names come first: a file of such a name warns and is not used), a path
             to a ``.json`` / ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a
             map: a ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
             `GridMap`, whose world is traced from its occupied
@@ -112,6 +129,8 @@ def get_layout(
         return layout_from_map(load_map(spec), name=Path(spec).stem)
     if isinstance(spec, Mapping):
         return layout_from_dict(spec)
+    if isinstance(spec, str) and spec in LAYOUT_NAMES:
+        _warn_if_shadowed(spec)
     if isinstance(spec, str) and spec in BUILTIN_LAYOUTS:
         return layout_from_dict(BUILTIN_LAYOUTS[spec]())
     if isinstance(spec, str) and spec == "procedural_ring":
