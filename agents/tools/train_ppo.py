@@ -77,7 +77,8 @@ class Args:
     """also write the report to this Markdown file, which must not exist yet ('' to skip; --load appends)"""
     load: str = ""
     """skip training: evaluate this saved model.zip (trained with the same env options) and append the
-    table to --doc under a 'Re-evaluation' heading instead of rewriting it"""
+    table under a 'Re-evaluation' heading to results.md in --config.log-dir (the model's own run folder only
+    if that is the one given) and to --doc, instead of rewriting them"""
 
     def __post_init__(self) -> None:
         if self.config.log_dir is None:
