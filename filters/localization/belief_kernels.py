@@ -24,9 +24,23 @@ import math
 import numba
 import numpy as np
 
-from filters.pose_kernels import wrap_angle_scalar as _wrap
-
 _TWO_PI = 2.0 * np.pi
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _wrap(a):  # pragma: no cover - compiled
+    """``filters.pose.wrap_angle`` for one float, bit for bit.
+
+    ``y % 2pi`` (floored modulo) is ``y`` itself when ``0 <= y < 2pi`` (``fmod`` is exact and
+    needs no sign fix; a zero becomes ``+0.0`` as in NumPy), so the slow ``fmod`` only runs for
+    headings outside ``[-pi, pi)``; the particles' headings are almost always inside.
+    """
+    y = a + np.pi
+    if 0.0 < y < _TWO_PI:
+        return y - np.pi
+    if y == 0.0:
+        return 0.0 - np.pi
+    return y % _TWO_PI - np.pi
 
 
 @numba.njit(cache=True, nogil=True)

@@ -56,7 +56,6 @@ from scipy import ndimage
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.mapping.grid import GridMap
 from filters.numbers import is_int, is_real
-from filters.pose_kernels import wrap_angle_scalar
 from filters.robot_data.scans import LaserScan, SemanticScan, beam_endpoints
 
 
@@ -458,6 +457,7 @@ def window_entry_kernel(
     n_offset = np.zeros(ns, np.int64)
     n_outside = np.full(ns, w * h, np.int64)
     n_idx = np.empty(ns, np.int64)
+    two_pi = 2.0 * np.pi
     for i in range(p.shape[0]):
         pu, pv = (p[i, 0] - ox) * inv_res, (p[i, 1] - oy) * inv_res
         ll_l = 0.0
@@ -473,7 +473,8 @@ def window_entry_kernel(
         if back:
             out[i, 0] = p[i, 0] + cos_t[i] * step[0] - sin_t[i] * step[1]
             out[i, 1] = p[i, 1] + sin_t[i] * step[0] + cos_t[i] * step[1]
-            out[i, 2] = wrap_angle_scalar(p[i, 2] + step[2])
+            y = (p[i, 2] + step[2]) + np.pi  # wrapped as wrap_angle, the modulo skipped where it is y itself
+            out[i, 2] = y - np.pi if 0.0 < y < two_pi else y % two_pi - np.pi
 
 
 def _checked_poses(poses: np.ndarray) -> np.ndarray:

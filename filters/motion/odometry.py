@@ -38,7 +38,6 @@ import numba
 import numpy as np
 
 from filters.pose import wrap_angle
-from filters.pose_kernels import wrap_angle_scalar
 
 
 @dataclass(frozen=True)
@@ -88,12 +87,15 @@ def _fold(rot: float) -> float:
 @numba.njit(cache=True, nogil=True)
 def _sample_kernel(p, rot1, trans, rot2, s_r1, s_t, s_r2, noise, out):  # pragma: no cover - compiled
     """``out[i]`` = ``p[i]`` moved by ``(rot1, trans, rot2)`` perturbed by ``noise[:, i]`` (see ``sample``)."""
+    two_pi = 2.0 * math.pi
     for i in range(p.shape[0]):
         heading = p[i, 2] + (rot1 - s_r1 * noise[0, i])
         t = trans - s_t * noise[1, i]
         out[i, 0] = p[i, 0] + t * math.cos(heading)
         out[i, 1] = p[i, 1] + t * math.sin(heading)
-        out[i, 2] = wrap_angle_scalar(heading + (rot2 - s_r2 * noise[2, i]))
+        y = heading + (rot2 - s_r2 * noise[2, i]) + math.pi
+        # wrap_angle's (y % 2pi) - pi, with the modulo skipped where it is y itself (same bits; +-0 - pi is -pi)
+        out[i, 2] = y - math.pi if 0.0 < y < two_pi else y % two_pi - math.pi
 
 
 class OdometryMotionModel:
