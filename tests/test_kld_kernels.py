@@ -89,7 +89,7 @@ def test_bound_table_holds_the_reference_values():
 def test_cdf_search_equals_searchsorted_on_ties():
     """Pointers that equal CDF entries exactly, repeated entries (zero weights) and the last entry
     forced to 1 below a rounded-up sum: the kernel's search returns ``np.searchsorted``'s index for every
-    pointer a uniform draw can be (``[0, 1)``: an entry rounded up above 1 is never a pointer)."""
+    pointer a uniform draw can be (``[0, 1)``: an entry at or above 1 is never a pointer)."""
     rng = np.random.default_rng(2)
     for _ in range(20):
         w = rng.random(50) * (rng.random(50) < 0.7)

@@ -676,12 +676,12 @@ class SemRelocEnv(SemRelocBase):
 
 
 SPREAD_TITLE_STD_M = 1.0
-"""A heaviest hypothesis wider than this (position std, m) is titled as a spread belief, not a hypothesis."""
+"""A heaviest hypothesis at least this wide (position std, m) is titled as a spread belief, not a hypothesis."""
 
 
 def _belief_title(belief) -> str:
     """The belief's part of a frame's title: the heaviest hypothesis and its weight, or, while that
-    hypothesis is wider than `SPREAD_TITLE_STD_M` (a uniform cloud is one connected cluster), the spread."""
+    hypothesis is at least `SPREAD_TITLE_STD_M` wide (a uniform cloud is one connected cluster), the spread."""
     best = belief.best
     if best is None:
         return ""
