@@ -27,7 +27,7 @@ from gymnasium import spaces
 
 from semreloc_env.envs.spaces import require_raw_observation, require_single_env
 from semreloc_env.observations import ActiveObservation
-from semreloc_env.wrappers import ActionRepeat
+from semreloc_env.wrappers import ActionRepeat, find_wrapper
 
 META_NAME = "semreloc_policy.json"
 """Name of the metadata member inside a saved policy zip."""
@@ -196,15 +196,13 @@ class LearnedPolicy:
             TypeError: a vector env (one policy per env).
         """
         require_single_env(env, "a learned policy")
-        inner = env
-        while isinstance(inner, gym.Wrapper):
-            if isinstance(inner, ActionRepeat):
-                raise ValueError(
-                    f"the env is wrapped by ActionRepeat(repeat={inner.repeat}); the policy holds each decision for "
-                    f"{self.repeat} env step(s) itself, so each would last {inner.repeat * self.repeat}: pass the env "
-                    "without ActionRepeat"
-                )
-            inner = inner.env
+        repeating = find_wrapper(env, ActionRepeat)
+        if repeating is not None:
+            raise ValueError(
+                f"the env is wrapped by ActionRepeat(repeat={repeating.repeat}); the policy holds each decision for "
+                f"{self.repeat} env step(s) itself, so each would last {repeating.repeat * self.repeat}: pass the env "
+                "without ActionRepeat"
+            )
         require_raw_observation(env, "a learned policy")  # before the action check: an env wrap() returned fails here
         discrete_model = isinstance(self.model.action_space, spaces.Discrete)
         if self.options or (discrete_model and isinstance(env.action_space, spaces.Box)):

@@ -231,13 +231,19 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return self.env.reset(seed=seed, options=options)
 
 
-def _time_limit(env: gym.Env) -> int | None:
-    """``max_episode_steps`` of the first ``TimeLimit`` in ``env``'s wrapper chain, or None."""
+def find_wrapper(env: gym.Env, wrapper_class: type[gym.Wrapper]) -> gym.Wrapper | None:
+    """The outermost wrapper of class ``wrapper_class`` in ``env``'s wrapper chain, or None."""
     while isinstance(env, gym.Wrapper):
-        if isinstance(env, gym.wrappers.TimeLimit):
-            return env._max_episode_steps
+        if isinstance(env, wrapper_class):
+            return env
         env = env.env
     return None
+
+
+def _time_limit(env: gym.Env) -> int | None:
+    """``max_episode_steps`` of the first ``TimeLimit`` in ``env``'s wrapper chain, or None."""
+    limit = find_wrapper(env, gym.wrappers.TimeLimit)
+    return None if limit is None else limit._max_episode_steps
 
 
 from .observations import ActiveObservation  # noqa: E402  (the spatial observation for active relocalization)
@@ -249,6 +255,7 @@ __all__ = [
     "BeliefObservation",
     "CheckedReset",
     "FlatObservation",
+    "find_wrapper",
 ]
 
 

@@ -126,12 +126,10 @@ def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - c
     size = ny * nx * nt
     stack = np.empty((size, 3), dtype=np.int64)
     n = 0
-    start = 0
     for y0 in range(ny):
         for x0 in range(nx):
             for t0 in range(nt):
-                c0 = start
-                start += 1
+                c0 = (y0 * nx + x0) * nt + t0
                 if not occupied[c0] or lab[c0] != 0:
                     continue
                 n += 1
