@@ -111,6 +111,19 @@ def test_rotated_origin_is_refused_with_a_clear_error(tmp_path):
     assert e.value.path == str(path)
 
 
+def test_a_key_given_twice_in_the_yaml_is_refused_naming_both_lines(tmp_path):
+    grid = GridMap(np.array([[0.0, 1.0], [0.5, 0.0]], np.float32), 0.1, (2.0, 3.0))
+    path = save_map(grid, tmp_path / "x.yaml")
+    assert load_map(path).resolution_m == 0.1
+    lines = path.read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith("resolution:")) + 1
+    path.write_text(path.read_text() + "resolution: 0.5\n")  # PyYAML alone would take 0.5 m cells silently
+    with pytest.raises(
+        MapFormatError, match=rf"line {len(lines) + 1}: key 'resolution' given twice .*first on line {first}"
+    ):
+        load_map(path)
+
+
 def test_undecodable_image(tmp_path):
     (tmp_path / "m.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)
     with pytest.raises(MapFormatError, match="m.png"):

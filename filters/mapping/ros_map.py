@@ -46,6 +46,7 @@ import yaml
 
 from filters.mapping.grid import GridMap
 from filters.numbers import is_exponent_form, yaml_number_hint
+from filters.unique_keys import DuplicateKeyError, load_yaml
 
 __all__ = [
     "MapFormatError",
@@ -246,7 +247,9 @@ def _read_yaml(path: Path) -> dict:
     except UnicodeDecodeError:
         raise MapFormatError(path, "not a UTF-8 text file") from None
     try:
-        doc = yaml.safe_load(text)
+        doc = load_yaml(text)
+    except DuplicateKeyError as e:
+        raise MapFormatError(path, str(e)) from None
     except yaml.YAMLError as e:
         raise MapFormatError(path, f"not valid YAML ({e})") from None
     if not isinstance(doc, dict):

@@ -42,6 +42,7 @@ import shapely
 
 from filters.mapping.grid import DEFAULT_CLASS_NAMES
 from filters.numbers import yaml_number_hint
+from filters.unique_keys import DuplicateKeyError, json_object_pairs, load_yaml
 
 CLASS_NAMES: tuple[str, ...] = DEFAULT_CLASS_NAMES
 """Object classes a layout may use; scan label ``k + 1`` is ``CLASS_NAMES[k]``."""
@@ -474,45 +475,6 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     )
 
 
-class _DuplicateKey(ValueError):
-    """A key given twice in one mapping of a layout file (the parsers would keep the last silently)."""
-
-
-def _json_without_duplicates(pairs: list) -> dict:
-    keys = [k for k, _ in pairs]
-    twice = sorted({k for k in keys if keys.count(k) > 1})
-    if twice:
-        name = dict(pairs).get("name")
-        where = f" (the one named {name!r:.40})" if isinstance(name, str) else ""
-        raise _DuplicateKey(f"key {twice[0]!r} given twice in one object{where}; a parser would keep the last")
-    return dict(pairs)
-
-
-def _yaml_without_duplicates(text: str):
-    """``yaml.safe_load`` that refuses a key given twice in one mapping, naming its line."""
-    import yaml
-
-    class Loader(yaml.SafeLoader):
-        pass
-
-    def mapping(loader, node, deep=False):
-        seen = {}
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":  # `<<: *anchor`: keys it brings may be overridden
-                continue
-            key = loader.construct_object(key_node, deep=deep)
-            if key in seen:
-                raise _DuplicateKey(
-                    f"line {key_node.start_mark.line + 1}: key {key!r} given twice in one mapping "
-                    f"(first on line {seen[key] + 1})"
-                )
-            seen[key] = key_node.start_mark.line
-        return loader.construct_mapping(node, deep=deep)
-
-    Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
-    return yaml.load(text, Loader=Loader)  # noqa: S506 - a SafeLoader subclass
-
-
 def load_layout(path: str | Path) -> Layout:
     """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text; ``~`` is expanded)."""
     path = Path(path).expanduser()
@@ -528,10 +490,10 @@ def load_layout(path: str | Path) -> Layout:
         raise LayoutError(f"{path}: not UTF-8 text (byte {e.start}: {e.reason})") from None
     try:
         if path.suffix.lower() in (".yaml", ".yml"):
-            data = _yaml_without_duplicates(text)
+            data = load_yaml(text)
         else:
-            data = json.loads(text, object_pairs_hook=_json_without_duplicates)
-    except _DuplicateKey as e:
+            data = json.loads(text, object_pairs_hook=json_object_pairs)
+    except DuplicateKeyError as e:
         raise LayoutError(f"{path}: {e}") from None
     except json.JSONDecodeError as e:
         raise LayoutError(f"{path}: not valid JSON: {e}") from None

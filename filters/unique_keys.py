@@ -1,0 +1,52 @@
+"""Reading JSON and YAML files that refuse a key given twice in one mapping.
+
+Both parsers keep the last of two equal keys without a word, so a file that says ``resolution``
+twice would load with whichever came last. Layout files (`semreloc_env.layouts.layout`) and map
+sidecars (`filters.mapping.ros_map`) read through these functions instead and report the key (and,
+in YAML, its lines).
+"""
+
+from __future__ import annotations
+
+
+class DuplicateKeyError(ValueError):
+    """A key given twice in one mapping of a JSON or YAML text."""
+
+
+def json_object_pairs(pairs: list) -> dict:
+    """``object_pairs_hook`` for `json.loads` that raises `DuplicateKeyError` for a key given twice in one
+    object (naming the object by its ``name`` entry, if it has one)."""
+    keys = [k for k, _ in pairs]
+    twice = sorted({k for k in keys if keys.count(k) > 1})
+    if twice:
+        name = dict(pairs).get("name")
+        where = f" (the one named {name!r:.40})" if isinstance(name, str) else ""
+        raise DuplicateKeyError(f"key {twice[0]!r} given twice in one object{where}; a parser would keep the last")
+    return dict(pairs)
+
+
+def load_yaml(text: str):
+    """``yaml.safe_load(text)``, but a key given twice in one mapping raises `DuplicateKeyError` naming
+    both lines. Merge keys (``<<: *anchor``) may still be overridden, as YAML intends. Other errors are
+    ``yaml.YAMLError``."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    def mapping(loader, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # `<<: *anchor`: keys it brings may be overridden
+                continue
+            key = loader.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise DuplicateKeyError(
+                    f"line {key_node.start_mark.line + 1}: key {key!r} given twice in one mapping "
+                    f"(first on line {seen[key] + 1})"
+                )
+            seen[key] = key_node.start_mark.line
+        return loader.construct_mapping(node, deep=deep)
+
+    Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    return yaml.load(text, Loader=Loader)  # noqa: S506 - a SafeLoader subclass
