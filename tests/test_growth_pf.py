@@ -114,6 +114,12 @@ def test_bad_input_raises():
         PFConfig(resampler="nope")
     with pytest.raises(ValueError):
         GrowthModelParams(r_var=0.0)
+    for name in ("q_var", "r_var", "init_var", "x0"):  # inf gave NaN estimates without a word
+        with pytest.raises(ValueError, match="must be finite"):
+            GrowthModelParams(**{name: np.inf})
+    for rng in (np.random.RandomState(0), None, 0):  # the same contract as the relocalizer's and FastSLAM's
+        with pytest.raises(TypeError, match="numpy.random.Generator"):
+            pf.run(m, ys, rng)
     with pytest.raises(ValueError):
         check_observations(np.ones((5, 2)), 1)
 

@@ -298,9 +298,19 @@ def test_bad_input():
         LaserScan([1.0, float("nan")], [0.0, 0.1], 8.0)
     with pytest.raises(ValueError, match="NaN"):
         SemanticScan([float("nan")], [0.0], [1], 5.0)
+    # an outside tester's: a NumPy cast warning, then a wrong message
+    for labels in ([np.inf], [1e19], ["chair"], [1.5]):
+        with pytest.raises(ValueError, match="labels must be whole numbers"):
+            SemanticScan([1.0], [0.0], labels, 5.0)
+    assert SemanticScan([1.0, 2.0], [0.0, 0.1], [2.0, 0.0], 5.0).labels.tolist() == [2, 0]  # whole floats are fine
     mcl.init_global()
     with pytest.raises(ValueError):
         mcl.predict([0.1, float("nan"), 0.0])
+    before = mcl.poses.copy()
+    with pytest.raises(TypeError, match="force must be a bool"):
+        mcl.update(scan, force="yes")
+    np.testing.assert_array_equal(before, mcl.poses)
+    assert mcl.n_updates == 0
     full = GridMap(np.ones((5, 5), np.float32), 0.1)
     with pytest.raises(ValueError, match="no free cell"):
         MonteCarloLocalizer(full, MCLConfig(n_particles=10), np.random.default_rng(0)).init_global()

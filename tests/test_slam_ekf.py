@@ -154,7 +154,7 @@ def test_no_observation_stretch_stays_finite_and_grows_uncertainty():
 
 def test_bad_inputs_raise():
     f = EKFSLAM(UnicycleModel(), NOISE, EKFSLAMConfig(AssociationConfig("known")))
-    for bad in ([[math.nan, 0.1]], [[-1.0, 0.1]], [[5.0, -4.0]]):
+    for bad in ([[math.nan, 0.1]], [[-1.0, 0.1]], [[5.0, -4.0]], [[1e200, 0.1]]):
         with pytest.raises(ValueError):
             f.update(bad, ids=[0])
     with pytest.raises(ValueError):

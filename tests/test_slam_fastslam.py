@@ -110,6 +110,16 @@ def test_bad_inputs_raise():
         FastSLAMConfig(weight_transform=WOC(0.5))
     with pytest.raises(ValueError):
         FastSLAMConfig(resampler="nope")
+    with pytest.raises(ValueError, match="weight_transform must be a callable"):
+        FastSLAMConfig(weight_transform=5)  # an outside tester's: the first update failed after changing the state
+    with pytest.raises(ValueError, match=r"gate_new < inf"):
+        AssociationConfig(gate_new=math.inf)  # no landmark would be made once one exists
+    before = (f.poses.copy(), f.lm_mean.copy(), f.lm_cov.copy())
+    with pytest.raises(ValueError, match="at most 1e\\+06 m"):
+        f.update(np.array([[1e200, 0.1]]))  # finite, but its square overflowed the covariances to inf
+    np.testing.assert_array_equal(before[0], f.poses)
+    np.testing.assert_array_equal(before[1], f.lm_mean)
+    np.testing.assert_array_equal(before[2], f.lm_cov)
     known = FastSLAM(
         UnicycleModel(), TINY_NOISE, FastSLAMConfig(association=AssociationConfig("known")), np.random.default_rng(0)
     )

@@ -891,6 +891,8 @@ class MonteCarloLocalizer:
             raise TypeError(f"lidar must be a LaserScan, got {type(lidar).__name__}")
         if semantic is not None and not isinstance(semantic, SemanticScan):
             raise TypeError(f"semantic must be a SemanticScan, got {type(semantic).__name__}")
+        if not isinstance(force, (bool, np.bool_)):
+            raise TypeError(f"force must be a bool, got {force!r}")
         c = self.config
         n = self.n_particles
         if self._has_updated and not force and not self.moved_enough():

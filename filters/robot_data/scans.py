@@ -183,8 +183,10 @@ class SemanticScan:
         lab = np.asarray(self.labels)
         if lab.shape != r.shape:
             raise ValueError(f"SemanticScan: labels {lab.shape} and ranges {r.shape} differ")
-        if lab.size and (not np.issubdtype(lab.dtype, np.integer) and not np.all(lab == np.round(lab))):
-            raise ValueError("SemanticScan: labels must be integers")
+        if lab.size and not (np.issubdtype(lab.dtype, np.integer) or lab.dtype == np.bool_):
+            whole = np.issubdtype(lab.dtype, np.floating) and np.all(np.isfinite(lab))
+            if not (whole and np.all(lab == np.round(lab)) and np.all(np.abs(lab) <= 2.0**62)):
+                raise ValueError(f"SemanticScan: labels must be whole numbers (class indices), got dtype {lab.dtype}")
         lab = lab.astype(np.int64)
         if lab.size and lab.min() < 0:
             raise ValueError("SemanticScan: labels must be >= 0")

@@ -11,6 +11,7 @@ caller's landmark ids decide instead.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,8 +37,11 @@ class AssociationConfig:
     def __post_init__(self) -> None:
         if self.mode not in ASSOCIATIONS:
             raise ValueError(f"association mode must be one of {ASSOCIATIONS}, got {self.mode!r}")
-        if not (0 < self.gate_associate <= self.gate_new):
-            raise ValueError(f"need 0 < gate_associate <= gate_new, got {self.gate_associate}, {self.gate_new}")
+        if not (0 < self.gate_associate <= self.gate_new < math.inf):
+            raise ValueError(
+                f"need 0 < gate_associate <= gate_new < inf, got {self.gate_associate}, {self.gate_new} "
+                "(an infinite gate_new would never make a landmark once one exists)"
+            )
 
 
 def inv2(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

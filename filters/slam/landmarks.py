@@ -103,6 +103,11 @@ def inverse_observation(poses: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, n
     return np.broadcast_to(lm, shape + (2,)).copy(), g_x, g_z
 
 
+MAX_RANGE_M = 1e6
+"""Largest observation range `validate_observations` accepts (m): no range-bearing sensor measures farther,
+and the squares of far larger ranges overflow the filters' covariance arithmetic (inf landmark covariances)."""
+
+
 def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
     """Check one scan of range-bearing observations and return it as arrays.
 
@@ -110,7 +115,7 @@ def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
     ``(r, b)``. ``ids``, if given, is ``K`` non-negative integer landmark ids.
     Returns ``(z float64 (K, 2) with bearings wrapped to [-pi, pi), ids int64 (K,) or None)``.
 
-    Raises ValueError for a wrong shape, NaN/inf, a negative range, a bearing
+    Raises ValueError for a wrong shape, NaN/inf, a negative range or one above `MAX_RANGE_M`, a bearing
     outside ``[-pi, pi]``, or ids of the wrong length / negative / non-integer.
     """
     if z is None:
@@ -124,6 +129,8 @@ def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
         raise ValueError("observations contain NaN or inf")
     if np.any(z[:, 0] < 0):
         raise ValueError(f"observation ranges must be >= 0 m, got min {z[:, 0].min():.6g}")
+    if np.any(z[:, 0] > MAX_RANGE_M):
+        raise ValueError(f"observation ranges must be at most {MAX_RANGE_M:g} m, got max {z[:, 0].max():.6g}")
     if np.any(np.abs(z[:, 1]) > np.pi):
         raise ValueError(f"observation bearings must lie in [-pi, pi] rad, got max |b| = {np.abs(z[:, 1]).max():.6g}")
     z = z.copy()

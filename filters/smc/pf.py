@@ -100,7 +100,16 @@ class BootstrapPF:
 
     # ---- loop --------------------------------------------------------------------------------
     def run(self, model: StateSpaceModel, ys: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Filter observations ``ys`` ``(T, m)`` (``(T,)`` allowed when ``m = 1``); returns means ``(T, d)``."""
+        """Filter observations ``ys`` ``(T, m)`` (``(T,)`` allowed when ``m = 1``); returns means ``(T, d)``.
+
+        Raises:
+            TypeError: ``rng`` is not a ``numpy.random.Generator``.
+            ValueError: malformed ``ys``.
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(
+                f"rng must be a numpy.random.Generator (no hidden global randomness), got {type(rng).__name__}"
+            )
         y_all = check_observations(ys, model.obs_dim)
         n = self.config.n_particles
         x = np.asarray(model.sample_initial(n, rng), dtype=np.float64).reshape(n, model.state_dim)

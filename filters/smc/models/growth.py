@@ -32,8 +32,12 @@ class GrowthModelParams:
     init_var: float = 1.0
 
     def __post_init__(self) -> None:
-        if not (self.q_var > 0 and self.r_var > 0 and self.init_var >= 0 and np.isfinite(self.x0)):
-            raise ValueError(f"invalid growth model parameters: {self}")
+        values = (self.q_var, self.r_var, self.x0, self.init_var)
+        if not (all(np.isfinite(values)) and self.q_var > 0 and self.r_var > 0 and self.init_var >= 0):
+            raise ValueError(
+                f"invalid growth model parameters: {self}; q_var and r_var must be finite and > 0, init_var finite "
+                "and >= 0, x0 finite"
+            )
 
 
 class GrowthModel:
