@@ -172,6 +172,28 @@ def test_paper_scripts_refuse_what_they_would_fail_on_or_misreport():
         Args004(mcl={"n_particles": 500})
 
 
+def test_paper000_reports_the_spread_of_plain_fastslam_over_filter_seeds():
+    # an outside tester's: two seeds that happened to agree (1.086 and 1.086 m) read as "the seed barely matters"
+    from filters.experiments.paper000 import LOW, Args, seed_means, verdict
+
+    with pytest.raises(ValueError, match="seed_spread"):
+        Args(seed_spread=-1)
+
+    def runs(*errors):
+        return [{"pose_err": e, "lm_err": e, "path_rmse": e, "map_rmse": e} for e in errors]
+
+    ks = [5.0, math.inf]
+    tk = {5.0: runs(1.0, 1.2), math.inf: runs(1.1, 1.1)}
+    t2 = {(0, name): runs(1.4, 1.0) for name in ("FastSLAM", "WOCPF", "EKF-SLAM")}
+    t2.update({(1, name): runs(1.4, 1.0) for name in ("FastSLAM", "WOCPF", "EKF-SLAM")})
+    spread = [runs(1.5, 1.5), runs(0.9, 0.9)]
+    assert seed_means([LOW, LOW], t2, tk, spread, ks) == pytest.approx([1.1, 1.2, 1.5, 0.9])
+    t1 = {(n, name): runs(1.0, 1.0) for n in (10,) for name in ("FastSLAM", "WOCPF")}
+    text = verdict(Args(runs=2), [LOW, LOW], t2, t1, tk, spread, [10], ks)
+    assert "with 4 filter seeds gives mean pose errors from 0.900 m to 1.500 m" in text
+    assert "a range of 0.600 m; the K sweep's means span 0.000 m" in text
+
+
 def test_train_ppo_help_lists_every_built_in_layout(capsys):
     from semreloc_env.layouts import LAYOUT_NAMES
 
