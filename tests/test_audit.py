@@ -809,3 +809,41 @@ def test_a_second_surprise_turns_the_audit_on_again_and_an_init_forgets_who_turn
     mcl._audit_by_surprise = True
     mcl.init_around(np.array(info["pose"]), [0.1, 0.1, 0.05])
     assert not mcl._audit_on and not mcl._audit_by_surprise
+
+
+def test_global_resampling_without_kld_keeps_the_count_an_audit_added_to():
+    # an outside fuzzer's: each audit's added particles became the next resampling's count (100 -> 1250 in 1000 steps)
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+
+    cfg = {"n_particles": 100, "kld": False, "resample_mode": "global", "likelihood_scale": 1.0}
+    env = gym.make("SemReloc-v15", layout="three_rooms", max_episode_steps=400, relocalizer=cfg)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    added = resampled = 0
+    for _ in range(300):
+        info = env.step(env.action_space.sample())[-1]["mcl"]
+        added += info["n_audit_injected"] > 0
+        if info["resampled"]:
+            resampled += 1
+            assert info["n_particles"] - info["n_audit_injected"] == 100  # an audit may add after it resampled
+    assert added >= 2 and resampled >= 20  # the case arose: audits added particles, resamplings followed
+
+
+def test_a_spread_rule_convergence_without_hypotheses_is_audited_whole():
+    # an outside fuzzer's: the "spread" rule converged while no cluster reached cluster_min_weight, and the audit
+    # took b.hypotheses[0] of an empty tuple
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+
+    belief = {"converged_rule": "spread", "converged_hold_weight": None, "converged_pos_std_m": 100.0}
+    belief.update(converged_theta_std_rad=10.0, cluster_min_weight=1.0)
+    env = gym.make("SemReloc-v15", relocalizer={"belief": belief})
+    _, info = env.reset(seed=0)
+    assert info["belief"]["hypotheses"] == [] and info["belief"]["converged"] is False  # audited first
+    assert math.isfinite(info["mcl"]["audit_log_ratio"])  # the audit ran, on the whole belief
+    for _ in range(5):
+        info = env.step(0)[-1]
+    assert np.isfinite(info["belief"]["mean"]).all()

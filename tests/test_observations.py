@@ -236,3 +236,14 @@ def test_active_observation_keys_may_be_any_iterable():
     assert set(wrapped.observation_space.spaces) == set(OBSERVATION_KEYS[:3])
     with pytest.raises(ValueError, match="keys must be a list"):  # a string is not a list of keys
         ActiveObservation(env, keys="ego")
+
+
+def test_a_belief_without_hypotheses_is_observed_around_its_estimate():
+    # an outside fuzzer's: with no cluster reaching cluster_min_weight the list is empty and hyps[0] crashed
+    env = ActiveObservation(gym.make("SemReloc-v15", relocalizer={"belief": {"cluster_min_weight": 1.0}}))
+    obs, info = env.reset(seed=0)
+    assert info["belief"]["hypotheses"] == []
+    assert env.observation_space.contains(obs)
+    assert not obs["hypotheses"].any()  # no rows filled
+    obs = env.step(0)[0]
+    assert env.observation_space.contains(obs)

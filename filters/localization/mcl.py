@@ -114,6 +114,7 @@ from filters.localization import audit, kld_kernels
 from filters.localization.belief import (
     Belief,
     BeliefConfig,
+    Hypothesis,
     cluster_labels,
     holds_as_converged,
     linear_bin_keys,
@@ -1115,7 +1116,8 @@ class MonteCarloLocalizer:
             self._poses = poses
             self._logw = logw
             return
-        idx = self._kld_indices(w) if c.kld else self._resample(w, self.rng)
+        # without KLD the budget, as above: an audit's added particles must not become the next count
+        idx = self._kld_indices(w) if c.kld else self._resample_n(w, self._budget)
         self._set(self._poses[idx])
 
     def _clustered(self, w: np.ndarray, n_new: int) -> tuple[np.ndarray, np.ndarray]:
@@ -1215,7 +1217,8 @@ class MonteCarloLocalizer:
             self._was_converged = b.converged
             return math.nan, 0
         self._was_converged = True
-        hyp = b.hypotheses[0]
+        # with the "spread" rule a belief can converge while no cluster reaches cluster_min_weight: audit it whole
+        hyp = b.hypotheses[0] if b.hypotheses else Hypothesis(1.0, b.mean, b.cov, b.n_particles)
         outside_args = (2.0 * c.belief.cluster_bin_m, c.belief.cluster_bin_theta_rad)
         if self._cleared is not None and self.n_updates - self._cleared[1] < c.audit_window:
             if not audit.outside(hyp.mean[None], self._cleared[0], *outside_args)[0]:

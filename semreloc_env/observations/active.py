@@ -249,7 +249,8 @@ class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         belief = info["belief"]
         hyps = hypotheses_of(self.env, info)
         poses, weights = np.asarray(mcl.poses), np.asarray(mcl.weights)
-        anchor = np.asarray(hyps[0]["mean"], dtype=np.float64)
+        # no hypothesis when no cluster reaches belief.cluster_min_weight: the estimate is then the mean
+        anchor = np.asarray(hyps[0]["mean"] if hyps else belief["estimate"], dtype=np.float64)
         out: dict[str, np.ndarray] = {}
         need_ego = "ego" in self.keys or "belief" in self.keys
         ego, ego_mass = (
