@@ -28,25 +28,33 @@ def json_object_pairs(pairs: list) -> dict:
 def load_yaml(text: str):
     """``yaml.safe_load(text)``, but a key given twice in one mapping raises `DuplicateKeyError` naming
     both lines. Merge keys (``<<: *anchor``) may still be overridden, as YAML intends. Other errors are
-    ``yaml.YAMLError``."""
+    ``yaml.YAMLError`` (an unhashable key, a list used as a key, is the loader's own error)."""
     import yaml
 
+    merge_tag = "tag:yaml.org,2002:merge"
+
     class Loader(yaml.SafeLoader):
-        pass
+        def flatten_mapping(self, node):
+            # every mapping passes here before PyYAML merges other mappings' keys into it (which it may do
+            # to a node before constructing it, when a later mapping merges it): check its own keys once, first
+            checked = self.__dict__.setdefault("_unique_keys_checked", set())
+            if id(node) not in checked:
+                checked.add(id(node))
+                seen = {}
+                for key_node, _ in node.value:
+                    if key_node.tag == merge_tag:
+                        continue
+                    key = self.construct_object(key_node, deep=False)
+                    try:
+                        first = seen.get(key)
+                    except TypeError:  # unhashable: construct_mapping raises the loader's own error
+                        continue
+                    if first is not None:
+                        raise DuplicateKeyError(
+                            f"line {key_node.start_mark.line + 1}: key {key!r} given twice in one mapping "
+                            f"(first on line {first + 1})"
+                        )
+                    seen[key] = key_node.start_mark.line
+            super().flatten_mapping(node)
 
-    def mapping(loader, node, deep=False):
-        seen = {}
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":  # `<<: *anchor`: keys it brings may be overridden
-                continue
-            key = loader.construct_object(key_node, deep=deep)
-            if key in seen:
-                raise DuplicateKeyError(
-                    f"line {key_node.start_mark.line + 1}: key {key!r} given twice in one mapping "
-                    f"(first on line {seen[key] + 1})"
-                )
-            seen[key] = key_node.start_mark.line
-        return loader.construct_mapping(node, deep=deep)
-
-    Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
     return yaml.load(text, Loader=Loader)  # noqa: S506 - a SafeLoader subclass

@@ -192,6 +192,20 @@ def test_paper000_reports_the_spread_of_plain_fastslam_over_filter_seeds():
     text = verdict(Args(runs=2), [LOW, LOW], t2, t1, tk, spread, [10], ks)
     assert "with 4 filter seeds gives mean pose errors from 0.900 m to 1.500 m" in text
     assert "a range of 0.600 m; the K sweep's means span 0.000 m" in text
+    with pytest.raises(ValueError, match=r"same seed tag \(\[600, 601\]\)"):
+        Args(table1_particles=(10, 295))  # Table 1's tags 600 and 601 are the seed spread's
+
+
+def test_paper000_seed_spread_is_plain_fastslam_with_its_own_filter_seeds():
+    from filters.experiments.paper000 import LOW, Args, drive, filter_rng, k_sweep_job, make_filter, run_filter
+
+    args = Args(runs=1, particles=3, k_sweep=(5.0,), seed_spread=2)
+    out = k_sweep_job((args, 0))
+    run = drive(args, LOW, 0, 0)
+    for j, res in enumerate(out["seeds"]):
+        ref = run_filter(make_filter("fs", args, LOW, filter_rng(args, 0, 0, 600 + j), 3, math.inf), run)
+        assert res["pose_err"] == ref["pose_err"]  # K = inf (not the sweep's or WOCPF's K), tag 600 + j
+    assert len({res["pose_err"] for res in out["seeds"]} | {out[5.0]["pose_err"]}) == 3
 
 
 def test_train_ppo_help_lists_every_built_in_layout(capsys):

@@ -299,10 +299,12 @@ def test_bad_input():
     with pytest.raises(ValueError, match="NaN"):
         SemanticScan([float("nan")], [0.0], [1], 5.0)
     # an outside tester's: a NumPy cast warning, then a wrong message
-    for labels in ([np.inf], [1e19], ["chair"], [1.5]):
-        with pytest.raises(ValueError, match="labels must be whole numbers"):
+    for labels, shown in (([np.inf], "inf"), ([1e19], r"1e\+19"), ([1.5], r"1\.5"), (["chair"], "dtype <U5")):
+        with pytest.raises(ValueError, match=f"labels must be class indices.*got {shown}"):
             SemanticScan([1.0], [0.0], labels, 5.0)
-    assert SemanticScan([1.0, 2.0], [0.0, 0.1], [2.0, 0.0], 5.0).labels.tolist() == [2, 0]  # whole floats are fine
+    for labels in ([2.0, 0.0], np.array([2, 0], np.uint8), np.array([2, 0], np.float16), [True, False], [2**62, 0]):
+        assert SemanticScan([1.0, 2.0], [0.0, 0.1], labels, 5.0).labels.tolist() == [int(x) for x in labels]
+    assert SemanticScan([], [], [], 5.0).labels.shape == (0,)
     mcl.init_global()
     with pytest.raises(ValueError):
         mcl.predict([0.1, float("nan"), 0.0])

@@ -245,5 +245,13 @@ def test_a_belief_without_hypotheses_is_observed_around_its_estimate():
     assert info["belief"]["hypotheses"] == []
     assert env.observation_space.contains(obs)
     assert not obs["hypotheses"].any()  # no rows filled
+
+    def ego_at(anchor):
+        base = env.unwrapped
+        rasters = env.rasters_for(base.grid)
+        return egocentric_raster(rasters, base.mcl.poses, base.mcl.weights, anchor, env.ego_size, env.n_heading_bins)[0]
+
+    np.testing.assert_array_equal(obs["ego"], ego_at(np.asarray(info["belief"]["estimate"])))
+    assert not np.array_equal(obs["ego"], ego_at(np.zeros(3)))  # the anchor matters
     obs = env.step(0)[0]
     assert env.observation_space.contains(obs)

@@ -88,7 +88,8 @@ class Args:
     figures: str = ""
     """folder for the PNG figures (default docs/figures, with --quick build/paper000_quick/figures)"""
     quick: bool = False
-    """smoke run: 2 runs, 1 lap, Table 1 with N=10,20, K sweep 1,5,inf (overrides those); writes into build/"""
+    """smoke run: 2 runs, 1 lap, Table 1 with N=10,20, K sweep 1,5,inf, one seed-spread seed (overrides those);
+    writes into build/"""
     runner: Runner = RunnerConfig()
 
     def __post_init__(self) -> None:
@@ -100,6 +101,14 @@ class Args:
             raise ValueError("runs, loops and particle counts must be >= 1 and k_sweep not empty")
         if self.seed_spread < 0:
             raise ValueError(f"seed_spread must be >= 0, got {self.seed_spread}")
+        tags = filter_seed_tags(self)
+        shared = sorted({t for t in tags if tags.count(t) > 1})
+        if shared:  # two filters of a run would draw the same numbers
+            raise ValueError(
+                f"table1_particles {self.table1_particles}, {len(self.k_sweep)} K values and seed_spread "
+                f"{self.seed_spread} give two filters the same seed tag ({shared[:3]}): Table 1 uses 10 + 2 N and "
+                "11 + 2 N, the K sweep 500, 501, ..., the seed spread 600, 601, ..."
+            )
         bad = [k for k in (*self.k_sweep, self.woc_k) if not k >= 1.0]  # NaN fails too
         if bad:
             raise ValueError(f"k_sweep, woc_k: WOC's K must be >= 1 (inf = plain FastSLAM), got {bad}")
@@ -177,6 +186,14 @@ def make_filter(kind: str, args: Args, setting: Setting, rng: np.random.Generato
         return EKFSLAM(motion, noise, EKFSLAMConfig(assoc))
     cfg = FastSLAMConfig(n_particles=n, version=args.version, association=assoc, weight_transform=WOC(k))
     return FastSLAM(motion, noise, cfg, rng)
+
+
+def filter_seed_tags(args: Args) -> list[int]:
+    """The seed tags (`filter_rng`) of one run's filters on its low-noise drive: Table 2's, Table 1's, the K
+    sweep's, the seed spread's (the other setting's drive is another seed sequence)."""
+    t2 = list(range(len(TABLE2_FILTERS)))
+    t1 = [10 + 2 * n + tag for n in args.table1_particles for tag in (0, 1)]
+    return t2 + t1 + [500 + i for i in range(len(args.k_sweep))] + [600 + j for j in range(args.seed_spread)]
 
 
 def filter_rng(args: Args, setting_idx: int, r: int, tag: int) -> np.random.Generator:

@@ -153,7 +153,7 @@ class Hypothesis:
 
     Attributes:
         weight: total normalised weight of its particles, in ``(0, 1]`` (a sum of rounded weights: it can
-            exceed 1 by an ulp or two, as an outside fuzzer saw, 1.0000000000000009).
+            exceed 1 by a few ulps; an outside fuzzer saw 1.0000000000000009).
         mean: ``(3,)`` weighted mean pose (circular mean of theta).
         cov: ``(3, 3)`` weighted covariance about ``mean`` (wrapped heading residuals).
         n_particles: particles in the cluster.

@@ -200,7 +200,9 @@ class MCLConfig:
             sum is another fix for the same problem): with plain Bayes one scan decides
             between look-alike places before the semantic factor can, see docs/relocalizer.md.
         update_min_d_m, update_min_a_rad: motion gate of the measurement update (AMCL).
-        resampler: name in `filters.smc.resampling.RESAMPLERS`.
+        resampler: name in `filters.smc.resampling.RESAMPLERS`. A draw of another count than the set's
+            (KLD; a cluster's share; without KLD, back to the budget after an audit added particles) uses
+            systematic pointers.
         resample_ess_frac: resample when ESS < this fraction of N (1.0 = every update).
         holdoff_min_detections: semantic hold-off (0 = off).
         kld: KLD-sampling (Fox 2003): the particle count adapts to the belief's spread.

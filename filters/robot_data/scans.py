@@ -184,9 +184,14 @@ class SemanticScan:
         if lab.shape != r.shape:
             raise ValueError(f"SemanticScan: labels {lab.shape} and ranges {r.shape} differ")
         if lab.size and not (np.issubdtype(lab.dtype, np.integer) or lab.dtype == np.bool_):
-            whole = np.issubdtype(lab.dtype, np.floating) and np.all(np.isfinite(lab))
-            if not (whole and np.all(lab == np.round(lab)) and np.all(np.abs(lab) <= 2.0**62)):
-                raise ValueError(f"SemanticScan: labels must be whole numbers (class indices), got dtype {lab.dtype}")
+            if not np.issubdtype(lab.dtype, np.floating):
+                raise ValueError(f"SemanticScan: labels must be class indices (integers), got dtype {lab.dtype}")
+            v = lab.astype(np.float64).reshape(-1)
+            bad = ~np.isfinite(v) | (v != np.round(v)) | (np.abs(v) > 2.0**62)  # int64 holds them exactly
+            if bad.any():
+                raise ValueError(
+                    f"SemanticScan: labels must be class indices (whole numbers below 2**62), got {float(v[bad][0])!r}"
+                )
         lab = lab.astype(np.int64)
         if lab.size and lab.min() < 0:
             raise ValueError("SemanticScan: labels must be >= 0")

@@ -85,7 +85,7 @@ class FastSLAMConfig:
             raise ValueError(f"initial_capacity must be an integer >= 1, got {self.initial_capacity!r}")
         get_resampler(self.resampler)  # unknown name -> ValueError now, not mid-run
         if not callable(self.weight_transform):  # checked now: the first update would fail after changing the state
-            raise ValueError(
+            raise TypeError(
                 f"weight_transform must be a callable weights -> weights (identity, WOC(k)), "
                 f"got {self.weight_transform!r}"
             )

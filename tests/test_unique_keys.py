@@ -1,0 +1,45 @@
+"""`filters.unique_keys`: JSON and YAML that refuse a key given twice, and accept everything else as the parsers do."""
+
+import json
+
+import pytest
+import yaml
+
+from filters.unique_keys import DuplicateKeyError, json_object_pairs, load_yaml
+
+VALID = [
+    "a: 1\nb: {c: 2, d: [1, 2]}\n",
+    "base: &b {x: 1, y: 2}\nd:\n  <<: *b\n  x: 3\n",  # a merge key's keys may be overridden
+    "a: &a {x: 1}\nb: &b {y: 2}\nd:\n  <<: [*a, *b]\n  z: 3\n",
+    # a merging mapping inside a list, merged again later: PyYAML flattens it before it constructs it
+    "base: &b {x: 1, y: 2}\nlist: [&c {<<: *b, x: 3}]\ne: {<<: *c, z: 5}\n",
+    "a: &x [1, 2]\nb: *x\n",
+]
+
+
+@pytest.mark.parametrize("text", VALID)
+def test_valid_yaml_loads_as_pyyaml_loads_it(text):
+    assert load_yaml(text) == yaml.safe_load(text)
+
+
+@pytest.mark.parametrize(
+    "text, line, first",
+    [("x: 1\ny: 2\nx: 3\n", 3, 1), ("a:\n  b: 1\n  b: 2\n", 3, 2), ("l:\n- {a: 1, a: 2}\n", 2, 2)],
+)
+def test_a_key_given_twice_is_refused_naming_both_lines(text, line, first):
+    with pytest.raises(DuplicateKeyError, match=rf"line {line}: key '\w' given twice .*first on line {first}"):
+        load_yaml(text)
+
+
+def test_an_unhashable_key_is_the_loaders_own_error():
+    with pytest.raises(yaml.YAMLError, match="unhashable"):  # not a bare TypeError
+        load_yaml("? [1, 2]\n: x\n")
+
+
+def test_json_objects():
+    assert json.loads('{"a": {"b": 1}, "c": [{"d": 2}]}', object_pairs_hook=json_object_pairs) == {
+        "a": {"b": 1},
+        "c": [{"d": 2}],
+    }
+    with pytest.raises(DuplicateKeyError, match="key 'b' given twice in one object"):
+        json.loads('{"a": {"b": 1, "b": 2}}', object_pairs_hook=json_object_pairs)
