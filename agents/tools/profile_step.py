@@ -31,14 +31,15 @@ STAGES: dict[str, tuple[str, str]] = {
     "odometry (Odometry.read)": ("sensors.py", "read@Odometry"),
     "lidar (Lidar.read)": ("sensors.py", "read@Lidar"),
     "camera (SemanticCamera.read)": ("sensors.py", "read@SemanticCamera"),
-    "  of which ray casts": ("raycast.py", "cast"),
+    "  of which ray casts (both sensors)": ("raycast.py", "cast"),
     "motion predict (mcl.predict)": ("mcl.py", "predict"),
     "measurement update (mcl.update)": ("mcl.py", "update"),
     "  of which likelihood kernel": ("likelihood_field.py", "log_likelihood_kernel"),
-    "belief summary (mcl.belief)": ("mcl.py", "belief"),
+    "belief summary (mcl.belief alone)": ("mcl.py", "belief"),
     "info dict (_info)": ("semreloc.py", "_info"),
 }
-"""Stage name -> (file name, function name[@class]) whose cumulative time it is."""
+"""Stage name -> (file name, function name[@class]) whose cumulative time it is ("mcl.belief alone": the
+summaries the update computes for its own tests count under the update)."""
 
 
 @dataclass(frozen=True)
