@@ -462,7 +462,6 @@ def peak_rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-
 import gymnasium as gym, numpy as np
 import semreloc_env
 from semreloc_env.layouts import get_layout
