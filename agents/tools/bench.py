@@ -347,14 +347,22 @@ def bench_belief(args: Args) -> list[Row]:
 def bench_batched(args: Args) -> list[Row]:
     """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64,
     each robot stepped the same number of times from its reset (so every R sees the same episode phases);
-    then R = 64 again with a 100-particle filter (100 proposal and audit candidates): what a robot-step
-    costs besides the particle work (world, sensors, the filter's per-call code, info, the loop)."""
+    then R = 64 again with a 1000-particle filter (what `agents.train_active` trains with), and with a
+    100-particle filter (100 proposal and audit candidates): what a robot-step costs besides the particle
+    work (world, sensors, the filter's per-call code, info, the loop)."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
     n = max(20, args.steps // 4)
     small = {"n_particles": 100, "proposal_candidates": 100, "audit_candidates": 100, "audit_candidates_per_m2": 0.0}
-    for r, relocalizer in ((1, None), (16, None), (64, None), (64, small)):
+    cases = [
+        (1, None, "", ""),
+        (16, None, "", ""),
+        (64, None, "", "target 5000 at R=64"),
+        (64, {"n_particles": 1000}, ", 1000-particle filter", "agents.train_active's particle count"),
+        (64, small, ", 100-particle filter", "the cost that is not particle work"),
+    ]
+    for r, relocalizer, what, why in cases:
         kwargs = {} if relocalizer is None else {"relocalizer": relocalizer}
         venv = SemRelocLoopVectorEnv(num_envs=r, env_id=ENV_ID, **kwargs)
         venv.reset(seed=args.seed)
@@ -363,11 +371,8 @@ def bench_batched(args: Args) -> list[Row]:
             for _ in range(n):
                 venv.step(rng.integers(0, 4, r))
         venv.close()
-        label = f"batched env R={r}" + ("" if relocalizer is None else ", 100-particle filter")
-        note = f"random actions, {n} steps per robot; " + (
-            "target 5000 at R=64" if relocalizer is None else "the cost that is not particle work"
-        )
-        rows.append(Row(label, n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
+        note = f"random actions, {n} steps per robot" + (f"; {why}" if why else "")
+        rows.append(Row(f"batched env R={r}{what}", n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
     return rows
 
 
