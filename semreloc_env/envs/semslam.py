@@ -26,8 +26,8 @@ from ..layouts import CLASS_NAMES
 from .base import SemRelocBase, check_seed_use
 
 DEFAULT_OBS_NOISE = RangeBearingNoise(sigma_r_m=0.15, sigma_b_rad=0.05)
-"""The filter's range-bearing noise: about 1.5x the spread of the default landmark sensor's
-observations around the true object centres on the lab (0.09 m, 0.03 rad; see docs/semslam.md)."""
+"""The filter's range-bearing noise: about 1.1x / 1.6x the spread of the default landmark sensor's
+observations around the true object centres on the lab (0.13 m, 0.03 rad; see docs/semslam.md)."""
 
 
 @dataclasses.dataclass(frozen=True)
