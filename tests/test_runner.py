@@ -35,7 +35,8 @@ def test_ray_gives_the_sequential_results():
     ref_jobs = [(paper001.Args(runs=3, steps=15, reference_particles=200), r) for r in range(3)]
     seq = run_jobs(paper001.table1_job, jobs, RunnerConfig(executor="sequential", progress=False))
     seq_ref = run_jobs(paper001.reference_job, ref_jobs, RunnerConfig(progress=False))
-    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    # "local": a private instance, also when `ray start` left a cluster running on this machine
+    ray.init(address="local", num_cpus=1, include_dashboard=False, log_to_driver=False)
     try:
         cfg = RunnerConfig(executor="ray", progress=False)
         assert _rmse(run_jobs(paper001.table1_job, jobs, cfg)) == _rmse(seq)
@@ -44,6 +45,9 @@ def test_ray_gives_the_sequential_results():
         assert ray.is_initialized()  # a Ray started by the caller is left running
     finally:
         ray.shutdown()
+    # a Ray the runner starts itself (a private local one, as above) is shut down after the jobs
+    assert run_jobs(abs, [-1, 2], RunnerConfig(executor="ray", workers=1, progress=False)) == [1, 2]
+    assert not ray.is_initialized()
 
 
 def test_progress_callback_and_auto_executor():

@@ -28,7 +28,9 @@ Executors (``RunnerConfig.executor``):
   process (``forkserver``; ``spawn`` where there is none), never forked from the caller.
 * ``"ray"``: one Ray task per job (``num_cpus=1`` each). If Ray is not initialised yet, the runner
   calls ``ray.init(address=address)`` for a cluster (``"auto"``, ``"ray://head:10001"``, ...) or,
-  with no address, ``ray.init(num_cpus=workers, include_dashboard=False)`` on this machine, and
+  with no address, ``ray.init(address="local", num_cpus=workers, include_dashboard=False)``: a private
+  instance on this machine, also when ``ray start`` left a cluster running here (pass ``--address auto`` to
+  use that one), and
   shuts Ray down afterwards; an already initialised Ray is used as it is and left running. Ray is
   the optional extra ``ray`` (``pip install -e ".[ray]"``); every node of a cluster needs this
   package installed at the same commit (see docs/cluster.md).
@@ -186,7 +188,9 @@ def _run_ray(fn: Callable, jobs: list, config: RunnerConfig, tick: Callable[[], 
         if config.address:
             ray.init(address=config.address)
         else:
-            ray.init(num_cpus=config.workers, include_dashboard=False, log_to_driver=False)
+            # "local": a private instance even when `ray start` left a cluster running here (ray.init would
+            # connect to that one and refuse num_cpus)
+            ray.init(address="local", num_cpus=config.workers, include_dashboard=False, log_to_driver=False)
     try:
         remote = ray.remote(num_cpus=1)(_apply)
         fn_ref = ray.put(fn)  # pickled once; any callable (a builtin too), resolved on the worker
