@@ -234,9 +234,12 @@ def test_layout_files_add_three_rows_named_by_the_file(tmp_path):
     (s,) = specs_for("my_offices_global_kidnap", 1, 0, [0], {}, "after", files)
     assert (s.layout, s.row, s.kidnap_after_global) == (str(path), "my_offices_global_kidnap", True)
     out = tmp_path / "out"
+    out.mkdir()
+    (out / "log_results.jsonl").write_text('{"an earlier run": 1}\n')  # this run has no log phase
     argv = ["--variants", "after", "--rows", "none", "--layout-files", str(path), "--episodes", "1", "--log-starts",
             "0", "--log-tracking-seeds", "0", "--workers", "1", "--no-progress", "--out", str(out)]  # fmt: skip
     assert er.main(argv) == 0
+    assert not (out / "log_results.jsonl").exists()  # the folder holds this run's files only
     results = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert sorted(r["row"] for r in results) == sorted(rows)
     md = (out / "table.md").read_text()

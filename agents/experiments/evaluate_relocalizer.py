@@ -229,7 +229,7 @@ class Args:
     sym_seeds: tuple[int, ...] = tuple(range(10))
     """procedural_sym layout seeds"""
     out: str = "out/reloc_eval"
-    """output folder (results.jsonl, log_results.jsonl, table.md)"""
+    """output folder (results.jsonl, log_results.jsonl, table.md; all written at the end, from this run only)"""
     log_starts: int = 44
     """ACES log: evenly spaced start scans (0 = skip the log)"""
     log_steps: int = 60
@@ -280,7 +280,6 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     results = run_jobs(run_episode, specs, args.runner, desc="episodes")
-    save_jsonl(results, out / "results.jsonl")
     md = table(results, names, rows) if results else ""
     kt = kidnap_table(results, names, rows)
     if kt:
@@ -293,8 +292,14 @@ def main(argv: list[str] | None = None) -> int:
         trials = run_jobs(log_trial, trial_jobs, args.runner, desc="log trials")
         track_jobs = [(log_path, v, variants[v], k) for v in names for k in range(args.log_tracking_seeds)]
         tracks = run_jobs(log_tracking, track_jobs, args.runner, desc="log tracking")
-        save_jsonl(trials + tracks, out / "log_results.jsonl")
         md += "\n### ACES log (lidar only, map from the corrected poses)\n\n" + log_table(trials, tracks, names)
+    # every file at the end, from this run only: an interrupted run leaves the folder as it was
+    save_jsonl(results, out / "results.jsonl")
+    log_file = out / "log_results.jsonl"
+    if args.log_starts > 0:
+        save_jsonl(trials + tracks, log_file)
+    elif log_file.exists():
+        log_file.unlink()  # an earlier run's, which this run's table does not show
     (out / "table.md").write_text(md)
     print(md)
     print(f"{len(results)} episodes in {time.time() - t0:.0f} s; written to {out}")

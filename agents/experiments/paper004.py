@@ -271,7 +271,7 @@ def _write_markdown(table, args: Args, cmd: str, elapsed: float, path: Path) -> 
     block = "\n".join(
         [
             f"Made by `{cmd}` ({args.seeds} seeds per row, {args.particles} particles, "
-            f"time limit {args.max_steps} steps, {elapsed / 60:.1f} min with {args.runner.workers} worker processes).",
+            f"time limit {args.max_steps} steps, {elapsed / 60:.1f} min on {args.runner.describe()}).",
             "",
             markdown_table(header, rows),
             "",

@@ -40,10 +40,13 @@ Executors (``RunnerConfig.executor``):
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import sys
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -76,6 +79,16 @@ class RunnerConfig:
         if self.address and self.executor not in ("auto", "ray"):
             raise ValueError(f"address {self.address!r} needs the ray executor, not {self.executor!r}")
 
+    def describe(self) -> str:
+        """Where the jobs ran, for a report: "one process", "2 worker processes", "a local Ray of 2 CPUs",
+        "the Ray cluster at auto"."""
+        kind = self.resolved_executor
+        if kind == "sequential":
+            return "one process"
+        if kind == "process":
+            return f"{self.workers} worker processes"
+        return f"the Ray cluster at {self.address}" if self.address else f"a local Ray of {self.workers} CPUs"
+
     @property
     def resolved_executor(self) -> str:
         """The executor ``"auto"`` stands for with these settings."""
@@ -97,7 +110,8 @@ def run_jobs(
 
     ``on_result(done, total)`` is called in this process after each finished job (in completion
     order); ``config.progress`` adds a tqdm bar named ``desc`` on stderr. An exception raised by a
-    job propagates (the remaining jobs of a pool are cancelled).
+    job propagates as soon as it is raised (in a pool: the first to fail; the other jobs are cancelled
+    and the workers stopped, as after Ctrl-C or SIGTERM).
     """
     config = config or RunnerConfig()
     jobs = list(jobs)
@@ -127,7 +141,6 @@ def run_jobs(
                 tick()
             return out
         if kind == "process":
-            out = []
             pool = ProcessPoolExecutor(
                 max_workers=config.workers,
                 mp_context=_worker_context(),
@@ -135,10 +148,17 @@ def run_jobs(
                 initargs=(dict(os.environ),),
             )
             try:
-                with pool:
-                    for result in pool.map(fn, jobs, chunksize=1):
-                        out.append(result)
-                        tick()
+                with _sigterm_as_exit():
+                    try:
+                        futures = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
+                        out = [None] * len(jobs)
+                        for future in as_completed(futures):  # a failure surfaces as soon as it happens
+                            out[futures[future]] = future.result()
+                            tick()
+                    except BaseException:  # a job's error, Ctrl-C, SIGTERM: no worker may outlive this call
+                        _stop_workers(pool)
+                        raise
+                    pool.shutdown(wait=True)
             except BrokenProcessPool as e:
                 raise RuntimeError(
                     f"a worker process died or could not return its result ({e}; the chained error below may say "
@@ -154,6 +174,43 @@ def run_jobs(
     finally:
         if bar is not None:
             bar.close()
+
+
+@contextlib.contextmanager
+def _sigterm_as_exit() -> Iterator[None]:
+    """Within the block, SIGTERM (``timeout``, a batch scheduler, ``kill``) raises ``SystemExit(143)`` in
+    this process, so the pool's workers are stopped as after Ctrl-C; by default SIGTERM ends this process
+    at once and its workers wait on their pipes for ever. Only in the main thread (where signals are
+    delivered); the previous handler comes back afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel the pool's queued jobs and end its worker processes now (``shutdown`` alone would wait for
+    the running jobs). Python 3.14's ``terminate_workers`` does this; before it, the processes are the
+    pool's ``_processes``."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:  # pragma: no cover - Python >= 3.14
+        terminate()
+        return
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=5)
 
 
 def _set_environ(environ: dict[str, str]) -> None:
@@ -186,7 +243,14 @@ def _run_ray(fn: Callable, jobs: list, config: RunnerConfig, tick: Callable[[], 
     started = not ray.is_initialized()
     if started:
         if config.address:
-            ray.init(address=config.address)
+            try:
+                ray.init(address=config.address)
+            except (ConnectionError, ValueError, RuntimeError) as e:
+                raise RuntimeError(
+                    f"could not reach a Ray cluster at --address {config.address!r} ({type(e).__name__}: {e}). "
+                    "Start one (`ray start --head` on the head node), give its address (`auto` on a node of it, "
+                    "`ray://<head>:10001` from elsewhere), or drop --address to run on this machine"
+                ) from e
         else:
             # "local": a private instance even when `ray start` left a cluster running here (ray.init would
             # connect to that one and refuse num_cpus)
