@@ -161,13 +161,14 @@ def test_sigterm_to_a_pool_run_leaves_no_worker_behind(tmp_path):
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, env=env)
+    helpers: set[int] = set()
     try:
         assert proc.stdout.readline().strip() == "start"
         deadline = time.monotonic() + 30
-        while len(_descendants(proc.pid)) < 3 and time.monotonic() < deadline:  # forkserver and 2 workers at least
+        while len(_descendants(proc.pid)) < 4 and time.monotonic() < deadline:  # forkserver, tracker, 2 workers
             time.sleep(0.2)
         helpers = _descendants(proc.pid)
-        assert len(helpers) >= 3
+        assert len(helpers) >= 4
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 128 + signal.SIGTERM  # SystemExit(143), after the workers were stopped
         deadline = time.monotonic() + 15
@@ -176,6 +177,26 @@ def test_sigterm_to_a_pool_run_leaves_no_worker_behind(tmp_path):
         assert not [p for p in helpers if _running(p)]
     finally:
         proc.kill()
-        for p in _descendants(proc.pid):
+        proc.wait()
+        for p in helpers:
             with contextlib.suppress(OSError):
                 os.kill(p, signal.SIGKILL)
+
+
+def test_a_callers_own_sigterm_handler_is_left_alone_and_ours_removed():
+    before = signal.getsignal(signal.SIGTERM)
+
+    def mine(signum, frame):
+        pass
+
+    signal.signal(signal.SIGTERM, mine)
+    try:
+        assert run_jobs(abs, [-1, 2], RunnerConfig(workers=2, progress=False)) == [1, 2]
+        assert signal.getsignal(signal.SIGTERM) is mine  # not replaced during the run, nor after
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert run_jobs(abs, [-3], RunnerConfig(workers=2, progress=False)) == [3]
+    assert signal.getsignal(signal.SIGTERM) is before
+    assert RunnerConfig(workers=1, executor="process").describe() == "1 worker process"
+    assert RunnerConfig(workers=2).describe() == "2 worker processes"
+    assert RunnerConfig(address="auto").describe() == "the Ray cluster at auto"

@@ -83,11 +83,12 @@ class RunnerConfig:
         """Where the jobs ran, for a report: "one process", "2 worker processes", "a local Ray of 2 CPUs",
         "the Ray cluster at auto"."""
         kind = self.resolved_executor
+        n = self.workers
         if kind == "sequential":
             return "one process"
         if kind == "process":
-            return f"{self.workers} worker processes"
-        return f"the Ray cluster at {self.address}" if self.address else f"a local Ray of {self.workers} CPUs"
+            return f"{n} worker process" + ("es" if n > 1 else "")
+        return f"the Ray cluster at {self.address}" if self.address else f"a local Ray of {n} CPU" + "s" * (n > 1)
 
     @property
     def resolved_executor(self) -> str:
@@ -148,9 +149,10 @@ def run_jobs(
                 initargs=(dict(os.environ),),
             )
             try:
-                with _sigterm_as_exit():
+                with _sigterm_as_exit() as sigterm:
                     try:
                         futures = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
+                        sigterm.armed()  # a SIGTERM while the workers started is raised now
                         out = [None] * len(jobs)
                         for future in as_completed(futures):  # a failure surfaces as soon as it happens
                             out[futures[future]] = future.result()
@@ -176,41 +178,65 @@ def run_jobs(
             bar.close()
 
 
+class _SigTerm:
+    """SIGTERM as ``SystemExit(143)``, held back until `armed` while the pool starts its workers (an exit
+    inside ``submit`` could leave a half-started worker that nothing stops)."""
+
+    def __init__(self) -> None:
+        self.starting = True
+        self.pending = False
+
+    def __call__(self, signum, frame) -> None:
+        if self.starting:
+            self.pending = True
+            return
+        raise SystemExit(128 + signum)
+
+    def armed(self) -> None:
+        self.starting = False
+        if self.pending:
+            raise SystemExit(128 + signal.SIGTERM)
+
+
 @contextlib.contextmanager
-def _sigterm_as_exit() -> Iterator[None]:
+def _sigterm_as_exit() -> Iterator[_SigTerm]:
     """Within the block, SIGTERM (``timeout``, a batch scheduler, ``kill``) raises ``SystemExit(143)`` in
     this process, so the pool's workers are stopped as after Ctrl-C; by default SIGTERM ends this process
     at once and its workers wait on their pipes for ever. Only in the main thread (where signals are
-    delivered); the previous handler comes back afterwards."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    delivered) and only if SIGTERM has its default action (a caller's own handler, or an ignored SIGTERM,
+    is left alone); the previous handler comes back afterwards."""
+    handler = _SigTerm()
+    main = threading.current_thread() is threading.main_thread()
+    if not main or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        handler.starting = False
+        yield handler
         return
-
-    def handler(signum, frame):
-        raise SystemExit(128 + signum)
-
-    previous = signal.signal(signal.SIGTERM, handler)
+    signal.signal(signal.SIGTERM, handler)
     try:
-        yield
+        yield handler
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _stop_workers(pool: ProcessPoolExecutor) -> None:
     """Cancel the pool's queued jobs and end its worker processes now (``shutdown`` alone would wait for
-    the running jobs). Python 3.14's ``terminate_workers`` does this; before it, the processes are the
-    pool's ``_processes``."""
-    terminate = getattr(pool, "terminate_workers", None)
-    if terminate is not None:  # pragma: no cover - Python >= 3.14
-        terminate()
-        return
+    the running jobs): terminate, then kill what is left after 5 s (a job may handle SIGTERM itself), then
+    join the pool's manager thread (left running, it can print an error at interpreter exit). Uses the
+    pool's private ``_processes`` and ``_executor_manager_thread``, as Python 3.14's ``terminate_workers``
+    does."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for p in processes:
         if p.is_alive():
             p.terminate()
     for p in processes:
         p.join(timeout=5)
+        if p.is_alive():
+            p.kill()
+            p.join(timeout=5)
+    if manager is not None:
+        manager.join(timeout=5)
 
 
 def _set_environ(environ: dict[str, str]) -> None:
