@@ -188,12 +188,27 @@ def make_filter(kind: str, args: Args, setting: Setting, rng: np.random.Generato
     return FastSLAM(motion, noise, cfg, rng)
 
 
+def table1_tag(n: int, tag: int) -> int:
+    """Seed tag (`filter_rng`) of Table 1's filter ``tag`` (0 FastSLAM, 1 WOCPF) at ``n`` particles."""
+    return 10 + 2 * n + tag
+
+
+def sweep_tag(i: int) -> int:
+    """Seed tag of the K sweep's ``i``-th K."""
+    return 500 + i
+
+
+def spread_tag(j: int) -> int:
+    """Seed tag of the seed spread's ``j``-th plain FastSLAM."""
+    return 600 + j
+
+
 def filter_seed_tags(args: Args) -> list[int]:
     """The seed tags (`filter_rng`) of one run's filters on its low-noise drive: Table 2's, Table 1's, the K
     sweep's, the seed spread's (the other setting's drive is another seed sequence)."""
     t2 = list(range(len(TABLE2_FILTERS)))
-    t1 = [10 + 2 * n + tag for n in args.table1_particles for tag in (0, 1)]
-    return t2 + t1 + [500 + i for i in range(len(args.k_sweep))] + [600 + j for j in range(args.seed_spread)]
+    t1 = [table1_tag(n, tag) for n in args.table1_particles for tag in (0, 1)]
+    return t2 + t1 + [sweep_tag(i) for i in range(len(args.k_sweep))] + [spread_tag(j) for j in range(args.seed_spread)]
 
 
 def filter_rng(args: Args, setting_idx: int, r: int, tag: int) -> np.random.Generator:
@@ -244,7 +259,7 @@ def table1_job(job: tuple[Args, int]) -> dict:
     out = {}
     for n in args.table1_particles:
         for tag, (name, k) in enumerate([("FastSLAM", math.inf), ("WOCPF", args.woc_k)]):
-            f = make_filter("fs", args, LOW, filter_rng(args, 0, r, 10 + 2 * n + tag), n, k)
+            f = make_filter("fs", args, LOW, filter_rng(args, 0, r, table1_tag(n, tag)), n, k)
             out[(n, name)] = run_filter(f, run)
     return out
 
@@ -262,11 +277,11 @@ def k_sweep_job(job: tuple[Args, int]) -> dict:
     args, r = job
     run = drive(args, LOW, 0, r)
     out: dict = {
-        k: run_filter(make_filter("fs", args, LOW, filter_rng(args, 0, r, 500 + i), args.particles, k), run)
+        k: run_filter(make_filter("fs", args, LOW, filter_rng(args, 0, r, sweep_tag(i)), args.particles, k), run)
         for i, k in enumerate(args.k_sweep)
     }
     out["seeds"] = [
-        run_filter(make_filter("fs", args, LOW, filter_rng(args, 0, r, 600 + j), args.particles, math.inf), run)
+        run_filter(make_filter("fs", args, LOW, filter_rng(args, 0, r, spread_tag(j)), args.particles, math.inf), run)
         for j in range(args.seed_spread)
     ]
     return out

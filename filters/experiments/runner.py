@@ -84,11 +84,12 @@ class RunnerConfig:
         "the Ray cluster at auto"."""
         kind = self.resolved_executor
         n = self.workers
+        plural = "" if n == 1 else "s"
         if kind == "sequential":
             return "one process"
         if kind == "process":
-            return f"{n} worker process" + ("es" if n > 1 else "")
-        return f"the Ray cluster at {self.address}" if self.address else f"a local Ray of {n} CPU" + "s" * (n > 1)
+            return f"{n} worker process" + ("es" if plural else "")
+        return f"the Ray cluster at {self.address}" if self.address else f"a local Ray of {n} CPU{plural}"
 
     @property
     def resolved_executor(self) -> str:
