@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +35,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.logger import configure
+from stable_baselines3.common.logger import HumanOutputFormat, Logger, configure
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 import semreloc_env  # noqa: F401  (registers the envs)
@@ -268,10 +269,11 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
         device=config.device,
         verbose=config.verbose,
     )
-    formats = ["stdout"] if config.verbose else []
     if config.log_dir is not None:
-        formats += ["csv", "tensorboard"]
-    logger = configure(config.log_dir, formats)
+        logger = configure(config.log_dir, (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
+    else:
+        # configure(None, ...) would make an empty folder under the temp dir for every run.
+        logger = Logger(None, [HumanOutputFormat(sys.stdout)] if config.verbose else [])
     model.set_logger(logger)
     cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=config.metrics_window)]
     eval_venv = None

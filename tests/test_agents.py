@@ -1,5 +1,6 @@
 import csv
 import math
+import tempfile
 
 import gymnasium as gym
 import numpy as np
@@ -72,6 +73,17 @@ def test_smoke_run_writes_tensorboard_checkpoints_and_evaluations_under_log_dir(
     assert all(getattr(f, "file", None) is None or f.file.closed for f in model.logger.output_formats)
     written = {p.relative_to(log_dir).parts[0] for p in log_dir.rglob("*") if p.is_file()}
     assert written <= {"progress.csv", "checkpoints", "eval"} | {e.name for e in events}
+
+
+def test_a_run_without_log_dir_writes_nothing(tmp_path, monkeypatch):
+    # SB3's configure(None, ...) makes an empty SB3-<time> folder under the temp dir for every run.
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    config = TrainConfig(env_kwargs=FAST, n_envs=1, total_timesteps=64, n_steps=64, batch_size=64, n_epochs=1, seed=1)
+    model = train(config)
+    model.get_env().close()
+    assert model.num_timesteps >= 64
+    assert list(tmp_path.glob("SB3-*")) == []
 
 
 def test_train_config_rejects_bad_callback_and_device_options():
