@@ -25,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from filters.numbers import is_int
 from semreloc_env.envs.spaces import require_raw_observation, require_single_env
 from semreloc_env.observations import ActiveObservation
 from semreloc_env.wrappers import ActionRepeat, find_wrapper
@@ -170,7 +171,7 @@ class LearnedPolicy:
         seed: int = 0,
         options: tuple[str, ...] | None = None,
     ):
-        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
+        if not is_int(repeat) or repeat < 1:
             raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
         self.model = model
         self.observation = dict(observation)

@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from filters.experiments.stats import wilson_interval
+from filters.numbers import is_int
 
 LAYOUT_FILE_SUFFIXES = (".json", ".yaml", ".yml")
 """An episode's ``layout`` ending so is a layout file; its row is named by the file name's stem."""
@@ -99,9 +100,6 @@ class EpisodeSpec:
     kidnap_to_twin: bool = False
 
     def __post_init__(self) -> None:
-        def is_int(v) -> bool:
-            return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-
         for name in ("tracking", "kidnap_after_global", "kidnap_to_twin"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"EpisodeSpec.{name} must be True or False, got {getattr(self, name)!r:.60}")
@@ -191,7 +189,7 @@ def score_steps(converged: Sequence[bool], near: Sequence[bool], kidnap_at_step:
             f"converged and near need the same length >= 2 (the reset and the steps), got {len(conv)} and {len(ok)}"
         )
     k = kidnap_at_step
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= n:
+    if not is_int(k) or not 0 <= k <= n:
         raise ValueError(f"kidnap_at_step must be an integer in [0, {n}] (the steps scored), got {k!r:.60}")
     first = max(k, 1)
     first_success = None

@@ -66,7 +66,7 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
-from filters.numbers import is_real
+from filters.numbers import is_int, is_real
 from filters.pose import wrap_angle
 from filters.simulators.grid_raycast import cast_many_labelled
 
@@ -427,7 +427,7 @@ class ViewpointPlanner(Policy):
             "max_stays": max_stays,
         }
         for name, v in ints.items():
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 1:
+            if not is_int(v) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
         v = max_blocked_turns
         if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 0:

@@ -1,8 +1,8 @@
 """What counts as a number in argument checks: Python and NumPy scalars, never a bool.
 
-``True`` is an ``int`` to Python and ``np.float32(0.5)`` is not a ``float``; configs and
-constructors across the package check their arguments with these two predicates so that both
-cases are treated alike everywhere.
+``True`` is an ``int`` to Python, ``np.timedelta64`` an integer to NumPy and ``np.float32(0.5)`` is
+not a ``float``; configs and constructors across the package check their arguments with these
+predicates so that such cases are treated alike everywhere.
 """
 
 from __future__ import annotations
@@ -13,13 +13,18 @@ import numpy as np
 
 
 def is_int(v) -> bool:
-    """``v`` is a Python or NumPy integer, not a bool."""
-    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+    """``v`` is a Python or NumPy integer, not a bool nor a ``np.timedelta64`` (which NumPy makes an integer)."""
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_, np.timedelta64))
 
 
 def is_real(v) -> bool:
-    """``v`` is a Python or NumPy integer or float, not a bool (NaN and inf included)."""
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+    """``v`` is a Python or NumPy integer or float, not a bool nor a ``np.timedelta64`` (NaN and inf included)."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_, np.timedelta64))
+
+
+def is_int_dtype(dtype) -> bool:
+    """``dtype`` holds integers: a signed or unsigned NumPy integer type, not ``timedelta64``."""
+    return np.dtype(dtype).kind in "iu"
 
 
 _EXPONENT_FORM = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")

@@ -20,6 +20,8 @@ from typing import TypeVar
 
 import numpy as np
 
+from filters.numbers import is_int
+
 T = TypeVar("T")
 
 MAX_SUBSTEPS = 1000
@@ -84,7 +86,7 @@ def _check_value(cls: type, name: str, v, ann, what: str):
             return bool(v)
         raise ValueError(f"{where} must be a bool (True or False), got {_type_name(v)}")
     if ann is int:
-        if isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)):
+        if is_int(v):
             return int(v)
         raise ValueError(f"{where} must be an integer, got {_type_name(v)}")
     if ann is float:
@@ -213,7 +215,7 @@ def _probability(obj, *names: str) -> None:
 
 def _int_range(obj, name: str, lo: int, hi: int) -> None:
     v = getattr(obj, name)
-    if not (isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) and lo <= v <= hi):
+    if not (is_int(v) and lo <= v <= hi):
         raise ValueError(f"{type(obj).__name__}.{name} must be an integer in [{lo}, {hi}], got {v!r}")
 
 

@@ -27,7 +27,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from filters.numbers import is_real
+from filters.numbers import is_int, is_real
 
 BELIEF_FEATURES = ("pos_std_m", "theta_std_rad", "entropy_nats", "n_clusters", "ess_frac", "converged")
 """Order of the entries of the ``belief`` observation (see `BeliefObservation`)."""
@@ -278,7 +278,7 @@ class ActionRepeat(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def __init__(self, env: gym.Env, repeat: int):
         gym.utils.RecordConstructorArgs.__init__(self, repeat=repeat)
         gym.Wrapper.__init__(self, env)
-        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
+        if not is_int(repeat) or repeat < 1:
             raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
         self.repeat = int(repeat)
 

@@ -151,8 +151,8 @@ def test_6_slam_particle_count_must_be_an_int(value):
 @pytest.mark.parametrize(
     "action",
     [
-        [1 + 5e-7, 0.0],
-        np.array([0.0, -1 - 5e-7]),
+        [1 + 2e-5, 0.0],
+        np.array([0.0, -1 - 2e-5]),
         ["0.5", "0"],
         np.array(["0.5", "0"]),
         [0.5 + 1j, 0.0],
@@ -169,11 +169,20 @@ def test_7_actions_outside_the_box_change_nothing(action):
     assert_identical(env.step([1.0, 0.0]), twin.step([1.0, 0.0]))
 
 
-def test_7_box_bounds_are_exact():
-    env = gym.make("SemSlam-v1", action_type="continuous", **SLAM_FAST)
+def test_7_bounds_missed_by_a_rescaling_wrapper_are_clipped_to_them():
+    # RescaleAction's float32 arithmetic maps its own bounds a little beyond +-1 (1.0000001 here); the env
+    # takes such actions as the bound itself instead of refusing what the wrapper's own space contains
+    from gymnasium.wrappers import RescaleAction
+
+    env = RescaleAction(gym.make("SemReloc-v15", action_type="continuous", **FAST), np.float32(-0.3), np.float32(1.0))
+    twin = gym.make("SemReloc-v15", action_type="continuous", **FAST)
     env.reset(seed=0)
-    env.step(np.array([1.0, -1.0], np.float32))  # the bounds themselves are inside
-    assert not env.action_space.contains(np.array([1 + 5e-7, 0.0], np.float32))
+    twin.reset(seed=0)
+    high = env.action_space.high
+    assert np.any(np.abs(env.action(high)) > 1.0), "the wrapper no longer overshoots: pick other bounds"
+    for _ in range(3):
+        assert_identical(env.step(high), twin.step(np.ones(2, np.float32)))
+    assert not twin.action_space.contains(np.array([1 + 2e-5, 0.0], np.float32))
 
 
 # ---------------------------------------------------------------- 8. time limit
@@ -340,3 +349,39 @@ def test_a_layout_too_tight_for_a_random_start_says_what_was_looked_for():
     with pytest.raises(ValueError, match=r"no place found where it fits \(radius 0.2 m\) with 0.1 m to spare.*pose"):
         env.reset(seed=0)
     env.reset(seed=0, options={"pose": (0.25, 0.25, 0.0)})
+
+
+# ---------------------------------------------------------------- np.timedelta64, an integer to NumPy
+TD = np.timedelta64(3, "s")
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda env: env.step(TD),
+        lambda env: env.step(np.array(TD)),
+        lambda env: env.reset(seed=TD),
+        lambda env: env.reset(seed=0, options={"tracking": True, "kidnap_at_step": TD}),
+    ],
+    ids=["action", "action-array", "seed", "kidnap_at_step"],
+)
+def test_a_timedelta_is_not_an_integer_and_changes_nothing(call):
+    # np.timedelta64 subclasses np.signedinteger: it failed in int() with a TypeError, and as a kidnap step
+    # "3 seconds" was taken as step 3
+    env, twin = gym.make("SemReloc-v15", **FAST), gym.make("SemReloc-v15", **FAST)
+    env.reset(seed=1)
+    twin.reset(seed=1)
+    with pytest.raises(ValueError):
+        call(env)
+    assert_identical([env.step(0) for _ in range(3)], [twin.step(0) for _ in range(3)])
+
+
+def test_a_timedelta_is_refused_in_configs_and_estimators():
+    with pytest.raises(ValueError, match=r"n_beams"):
+        gym.make("SemReloc-v15", lidar={"n_beams": np.timedelta64(30, "s")})
+    with pytest.raises(ValueError, match=r"num_envs"):
+        gym.make_vec("SemRelocVec-v15", num_envs=np.timedelta64(2, "s"), vectorization_mode="vector_entry_point")
+    from filters.numbers import is_int, is_int_dtype, is_real
+
+    assert not is_int(TD) and not is_real(TD) and not is_int_dtype(np.array([TD]).dtype)
+    assert is_int(np.uint8(3)) and is_real(np.float32(0.5)) and is_int_dtype(np.int16)

@@ -66,7 +66,7 @@ from scipy.sparse.csgraph import connected_components
 
 from filters import _blas
 from filters.localization import belief_kernels as _k
-from filters.numbers import is_real
+from filters.numbers import is_int, is_real
 from filters.pose import wrap_angle
 from filters.smc.resampling import normalise_weights
 
@@ -109,7 +109,7 @@ class BeliefConfig:
 
     def __post_init__(self) -> None:
         k = self.converged_min_updates
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        if not is_int(k) or k < 1:
             raise ValueError(f"BeliefConfig.converged_min_updates must be an int >= 1, got {k!r}")
         if self.converged_rule not in ("hypothesis", "spread"):
             raise ValueError(

@@ -775,7 +775,7 @@ class MonteCarloLocalizer:
 
     @staticmethod
     def _check_n(n: int) -> int:
-        if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool)):
+        if not is_int(n):
             raise TypeError(f"particle count must be an int, got {n!r}")
         if not 1 <= n <= MAX_PARTICLES:
             raise ValueError(f"particle count must be in [1, {MAX_PARTICLES:,}], got {n}")

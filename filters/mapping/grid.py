@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from filters.arrays import frozen_array
-from filters.numbers import is_real
+from filters.numbers import is_int, is_real
 
 NO_CLASS = 0
 """Label of a semantic beam that hit no object of a known class."""
@@ -151,7 +151,7 @@ class GridMap:
 
     def _class(self, k) -> int:
         """Class index ``k`` checked (an int in ``[-C, C)``) and made non-negative."""
-        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
+        if not is_int(k):
             raise TypeError(f"class index must be an int, got {type(k).__name__} {k!r}")
         if not -len(self.class_names) <= k < len(self.class_names):
             raise IndexError(f"class index {k} out of range for {len(self.class_names)} classes")

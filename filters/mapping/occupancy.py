@@ -49,7 +49,7 @@ from scipy import ndimage
 from scipy.special import expit
 
 from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
-from filters.numbers import is_real
+from filters.numbers import is_int_dtype, is_real
 from filters.pose import compose
 from filters.robot_data.scans import LaserScan, SemanticScan
 
@@ -655,7 +655,7 @@ class SemanticMapper(_RasterMapper):
         """`update_many` for scans held as arrays: ``ranges`` and integer ``labels`` ``(N, B)``
         (0 = none, ``k + 1`` = class ``k``) at ``poses (N, 3)``, angles ``(B,)`` or ``(N, B)``."""
         lab = np.asarray(labels)
-        if lab.shape != np.shape(ranges) or (lab.size and not np.issubdtype(lab.dtype, np.integer)):
+        if lab.shape != np.shape(ranges) or (lab.size and not is_int_dtype(lab.dtype)):
             raise ValueError(f"labels must be integers of the ranges' shape {np.shape(ranges)}, got {lab.shape}")
         if lab.size and (lab.min() < 0 or lab.max() > len(self.class_names)):
             raise ValueError(f"labels must be in 0..{len(self.class_names)}, got {int(lab.min())}..{int(lab.max())}")

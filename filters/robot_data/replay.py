@@ -28,6 +28,7 @@ import numpy as np
 
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
+from filters.numbers import is_int
 from filters.pose import wrap_angle
 
 __all__ = ["MapMismatchError", "Track", "TrialResult", "track", "global_localization_trials", "summarize_trials"]
@@ -218,7 +219,7 @@ def global_localization_trials(
     bad = [s for s in starts if not 0 <= s < n]
     if bad:
         raise ValueError(f"starts must be scan indices in [0, {n}), got {bad[:5]}")
-    if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 1):
+    if not (is_int(n_steps) and n_steps >= 1):
         raise ValueError(f"n_steps must be an int >= 1, got {n_steps!r}")
     _check_on_map(grid, log.poses[starts], f"the start scans' poses ({len(starts)} starts)")
     out = []

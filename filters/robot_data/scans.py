@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from filters.arrays import frozen_array
-from filters.numbers import is_real
+from filters.numbers import is_int_dtype, is_real
 
 
 def _checked_sensor_pose(sensor_pose, what: str) -> np.ndarray:
@@ -183,7 +183,7 @@ class SemanticScan:
         lab = np.asarray(self.labels)
         if lab.shape != r.shape:
             raise ValueError(f"SemanticScan: labels {lab.shape} and ranges {r.shape} differ")
-        if lab.size and not (np.issubdtype(lab.dtype, np.integer) or lab.dtype == np.bool_):
+        if lab.size and not (is_int_dtype(lab.dtype) or lab.dtype == np.bool_):
             if not np.issubdtype(lab.dtype, np.floating):
                 raise ValueError(f"SemanticScan: labels must be class indices (integers), got dtype {lab.dtype}")
             v = lab.astype(np.float64).reshape(-1)

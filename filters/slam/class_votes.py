@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.numbers import is_int_dtype
 from filters.slam.fastslam import Association, FastSLAM
 
 
@@ -38,7 +39,7 @@ class ClassVotingFastSLAM(FastSLAM):
             if c.size == 0:
                 c = c.reshape(0)
             k = 0 if z is None else np.asarray(z).reshape(-1, 2).shape[0]
-            if c.shape != (k,) or (c.size and not np.issubdtype(c.dtype, np.integer)):
+            if c.shape != (k,) or (c.size and not is_int_dtype(c.dtype)):
                 raise ValueError(f"classes must be ({k},) integers, got {c!r}")
             if c.size and (c.min() < 1 or c.max() > self.n_classes):
                 raise ValueError(f"class labels must lie in 1..{self.n_classes}, got {c.tolist()}")

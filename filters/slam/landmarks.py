@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from filters.numbers import is_real
+from filters.numbers import is_int_dtype, is_real
 from filters.pose import wrap_angle
 
 
@@ -142,7 +142,7 @@ def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
         ids_arr = ids_arr.reshape(0)
     if ids_arr.ndim != 1 or ids_arr.shape[0] != z.shape[0]:
         raise ValueError(f"ids must have shape ({z.shape[0]},), got {ids_arr.shape}")
-    if ids_arr.size and (not np.issubdtype(ids_arr.dtype, np.integer) or np.any(ids_arr < 0)):
+    if ids_arr.size and (not is_int_dtype(ids_arr.dtype) or np.any(ids_arr < 0)):
         raise ValueError("landmark ids must be non-negative integers")
     return z, ids_arr.astype(np.int64)
 

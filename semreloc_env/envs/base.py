@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 from filters.motion.odometry import OdometryMotionConfig
+from filters.numbers import is_int
 
 from ..config import CameraParams, LidarParams, PhysicsParams, RobotParams, coerce_config, default_odometry_noise
 from ..layouts import PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, get_layout
@@ -25,7 +26,7 @@ from .spaces import decode_action, make_action_space, make_observation, make_obs
 
 def check_layout_seed(value) -> int:
     """``layout_seed`` as an int; ValueError unless it is an integer >= 0 (not a bool, float or string)."""
-    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0:
+    if is_int(value) and value >= 0:
         return int(value)
     raise ValueError(f"layout_seed must be an integer >= 0, got {type(value).__name__} {value!r:.60}")
 
@@ -134,9 +135,7 @@ class SemRelocBase(gym.Env):
         option in `_world_option_keys` needs it for its check; otherwise ``world`` is None
         (and `_validate_options` gets None). The checks are the same either way.
         """
-        if seed is not None and not (
-            isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)) and seed >= 0
-        ):
+        if seed is not None and not (is_int(seed) and seed >= 0):
             raise ValueError(f"reset seed must be None or an integer >= 0, got {type(seed).__name__} {seed!r:.60}")
         if options is None:
             options = {}

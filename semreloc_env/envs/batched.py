@@ -72,7 +72,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         wrapper=None,
         **kwargs,
     ):
-        if not (isinstance(num_envs, (int, np.integer)) and not isinstance(num_envs, bool) and num_envs >= 1):
+        if not (is_int(num_envs) and num_envs >= 1):
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
         if kwargs.get("render_mode") is not None:
             raise ValueError("SemRelocLoopVectorEnv does not render; make single envs to render")

@@ -12,6 +12,7 @@ import numpy as np
 from filters.localization.likelihood_field import NegativeEvidenceConfig, cached_model
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
+from filters.numbers import is_int
 from filters.pose import wrap_angle
 
 from ..layouts import LAYOUT_NAMES, get_layout
@@ -559,7 +560,7 @@ class SemRelocEnv(SemRelocBase):
         if tr is not None and not isinstance(tr, (bool, np.bool_)):
             raise ValueError(f"reset option tracking must be True, False or None, got {tr!r:.60}")
         k = options.get("kidnap_at_step")
-        if k is not None and (isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1):
+        if k is not None and (not is_int(k) or k < 1):
             raise ValueError(f"kidnap_at_step must be an integer >= 1, got {k!r}")
         kp = options.get("kidnap_pose")
         if kp is not None:

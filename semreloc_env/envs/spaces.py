@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from filters.numbers import is_int_dtype
+
 from ..config import CameraParams, LidarParams, RobotParams
 from ..layouts import CLASS_NAMES
 
@@ -12,6 +14,12 @@ ACTION_TYPES = ("discrete", "continuous")
 DISCRETE_ACTIONS = ("forward", "turn_left", "turn_right", "stop")
 ODOMETRY_BOUND = np.array([1.0, 1.0, np.pi], dtype=np.float32)
 """Odometry increments are clipped to ``+-(1 m, 1 m, pi rad)`` per step in the observation."""
+
+
+ACTION_BOUND_SLACK = 1e-5
+"""How far outside ``[-1, 1]`` a continuous action may lie and still be taken, clipped to the bound: float32
+rescaling wrappers miss the bounds by rounding (Gymnasium's ``RescaleAction`` maps its own bounds up to 7.7e-6
+beyond ``+-1`` for bounds of magnitude 100). Anything further is refused."""
 
 
 def make_action_space(action_type: str) -> spaces.Space:
@@ -25,10 +33,11 @@ def make_action_space(action_type: str) -> spaces.Space:
 
 
 def decode_action(action, action_type: str, space: spaces.Space, robot: RobotParams) -> tuple[float, float]:
-    """``(v m/s, omega rad/s)`` for an action; ValueError for anything outside the space or NaN."""
+    """``(v m/s, omega rad/s)`` for an action; ValueError for anything outside the space or NaN (continuous
+    actions within ``ACTION_BOUND_SLACK`` of the Box are clipped to it)."""
     if action_type == "discrete":
         a = np.asarray(action)
-        if a.shape != () or not np.issubdtype(a.dtype, np.integer) or not space.contains(int(a)):
+        if a.shape != () or not is_int_dtype(a.dtype) or not space.contains(int(a)):
             raise ValueError(f"invalid action {action!r}: expected an integer in [0, {space.n}) {DISCRETE_ACTIONS}")
         name = DISCRETE_ACTIONS[int(a)]
         v = robot.max_linear_mps if name == "forward" else 0.0
@@ -43,8 +52,9 @@ def decode_action(action, action_type: str, space: spaces.Space, robot: RobotPar
     if a is None or a.shape != (2,) or a.dtype.kind not in "iuf":  # no strings, bools, complex or objects
         raise ValueError(f"invalid action {action!r:.80}: expected two real numbers (v, omega) in [-1, 1]")
     a = a.astype(np.float64)
-    if not np.all(np.isfinite(a)) or np.any(np.abs(a) > 1.0):  # the Box's bounds, exactly
+    if not np.all(np.isfinite(a)) or np.any(np.abs(a) > 1.0 + ACTION_BOUND_SLACK):
         raise ValueError(f"invalid action {action!r:.80}: expected two finite numbers (v, omega) in [-1, 1]")
+    a = np.clip(a, -1.0, 1.0)
     return float(a[0]) * robot.max_linear_mps, float(a[1]) * robot.max_angular_rps
 
 

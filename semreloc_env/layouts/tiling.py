@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters.numbers import is_int
+
 from .layout import Layout, layout_from_dict
 
 
@@ -24,7 +26,7 @@ def tiled_layout(base: Layout, nx: int, ny: int, doorway_m: float = 0.8, name: s
             or no doorway fits between copies.
     """
     for arg, v in (("nx", nx), ("ny", ny)):
-        if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
+        if not (is_int(v) and v >= 1):
             raise ValueError(f"{arg} must be an int >= 1, got {v!r}")
     outer = np.asarray(base.outer, dtype=np.float64)
     x0, x1, y0, y1 = base.bounds()

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from filters.numbers import is_real
+from filters.numbers import is_int, is_real
 
 from ..envs.spaces import ODOMETRY_BOUND, require_raw_observation, semantic_parts
 from ..layouts import CLASS_NAMES
@@ -71,7 +71,7 @@ def check_arguments(
         ("n_heading_bins", n_heading_bins),
         ("max_hypotheses", max_hypotheses),
     ):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+        if not is_int(v) or v < 1:
             raise ValueError(f"{name} must be a positive integer, got {v!r}")
     for name, v in (("ego_size", ego_size), ("global_size", global_size)):
         if v > 512:  # the images are (channels, size, size) per step
