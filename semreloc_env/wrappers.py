@@ -221,14 +221,22 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.Wrapper.__init__(self, env)
 
     def reset(self, *, seed=None, options=None):
-        self.env.unwrapped.check_reset(seed=seed, options=options)
-        k = (options or {}).get("kidnap_at_step")
-        limit = _time_limit(self.env)
-        if k is not None and limit is not None and k > limit:
-            raise ValueError(
-                f"kidnap_at_step {k} is beyond the episode's time limit of {limit} steps: the kidnap would never happen"
-            )
+        check_reset(self.env, seed=seed, options=options)
         return self.env.reset(seed=seed, options=options)
+
+
+def check_reset(env: gym.Env, seed=None, options=None) -> None:
+    """ValueError unless ``env.reset(seed=seed, options=options)`` would be taken; changes nothing.
+
+    The env's own ``check_reset`` and, for a ``kidnap_at_step``, the time limit of a ``TimeLimit`` in
+    ``env``'s wrapper chain (a kidnap after it would never happen)."""
+    env.unwrapped.check_reset(seed=seed, options=options)
+    k = (options or {}).get("kidnap_at_step")
+    limit = _time_limit(env)
+    if k is not None and limit is not None and k > limit:
+        raise ValueError(
+            f"kidnap_at_step {k} is beyond the episode's time limit of {limit} steps: the kidnap would never happen"
+        )
 
 
 def find_wrapper(env: gym.Env, wrapper_class: type[gym.Wrapper]) -> gym.Wrapper | None:

@@ -134,6 +134,22 @@ def test_rejected_steps_and_resets_move_no_robot():
     venv.reset(seed=range(3))  # any sequence of seeds
 
 
+def test_a_kidnap_beyond_one_robots_time_limit_resets_no_robot():
+    # The time limit's check ran inside each robot's reset, in turn: robots 0 and 1 were reset
+    # before robot 2's kidnap_at_step was refused.
+    venv = SemRelocLoopVectorEnv(num_envs=3, **VKW)
+    venv.reset(seed=0)
+    venv.step([0, 1, 2])
+    steps = [e.unwrapped._steps for e in venv.envs]
+    poses = [e.unwrapped.world.pose.copy() for e in venv.envs]
+    with pytest.raises(ValueError, match=r"robot 2: kidnap_at_step 26 is beyond the episode's time limit of 25"):
+        venv.reset(seed=9, options=[{}, {}, {"tracking": True, "kidnap_at_step": 26}])
+    assert [e.unwrapped._steps for e in venv.envs] == steps
+    assert [e.get_wrapper_attr("_elapsed_steps") for e in venv.envs] == [1, 1, 1]
+    for env, pose in zip(venv.envs, poses):
+        np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
+
+
 def test_a_float_array_of_discrete_actions_says_which_robots_hold_nan():
     # a new user's trial: [0, 1, nan] is a float array, so robot 0's 0.0 was blamed alone
     venv = SemRelocLoopVectorEnv(num_envs=3, **VKW)

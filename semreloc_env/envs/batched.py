@@ -33,6 +33,7 @@ from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from filters.numbers import is_int
 
+from ..wrappers import check_reset
 from .spaces import decode_action
 
 SINGLE_ENV_ID = "SemReloc-v15"
@@ -183,7 +184,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         per_robot = self._per_robot(options)
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
             try:
-                env.unwrapped.check_reset(seed=s, options=o)
+                check_reset(env, seed=s, options=o)
             except ValueError as e:
                 raise ValueError(f"robot {i}: {e}") from None
         return seeds
