@@ -11,6 +11,10 @@ import re
 
 import numpy as np
 
+MAX_LENGTH_M = 1e6
+"""Largest length (m) the estimators take as a range, a distance or a noise std: no sensor of a mobile robot
+measures farther, and the squares of far larger lengths overflow their covariance arithmetic."""
+
 
 def is_int(v) -> bool:
     """``v`` is a Python or NumPy integer, not a bool nor a ``np.timedelta64`` (which NumPy makes an integer)."""

@@ -33,6 +33,19 @@ MAX_BEAMS = 10_000
 MAX_RANGE_M = 10_000.0
 """Largest sensor range accepted (m): beyond it the observation bounds stop being meaningful."""
 
+MAX_REWARD_WEIGHT = 1e6
+"""Largest magnitude of a reward weight: larger ones can make a reward (a sum of weighted terms) infinite."""
+
+
+def check_reward_weights(obj) -> None:
+    """ValueError unless every field of the dataclass ``obj`` is a finite real within ``+-MAX_REWARD_WEIGHT``."""
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= MAX_REWARD_WEIGHT):
+            raise ValueError(
+                f"reward weight {f.name} must be a finite number within +-{MAX_REWARD_WEIGHT:g}, got {v!r}"
+            )
+
 
 def _key_list(keys) -> list:
     """Keys sorted for a message even when they are of mixed types (``{"a", 7}``)."""

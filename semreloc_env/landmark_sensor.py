@@ -34,6 +34,7 @@ import numpy as np
 from filters.pose import wrap_angle
 from filters.robot_data.scans import SemanticScan
 
+from .config import MAX_RANGE_M
 from .layouts import CLASS_NAMES
 from .sensors import SemanticCamera
 from .world import World
@@ -64,9 +65,9 @@ class LandmarkSensorParams:
         if self.point not in POINTS:
             raise ValueError(f"LandmarkSensorParams.point must be one of {POINTS}, got {self.point!r}")
         depth = tuple(float(d) for d in self.class_depth_m)
-        if len(depth) != len(CLASS_NAMES) or not all(np.isfinite(d) and d >= 0 for d in depth):
+        if len(depth) != len(CLASS_NAMES) or not all(0 <= d <= MAX_RANGE_M for d in depth):
             raise ValueError(
-                f"LandmarkSensorParams.class_depth_m needs {len(CLASS_NAMES)} finite values >= 0 "
+                f"LandmarkSensorParams.class_depth_m needs {len(CLASS_NAMES)} values in [0, {MAX_RANGE_M:g}] m "
                 f"({', '.join(CLASS_NAMES)}), got {self.class_depth_m!r}"
             )
         object.__setattr__(self, "class_depth_m", depth)

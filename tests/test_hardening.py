@@ -385,3 +385,21 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
 
     assert not is_int(TD) and not is_real(TD) and not is_int_dtype(np.array([TD]).dtype)
     assert is_int(np.uint8(3)) and is_real(np.float32(0.5)) and is_int_dtype(np.int16)
+
+
+@pytest.mark.parametrize(
+    "env_id, kw, match",
+    [
+        ("SemReloc-v15", {"relocalizer": {"lidar_field": {"sigma_hit_m": 1e300}}}, r"lidar_field.*sigma_hit_m"),
+        ("SemReloc-v15", {"relocalizer": {"semantic_field": {"max_dist_m": 1e200}}}, r"semantic_field.*max_dist_m"),
+        ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e200}}, r"obs_noise.*sigma_r_m at most"),
+        ("SemSlam-v1", {"obs_noise": {"sigma_b_rad": 1e200}}, r"obs_noise.*sigma_b_rad at most"),
+        ("SemSlam-v1", {"landmark_sensor": {"class_depth_m": (2e6, 0.25, 0.2, 0.3)}}, r"class_depth_m"),
+        ("SemSlam-v1", {"reward_weights": {"time": -1e308}}, r"reward weight time"),
+    ],
+)
+def test_huge_finite_settings_are_refused_at_make(env_id, kw, match):
+    # They passed gym.make and failed later: an OverflowError at reset naming nothing, a class depth of
+    # 2e6 m at step 3 after the robot had moved, rewards of -inf
+    with pytest.raises(ValueError, match=match):
+        gym.make(env_id, **kw)

@@ -55,7 +55,7 @@ from scipy import ndimage
 
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.mapping.grid import GridMap
-from filters.numbers import is_int, is_real
+from filters.numbers import MAX_LENGTH_M, is_int, is_real
 from filters.robot_data.scans import LaserScan, SemanticScan, beam_endpoints
 
 
@@ -64,7 +64,7 @@ class LikelihoodFieldConfig:
     """Parameters of one likelihood field (lidar or semantic).
 
     Attributes:
-        sigma_hit_m: std of the Gaussian hit score, metres (> 0).
+        sigma_hit_m: std of the Gaussian hit score, metres (> 0, at most ``filters.numbers.MAX_LENGTH_M``).
         z_hit: weight of the hit component (>= 0).
         z_rand: weight of the uniform random-measurement component (>= 0); divided by the
             scan's ``range_max_m``. ``z_hit + z_rand`` must be > 0.
@@ -89,8 +89,11 @@ class LikelihoodFieldConfig:
     def __post_init__(self) -> None:
         for name in ("sigma_hit_m", "max_dist_m"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"LikelihoodFieldConfig.{name} must be a positive number, got {v!r}")
+            if not (is_real(v) and 0 < v <= MAX_LENGTH_M):
+                raise ValueError(
+                    f"LikelihoodFieldConfig.{name} must be a positive number of metres, at most {MAX_LENGTH_M:g}, "
+                    f"got {v!r}"
+                )
         for name in ("z_hit", "z_rand"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):

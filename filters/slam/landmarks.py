@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from filters.numbers import is_int_dtype, is_real
+from filters.numbers import MAX_LENGTH_M, is_int_dtype, is_real
 from filters.pose import wrap_angle
 
 
@@ -29,8 +29,11 @@ class RangeBearingNoise:
     sigma_b_rad: float
 
     def __post_init__(self) -> None:
-        if not (self.sigma_r_m > 0 and self.sigma_b_rad > 0 and np.isfinite(self.sigma_r_m + self.sigma_b_rad)):
-            raise ValueError(f"observation noise must be positive and finite, got {self}")
+        if not (0 < self.sigma_r_m <= MAX_LENGTH_M and 0 < self.sigma_b_rad <= 2 * math.pi):
+            raise ValueError(
+                f"observation noise must be positive, sigma_r_m at most {MAX_LENGTH_M:g} m and sigma_b_rad at most "
+                f"2 pi rad, got {self}"
+            )
 
     @property
     def cov(self) -> np.ndarray:
@@ -103,7 +106,7 @@ def inverse_observation(poses: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, n
     return np.broadcast_to(lm, shape + (2,)).copy(), g_x, g_z
 
 
-MAX_RANGE_M = 1e6
+MAX_RANGE_M = MAX_LENGTH_M
 """Largest observation range `validate_observations` accepts (m): no range-bearing sensor measures farther,
 and the squares of far larger ranges overflow the filters' covariance arithmetic (inf landmark covariances)."""
 

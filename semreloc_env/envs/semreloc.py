@@ -15,6 +15,7 @@ from filters.mapping.grid import GridMap
 from filters.numbers import is_int
 from filters.pose import wrap_angle
 
+from ..config import check_reward_weights
 from ..layouts import LAYOUT_NAMES, get_layout
 from ..map_world import check_map_matches_world
 from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout
@@ -154,11 +155,7 @@ class RewardWeights:
     wrong_convergence: float = -0.05
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            real = isinstance(v, (int, float)) and not isinstance(v, bool)
-            if not (real and math.isfinite(v) and abs(v) <= 1e6):
-                raise ValueError(f"reward weight {f.name} must be a finite number within +-1e6, got {v!r}")
+        check_reward_weights(self)
 
 
 class SemRelocEnv(SemRelocBase):

@@ -20,7 +20,7 @@ from filters.slam.metrics import true_landmark_errors
 from filters.slam.weight_transforms import WOC
 from filters.smc.resampling import effective_sample_size
 
-from ..config import coerce_config
+from ..config import check_reward_weights, coerce_config
 from ..landmark_sensor import LandmarkSensor, LandmarkSensorParams
 from ..layouts import CLASS_NAMES
 from .base import SemRelocBase, check_seed_use
@@ -96,6 +96,9 @@ class SlamRewardWeights:
     collision: float = -0.5
     pose_error: float = -0.1
     discovery: float = 0.1
+
+    def __post_init__(self) -> None:
+        check_reward_weights(self)
 
 
 class SemSlamEnv(SemRelocBase):
