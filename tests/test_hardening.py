@@ -403,3 +403,18 @@ def test_huge_finite_settings_are_refused_at_make(env_id, kw, match):
     # 2e6 m at step 3 after the robot had moved, rewards of -inf
     with pytest.raises(ValueError, match=match):
         gym.make(env_id, **kw)
+
+
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v15", FAST), ("SemSlam-v1", SLAM_FAST)])
+def test_observations_are_writable_copies_that_change_nothing(env_id, kw):
+    # semantic_class was a read-only view of the scan's labels, unlike every other entry
+    env, twin = gym.make(env_id, **kw), gym.make(env_id, **kw)
+    obs, _ = env.reset(seed=2)
+    twin.reset(seed=2)
+    for _ in range(2):
+        for v in obs.values():
+            assert v.flags.writeable
+            v[...] = 0
+        obs = env.step(0)[0]
+        twin.step(0)
+    assert_identical([env.step(1) for _ in range(3)], [twin.step(1) for _ in range(3)])

@@ -91,11 +91,12 @@ def make_observation_space(lidar: LidarParams, camera: CameraParams, layout: str
 
 
 def make_observation(lidar_scan, semantic_scan, odom: np.ndarray, layout: str = "typed") -> dict[str, np.ndarray]:
-    """One observation in ``layout`` (see `make_observation_space`)."""
+    """One observation in ``layout`` (see `make_observation_space`): fresh, writable arrays."""
     obs = {"lidar": lidar_scan.ranges.astype(np.float32)}
     if layout == "typed":
-        obs["semantic_range"] = np.asarray(semantic_scan.ranges, dtype=np.float32)
-        obs["semantic_class"] = np.asarray(semantic_scan.labels, dtype=np.int64)
+        # copies: the scan's own arrays are read-only, and an observation is the caller's to change
+        obs["semantic_range"] = np.array(semantic_scan.ranges, dtype=np.float32)
+        obs["semantic_class"] = np.array(semantic_scan.labels, dtype=np.int64)
     else:
         obs["semantic"] = np.concatenate([semantic_scan.ranges, semantic_scan.labels]).astype(np.float32)
     obs["odometry"] = np.clip(odom, -ODOMETRY_BOUND, ODOMETRY_BOUND).astype(np.float32)
