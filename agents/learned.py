@@ -98,11 +98,14 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
         with zipfile.ZipFile(path) as z:
             if META_NAME not in z.namelist():
                 raise ValueError(
-                    f"{path} has no {META_NAME}: not saved by agents.learned.save_policy; a bare checkpoint of a "
-                    "train_active run loads with its settings given: load_policy(path, observation={}, repeat=4) "
-                    "(the run's --config.observation and --config.repeat). A model of scripts/train_ppo.py is no "
-                    "such policy (it sees BeliefObservation's vector): evaluate it with `train_ppo.py --load` or "
-                    "agents.train.evaluate(stable_baselines3.PPO.load(path), env_kwargs)"
+                    f"{path} has no {META_NAME}: not saved by agents.learned.save_policy, nor a checkpoint in the "
+                    "checkpoints/ folder of a train_active run beside its config.json. A checkpoint moved out of "
+                    "its run loads with its settings given, load_policy(path, observation={...}, repeat=N) (the "
+                    "run's --config.observation and --config.repeat); agents.learned.save_policy(policy.model, "
+                    "'mine.zip', observation={...}, repeat=N, options=(...)) then makes a file any tool loads. A "
+                    "model of scripts/train_ppo.py is no such policy (it sees BeliefObservation's vector): "
+                    "evaluate it with `train_ppo.py --load` or agents.train.evaluate(stable_baselines3.PPO.load(path), "
+                    "env_kwargs)"
                 )
             meta = json.loads(z.read(META_NAME))
     except zipfile.BadZipFile as e:
@@ -130,6 +133,25 @@ def option_names(options, explorer_option: bool) -> tuple[str, ...]:
 def run_folder_of(checkpoint: Path) -> Path:
     """The run folder a checkpoint belongs to (``<out>/checkpoints/x.zip`` or ``<out>/policy.zip``)."""
     return checkpoint.parent.parent if checkpoint.parent.name == "checkpoints" else checkpoint.parent
+
+
+def saved_settings(path: str | Path) -> dict[str, Any]:
+    """How the policy file ``path`` was trained, as far as it or its run folder says: `save_policy`'s
+    metadata, or for a bare checkpoint in a training run's ``checkpoints/``, the ``observation`` and
+    ``repeat`` of the run's ``config.json`` (what `load_policy` needs no argument for).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: neither (see `read_metadata`).
+    """
+    path = Path(path)
+    try:
+        return read_metadata(path)
+    except ValueError:
+        saved = saved_run_config(path) if path.parent.name == "checkpoints" else None
+        if saved is None or not {"observation", "repeat"} <= saved.keys():
+            raise
+        return {k: saved[k] for k in ("observation", "repeat")}
 
 
 def saved_run_config(checkpoint: Path) -> dict[str, Any] | None:
@@ -321,12 +343,11 @@ def load_policy(
     path = Path(path)
     if observation is None or repeat is None or (explorer_option is None and options is None):
         try:
-            meta = read_metadata(path)
-        except ValueError:  # a bare checkpoint: its run's config.json says how it was trained, if there is one
-            saved = saved_run_config(path) if path.parent.name == "checkpoints" else None
-            meta = {k: saved[k] for k in ("observation", "repeat") if saved is not None and k in saved}
-            if (observation is None and "observation" not in meta) or (repeat is None and "repeat" not in meta):
+            meta = saved_settings(path)
+        except ValueError:
+            if observation is None or repeat is None:
                 raise
+            meta = {}
         observation = meta["observation"] if observation is None else observation
         repeat = meta["repeat"] if repeat is None else repeat
         if options is None and explorer_option is None and "options" in meta:

@@ -55,6 +55,9 @@ TRAIN_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
 """Layout kinds drawn for training: procedural only, so ``lab``, ``twin_rooms`` and the changed
 lab of the evaluation are layouts the policy has never seen (as are the held-out seeds)."""
 
+DEFAULT_KIND_WEIGHTS = (1.0, 1.0, 2.0)
+"""How often each of ``TRAIN_KINDS`` is drawn, relative to the others: look-alike layouts twice as often."""
+
 
 def observation_defaults() -> dict[str, Any]:
     """`ActiveObservation`'s keyword arguments with their defaults (what ``observation`` may set)."""
@@ -70,9 +73,10 @@ class ActiveTrainConfig:
     """layout kinds drawn for training (`semreloc_env.layout_sampling.LayoutSampler`)"""
     files: tuple[str, ...] = ()
     """layout files (.json / .yaml) drawn as well, each one more entry after the kinds"""
-    kind_weights: tuple[float, ...] | None = (1.0, 1.0, 2.0)
+    kind_weights: tuple[float, ...] | None | Literal["auto"] = "auto"
     """one weight per entry, kinds then files, or one per kind only (files then weigh 1 each);
-    None: equal. The default fits the default kinds"""
+    None: equal; "auto": ``DEFAULT_KIND_WEIGHTS`` (1, 1, 2) if ``kinds`` are the default kinds (files
+    then weigh 1 each), equal weights for any other kinds. The config keeps the weights "auto" gave"""
     layout_seeds: tuple[int, int] = (0, 100)
     """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
     mapping-run cache serve repeats"""
@@ -158,6 +162,11 @@ class ActiveTrainConfig:
         lo, hi = self.layout_seeds
         if not (0 <= lo < hi):
             raise ValueError(f"layout_seeds must be (start, stop) with 0 <= start < stop, got {self.layout_seeds!r}")
+        if isinstance(self.kind_weights, str):
+            if self.kind_weights != "auto":
+                raise ValueError(f'kind_weights must be weights, None or "auto", got {self.kind_weights!r}')
+            auto = DEFAULT_KIND_WEIGHTS if tuple(self.kinds) == TRAIN_KINDS else None
+            object.__setattr__(self, "kind_weights", auto)
         entries = len(self.kinds) + len(self.files)
         if self.kind_weights is not None and len(self.kind_weights) not in (entries, len(self.kinds)):
             raise ValueError(
@@ -501,6 +510,8 @@ def train_active(
     venv = make_active_venv(config)
     if resume is not None:
         model = PPO.load(resume, env=venv, device=config.device)
+        # the checkpoint's episode statistics would fill the resumed run's rollout/* rows and its curve
+        model.ep_info_buffer = model.ep_success_buffer = None
         config = resumed_config(model, config)  # its n_steps also bounds the checkpoints it will write
         n = int(model.num_timesteps)
         names = ("progress.csv", "timing.json", "config.json", "policy.zip", "learning_curve.png")

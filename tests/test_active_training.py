@@ -1,6 +1,7 @@
 """Active-relocalization training: ActionRepeat, the CNN + MLP extractor, a PPO smoke run saved and
 reloaded through agents.load_policy, the shipped policy, and evaluate_active with learned policies."""
 
+import csv
 import dataclasses
 import json
 import zipfile
@@ -15,6 +16,7 @@ import semreloc_env  # noqa: F401
 from agents.active_features import ActiveExtractor
 from agents.learned import META_NAME, SHIPPED_POLICY, load_policy, read_metadata
 from agents.train_active import ActiveTrainConfig, train_active
+from filters.experiments.cli import parse
 from semreloc_env.observations import ActiveObservation
 from semreloc_env.wrappers import ActionRepeat
 
@@ -163,7 +165,7 @@ def test_resume_continues_the_step_count_and_keeps_the_earlier_logs(smoke_run, t
     ckpt = sorted((run / "checkpoints").glob("ppo_*_steps.zip"))[0]
     config = ActiveTrainConfig(**json.loads((run / "config.json").read_text()))
     before = json.loads((run / "timing.json").read_text())["decisions"]
-    train_active(dataclasses.replace(config, total_timesteps=64, checkpoint_every=None), run, resume=ckpt)
+    train_active(dataclasses.replace(config, total_timesteps=192, checkpoint_every=None), run, resume=ckpt)
     from stable_baselines3 import PPO
 
     done = PPO.load(ckpt).num_timesteps
@@ -171,8 +173,15 @@ def test_resume_continues_the_step_count_and_keeps_the_earlier_logs(smoke_run, t
     assert (run / f"policy_before_{done}.zip").is_file() and (run / "policy.zip").is_file()  # both networks kept
     assert json.loads((run / f"timing_before_{done}.json").read_text())["decisions"] == before
     timing = json.loads((run / "timing.json").read_text())
-    assert timing["decisions"] >= done + 64
+    assert timing["decisions"] >= done + 192
     assert timing["decisions_this_run"] == timing["decisions"] - done  # what this run's seconds paid for
+    # the resumed rows count this run's episodes only: the checkpoint's buffers used to fill rollout/*
+    assert len(PPO.load(ckpt).ep_success_buffer) > 0
+    with open(run / "progress.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and any(r.get("reloc/success_rate") for r in rows)
+    for r in rows:
+        assert r.get("rollout/success_rate", "") == r.get("reloc/success_rate", "")
 
 
 def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsys):
@@ -251,6 +260,26 @@ def test_kind_weights_per_kind_give_files_weight_one(tmp_path):
     assert config._entry_weights() == [1.0, 1.0, 2.0, 1.0, 1.0]
     with pytest.raises(ValueError, match="per kind and file \\(5\\) or per kind \\(3\\)"):
         ActiveTrainConfig(files=(str(tmp_path / "a.json"), str(tmp_path / "b.json")), kind_weights=(1.0, 2.0))
+
+
+def test_the_default_kind_weights_apply_only_to_the_default_kinds(tmp_path):
+    # (1, 1, 2) was applied to whatever kinds and files were given: one kind and two files drew the second
+    # file twice as often, and two kinds without weights failed over a setting never given
+    from semreloc_env.layouts import get_layout
+
+    files = []
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.json").write_text(json.dumps({**get_layout("twin_rooms").to_dict(), "name": name}))
+        files.append(str(tmp_path / f"{name}.json"))
+    assert ActiveTrainConfig().kind_weights == (1.0, 1.0, 2.0)
+    one_kind = ActiveTrainConfig(kinds=("procedural",), files=tuple(files))
+    assert one_kind.kind_weights is None and one_kind.layout_sampler().config()["weights"] is None
+    assert ActiveTrainConfig(kinds=("procedural", "procedural_sym")).kind_weights is None
+    assert ActiveTrainConfig(kinds=("procedural", "procedural_sym"), kind_weights=(1.0, 3.0)).kind_weights == (1.0, 3.0)
+    assert parse(ActiveTrainConfig, ["--kinds", "procedural_ring"]).kind_weights is None
+    assert parse(ActiveTrainConfig, ["--kind-weights", "None"]).kind_weights is None
+    with pytest.raises(ValueError, match="kind_weights"):
+        ActiveTrainConfig(kind_weights="equal")
 
 
 def test_loaded_policy_acts_deterministically_on_another_layout_and_particle_count(smoke_run):
@@ -531,6 +560,13 @@ def test_a_bare_checkpoint_of_a_run_takes_its_repeat_and_observation_from_the_ru
     assert policy.repeat == 3 and policy.observation == saved["observation"]
     assert load_policy(ckpt, repeat=2).repeat == 2  # an explicit override still wins
     policy.wrap(_env())
+    # a seventeenth tester's: evaluate_active refused what load_policy(path) loads, pointing at train_ppo.py
+    from agents.experiments.evaluate_active import Args
+
+    Args(policies=(f"ck={ckpt}",), layouts_per_kind=1)
+    (tmp_path / "run" / "config.json").unlink()
+    with pytest.raises(ValueError, match=r"policies: ck=.*save_policy\(policy.model"):
+        Args(policies=(f"ck={ckpt}",), layouts_per_kind=1)
 
 
 def test_a_policy_of_continuous_actions_wraps_a_continuous_env(tmp_path):

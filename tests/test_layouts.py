@@ -111,6 +111,7 @@ def _obj(cls="chair", poly=((1, 1), (2, 1), (2, 2), (1, 2)), **kw):
     "data, match",
     [
         ({"outer": SQUARE, "objects": [_obj(cls="sofa")]}, r"objects\[0\].*unknown class 'sofa'"),
+        ({"outer": SQUARE, "objects": [{"polygon": [[1, 1], [2, 1], [2, 2]]}]}, r"objects\[0\].*no 'class' key"),
         ({"outer": SQUARE, "objects": [_obj(poly=((1, 1), (2, 2), (2, 1), (1, 2)))]}, "self-intersecting"),
         ({"outer": SQUARE, "objects": [_obj(poly=((1, 1), (2, 1)))]}, "at least 3"),
         ({"outer": SQUARE, "objects": [_obj(poly=((1, 1), (2, 1), (3, 1)))]}, "zero area"),

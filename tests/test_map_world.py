@@ -175,6 +175,11 @@ def test_layouts_by_name_on_the_search_path(tmp_path, monkeypatch):
     assert get_layout("lab_moved").name == "lab_moved"
     env = gym.make("SemReloc-v15", layout="lab", map_source="lab_moved", relocalizer={"n_particles": 100})
     assert env.unwrapped.layout.name == "lab"
+    # a seventeenth tester's: "lab_moved.json" said only "not found", although the name is on the path
+    with pytest.raises(
+        LayoutError, match=r"not found: lab_moved.json \(a name with an extension is a path.*'lab_moved' is"
+    ):
+        get_layout("lab_moved.json")
 
 
 def test_a_search_path_file_named_like_a_built_in_warns_that_the_built_in_is_used(tmp_path, monkeypatch):

@@ -75,7 +75,8 @@ class Args:
 
     policies: tuple[str, ...] = DEFAULT_POLICIES
     """names from agents.policies.POLICIES, NAME=PATH for a trained policy saved by
-    agents.learned.save_policy (loaded with agents.load_policy), or NAME=MODULE:CLASS /
+    agents.learned.save_policy or a checkpoint in a train_active run's checkpoints/ (loaded with
+    agents.load_policy), or NAME=MODULE:CLASS /
     NAME=path/to/file.py:CLASS for your own: CLASS(seed) must give an object with wrap(env), reset() and
     act(obs), as agents.policies.Policy (--reuse tracks edits to the .py files of its folder, or of its
     top package); space-separated"""
@@ -259,10 +260,10 @@ class Args:
         self._check_map_source()
         for spec in self.policies:
             if is_learned(spec):
-                from agents.learned import read_metadata
+                from agents.learned import saved_settings
 
-                try:  # learned policies are loaded by their metadata (a bare SB3 checkpoint has none)
-                    read_metadata(spec.split("=", 1)[1])
+                try:  # learned policies load as agents.load_policy(path) does, with no settings given
+                    saved_settings(spec.split("=", 1)[1])
                 except ValueError as e:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
@@ -513,7 +514,7 @@ def _user_target(spec: str) -> re.Match | None:
 
 
 def is_learned(spec: str) -> bool:
-    """Whether ``spec`` is ``NAME=PATH``, a policy saved by `agents.learned.save_policy`."""
+    """Whether ``spec`` is ``NAME=PATH``, a policy file `agents.load_policy` loads."""
     return "=" in spec and _user_target(spec) is None
 
 
@@ -872,7 +873,7 @@ def table(summary: dict, policies: list[str]) -> str:
     for group, per_policy in summary.items():
         n = per_policy[policies[0]]["episodes"]
         lines += [
-            f"### {group} ({n} episodes per policy)",
+            f"### {group} ({n} episode{'' if n == 1 else 's'} per policy)",
             "",
             "| policy | success | wrong | unconverged | first convergence wrong | median steps "
             "| steps in collision / episode |",

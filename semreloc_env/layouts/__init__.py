@@ -144,6 +144,11 @@ def get_layout(
         return layout_from_dict(procedural_layout(np.random.default_rng(seed), params))
     if isinstance(spec, (str, Path)):
         path = Path(spec).expanduser()
+        if path.suffix.lower() in (".json", ".yaml", ".yml") and not path.exists() and find_layout_file(path.stem):
+            raise LayoutError(
+                f"layout file not found: {path} (a name with an extension is a path; the layouts on "
+                f"${LAYOUT_PATH_ENV} are named without one: {path.stem!r} is {find_layout_file(path.stem)})"
+            )
         if path.suffix.lower() in (".json", ".yaml", ".yml") or path.exists():
             return load_layout(path)
         found = find_layout_file(str(spec))

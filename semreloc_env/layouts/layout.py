@@ -449,6 +449,8 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
         if unknown:
             raise LayoutError(f"{what}: unknown keys {_key_list(unknown)}; allowed: {sorted(_OBJECT_KEYS)}")
         cls = o.get("class")
+        if "class" not in o:
+            raise LayoutError(f"{what}: no 'class' key; give one of {list(CLASS_NAMES)}")
         if not isinstance(cls, str) or cls not in CLASS_NAMES:
             raise LayoutError(f"{what}: unknown class {cls!r:.40}; known classes: {list(CLASS_NAMES)}")
         objects.append(_shape(o, what))
