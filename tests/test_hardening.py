@@ -158,6 +158,7 @@ def test_6_slam_particle_count_must_be_an_int(value):
         [0.5 + 1j, 0.0],
         np.array([0.5 + 1j, 0.0]),
         [True, 0],
+        np.ma.masked_array([0.5, 0.2], mask=[False, True]),
     ],
 )
 def test_7_actions_outside_the_box_change_nothing(action):

@@ -35,6 +35,8 @@ def make_action_space(action_type: str) -> spaces.Space:
 def decode_action(action, action_type: str, space: spaces.Space, robot: RobotParams) -> tuple[float, float]:
     """``(v m/s, omega rad/s)`` for an action; ValueError for anything outside the space or NaN (continuous
     actions within ``ACTION_BOUND_SLACK`` of the Box are clipped to it)."""
+    if np.ma.is_masked(action):  # np.asarray would take the values under the mask
+        raise ValueError(f"invalid action {action!r:.80}: masked values")
     if action_type == "discrete":
         a = np.asarray(action)
         if a.shape != () or not is_int_dtype(a.dtype) or not space.contains(int(a)):
