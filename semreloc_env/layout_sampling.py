@@ -193,7 +193,7 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
     `LayoutDraw.as_dict` of the episode's layout.
 
     Args:
-        env: a ``SemReloc-v1`` env.
+        env: a ``SemReloc`` env, v1 or newer.
         sampler: the layouts to draw: a `LayoutSampler`, or its `LayoutSampler.config` dict
             (default: `LayoutSampler` with its defaults). The env spec records the dict, so
             ``gym.make(env.spec)`` and ``env.spec.to_json()`` work.

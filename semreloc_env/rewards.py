@@ -1,4 +1,4 @@
-"""Extra reward terms for ``SemReloc-v1``, kept out of the env (its reward logic is fixed there).
+"""Extra reward terms for the ``SemReloc`` envs (v1 and newer), kept out of the env (its reward logic is fixed there).
 
 * `belief_mass_near` — the share of the belief within ``radius_m`` of a pose: Active
   Neural Localization's reward (Chaplot et al., ICLR 2018: the belief's probability at the
@@ -65,7 +65,7 @@ class BeliefMassReward(gym.Wrapper, gym.utils.RecordConstructorArgs):
     reward; everything else passes through.
 
     Args:
-        env: a ``SemReloc-v1`` env (``unwrapped.mcl`` and ``unwrapped.world``).
+        env: a ``SemReloc`` env, v1 or newer (``unwrapped.mcl`` and ``unwrapped.world``).
         weight: scale of the term (reward units per unit of mass).
         radius_m: see `belief_mass_near`.
         heading_tol_rad: see `belief_mass_near`.

@@ -128,7 +128,7 @@ class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
       the action of the last step (zeros after a reset).
 
     Args:
-        env: a ``SemReloc-v2`` env, or ``-v1`` / ``-v0`` (either raw observation layout; anything with
+        env: a ``SemReloc`` env, any version (either raw observation layout; anything with
             ``unwrapped.mcl``, ``unwrapped.grid``, ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
         keys: which keys to keep, in order (default `OBSERVATION_KEYS`, all of them).
         ego_size: side of the ego crop in cells, 1-512 (default 32: with ``ego_cell_m`` 8 m, the
