@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from filters.numbers import is_int
 from filters.pose import wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.simulators.grid_raycast import cast_rays
@@ -124,11 +125,11 @@ class InfoGainPlanner(Policy):
     ):
         super().__init__(seed)
         for name, v in (("n_particles", n_particles), ("replan_every", replan_every), ("n_views", n_views)):
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            if not is_int(v) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
         if not primitives:
             raise ValueError("primitives must not be empty")
-        self.n_particles, self.replan_every, self.n_views = n_particles, replan_every, n_views
+        self.n_particles, self.replan_every, self.n_views = int(n_particles), int(replan_every), int(n_views)
         self.lidar_beams = int(lidar_beams)
         self.primitives = tuple(primitives)
         self.collision_penalty_nats = float(collision_penalty_nats)

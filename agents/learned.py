@@ -83,13 +83,17 @@ def save_policy(
     return path
 
 
+class MissingMetadataError(ValueError):
+    """A zip without `save_policy`'s metadata member: a bare SB3 checkpoint, or another program's model."""
+
+
 def read_metadata(path: str | Path) -> dict[str, Any]:
     """The metadata of a policy saved by `save_policy`.
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: not a zip, or a zip without the metadata member (e.g. a bare SB3 checkpoint:
-            pass ``observation`` and ``repeat`` to `load_policy` then).
+        ValueError: not a zip, or a zip without the metadata member (`MissingMetadataError`, e.g. a bare SB3
+            checkpoint: pass ``observation`` and ``repeat`` to `load_policy` then).
     """
     path = Path(path)
     if not path.is_file():
@@ -97,10 +101,11 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     try:
         with zipfile.ZipFile(path) as z:
             if META_NAME not in z.namelist():
-                raise ValueError(
-                    f"{path} has no {META_NAME}: not saved by agents.learned.save_policy, nor a checkpoint in the "
-                    "checkpoints/ folder of a train_active run beside its config.json. A checkpoint moved out of "
-                    "its run loads with its settings given, load_policy(path, observation={...}, repeat=N) (the "
+                raise MissingMetadataError(
+                    f"{path} has no {META_NAME}: not saved by agents.learned.save_policy. A bare checkpoint in the "
+                    "checkpoints/ folder of a train_active run loads with load_policy(path), which reads the run's "
+                    "config.json; one kept elsewhere loads with its settings given, "
+                    "load_policy(path, observation={...}, repeat=N) (the "
                     "run's --config.observation and --config.repeat); agents.learned.save_policy(policy.model, "
                     "'mine.zip', observation={...}, repeat=N, options=(...)) then makes a file any tool loads. A "
                     "model of scripts/train_ppo.py is no such policy (it sees BeliefObservation's vector): "
@@ -147,7 +152,7 @@ def saved_settings(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     try:
         return read_metadata(path)
-    except ValueError:
+    except MissingMetadataError:
         saved = saved_run_config(path) if path.parent.name == "checkpoints" else None
         if saved is None or not {"observation", "repeat"} <= saved.keys():
             raise

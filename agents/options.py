@@ -31,6 +31,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from filters.numbers import is_int_dtype
+
 from .baselines import AS_BOX, WallFollowExplorer, lidar_beam_angles
 
 OPTIONS = ("explore", "viewpoint")
@@ -134,7 +136,8 @@ class MotionOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return np.array(AS_BOX[a], dtype=np.float32)
 
     def step(self, action):
-        if isinstance(action, (bool, np.bool_)) or not self.action_space.contains(action):
+        a = np.asarray(action)
+        if a.shape != () or not is_int_dtype(a.dtype) or not self.action_space.contains(int(a)):
             raise ValueError(f"action {action!r} is not in {self.action_space}")
         if self._obs is None:
             raise RuntimeError("step() before reset()")

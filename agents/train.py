@@ -39,7 +39,7 @@ from stable_baselines3.common.logger import HumanOutputFormat, Logger, configure
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 import semreloc_env  # noqa: F401  (registers the envs)
-from filters.numbers import is_real
+from filters.numbers import is_int, is_real
 from semreloc_env.wrappers import BeliefObservation
 
 from .callbacks import RelocalizationMetricsCallback
@@ -170,8 +170,9 @@ class TrainConfig:
             every = getattr(self, name)
             if every is None:
                 continue
-            if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            if not is_int(every) or every < 1:
                 raise ValueError(f"{name} must be None or an int >= 1, got {every!r}")
+            object.__setattr__(self, name, int(every))
             if self.log_dir is None:
                 raise ValueError(f"{name} needs a log_dir to write to")
         check_ppo_settings(self)

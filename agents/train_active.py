@@ -33,6 +33,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from filters.experiments.cli import JsonDict
+from filters.numbers import is_int
 from semreloc_env import semreloc_ids_since  # (importing semreloc_env registers the env ids)
 from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
 from semreloc_env.observations import ActiveObservation
@@ -76,7 +77,8 @@ class ActiveTrainConfig:
     kind_weights: tuple[float, ...] | None | Literal["auto"] = "auto"
     """one weight per entry, kinds then files, or one per kind only (files then weigh 1 each);
     None: equal; "auto": ``DEFAULT_KIND_WEIGHTS`` (1, 1, 2) if ``kinds`` are the default kinds (files
-    then weigh 1 each), equal weights for any other kinds. The config keeps the weights "auto" gave"""
+    then weigh 1 each), equal weights for any other kinds (`weights`; a saved config.json holds what
+    "auto" gave)"""
     layout_seeds: tuple[int, int] = (0, 100)
     """(start, stop) of the procedural seeds drawn (held-out seeds never are); a small range lets the
     mapping-run cache serve repeats"""
@@ -153,26 +155,24 @@ class ActiveTrainConfig:
             raise ValueError(f"vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
         if self.env_id not in TRAINABLE_ENV_IDS:
             raise ValueError(f"env_id must be one of {TRAINABLE_ENV_IDS}, got {self.env_id!r}")
-        for name in ("particles", "max_episode_steps", "repeat", "n_envs", "total_timesteps", "n_steps"):
+        ints = ("particles", "max_episode_steps", "repeat", "n_envs", "total_timesteps", "n_steps", "batch_size")
+        for name in ints + ("n_epochs", "torch_threads"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            if not is_int(v) or v < 1:
                 raise ValueError(f"{name} must be an int >= 1, got {v!r}")
-        if self.batch_size < 1 or self.n_epochs < 1 or self.torch_threads < 1:
-            raise ValueError("batch_size, n_epochs and torch_threads must be >= 1")
+            object.__setattr__(self, name, int(v))
         lo, hi = self.layout_seeds
         if not (0 <= lo < hi):
             raise ValueError(f"layout_seeds must be (start, stop) with 0 <= start < stop, got {self.layout_seeds!r}")
-        if isinstance(self.kind_weights, str):
-            if self.kind_weights != "auto":
-                raise ValueError(f'kind_weights must be weights, None or "auto", got {self.kind_weights!r}')
-            auto = DEFAULT_KIND_WEIGHTS if tuple(self.kinds) == TRAIN_KINDS else None
-            object.__setattr__(self, "kind_weights", auto)
+        if isinstance(self.kind_weights, str) and self.kind_weights != "auto":
+            raise ValueError(f'kind_weights must be weights, None or "auto", got {self.kind_weights!r}')
         entries = len(self.kinds) + len(self.files)
-        if self.kind_weights is not None and len(self.kind_weights) not in (entries, len(self.kinds)):
+        weights = self.weights
+        if weights is not None and len(weights) not in (entries, len(self.kinds)):
             raise ValueError(
                 f"kind_weights needs one weight per kind and file ({entries}) or per kind ({len(self.kinds)}), "
-                f"got {self.kind_weights!r}; give as many (--config.kind-weights 1 1 ...) or None for equal "
-                "weights (--config.kind-weights None)"
+                f"got {weights!r}; give as many (--config.kind-weights 1 1 ...; imitate_active: "
+                "--config.train.kind-weights) or None for equal weights (--config.kind-weights None)"
             )
         if self.time_budget_s is not None and not self.time_budget_s > 0:
             raise ValueError(f"time_budget_s must be None or > 0, got {self.time_budget_s!r}")
@@ -197,8 +197,16 @@ class ActiveTrainConfig:
         except TypeError as e:
             raise ValueError(str(e)) from None
 
+    @property
+    def weights(self) -> tuple[float, ...] | None:
+        """``kind_weights`` with "auto" resolved (None: equal)."""
+        if self.kind_weights == "auto":
+            return DEFAULT_KIND_WEIGHTS if tuple(self.kinds) == TRAIN_KINDS else None
+        return self.kind_weights
+
     def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The fields, ``kind_weights`` resolved (what config.json records)."""
+        return {**dataclasses.asdict(self), "kind_weights": self.weights}
 
     def layout_sampler(self) -> LayoutSampler:
         """The training layouts' sampler: ``kinds`` then ``files``, ``layout_seeds``, ``kind_weights``."""
@@ -206,11 +214,11 @@ class ActiveTrainConfig:
             kinds=self.kinds,
             files=self.files,
             seeds=range(*self.layout_seeds),
-            weights=None if self.kind_weights is None else self._entry_weights(),
+            weights=None if self.weights is None else self._entry_weights(),
         )
 
     def _entry_weights(self) -> list[float]:
-        weights = list(self.kind_weights)
+        weights = list(self.weights)
         return weights + [1.0] * (len(self.kinds) + len(self.files) - len(weights))
 
 

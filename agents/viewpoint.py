@@ -430,7 +430,7 @@ class ViewpointPlanner(Policy):
             if not is_int(v) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
         v = max_blocked_turns
-        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 0:
+        if not is_int(v) or v < 0:
             raise ValueError(f"max_blocked_turns must be an integer >= 0 (0: off), got {v!r}")
         self.max_blocked_turns = int(v)
         positive = {

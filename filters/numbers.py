@@ -7,6 +7,7 @@ predicates so that such cases are treated alike everywhere.
 
 from __future__ import annotations
 
+import numbers
 import re
 
 import numpy as np
@@ -22,8 +23,9 @@ def is_int(v) -> bool:
 
 
 def is_real(v) -> bool:
-    """``v`` is a Python or NumPy integer or float, not a bool nor a ``np.timedelta64`` (NaN and inf included)."""
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_, np.timedelta64))
+    """``v`` is a real number (``numbers.Real``: Python and NumPy ints and floats among them), not a bool nor a
+    ``np.timedelta64`` (NaN and inf included)."""
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_, np.timedelta64))
 
 
 def is_int_dtype(dtype) -> bool:

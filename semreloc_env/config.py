@@ -11,7 +11,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import numbers
 import types
 import typing
 from collections.abc import Mapping
@@ -20,7 +19,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from filters.numbers import is_int
+from filters.numbers import is_int, is_real
 
 T = TypeVar("T")
 
@@ -41,10 +40,11 @@ def check_reward_weights(obj) -> None:
     """ValueError unless every field of the dataclass ``obj`` is a finite real within ``+-MAX_REWARD_WEIGHT``."""
     for f in dataclasses.fields(obj):
         v = getattr(obj, f.name)
-        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= MAX_REWARD_WEIGHT):
+        if not (is_real(v) and math.isfinite(v) and abs(v) <= MAX_REWARD_WEIGHT):
             raise ValueError(
                 f"reward weight {f.name} must be a finite number within +-{MAX_REWARD_WEIGHT:g}, got {v!r}"
             )
+        object.__setattr__(obj, f.name, float(v))
 
 
 def _key_list(keys) -> list:
@@ -103,7 +103,7 @@ def _check_value(cls: type, name: str, v, ann, what: str):
             return int(v)
         raise ValueError(f"{where} must be an integer, got {_type_name(v)}")
     if ann is float:
-        if not (isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))):
+        if not is_real(v):
             raise ValueError(f"{where} must be a number, got {_type_name(v)}")
         f = float(v)
         if math.isnan(f) or (math.isinf(f) and not _inf_ok(cls, name)):

@@ -3,9 +3,12 @@
 Mapping-run maps are cached in memory (per process) and on disk, keyed by the layout's
 content, the sensor parameters, the resolution and the mapping run's version (`MAPPING_RUN_VERSIONS`),
 so a process that meets a layout again loads its map in milliseconds. The disk cache lives
-in ``$SEMRELOC_CACHE_DIR/maps`` (default ``~/.cache/semreloc/maps``); set
-``SEMRELOC_CACHE_DIR`` to an empty string to switch it off. Files are written atomically;
-an unreadable file is rebuilt and replaced.
+in ``$SEMRELOC_CACHE_DIR/maps`` (default ``$XDG_CACHE_HOME/semreloc/maps``, else
+``~/.cache/semreloc/maps``; off without a home folder); set ``SEMRELOC_CACHE_DIR`` to an empty string
+to switch it off. Files are written atomically, with the permissions the umask gives, and hold their
+key: an unreadable file, or one holding another key, is rebuilt and replaced. A folder that cannot be
+written warns once per process; the maps are then rebuilt in every process. Nothing is evicted (about
+1.3 MB per lab-size layout): delete the folder to clear it.
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ import hashlib
 import os
 import re
 import tempfile
+import time
+import warnings
 from collections import OrderedDict
 from pathlib import Path
 
@@ -35,14 +40,31 @@ MEMORY_CACHE_SIZE = 16
 """Mapped GridMaps kept in memory per process (least recently used dropped first)."""
 
 _memory: OrderedDict[str, GridMap] = OrderedDict()
+_unwritable: set[Path] = set()  # cache folders a save failed in (warned once per process)
 
 
 def cache_dir() -> Path | None:
-    """The on-disk map cache folder, or None if switched off (``SEMRELOC_CACHE_DIR=""``)."""
+    """The on-disk map cache folder (absolute), or None if switched off (``SEMRELOC_CACHE_DIR=""``) or, with
+    neither ``SEMRELOC_CACHE_DIR`` nor ``XDG_CACHE_HOME`` set, when there is no home folder (``HOME`` unset or
+    empty and no user entry, as in containers run under an arbitrary uid)."""
     root = os.environ.get("SEMRELOC_CACHE_DIR")
-    if root is None:
-        return Path.home() / ".cache" / "semreloc" / "maps"
-    return Path(root) / "maps" if root else None
+    if root is not None:
+        return Path(root).expanduser().absolute() / "maps" if root else None
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg and Path(xdg).expanduser().is_absolute():  # the XDG spec ignores a relative value
+        return Path(xdg).expanduser() / "semreloc" / "maps"
+    try:
+        home = Path(os.environ.get("HOME") or pwd_home())  # an empty HOME counts as unset
+    except (KeyError, OSError):
+        return None
+    return home / ".cache" / "semreloc" / "maps" if home.is_absolute() else None
+
+
+def pwd_home() -> str:
+    """The home folder of the process's user from the user database (KeyError without an entry)."""
+    import pwd
+
+    return pwd.getpwuid(os.getuid()).pw_dir
 
 
 def map_key(
@@ -79,13 +101,44 @@ def _layout_text(layout: Layout) -> str:
     return ";".join(parts)
 
 
-def _save(path: Path, grid: GridMap) -> None:
+STALE_TMP_S = 3600.0
+"""Age (s) after which a ``*.tmp`` file in the cache folder is taken for a save that was killed, and deleted."""
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where Linux tells it (``/proc/self/status``)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _remove_stale_tmp(folder: Path) -> None:
+    """Delete ``*.tmp`` files older than `STALE_TMP_S`: what saves killed before their rename left."""
+    now = time.time()
+    for f in folder.glob("*.tmp"):
+        try:
+            if now - f.stat().st_mtime > STALE_TMP_S:
+                f.unlink()
+        except OSError:
+            pass
+
+
+def _save(path: Path, grid: GridMap, key: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_tmp(path.parent)
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     try:
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp's 0600 would keep a shared cache to one user
         with os.fdopen(fd, "wb") as f:
             np.savez(
                 f,
+                key=np.asarray(key),
                 occupancy=grid.occupancy,
                 semantic=grid.semantic,
                 resolution_m=grid.resolution_m,
@@ -99,9 +152,11 @@ def _save(path: Path, grid: GridMap) -> None:
         raise
 
 
-def _load(path: Path) -> GridMap | None:
+def _load(path: Path, key: str) -> GridMap | None:
     try:
         with np.load(path, allow_pickle=False) as z:
+            if str(z["key"]) != key:  # another map under this name (or a file written before keys were kept)
+                return None
             occ, sem, th = z["occupancy"], z["semantic"], z["thresholds"]
             return GridMap(
                 occ,
@@ -132,16 +187,23 @@ def mapped(layout: Layout, lidar: LidarParams, camera: CameraParams, version: st
         return grid
     folder = cache_dir()
     path = folder / f"{key}.npz" if folder is not None else None
-    grid = _load(path) if path is not None else None
+    grid = _load(path, key) if path is not None else None
     if grid is None:
         from .mapping_run import build_maps
 
         grid = build_maps(layout, lidar, camera, version=version)
         if path is not None:
             try:
-                _save(path, grid)
-            except OSError:  # a read-only or full disk must not break env creation
-                pass
+                _save(path, grid, key)
+            except OSError as e:  # a read-only or full disk must not break env creation
+                if folder not in _unwritable:
+                    _unwritable.add(folder)
+                    warnings.warn(
+                        f"map cache {folder} could not be written ({e}); maps are rebuilt in every process: "
+                        "set SEMRELOC_CACHE_DIR to a folder you can write, or to '' to switch the cache off",
+                        UserWarning,
+                        stacklevel=2,
+                    )
     _memory[key] = grid
     while len(_memory) > MEMORY_CACHE_SIZE:
         _memory.popitem(last=False)

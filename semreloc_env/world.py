@@ -10,7 +10,6 @@ no solver cache, copies that never diverge, and a clearance never below the radi
 from __future__ import annotations
 
 import math
-import numbers
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -19,6 +18,7 @@ import numpy as np
 import pymunk
 from pymunk.autogeometry import convex_decomposition
 
+from filters.numbers import is_real
 from filters.pose import wrap_angle
 
 from .config import PhysicsParams, RobotParams
@@ -239,7 +239,7 @@ def _array_like(value) -> bool:
         return True
     if not isinstance(value, (list, tuple)):
         return False
-    return all(isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) for v in value)
+    return all(is_real(v) for v in value)
 
 
 def check_substep(robot: RobotParams, physics: PhysicsParams) -> None:

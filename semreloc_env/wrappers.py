@@ -262,6 +262,7 @@ __all__ = [
     "ActiveObservation",
     "BeliefObservation",
     "CheckedReset",
+    "check_reset",
     "FlatObservation",
     "find_wrapper",
 ]

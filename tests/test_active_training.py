@@ -265,19 +265,27 @@ def test_kind_weights_per_kind_give_files_weight_one(tmp_path):
 def test_the_default_kind_weights_apply_only_to_the_default_kinds(tmp_path):
     # (1, 1, 2) was applied to whatever kinds and files were given: one kind and two files drew the second
     # file twice as often, and two kinds without weights failed over a setting never given
+    from agents.imitation import ImitationConfig
+    from agents.train_active import TRAIN_KINDS
     from semreloc_env.layouts import get_layout
 
     files = []
     for name in ("a", "b"):
         (tmp_path / f"{name}.json").write_text(json.dumps({**get_layout("twin_rooms").to_dict(), "name": name}))
         files.append(str(tmp_path / f"{name}.json"))
-    assert ActiveTrainConfig().kind_weights == (1.0, 1.0, 2.0)
+    assert ActiveTrainConfig().weights == (1.0, 1.0, 2.0) and ActiveTrainConfig().kind_weights == "auto"
+    assert ActiveTrainConfig().as_dict()["kind_weights"] == (1.0, 1.0, 2.0)  # what config.json records
     one_kind = ActiveTrainConfig(kinds=("procedural",), files=tuple(files))
-    assert one_kind.kind_weights is None and one_kind.layout_sampler().config()["weights"] is None
-    assert ActiveTrainConfig(kinds=("procedural", "procedural_sym")).kind_weights is None
-    assert ActiveTrainConfig(kinds=("procedural", "procedural_sym"), kind_weights=(1.0, 3.0)).kind_weights == (1.0, 3.0)
-    assert parse(ActiveTrainConfig, ["--kinds", "procedural_ring"]).kind_weights is None
-    assert parse(ActiveTrainConfig, ["--kind-weights", "None"]).kind_weights is None
+    assert one_kind.weights is None and one_kind.layout_sampler().config()["weights"] is None
+    assert ActiveTrainConfig(kinds=("procedural", "procedural_sym")).weights is None
+    assert ActiveTrainConfig(kinds=("procedural", "procedural_sym"), kind_weights=(1.0, 3.0)).weights == (1.0, 3.0)
+    assert parse(ActiveTrainConfig, ["--kinds", "procedural_ring"]).weights is None
+    assert parse(ActiveTrainConfig, ["--kind-weights", "None"]).weights is None
+    # "auto" survives copies of a built config (a review: imitate_active's default train config kept (1, 1, 2))
+    ring = dataclasses.replace(ActiveTrainConfig(), kinds=("procedural_ring",))
+    assert ring.weights is None
+    assert dataclasses.replace(ring, kinds=TRAIN_KINDS).weights == (1.0, 1.0, 2.0)
+    assert parse(ImitationConfig, ["--train.kinds", "procedural_ring"]).train.weights is None
     with pytest.raises(ValueError, match="kind_weights"):
         ActiveTrainConfig(kind_weights="equal")
 

@@ -2,6 +2,7 @@
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 import semreloc_env  # noqa: F401
 
@@ -61,7 +62,92 @@ def test_disk_cache_can_be_switched_off(tmp_path, monkeypatch):
     monkeypatch.setenv("SEMRELOC_CACHE_DIR", str(tmp_path))
     assert maps.cache_dir() == tmp_path / "maps"
     monkeypatch.delenv("SEMRELOC_CACHE_DIR")
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
     assert maps.cache_dir().parts[-3:] == (".cache", "semreloc", "maps")
+
+
+def test_the_cache_folder_in_odd_environments(tmp_path, monkeypatch):
+    # a nineteenth tester's: "~/x" made a folder named "~" in the working directory; no HOME and no user entry
+    # (a container under an arbitrary uid) crashed gym.make; an empty HOME wrote to /.cache
+    from semreloc_env import maps
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("SEMRELOC_CACHE_DIR", "~/x")
+    assert maps.cache_dir() == tmp_path / "home" / "x" / "maps"
+    monkeypatch.setenv("SEMRELOC_CACHE_DIR", "rel")
+    assert maps.cache_dir() == tmp_path / "rel" / "maps"
+    monkeypatch.delenv("SEMRELOC_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert maps.cache_dir() == tmp_path / "xdg" / "semreloc" / "maps"
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative")  # ignored, as the XDG spec says
+    assert maps.cache_dir() == tmp_path / "home" / ".cache" / "semreloc" / "maps"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+
+    def no_user():
+        raise KeyError("getpwuid(): uid not found: 12345")
+
+    monkeypatch.setattr(maps, "pwd_home", no_user)
+    for home in (None, ""):
+        if home is None:
+            monkeypatch.delenv("HOME")
+        else:
+            monkeypatch.setenv("HOME", home)
+        assert maps.cache_dir() is None
+
+
+def test_cache_files_hold_their_key_keep_the_umask_and_stale_temporaries_go(tmp_path, monkeypatch):
+    # a nineteenth tester's: another layout's valid file under a key was served (a 4.8 m error at reset), files
+    # were 0600 whatever the umask, and a save killed before its rename left its .tmp for ever
+    import os
+    import time
+
+    from semreloc_env import maps
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.layouts import get_layout
+
+    monkeypatch.setenv("SEMRELOC_CACHE_DIR", str(tmp_path))
+    maps._memory.clear()
+    lidar, camera = LidarParams(), CameraParams()
+    a, b = get_layout("twin_rooms"), get_layout("lab")
+    old = os.umask(0o002)
+    try:
+        grid_a = maps.mapped(a, lidar, camera)
+        grid_b = maps.mapped(b, lidar, camera)
+    finally:
+        os.umask(old)
+    key_a, key_b = maps.map_key(a, lidar, camera), maps.map_key(b, lidar, camera)
+    folder = tmp_path / "maps"
+    assert (folder / f"{key_a}.npz").stat().st_mode & 0o777 == 0o664
+    (folder / f"{key_a}.npz").write_bytes((folder / f"{key_b}.npz").read_bytes())
+    stale, fresh = folder / "tmpold.tmp", folder / "tmpnew.tmp"
+    stale.write_bytes(b"x")
+    fresh.write_bytes(b"x")
+    os.utime(stale, (time.time() - 2 * maps.STALE_TMP_S,) * 2)
+    maps._memory.clear()
+    again = maps.mapped(a, lidar, camera)  # the lab's map under twin_rooms' key is rebuilt, not served
+    assert again.occupancy.shape == grid_a.occupancy.shape != grid_b.occupancy.shape
+    np.testing.assert_array_equal(again.occupancy, grid_a.occupancy)
+    assert not stale.exists() and fresh.exists()  # a save under way in another process may own a new one
+
+
+def test_an_unwritable_cache_warns_once_and_the_env_still_works(tmp_path, monkeypatch):
+    import warnings
+
+    from semreloc_env import maps
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.layouts import get_layout
+
+    (tmp_path / "file").write_text("a file where the folder should be")
+    monkeypatch.setenv("SEMRELOC_CACHE_DIR", str(tmp_path / "file"))
+    monkeypatch.setattr(maps, "_unwritable", set())
+    maps._memory.clear()
+    with pytest.warns(UserWarning, match="could not be written"):
+        maps.mapped(get_layout("twin_rooms"), LidarParams(), CameraParams())
+    maps._memory.clear()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        maps.mapped(get_layout("twin_rooms"), LidarParams(), CameraParams())
 
 
 def test_mapping_tour_visits_every_free_waypoint_without_all_pairs_paths():

@@ -186,6 +186,35 @@ def test_7_bounds_missed_by_a_rescaling_wrapper_are_clipped_to_them():
     assert not twin.action_space.contains(np.array([1 + 2e-5, 0.0], np.float32))
 
 
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v15", FAST), ("SemSlam-v1", SLAM_FAST)])
+def test_7_the_slack_is_1e_5_on_both_sides_and_clips_to_the_bound(env_id, kw):
+    from semreloc_env.envs.spaces import ACTION_BOUND_SLACK
+
+    assert ACTION_BOUND_SLACK == 1e-5
+    env, twin = gym.make(env_id, action_type="continuous", **kw), gym.make(env_id, action_type="continuous", **kw)
+    env.reset(seed=0)
+    twin.reset(seed=0)
+    for inside, bound in (([1 + 9e-6, -1 - 9e-6], [1.0, -1.0]), ([-1 - 9e-6, 0.5], [-1.0, 0.5])):
+        assert_identical(env.step(inside), twin.step(np.array(bound, np.float32)))
+    for outside in ([1 + 1.1e-5, 0.0], [0.0, -1 - 1.1e-5]):
+        with pytest.raises(ValueError, match="invalid action"):
+            env.step(outside)
+    assert_identical(env.step([0.3, 0.1]), twin.step([0.3, 0.1]))
+
+
+def test_reward_weights_take_numpy_numbers_as_floats():
+    # the new bound refused NumPy scalars SemSlam had taken, saying "must be a finite number"
+    from semreloc_env.envs.semreloc import RewardWeights
+    from semreloc_env.envs.semslam import SlamRewardWeights
+
+    w = SlamRewardWeights(time=np.float32(-0.01), pose_error=np.int64(-1))
+    assert type(w.time) is float and w.pose_error == -1.0
+    assert type(RewardWeights(success=np.float64(2.0)).success) is float
+    env = gym.make("SemSlam-v1", reward_weights=w, **SLAM_FAST)
+    env.reset(seed=0)
+    assert type(env.step(0)[1]) is float
+
+
 # ---------------------------------------------------------------- 8. time limit
 @pytest.mark.parametrize("env_id, kw", [("SemSlam-v1", SLAM_FAST), ("SemReloc-v15", FAST)])
 def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
@@ -382,6 +411,19 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
         gym.make("SemReloc-v15", lidar={"n_beams": np.timedelta64(30, "s")})
     with pytest.raises(ValueError, match=r"num_envs"):
         gym.make_vec("SemRelocVec-v15", num_envs=np.timedelta64(2, "s"), vectorization_mode="vector_entry_point")
+    with pytest.raises(ValueError, match=r"max_linear_mps"):
+        gym.make("SemReloc-v15", robot={"max_linear_mps": np.timedelta64(1)})
+    with pytest.raises(LayoutError, match=r"outer"):
+        layout_from_dict({"outer": [[0, 0], [np.timedelta64(8, "s"), 0], [8, 8], [0, 8]]})
+    from agents.options import MotionOptions
+    from agents.viewpoint import ViewpointPlanner
+
+    with pytest.raises(ValueError, match=r"max_blocked_turns"):
+        ViewpointPlanner(0, max_blocked_turns=TD)
+    env = MotionOptions(gym.make("SemReloc-v15", **FAST), ("explore",))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"not in Discrete"):
+        env.step(TD)
     from filters.numbers import is_int, is_int_dtype, is_real
 
     assert not is_int(TD) and not is_real(TD) and not is_int_dtype(np.array([TD]).dtype)

@@ -51,6 +51,8 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from filters.numbers import is_int
+
 __all__ = ["EXECUTORS", "RunnerConfig", "run_jobs"]
 
 EXECUTORS = ("auto", "sequential", "process", "ray")
@@ -74,8 +76,9 @@ class RunnerConfig:
     def __post_init__(self) -> None:
         if self.executor not in EXECUTORS:
             raise ValueError(f"executor must be one of {EXECUTORS}, got {self.executor!r}")
-        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+        if not is_int(self.workers) or self.workers < 1:
             raise ValueError(f"workers must be an int >= 1, got {self.workers!r}")
+        object.__setattr__(self, "workers", int(self.workers))
         if self.address and self.executor not in ("auto", "ray"):
             raise ValueError(f"address {self.address!r} needs the ray executor, not {self.executor!r}")
 

@@ -94,19 +94,20 @@ class LikelihoodFieldConfig:
                     f"LikelihoodFieldConfig.{name} must be a positive number of metres, at most {MAX_LENGTH_M:g}, "
                     f"got {v!r}"
                 )
-        for name in ("z_hit", "z_rand"):
+            object.__setattr__(self, name, float(v))
+        for name in ("z_hit", "z_rand", "tolerance_m"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"LikelihoodFieldConfig.{name} must be a number >= 0, got {v!r}")
-        v = self.tolerance_m
-        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0):
-            raise ValueError(f"LikelihoodFieldConfig.tolerance_m must be a number >= 0, got {v!r}")
+            if not (is_real(v) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"LikelihoodFieldConfig.{name} must be a finite number >= 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
         if not self.z_hit + self.z_rand > 0:
             raise ValueError("LikelihoodFieldConfig: z_hit + z_rand must be > 0")
-        if not (isinstance(self.beam_stride, int) and self.beam_stride >= 1):
+        if not (is_int(self.beam_stride) and self.beam_stride >= 1):
             raise ValueError(f"LikelihoodFieldConfig.beam_stride must be an int >= 1, got {self.beam_stride!r}")
-        if not (isinstance(self.max_beams, int) and self.max_beams >= 0):
+        if not (is_int(self.max_beams) and self.max_beams >= 0):
             raise ValueError(f"LikelihoodFieldConfig.max_beams must be an int >= 0, got {self.max_beams!r}")
+        object.__setattr__(self, "beam_stride", int(self.beam_stride))
+        object.__setattr__(self, "max_beams", int(self.max_beams))
 
     def log_p(self, dist_m: np.ndarray, range_max_m: float) -> np.ndarray:
         """``log p`` of beams whose end points lie ``dist_m`` from the field's cells (capped here)."""

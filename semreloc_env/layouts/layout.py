@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import json
 import math
-import numbers
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -41,7 +40,7 @@ import numpy as np
 import shapely
 
 from filters.mapping.grid import DEFAULT_CLASS_NAMES
-from filters.numbers import yaml_number_hint
+from filters.numbers import is_real, yaml_number_hint
 from filters.unique_keys import DuplicateKeyError, json_object_pairs, load_yaml
 
 CLASS_NAMES: tuple[str, ...] = DEFAULT_CLASS_NAMES
@@ -195,7 +194,7 @@ def _key_list(keys) -> list:
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+    return is_real(v)
 
 
 def _is_sequence(raw) -> bool:
