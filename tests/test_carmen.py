@@ -1,16 +1,17 @@
-"""CARMEN log reader: the ACES log's facts (tests/data/README.md) and synthetic edge cases."""
+"""CARMEN log reader: the ACES log's facts (filters/robot_data/data/README.md, docs/real_robot.md) and synthetic
+edge cases."""
 
 import gzip
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from filters.pose import compose, relative, wrap_angle
+from filters.robot_data import ACES_LOG
 from filters.robot_data.carmen import CarmenLogError, flaser_angles, read_carmen
 
-ACES = Path(__file__).parent / "data" / "aces-corrected.log.gz"
+ACES = ACES_LOG
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,9 @@
 """The ```python blocks of README.md and docs/*.md run as written.
 
 A file's blocks run in order in one fresh Python process, as a reader would run them: the test of
-block N runs the file's runnable blocks up to and including N. The working directory is a
-temporary folder laid out like the root of a checkout for the data the docs read (``tests/data``
-is linked in), so nothing is written into the repository.
+block N runs the file's runnable blocks up to and including N. The working directory is an empty
+temporary folder (the data the docs read ships with the package), so nothing is written into the
+repository.
 
 Convention for blocks that are not meant to run (a fragment using the reader's own data, an API
 summary, a long run): an HTML comment on the line right before the fence, which the rendered
@@ -89,8 +89,6 @@ def test_doc_python_block_runs(index, tmp_path):
         pytest.skip(f"{_id(BLOCKS[index])} not-run: {reason}")
     # the file's runnable blocks up to this one, in order
     run = [[str(p), n, code] for p, n, code, r in BLOCKS[: index + 1] if p == path and r is None]
-    (tmp_path / "tests").mkdir()
-    (tmp_path / "tests" / "data").symlink_to(ROOT / "tests" / "data", target_is_directory=True)
     env = {**os.environ, "MPLBACKEND": "Agg"}
     proc = subprocess.run(
         [sys.executable, "-c", DRIVER],

@@ -34,3 +34,20 @@ def test_citation_cff_cites_the_project_and_the_three_papers_in_full():
         assert ref["authors"] and all(a["family-names"] and a["given-names"] for a in ref["authors"])
     firsts = {ref["authors"][0]["family-names"] for ref in refs}
     assert firsts == {"Jiang", "Wang", "Cui"}
+
+
+def test_the_data_files_the_code_opens_ship_with_the_packages():
+    # a nineteenth tester's: the ACES log lay in tests/data, outside the packages, so a non-editable install's
+    # evaluate-relocalizer ran every episode, then failed to find the log and saved nothing
+    import fnmatch
+
+    import agents
+    from filters.robot_data import ACES_LOG
+
+    tomllib = pytest.importorskip("tomllib")
+    patterns = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    for path in (ACES_LOG, Path(agents.SHIPPED_POLICY)):
+        assert path.is_file()
+        package, *rest = path.resolve().relative_to(ROOT).parts
+        assert package in PACKAGES
+        assert any(fnmatch.fnmatch("/".join(rest), p) for p in patterns[package]), path

@@ -11,12 +11,13 @@ from filters.mapping.from_scans import map_from_scans, raster_for
 from filters.mapping.grid import GridMap
 from filters.mapping.ros_map import load_map, save_map
 from filters.pose import compose
+from filters.robot_data import ACES_LOG
 from filters.robot_data.carmen import read_carmen
 from filters.robot_data.replay import MapMismatchError, global_localization_trials, summarize_trials, track
 from filters.robot_data.scans import LaserScan
 
 ROOT = Path(__file__).resolve().parent.parent
-ACES = ROOT / "tests" / "data" / "aces-corrected.log.gz"
+ACES = ACES_LOG
 
 
 @pytest.fixture(scope="module")

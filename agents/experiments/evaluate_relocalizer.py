@@ -44,6 +44,7 @@ from agents.relocalizer_eval import (
 from filters.experiments.cli import Runner, parse
 from filters.experiments.report import markdown_table
 from filters.experiments.runner import RunnerConfig, run_jobs
+from filters.robot_data import ACES_LOG
 from semreloc_env.envs.semreloc import LEGACY_RELOCALIZER_OVERRIDES
 
 VARIANTS = {"before": LEGACY_RELOCALIZER_OVERRIDES, "after": {}}
@@ -178,10 +179,6 @@ def kidnap_table(results: list[dict], variants: list[str], rows: list[str]) -> s
                  f"{eps('stale_audits')} ({eps('stale_audit_adds')})"]
             )  # fmt: skip
     return markdown_table(header, lines) + "\n" if lines else ""
-
-
-ACES_LOG = Path(__file__).resolve().parents[2] / "tests" / "data" / "aces-corrected.log.gz"
-"""The ACES log shipped with the repository's tests (the command's default needs a source checkout)."""
 
 
 def log_table(trials: list[dict], tracks: list[dict], names: list[str]) -> str:

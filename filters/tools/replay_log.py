@@ -34,10 +34,11 @@ from filters.localization.mcl import MCLConfig
 from filters.mapping.from_scans import map_from_scans
 from filters.mapping.grid import GridMap
 from filters.mapping.ros_map import MapFormatError, load_map
+from filters.robot_data import ACES_LOG
 from filters.robot_data.carmen import CarmenLogError, read_carmen
 from filters.robot_data.replay import MapMismatchError, Track, global_localization_trials, summarize_trials, track
 
-DEFAULT_LOG = Path(__file__).resolve().parents[2] / "tests" / "data" / "aces-corrected.log.gz"
+DEFAULT_LOG = ACES_LOG
 """The ACES log shipped with the repository's tests (the default needs a source checkout)."""
 
 
@@ -46,7 +47,7 @@ class Args:
     """Replay a robot log (CARMEN) through the Monte Carlo localizer against the log's corrected poses."""
 
     log: str = str(DEFAULT_LOG)
-    """CARMEN log (.log or .log.gz); default: the ACES log of tests/data"""
+    """CARMEN log (.log or .log.gz); default: the ACES log shipped with the package (filters.robot_data.ACES_LOG)"""
     map: str = ""
     """ROS map .yaml/.yml; empty = built from the log's poses"""
     resolution: float = 0.05
