@@ -20,4 +20,9 @@ real robot as well as from `semreloc_env`. One subpackage per concept:
 * `filters.tools` -- commands over the filters alone (replaying a robot log).
 * `filters.pose` -- pose algebra shared by all of the above.
 * `filters.numbers` -- what counts as a number in argument checks (`is_int`, `is_real`).
+* `filters.numba_cache` -- a cache folder for the compiled kernels where numba finds none to write.
 """
+
+from .numba_cache import ensure_cache_dir
+
+ensure_cache_dir()

@@ -57,3 +57,22 @@ def test_cached_kernel_calls_no_kernel_of_another_file(module, name, kernel):
         and g[n].py_func.__code__.co_filename != kernel.py_func.__code__.co_filename
     ]
     assert not foreign, f"{module}.{name} calls compiled kernels of other files: {foreign}"
+
+
+def test_a_cache_folder_is_chosen_only_where_numba_would_find_none(tmp_path):
+    # a nineteenth tester's: a read-only install with a read-only home failed at import ("no locator available");
+    # with no home, numba made a folder named "~" in the working directory
+    from pathlib import Path
+
+    from filters.numba_cache import choose_cache_dir, fallback_dir, writable
+
+    def only(*ok):
+        return lambda p: p in ok
+
+    tree, user = tmp_path / "pkg" / "__pycache__", tmp_path / "home" / ".cache" / "numba"
+    assert choose_cache_dir(tree, str(user), "/set/by/user", only()) is None
+    assert choose_cache_dir(tree, str(user), "", only(tree)) is None
+    assert choose_cache_dir(tree, str(user), "", only(user)) is None
+    assert choose_cache_dir(tree, str(user), "", only()) == fallback_dir()
+    assert choose_cache_dir(tree, "~/.cache/numba", "", lambda p: True if p != tree else False) == fallback_dir()
+    assert writable(tmp_path / "new" / "sub") and not writable(Path("/proc/self/none"))

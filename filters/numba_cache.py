@@ -1,0 +1,62 @@
+"""Where numba caches the package's compiled kernels when none of its own places can be written.
+
+The kernels are compiled with ``cache=True``. numba looks for a cache folder at each kernel's
+definition: ``$NUMBA_CACHE_DIR``, else the ``__pycache__`` beside the source, else the user's cache
+folder (``~/.cache/numba``); with none writable (a read-only install and a read-only or missing home,
+as on clusters and in containers) the *import* fails ("no locator available"). `ensure_cache_dir`,
+run when the packages are imported, then points numba at a folder in the temp dir instead. It changes
+nothing where numba would find a folder itself. Compiling the kernels takes a few seconds once per cache
+folder; set ``NUMBA_CACHE_DIR`` to share one between machines or users.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+
+def writable(folder: Path) -> bool:
+    """Whether a file can be made in ``folder`` (made if missing), as numba checks its cache folders."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError:
+        return False
+    return True
+
+
+def fallback_dir() -> Path:
+    """The cache folder used when numba has none: per user, in the temp dir."""
+    uid = os.getuid() if hasattr(os, "getuid") else "user"
+    return Path(tempfile.gettempdir()) / f"semreloc-numba-cache-{uid}"
+
+
+def choose_cache_dir(
+    in_tree: Path, user_wide: str, configured: str, can_write: Callable[[Path], bool] = writable
+) -> Path | None:
+    """The folder to give numba, or None to leave its choice: ``configured`` (``NUMBA_CACHE_DIR``) set, the
+    ``in_tree`` ``__pycache__`` writable, or an absolute, writable ``user_wide`` folder (a relative one, from a
+    missing home, would be made in the working directory) leave it alone."""
+    if configured:
+        return None
+    if can_write(in_tree):
+        return None
+    if os.path.isabs(user_wide) and can_write(Path(user_wide)):
+        return None
+    return fallback_dir()
+
+
+def ensure_cache_dir() -> None:
+    """Point numba at `fallback_dir` if it would find no writable cache folder for this package's kernels."""
+    import numba
+    from numba.misc.appdirs import AppDirs
+
+    chosen = choose_cache_dir(
+        Path(__file__).resolve().parent / "__pycache__",
+        AppDirs(appname="numba", appauthor=False).user_cache_dir,
+        numba.config.CACHE_DIR,
+    )
+    if chosen is not None:
+        numba.config.CACHE_DIR = str(chosen)
