@@ -56,8 +56,8 @@ def draw_scans(ax, pose: np.ndarray, lidar=None, semantic=None) -> list:
         segs = np.stack([np.broadcast_to(pose[:2], ends.shape), ends], axis=1)
         artists.append(ax.add_collection(LineCollection(segs, colors="#ff9900", linewidths=0.5, alpha=0.6)))
         artists += ax.plot(ends[:, 0], ends[:, 1], ".", color="#ff6600", ms=2)
-    if semantic is not None:
-        ok = semantic.ranges < semantic.range_max_m
+    if semantic is not None:  # a labelled beam is drawn even at range_max_m (its noisy range clipped there)
+        ok = (semantic.ranges < semantic.range_max_m) | (semantic.labels > 0)
         ends = _beam_ends(pose, semantic.ranges[ok], semantic.angles[ok])
         segs = np.stack([np.broadcast_to(pose[:2], ends.shape), ends], axis=1)
         colors = [class_color(int(k)) for k in semantic.labels[ok]]
@@ -79,12 +79,17 @@ def draw_pose(ax, pose: np.ndarray, color: str, radius: float = 0.2, label: str 
 
 
 def draw_particles(ax, particles: np.ndarray, max_points: int = 3000) -> list:
-    """At most ``max_points`` particles as arrows; returns the artists."""
+    """Every k-th particle as an arrow, ``k = max(1, n // max_points)`` (so up to about ``1.5 * max_points``);
+    returns the artists."""
     p = particles[:: max(1, len(particles) // max_points)]
     arrows = ax.quiver(
         p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), color="#aa00aa", alpha=0.35, scale=60, width=0.002
     )
     return [arrows]
+
+
+MIN_WIDTH_IN = 6.0
+"""Narrowest frame (inches; 480 px at the default dpi): the title's room above a tall, narrow layout."""
 
 
 class Renderer:
@@ -97,7 +102,8 @@ class Renderer:
     Args:
         layout: the world drawn.
         human: draw into a pyplot window (paced to ``fps``) instead of an off-screen canvas.
-        dpi: pixels per inch of the figure (8 in on its longer side).
+        dpi: pixels per inch of the figure (8 in on its longer side, 0.4 in of margin, at least `MIN_WIDTH_IN`
+            wide: a frame's size depends on the layout's aspect, and is fixed while the layout is).
         fps: frames per second in ``human`` mode: `draw` sleeps until ``1 / fps`` s have passed
             since the previous frame (None: no pacing).
     """
@@ -110,10 +116,14 @@ class Renderer:
         self.fps = fps
         x0, x1, y0, y1 = layout.bounds()
         scale = 8.0 / max(x1 - x0, y1 - y0)
-        size = ((x1 - x0) * scale + 0.4, (y1 - y0) * scale + 0.4)
+        # at least MIN_WIDTH_IN wide, so that the title fits above a tall, narrow layout
+        size = (max((x1 - x0) * scale + 0.4, MIN_WIDTH_IN), (y1 - y0) * scale + 0.4)
+        self._was_interactive = None
         if human:  # a window: pyplot manages it
+            import matplotlib
             import matplotlib.pyplot as plt
 
+            self._was_interactive = matplotlib.is_interactive()
             plt.ion()
             self.fig, self.ax = plt.subplots(figsize=size, dpi=dpi)
             with warnings.catch_warnings():  # a non-interactive backend (Agg) has no window to show
@@ -162,9 +172,10 @@ class Renderer:
             lm = state["landmarks"]
             for (x, y), k in zip(np.asarray(lm["means"]).reshape(-1, 2), lm["classes"]):
                 dynamic += ax.plot(x, y, "x", color=class_color(int(k)), ms=8, mew=2)
-        dynamic += draw_pose(ax, state["pose"], "k", label="true pose")
+        radius = float(state.get("robot_radius_m", 0.2))
+        dynamic += draw_pose(ax, state["pose"], "k", radius=radius, label="true pose")
         if state.get("estimate") is not None:
-            dynamic += draw_pose(ax, np.asarray(state["estimate"]), "#aa00aa", label="estimate")
+            dynamic += draw_pose(ax, np.asarray(state["estimate"]), "#aa00aa", radius=radius, label="estimate")
         self._dynamic = dynamic
         ax.title.set_text(state.get("title") or " ")
         canvas = self.fig.canvas
@@ -192,3 +203,6 @@ class Renderer:
             import matplotlib.pyplot as plt
 
             plt.close(self.fig)
+            if self._was_interactive is False:  # human mode turned pyplot's interactive mode on for the process
+                plt.ioff()
+                self._was_interactive = None

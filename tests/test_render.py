@@ -127,3 +127,56 @@ def test_title_calls_a_spread_belief_spread_not_a_hypothesis():
     env.reset(seed=0, options={"tracking": True})
     title = env.unwrapped._render_state()["title"]
     assert "best hypothesis" in title and "spread" not in title and title.endswith("converged")
+
+
+def test_what_a_frame_draws_follows_the_running_episode():
+    """A twenty-first tester's: the robot was drawn 0.2 m wide whatever its radius; after set_layout the frames
+    drew the new layout's walls under the old episode's robot; a labelled camera beam clipped at range_max_m was
+    not drawn; the title of a tall, narrow layout was cut."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.patches import Circle
+
+    from filters.robot_data.scans import SemanticScan
+
+    env = gym.make("SemReloc-v15", layout="lab", robot={"radius_m": 0.45}, render_mode="rgb_array", **FAST)
+    env.reset(seed=0)
+    env.render()
+    r = env.unwrapped._renderer
+    assert {round(c.get_radius(), 6) for c in r._dynamic if isinstance(c, Circle)} == {0.45}
+    env.unwrapped.set_layout("twin_rooms")
+    env.step(0)
+    env.render()
+    drawn = env.unwrapped._renderer
+    assert drawn.layout.name == "lab" and drawn.ax.title.get_text().startswith("lab")
+    env.reset(seed=0)
+    size = env.render().shape
+    assert env.unwrapped._renderer.layout.name == "twin_rooms" and size[1] > size[0]  # twin_rooms' own frame
+
+    labels = np.array([0, 2, 4])
+    scan = SemanticScan(np.array([2.0, 3.0, 4.5]), np.array([-0.2, 0.0, 0.2]), labels, 4.5)
+    rr = render.Renderer(env.unwrapped.layout)
+    rr.draw({"layout": env.unwrapped.layout, "pose": np.array([3.0, 3.0, 0.0]), "semantic": scan})
+    (beams,) = [a for a in rr._dynamic if isinstance(a, LineCollection)]
+    assert len(beams.get_segments()) == 3  # the cabinet at 4.5 m too
+
+    tall = {"name": "tall", "outer": [[0, 0], [5, 0], [5, 14], [0, 14]]}
+    frame = gym.make("SemReloc-v15", layout=tall, render_mode="rgb_array", **FAST)
+    frame.reset(seed=0)
+    assert frame.render().shape[1] >= render.MIN_WIDTH_IN * 80
+
+
+def test_human_mode_leaves_pyplot_as_it_found_it():
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    old = plt.get_backend()
+    plt.switch_backend("Agg")
+    plt.ioff()
+    try:
+        env = gym.make("SemReloc-v15", render_mode="human", **FAST)
+        env.reset(seed=0)
+        assert matplotlib.is_interactive()
+        env.close()
+        assert not matplotlib.is_interactive()
+    finally:
+        plt.switch_backend(old)

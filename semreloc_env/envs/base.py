@@ -222,7 +222,8 @@ class SemRelocBase(gym.Env):
     def _render_state(self) -> dict[str, Any]:
         """What the renderer draws; subclasses add their belief."""
         return {
-            "layout": self.layout,
+            "layout": self.world.layout,  # the running episode's (set_layout takes effect at the next reset)
+            "robot_radius_m": self.robot_params.radius_m,
             "pose": self.world.pose,
             "lidar": self._last.get("lidar"),
             "semantic": self._last.get("semantic"),
@@ -237,9 +238,14 @@ class SemRelocBase(gym.Env):
             raise RuntimeError("call reset() before render()")
         from ..render import Renderer  # lazy: matplotlib only when drawing
 
+        if self._renderer is not None and self._renderer.layout is not self.world.layout:
+            self._renderer.close()  # a new layout since (set_layout, then reset): its own frame size
+            self._renderer = None
         if self._renderer is None:
             human = self.render_mode == "human"
-            self._renderer = Renderer(self.layout, human=human, fps=self.metadata["render_fps"] if human else None)
+            self._renderer = Renderer(
+                self.world.layout, human=human, fps=self.metadata["render_fps"] if human else None
+            )
         frame = self._renderer.draw(self._render_state())
         return frame if self.render_mode == "rgb_array" else None
 

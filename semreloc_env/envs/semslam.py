@@ -309,7 +309,7 @@ class SemSlamEnv(SemRelocBase):
         err = self.slam_error()
         lm = "-" if err["landmark"] is None else f"{err['landmark']:.2f} m"
         state["title"] = (
-            f"{self.layout.name}  step {self._steps}  pose error {err['position']:.2f} m / "
+            f"{self.world.layout.name}  step {self._steps}  pose error {err['position']:.2f} m / "
             f"{math.degrees(err['heading']):.0f} deg  landmarks {est.count} (seen {err['n_seen']}, error {lm})"
         )
         return state
