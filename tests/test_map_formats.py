@@ -50,8 +50,12 @@ def test_png_images(tmp_path, kind):
         im = Image.fromarray(TOP_FIRST)
     elif kind == "RGB":
         im = Image.fromarray(np.repeat(TOP_FIRST[..., None], 3, axis=2))
-    elif kind == "LA":
+    elif kind == "LA":  # transparent: (3 g + 0) / 4 in trinary mode, below (the opaque case)
         im = Image.fromarray(np.stack([TOP_FIRST, np.full_like(TOP_FIRST, 255)], axis=2))
+        im.save(tmp_path / "m.png")
+        np.testing.assert_array_equal(load_map(_yaml(tmp_path, "m.png", "mode: scale")).occupancy == 1.0,
+                                      TRINARY_BOTTOM_FIRST == 1.0)  # fmt: skip
+        return
     elif kind == "I;16":
         im = Image.fromarray(TOP_FIRST.astype(np.uint16) * 257)
     else:
@@ -138,3 +142,19 @@ def test_an_oversized_png_is_a_map_format_error_naming_the_file(tmp_path, monkey
     monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)
     with pytest.raises(MapFormatError, match="big.png.*too large"):
         read_map_image(path)
+
+
+def test_alpha_is_averaged_in_for_trinary_maps_as_map_server_does(tmp_path):
+    # a twentieth tester's: transparent white read as free and opaque grey 60 as occupied; map_server and nav2
+    # average alpha in for a trinary map: (r + g + b + a) / 4 (an LA image is loaded as RGBA with r = g = b)
+    px = np.array([[[255, 255, 255, 0], [60, 60, 60, 255], [0, 0, 0, 255], [205, 205, 205, 255]]], np.uint8)
+    Image.fromarray(px, "RGBA").save(tmp_path / "rgba.png")
+    grid = load_map(_yaml(tmp_path, "rgba.png"))
+    # means 191.25, 108.75, 63.75, 217.5: p = 0.25, 0.574, 0.75, 0.147
+    assert grid.occupancy[0].tolist() == [0.5, 0.5, 1.0, 0.0]
+    Image.fromarray(px[..., [0, 3]], "LA").save(tmp_path / "la.png")
+    assert load_map(_yaml(tmp_path, "la.png")).occupancy[0].tolist() == [0.5, 0.5, 1.0, 0.0]
+    # scale mode leaves alpha out of the grey, as before
+    np.testing.assert_allclose(
+        load_map(_yaml(tmp_path, "rgba.png", "mode: scale")).occupancy[0], [0.0, 195 / 255, 1.0, 50 / 255], atol=1e-6
+    )

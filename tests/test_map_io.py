@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from filters.mapping.grid import GridMap
 from filters.mapping.ros_map import MapFormatError, load_map, read_pgm, save_map, semantic_yaml_path, write_pgm
@@ -114,9 +115,14 @@ def _example_grid(rng: np.random.Generator) -> GridMap:
 def test_round_trip_occupancy_and_semantic(tmp_path, mode):
     grid = _example_grid(np.random.default_rng(3))
     path = save_map(grid, tmp_path / "maps" / "lab.yaml", mode=mode)
-    assert (tmp_path / "maps" / "lab.pgm").read_bytes()[:2] == b"P5"
     # the image's first row is the top of the map
-    img = read_pgm(tmp_path / "maps" / "lab.pgm")
+    if mode == "trinary":
+        assert (tmp_path / "maps" / "lab.pgm").read_bytes()[:2] == b"P5"
+        img = read_pgm(tmp_path / "maps" / "lab.pgm")
+    else:  # grey and alpha: unknown cells transparent, as nav2's map_saver writes them
+        la = np.asarray(Image.open(tmp_path / "maps" / "lab.png"))
+        img = la[..., 0]
+        np.testing.assert_array_equal(la[..., 1] == 0, np.flipud(grid.occupancy == 0.5))
     assert img.shape == grid.shape
     assert np.all(img[-1 - 5] == 0)  # grid row 5 (all occupied) is image row H-1-5, black
     back = load_map(path)
@@ -350,3 +356,14 @@ def test_a_map_yaml_takes_numbers_in_exponent_form_as_ros_does(tmp_path):
     path = _write_map(tmp_path, yaml_text=_yaml_with(resolution="resolution: 5e-2", origin="origin: [-1e2, 5.7E1, 0]"))
     grid = load_map(path)
     assert grid.resolution_m == 0.05 and grid.origin_xy_m == (-100.0, 57.0)
+
+
+def test_save_refuses_thresholds_that_cannot_keep_the_unknown_cells(tmp_path):
+    # a twentieth tester's: equal thresholds wrote unknown cells as 128, which read back as free
+    grid = GridMap(np.array([[0.5, 0.0], [1.0, 0.5]], np.float32), 0.1, occupied_thresh=0.5, free_thresh=0.5)
+    for mode in ("trinary", "scale"):
+        with pytest.raises(ValueError, match="no grey level reads back"):
+            save_map(grid, tmp_path / f"{mode}.yaml", mode=mode)
+        assert not list(tmp_path.iterdir())  # nothing written
+    known = GridMap(np.array([[0.0, 1.0]], np.float32), 0.1, occupied_thresh=0.5, free_thresh=0.5)
+    np.testing.assert_array_equal(load_map(save_map(known, tmp_path / "k.yaml")).occupancy, known.occupancy)

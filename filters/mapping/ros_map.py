@@ -18,7 +18,8 @@ required; ``negate`` (0/1, default 0) and ``mode`` (``trinary`` (default), ``sca
 optional, as in map_server.
 
 Pixel to probability, as map_server does (``v`` = grey level scaled to 0..255; colour images:
-mean of the colour channels; ``negate: 1`` first replaces ``v`` by ``255 - v``):
+mean of the colour channels, with alpha for a ``trinary`` map (`read_map_image`); ``negate: 1`` first
+replaces ``v`` by ``255 - v``):
 ``p = (255 - v) / 255``. ``trinary``: ``p > occupied_thresh`` -> occupied (1.0),
 ``p < free_thresh`` -> free (0.0), otherwise unknown (0.5). ``scale``: the cell keeps ``p``
 itself (its class under the same thresholds is what map_server reports); a fully transparent
@@ -30,7 +31,8 @@ is the bottom, so rows are flipped on read and write.
 
 Images: binary ``P5`` and ASCII ``P2`` greymaps with ``#`` comments, 8 or 16 bit
 (``maxval`` up to 65535, rescaled to 0..255), read here; any other format (PNG, BMP, TIFF, ...)
-through Pillow (`read_map_image`). Maps are written as 8-bit ``P5``. Anything wrong with the files raises
+through Pillow (`read_map_image`). Maps are written as 8-bit ``P5`` (``trinary``) or grey-and-alpha PNG
+(``scale``: unknown cells transparent, as nav2's map_saver writes them). Anything wrong with the files raises
 `MapFormatError`, naming the file and the problem.
 """
 
@@ -193,14 +195,17 @@ def read_pgm(path: str | os.PathLike) -> np.ndarray:
     return np.array(img, dtype=np.uint8)
 
 
-def read_map_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
+def read_map_image(path: str | os.PathLike, trinary: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
     """Read a map image as map_server does: ``(grey (H, W) float64 in [0, 255], alpha (H, W) bool or None)``.
 
     * PGM (``P5`` / ``P2``, 8 or 16 bit, ``#`` comments): ``grey = v * 255 / maxval``.
     * Any other image Pillow reads (PNG, BMP, TIFF, ...): grey images as they are (16-bit
-      scaled by ``255 / 65535``); colour images give the mean of their colour channels
-      (alpha left out). ``alpha`` is ``True`` where an alpha channel is fully transparent
-      (``None`` without alpha channel).
+      scaled by ``255 / 65535``); colour images give the mean of their colour channels, alpha left
+      out, except for an ``RGBA`` or grey-and-alpha (``LA``, loaded as RGBA with ``r = g = b``) image read
+      for a ``trinary`` map, whose alpha is averaged in: ``(r + g + b + a) / 4`` (map_server's
+      ``image_loader`` and nav2's ``map_io``; so an opaque 205 grey reads as free there, and a transparent
+      white as unknown). ``alpha`` is ``True`` where an alpha channel is fully transparent (``None`` without
+      alpha channel).
 
     First row = top of the picture. Raises `MapFormatError` naming the file.
     """
@@ -233,6 +238,8 @@ def read_map_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | No
         has_alpha = im.mode in ("LA", "RGBA", "PA") or (im.mode == "P" and "transparency" in im.info)
         rgba = np.asarray(im.convert("RGBA"), dtype=np.float64)
         grey = rgba[..., :3].mean(axis=2) if im.mode not in ("LA", "La") else rgba[..., 0]
+        if trinary and im.mode in ("LA", "RGBA"):
+            grey = rgba.mean(axis=2)
         if has_alpha:
             transparent = rgba[..., 3] == 0
     if grey.ndim != 2 or grey.size == 0:
@@ -347,9 +354,12 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
     * ``name.yaml`` and ``name.pgm`` (binary P5, ``negate: 0``). ``mode="trinary"`` (default,
       what ``map_saver`` writes): occupied cells -> 0, free -> 254, unknown -> 205 (or the pixel
       of the mid-probability when the grid's thresholds would misread 205), which reloads to
-      the same occupied/free/unknown masks. ``mode="scale"``: pixel ``round(255 * (1 - p))``,
-      which reloads ``p`` to within ``1/255`` (cells that rounding would carry across a
-      threshold are moved one grey level back, so the masks are kept exactly here too).
+      the same occupied/free/unknown masks. ``mode="scale"``: ``name.png`` (grey and alpha) instead,
+      pixel ``round(255 * (1 - p))``, which reloads ``p`` to within ``1/255`` (cells that rounding would
+      carry across a threshold are moved one grey level back, so the masks are kept exactly here too);
+      cells of exactly ``p = 0.5`` (unknown) are transparent, which ROS reads as unknown, where an
+      opaque grey would be a graded cost. ValueError, before anything is written, if the masks cannot
+      survive (thresholds with no grey level between them for the unknown cells, e.g. equal ones).
     * only if ``grid.class_names`` is non-empty: ``name.semantic.yaml`` and one
       ``name.semantic.<class>.pgm`` per class, pixel ``round(255 * p)`` (one grey level less or more
       where rounding would move ``p`` across ``semantic_thresh``, so class masks survive; see
@@ -390,8 +400,21 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
         v[unknown & (p > grid.occupied_thresh)] += 1
         v[unknown & (p < grid.free_thresh)] -= 1
         img = np.clip(v, 0, 255).astype(np.uint8)
-    image_name = stem + ".pgm"
-    write_pgm(folder / image_name, np.flipud(img))
+    back = _occupancy_from_pixels(img.astype(np.float64), False, "trinary", grid.occupied_thresh, grid.free_thresh)
+    if not (np.array_equal(back == 1.0, grid.occupied_mask()) and np.array_equal(back == 0.0, grid.free_mask())):
+        raise ValueError(
+            f"save_map: no grey level reads back as the grid's cells under free_thresh {grid.free_thresh} and "
+            f"occupied_thresh {grid.occupied_thresh} (unknown cells need a level between them): widen the band"
+        )
+    if mode == "trinary":
+        image_name = stem + ".pgm"
+        write_pgm(folder / image_name, np.flipud(img))
+    else:
+        from PIL import Image
+
+        image_name = stem + ".png"
+        alpha = np.where(occ == 0.5, 0, 255).astype(np.uint8)  # unknown: transparent, as nav2's map_saver
+        Image.fromarray(np.flipud(np.stack([img, alpha], axis=-1)), "LA").save(folder / image_name)
     doc = {
         "image": image_name,
         "mode": mode,
@@ -536,7 +559,7 @@ def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | No
     mode = doc.get("mode", "trinary")
     if mode not in ("trinary", "scale", "raw"):
         raise MapFormatError(path_yaml, f"mode {mode!r} is not supported (use 'trinary', 'scale' or 'raw')")
-    img, transparent = read_map_image(img_path)
+    img, transparent = read_map_image(img_path, trinary=mode == "trinary")
     occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t, transparent))
 
     names: tuple[str, ...] = ()
