@@ -149,6 +149,18 @@ def test_a_map_of_another_place_is_refused(aces, aces_map):
         global_localization_trials(aces, shifted, MCLConfig(n_particles=100), [0, 100, 200], 5, rng_seed=0)
 
 
+def test_a_map_shifted_against_the_log_is_refused(aces, aces_map):
+    # a twentieth tester's: a map moved 10 m in x still held every pose within its extent, and the replay
+    # reported a 3 m median error instead of the mismatch
+    import dataclasses
+
+    x0, y0 = aces_map.origin_xy_m
+    for dx in (2.0, 5.0):  # every pose still within the extent
+        shifted = dataclasses.replace(aces_map, origin_xy_m=(x0 + dx, y0))
+        with pytest.raises(MapMismatchError, match=r"% lie on free cells of the map: is the map in the log's frame"):
+            track(aces, shifted, MCLConfig(n_particles=100), rng_seed=0, start=0, stop=440)
+
+
 def test_tracking_from_a_start_pose_off_the_map_is_refused(aces, aces_map):
     # 19 of 20 poses on the map pass the 90 % check, but a cloud cannot start off the map
     import dataclasses

@@ -37,20 +37,40 @@ OUTCOMES = ("correct", "wrong", "unconverged")
 
 
 class MapMismatchError(ValueError):
-    """The map does not hold the log's poses: a map of another place, or in another frame."""
+    """The map does not hold the log's poses: a map of another place, or in another frame (off the map, or
+    on its obstacles and unknown cells)."""
 
 
 def _check_on_map(grid: GridMap, poses: np.ndarray, what: str, min_share: float = 0.9) -> None:
     """Raise `MapMismatchError` unless at least ``min_share`` of ``poses`` (``(K, 3)``, the map's
-    frame, m) lie on ``grid``; ``what`` names them in the message."""
+    frame, m) lie on ``grid``, and as many on its free cells (one pose: not on an obstacle). Where the
+    robot drove, its scans saw free space: on the ACES log's own map every pose is on a free cell, and
+    with the map shifted 1, 2 or 10 m against the log's frame 92, 67 and 45 %. ``what`` names the poses
+    in the message."""
     xy = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[:, :2]
-    inside = float(np.mean(grid.in_bounds(*grid.world_to_cell(xy))))
+    row, col = grid.world_to_cell(xy)
+    on = grid.in_bounds(row, col)
+    inside = float(np.mean(on))
     if inside < min_share:
         x0, x1, y0, y1 = grid.extent_m
         share = f"({xy[0, 0]:.6g}, {xy[0, 1]:.6g}) lies off" if len(xy) == 1 else f"only {100 * inside:.0f} % lie on"
         raise MapMismatchError(
             f"{what}: {share} the map (x in [{x0:.6g}, {x1:.6g}] m, y in [{y0:.6g}, {y1:.6g}] m): "
             "is it a map of this place, in the log's frame?"
+        )
+    ok = np.zeros(len(xy), bool)
+    if len(xy) == 1:
+        ok[on] = ~grid.occupied_mask()[row[on], col[on]]
+    else:
+        ok[on] = grid.free_mask()[row[on], col[on]]
+    if float(np.mean(ok)) < min_share:
+        where = (
+            f"({xy[0, 0]:.6g}, {xy[0, 1]:.6g}) lies on an obstacle"
+            if len(xy) == 1
+            else f"only {100 * float(np.mean(ok)):.0f} % lie on free cells"
+        )
+        raise MapMismatchError(
+            f"{what}: {where} of the map: is the map in the log's frame (its origin, its resolution)?"
         )
 
 

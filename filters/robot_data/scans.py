@@ -117,7 +117,9 @@ class LaserScan:
 
         * ``+inf`` (nothing within ``range_max``) and finite values ``> range_max``: no
           return, stored as ``range_max`` (skipped by the measurement models, cleared up to
-          the limit by mapping);
+          the limit by mapping). A reading of exactly ``range_max``, valid to REP 117, is then no
+          return as well: ``range_max`` is how a `LaserScan` stores one (and how many drivers
+          report one);
         * ``NaN`` (erroneous), ``-inf`` (too close to measure) and values ``< range_min``:
           invalid, *dropped* (the scan keeps only the other beams with their own angles,
           so it may have fewer beams than the message).
