@@ -28,9 +28,24 @@ def writable(folder: Path) -> bool:
 
 
 def fallback_dir() -> Path:
-    """The cache folder used when numba has none: per user, in the temp dir."""
-    uid = os.getuid() if hasattr(os, "getuid") else "user"
-    return Path(tempfile.gettempdir()) / f"semreloc-numba-cache-{uid}"
+    """The cache folder used when numba has none: per user, in the temp dir, private to the user.
+
+    numba's cache files are pickles, loaded as code: a folder in a shared temp dir that another user made
+    (or a symlink there) would let them run code in this process. The folder is made with mode 0700 and
+    used only if it is a real folder owned by this user and closed to others; otherwise a fresh private
+    folder (`tempfile.mkdtemp`) serves this process alone."""
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    folder = Path(tempfile.gettempdir()) / f"semreloc-numba-cache-{uid if uid is not None else 'user'}"
+    try:
+        folder.mkdir(mode=0o700, exist_ok=True)
+        st = os.lstat(folder)
+        import stat
+
+        if stat.S_ISDIR(st.st_mode) and (uid is None or st.st_uid == uid) and not st.st_mode & 0o077:
+            return folder
+    except OSError:
+        pass
+    return Path(tempfile.mkdtemp(prefix="semreloc-numba-cache-"))
 
 
 def choose_cache_dir(

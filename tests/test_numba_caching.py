@@ -59,10 +59,14 @@ def test_cached_kernel_calls_no_kernel_of_another_file(module, name, kernel):
     assert not foreign, f"{module}.{name} calls compiled kernels of other files: {foreign}"
 
 
-def test_a_cache_folder_is_chosen_only_where_numba_would_find_none(tmp_path):
+def test_a_cache_folder_is_chosen_only_where_numba_would_find_none(tmp_path, monkeypatch):
     # a nineteenth tester's: a read-only install with a read-only home failed at import ("no locator available");
     # with no home, numba made a folder named "~" in the working directory
+    import tempfile
     from pathlib import Path
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
 
     from filters.numba_cache import choose_cache_dir, fallback_dir, writable
 
@@ -76,3 +80,25 @@ def test_a_cache_folder_is_chosen_only_where_numba_would_find_none(tmp_path):
     assert choose_cache_dir(tree, str(user), "", only()) == fallback_dir()
     assert choose_cache_dir(tree, "~/.cache/numba", "", lambda p: True if p != tree else False) == fallback_dir()
     assert writable(tmp_path / "new" / "sub") and not writable(Path("/proc/self/none"))
+
+
+def test_the_fallback_cache_folder_is_private(tmp_path, monkeypatch):
+    # numba's cache files are pickles: a folder in a shared temp dir that others can write, or a symlink there,
+    # would let them run code here; such a folder is not used
+    import os
+    import stat
+    import tempfile
+
+    from filters.numba_cache import fallback_dir
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    own = fallback_dir()
+    assert own.parent == tmp_path and stat.S_IMODE(os.stat(own).st_mode) == 0o700 and fallback_dir() == own
+    os.chmod(own, 0o777)
+    other = fallback_dir()
+    assert other != own and stat.S_IMODE(os.stat(other).st_mode) == 0o700
+    os.chmod(own, 0o700)
+    os.rmdir(own)
+    (tmp_path / "target").mkdir(mode=0o700)
+    own.symlink_to(tmp_path / "target")
+    assert fallback_dir() not in (own, tmp_path / "target")
