@@ -10,7 +10,9 @@ import numpy as np
 
 
 def wrap_angle(a):
-    """Wrap angles (scalar or array, radians) to ``[-pi, pi)``."""
+    """Wrap angles (scalar or array, radians) to ``[-pi, pi)``; an angle within rounding below ``-pi`` (such as
+    ``nextafter(-pi, -inf)``) comes out as ``+pi`` itself, the same angle (the compiled kernels use the same
+    formula, and the episodes' bits depend on it)."""
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 

@@ -82,3 +82,18 @@ def test_as_dict_is_plain_python_and_bad_input_raises():
         summarize(np.zeros((2, 3)), np.array([1.0, math.nan]))
     with pytest.raises(TypeError):
         BeliefConfig(bin_m=0.5)
+
+
+def test_no_hypothesis_of_weight_zero_and_numpy_numbers_in_configs():
+    # a twenty-third tester's: with both thresholds 0 a zero-weight cluster became a hypothesis (documented
+    # weight: (0, 1]); BeliefConfig and OdometryMotionConfig refused NumPy numbers and took True
+    from filters.localization.belief import BeliefConfig, summarize
+    from filters.motion.odometry import OdometryMotionConfig
+
+    cfg = BeliefConfig(cluster_min_weight=0.0, cluster_min_bin_frac=0.0)
+    b = summarize(np.array([[0.0, 0, 0], [0.1, 0, 0], [5, 5, 2]]), np.array([1.0, 1, 0]), cfg)
+    assert [h.weight for h in b.hypotheses] == [1.0]
+    assert BeliefConfig(cluster_bin_m=np.float32(0.5)).cluster_bin_m == 0.5
+    assert type(OdometryMotionConfig(alpha1=np.float64(0.1)).alpha1) is float
+    with pytest.raises(ValueError, match="alpha1"):
+        OdometryMotionConfig(alpha1=True)

@@ -48,3 +48,22 @@ def test_bad_weights_and_names():
 def test_ess():
     assert effective_sample_size(np.ones(10)) == pytest.approx(10)
     assert effective_sample_size(np.array([1.0, 0, 0])) == pytest.approx(1)
+
+
+def test_weights_whose_sum_overflows_are_scaled_not_zeroed():
+    # a twenty-third tester's: [1.7e308, 1.7e308, 0] normalised to all zeros, so every resampler drew the
+    # zero-weight particle and the ESS was inf
+    from filters.localization.belief import summarize
+    from filters.smc.pf import normalise_log_weights
+    from filters.smc.resampling import RESAMPLERS, effective_sample_size, normalise_weights
+
+    w = np.array([1.7e308, 1.7e308, 0.0])
+    np.testing.assert_array_equal(normalise_weights(w), [0.5, 0.5, 0.0])
+    assert effective_sample_size(w) == 2.0
+    for name, resample in RESAMPLERS.items():
+        assert 2 not in resample(w, np.random.default_rng(0)), name
+    b = summarize(np.array([[5.0, 5, 0], [5, 5, 0], [-9, -9, 0]]), w)
+    np.testing.assert_allclose(b.mean[:2], [5.0, 5.0])
+    # +inf log-weights take the whole mass (the limit), where they gave uniform weights
+    np.testing.assert_array_equal(normalise_log_weights(np.array([0.0, np.inf, 0.0])), [0.0, 1.0, 0.0])
+    np.testing.assert_array_equal(normalise_log_weights(np.array([np.inf, np.nan, np.inf])), [0.5, 0.0, 0.5])

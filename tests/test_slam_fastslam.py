@@ -260,3 +260,26 @@ def test_model_and_config_numbers_are_checked():
         FastSLAMConfig(version=True)
     with pytest.raises(ValueError, match="initial_capacity must be an integer >= 1, got 2.5"):
         FastSLAMConfig(initial_capacity=2.5)
+
+
+def test_a_new_landmark_seen_twice_in_one_scan_does_not_refine_the_pose():
+    # a twenty-third tester's: under known association the second sighting of a new id refined the pose
+    # against the empty slot (a landmark at the origin with no covariance), collapsing the heading spread
+    from filters.motion.velocity import UnicycleModel
+    from filters.slam.association import AssociationConfig
+    from filters.slam.fastslam import FastSLAM, FastSLAMConfig
+    from filters.slam.landmarks import RangeBearingNoise
+
+    spreads = []
+    for ids in ([5], [5, 5]):
+        f = FastSLAM(
+            UnicycleModel(),
+            RangeBearingNoise(0.1, 0.01),
+            FastSLAMConfig(n_particles=200, version=2, association=AssociationConfig(mode="known")),
+            np.random.default_rng(0),
+            initial_pose_cov=np.diag([0.5, 0.5, 0.1]),
+        )
+        f.update(np.array([[10.0, 0.0]] * len(ids)), np.array(ids))
+        spreads.append(f.poses[:, 2].std())
+        assert np.all(f.count == 1)
+    assert spreads[1] == pytest.approx(spreads[0]) and spreads[0] > 0.25  # the prior's sqrt(0.1)

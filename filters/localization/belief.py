@@ -124,12 +124,14 @@ class BeliefConfig:
             "converged_theta_std_rad",
         ):
             v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            if not (is_real(v) and math.isfinite(v) and v > 0):
                 raise ValueError(f"BeliefConfig.{name} must be a positive number, got {v!r}")
+            object.__setattr__(self, name, float(v))
         for name in ("cluster_min_weight", "cluster_min_bin_frac", "converged_min_weight"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and 0 <= v <= 1):
+            if not (is_real(v) and 0 <= v <= 1):
                 raise ValueError(f"BeliefConfig.{name} must be in [0, 1], got {v!r}")
+            object.__setattr__(self, name, float(v))
         h = self.converged_hold_weight
         if h is not None:
             if not (is_real(h) and 0 < h <= self.converged_min_weight and self.converged_rule == "hypothesis"):
@@ -488,7 +490,7 @@ def summarize(
         cw, cmean, ccov, ccount = _cluster_stats_numba(np.ascontiguousarray(p), w, labels, n_lab, sin_th, cos_th)
     else:
         cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n_lab, "numpy")
-    keep = np.flatnonzero(cw >= cfg.cluster_min_weight - 1e-12)
+    keep = np.flatnonzero((cw >= cfg.cluster_min_weight - 1e-12) & (cw > 0))  # a hypothesis has weight (0, 1]
     keep = keep[np.argsort(-cw[keep], kind="stable")]
     hyps = []
     for k in keep:

@@ -67,7 +67,7 @@ _END_TOL_CELLS = 1e-6
 
 # ------------------------------------------------------------------------------------------------ parameters
 def _finite(name: str, v: float) -> None:
-    if not (isinstance(v, (int, float)) and math.isfinite(v)):
+    if not (is_real(v) and math.isfinite(v)):
         raise ValueError(f"{name} must be a finite number, got {v!r}")
 
 

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from filters.numbers import is_real
 from filters.pose import wrap_angle
 
 
@@ -63,8 +64,9 @@ class OdometryMotionConfig:
     def __post_init__(self) -> None:
         for name in ("alpha1", "alpha2", "alpha3", "alpha4", "min_trans_m"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
+            if not (is_real(v) and np.isfinite(v) and v >= 0):
                 raise ValueError(f"OdometryMotionConfig.{name} must be a finite number >= 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
 
 
 def decompose(delta: np.ndarray, min_trans_m: float = 0.01) -> tuple[float, float, float]:

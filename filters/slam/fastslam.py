@@ -344,7 +344,10 @@ class FastSLAM:
         mean, cov = self.poses.copy(), self.pose_cov.copy()
         rows = np.arange(n)
         for j in range(z.shape[0]):
+            # a landmark first seen in this scan (a repeated new id under known association: matched, to update
+            # the landmark its first sighting makes) has no estimate yet to refine the pose with
             sel = rows[assoc.matched[:, j]]
+            sel = sel[self.exists[sel, assoc.slots[sel, j]]]
             if sel.size == 0:
                 continue
             sl = assoc.slots[sel, j]

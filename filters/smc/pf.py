@@ -58,8 +58,12 @@ def check_observations(ys: np.ndarray, obs_dim: int) -> np.ndarray:
 
 
 def normalise_log_weights(logw: np.ndarray) -> np.ndarray:
-    """Normalised weights ``exp(logw - logsumexp(logw))``. All ``-inf`` (or NaN) -> uniform, a documented fallback."""
+    """Normalised weights ``exp(logw - logsumexp(logw))``. All ``-inf`` (or NaN) -> uniform, a documented fallback;
+    ``+inf`` entries share the whole mass equally (the limit of their weight growing without bound)."""
     logw = np.where(np.isnan(logw), -np.inf, logw)
+    if np.any(np.isposinf(logw)):
+        top_mask = np.isposinf(logw)
+        return top_mask / np.count_nonzero(top_mask)
     top = np.max(logw)
     if not np.isfinite(top):
         return np.full(logw.shape, 1.0 / logw.size)

@@ -21,9 +21,13 @@ def normalise_weights(weights: np.ndarray) -> np.ndarray:
         raise ValueError(f"weights must be a non-empty 1D array, got shape {w.shape}")
     if not np.all(np.isfinite(w)) or np.any(w < 0):
         raise ValueError("weights must be finite and non-negative")
-    total = w.sum()
+    with np.errstate(over="ignore"):
+        total = w.sum()
     if not total > 0:
         raise ValueError("weights sum to zero: nothing to resample from")
+    if not np.isfinite(total):  # finite weights whose sum overflows: scale them first (w / inf would be all 0)
+        w = w / w.max()
+        total = w.sum()
     return w / total
 
 
