@@ -34,18 +34,32 @@ def fallback_dir() -> Path:
     (or a symlink there) would let them run code in this process. The folder is made with mode 0700 and
     used only if it is a real folder owned by this user and closed to others; otherwise a fresh private
     folder (`tempfile.mkdtemp`) serves this process alone."""
+    import stat
+
     uid = os.getuid() if hasattr(os, "getuid") else None
     folder = Path(tempfile.gettempdir()) / f"semreloc-numba-cache-{uid if uid is not None else 'user'}"
     try:
         folder.mkdir(mode=0o700, exist_ok=True)
         st = os.lstat(folder)
-        import stat
-
-        if stat.S_ISDIR(st.st_mode) and (uid is None or st.st_uid == uid) and not st.st_mode & 0o077:
+        if stat.S_ISDIR(st.st_mode) and (uid is None or st.st_uid == uid):
+            if st.st_mode & 0o077:  # the user's own folder, opened by a umask or by hand: close it again
+                os.chmod(folder, 0o700)
             return folder
     except OSError:
         pass
-    return Path(tempfile.mkdtemp(prefix="semreloc-numba-cache-"))
+    fresh = Path(tempfile.mkdtemp(prefix="semreloc-numba-cache-"))
+    import atexit
+    import shutil
+    import warnings
+
+    atexit.register(shutil.rmtree, fresh, ignore_errors=True)
+    warnings.warn(
+        f"{folder} is not a private folder of this user: numba's kernels are compiled into {fresh} for this "
+        "process alone; set NUMBA_CACHE_DIR to a folder of yours to keep them",
+        UserWarning,
+        stacklevel=2,
+    )
+    return fresh
 
 
 def choose_cache_dir(
@@ -74,4 +88,5 @@ def ensure_cache_dir() -> None:
         numba.config.CACHE_DIR,
     )
     if chosen is not None:
-        numba.config.CACHE_DIR = str(chosen)
+        # the variable too: numba.config.reload_config(), run when any NUMBA_* variable changes, re-reads it
+        os.environ["NUMBA_CACHE_DIR"] = numba.config.CACHE_DIR = str(chosen)

@@ -47,15 +47,15 @@ def cache_dir() -> Path | None:
     """The on-disk map cache folder (absolute), or None if switched off (``SEMRELOC_CACHE_DIR=""``) or, with
     neither ``SEMRELOC_CACHE_DIR`` nor ``XDG_CACHE_HOME`` set, when there is no home folder (``HOME`` unset or
     empty and no user entry, as in containers run under an arbitrary uid)."""
-    root = os.environ.get("SEMRELOC_CACHE_DIR")
-    if root is not None:
-        return Path(root).expanduser().absolute() / "maps" if root else None
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    if xdg and Path(xdg).expanduser().is_absolute():  # the XDG spec ignores a relative value
-        return Path(xdg).expanduser() / "semreloc" / "maps"
-    try:
+    try:  # "~" with no home folder raises RuntimeError
+        root = os.environ.get("SEMRELOC_CACHE_DIR")
+        if root is not None:
+            return Path(root).expanduser().absolute() / "maps" if root else None
+        xdg = os.environ.get("XDG_CACHE_HOME")
+        if xdg and Path(xdg).expanduser().is_absolute():  # the XDG spec ignores a relative value
+            return Path(xdg).expanduser() / "semreloc" / "maps"
         home = Path(os.environ.get("HOME") or pwd_home())  # an empty HOME counts as unset
-    except (KeyError, OSError):
+    except (KeyError, OSError, RuntimeError):
         return None
     return home / ".cache" / "semreloc" / "maps" if home.is_absolute() else None
 
@@ -118,10 +118,15 @@ def _umask() -> int:
     return mask
 
 
+_TMP_PREFIX = ".semreloc-map-"
+"""Prefix of the temporary files a save writes before its rename (the only ``.tmp`` files deleted here)."""
+
+
 def _remove_stale_tmp(folder: Path) -> None:
-    """Delete ``*.tmp`` files older than `STALE_TMP_S`: what saves killed before their rename left."""
+    """Delete this package's temporary files older than `STALE_TMP_S`: what saves killed before their rename
+    left (a save takes well under a second)."""
     now = time.time()
-    for f in folder.glob("*.tmp"):
+    for f in folder.glob(f"{_TMP_PREFIX}*.tmp"):
         try:
             if now - f.stat().st_mtime > STALE_TMP_S:
                 f.unlink()
@@ -132,7 +137,7 @@ def _remove_stale_tmp(folder: Path) -> None:
 def _save(path: Path, grid: GridMap, key: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     _remove_stale_tmp(path.parent)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=_TMP_PREFIX, suffix=".tmp")
     try:
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp's 0600 would keep a shared cache to one user
         with os.fdopen(fd, "wb") as f:
@@ -296,7 +301,7 @@ def maps_for(
     elif names_a_layout(source):
         grid = mapped(get_layout(source), lidar, camera, mapping_version)
     else:
-        grid = load_map(Path(source))
+        grid = load_map(Path(source), alpha_in_trinary=False)  # as the registered envs have always read maps
     grid = env_classes(grid, source, semantic)  # the env's classes, in its order (empty layers if lidar-only)
     if not derived and not (isinstance(layout, MapLayout) and _same_map(layout.grid, grid)):
         check_map_matches_world(grid, layout)

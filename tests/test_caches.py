@@ -96,6 +96,21 @@ def test_the_cache_folder_in_odd_environments(tmp_path, monkeypatch):
         assert maps.cache_dir() is None
 
 
+def test_a_tilde_without_a_home_folder_switches_the_disk_cache_off(monkeypatch):
+    # a review's: SEMRELOC_CACHE_DIR="~/cache" (a Dockerfile's ENV does not expand "~") with no home folder
+    # still crashed gym.make in Path.expanduser
+    from semreloc_env import maps
+
+    def no_home(self):
+        raise RuntimeError("Could not determine home directory.")
+
+    monkeypatch.setattr(maps.Path, "expanduser", no_home)
+    for var in ("SEMRELOC_CACHE_DIR", "XDG_CACHE_HOME"):
+        monkeypatch.delenv("SEMRELOC_CACHE_DIR", raising=False)
+        monkeypatch.setenv(var, "~/cache")
+        assert maps.cache_dir() is None
+
+
 def test_cache_files_hold_their_key_keep_the_umask_and_stale_temporaries_go(tmp_path, monkeypatch):
     # a nineteenth tester's: another layout's valid file under a key was served (a 4.8 m error at reset), files
     # were 0600 whatever the umask, and a save killed before its rename left its .tmp for ever
@@ -120,15 +135,17 @@ def test_cache_files_hold_their_key_keep_the_umask_and_stale_temporaries_go(tmp_
     folder = tmp_path / "maps"
     assert (folder / f"{key_a}.npz").stat().st_mode & 0o777 == 0o664
     (folder / f"{key_a}.npz").write_bytes((folder / f"{key_b}.npz").read_bytes())
-    stale, fresh = folder / "tmpold.tmp", folder / "tmpnew.tmp"
-    stale.write_bytes(b"x")
-    fresh.write_bytes(b"x")
-    os.utime(stale, (time.time() - 2 * maps.STALE_TMP_S,) * 2)
+    stale, fresh = folder / f"{maps._TMP_PREFIX}old.tmp", folder / f"{maps._TMP_PREFIX}new.tmp"
+    theirs = folder / "survey.tmp"  # not the package's: never deleted
+    for f in (stale, fresh, theirs):
+        f.write_bytes(b"x")
+    for f in (stale, theirs):
+        os.utime(f, (time.time() - 2 * maps.STALE_TMP_S,) * 2)
     maps._memory.clear()
     again = maps.mapped(a, lidar, camera)  # the lab's map under twin_rooms' key is rebuilt, not served
     assert again.occupancy.shape == grid_a.occupancy.shape != grid_b.occupancy.shape
     np.testing.assert_array_equal(again.occupancy, grid_a.occupancy)
-    assert not stale.exists() and fresh.exists()  # a save under way in another process may own a new one
+    assert not stale.exists() and fresh.exists() and theirs.exists()  # a save under way may own a new one
 
 
 def test_an_unwritable_cache_warns_once_and_the_env_still_works(tmp_path, monkeypatch):

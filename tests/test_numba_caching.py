@@ -94,11 +94,11 @@ def test_the_fallback_cache_folder_is_private(tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     own = fallback_dir()
     assert own.parent == tmp_path and stat.S_IMODE(os.stat(own).st_mode) == 0o700 and fallback_dir() == own
-    os.chmod(own, 0o777)
-    other = fallback_dir()
-    assert other != own and stat.S_IMODE(os.stat(other).st_mode) == 0o700
-    os.chmod(own, 0o700)
+    os.chmod(own, 0o755)  # the user's own, opened: closed again and used
+    assert fallback_dir() == own and stat.S_IMODE(os.stat(own).st_mode) == 0o700
     os.rmdir(own)
     (tmp_path / "target").mkdir(mode=0o700)
-    own.symlink_to(tmp_path / "target")
-    assert fallback_dir() not in (own, tmp_path / "target")
+    own.symlink_to(tmp_path / "target")  # what another user could plant: not used
+    with pytest.warns(UserWarning, match="not a private folder"):
+        other = fallback_dir()
+    assert other not in (own, tmp_path / "target") and stat.S_IMODE(os.stat(other).st_mode) == 0o700

@@ -376,7 +376,6 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
         raise ValueError(f"save_map: the map path must end in .yaml or .yml, got {path_yaml}")
     stem = path_yaml.stem
     folder = path_yaml.parent
-    folder.mkdir(parents=True, exist_ok=True)
     occ = grid.occupancy.astype(np.float64)
 
     if mode == "trinary":
@@ -406,6 +405,7 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
             f"save_map: no grey level reads back as the grid's cells under free_thresh {grid.free_thresh} and "
             f"occupied_thresh {grid.occupied_thresh} (unknown cells need a level between them): widen the band"
         )
+    folder.mkdir(parents=True, exist_ok=True)
     if mode == "trinary":
         image_name = stem + ".pgm"
         write_pgm(folder / image_name, np.flipud(img))
@@ -413,7 +413,9 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
         from PIL import Image
 
         image_name = stem + ".png"
-        alpha = np.where(occ == 0.5, 0, 255).astype(np.uint8)  # unknown: transparent, as nav2's map_saver
+        # unknown (p = 0.5 between the thresholds): transparent, as nav2's map_saver writes it
+        unknown = (occ == 0.5) & ~grid.occupied_mask() & ~grid.free_mask()
+        alpha = np.where(unknown, 0, 255).astype(np.uint8)
         Image.fromarray(np.flipud(np.stack([img, alpha], axis=-1)), "LA").save(folder / image_name)
     doc = {
         "image": image_name,
@@ -524,13 +526,19 @@ def _load_semantic(sem_path: Path, shape: tuple[int, int], res: float, origin: t
     return tuple(names), sem, thresh
 
 
-def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | None = None) -> GridMap:
+def load_map(
+    path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | None = None, alpha_in_trinary: bool = True
+) -> GridMap:
     """Load a map_server map (and its semantic sidecar, if any) as a `GridMap`.
 
     Args:
         path_yaml: the occupancy YAML.
         semantic_yaml: the semantic YAML; default ``<name>.semantic.yaml`` next to ``path_yaml``
             (absent -> a map without classes; given explicitly but absent -> error).
+        alpha_in_trinary: average an RGBA or grey-and-alpha image's alpha into a ``trinary`` map's grey
+            levels, as map_server and nav2 do (`read_map_image`); False leaves it out, as this package did
+            before, and as the registered envs (``SemReloc-v15`` and older, ``SemSlam-v1`` and older) read
+            their maps, so that their episodes stay what they were.
 
     Returns:
         A ``GridMap`` with ``occupancy`` in ``{0, 0.5, 1}`` (``trinary``), the pixel
@@ -559,7 +567,7 @@ def load_map(path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | No
     mode = doc.get("mode", "trinary")
     if mode not in ("trinary", "scale", "raw"):
         raise MapFormatError(path_yaml, f"mode {mode!r} is not supported (use 'trinary', 'scale' or 'raw')")
-    img, transparent = read_map_image(img_path, trinary=mode == "trinary")
+    img, transparent = read_map_image(img_path, trinary=alpha_in_trinary and mode == "trinary")
     occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t, transparent))
 
     names: tuple[str, ...] = ()

@@ -39,7 +39,7 @@ from filters.robot_data.carmen import CarmenLogError, read_carmen
 from filters.robot_data.replay import MapMismatchError, Track, global_localization_trials, summarize_trials, track
 
 DEFAULT_LOG = ACES_LOG
-"""The ACES log shipped with the repository's tests (the default needs a source checkout)."""
+"""The ACES log, shipped with the package (`filters.robot_data.ACES_LOG`)."""
 
 
 @dataclass(frozen=True)

@@ -126,7 +126,8 @@ def get_layout(
             return layout_from_map(spec)
         from filters.mapping.ros_map import load_map
 
-        return layout_from_map(load_map(spec), name=Path(spec).stem)
+        # alpha left out of trinary maps, as the registered envs have always read them (load_map)
+        return layout_from_map(load_map(spec, alpha_in_trinary=False), name=Path(spec).stem)
     if isinstance(spec, Mapping):
         return layout_from_dict(spec)
     if isinstance(spec, str) and spec in LAYOUT_NAMES:
