@@ -20,6 +20,15 @@ from filters.numbers import is_int
 from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
 
+def close_after_interrupt(venv) -> None:
+    """Close ``venv`` after Ctrl-C: its subprocess workers got the SIGINT too and may be gone, so the pipes'
+    errors (``EOFError``, ``BrokenPipeError``, ...) on closing are expected, not news."""
+    try:
+        venv.close()
+    except (EOFError, OSError):
+        pass
+
+
 class SB3VecEnvAdapter(VecEnv):
     """SB3 ``VecEnv`` view of a `SemRelocLoopVectorEnv` (``venv``); seeds via `seed` as in SB3."""
 

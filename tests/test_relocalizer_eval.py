@@ -276,7 +276,8 @@ def test_variants_are_checked_on_top_of_the_env_relocalizer_before_any_episode(t
     every option to switch off named (a documented command crashed inside its first episode)."""
     from agents.experiments import evaluate_relocalizer as er
 
-    common = ["--rows", "none", "--log-starts", "0", "--log-tracking-seeds", "0", "--out", str(tmp_path / "o")]
+    common = ["--rows", "none", "--log-starts", "1", "--log-steps", "1", "--log-tracking-seeds", "0"]
+    common += ["--out", str(tmp_path / "o"), "--workers", "1"]
     with pytest.raises(SystemExit):
         er.main(["--variants", "v4", "--extra", '{"v4": {"audit_window": 0}}', *common])
     with pytest.raises(
@@ -290,3 +291,25 @@ def test_variants_are_checked_on_top_of_the_env_relocalizer_before_any_episode(t
         '"surprise_own_average": false, "semantic_surprise_ratio": 0}}'
     )
     assert er.main(["--variants", "v5", "--extra", ok, *common]) == 0
+
+
+def test_a_run_with_nothing_to_do_or_a_row_twice_is_refused_before_anything_changes(tmp_path):
+    # a twenty-fourth tester's: nothing to run exited 0 and emptied an earlier run's files; a row given twice
+    # counted the same seeded episodes twice; an unknown row failed inside its first episode
+    from agents.experiments import evaluate_relocalizer as er
+
+    out = tmp_path / "er"
+    out.mkdir()
+    (out / "table.md").write_text("old")
+    for kwargs, match in (
+        ({"rows": ("none",), "log_starts": 0}, "nothing to run"),
+        ({"rows": ("lab",), "episodes": 0, "log_starts": 0}, "nothing to run"),
+        ({"rows": ("lab", "lab")}, r"rows: \['lab'\] given more than once"),
+        ({"rows": ("lab",), "variants": ("after", "after")}, r"variants: \['after'\] given more than once"),
+        ({"rows": ("bogus",)}, "unknown row 'bogus'"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            er.Args(**kwargs, out=str(out))
+    with pytest.raises(SystemExit) as e:
+        er.main(["--rows", "none", "--log-starts", "0", "--out", str(out)])
+    assert e.value.code == 2 and (out / "table.md").read_text() == "old"

@@ -57,7 +57,7 @@ from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import JsonDict, Runner, command_line, parse, usage_error
+from filters.experiments.cli import JsonDict, Runner, command, command_line, parse, usage_error
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import wilson_interval
 from semreloc_env import semreloc_ids_since
@@ -973,6 +973,7 @@ def plot(summary: dict, policies: list[str], path: Path) -> None:
     plt.close(fig)
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run the episodes, write the outputs."""
     args = parse(Args, argv, __doc__)

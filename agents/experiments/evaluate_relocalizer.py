@@ -41,7 +41,7 @@ from agents.relocalizer_eval import (
     summarize,
     wilson,
 )
-from filters.experiments.cli import Runner, parse
+from filters.experiments.cli import Runner, command, parse
 from filters.experiments.report import markdown_table
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.robot_data import ACES_LOG
@@ -61,6 +61,13 @@ TWIN_KIDNAP_ROWS = ("twin_rooms_twin_kidnap",)
 TRACKING_ROWS = ("lab_tracking",)
 
 
+def row_layout(row: str, files: dict[str, str] | None = None) -> tuple[str, str]:
+    """``(base, layout)`` of a row: its name without the kind's suffix, and the layout (name or file) it runs."""
+    base = row.removesuffix("_global_kidnap").removesuffix("_twin_kidnap").removesuffix("_kidnap")
+    base = base.removesuffix("_tracking")
+    return base, "lab" if base == "lab_changed" else (files or {}).get(base, base)
+
+
 def specs_for(
     row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict, label: str, files: dict[str, str] | None = None
 ) -> list[EpisodeSpec]:
@@ -69,10 +76,8 @@ def specs_for(
     twin = row.endswith("_twin_kidnap")
     kidnap = row.endswith("_kidnap") and not global_kidnap
     tracking = row.endswith("_tracking")
-    base = row.removesuffix("_global_kidnap").removesuffix("_twin_kidnap").removesuffix("_kidnap")
-    base = base.removesuffix("_tracking")
+    base, layout = row_layout(row, files)
     scenario = "changed" if base == "lab_changed" else "nominal"
-    layout = "lab" if base == "lab_changed" else (files or {}).get(base, base)
     out = []
     for i in range(n):
         out.append(
@@ -243,7 +248,22 @@ class Args:
             raise ValueError("episodes, before_episodes and log_starts must be >= 0 and sym_seeds not empty")
         if self.log_starts and not 1 <= self.log_steps <= 440:
             raise ValueError(f"log_steps must be in 1..440 (the log has 440 scans), got {self.log_steps}")
-        file_rows(self.layout_files)  # raises on a bad file, before any episode runs
+        files, extra_rows = file_rows(self.layout_files)  # raises on a bad file, before any episode runs
+        for name, values in (("rows", self.rows), ("variants", self.variants), ("sym_seeds", self.sym_seeds)):
+            twice = sorted({v for v in values if values.count(v) > 1}, key=str)
+            if twice:  # the same seeded episodes would count twice
+                raise ValueError(f"{name}: {twice} given more than once")
+        from semreloc_env.layouts import LAYOUT_NAMES
+
+        for row in self.rows:
+            base, layout = row_layout(row, files)
+            if row != "none" and layout not in LAYOUT_NAMES and base not in files:
+                raise ValueError(
+                    f"rows: unknown row {row!r}: its layout {base!r} is no built-in layout nor a --layout-files stem"
+                )
+        rows = [r for r in self.rows if r and r != "none"] + extra_rows
+        if not self.variants or ((not rows or self.episodes == 0) and self.log_starts == 0):
+            raise ValueError("nothing to run: no variant, or no rows (or --episodes 0) and --log-starts 0")
         from filters.localization.mcl import check_overrides
         from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER
 
@@ -259,6 +279,7 @@ class Args:
         return {**VARIANTS, **extra}
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run the episodes and log trials, write the tables."""
     args = parse(Args, argv, __doc__)

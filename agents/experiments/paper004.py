@@ -33,7 +33,7 @@ from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import JsonDict, Runner, command_line, parse
+from filters.experiments.cli import JsonDict, Runner, command, command_line, parse
 from filters.experiments.report import markdown_table, pyplot, replace_block, save_figure
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import wilson_interval
@@ -159,6 +159,7 @@ def summarise(results: list[dict]) -> dict:
     }
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run the episodes, write table and figures."""
     argv = sys.argv[1:] if argv is None else list(argv)

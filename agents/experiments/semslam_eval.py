@@ -25,7 +25,7 @@ import numpy as np
 
 import semreloc_env  # noqa: F401  (registers the envs)
 from agents.baselines import FORWARD, TURN_LEFT, TURN_RIGHT, WallFollowExplorer
-from filters.experiments.cli import Runner, parse
+from filters.experiments.cli import Runner, command, parse
 from filters.experiments.report import fmt_ci, markdown_table
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import normal_mean_interval
@@ -135,6 +135,7 @@ COLUMNS = (
 )
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run every variant on every seed, print the table."""
     args = parse(Args, argv, __doc__)

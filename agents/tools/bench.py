@@ -27,7 +27,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from filters.experiments.cli import parse
+from filters.experiments.cli import command, parse
 from filters.localization.likelihood_field import LikelihoodFieldModel, log_likelihood_kernel
 from filters.localization.likelihood_reference import log_likelihood_reference
 from filters.mapping.grid import DEFAULT_CLASS_NAMES, GridMap
@@ -671,6 +671,7 @@ def run(args: Args) -> list[Row]:
     return rows
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run the benchmarks, print the table."""
     run(parse(Args, argv, __doc__))

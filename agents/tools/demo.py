@@ -22,7 +22,7 @@ import numpy as np
 
 import semreloc_env  # noqa: F401  (registers the envs)
 from agents.baselines import WallFollowExplorer
-from filters.experiments.cli import parse
+from filters.experiments.cli import command, parse
 from filters.experiments.report import pyplot, save_figure
 
 
@@ -55,6 +55,7 @@ class Args:
             raise ValueError(f"layout: {e}") from None
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run one episode, write the pictures."""
     args = parse(Args, argv, __doc__)

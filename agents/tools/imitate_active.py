@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from filters.experiments.cli import parse, usage_error
+from filters.experiments.cli import command, parse, usage_error
 
 from ..imitation import ImitationConfig, imitate
 from ..train_active import RunFolderError
@@ -27,6 +27,7 @@ class Args:
     """output folder (created; nothing is written elsewhere)"""
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), imitate, save; prints the policy's path."""
     args = parse(Args, argv, __doc__)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import semreloc_env  # noqa: F401  (registers the envs)
-from filters.experiments.cli import parse
+from filters.experiments.cli import command, parse
 
 STAGES: dict[str, tuple[str, str]] = {
     "physics (World.drive)": ("world.py", "drive"),
@@ -161,6 +161,7 @@ def run(args: Args) -> dict[str, float]:
     return stages
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), profile, print the stages."""
     run(parse(Args, argv, __doc__))

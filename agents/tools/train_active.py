@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from filters.experiments.cli import parse, usage_error
+from filters.experiments.cli import command, parse, usage_error
 
 from ..train_active import ActiveTrainConfig, RunFolderError, train_active
 
@@ -29,6 +29,7 @@ class Args:
     be given again (they shape the policy's spaces); other changed settings are printed"""
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), train, save; prints the policy's path."""
     args = parse(Args, argv, __doc__)

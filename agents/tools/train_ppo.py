@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.train import TrainConfig
-from filters.experiments.cli import command_line, parse
+from filters.experiments.cli import command, command_line, parse
 
 DEFAULT_CONFIG = TrainConfig(
     total_timesteps=200_000,
@@ -143,6 +143,7 @@ def results_table(rows: dict[str, dict]) -> str:
     return head + body
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), train (or ``--load``), evaluate, write the report."""
     run(parse(Args, argv, __doc__), sys.argv[1:] if argv is None else argv)

@@ -19,17 +19,20 @@ Every command is a console entry point (``[project.scripts]`` in pyproject.toml)
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import json
 import shlex
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
 import tyro
 
 from filters.experiments.runner import RunnerConfig
 
-__all__ = ["JsonDict", "Runner", "parse", "command_line", "usage_error"]
+__all__ = ["JsonDict", "Runner", "parse", "command", "command_line", "usage_error"]
 
 T = TypeVar("T")
 
@@ -61,9 +64,62 @@ JsonDict = Annotated[
 line as one JSON object: ``--config.planner '{"replan_every": 5}'``."""
 
 
+OUTPUT_FIELDS = ("out", "doc", "figure", "fig_dir", "figures", "log_dir")
+"""Option names that hold a path a command writes: checked before any work (`check_common_options`)."""
+
+
 def parse(cls: type[T], argv: Sequence[str] | None = None, description: str | None = None) -> T:
-    """``cls`` filled from ``argv`` (default: ``sys.argv[1:]``); ``--help`` prints every option."""
-    return tyro.cli(cls, args=None if argv is None else list(argv), description=description)
+    """``cls`` filled from ``argv`` (default: ``sys.argv[1:]``); ``--help`` prints every option. Seeds and
+    output paths are checked as well (`check_common_options`): a bad one exits with status 2, before any work."""
+    args = tyro.cli(cls, args=None if argv is None else list(argv), description=description)
+    try:
+        check_common_options(args)
+    except ValueError as e:
+        raise SystemExit(usage_error(_prog(), e)) from None
+    return args
+
+
+def _prog() -> str:
+    return Path(sys.argv[0]).stem if sys.argv and sys.argv[0] else "command"
+
+
+def check_common_options(args: Any, prefix: str = "") -> None:
+    """ValueError for what every command's options share, in ``args`` and the dataclasses it holds: a seed
+    (an int, or ints, in a field whose name holds ``seed``) below 0, which NumPy's generators refuse; an
+    output path (`OUTPUT_FIELDS`) under an existing file, which no command could write."""
+    if not dataclasses.is_dataclass(args):
+        return
+    for f in dataclasses.fields(args):
+        v = getattr(args, f.name)
+        name = f"--{prefix}{f.name.replace('_', '-')}"
+        if dataclasses.is_dataclass(v):
+            check_common_options(v, f"{prefix}{f.name.replace('_', '-')}.")
+        elif "seed" in f.name:
+            values = v if isinstance(v, (tuple, list)) else (v,)
+            if any(isinstance(x, int) and not isinstance(x, bool) and x < 0 for x in values):
+                raise ValueError(f"{name} must be an integer >= 0 (seeds are), got {v!r}")
+        elif f.name in OUTPUT_FIELDS and isinstance(v, (str, Path)) and str(v):
+            for parent in Path(v).expanduser().absolute().parents:
+                if parent.exists():
+                    if not parent.is_dir():
+                        raise ValueError(f"{name} {str(v)!r}: {str(parent)!r} is a file, not a folder")
+                    break
+
+
+def command(main: Callable[..., int]) -> Callable[..., int]:
+    """Decorate a command's ``main(argv)``: Ctrl-C ends it with ``prog: interrupted`` and status 130, as a shell
+    reports SIGINT, instead of a traceback (what the command wrote by then is its own business: the project's
+    commands write their results at the end)."""
+
+    @functools.wraps(main)
+    def wrapped(*args, **kwargs) -> int:
+        try:
+            return main(*args, **kwargs)
+        except KeyboardInterrupt:
+            print(f"{_prog()}: interrupted", file=sys.stderr)
+            return 130
+
+    return wrapped
 
 
 def command_line(script: str, argv: Sequence[str]) -> str:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from filters.experiments.cli import Runner, command_line, parse
+from filters.experiments.cli import Runner, command, command_line, parse
 from filters.experiments.report import fmt_ci, pyplot, relative_to, save_figure
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import holm_adjusted, normal_mean_interval
@@ -287,6 +287,7 @@ def k_sweep_job(job: tuple[Args, int]) -> dict:
     return out
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run every table, write report and figures."""
     argv = sys.argv[1:] if argv is None else list(argv)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from filters.experiments.cli import Runner, command_line, parse
+from filters.experiments.cli import Runner, command, command_line, parse
 from filters.experiments.report import fmt_ci, pyplot, relative_to, save_figure
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import paired_bootstrap_interval as improvement_ci
@@ -721,6 +721,7 @@ def t3_section(args: Args, t3: dict) -> str:
     return "\n".join(L)
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), run, write the report and figures."""
     argv = sys.argv[1:] if argv is None else list(argv)

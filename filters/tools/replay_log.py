@@ -28,7 +28,7 @@ from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import parse, usage_error
+from filters.experiments.cli import command, parse, usage_error
 from filters.experiments.report import pyplot, save_figure
 from filters.localization.mcl import MCLConfig
 from filters.mapping.from_scans import map_from_scans
@@ -193,6 +193,7 @@ def run(args: Args) -> dict:
     return result
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``) and `run`. A log or map that cannot be read,
     a map that does not hold the log's poses, or an option beyond the log, prints the reason and

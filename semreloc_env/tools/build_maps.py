@@ -20,7 +20,7 @@ from typing import Literal
 
 import numpy as np
 
-from filters.experiments.cli import parse
+from filters.experiments.cli import command, parse
 from filters.mapping.metrics import semantic_surface_quality
 from filters.mapping.ros_map import save_map
 from semreloc_env.layouts import get_layout
@@ -53,6 +53,7 @@ class Args:
             raise ValueError(f"resolution must be > 0 m, got {self.resolution}")
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv`` (default ``sys.argv[1:]``), map the layout, save and score the maps."""
     args = parse(Args, argv, __doc__)

@@ -29,7 +29,7 @@ import gymnasium as gym
 import numpy as np
 
 import semreloc_env  # noqa: F401
-from filters.experiments.cli import parse
+from filters.experiments.cli import command, parse
 from semreloc_env.layouts import CLASS_NAMES, LayoutError, layout_from_dict
 
 CELL = 2.0
@@ -317,6 +317,7 @@ class Args:
             raise ValueError("steps >= 1, episode_steps >= 5, twin_every >= 1 and layouts >= 0 are required")
 
 
+@command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv``, soak, print every count; exit status 1 if any check failed."""
     a = parse(Args, argv, __doc__)
