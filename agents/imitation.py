@@ -230,7 +230,7 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
     Seeded: the same config gives the same policy (on the same machine and library versions).
     """
     out = Path(out)
-    check_fresh_out(out)
+    check_fresh_out(out, resumable=False)
     out.mkdir(parents=True, exist_ok=True)
     t = config.train
     torch.set_num_threads(int(t.torch_threads))

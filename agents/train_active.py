@@ -350,15 +350,14 @@ class RunFolderError(ValueError):
     """``--out`` or ``--resume`` does not fit: a run in the way, a missing checkpoint, other spaces."""
 
 
-def check_fresh_out(out: Path) -> None:
+def check_fresh_out(out: Path, resumable: bool = True) -> None:
     """RunFolderError if ``out`` holds a training run already (a new run would overwrite its policy and
-    config and leave its checkpoints and TensorBoard events beside the new ones)."""
+    config and leave its checkpoints and TensorBoard events beside the new ones). ``resumable``: the
+    message says how to continue that run with ``--resume`` (train_active's runs; an imitation run has none)."""
     held = [n for n in ("config.json", "policy.zip", "checkpoints") if (out / n).exists()]
     if held:
-        raise RunFolderError(
-            f"{out} holds a training run already ({', '.join(held)}): choose a new --out, or continue that run "
-            f"with --resume {out}/checkpoints/<checkpoint>.zip"
-        )
+        hint = f", or continue that run with --resume {out}/checkpoints/<checkpoint>.zip" if resumable else ""
+        raise RunFolderError(f"{out} holds a training run already ({', '.join(held)}): choose a new --out{hint}")
 
 
 def run_config_of(checkpoint: Path) -> dict[str, Any] | None:

@@ -292,7 +292,7 @@ def test_train_ppo_takes_every_map_source_the_env_does(tmp_path):
             mod.Args(config=cfg, map_source=str(tmp_path / missing))
 
 
-def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path, monkeypatch):
+def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path, monkeypatch, capsys):
     import agents.tools.train_ppo as mod
 
     monkeypatch.chdir(tmp_path)
@@ -302,8 +302,9 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
     small += ["--config.n-envs", "1", "--eval-episodes", "1", "--max-episode-steps", "10", "--map-source", "perfect"]
     small += ["--n-particles", "200", "--config.checkpoint-every", "32", "--config.eval-every", "None"]
     small += ["--config.no-progress-bar", "--config.log-dir", "run"]
-    with pytest.raises(SystemExit, match="refusing to overwrite"):
+    with pytest.raises(SystemExit) as e:
         mod.main([*small, "--doc", str(doc)])
+    assert e.value.code == 2 and "refusing to overwrite" in capsys.readouterr().err
     assert doc.read_text() == "hand-written\n" and not (tmp_path / "run").exists()
     record = mod.run(parse(mod.Args, small), small)
     assert record["command"].startswith("python scripts/train_ppo.py --config.total-timesteps 64")
@@ -313,6 +314,12 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
     assert {"model.zip", "progress.csv", "results.json", "results.md", "checkpoints"} <= {p.name for p in run.iterdir()}
     assert list(run.glob("events.out.tfevents.*"))
     assert "| PPO |" in (run / "results.md").read_text()
+    # a twenty-fourth tester's: a second run into the folder replaced the model and mixed its TensorBoard events
+    before = (run / "model.zip").read_bytes()
+    with pytest.raises(SystemExit) as e:
+        mod.main(small)
+    assert e.value.code == 2 and "holds a training run already" in capsys.readouterr().err
+    assert (run / "model.zip").read_bytes() == before
 
 
 def test_train_ppo_evaluates_on_its_env_id_and_refuses_a_missing_model(tmp_path, monkeypatch):

@@ -215,3 +215,63 @@ def test_train_ppo_help_lists_every_built_in_layout(capsys):
         _main(ENTRY_POINTS["semreloc-train-ppo"])(["--help"])
     text = re.sub(r"[\s│]+", "", capsys.readouterr().out)  # the help is wrapped in a box
     assert [n for n in LAYOUT_NAMES if n.replace("_", "") not in text.replace("_", "")] == []
+
+
+SEED_FLAG = {  # each command's seed option (a twenty-fourth tester's: -1 gave a traceback, some after their work)
+    "semreloc-demo": "--seed",
+    "semreloc-repro-paper000": "--seed",
+    "semreloc-repro-paper001": "--seed",
+    "semreloc-repro-paper004": "--first-seed",
+    "semreloc-evaluate-relocalizer": "--seed-base",
+    "semreloc-soak": "--seed",
+    "semreloc-build-maps": "--layout-seed",
+    "semreloc-replay-log": "--seed",
+    "semreloc-train-active": "--config.seed",
+    "semreloc-bench": "--seed",
+    "semreloc-profile-step": "--seed",
+    "semreloc-train-ppo": "--eval-seed",
+}
+
+
+@pytest.mark.parametrize("name", sorted(SEED_FLAG))
+def test_a_negative_seed_exits_2_before_any_work(name, capsys):
+    with pytest.raises(SystemExit) as e:
+        _main(ENTRY_POINTS[name])([SEED_FLAG[name], "-1"])
+    assert e.value.code == 2 and "seed" in capsys.readouterr().err
+
+
+def test_an_output_path_under_a_file_exits_2_and_ctrl_c_exits_130(tmp_path, capsys):
+    from filters.experiments.cli import command
+
+    (tmp_path / "afile").write_text("hi")
+    for name, flag in (("semreloc-build-maps", "--out"), ("semreloc-repro-paper004", "--out")):
+        with pytest.raises(SystemExit) as e:
+            _main(ENTRY_POINTS[name])([flag, str(tmp_path / "afile" / "sub")])
+        assert e.value.code == 2 and "is a file, not a folder" in capsys.readouterr().err
+
+    @command
+    def interrupted(argv=None):
+        raise KeyboardInterrupt
+
+    assert interrupted([]) == 130 and "interrupted" in capsys.readouterr().err
+    assert all(hasattr(_main(t), "__wrapped__") for t in ENTRY_POINTS.values())  # every command is decorated
+
+
+@pytest.mark.parametrize(
+    "name, argv",
+    [
+        ("semreloc-build-maps", ["--layout", "nosuch"]),
+        ("semreloc-build-maps", ["--resolution", "inf"]),
+        ("semreloc-profile-step", ["--layout", "nosuch"]),
+        ("semreloc-bench", ["--map-size-m", "nan"]),
+        ("semreloc-repro-paper001", ["--alpha0", "nan"]),
+        ("semreloc-semslam-eval", ["--woc-k", "0.5"]),
+        ("semreloc-semslam-eval", ["--odometry-alpha", "nan"]),
+        ("semreloc-repro-paper004", ["--cases", "lab", "lab"]),
+    ],
+)
+def test_values_a_command_failed_on_late_exit_2(name, argv):
+    # a twenty-fourth tester's: each gave a traceback, some inside their first job
+    with pytest.raises(SystemExit) as e:
+        _main(ENTRY_POINTS[name])(argv)
+    assert e.value.code == 2

@@ -1024,7 +1024,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(c, tuple(todo), args) for c in cases] if todo else []
 
     def report(done_jobs: int, total: int) -> None:
-        print(f"  {done_jobs}/{total} pairs, {time.time() - t0:.0f} s", flush=True)
+        print(f"  {done_jobs}/{total} pairs, {time.time() - t0:.0f} s", file=sys.stderr, flush=True)
 
     on_result = report if args.runner.progress else None  # --no-progress: nothing per pair
     for r in run_jobs(run_case, jobs, args.runner, desc="pairs", on_result=on_result):  # results in job order

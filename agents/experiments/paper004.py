@@ -69,12 +69,14 @@ class Args:
     out: str = ""
     """folder for paper004.md and figures/ (default docs, with --quick build/paper004_quick)"""
     quick: bool = False
-    """smoke run: 5 seeds per row and at most 200 steps (overrides those), written into build/"""
+    """smoke run: at most 5 seeds per row and at most 200 steps, written into build/"""
     runner: Runner = RunnerConfig(workers=2)
 
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.max_steps < 1 or self.particles < 1 or not self.cases:
             raise ValueError("seeds, max_steps and particles must be >= 1 and cases not empty")
+        if len(set(self.cases)) < len(self.cases):  # the same seeded episodes would count twice
+            raise ValueError(f"cases: a case given more than once in {list(self.cases)}")
         from filters.localization.mcl import check_overrides
         from semreloc_env import default_relocalizer
 

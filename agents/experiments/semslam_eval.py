@@ -56,6 +56,12 @@ class Args:
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.steps < 1 or self.particles < 1:
             raise ValueError("seeds, steps and particles must be >= 1")
+        if not self.woc_k >= 1:  # NaN fails too; WOC needs K >= 1 (paper 000), inf is plain FastSLAM
+            raise ValueError(f"woc_k must be >= 1 (inf: plain FastSLAM), got {self.woc_k}")
+        if math.isnan(self.odometry_alpha) or math.isinf(self.odometry_alpha):
+            raise ValueError(
+                f"odometry_alpha must be a finite number (< 0: the env's default), got {self.odometry_alpha}"
+            )
 
 
 class LookAround:

@@ -66,7 +66,7 @@ class Args:
             raise ValueError(f"only: unknown benchmarks {unknown}; choose from {names}")
         positive = ("particles", "beams", "repeats", "steps", "ppo_steps")
         bad = [f"{k}={getattr(self, k)}" for k in positive if getattr(self, k) < 1]
-        if bad or self.semantic_beams < 0 or self.map_size_m <= 0:
+        if bad or self.semantic_beams < 0 or not 0 < self.map_size_m < float("inf"):
             raise ValueError(
                 f"particles, beams, repeats, steps, ppo_steps must be >= 1, semantic_beams >= 0 and map_size_m > 0; "
                 f"got {bad or (self.semantic_beams, self.map_size_m)}"

@@ -67,6 +67,12 @@ class Args:
                 f"steps and beams must be >= 1, particles and top >= 0; got steps={self.steps}, "
                 f"beams={self.beams}, particles={self.particles}, top={self.top}"
             )
+        from semreloc_env.layouts import LayoutError, get_layout
+
+        try:
+            get_layout(self.layout)
+        except LayoutError as e:
+            raise ValueError(f"layout: {e}") from None
 
 
 def step_cpu_time(env, policy, steps: int, seed: int = 0) -> float:

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.train import TrainConfig
-from filters.experiments.cli import command, command_line, parse
+from filters.experiments.cli import command, command_line, parse, usage_error
 
 DEFAULT_CONFIG = TrainConfig(
     total_timesteps=200_000,
@@ -159,7 +159,18 @@ def run(args: Args, argv: list[str] | None = None) -> dict:
     out = args.out
     doc = Path(args.doc) if args.doc else None
     if doc is not None and doc.exists() and not args.load:
-        raise SystemExit(f"--doc {doc} exists: refusing to overwrite it (pick a new file, or omit --doc)")
+        raise SystemExit(
+            usage_error("train_ppo", f"--doc {doc} exists: refusing to overwrite it (pick a new file, or omit --doc)")
+        )
+    held = [n for n in ("model.zip", "results.json", "progress.csv") if (out / n).exists()]
+    if held and not args.load:  # a new run would replace its model and mix TensorBoard events with it
+        raise SystemExit(
+            usage_error(
+                "train_ppo",
+                f"--config.log-dir {out} holds a training run already ({', '.join(held)}): choose a new folder, "
+                f"or evaluate that run's model again with --load {out}/model.zip",
+            )
+        )
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = env_kwargs_of(args)
     config = replace(args.config, env_kwargs=env_kwargs)

@@ -111,6 +111,8 @@ class Args:
                 "runs >= 2, steps >= 1, slam_runs >= 1, slam_steps >= 1, particles >= 1 and reference_particles "
                 ">= 0 (>= 1 with --reference-only) are required"
             )
+        if not 0 <= self.alpha0 < float("inf"):  # NaN fails too
+            raise ValueError(f"alpha0 must be a finite number >= 0, got {self.alpha0}")
         if self.slam_version not in (1, 2):
             raise ValueError(f"slam_version must be 1 or 2, got {self.slam_version}")
 

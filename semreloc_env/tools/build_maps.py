@@ -49,8 +49,14 @@ class Args:
     without a return cleared the classes along their range)"""
 
     def __post_init__(self) -> None:
-        if not self.resolution > 0:
-            raise ValueError(f"resolution must be > 0 m, got {self.resolution}")
+        if not 0 < self.resolution < float("inf"):
+            raise ValueError(f"resolution must be a finite number > 0 m, got {self.resolution}")
+        from semreloc_env.layouts import LayoutError
+
+        try:  # an unknown name or a bad file: refused here, not after the imports of a mapping run
+            get_layout(self.layout, seed=self.layout_seed)
+        except LayoutError as e:
+            raise ValueError(f"layout: {e}") from None
 
 
 @command
