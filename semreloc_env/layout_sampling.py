@@ -198,11 +198,14 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
             (default: `LayoutSampler` with its defaults). The env spec records the dict, so
             ``gym.make(env.spec)`` and ``env.spec.to_json()`` work.
         seed: seed of the layout stream until a reset passes one.
-        cache_size: maps kept in memory.
+        cache_size: maps kept in memory (about 2 MB each with what they derive; each wrapper keeps its own,
+            so a batched env of R robots keeps up to R times as many). Procedural layouts drawn from a
+            wide seed range rarely come back, and the disk cache loads one in milliseconds: a small
+            cache serves as well (an outside tester: 0 hits in 180 procedural draws with 64).
     """
 
     def __init__(
-        self, env: gym.Env, sampler: LayoutSampler | Mapping | None = None, seed: int = 0, cache_size: int = 64
+        self, env: gym.Env, sampler: LayoutSampler | Mapping | None = None, seed: int = 0, cache_size: int = 8
     ):
         if sampler is None:
             sampler = LayoutSampler()
