@@ -407,3 +407,21 @@ def test_a_subproc_config_of_one_env_trains_in_a_subprocess(tmp_path):
         assert isinstance(venv, SubprocVecEnv) and venv.num_envs == 1
     finally:
         venv.close()
+
+
+def test_vec_envs_close_quietly_after_ctrl_c():
+    # a twenty-fourth tester's: Ctrl-C during train_active ended in an EOFError traceback from venv.close(), its
+    # subprocess workers having died of the same SIGINT
+    from agents.vec_env import close_after_interrupt
+
+    class Gone:
+        def close(self):
+            raise EOFError
+
+    class Broken:
+        def close(self):
+            raise ValueError("a real defect")
+
+    close_after_interrupt(Gone())
+    with pytest.raises(ValueError):
+        close_after_interrupt(Broken())

@@ -12,6 +12,8 @@ TWIN_OFFICES = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "twin_
 
 # ------------------------------------------------------------------ specs
 
+DOCS_LAYOUTS = Path(__file__).resolve().parents[1] / "docs" / "layouts"
+
 
 def test_row_names_and_reset_options():
     glob = EpisodeSpec(layout="lab", seed=0, policy="spin", n_steps=350, kidnap_at_step=150, kidnap_after_global=True)
@@ -307,9 +309,16 @@ def test_a_run_with_nothing_to_do_or_a_row_twice_is_refused_before_anything_chan
         ({"rows": ("lab", "lab")}, r"rows: \['lab'\] given more than once"),
         ({"rows": ("lab",), "variants": ("after", "after")}, r"variants: \['after'\] given more than once"),
         ({"rows": ("bogus",)}, "unknown row 'bogus'"),
+        (
+            {"rows": ("quad_rooms",), "layout_files": (str(DOCS_LAYOUTS / "quad_rooms.json"),)},
+            r"\['quad_rooms'\] given more",
+        ),
     ):
         with pytest.raises(ValueError, match=match):
             er.Args(**kwargs, out=str(out))
     with pytest.raises(SystemExit) as e:
         er.main(["--rows", "none", "--log-starts", "0", "--out", str(out)])
     assert e.value.code == 2 and (out / "table.md").read_text() == "old"
+    # what a review found refused that runs: "before" episodes alone, a layout on the search path
+    er.Args(rows=("lab",), variants=("before",), episodes=0, before_episodes=5, log_starts=0)
+    er.Args(rows=(str(DOCS_LAYOUTS / "quad_rooms.json"),), log_starts=0)

@@ -249,21 +249,25 @@ class Args:
         if self.log_starts and not 1 <= self.log_steps <= 440:
             raise ValueError(f"log_steps must be in 1..440 (the log has 440 scans), got {self.log_steps}")
         files, extra_rows = file_rows(self.layout_files)  # raises on a bad file, before any episode runs
-        for name, values in (("rows", self.rows), ("variants", self.variants), ("sym_seeds", self.sym_seeds)):
+        rows = [r for r in self.rows if r and r != "none"] + extra_rows
+        for name, values in (("rows", rows), ("variants", self.variants), ("sym_seeds", self.sym_seeds)):
             twice = sorted({v for v in values if values.count(v) > 1}, key=str)
-            if twice:  # the same seeded episodes would count twice
+            if twice:  # the same seeded episodes would count twice (a row may also come from a --layout-files stem)
                 raise ValueError(f"{name}: {twice} given more than once")
-        from semreloc_env.layouts import LAYOUT_NAMES
+        from semreloc_env.layouts import LayoutError, get_layout
 
         for row in self.rows:
             base, layout = row_layout(row, files)
-            if row != "none" and layout not in LAYOUT_NAMES and base not in files:
-                raise ValueError(
-                    f"rows: unknown row {row!r}: its layout {base!r} is no built-in layout nor a --layout-files stem"
-                )
-        rows = [r for r in self.rows if r and r != "none"] + extra_rows
-        if not self.variants or ((not rows or self.episodes == 0) and self.log_starts == 0):
-            raise ValueError("nothing to run: no variant, or no rows (or --episodes 0) and --log-starts 0")
+            if row != "none" and base not in files:
+                try:  # a built-in name, a name on $SEMRELOC_LAYOUT_PATH or a file path
+                    get_layout(layout)
+                except LayoutError as e:
+                    raise ValueError(f"rows: unknown row {row!r}: {e}") from None
+        episodes = [
+            self.before_episodes if v == "before" and self.before_episodes > 0 else self.episodes for v in self.variants
+        ]
+        if not self.variants or ((not rows or max(episodes) == 0) and self.log_starts == 0):
+            raise ValueError("nothing to run: no variant, or no rows (or no episodes) and --log-starts 0")
         from filters.localization.mcl import check_overrides
         from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER
 

@@ -22,7 +22,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import os
 import shlex
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -67,6 +69,9 @@ line as one JSON object: ``--config.planner '{"replan_every": 5}'``."""
 OUTPUT_FIELDS = ("out", "doc", "figure", "fig_dir", "figures", "log_dir")
 """Option names that hold a path a command writes: checked before any work (`check_common_options`)."""
 
+FOLDER_FIELDS = ("out", "fig_dir", "figures", "log_dir")
+"""Those of `OUTPUT_FIELDS` that name a folder (``out`` with a suffix, as paper 000's report, names a file)."""
+
 
 def parse(cls: type[T], argv: Sequence[str] | None = None, description: str | None = None) -> T:
     """``cls`` filled from ``argv`` (default: ``sys.argv[1:]``); ``--help`` prints every option. Seeds and
@@ -74,7 +79,7 @@ def parse(cls: type[T], argv: Sequence[str] | None = None, description: str | No
     args = tyro.cli(cls, args=None if argv is None else list(argv), description=description)
     try:
         check_common_options(args)
-    except ValueError as e:
+    except (ValueError, OSError) as e:  # OSError: a folder on the way that cannot be read
         raise SystemExit(usage_error(_prog(), e)) from None
     return args
 
@@ -97,9 +102,12 @@ def check_common_options(args: Any, prefix: str = "") -> None:
         elif "seed" in f.name:
             values = v if isinstance(v, (tuple, list)) else (v,)
             if any(isinstance(x, int) and not isinstance(x, bool) and x < 0 for x in values):
-                raise ValueError(f"{name} must be an integer >= 0 (seeds are), got {v!r}")
+                raise ValueError(f"{name} must be an integer >= 0, got {v!r}")
         elif f.name in OUTPUT_FIELDS and isinstance(v, (str, Path)) and str(v):
-            for parent in Path(v).expanduser().absolute().parents:
+            path = Path(v).expanduser().absolute()
+            if f.name in FOLDER_FIELDS and not path.suffix and path.exists() and not path.is_dir():
+                raise ValueError(f"{name} {str(v)!r} is a file, not a folder")
+            for parent in path.parents:
                 if parent.exists():
                     if not parent.is_dir():
                         raise ValueError(f"{name} {str(v)!r}: {str(parent)!r} is a file, not a folder")
@@ -107,16 +115,22 @@ def check_common_options(args: Any, prefix: str = "") -> None:
 
 
 def command(main: Callable[..., int]) -> Callable[..., int]:
-    """Decorate a command's ``main(argv)``: Ctrl-C ends it with ``prog: interrupted`` and status 130, as a shell
-    reports SIGINT, instead of a traceback (what the command wrote by then is its own business: the project's
-    commands write their results at the end)."""
+    """Decorate a command's ``main(argv)``: Ctrl-C ends it with ``prog: interrupted`` instead of a traceback.
+    From the command line (``argv`` None) the process then dies of SIGINT, as an uncaught Ctrl-C does, so a
+    calling shell loop stops too (status 130 in the shell); called with ``argv``, ``main`` returns 130. What the
+    command wrote by then is its own business: the project's commands write their results at the end."""
 
     @functools.wraps(main)
-    def wrapped(*args, **kwargs) -> int:
+    def wrapped(argv: list[str] | None = None, *args, **kwargs) -> int:
         try:
-            return main(*args, **kwargs)
+            return main(argv, *args, **kwargs)
         except KeyboardInterrupt:
             print(f"{_prog()}: interrupted", file=sys.stderr)
+            if argv is None:  # run from the command line: die of SIGINT, so that a calling shell loop stops too
+                sys.stdout.flush()
+                sys.stderr.flush()
+                signal.signal(signal.SIGINT, signal.SIG_DFL)
+                os.kill(os.getpid(), signal.SIGINT)
             return 130
 
     return wrapped
