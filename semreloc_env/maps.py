@@ -102,7 +102,7 @@ def _layout_text(layout: Layout) -> str:
 
 
 STALE_TMP_S = 3600.0
-"""Age (s) after which a ``*.tmp`` file in the cache folder is taken for a save that was killed, and deleted."""
+"""Age (s) after which a save's temporary file in the cache folder is taken for a killed save's, and deleted."""
 
 
 def _umask() -> int:
@@ -139,8 +139,8 @@ def _save(path: Path, grid: GridMap, key: str) -> None:
     _remove_stale_tmp(path.parent)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=_TMP_PREFIX, suffix=".tmp")
     try:
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp's 0600 would keep a shared cache to one user
         with os.fdopen(fd, "wb") as f:
+            os.fchmod(f.fileno(), 0o666 & ~_umask())  # mkstemp's 0600 would keep a shared cache to one user
             np.savez_compressed(  # 15-130 kB a map instead of 0.7-1.6 MB; 1-2 ms more to load
                 f,
                 key=np.asarray(key),
