@@ -140,7 +140,8 @@ def _save(path: Path, grid: GridMap, key: str) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=_TMP_PREFIX, suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
-            os.fchmod(f.fileno(), 0o666 & ~_umask())  # mkstemp's 0600 would keep a shared cache to one user
+            if hasattr(os, "fchmod"):  # POSIX: mkstemp's 0600 would keep a shared cache to one user
+                os.fchmod(f.fileno(), 0o666 & ~_umask())
             np.savez_compressed(  # 15-130 kB a map instead of 0.7-1.6 MB; 1-2 ms more to load
                 f,
                 key=np.asarray(key),
