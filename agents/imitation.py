@@ -42,7 +42,7 @@ from filters.numbers import is_int, is_real
 from .learned import save_policy
 from .options import TeacherLabels  # noqa: F401  (documented here: agents.imitation.TeacherLabels)
 from .train_active import ActiveTrainConfig, build_model, check_fresh_out, make_active_venv
-from .vec_env import close_after_interrupt
+from .vec_env import closing_venv
 
 
 def _default_train() -> ActiveTrainConfig:
@@ -240,8 +240,7 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
     venv = make_active_venv(t, teacher=config.planner)
     t0, c0 = time.time(), time.process_time()
     rows: list[dict[str, Any]] = []
-    interrupted = False
-    try:
+    with closing_venv(venv):
         model = build_model(t, venv)
         optimizer = torch.optim.Adam(model.policy.parameters(), lr=config.learning_rate)
         data = _Dataset(config.max_samples)
@@ -274,11 +273,6 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
                 w.writeheader()
                 w.writerows(rows)
             beta *= config.beta_decay
-    except KeyboardInterrupt:
-        interrupted = True
-        raise
-    finally:
-        close_after_interrupt(venv) if interrupted else venv.close()
     # the final round fits nothing: its loss is null in the JSON (NaN is not JSON; "nan" in the CSV)
     json_rows = [{**row, "loss": None if row["loss"] != row["loss"] else row["loss"]} for row in rows]
     timing = {"wall_s": time.time() - t0, "learner_cpu_s": time.process_time() - c0, "rounds": json_rows}

@@ -46,7 +46,7 @@ from .callbacks import RelocalizationMetricsCallback
 from .learned import option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
-from .vec_env import close_after_interrupt
+from .vec_env import closing_venv
 
 ENV_ID = "SemReloc-v15"
 TRAINABLE_ENV_IDS = semreloc_ids_since(2)
@@ -553,20 +553,16 @@ def train_active(
     cbs += list(callbacks or [])
     t0, c0 = time.time(), time.process_time()
     start_decisions = int(model.num_timesteps)  # > 0 when resumed
-    interrupted = False
-    try:
-        model.learn(
-            total_timesteps=config.total_timesteps,
-            callback=cbs,
-            progress_bar=config.progress_bar,
-            reset_num_timesteps=resume is None,
-        )
-    except KeyboardInterrupt:
-        interrupted = True
-        raise
-    finally:
-        logger.close()
-        close_after_interrupt(venv) if interrupted else venv.close()
+    with closing_venv(venv):
+        try:
+            model.learn(
+                total_timesteps=config.total_timesteps,
+                callback=cbs,
+                progress_bar=config.progress_bar,
+                reset_num_timesteps=resume is None,
+            )
+        finally:
+            logger.close()
     timing = {
         "wall_s": time.time() - t0,
         "learner_cpu_s": time.process_time() - c0,

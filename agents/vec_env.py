@@ -9,7 +9,8 @@ sees what it would see with ``DummyVecEnv`` over the same envs. Infos are per-ro
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,21 @@ def close_after_interrupt(venv) -> None:
         venv.close()
     except (EOFError, OSError):
         pass
+
+
+@contextlib.contextmanager
+def closing_venv(venv) -> Iterator:
+    """Close ``venv`` when the block ends: quietly after Ctrl-C (`close_after_interrupt`), plainly otherwise
+    (an error in the block included)."""
+    try:
+        yield venv
+    except KeyboardInterrupt:
+        close_after_interrupt(venv)
+        raise
+    except BaseException:
+        venv.close()
+        raise
+    venv.close()
 
 
 class SB3VecEnvAdapter(VecEnv):

@@ -425,3 +425,11 @@ def test_vec_envs_close_quietly_after_ctrl_c():
     close_after_interrupt(Gone())
     with pytest.raises(ValueError):
         close_after_interrupt(Broken())
+    from agents.vec_env import closing_venv
+
+    with pytest.raises(KeyboardInterrupt):  # the interrupt, not the pipe's EOFError
+        with closing_venv(Gone()):
+            raise KeyboardInterrupt
+    with pytest.raises(EOFError):  # without an interrupt a failing close is news
+        with closing_venv(Gone()):
+            pass
