@@ -246,13 +246,10 @@ class Args:
         twice = sorted({f for f, w in zip(self.layout_files, where) if where.count(w) > 1})
         if twice:
             raise ValueError(f"layout_files: the same file given more than once: {twice}")
-        from semreloc_env.layouts import LayoutError, get_layout
+        from semreloc_env.layouts import check_layout_option
 
         for f in self.layout_files:  # a malformed file fails here, not in a worker with a traceback
-            try:
-                get_layout(f)
-            except LayoutError as e:
-                raise ValueError(f"layout_files: {e}") from None
+            check_layout_option(f, "layout_files")
         if self.layouts_per_kind == 0 and self.ring_layouts == 0 and not self.layout_files and not self.builtin_layouts:
             raise ValueError(
                 "no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files or --ring-layouts"

@@ -248,24 +248,18 @@ class Args:
             raise ValueError("episodes, before_episodes and log_starts must be >= 0 and sym_seeds not empty")
         if self.log_starts and not 1 <= self.log_steps <= 440:
             raise ValueError(f"log_steps must be in 1..440 (the log has 440 scans), got {self.log_steps}")
-        files, extra_rows = file_rows(self.layout_files)  # raises on a bad file, before any episode runs
-        rows = [r for r in self.rows if r and r != "none"] + extra_rows
+        files, rows = self.row_list()  # raises on a bad file, before any episode runs
         for name, values in (("rows", rows), ("variants", self.variants), ("sym_seeds", self.sym_seeds)):
             twice = sorted({v for v in values if values.count(v) > 1}, key=str)
             if twice:  # the same seeded episodes would count twice (a row may also come from a --layout-files stem)
                 raise ValueError(f"{name}: {twice} given more than once")
-        from semreloc_env.layouts import LayoutError, get_layout
+        from semreloc_env.layouts import check_layout_option
 
         for row in self.rows:
             base, layout = row_layout(row, files)
-            if row != "none" and base not in files:
-                try:  # a built-in name, a name on $SEMRELOC_LAYOUT_PATH or a file path
-                    get_layout(layout)
-                except LayoutError as e:
-                    raise ValueError(f"rows: unknown row {row!r}: {e}") from None
-        episodes = [
-            self.before_episodes if v == "before" and self.before_episodes > 0 else self.episodes for v in self.variants
-        ]
+            if row != "none" and base not in files:  # a built-in name, a name on $SEMRELOC_LAYOUT_PATH, a path
+                check_layout_option(layout, f"rows: unknown row {row!r}")
+        episodes = [self.episodes_of(v) for v in self.variants]
         if not self.variants or ((not rows or max(episodes) == 0) and self.log_starts == 0):
             raise ValueError("nothing to run: no variant, or no rows (or no episodes) and --log-starts 0")
         from filters.localization.mcl import check_overrides
@@ -274,6 +268,16 @@ class Args:
         variants = self.all_variants()
         for name in self.variants:  # on top of the env's relocalizer, as the episodes apply them
             check_overrides(variants[name], f"variant {name!r}", DEFAULT_RELOCALIZER)
+
+    def row_list(self) -> tuple[dict[str, str], list[str]]:
+        """``({row name: layout file}, the rows to run)``: ``--rows`` (without ``none``), then three rows per
+        ``--layout-files`` file (`file_rows`)."""
+        files, extra_rows = file_rows(self.layout_files)
+        return files, [r for r in self.rows if r and r != "none"] + extra_rows
+
+    def episodes_of(self, variant: str) -> int:
+        """Episodes per row of ``variant``: ``--before-episodes`` for 'before' if set, else ``--episodes``."""
+        return self.before_episodes if variant == "before" and self.before_episodes > 0 else self.episodes
 
     def all_variants(self) -> dict[str, dict]:
         """VARIANTS plus ``--extra``."""
@@ -289,12 +293,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(Args, argv, __doc__)
     variants = args.all_variants()
     names = list(args.variants)
-    files, extra_rows = file_rows(args.layout_files)
-    rows = [r for r in args.rows if r and r != "none"] + extra_rows
+    files, rows = args.row_list()
     specs = []
     for row in rows:  # grouped by row, so a worker meets few layouts (maps are cached per process)
         for v in names:
-            n = args.before_episodes if v == "before" and args.before_episodes > 0 else args.episodes
+            n = args.episodes_of(v)
             if row.endswith("_tracking"):
                 n = min(n, 30)  # tracking rows measure error and step time only
             specs += specs_for(row, n, args.seed_base, list(args.sym_seeds), variants[v], v, files)

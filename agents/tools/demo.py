@@ -47,12 +47,9 @@ class Args:
             raise ValueError(f"steps and frame_every must be >= 1, got {self.steps} and {self.frame_every}")
         if self.seed < 0:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
-        from semreloc_env.layouts import LayoutError, get_layout
+        from semreloc_env.layouts import check_layout_option
 
-        try:  # an unknown name or a malformed file fails here, with the parser's message, not a traceback
-            get_layout(self.layout)
-        except LayoutError as e:
-            raise ValueError(f"layout: {e}") from None
+        check_layout_option(self.layout)  # an unknown name or a malformed file: the parser's message
 
 
 @command

@@ -67,12 +67,9 @@ class Args:
                 f"steps and beams must be >= 1, particles and top >= 0; got steps={self.steps}, "
                 f"beams={self.beams}, particles={self.particles}, top={self.top}"
             )
-        from semreloc_env.layouts import LayoutError, get_layout
+        from semreloc_env.layouts import check_layout_option
 
-        try:
-            get_layout(self.layout)
-        except LayoutError as e:
-            raise ValueError(f"layout: {e}") from None
+        check_layout_option(self.layout)
 
 
 def step_cpu_time(env, policy, steps: int, seed: int = 0) -> float:

@@ -33,6 +33,7 @@ __all__ = [
     "ProceduralParams",
     "RingParams",
     "SemanticObject",
+    "check_layout_option",
     "get_layout",
     "half_turn_asymmetry",
     "layout_from_dict",
@@ -87,6 +88,15 @@ def _is_ros_map(spec) -> bool:
     from ..maps import is_ros_map_file  # lazy: maps imports this package
 
     return is_ros_map_file(spec)
+
+
+def check_layout_option(spec, option: str = "layout", seed: int = 0) -> None:
+    """ValueError ``"<option>: <the LayoutError>"`` unless `get_layout` resolves ``spec``: a command's
+    argument check, which its parser turns into a usage error before any work."""
+    try:
+        get_layout(spec, seed=seed)
+    except LayoutError as e:
+        raise ValueError(f"{option}: {e}") from None
 
 
 def get_layout(

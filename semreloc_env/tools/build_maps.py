@@ -23,7 +23,7 @@ import numpy as np
 from filters.experiments.cli import command, parse
 from filters.mapping.metrics import semantic_surface_quality
 from filters.mapping.ros_map import save_map
-from semreloc_env.layouts import get_layout
+from semreloc_env.layouts import check_layout_option, get_layout
 from semreloc_env.mapping_run import build_maps, mapping_path, narrow_drive
 from semreloc_env.rasterize import rasterize
 
@@ -51,12 +51,8 @@ class Args:
     def __post_init__(self) -> None:
         if not 0 < self.resolution < float("inf"):
             raise ValueError(f"resolution must be a finite number > 0 m, got {self.resolution}")
-        from semreloc_env.layouts import LayoutError
-
-        try:  # an unknown name or a bad file: refused here, not after the imports of a mapping run
-            get_layout(self.layout, seed=self.layout_seed)
-        except LayoutError as e:
-            raise ValueError(f"layout: {e}") from None
+        # an unknown name or a bad file: refused here, not after the imports of a mapping run
+        check_layout_option(self.layout, seed=self.layout_seed)
 
 
 @command
