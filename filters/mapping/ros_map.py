@@ -237,9 +237,12 @@ def read_map_image(path: str | os.PathLike, trinary: bool = False) -> tuple[np.n
     else:
         has_alpha = im.mode in ("LA", "RGBA", "PA") or (im.mode == "P" and "transparency" in im.info)
         rgba = np.asarray(im.convert("RGBA"), dtype=np.float64)
-        grey = rgba[..., :3].mean(axis=2) if im.mode not in ("LA", "La") else rgba[..., 0]
-        if trinary and im.mode in ("LA", "RGBA"):
+        if trinary and im.mode in ("LA", "RGBA"):  # alpha averaged in, as map_server does for trinary maps
             grey = rgba.mean(axis=2)
+        elif im.mode in ("LA", "La"):
+            grey = rgba[..., 0]
+        else:
+            grey = rgba[..., :3].mean(axis=2)
         if has_alpha:
             transparent = rgba[..., 3] == 0
     if grey.ndim != 2 or grey.size == 0:
@@ -414,8 +417,7 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
 
         image_name = stem + ".png"
         # unknown (p = 0.5 between the thresholds): transparent, as nav2's map_saver writes it
-        unknown = (occ == 0.5) & ~grid.occupied_mask() & ~grid.free_mask()
-        alpha = np.where(unknown, 0, 255).astype(np.uint8)
+        alpha = np.where(unknown & (occ == 0.5), 0, 255).astype(np.uint8)
         Image.fromarray(np.flipud(np.stack([img, alpha], axis=-1)), "LA").save(folder / image_name)
     doc = {
         "image": image_name,

@@ -64,11 +64,12 @@ def _check_on_map(grid: GridMap, poses: np.ndarray, what: str, min_share: float 
         ok[on] = grid.free_mask()[row[on], col[on]]
     else:
         ok[on] = ~grid.occupied_mask()[row[on], col[on]]
-    if float(np.mean(ok)) < min_share:
+    share = float(np.mean(ok))
+    if share < min_share:
         if len(xy) == 1:
             where = f"({xy[0, 0]:.6g}, {xy[0, 1]:.6g}) lies on an obstacle"
         else:
-            where = f"only {100 * float(np.mean(ok)):.0f} % lie {'on free cells' if path else 'off the obstacles'}"
+            where = f"only {100 * share:.0f} % lie {'on free cells' if path else 'off the obstacles'}"
         raise MapMismatchError(
             f"{what}: {where} of the map: is the map in the log's frame (its origin, its resolution)?"
         )
