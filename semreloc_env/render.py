@@ -14,12 +14,20 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle, Polygon
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch, Polygon
 
 from .layouts import CLASS_NAMES, Layout
 
 CLASS_COLORS = {"door": "#00c8c8", "chair": "#20a020", "trash_bin": "#e02020", "cabinet": "#2040e0"}
 """Paper 004's colours per class."""
+
+
+PARTICLE_COLOR = "#aa00aa"
+"""Particles: translucent magenta arrows."""
+ESTIMATE_COLOR = "#8c564b"
+"""The filter's estimate: a brown dashed circle (the true pose is a solid black one)."""
+LIDAR_COLOR = "#ff9900"
 
 
 def class_color(label: int) -> str:
@@ -54,7 +62,7 @@ def draw_scans(ax, pose: np.ndarray, lidar=None, semantic=None) -> list:
         ok = lidar.valid
         ends = _beam_ends(pose, lidar.ranges[ok], lidar.angles[ok])
         segs = np.stack([np.broadcast_to(pose[:2], ends.shape), ends], axis=1)
-        artists.append(ax.add_collection(LineCollection(segs, colors="#ff9900", linewidths=0.5, alpha=0.6)))
+        artists.append(ax.add_collection(LineCollection(segs, colors=LIDAR_COLOR, linewidths=0.5, alpha=0.6)))
         artists += ax.plot(ends[:, 0], ends[:, 1], ".", color="#ff6600", ms=2)
     if semantic is not None:  # a labelled beam is drawn even at range_max_m (its noisy range clipped there)
         ok = (semantic.ranges < semantic.range_max_m) | (semantic.labels > 0)
@@ -66,14 +74,17 @@ def draw_scans(ax, pose: np.ndarray, lidar=None, semantic=None) -> list:
     return artists
 
 
-def draw_pose(ax, pose: np.ndarray, color: str, radius: float = 0.2, label: str | None = None) -> list:
+def draw_pose(
+    ax, pose: np.ndarray, color: str, radius: float = 0.2, label: str | None = None, linestyle: str = "-"
+) -> list:
     """A circle with a heading tick; returns the artists."""
-    circle = ax.add_patch(Circle(pose[:2], radius, fill=False, color=color, lw=1.5, label=label))
+    circle = ax.add_patch(Circle(pose[:2], radius, fill=False, color=color, lw=1.5, ls=linestyle, label=label))
     tick = ax.plot(
         [pose[0], pose[0] + 1.5 * radius * np.cos(pose[2])],
         [pose[1], pose[1] + 1.5 * radius * np.sin(pose[2])],
         color=color,
         lw=1.5,
+        ls=linestyle,
     )
     return [circle, *tick]
 
@@ -83,13 +94,31 @@ def draw_particles(ax, particles: np.ndarray, max_points: int = 3000) -> list:
     returns the artists."""
     p = particles[:: max(1, len(particles) // max_points)]
     arrows = ax.quiver(
-        p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), color="#aa00aa", alpha=0.35, scale=60, width=0.002
+        p[:, 0], p[:, 1], np.cos(p[:, 2]), np.sin(p[:, 2]), color=PARTICLE_COLOR, alpha=0.35, scale=60, width=0.002
     )
     return [arrows]
 
 
 MIN_WIDTH_IN = 6.0
-"""Narrowest frame (inches; 480 px at the default dpi): the title's room above a tall, narrow layout."""
+"""Narrowest frame (inches; 480 px at the default dpi): the title's and the legend's room around a tall,
+narrow layout."""
+LEGEND_IN = 0.45
+"""Height (inches) below the map for the legend (`legend_handles`)."""
+TITLE_IN = 0.3
+"""Height (inches) above the map for the title."""
+
+
+def legend_handles() -> list:
+    """The legend's entries: true pose, estimate, particles, lidar, and the classes' colours (objects and
+    semantic beams; grey: a camera beam on no object)."""
+    return [
+        Line2D([], [], color="k", lw=1.5, label="true pose"),
+        Line2D([], [], color=ESTIMATE_COLOR, lw=1.5, ls="--", label="estimate"),
+        Line2D([], [], color=PARTICLE_COLOR, lw=1.0, alpha=0.6, label="particles"),
+        Line2D([], [], color=LIDAR_COLOR, lw=1.0, label="lidar"),
+        *(Patch(color=CLASS_COLORS[name], label=name.replace("_", " ")) for name in CLASS_NAMES),
+        Line2D([], [], color=class_color(0), lw=1.0, label="no class"),
+    ]
 
 
 class Renderer:
@@ -102,8 +131,9 @@ class Renderer:
     Args:
         layout: the world drawn.
         human: draw into a pyplot window (paced to ``fps``) instead of an off-screen canvas.
-        dpi: pixels per inch of the figure (8 in on its longer side, 0.4 in of margin, at least `MIN_WIDTH_IN`
-            wide: a frame's size depends on the layout's aspect, and is fixed while the layout is).
+        dpi: pixels per inch of the figure (the map 8 in on its longer side, `TITLE_IN` above it for the title,
+            `LEGEND_IN` below it for the legend, 0.1 in on the sides, at least `MIN_WIDTH_IN` wide: a frame's
+            size depends on the layout's aspect, and is fixed while the layout is).
         fps: frames per second in ``human`` mode: `draw` sleeps until ``1 / fps`` s have passed
             since the previous frame (None: no pacing).
     """
@@ -117,7 +147,7 @@ class Renderer:
         x0, x1, y0, y1 = layout.bounds()
         scale = 8.0 / max(x1 - x0, y1 - y0)
         # at least MIN_WIDTH_IN wide, so that the title fits above a tall, narrow layout
-        size = (max((x1 - x0) * scale + 0.4, MIN_WIDTH_IN), (y1 - y0) * scale + 0.4)
+        size = (max((x1 - x0) * scale + 0.2, MIN_WIDTH_IN), (y1 - y0) * scale + TITLE_IN + LEGEND_IN + 0.05)
         self._was_interactive = None
         if human:  # a window: pyplot manages it
             import matplotlib
@@ -147,13 +177,19 @@ class Renderer:
         ax.set_xticks([])
         ax.set_yticks([])
         ax.set_title(" ", fontsize=9)  # reserves the title's room in the layout
-        self.fig.tight_layout()
+        h, w = self.fig.get_figheight(), self.fig.get_figwidth()
+        self.fig.subplots_adjust(left=0.1 / w, right=1 - 0.1 / w, top=1 - TITLE_IN / h, bottom=(LEGEND_IN + 0.05) / h)
+        if not self.fig.legends:
+            self.fig.legend(
+                handles=legend_handles(), loc="lower center", ncol=5, fontsize=7, frameon=False, handlelength=1.5
+            )
         self.fig.canvas.draw()
         self._background = self.fig.canvas.copy_from_bbox(self.fig.bbox)
         self.background_draws += 1
 
     def draw(self, state: dict[str, Any]) -> np.ndarray:
-        """Draw one state: layout, particles, scans, landmarks (crosses), true pose (black), estimate (magenta)."""
+        """Draw one state: layout, particles (magenta), scans, landmarks (crosses), true pose (solid black),
+        estimate (dashed brown); the legend is part of the background."""
         ax = self.ax
         for artist in self._dynamic:
             artist.remove()
@@ -175,7 +211,8 @@ class Renderer:
         radius = float(state.get("robot_radius_m", 0.2))
         dynamic += draw_pose(ax, state["pose"], "k", radius=radius, label="true pose")
         if state.get("estimate") is not None:
-            dynamic += draw_pose(ax, np.asarray(state["estimate"]), "#aa00aa", radius=radius, label="estimate")
+            est = np.asarray(state["estimate"])
+            dynamic += draw_pose(ax, est, ESTIMATE_COLOR, radius=radius, label="estimate", linestyle="--")
         self._dynamic = dynamic
         ax.title.set_text(state.get("title") or " ")
         canvas = self.fig.canvas
