@@ -1,9 +1,10 @@
-"""Long random soak of both envs: random layouts, settings and actions, every step checked.
+"""Long random soak of the envs: random layouts, settings and actions, every step checked.
 
 Usage (``semreloc-soak`` is the same command)::
 
-    python scripts/soak.py                 # 10^6 steps (~25 min here)
+    python scripts/soak.py                 # 10^6 steps of SemReloc-v15 and SemSlam-v1
     python scripts/soak.py --steps 20000   # a short run
+    python scripts/soak.py --env-ids SemReloc-v1 SemSlam-v0   # older ids (the default before v15)
     python scripts/soak.py --layouts 10000 # layouts only: validate, mutate, build
 
 Per step it checks: no exception, the observation inside its space, no NaN in the observation,
@@ -13,13 +14,26 @@ reward or info, the robot's clearance from every wall and object at least its ra
 seed: must raise ``ValueError``) and, every ``--twin-every`` episodes, runs a twin env beside the
 one that saw the rejected call (their next steps must be bit-identical). It prints the count
 of each check and of each failure; the exit status is 1 if anything failed.
+
+Settings are drawn per episode: robot, physics, lidar and camera for every id; the SLAM filter's
+for ``SemSlam-*``; for ``SemReloc-v2`` and newer the relocalizer's particle counts, proposals, audit
+candidates, resampling, injection and backend, and a mapping-run map (``map_source="mapping"``) in
+one episode of six (its maps go to a temporary on-disk cache, removed at the end, so a soak leaves
+nothing in the user's cache).
+
+Memory: the process's resident size is read at the end of each episode (Linux ``/proc``); the run
+fails (``FAIL_memory_growth``) if the median of its last tenth of steps exceeds the median of the
+tenth after its first quarter (the warm-up: compiled kernels, caches filling) by more than
+``--memory-growth-mb``. Elsewhere the check is skipped and says so.
 """
 
 from __future__ import annotations
 
 import copy
 import math
+import os
 import sys
+import tempfile
 import time
 import traceback
 from collections import Counter
@@ -28,7 +42,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-import semreloc_env  # noqa: F401
+import semreloc_env
 from filters.experiments.cli import command, parse
 from semreloc_env.layouts import CLASS_NAMES, LayoutError, layout_from_dict
 
@@ -116,10 +130,10 @@ def check_mutation(data: dict, rng: np.random.Generator, c: Counter) -> None:
         c["FAIL_mutation_unnamed"] += entry not in str(e)
 
 
-def random_settings(rng: np.random.Generator) -> tuple[str, dict]:
-    """An env id and random (valid) keyword arguments."""
+def _common_settings(rng: np.random.Generator) -> dict:
+    """Random (valid) robot, physics, lidar and camera settings, shared by every env id."""
     radius = float(rng.uniform(0.1, 0.3))
-    kw = {
+    return {
         "action_type": "continuous" if rng.random() < 0.5 else "discrete",
         "robot": {"radius_m": radius, "max_linear_mps": float(rng.uniform(0.2, 1.0))},
         "physics": {"substeps": int(rng.integers(3, 9)), "control_hz": float(rng.uniform(8.0, 20.0))},
@@ -131,14 +145,79 @@ def random_settings(rng: np.random.Generator) -> tuple[str, dict]:
         },
         "camera": {"n_beams": int(rng.integers(1, 64)), "miss_rate": float(rng.uniform(0.0, 0.5))},
     }
-    if rng.random() < 0.5:
-        return "SemSlam-v0", {**kw, "slam": {"n_particles": int(rng.integers(1, 30))}}
-    return "SemReloc-v1", {
-        **kw,
-        "map_source": "perfect",
-        "semantic": bool(rng.random() < 0.7),
-        "relocalizer": {"n_particles": int(rng.integers(20, 300))},
+
+
+def _relocalizer_settings(rng: np.random.Generator) -> dict:
+    """Random (valid) overrides of a ``SemReloc-v2``-or-newer relocalizer, small enough for a soak:
+    adaptive (KLD) or fixed particle counts, proposal and audit candidates, resampling, injection,
+    backend."""
+    low = int(rng.integers(20, 300))
+    kw = {
+        "min_particles": low,
+        "max_particles": low + int(rng.integers(0, 3000)),
+        "global_particles_per_m2": float(rng.uniform(1.0, 20.0)),
+        "proposal_candidates": int(rng.integers(1, 500)),
+        "audit_candidates": int(rng.integers(1, 500)),
+        "audit_candidates_per_m2": float(rng.uniform(0.0, 14.0)),
+        "resample_mode": ["global", "clustered"][int(rng.integers(2))],
+        "injection": ["uniform", "scan"][int(rng.integers(2))],
+        "backend": ["numba", "numpy"][int(rng.integers(2))],
+        "kld": bool(rng.random() < 0.8),
+        "lidar_on_rotation": bool(rng.random() < 0.2),
     }
+    if rng.random() < 0.3:
+        kw["n_particles"] = int(rng.integers(20, 400))
+    return kw
+
+
+def random_settings(
+    rng: np.random.Generator, env_ids: tuple[str, ...] = ("SemReloc-v1", "SemSlam-v0")
+) -> tuple[str, dict]:
+    """One of ``env_ids`` (drawn uniformly) and random (valid) keyword arguments for it."""
+    kw = _common_settings(rng)
+    env_id = env_ids[int(rng.integers(len(env_ids)))] if len(env_ids) > 1 else env_ids[0]
+    if env_id.startswith("SemSlam-"):
+        slam = {"n_particles": int(rng.integers(1, 30))}
+        if env_id != "SemSlam-v0":
+            slam |= {
+                "version": int(rng.integers(1, 3)),
+                "woc_k": [1.0, 2.0, 5.0, math.inf][int(rng.integers(4))],
+                "known_association": bool(rng.random() < 0.3),
+                "resample_ess_fraction": float(rng.uniform(0.3, 1.0)),
+            }
+        return env_id, {**kw, "slam": slam}
+    version = int(env_id.rsplit("v", 1)[1])
+    mapped = version >= 2 and rng.random() < 1 / 6
+    relocalizer = _relocalizer_settings(rng) if version >= 2 else {"n_particles": int(rng.integers(20, 300))}
+    return env_id, {
+        **kw,
+        "map_source": "mapping" if mapped else "perfect",
+        "semantic": bool(rng.random() < 0.7),
+        "relocalizer": relocalizer,
+    }
+
+
+def resident_mb() -> float | None:
+    """This process's resident set size in MB (Linux ``/proc/self/statm``), or None where unreadable."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    return pages * os.sysconf("SC_PAGE_SIZE") / 1e6
+
+
+def memory_growth_mb(samples: list[tuple[int, float]], steps: int) -> float | None:
+    """Median resident MB of the samples ``(step, MB)`` in the last tenth of ``steps`` minus the
+    median of those in the tenth after the first quarter; None if either window holds no sample."""
+
+    def median_in(lo: float, hi: float) -> float | None:
+        v = [mb for k, mb in samples if lo <= k <= hi]
+        return float(np.median(v)) if v else None
+
+    early = median_in(0.25 * steps, 0.35 * steps)
+    late = median_in(0.9 * steps, math.inf)
+    return None if early is None or late is None else late - early
 
 
 def all_finite(x) -> bool:
@@ -189,12 +268,23 @@ FAILURES = (
     "FAIL_bad_call_accepted",
     "FAIL_twin_diverged",
     "FAIL_not_ended",
+    "FAIL_memory_growth",
 )
 
 
-def soak(steps: int, seed: int, episode_steps: int, twin_every: int) -> Counter:
+def soak(
+    steps: int,
+    seed: int,
+    episode_steps: int,
+    twin_every: int,
+    env_ids: tuple[str, ...] = ("SemReloc-v1", "SemSlam-v0"),
+    growth_limit_mb: float = math.inf,
+) -> Counter:
+    """Run ``steps`` checked env steps (see the module's docstring); the counts of every check and
+    failure. ``growth_limit_mb``: resident growth that counts as ``FAIL_memory_growth``."""
     rng = np.random.default_rng(seed)
     c: Counter = Counter({k: 0 for k in FAILURES})
+    memory: list[tuple[int, float]] = []
     t0, last = time.perf_counter(), time.perf_counter()
     while c["steps"] < steps:
         c["episodes"] += 1
@@ -209,7 +299,8 @@ def soak(steps: int, seed: int, episode_steps: int, twin_every: int) -> Counter:
             layout_seed = int(rng.integers(0, 10**6))  # drawn for every name, so the stream stays as it was
             layout_kw = {"layout": name, **({"layout_seed": layout_seed} if name.startswith("procedural") else {})}
         c["layouts"] += 1
-        env_id, kw = random_settings(rng)
+        env_id, kw = random_settings(rng, env_ids)
+        c["mapping_runs"] += kw.get("map_source") == "mapping"
         ep_seed = int(rng.integers(0, 2**31 - 1))
         max_steps = int(rng.integers(5, episode_steps + 1))
         try:
@@ -260,11 +351,21 @@ def soak(steps: int, seed: int, episode_steps: int, twin_every: int) -> Counter:
                 file=sys.stderr,
             )
             traceback.print_exc()
+        mb = resident_mb()
+        if mb is not None:
+            memory.append((c["steps"], mb))
         if time.perf_counter() - last > 30:
             last = time.perf_counter()
             rate = c["steps"] / (last - t0)
             print(f"... {c['steps']} steps, {c['episodes']} episodes, {rate:.0f} steps/s", file=sys.stderr, flush=True)
     c["seconds"] = int(time.perf_counter() - t0)
+    growth = memory_growth_mb(memory, c["steps"])
+    if growth is None:
+        c["memory_check_skipped"] = 1
+    else:
+        c["resident_mb_at_end"] = int(round(memory[-1][1]))
+        c["resident_growth_mb"] = int(round(growth))
+        c["FAIL_memory_growth"] += growth > growth_limit_mb
     return c
 
 
@@ -299,12 +400,16 @@ def soak_layouts(n: int, seed: int) -> Counter:
 
 @dataclass(frozen=True)
 class Args:
-    """Long random soak of both envs: random layouts, settings and actions, every step checked."""
+    """Long random soak of the envs: random layouts, settings and actions, every step checked."""
 
     steps: int = 1_000_000
     """env steps in all"""
     seed: int = 0
-    """seed of layouts, settings and actions"""
+    """seed of layouts, settings, actions and the env id of each episode"""
+    env_ids: tuple[str, ...] = ("SemReloc-v15", "SemSlam-v1")
+    """registered single-robot ids to soak (each episode draws one)"""
+    memory_growth_mb: float = 300.0
+    """resident growth (MB, after the warm-up) that fails the run"""
     episode_steps: int = 200
     """longest episode (time limit drawn up to this)"""
     twin_every: int = 10
@@ -315,13 +420,35 @@ class Args:
     def __post_init__(self) -> None:
         if self.steps < 1 or self.episode_steps < 5 or self.twin_every < 1 or self.layouts < 0:
             raise ValueError("steps >= 1, episode_steps >= 5, twin_every >= 1 and layouts >= 0 are required")
+        unknown = [i for i in self.env_ids if i not in semreloc_env.ENV_IDS]
+        if unknown or not self.env_ids:
+            raise ValueError(
+                f"env_ids must name registered single-robot ids {semreloc_env.ENV_IDS}, got {unknown or '()'}"
+            )
+        if len(set(self.env_ids)) != len(self.env_ids):
+            raise ValueError(f"env_ids lists an id twice: {self.env_ids}")
+        if not self.memory_growth_mb > 0:
+            raise ValueError(f"memory_growth_mb must be > 0 (inf: no limit), got {self.memory_growth_mb}")
 
 
 @command
 def main(argv: list[str] | None = None) -> int:
     """The command: parse ``argv``, soak, print every count; exit status 1 if any check failed."""
     a = parse(Args, argv, __doc__)
-    c = soak_layouts(a.layouts, a.seed) if a.layouts else soak(a.steps, a.seed, a.episode_steps, a.twin_every)
+    if a.layouts:
+        c = soak_layouts(a.layouts, a.seed)
+    else:
+        # mapped maps of random layouts go to a temporary cache, not the user's
+        with tempfile.TemporaryDirectory(prefix="semreloc-soak-") as cache:
+            before = os.environ.get("SEMRELOC_CACHE_DIR")
+            os.environ["SEMRELOC_CACHE_DIR"] = cache
+            try:
+                c = soak(a.steps, a.seed, a.episode_steps, a.twin_every, a.env_ids, a.memory_growth_mb)
+            finally:
+                if before is None:
+                    del os.environ["SEMRELOC_CACHE_DIR"]
+                else:
+                    os.environ["SEMRELOC_CACHE_DIR"] = before
     fails = {k: v for k, v in c.items() if k.startswith("FAIL_")}
     for k in sorted(c, key=lambda k: (k.startswith("FAIL_"), k)):
         print(f"{k:<34} {c[k]}")
