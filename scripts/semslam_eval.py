@@ -1,4 +1,4 @@
-"""SemSlam-v0 pose and landmark error over seeds, against dead reckoning (prints a Markdown table).
+"""SemSlam pose and landmark error over seeds, against dead reckoning (prints a Markdown table).
 
 The command lives in `agents.experiments.semslam_eval` (also installed as ``semreloc-semslam-eval``);
 ``python scripts/semslam_eval.py --help`` lists every option.
