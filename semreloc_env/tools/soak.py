@@ -357,7 +357,12 @@ def soak(
         if time.perf_counter() - last > 30:
             last = time.perf_counter()
             rate = c["steps"] / (last - t0)
-            print(f"... {c['steps']} steps, {c['episodes']} episodes, {rate:.0f} steps/s", file=sys.stderr, flush=True)
+            rss = f", {memory[-1][1]:.0f} MB resident" if memory else ""
+            print(
+                f"... {c['steps']} steps, {c['episodes']} episodes, {rate:.0f} steps/s{rss}",
+                file=sys.stderr,
+                flush=True,
+            )
     c["seconds"] = int(time.perf_counter() - t0)
     growth = memory_growth_mb(memory, c["steps"])
     if growth is None:
