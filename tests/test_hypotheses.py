@@ -135,6 +135,40 @@ def test_detection_runs_and_a_proposal_from_a_unique_object_lands_near_the_truth
     assert detection_runs(SemanticScan(np.full(5, 9.0), np.linspace(-0.3, 0.3, 5), np.zeros(5, int), 5.0)) == []
 
 
+@pytest.mark.parametrize("sensor_pose", [(0.0, 0.0, math.pi), (0.25, -0.1, 0.7), (-0.2, 0.15, -2.0)])
+def test_a_mounted_camera_proposes_where_its_detection_fits(sensor_pose):
+    """A camera mounted off the robot's centre or turned: candidates from its detection put the
+    detected object where the map has it (its ranges and bearings are in the sensor's frame), as
+    candidates from the same rays of a camera at the centre do."""
+    grid = symmetric_room()  # the cabinet is the only object of its class
+    sensor = np.array([3.5, 1.5, np.pi])  # the camera facing the cabinet (x 2.0-2.5, y 1.0-2.0)
+    mount = np.asarray(sensor_pose)
+    x, y, t = mount
+    robot = compose(sensor, [-x * math.cos(t) - y * math.sin(t), x * math.sin(t) - y * math.cos(t), -t])
+    back = compose(robot, mount)
+    assert np.allclose(back[:2], sensor[:2]) and abs(wrap_angle(back[2] - sensor[2])) < 1e-9
+    seen = simulate_semantic(grid, sensor, CAMERA_ANGLES, 5.0)  # ranges and bearings in the sensor's frame
+    mounted = SemanticScan(seen.ranges, seen.angles, seen.labels, 5.0, sensor_pose=mount)
+    cabinet = 1 + grid.class_names.index("cabinet")
+    assert [r[0] for r in detection_runs(mounted)] == [cabinet]
+    prop = ScanProposal(grid, lambda n: np.zeros((n, 3)), range_jitter_m=0.0)
+    cand = prop.candidates(3000, mounted, 1.0, np.random.default_rng(1))
+    cand = cand[np.any(cand != 0.0, axis=1)]  # the semantic candidates (the rest are the stub's zeros)
+    assert cand.shape[0] > 1000
+    label, r, a = detection_runs(mounted)[0]
+    ends = np.array([compose(compose(c, mount), [r * math.cos(a), r * math.sin(a), 0.0])[:2] for c in cand])
+    row, col = grid.world_to_cell(ends)
+    near = np.zeros(len(ends), bool)
+    for dr in (-1, 0, 1):  # within a cell of a cabinet cell (candidates are jittered by half a cell)
+        for dc in (-1, 0, 1):
+            rr, cc = row + dr, col + dc
+            ok = grid.in_bounds(rr, cc)
+            near[ok] |= grid.class_mask(cabinet - 1)[rr[ok], cc[ok]]
+    assert near.all()
+    at_robot = (np.hypot(*(cand[:, :2] - robot[:2]).T) < 0.3) & (np.abs(wrap_angle(cand[:, 2] - robot[2])) < 0.2)
+    assert at_robot.sum() > 30  # some at the robot's own pose
+
+
 def test_augmented_injection_rises_right_after_a_kidnap():
     grid = symmetric_room()
     rng = np.random.default_rng(8)

@@ -6,9 +6,11 @@ Thrun et al. 2001), instead of uniformly over free space:
 
 * **From a semantic detection.** A detection is a maximal run of adjacent labelled beams
   with one label (`detection_runs`); its middle beam gives a range ``r`` and a bearing
-  ``a`` in the robot frame. A candidate takes a map cell ``c`` of the detected class at
-  random, a heading ``theta`` uniform in ``[-pi, pi)``, and puts the robot at
-  ``c - r (cos(theta + a), sin(theta + a))``. A class with few instances in the map
+  ``a`` in the sensor's frame, so the object lies at ``p = sensor_pose ⊕ (r cos a, r sin a)``
+  in the robot frame (`filters.robot_data.scans.beam_endpoints`). A candidate takes a map
+  cell ``c`` of the detected class at random, a heading ``theta`` uniform in ``[-pi, pi)``,
+  and puts the robot at ``c - R(theta) p`` (with the sensor at the robot's centre, facing
+  forward: ``c - r (cos(theta + a), sin(theta + a))``). A class with few instances in the map
   concentrates these candidates on a few rings around its objects.
 * **Uniform.** Poses uniform over the map's free space.
 
@@ -24,13 +26,14 @@ import numpy as np
 from filters.localization.belief import heading_bins
 from filters.mapping.grid import GridMap
 from filters.pose import wrap_angle
-from filters.robot_data.scans import SemanticScan
+from filters.robot_data.scans import SemanticScan, beam_endpoints
 from filters.smc.resampling import normalise_weights
 
 
 def detection_runs(semantic: SemanticScan) -> list[tuple[int, float, float]]:
     """``[(label, range m, bearing rad), ...]`` of each detection: the middle beam of every
-    maximal run of adjacent labelled beams carrying the same label."""
+    maximal run of adjacent labelled beams carrying the same label (range and bearing in the sensor's
+    frame, ``semantic.sensor_pose``)."""
     lab = np.where(semantic.labelled, semantic.labels, 0)
     out = []
     i, n = 0, lab.size
@@ -80,6 +83,7 @@ class ScanProposal:
         if n_sem:
             which = rng.integers(0, len(runs), size=n_sem)
             out = np.empty((n_sem, 3))
+            mounted = bool(np.any(np.asarray(semantic.sensor_pose) != 0.0))
             for k, (label, r, a) in enumerate(runs):
                 sel = np.flatnonzero(which == k)
                 cells = self.class_cells(label)
@@ -88,8 +92,14 @@ class ScanProposal:
                 c = c + (rng.random((sel.size, 2)) - 0.5) * res
                 th = -np.pi + 2.0 * np.pi * rng.random(sel.size)
                 rr = r + self.range_jitter_m * rng.standard_normal(sel.size)
-                out[sel, 0] = c[:, 0] - rr * np.cos(th + a)
-                out[sel, 1] = c[:, 1] - rr * np.sin(th + a)
+                if mounted:  # the object at p in the robot frame: the robot at c - R(theta) p
+                    px, py = beam_endpoints(rr, np.full(sel.size, a), semantic.sensor_pose)
+                    cos_t, sin_t = np.cos(th), np.sin(th)
+                    out[sel, 0] = c[:, 0] - (cos_t * px - sin_t * py)
+                    out[sel, 1] = c[:, 1] - (sin_t * px + cos_t * py)
+                else:  # the same for a sensor at the robot's centre facing forward (kept: its rounding)
+                    out[sel, 0] = c[:, 0] - rr * np.cos(th + a)
+                    out[sel, 1] = c[:, 1] - rr * np.sin(th + a)
                 out[sel, 2] = wrap_angle(th)
             row, col = self.grid.world_to_cell(out[:, :2])
             ok = self.grid.in_bounds(row, col)
