@@ -310,11 +310,17 @@ class CameraParams:
     Attributes:
         n_beams: image columns kept as beams, evenly spaced over the field of view (``[1, MAX_BEAMS]``).
         fov_rad: horizontal field of view (default 70 deg), centred on the heading, in ``(0, 2*pi]``.
-        range_min_m, range_max_m: depth range; beams outside read ``range_max_m`` (no return).
+            With ``2*pi`` the first and last beams are neighbours, but the detector does not join runs
+            across that seam: an object straight behind the robot, hit by beams at both ends of the
+            array, carries its class on one end's run only (the other reads class 0, as a wall does).
+        range_min_m, range_max_m: depth range; beams outside read ``range_max_m`` (no return). A beam on
+            an object within range whose noisy depth reaches ``range_max_m`` is clipped there and keeps
+            its class (the filters ignore beams at ``range_max_m``).
         noise_std_m: Gaussian depth noise.
         miss_rate: chance that a visible object is not detected in a frame.
         wrong_class_rate: chance that a detection carries a wrong (uniformly drawn other) class.
-        false_positive_rate: chance per frame of one spurious detection on a wall run.
+        false_positive_rate: chance per frame of one spurious detection: the first 1-4 beams of a
+            randomly drawn run of wall beams get a random class.
     """
 
     n_beams: int = 32

@@ -87,9 +87,11 @@ class SemanticCamera:
     object seen is detected with probability ``1 - miss_rate`` and then given a
     wrong class with probability ``wrong_class_rate``. As in paper 004, only the
     *nearest contiguous run* of beams on a detected object carries its class (an
-    object split by an occluder keeps one run). With probability
-    ``false_positive_rate`` a spurious detection labels a random run of 1-4 wall beams.
-    Beams outside ``[range_min_m, range_max_m)`` read ``range_max_m`` and carry no class.
+    object split by an occluder keeps one run; runs do not wrap round a full-circle camera's seam).
+    With probability ``false_positive_rate`` a spurious detection labels the first 1-4 beams of a
+    randomly drawn run of wall beams. Beams outside ``[range_min_m, range_max_m)`` read
+    ``range_max_m`` and carry no class; a labelled beam's noisy depth is clipped to ``range_max_m``
+    and keeps its label.
     """
 
     def __init__(self, params: CameraParams):

@@ -185,7 +185,7 @@ class SemRelocEnv(SemRelocBase):
     | ``lidar`` | Box float32 | ``(lidar.n_beams,)`` | ``[0, range_max_m]`` m | ranges, evenly spaced over ``fov_rad`` from ``-fov/2``; no return reads ``range_max_m`` |
     | ``odometry`` | Box float32 | ``(3,)`` | ``+-(1 m, 1 m, pi)`` | noisy increment ``(dx, dy, dtheta)`` since the last step, in the previous robot frame, clipped to the bounds (faster robots: the filter still gets it whole) |
     | ``semantic_class`` | MultiDiscrete int64 | ``(camera.n_beams,)`` | ``{0..4}`` | class label per pseudo-laser beam (0 none, 1 door, 2 chair, 3 trash_bin, 4 cabinet) |
-    | ``semantic_range`` | Box float32 | ``(camera.n_beams,)`` | ``[0, camera.range_max_m]`` m | pseudo-laser range per beam, to the first surface (a wall too, with class 0); ``range_max_m`` where nothing is in range |
+    | ``semantic_range`` | Box float32 | ``(camera.n_beams,)`` | ``[0, camera.range_max_m]`` m | pseudo-laser range per beam, to the first surface (a wall too, with class 0); ``range_max_m`` where nothing is in range (and where a labelled beam's noisy depth was clipped: it keeps its class) |
 
     ``SemReloc-v1`` and ``-v0`` (``observation_layout = "flat"``) have one float32 Box ``semantic`` of
     shape ``(2 * camera.n_beams,)`` instead of the last two: the ranges, then the labels as floats.
