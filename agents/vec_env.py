@@ -13,6 +13,7 @@ import contextlib
 from collections.abc import Iterator, Sequence
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
@@ -55,7 +56,8 @@ class SB3VecEnvAdapter(VecEnv):
         self.envs = venv.envs
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self._actions: np.ndarray | None = None
-        self._keys = tuple(venv.single_observation_space.spaces)
+        space = venv.single_observation_space
+        self._keys = tuple(space.spaces) if isinstance(space, gym.spaces.Dict) else None  # None: one array
 
     def seed(self, seed: int | None = None):
         """SB3's seeding (robot ``i`` gets ``seed + i`` at the next reset); ValueError unless ``seed`` is None
@@ -64,7 +66,9 @@ class SB3VecEnvAdapter(VecEnv):
             raise ValueError(f"seed must be None or an int, got {seed!r:.80}")
         return super().seed(None if seed is None else int(seed))
 
-    def _stack(self, obs_list: list[dict]) -> dict[str, np.ndarray]:
+    def _stack(self, obs_list: list) -> VecEnvObs:
+        if self._keys is None:  # a Box observation (FlattenObservation, FlatObservation): one array
+            return np.stack(obs_list)
         return {k: np.stack([o[k] for o in obs_list]) for k in self._keys}
 
     def reset(self) -> VecEnvObs:

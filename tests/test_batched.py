@@ -208,6 +208,64 @@ def test_sb3_adapter_equals_dummy_vec_env_over_the_same_envs():
     adapter.close()
 
 
+def test_sb3_adapter_takes_a_flat_box_observation_as_dummy_vec_env_does():
+    from gymnasium.wrappers import FlattenObservation
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from agents.vec_env import SB3VecEnvAdapter
+    from semreloc_env.wrappers import BeliefObservation, FlatObservation
+
+    for wrap in (FlattenObservation, lambda e: FlatObservation(BeliefObservation(e))):
+        adapter = SB3VecEnvAdapter(SemRelocLoopVectorEnv(num_envs=2, wrapper=wrap, **VKW))
+        dummy = DummyVecEnv([lambda w=wrap: w(gym.make("SemReloc-v1", **KW)) for _ in range(2)])
+        assert isinstance(adapter.observation_space, gym.spaces.Box)
+        adapter.seed(3)
+        dummy.seed(3)
+        a, b = adapter.reset(), dummy.reset()
+        assert isinstance(a, np.ndarray) and a.shape == (2, *adapter.observation_space.shape) and _same(a, b)
+        terminal = []
+        for _ in range(30):  # through the 25-step time limit: terminal observations are arrays too
+            actions = np.array([0, 3])
+            oa, ra, da, ia = adapter.step(actions)
+            ob, rb, db, ib = dummy.step(actions)
+            assert _same(oa, ob) and np.array_equal(ra, rb) and np.array_equal(da, db) and _same(ia, ib)
+            terminal += [i["terminal_observation"] for i in ia if "terminal_observation" in i]
+        assert len(terminal) >= 2 and all(isinstance(t, np.ndarray) for t in terminal)
+        adapter.close()
+        dummy.close()
+
+
+@pytest.mark.parametrize("make_wrapper", ["clip", "rescale"])
+def test_a_wrapped_robot_takes_float64_actions_as_its_own_env_does(make_wrapper):
+    """``Box.contains`` refuses float64 for a float32 Box; the wrapped single env takes NumPy's default
+    float, so the batched env's check (all robots before any moves) does too; bad values stay refused."""
+    from gymnasium.wrappers import ClipAction, RescaleAction
+
+    wrap = ClipAction if make_wrapper == "clip" else (lambda e: RescaleAction(e, 0.0, 1.0))
+    kw = dict(KW, action_type="continuous")
+    venv = gym.make_vec("SemRelocVec-v15", num_envs=2, wrapper=wrap, **kw)
+    single = [wrap(gym.make("SemReloc-v15", **kw)) for _ in range(2)]
+    venv.reset(seed=[4, 5])
+    for i, env in enumerate(single):
+        env.reset(seed=4 + i)
+    acts = np.array([[0.9, 0.2], [0.1, 0.7]])  # float64, inside both wrappers' spaces
+    out = venv.step(acts)
+    for i, env in enumerate(single):
+        assert np.array_equal(out[0]["lidar"][i], env.step(acts[i])[0]["lidar"])
+    venv.step(acts.tolist())
+    poses = [e.unwrapped.world.pose.copy() for e in venv.unwrapped.envs]
+    bad = acts.copy()
+    bad[1, 0] = np.nan
+    for b in (bad, np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.5]]), [[0.5, 0.5], ["x", 0.5]]):
+        with pytest.raises(ValueError, match="robot 1|shape"):
+            venv.step(b)
+    assert all(np.array_equal(p, e.unwrapped.world.pose) for p, e in zip(poses, venv.unwrapped.envs))
+    if make_wrapper == "rescale":
+        with pytest.raises(ValueError, match="robot 0"):
+            venv.step(np.array([[1.5, 0.5], [0.5, 0.5]]))  # outside RescaleAction's [0, 1]
+    venv.close()
+
+
 def test_the_loop_env_runs_the_newest_env_unless_told_and_each_vector_id_its_own():
     # the class's default was SemReloc-v1 long after v2-v6 came: a direct constructor ran an old relocalizer
     from semreloc_env import ENV_IDS

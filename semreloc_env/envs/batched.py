@@ -49,6 +49,25 @@ def _float_array_hint(actions, space) -> str:
     return f" (the actions are a {actions.dtype} array: discrete actions must be integers{where})"
 
 
+def in_wrapped_space(action, space: gym.spaces.Space) -> bool:
+    """Whether a wrapper's action space takes ``action``: `gym.spaces.Space.contains`, except that a
+    real-number array (or nested list) of a Box's shape counts by its values cast to the Box's dtype,
+    not by its own dtype (``Box.contains`` refuses float64 for a float32 Box, which the wrapped env
+    itself takes, as NumPy's default float). Bools are refused."""
+    if isinstance(action, (bool, np.bool_)):
+        return False
+    if isinstance(space, gym.spaces.Box) and not isinstance(action, (str, bytes)):
+        try:
+            a = np.asarray(action)
+        except (ValueError, TypeError):  # ragged
+            return False
+        if a.dtype.kind not in "iuf" or a.shape != space.shape:
+            return False
+        with np.errstate(over="ignore"):
+            return bool(space.contains(a.astype(space.dtype)))
+    return bool(space.contains(action))
+
+
 class SemRelocLoopVectorEnv(VectorEnv):
     """``num_envs`` SemReloc envs stepped in a loop in this process (see the module docstring).
 
@@ -145,7 +164,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
             try:
                 if env.action_space is base.action_space:
                     decode_action(a, base.action_type, base.action_space, base.robot_params)
-                elif isinstance(a, (bool, np.bool_)) or not env.action_space.contains(a):
+                elif not in_wrapped_space(a, env.action_space):
                     raise ValueError(f"invalid action {a!r:.80} for {env.action_space}")
             except ValueError as e:
                 raise ValueError(f"robot {i}: {e}{_float_array_hint(actions, env.action_space)}") from None
