@@ -6,6 +6,7 @@ trash bin red, cabinet blue.
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from typing import Any
@@ -99,6 +100,19 @@ def draw_particles(ax, particles: np.ndarray, max_points: int = 3000) -> list:
     return [arrows]
 
 
+def backend_shows_windows() -> bool:
+    """Whether pyplot's current backend is an interactive one (Agg and the file backends show no window)."""
+    import matplotlib.pyplot as plt
+
+    try:
+        from matplotlib.backends import BackendFilter, backend_registry  # matplotlib >= 3.9
+    except ImportError:  # older matplotlib
+        from matplotlib.rcsetup import non_interactive_bk as still
+    else:
+        still = backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE)
+    return plt.get_backend().lower() not in {b.lower() for b in still}
+
+
 MIN_WIDTH_IN = 6.0
 """Narrowest frame (inches; 480 px at the default dpi): the title's and the legend's room around a tall,
 narrow layout."""
@@ -133,9 +147,11 @@ class Renderer:
         human: draw into a pyplot window (paced to ``fps``) instead of an off-screen canvas.
         dpi: pixels per inch of the figure (the map 8 in on its longer side, `TITLE_IN` above it for the title,
             `LEGEND_IN` below it for the legend, 0.1 in on the sides, at least `MIN_WIDTH_IN` wide: a frame's
-            size depends on the layout's aspect, and is fixed while the layout is).
+            size depends on the layout's aspect, and is fixed while the layout is; its height and width in
+            pixels are even).
         fps: frames per second in ``human`` mode: `draw` sleeps until ``1 / fps`` s have passed
-            since the previous frame (None: no pacing).
+            since the previous frame (None: no pacing). On a backend that shows no window (Agg, as on a
+            machine without a display) ``human`` mode warns once and neither shows nor paces frames.
     """
 
     def __init__(self, layout: Layout, human: bool = False, dpi: int = 80, fps: float | None = None):
@@ -148,7 +164,11 @@ class Renderer:
         scale = 8.0 / max(x1 - x0, y1 - y0)
         # at least MIN_WIDTH_IN wide, so that the title fits above a tall, narrow layout
         size = (max((x1 - x0) * scale + 0.2, MIN_WIDTH_IN), (y1 - y0) * scale + TITLE_IN + LEGEND_IN + 0.05)
+        # even pixel counts: video encoders' 4:2:0 chroma (what browsers and players decode) needs them
+        size = tuple((2 * math.ceil(v * dpi / 2) + 0.25) / dpi for v in size)
         self._was_interactive = None
+        self.shows_window = False
+        """Whether `draw` shows frames in a window (``human`` mode on an interactive backend)."""
         if human:  # a window: pyplot manages it
             import matplotlib
             import matplotlib.pyplot as plt
@@ -156,7 +176,16 @@ class Renderer:
             self._was_interactive = matplotlib.is_interactive()
             plt.ion()
             self.fig, self.ax = plt.subplots(figsize=size, dpi=dpi)
-            with warnings.catch_warnings():  # a non-interactive backend (Agg) has no window to show
+            self.shows_window = backend_shows_windows()
+            if not self.shows_window:
+                warnings.warn(
+                    f"render_mode='human': matplotlib's backend {plt.get_backend()!r} shows no window (no display?), "
+                    "so frames are drawn but neither shown nor paced; use render_mode='rgb_array' for the frames, "
+                    "or an interactive backend (MPLBACKEND)",
+                    UserWarning,
+                    stacklevel=2,
+                )
+            with warnings.catch_warnings():  # matplotlib's own warning says the same, less clearly
                 warnings.filterwarnings("ignore", message=".*non-interactive.*", category=UserWarning)
                 self.fig.show()
         else:  # off-screen: a figure pyplot does not track, freed with the renderer
@@ -227,6 +256,8 @@ class Renderer:
         return frame
 
     def _pace(self) -> None:
+        if not self.shows_window:  # nobody is watching: no reason to wait
+            return
         now = time.monotonic()
         if self.fps is not None and self._last_frame_t is not None:
             wait = 1.0 / self.fps - (now - self._last_frame_t)

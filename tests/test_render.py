@@ -73,11 +73,12 @@ def test_record_video_writes_a_playable_mp4(tmp_path):
         clip.close()
 
 
-def test_human_mode_steps_under_agg_and_is_paced_to_render_fps(monkeypatch):
+def test_human_mode_is_paced_to_render_fps_where_a_window_shows(monkeypatch):
     import matplotlib.pyplot as plt
 
     old = plt.get_backend()
     plt.switch_backend("Agg")  # no window in tests: the same drawing code on a non-interactive canvas
+    monkeypatch.setattr(render, "backend_shows_windows", lambda: True)  # ... as if it showed one
     clock = {"t": 0.0}
     sleeps: list[float] = []
     monkeypatch.setattr(render.time, "monotonic", lambda: clock["t"])
@@ -93,6 +94,47 @@ def test_human_mode_steps_under_agg_and_is_paced_to_render_fps(monkeypatch):
         assert not plt.get_fignums()  # close() closes the window
     finally:
         plt.switch_backend(old)
+
+
+def test_human_mode_without_a_window_warns_and_does_not_wait(monkeypatch):
+    """On a machine without a display matplotlib falls back to Agg: no window shows, so human mode
+    says so and does not slow every step to the control rate (it used to, silently)."""
+    import matplotlib.pyplot as plt
+
+    old = plt.get_backend()
+    plt.switch_backend("Agg")
+    sleeps: list[float] = []
+    monkeypatch.setattr(render.time, "sleep", lambda s: sleeps.append(s))
+    try:
+        assert not render.backend_shows_windows()
+        with pytest.warns(UserWarning, match="shows no window"):
+            env = gym.make("SemReloc-v15", render_mode="human", physics={"control_hz": 4.0}, **FAST)
+            env.reset(seed=0)
+        for _ in range(3):
+            env.step(0)
+        assert sleeps == []
+        env.close()
+    finally:
+        plt.switch_backend(old)
+
+
+def test_frames_have_even_sizes_for_video_encoders():
+    """4:2:0 video (what browsers and players decode) needs even widths and heights; RecordVideo fell
+    back to 4:4:4 for most procedural layouts' odd heights."""
+    from semreloc_env.layouts import get_layout
+
+    shapes = set()
+    for kind in ("procedural", "procedural_lookalike", "procedural_ring"):
+        for seed in range(4):
+            env = gym.make("SemReloc-v15", layout=kind, layout_seed=seed, map_source="perfect", render_mode="rgb_array")
+            env.reset(seed=0)
+            shapes.add(env.render().shape[:2])
+            env.close()
+    for dpi in (37, 80, 101):
+        r = render.Renderer(get_layout("lab"), dpi=dpi)
+        r.draw({"layout": r.layout, "pose": np.array([7.0, 5.0, 0.0])})
+        shapes.add(np.asarray(r.fig.canvas.buffer_rgba()).shape[:2])
+    assert len(shapes) > 5 and all(h % 2 == 0 and w % 2 == 0 for h, w in shapes), shapes
 
 
 def test_renderer_rejects_bad_fps():
