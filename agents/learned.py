@@ -180,8 +180,10 @@ class LearnedPolicy:
         deterministic: act on the mode of the action distribution (default) or sample from it.
         explorer_option: the model's actions are `agents.options.ExplorerOption`'s (the env's
             four and "explore"); `wrap` adds that wrapper.
-        seed: with ``deterministic=False``, `reset` reseeds the model's sampling with it, so an
-            episode's actions do not depend on the episodes before it.
+        seed: with ``deterministic=False``, the seed of the policy's own generator of action draws
+            (`numpy.random.Generator`), which `reset` starts afresh, so an episode's actions depend
+            neither on the episodes before it nor on other code in the process (torch's, NumPy's and
+            Python's global streams are neither used nor reseeded).
         options: the model's actions are `agents.options.MotionOptions` over these names
             (overrides ``explorer_option``); `wrap` adds that wrapper.
 
@@ -207,6 +209,7 @@ class LearnedPolicy:
         self.options = option_names(options, explorer_option)
         self.explorer_option = self.options == ("explore",)
         self.seed = int(seed)
+        self._rng = np.random.default_rng(self.seed)
         self._t = 0
         self._action = None
 
@@ -256,8 +259,7 @@ class LearnedPolicy:
         """Start an episode: the next `act` decides afresh."""
         self._t = 0
         self._action = None
-        if not self.deterministic:
-            self.model.set_random_seed(self.seed)
+        self._rng = np.random.default_rng(self.seed)
 
     def act(self, obs: dict):
         """The action for this step: a new decision every ``repeat`` steps, else the held one."""
@@ -268,10 +270,47 @@ class LearnedPolicy:
                 raise ValueError(
                     f"observation lacks {missing}: act on the observations of the env policy.wrap(env) returned"
                 )
-            action, _ = self.model.predict(obs, deterministic=self.deterministic)
+            if self.deterministic:
+                action, _ = self.model.predict(obs, deterministic=True)
+            else:
+                action = sample_action(self.model, obs, self._rng)
             self._action = int(action) if isinstance(self.model.action_space, spaces.Discrete) else np.asarray(action)
         self._t += 1
         return self._action
+
+
+def sample_action(model, obs, rng: np.random.Generator):
+    """One action drawn from ``model``'s action distribution at ``obs`` with ``rng`` (not torch's global
+    generator, which SB3's ``predict`` samples with): a categorical's by its probabilities (one draw per
+    dimension of a ``MultiDiscrete``), a diagonal Gaussian's as ``mean + std * normal``, clipped to the
+    action space's bounds as ``predict`` clips. ValueError for another distribution (use
+    ``deterministic=True``)."""
+    import torch
+    from stable_baselines3.common.distributions import (
+        CategoricalDistribution,
+        DiagGaussianDistribution,
+        MultiCategoricalDistribution,
+    )
+
+    policy = model.policy
+    obs_t, _ = policy.obs_to_tensor(obs)
+    with torch.no_grad():
+        dist = policy.get_distribution(obs_t)
+    if isinstance(dist, (CategoricalDistribution, MultiCategoricalDistribution)):
+        parts = dist.distribution if isinstance(dist, MultiCategoricalDistribution) else [dist.distribution]
+        picks = []
+        for part in parts:
+            p = part.probs[0].cpu().numpy().astype(np.float64)
+            cdf = np.cumsum(p / p.sum())
+            picks.append(min(int(np.searchsorted(cdf, rng.random(), side="right")), p.size - 1))
+        return picks[0] if isinstance(dist, CategoricalDistribution) else np.array(picks, dtype=np.int64)
+    if isinstance(dist, DiagGaussianDistribution):
+        mean = dist.distribution.mean[0].cpu().numpy().astype(np.float64)
+        std = dist.distribution.stddev[0].cpu().numpy().astype(np.float64)
+        a = mean + std * rng.standard_normal(mean.shape)
+        space = model.action_space
+        return np.clip(a, space.low, space.high).astype(space.dtype)
+    raise ValueError(f"sampling a {type(dist).__name__} is not supported: use deterministic=True")
 
 
 def _space_difference(env_space: spaces.Space, policy_space: spaces.Space) -> str:

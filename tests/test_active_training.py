@@ -628,3 +628,80 @@ def test_resume_never_overwrites_an_earlier_run_and_keeps_the_checkpoints_settin
     with pytest.raises(RunFolderError, match=r"would overwrite progress_before_64.csv"):
         train_active(given, run, resume=ckpt)  # again from the same checkpoint
     train_active(given, tmp_path / "branch", resume=ckpt)  # into a new folder: fine
+
+
+def test_a_sampling_policy_draws_from_its_own_generator():
+    """``deterministic=False``: actions come from the policy's seeded generator, so a robot's episode does
+    not change when another sampling policy acts in the same process, and `reset` leaves torch's,
+    NumPy's and Python's global streams alone (SB3's ``set_random_seed`` reseeded all three)."""
+    import random
+
+    def make(seed):
+        p = load_policy(SHIPPED_POLICY, deterministic=False, seed=seed)
+        return p, p.wrap(_env(layout="three_rooms", max_episode_steps=25))
+
+    def run(interleave: bool) -> list[int]:
+        (pa, ea), (pb, eb) = make(5), make(6)
+        pa.reset()
+        pb.reset()
+        oa, _ = ea.reset(seed=3)
+        ob, _ = eb.reset(seed=4)
+        acts = []
+        for _ in range(25):
+            a = pa.act(oa)
+            acts.append(int(a))
+            oa, _, te, tr, _ = ea.step(a)
+            if interleave:
+                ob, *_ = eb.step(pb.act(ob))
+            if te or tr:
+                break
+        return acts
+
+    assert run(False) == run(True)
+    p = load_policy(SHIPPED_POLICY, deterministic=False, seed=5)
+    # the global streams themselves are what this checks
+    torch.manual_seed(1), np.random.seed(1), random.seed(1)  # noqa: NPY002
+    before = (torch.rand(1).item(), np.random.random(), random.random())  # noqa: NPY002
+    torch.manual_seed(1), np.random.seed(1), random.seed(1)  # noqa: NPY002
+    p.reset()
+    assert (torch.rand(1).item(), np.random.random(), random.random()) == before  # noqa: NPY002
+
+
+@pytest.mark.parametrize("space", ["discrete", "multi_discrete", "box"])
+def test_sample_action_follows_the_models_distribution(space):
+    from stable_baselines3 import PPO
+
+    from agents.learned import sample_action
+
+    act_space = {
+        "discrete": gym.spaces.Discrete(3),
+        "multi_discrete": gym.spaces.MultiDiscrete([2, 3]),
+        "box": gym.spaces.Box(-1.0, 1.0, (2,), np.float32),
+    }[space]
+
+    class Toy(gym.Env):
+        observation_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+        action_space = act_space
+
+    model = PPO("MlpPolicy", Toy(), seed=0, device="cpu", policy_kwargs={"log_std_init": -1.0})
+    obs = np.array([0.3, -0.2], np.float32)
+    rng = np.random.default_rng(0)
+    draws = np.array([sample_action(model, obs, rng) for _ in range(4000)])
+    assert all(act_space.contains(np.asarray(d, dtype=act_space.dtype).reshape(act_space.shape)) for d in draws[:50])
+    obs_t, _ = model.policy.obs_to_tensor(obs)
+    with torch.no_grad():
+        dist = model.policy.get_distribution(obs_t)
+    if space == "box":
+        mean = dist.distribution.mean[0].numpy()
+        std = dist.distribution.stddev[0].numpy()
+        assert np.allclose(draws.mean(axis=0), np.clip(mean, -1, 1), atol=0.02)
+        assert np.allclose(draws.std(axis=0), std, rtol=0.1)  # exp(-1) = 0.37: clipping is rare near 0
+    else:
+        parts = dist.distribution if space == "multi_discrete" else [dist.distribution]
+        cols = draws.reshape(len(draws), -1)
+        for k, part in enumerate(parts):
+            probs = part.probs[0].numpy()
+            freq = np.bincount(cols[:, k], minlength=probs.size) / len(draws)
+            assert np.allclose(freq, probs, atol=0.03)
+    rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
+    assert all(np.array_equal(sample_action(model, obs, rng_a), sample_action(model, obs, rng_b)) for _ in range(5))
