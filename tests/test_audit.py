@@ -847,3 +847,50 @@ def test_a_spread_rule_convergence_without_hypotheses_is_audited_whole():
     for _ in range(5):
         info = env.step(0)[-1]
     assert np.isfinite(info["belief"]["mean"]).all()
+
+
+def test_a_hold_lost_without_a_surprise_turns_the_audit_on():
+    """``audit_after_lost_hold`` (an outside tester's pillar hall, ``docs/layouts/outside_v15``): a tracking start,
+    then a kidnapping by one pillar period that neither surprise test notices (the scans that tell differ mostly
+    in beams without a return). The held convergence fades without a surprise; without the option the audit stays
+    off and the belief converges again, unaudited, at the half-turned image of the truth 14 m away. With it the
+    lost hold turns the audit on, which finds the image: the belief never converges again at a wrong place."""
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
+
+    hall = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v15" / "t28_pillar_hall.json"
+    options = {
+        "tracking": True,
+        "pose": [21.6849562595538, 4.330561070970349, 3.1044118813946726],
+        "kidnap_at_step": 30,
+        "kidnap_pose": [16.235958391219917, 4.384460770071215, 3.1044118813946726],
+    }
+    again_wrong, audited, surprises, final = {}, {}, {}, {}
+    for on in (False, True):
+        env = gym.make("SemReloc-v15", layout=str(hall), action_type="continuous", max_episode_steps=230,
+                       relocalizer={"audit_after_lost_hold": on})  # fmt: skip
+        policy = POLICIES["wall_follow"](4)
+        env = policy.wrap(env)
+        policy.reset()
+        obs, info = env.reset(seed=4, options=options)
+        lost = False
+        again_wrong[on] = audited[on] = surprises[on] = 0
+        for t in range(1, 231):
+            obs, _, _, truncated, info = env.step(policy.act(obs))
+            m, b = info["mcl"], info["belief"]
+            audited[on] += "audit_log_ratio" in m
+            surprises[on] += bool(m["surprise"])
+            lost = lost or (t >= 30 and not b["converged"])
+            again_wrong[on] += lost and b["converged"] and info["pose_error"]["position"] > 0.5
+            if truncated:
+                break
+        final[on] = (b["converged"], info["pose_error"]["position"])
+    assert surprises == {False: 0, True: 0}  # the kidnapping is not noticed as a surprise
+    assert audited[False] == 0 and again_wrong[False] > 10 and final[False][0] and final[False][1] > 10
+    assert audited[True] > 0 and again_wrong[True] == 0 and final[True][1] < 0.5
+    with pytest.raises(ValueError, match="audit_after_lost_hold needs the audit and a held convergence"):
+        MCLConfig(audit_after_lost_hold=True)  # no held convergence in MCLConfig's own defaults
