@@ -1,5 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v15 (v14 whose audit after a surprise turns off
-once it clears), SemReloc-v14 (v13 with a surprise test of the camera's own), SemReloc-v13 (v12 whose surprise test
+"""The registered ids behave as their Version History says: SemReloc-v16 (v15 whose audit also follows a held
+convergence lost without a surprise), SemReloc-v15 (v14 whose audit after a surprise turns off once it clears), SemReloc-v14 (v13 with a surprise test of the camera's own), SemReloc-v13 (v12 whose surprise test
 keeps its own average), SemReloc-v12 (v11 with maps from a drive that also enters narrow passages), SemReloc-v11
 (v10 with maps whose space beyond the lidar's returns is cleared by its beams without a return), SemReloc-v10 (v9
 with maps without stray class cells and a screen pause that follows the place), SemReloc-v9 (v8 whose convergence
@@ -47,6 +47,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v16",
         "SemReloc-v15",
         "SemReloc-v14",
         "SemReloc-v13",
@@ -71,6 +72,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v16", typed),
         ("SemReloc-v15", typed),
         ("SemReloc-v14", typed),
         ("SemReloc-v13", typed),
@@ -675,3 +677,34 @@ def test_v15_is_v14_whose_audit_after_a_surprise_turns_off_once_it_clears():
         assert any("audit_log_ratio" in step[-1]["mcl"] for step in a) == ("tracking" not in options)
         for x, y in zip(a, b):
             np.testing.assert_equal(x, y)
+
+
+def test_v16_is_v15_whose_audit_also_follows_a_hold_lost_without_a_surprise():
+    """v16 differs from v15 only in its relocalizer's `MCLConfig.audit_after_lost_hold` (its effect on a kidnapping
+    no surprise test notices: tests/test_audit.py). A global start's audit is on from the start, so its episode is
+    v15's, bit for bit, also when a hold is lost on the way; a tracking episode is v15's until a hold is lost."""
+    v16, v15 = make("SemReloc-v16", **FAST).unwrapped, make("SemReloc-v15", **FAST).unwrapped
+    assert v16.mcl_config == dataclasses.replace(v15.mcl_config, audit_after_lost_hold=True)
+    assert not v15.mcl_config.audit_after_lost_hold
+    assert v16.mapping_run_version == v15.mapping_run_version == "6"
+    venv = gym.make_vec("SemRelocVec-v16", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    assert venv.envs[0].unwrapped.mcl_config.audit_after_lost_hold
+    venv.close()
+    assert semreloc_env.envs.batched.SINGLE_ENV_ID == "SemReloc-v16"
+    actions = ACTIONS + [1] * 20 + [0] * 10
+    a = rollout(make("SemReloc-v16", **FAST), options=START, actions=actions)
+    b = rollout(make("SemReloc-v15", **FAST), options=START, actions=actions)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+    # a tracking episode whose hold fades (spinning in three_rooms' corridor): v16 audits from then on, v15 never
+    kw = dict(FAST, layout="three_rooms")
+    options = {"tracking": True, "pose": [7.5, 1.2, 0.0]}
+    audited, lost = {}, {}
+    for env_id in ("SemReloc-v16", "SemReloc-v15"):
+        steps = rollout(make(env_id, **kw), seed=2, options=options, actions=[1] * 120)
+        held = [s[-1]["belief"]["converged"] for s in steps]
+        lost[env_id] = next((t for t in range(1, len(held)) if held[t - 1] and not held[t]), None)
+        audited[env_id] = [t for t, s in enumerate(steps) if "audit_log_ratio" in s[-1]["mcl"]]
+    assert lost["SemReloc-v16"] == lost["SemReloc-v15"] is not None  # the same episode up to the first loss
+    assert audited["SemReloc-v15"] == [] and audited["SemReloc-v16"]
+    assert min(audited["SemReloc-v16"]) > lost["SemReloc-v16"]

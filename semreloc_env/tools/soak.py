@@ -2,9 +2,9 @@
 
 Usage (``semreloc-soak`` is the same command)::
 
-    python scripts/soak.py                 # 10^6 steps of SemReloc-v15 and SemSlam-v1
+    python scripts/soak.py                 # 10^6 steps of SemReloc-v16 and SemSlam-v1
     python scripts/soak.py --steps 20000   # a short run
-    python scripts/soak.py --env-ids SemReloc-v1 SemSlam-v0   # older ids (the default before v15)
+    python scripts/soak.py --env-ids SemReloc-v1 SemSlam-v0   # older ids (the soak's only ones before)
     python scripts/soak.py --layouts 10000 # layouts only: validate, mutate, build
 
 Per step it checks: no exception, the observation inside its space, no NaN in the observation,
@@ -411,7 +411,7 @@ class Args:
     """env steps in all"""
     seed: int = 0
     """seed of layouts, settings, actions and the env id of each episode"""
-    env_ids: tuple[str, ...] = ("SemReloc-v15", "SemSlam-v1")
+    env_ids: tuple[str, ...] = ("SemReloc-v16", "SemSlam-v1")
     """registered single-robot ids to soak (each episode draws one)"""
     memory_growth_mb: float = 300.0
     """resident growth (MB, after the warm-up) that fails the run"""
