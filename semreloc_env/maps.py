@@ -70,8 +70,9 @@ def pwd_home() -> str:
 def map_key(
     layout: Layout, lidar: LidarParams, camera: CameraParams, resolution_m: float = 0.05, version: str | None = None
 ) -> str:
-    """Hex key of a mapping-run map: layout content, sensor parameters, resolution and the mapping run's
-    version (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`; None: the newest)."""
+    """Hex key of a mapping-run map: layout content, sensor parameters, resolution, the mapping run's version
+    (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`; None: the newest) and the versions of the libraries its
+    drive and sensors run on (`mapping_libraries`: an upgrade may move the drive, so it rebuilds the maps)."""
     from .mapping_run import MAPPING_RUN_VERSION
 
     text = repr(
@@ -82,9 +83,19 @@ def map_key(
             camera,
             float(resolution_m),
             CLASS_NAMES,
+            *mapping_libraries(),
         )
     )
     return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
+
+
+def mapping_libraries() -> tuple[str, ...]:
+    """``name==version`` of the libraries a mapping run's result depends on: pymunk (the drive's physics),
+    NumPy (its draws and arithmetic) and numba (the compiled ray casts)."""
+    import numba
+    import pymunk
+
+    return (f"pymunk=={pymunk.version}", f"numpy=={np.__version__}", f"numba=={numba.__version__}")
 
 
 def _layout_text(layout: Layout) -> str:

@@ -46,6 +46,10 @@ def test_mapping_run_maps_are_cached_on_disk_and_reloaded_equal(tmp_path, monkey
     # other sensor parameters, another layout: other keys
     assert maps.map_key(layout, LidarParams(n_beams=90), camera) != files[0].stem
     assert maps.map_key(get_layout("procedural", seed=22), lidar, camera) != files[0].stem
+    # another version of a library the mapping run depends on: another key (an upgrade rebuilds the map)
+    with monkeypatch.context() as m:
+        m.setattr(maps, "mapping_libraries", lambda: ("pymunk==0.0", "numpy==0.0", "numba==0.0"))
+        assert maps.map_key(layout, lidar, camera) != files[0].stem
     # a corrupt file is rebuilt and replaced
     files[0].write_bytes(b"not a map")
     maps._memory.clear()

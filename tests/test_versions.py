@@ -1,14 +1,15 @@
 """The registered ids behave as their Version History says: SemReloc-v16 (v15 whose audit also follows a held
-convergence lost without a surprise), SemReloc-v15 (v14 whose audit after a surprise turns off once it clears), SemReloc-v14 (v13 with a surprise test of the camera's own), SemReloc-v13 (v12 whose surprise test
-keeps its own average), SemReloc-v12 (v11 with maps from a drive that also enters narrow passages), SemReloc-v11
-(v10 with maps whose space beyond the lidar's returns is cleared by its beams without a return), SemReloc-v10 (v9
-with maps without stray class cells and a screen pause that follows the place), SemReloc-v9 (v8 whose convergence
-audit also screens the whole map), SemReloc-v8 (v7 with the maps of the mapping run's version 3), SemReloc-v7 (v6's
-relocalizer whose convergence audit searches more places and comes before "converged"), SemReloc-v6 (v5's
-relocalizer whose belief holds a convergence), SemReloc-v5 (v4's relocalizer with the convergence audit),
-SemReloc-v4 (v3's relocalizer with evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that
-break their half turn), SemReloc-v2 / SemSlam-v1 (typed observation, not-computed info values left out) against
-SemReloc-v1 / SemSlam-v0 (flat observation, None)."""
+convergence lost without a surprise), SemReloc-v15 (v14 whose audit after a surprise turns off once it clears),
+SemReloc-v14 (v13 with a surprise test of the camera's own), SemReloc-v13 (v12 whose surprise test keeps its own
+average), SemReloc-v12 (v11 with maps from a drive that also enters narrow passages), SemReloc-v11 (v10 with maps
+whose space beyond the lidar's returns is cleared by its beams without a return), SemReloc-v10 (v9 with maps without
+stray class cells and a screen pause that follows the place), SemReloc-v9 (v8 whose convergence audit also screens
+the whole map), SemReloc-v8 (v7 with the maps of the mapping run's version 3), SemReloc-v7 (v6's relocalizer whose
+convergence audit searches more places and comes before "converged"), SemReloc-v6 (v5's relocalizer whose belief
+holds a convergence), SemReloc-v5 (v4's relocalizer with the convergence audit), SemReloc-v4 (v3's relocalizer with
+evidence from objects not seen), SemReloc-v3 (v2 with lookalike layouts that break their half turn), SemReloc-v2 /
+SemSlam-v1 (typed observation, not-computed info values left out) against SemReloc-v1 / SemSlam-v0 (flat
+observation, None)."""
 
 import dataclasses
 import warnings
@@ -382,7 +383,12 @@ def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
     from semreloc_env.maps import map_key, mapped
 
     sensors = (LidarParams(), CameraParams())
-    assert map_key(get_layout("lab"), *sensors, version="2") == "0dc7b7f6ab70a8810d1b227a455888b5"
+    libraries = semreloc_env.maps.mapping_libraries
+    try:  # the key's text is what it was before it named the libraries, which it now appends
+        semreloc_env.maps.mapping_libraries = lambda: ()
+        assert map_key(get_layout("lab"), *sensors, version="2") == "0dc7b7f6ab70a8810d1b227a455888b5"
+    finally:
+        semreloc_env.maps.mapping_libraries = libraries
     versions = {"SemReloc-v12": "6", "SemReloc-v11": "5", "SemReloc-v10": "4", "SemReloc-v9": "3", "SemReloc-v8": "3"}
     versions["SemReloc-v7"] = "2"
     for env_id, version in versions.items():
