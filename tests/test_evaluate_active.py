@@ -121,6 +121,27 @@ def test_policy_code_follows_the_modules_a_policy_draws_on():
     assert ev.policy_code("ppo=agents/data/active_ppo.zip") != ev.policy_code("viewpoint")
 
 
+def test_fingerprints_follow_the_libraries_episodes_compute_with(monkeypatch):
+    """An upgrade of a library the episodes (or a learned policy's network) compute with reruns the rows
+    ``--reuse`` would otherwise keep (an outside tester's finding: fingerprints covered source files only)."""
+    import torch
+
+    import semreloc_env.maps
+
+    spec = "ppo=agents/data/active_ppo.zip"
+    before = ev.env_code(), ev.policy_code(spec), ev.policy_code("spin")
+    try:
+        monkeypatch.setattr(semreloc_env.maps, "mapping_libraries", lambda: ("pymunk==0.0",))
+        monkeypatch.setattr(torch, "__version__", "0.0")
+        ev.env_code.cache_clear()
+        ev.policy_code.cache_clear()
+        assert ev.env_code() != before[0] and ev.policy_code(spec) != before[1]
+        assert ev.policy_code("spin") == before[2]  # a baseline's does not name torch
+    finally:
+        ev.env_code.cache_clear()
+        ev.policy_code.cache_clear()
+
+
 def test_learned_policy_is_loaded_once_per_file_version_and_acts_as_a_fresh_load(tmp_path):
     """make_policy shares one loaded model between cases (a fresh LearnedPolicy each time, with the
     case's seed), reloads when the file changes, and acts exactly as load_policy's own object."""

@@ -699,11 +699,17 @@ def _module_names(module: types.ModuleType) -> list[str]:
 @functools.cache
 def env_code() -> str:
     """A fingerprint (16 hex digits) of the code every episode runs whatever the policy: the source
-    files of `filters` and `semreloc_env` and this module (the episode runner). Read once per process."""
+    files of `filters` and `semreloc_env` and this module (the episode runner), and the versions of the
+    libraries they compute with (`semreloc_env.maps.mapping_libraries` and SciPy). Read once per process."""
+    import scipy
+
+    from semreloc_env.maps import mapping_libraries
+
     h = hashlib.sha256()
     roots = [Path(importlib.import_module(p).__file__).parent for p in ("filters", "semreloc_env")]
     for f in sorted(f for root in roots for f in root.rglob("*.py")) + [Path(__file__)]:
         h.update(f.relative_to(roots[0].parent).as_posix().encode() + b"\0" + f.read_bytes())
+    h.update(repr((*mapping_libraries(), f"scipy=={scipy.__version__}")).encode())
     return h.hexdigest()[:16]
 
 
@@ -737,7 +743,8 @@ def file_digest(path: str) -> str:
 @functools.cache
 def policy_code(spec: str) -> str:
     """A fingerprint (16 hex digits) of the code behind ``spec``: the source files of
-    `policy_modules` and, for ``NAME=PATH``, the policy file's bytes. A row kept by ``--reuse`` must
+    `policy_modules` and, for ``NAME=PATH``, the policy file's bytes and the versions of torch and
+    stable-baselines3. A row kept by ``--reuse`` must
     carry the same fingerprint, so changing a policy's code (or code it calls) reruns it. Read once
     per process."""
     h = hashlib.sha256()
@@ -747,8 +754,12 @@ def policy_code(spec: str) -> str:
     if user is not None:  # the user's module and the modules it imports from its own folder
         for key, f in _keyed(_local_files(_user_module(user["source"]))):
             h.update(key.encode() + b"\0" + f.read_bytes())
-    elif "=" in spec:
+    elif "=" in spec:  # a learned policy: its file, and the libraries that run its network
+        import stable_baselines3
+        import torch
+
         h.update(Path(spec.partition("=")[2]).read_bytes())
+        h.update(f"torch=={torch.__version__};stable_baselines3=={stable_baselines3.__version__}".encode())
     return h.hexdigest()[:16]
 
 
