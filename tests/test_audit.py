@@ -681,6 +681,22 @@ def test_blur_margin_keeps_a_look_alike_place_whose_map_differs_by_the_mapping_d
                 assert gym.make(env_id, map_source="perfect").unwrapped.mcl_config.audit_blur_margin == 0.0
 
 
+def _explorer_in(env_id: str, layout, steps: int, relocalizer: dict, seed: int):
+    """``(env, policy)``: the explorer (`wall_follow`, reset) driving ``env_id`` with continuous actions in the
+    layout file ``layout``, ``steps`` steps at most, with these relocalizer overrides."""
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
+
+    env = gym.make(env_id, layout=str(layout), action_type="continuous", max_episode_steps=steps,
+                   relocalizer=relocalizer)  # fmt: skip
+    policy = POLICIES["wall_follow"](seed)
+    env = policy.wrap(env)
+    policy.reset()
+    return env, policy
+
+
 def test_a_surprise_turns_the_audit_on_in_a_tracking_episode():
     """An outside tester's four-fold symmetric hall: a tracking start, then a kidnapping into the hall's middle.
     Without ``audit_after_surprise`` (v11's relocalizer) no convergence of a tracking episode is audited, and the
@@ -689,19 +705,12 @@ def test_a_surprise_turns_the_audit_on_in_a_tracking_episode():
     a wrong place after the first steps past the kidnapping (the old place stays converged until a surprise)."""
     from pathlib import Path
 
-    import gymnasium as gym
-
     import semreloc_env  # noqa: F401
-    from agents.policies import POLICIES
 
     hall = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v11" / "d1_warehouse_hall_32.json"
     wrong, audited = {}, {}
     for on in (False, True):
-        env = gym.make("SemReloc-v12", layout=str(hall), action_type="continuous", max_episode_steps=300,
-                       relocalizer={"audit_after_surprise": on})  # fmt: skip
-        policy = POLICIES["wall_follow"](1)
-        env = policy.wrap(env)
-        policy.reset()
+        env, policy = _explorer_in("SemReloc-v12", hall, 300, {"audit_after_surprise": on}, seed=1)
         options = {"tracking": True, "pose": [4.0, 28.0, 0.0], "kidnap_at_step": 60, "kidnap_pose": [16.0, 16.0, 0.0]}
         obs, info = env.reset(seed=1, options=options)
         wrong[on], audited[on] = 0, 0
@@ -857,10 +866,7 @@ def test_a_hold_lost_without_a_surprise_turns_the_audit_on():
     lost hold turns the audit on, which finds the image: the belief never converges again at a wrong place."""
     from pathlib import Path
 
-    import gymnasium as gym
-
     import semreloc_env  # noqa: F401
-    from agents.policies import POLICIES
 
     hall = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v15" / "t28_pillar_hall.json"
     options = {
@@ -871,11 +877,7 @@ def test_a_hold_lost_without_a_surprise_turns_the_audit_on():
     }
     again_wrong, audited, surprises, final = {}, {}, {}, {}
     for on in (False, True):
-        env = gym.make("SemReloc-v15", layout=str(hall), action_type="continuous", max_episode_steps=230,
-                       relocalizer={"audit_after_lost_hold": on})  # fmt: skip
-        policy = POLICIES["wall_follow"](4)
-        env = policy.wrap(env)
-        policy.reset()
+        env, policy = _explorer_in("SemReloc-v15", hall, 230, {"audit_after_lost_hold": on}, seed=4)
         obs, info = env.reset(seed=4, options=options)
         lost = False
         again_wrong[on] = audited[on] = surprises[on] = 0
