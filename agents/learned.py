@@ -209,6 +209,11 @@ class LearnedPolicy:
         self.options = option_names(options, explorer_option)
         self.explorer_option = self.options == ("explore",)
         self.seed = int(seed)
+        if not self.deterministic and getattr(model, "use_sde", False):
+            raise ValueError(
+                "a model trained with state-dependent exploration (use_sde) cannot sample from the policy's own "
+                "generator: use deterministic=True"
+            )
         self._rng = np.random.default_rng(self.seed)
         self._t = 0
         self._action = None
@@ -293,6 +298,7 @@ def sample_action(model, obs, rng: np.random.Generator):
     )
 
     policy = model.policy
+    policy.set_training_mode(False)  # as predict does
     obs_t, _ = policy.obs_to_tensor(obs)
     with torch.no_grad():
         dist = policy.get_distribution(obs_t)

@@ -705,3 +705,18 @@ def test_sample_action_follows_the_models_distribution(space):
             assert np.allclose(freq, probs, atol=0.03)
     rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
     assert all(np.array_equal(sample_action(model, obs, rng_a), sample_action(model, obs, rng_b)) for _ in range(5))
+
+
+def test_a_sampling_policy_refuses_a_state_dependent_exploration_model():
+    from stable_baselines3 import PPO
+
+    from agents.learned import LearnedPolicy
+
+    class Toy(gym.Env):
+        observation_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+    model = PPO("MlpPolicy", Toy(), seed=0, device="cpu", use_sde=True)
+    with pytest.raises(ValueError, match="use_sde"):
+        LearnedPolicy(model, {}, deterministic=False)
+    assert LearnedPolicy(model, {}, deterministic=True).deterministic

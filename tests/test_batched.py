@@ -313,3 +313,16 @@ def test_make_vec_spec_carries_the_time_limit_the_robots_run_with():
     venv.close()
     unlimited = {k: v for k, v in KW.items() if k != "max_episode_steps"}
     assert gym.make_vec("SemRelocVec-v16", num_envs=1, **unlimited).spec.max_episode_steps == 400
+
+
+def test_in_wrapped_space_casts_only_into_a_float_box():
+    from semreloc_env.envs.batched import in_wrapped_space
+
+    f32 = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+    assert in_wrapped_space(np.array([0.5, -0.5]), f32) and in_wrapped_space([1, 0], f32)
+    assert not in_wrapped_space(np.array([0.5, np.nan]), f32) and not in_wrapped_space([0.5], f32)
+    assert not in_wrapped_space(True, f32) and not in_wrapped_space("ab", f32)
+    ints = gym.spaces.Box(0, 3, (2,), np.int64)
+    assert in_wrapped_space(np.array([1, 2]), ints)
+    assert not in_wrapped_space(np.array([0.7, 1.0]), ints)  # a cast would truncate 0.7 to 0
+    assert in_wrapped_space(2, gym.spaces.Discrete(4)) and not in_wrapped_space(4, gym.spaces.Discrete(4))

@@ -317,9 +317,12 @@ class MCLConfig:
             look-alike place to a belief that had converged again at the truth (docs/relocalizer.md, "After a
             surprise, an audit until it clears"). Needs ``audit_after_surprise``.
         audit_after_lost_hold: a held convergence that ends without a surprise (its hypothesis falls below
-            ``belief.converged_hold_weight`` or leaves its place) also turns the audit on in a tracking episode,
-            as a surprise does (and off again as ``audit_after_surprise_once`` says): a kidnapping the surprise
-            tests miss loses the hold all the same, and the next convergence is a relocalization. False before
+            ``belief.converged_hold_weight`` or leaves its place, and the belief is not converged elsewhere)
+            also turns the audit on in a tracking episode, as a surprise does (and off again as
+            ``audit_after_surprise_once`` says): a kidnapping the surprise tests miss loses the hold all the
+            same, and the next convergence is a relocalization. The audit's window is kept while the audit is
+            off, so its first audit judges the last ``audit_window`` updates' scans (a surprise, by contrast,
+            drops the scans before it). False before
             ``SemReloc-v16``: after such a kidnapping the belief converged again unaudited, in an outside
             tester's pillar hall and class-only rooms at a look-alike place in 10-40 % of episodes
             (docs/relocalizer.md, "A hold lost without a surprise"). Needs ``audit_window`` and
@@ -1032,8 +1035,10 @@ class MonteCarloLocalizer:
         if p_inj > 0.0 and n_inj:
             self._w_slow = self._w_fast = 0.0  # pf.c: restart both averages after a recovery injection
         audit_ratio, n_audit = math.nan, 0
-        if c.audit_window and self._audit_on:
+        if c.audit_window and (self._audit_on or c.audit_after_lost_hold):
+            # kept while the audit is off too when a lost hold may turn it on: it then judges a full window
             self._window = [*self._window, (lid, sem, delta, beams)][-c.audit_window :]
+        if c.audit_window and self._audit_on:
             audit_ratio, n_audit = self._audit(lidar, sem)
             if n_audit:
                 self._held = None  # the audit's doubt ends a held convergence, whatever the weights say
@@ -1070,10 +1075,11 @@ class MonteCarloLocalizer:
             b = self.belief()
             if c.belief.converged_hold_weight is not None:
                 self._held = b.hypotheses[0].mean.copy() if b.converged else None
-            if c.audit_after_lost_hold and held_before and not b.converged and not self._audit_on:
-                # lost without a surprise (one turns the audit on itself): the next convergence is a relocalization
+            if c.audit_after_lost_hold and held_before and not b.converged and not surprise and not self._audit_on:
+                # lost without a surprise (which has its own option): the next convergence is a relocalization,
+                # judged on the window's scans (a fading hold gives no reason to drop the earlier ones)
                 self._audit_on = self._audit_by_surprise = True
-                self._window, self._cleared, self._screen_cleared, self._was_converged = [], None, None, False
+                self._cleared, self._screen_cleared, self._was_converged = None, None, False
             self._ever_converged = self._ever_converged or b.converged
         return diag
 

@@ -51,12 +51,12 @@ def _float_array_hint(actions, space) -> str:
 
 def in_wrapped_space(action, space: gym.spaces.Space) -> bool:
     """Whether a wrapper's action space takes ``action``: `gym.spaces.Space.contains`, except that a
-    real-number array (or nested list) of a Box's shape counts by its values cast to the Box's dtype,
+    real-number array (or nested list) of a float Box's shape counts by its values cast to the Box's dtype,
     not by its own dtype (``Box.contains`` refuses float64 for a float32 Box, which the wrapped env
     itself takes, as NumPy's default float). Bools are refused."""
     if isinstance(action, (bool, np.bool_)):
         return False
-    if isinstance(space, gym.spaces.Box) and not isinstance(action, (str, bytes)):
+    if isinstance(space, gym.spaces.Box) and space.dtype.kind == "f" and not isinstance(action, (str, bytes)):
         try:
             a = np.asarray(action)
         except (ValueError, TypeError):  # ragged

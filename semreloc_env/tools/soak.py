@@ -47,6 +47,8 @@ from filters.experiments.cli import command, parse
 from semreloc_env.layouts import CLASS_NAMES, LayoutError, layout_from_dict
 
 CELL = 2.0
+SOAK_ENV_IDS = ("SemReloc-v16", "SemSlam-v1")
+"""The ids a soak runs unless told otherwise: the newest."""
 
 
 def random_layout(rng: np.random.Generator) -> dict:
@@ -170,9 +172,7 @@ def _relocalizer_settings(rng: np.random.Generator) -> dict:
     return kw
 
 
-def random_settings(
-    rng: np.random.Generator, env_ids: tuple[str, ...] = ("SemReloc-v1", "SemSlam-v0")
-) -> tuple[str, dict]:
+def random_settings(rng: np.random.Generator, env_ids: tuple[str, ...] = SOAK_ENV_IDS) -> tuple[str, dict]:
     """One of ``env_ids`` (drawn uniformly) and random (valid) keyword arguments for it."""
     kw = _common_settings(rng)
     env_id = env_ids[int(rng.integers(len(env_ids)))] if len(env_ids) > 1 else env_ids[0]
@@ -277,7 +277,7 @@ def soak(
     seed: int,
     episode_steps: int,
     twin_every: int,
-    env_ids: tuple[str, ...] = ("SemReloc-v1", "SemSlam-v0"),
+    env_ids: tuple[str, ...] = SOAK_ENV_IDS,
     growth_limit_mb: float = math.inf,
 ) -> Counter:
     """Run ``steps`` checked env steps (see the module's docstring); the counts of every check and
@@ -411,7 +411,7 @@ class Args:
     """env steps in all"""
     seed: int = 0
     """seed of layouts, settings, actions and the env id of each episode"""
-    env_ids: tuple[str, ...] = ("SemReloc-v16", "SemSlam-v1")
+    env_ids: tuple[str, ...] = SOAK_ENV_IDS
     """registered single-robot ids to soak (each episode draws one)"""
     memory_growth_mb: float = 300.0
     """resident growth (MB, after the warm-up) that fails the run"""
