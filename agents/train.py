@@ -311,12 +311,28 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
     return model
 
 
-def _as_action_fn(model_or_policy: Any, deterministic: bool) -> tuple[Callable[[dict], Any], Callable[[], None]]:
+def _as_action_fn(
+    model_or_policy: Any, deterministic: bool, seed: int = 0
+) -> tuple[Callable[[dict], Any], Callable[[], None]]:
     if isinstance(model_or_policy, BaseAlgorithm):
+        if deterministic:
 
-        def act(obs: dict):
-            action, _ = model_or_policy.predict(obs, deterministic=deterministic)
-            return action
+            def act(obs: dict):
+                action, _ = model_or_policy.predict(obs, deterministic=True)
+                return action
+
+        else:  # drawn from a generator of its own, not torch's global one (as predict samples)
+            from .learned import sample_action
+
+            if not hasattr(model_or_policy.policy, "get_distribution"):
+                raise ValueError(
+                    f"deterministic=False samples from the model's action distribution; a "
+                    f"{type(model_or_policy).__name__} policy has none: use deterministic=True"
+                )
+            rng = np.random.default_rng(seed)
+
+            def act(obs: dict):
+                return sample_action(model_or_policy, obs, rng)
 
         return act, lambda: None
     if not callable(model_or_policy):
@@ -344,7 +360,8 @@ def evaluate(
         env_kwargs: ``gym.make(env_id, ...)`` keyword arguments (``max_episode_steps`` too).
         n_episodes: episodes; episode ``i`` starts with ``reset(seed=seed + i)``.
         seed: first episode seed.
-        deterministic: SB3 models act greedily (ignored for callables).
+        deterministic: SB3 models act greedily (ignored for callables); False: they sample their actions from
+            a generator seeded with ``seed`` (`agents.learned.sample_action`), not from torch's global one.
         return_episodes: add ``"per_episode"``: the list of `EpisodeResult.as_dict`.
         env_id: the env to run (a model trained on ``SemReloc-v1``'s flat observation needs ``"SemReloc-v1"``).
 
@@ -375,7 +392,7 @@ def evaluate(
             f"the model's observation differs from the env's in {keys or 'its type'} (model: {theirs}, env: {ours}): "
             f"evaluate it with the env id and env_kwargs it was trained with (this is {env_id})"
         )
-    act, reset_policy = _as_action_fn(model_or_policy, deterministic)
+    act, reset_policy = _as_action_fn(model_or_policy, deterministic, seed)
     discrete = isinstance(env.action_space, gym.spaces.Discrete)
     results = []
     tracker = EpisodeTracker()

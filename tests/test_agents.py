@@ -145,6 +145,16 @@ def test_evaluate_is_deterministic_for_the_same_seed():
     assert c["per_episode"] != a["per_episode"]
 
 
+def test_evaluate_samples_a_model_from_its_seed_not_the_global_generators(smoke):
+    import torch
+
+    model, _, _ = smoke
+    torch.manual_seed(1)
+    a = evaluate(model, FAST, n_episodes=2, seed=5, deterministic=False, return_episodes=True)
+    torch.manual_seed(2)
+    assert a == evaluate(model, FAST, n_episodes=2, seed=5, deterministic=False, return_episodes=True)
+
+
 def test_evaluate_model_is_deterministic_and_checks_spaces(smoke):
     model, _, _ = smoke
     a = evaluate(model, FAST, n_episodes=2, seed=5)
