@@ -270,7 +270,9 @@ class SemRelocEnv(SemRelocBase):
     localized robot, reset with ``tracking=True``. The relocalizer notices a kidnap from the scans' fit
     (its surprise tests, armed once the belief has been converged), one that only the objects' classes reveal
     once two camera updates in a row contradict the believed classes; one into an exact look-alike goes
-    unnoticed (docs/relocalizer.md, "What the surprise test cannot see", "A surprise test of the camera's own"). One kidnap per episode; ``info["kidnapped"]`` says from which step.
+    unnoticed (docs/relocalizer.md, "What the surprise test cannot see", "A surprise test of the camera's own").
+    When the held convergence of a kidnap it did not notice fades, the next convergence is audited all the same
+    (v16; "A hold lost without a surprise"). One kidnap per episode; ``info["kidnapped"]`` says from which step.
     A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
     checks them in its outermost wrapper (`semreloc_env.wrappers.CheckedReset`), so the
     time limit keeps counting the old episode.
