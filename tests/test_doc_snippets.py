@@ -100,3 +100,63 @@ def test_doc_python_block_runs(index, tmp_path):
         timeout=120,
     )
     assert proc.returncode == 0, f"{_id(BLOCKS[index])} failed:\n{proc.stderr[-4000:]}"
+
+
+EXTRA = re.compile(r"--extra\s+'(\{.*?\})'", re.S)
+ANY_FENCE = re.compile(r"^[ \t]*```.*?^[ \t]*```", re.S | re.M)
+
+
+def documented_variant_problems(text: str, newest, versions) -> list[str]:
+    """Problems of the ``--extra '{...}'`` relocalizer variants in a Markdown ``text``: JSON that does not parse, a
+    variant no registered version's relocalizer (``versions``) takes, and a variant in a fenced block (a command
+    meant to run as written) that the newest env's relocalizer (``newest``) refuses."""
+    from filters.localization.mcl import check_overrides
+
+    def takes(base, overrides) -> bool:
+        try:
+            check_overrides(overrides, "variant", base)
+        except ValueError:
+            return False
+        return True
+
+    fences = [m.span() for m in ANY_FENCE.finditer(text)]
+    problems = []
+    for m in EXTRA.finditer(text):
+        line = text.count("\n", 0, m.start()) + 1
+        try:
+            variants = json.loads(m.group(1))
+        except json.JSONDecodeError as e:
+            problems.append(f"line {line}: not JSON ({e})")
+            continue
+        for name, overrides in variants.items():
+            if not any(takes(base, overrides) for base in versions):
+                problems.append(f"line {line}: variant {name} fits no registered version")
+            elif any(a <= m.start() < b for a, b in fences) and not takes(newest, overrides):
+                problems.append(f"line {line}: variant {name} (a command block) fails on the newest env")
+    return problems
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: p.name)
+def test_documented_relocalizer_variants_run(path):
+    """The relocalizer variants the docs' commands pass (``evaluate_relocalizer --extra``) are valid: some
+    registered version takes each, and the newest takes those of command blocks, which run as written (a
+    review found three that a new version's option refused)."""
+    import semreloc_env
+
+    ids = semreloc_env.semreloc_ids_since(2)
+    versions = [semreloc_env.default_relocalizer(i) for i in ids]
+    assert documented_variant_problems(path.read_text(), versions[0], versions) == []
+
+
+def test_documented_variant_check_finds_what_it_looks_for():
+    import semreloc_env
+
+    newest = semreloc_env.default_relocalizer(semreloc_env.semreloc_ids_since(2)[0])
+    text = """```bash
+x --extra '{"v4": {"audit_window": 0, "audit_after_surprise": false, "audit_after_surprise_once": false}}'
+```
+prose: --extra '{"v5": {"no_such_field": 1}}' and --extra '{"v6": {"audit_window": 0,}}'
+"""
+    problems = documented_variant_problems(text, newest, [newest, semreloc_env.default_relocalizer("SemReloc-v15")])
+    assert [p.split(":")[0] for p in problems] == ["line 2", "line 4", "line 4"]
+    assert "fails on the newest" in problems[0] and "fits no" in problems[1] and "not JSON" in problems[2]
