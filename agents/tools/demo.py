@@ -4,7 +4,7 @@ Writes into ``--out`` (default ``out/demo``):
 
 * ``world.png`` — the lab at the start: walls, objects in paper 004's colours,
   lidar beams (orange) and semantic beams (class colours; grey where they hit no object);
-* ``relocalization.gif`` — the episode: particles, true pose (black), estimate (magenta);
+* ``relocalization.gif`` — the episode: particles (magenta), true pose (black), estimate (dashed brown);
 * ``error.png`` — position error, the heaviest hypothesis's spread and its share of the mass against step;
 
 and prints a one-line result. Run ``python scripts/demo.py --help`` for options.

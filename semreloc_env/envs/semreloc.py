@@ -279,7 +279,7 @@ class SemRelocEnv(SemRelocBase):
 
     ## Version History
     * v16: a held convergence that ends without a surprise (its hypothesis fades below the hold weight or leaves
-      its place) turns the convergence audit on in a tracking episode, as a surprise does, and off again once it
+      its place, and the belief is not converged elsewhere) turns the convergence audit on in a tracking episode, as a surprise does, and off again once it
       has cleared a convergence (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V15` with ``audit_after_lost_hold``). A
       kidnapping that neither surprise test noticed (into a look-alike place whose scans differ mostly in beams
       without a return, or before the camera's test has judged an update) ended the hold all the same, and v15
@@ -288,13 +288,13 @@ class SemRelocEnv(SemRelocBase):
       v15's; a tracking episode's belief is called converged less often after a hold fades. Maps, worlds, sensors,
       observations, rewards and info keys are v15's (`SemRelocEnvV15` is v15).
     * v15: the audit a surprise turns on in a tracking episode (a kidnapping) turns off again once it has cleared
-      a convergence (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V14` with ``audit_after_surprise_once``), as before the
+      a convergence (`RELOCALIZER_V15`: `RELOCALIZER_V14` with ``audit_after_surprise_once``), as before the
       surprise. v14's stayed on until the next reset, and at a later convergence whose window of scans held no
       telling object it could add a look-alike place (a half-turned twin room) back to a belief converged at the
       truth, so some episodes ended unconverged (docs/relocalizer.md, "After a surprise, an audit until it
       clears"). Global episodes, and tracking episodes without a surprise, run as v14's. Maps, worlds, sensors,
       observations, rewards and info keys are v14's (`SemRelocEnvV14` is v14).
-    * v14: the relocalizer also has a surprise test of the camera's own (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V13`
+    * v14: the relocalizer also has a surprise test of the camera's own (`RELOCALIZER_V14`: `RELOCALIZER_V13`
       with ``semantic_surprise_ratio=0.4``): two updates in a row whose labelled camera beams the belief explains
       far worse than of late are a surprise, with the consequences of the all-beam test's. v13's test judged all
       beams together, and the lidar's 60 outnumber the few labelled camera beams, so a kidnapping into a room of
@@ -305,7 +305,7 @@ class SemRelocEnv(SemRelocBase):
       to its first convergence. Maps, worlds, sensors, observations and rewards are v13's (`SemRelocEnvV13` is
       v13).
     * v13: the relocalizer's surprise test (a scan the belief explains far worse than of late: a kidnapping)
-      compares with an average of its own (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V12` with
+      compares with an average of its own (`RELOCALIZER_V13`: `RELOCALIZER_V12` with
       ``surprise_own_average``). v12's compared with augmented MCL's fast average, which AMCL's rule restarts
       after every update whose fast average fell below the slow one, by any amount (6-9 % of a tracking
       episode's lidar updates came right after such a restart); a restarted average starts at the next
@@ -325,7 +325,7 @@ class SemRelocEnv(SemRelocBase):
       on the layout's perfect raster). Every map changes (the drive is 0-38 % longer, most walls come out more complete), so episodes differ
       from v11's. And in a tracking episode (``options={"tracking": True}``) the convergence audit starts at
       the first surprise, a scan the belief explains far worse than of late (a kidnapping): the belief's next
-      convergence is a relocalization and is audited as a global start's are (`DEFAULT_RELOCALIZER`:
+      convergence is a relocalization and is audited as a global start's are (`RELOCALIZER_V12`:
       `RELOCALIZER_V10` with ``audit_after_surprise``). v11 audited no convergence in a tracking episode,
       and after a kidnapping into an outside tester's four-fold symmetric hall the explorer's belief
       converged at a quarter-turned image of the truth in 5 of 16 episodes (0 of 16 now; docs/relocalizer.md,
@@ -349,10 +349,10 @@ class SemRelocEnv(SemRelocBase):
       surfaces, which a mislabelled detection of the robot then matched (an outside tester: 5 of 120
       spinning episodes first converged in a shifted twin room). And the convergence audit's screen
       pauses after it found nothing only while the belief stays at the place it cleared
-      (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V9` with ``audit_screen_pause_place``); v9 skipped it for 100
+      (`RELOCALIZER_V10`: `RELOCALIZER_V9` with ``audit_screen_pause_place``); v9 skipped it for 100
       updates wherever the belief converged next. Worlds, sensors, observations, rewards and info keys
       are v9's (`SemRelocEnvV9` is v9); docs/relocalizer.md, "Maps without stray class cells".
-    * v9: the convergence audit also screens the whole map (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V7` with
+    * v9: the convergence audit also screens the whole map (`RELOCALIZER_V9`: `RELOCALIZER_V7` with
       ``audit_screen=True``). Before it calls a belief converged, the audit looks for another place that
       explains the last 20 updates' scans as well; v8 searched only near its scan-proposal candidates
       and the particles, which can all lie 0.3-0.9 m and 0.2-0.5 rad from a look-alike place: too far
@@ -386,7 +386,7 @@ class SemRelocEnv(SemRelocBase):
       (docs/relocalizer.md, "Audit first, search wider"). The filter draws more random numbers in an audit, so episodes
       differ from v6's from the first audit on. Worlds, sensors, observations, rewards and info keys
       are v6's (`SemRelocEnvV6` is v6).
-    * v6: a convergence holds (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V5` with
+    * v6: a convergence holds (`RELOCALIZER_V6`: `RELOCALIZER_V5` with
       ``belief.converged_hold_weight=0.85`` and ``surprise_ratio=0.3``): once the belief is
       converged, it stays so while its heaviest hypothesis stays at the same place (within 1 m and
       45 deg of the one last called converged) with at least 85 % of the weight and the same spread
@@ -402,7 +402,7 @@ class SemRelocEnv(SemRelocBase):
       off). An override lowering ``belief.converged_min_weight`` below 0.85, or choosing the
       ``spread`` rule, must set ``belief.converged_hold_weight`` too. Worlds, sensors, observations
       and rewards are otherwise v5's (`SemRelocEnvV5` is v5).
-    * v5: the relocalizer audits each convergence (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V4` with
+    * v5: the relocalizer audits each convergence (`RELOCALIZER_V5`: `RELOCALIZER_V4` with
       ``audit_window=20``): at the update where the belief would become converged, the pose
       outside its hypothesis that best explains the last 20 updates' scans is looked for, and if
       it fits within 1 nat (tempered) it is added as a second hypothesis, weighted by the
@@ -412,7 +412,7 @@ class SemRelocEnv(SemRelocBase):
       gains ``audit_log_ratio`` and ``n_audit_injected``. Worlds, sensors, observations, rewards
       and episode end are v4's (`SemRelocEnvV4` is v4).
     * v4: the relocalizer takes evidence from objects its map puts in the camera's view that the
-      camera did not detect (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V1` with ``negative_evidence``
+      camera did not detect (`RELOCALIZER_V4`: `RELOCALIZER_V1` with ``negative_evidence``
       on). Up to 8 unlabelled camera returns per update are sampled along their rays; a pose from
       which the map puts an object on such a ray loses weight. Worlds, sensors, observations,
       rewards and episode end are v3's (`SemRelocEnvV3` is v3).
