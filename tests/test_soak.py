@@ -91,3 +91,20 @@ def test_the_default_ids_are_the_newest():
     assert soak.Args().env_ids == ("SemReloc-v16", "SemSlam-v1")
     assert all(i in semreloc_env.ENV_IDS for i in soak.Args().env_ids)
     assert math.isfinite(soak.Args().memory_growth_mb)
+
+
+def test_reset_options_draw_global_tracking_and_kidnapped_starts_within_the_limit():
+    rng = np.random.default_rng(4)
+    draws = [soak.reset_options(rng, "SemReloc-v16", 7) for _ in range(90)]
+    assert {d["kind"] for d in draws} == {"global", "tracking", "kidnap"}
+    for d in draws:
+        assert d.get("tracking", False) == (d["kind"] != "global")
+        assert ("kidnap_at_step" in d) == (d["kind"] == "kidnap") and 1 <= d.get("kidnap_at_step", 1) <= 7
+    assert soak.reset_options(rng, "SemSlam-v1", 7) == {}
+
+
+def test_a_soak_of_the_relocalizer_alone_starts_every_way_and_passes(capsys):
+    assert soak.main(["--steps", "400", "--seed", "6", "--episode-steps", "40", "--env-ids", "SemReloc-v16"]) == 0
+    out = capsys.readouterr().out
+    counts = {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines() if line.startswith("starts_"))}
+    assert set(counts) == {"starts_global", "starts_tracking", "starts_kidnap"}, out

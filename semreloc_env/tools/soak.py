@@ -15,7 +15,8 @@ seed: must raise ``ValueError``) and, every ``--twin-every`` episodes, runs a tw
 one that saw the rejected call (their next steps must be bit-identical). It prints the count
 of each check and of each failure; the exit status is 1 if anything failed.
 
-Settings are drawn per episode: robot, physics, lidar and camera for every id; the SLAM filter's
+Settings are drawn per episode: robot, physics, lidar and camera for every id; for ``SemReloc-*`` a global,
+tracking or tracking-then-kidnapped start (`reset_options`); the SLAM filter's
 for ``SemSlam-*``; for ``SemReloc-v2`` and newer the relocalizer's particle counts, proposals, audit
 candidates, resampling, injection and backend, and a mapping-run map (``map_source="mapping"``) in
 one episode of six (its maps go to a temporary on-disk cache, removed at the end, so a soak leaves
@@ -197,6 +198,21 @@ def random_settings(rng: np.random.Generator, env_ids: tuple[str, ...] = SOAK_EN
     }
 
 
+def reset_options(rng: np.random.Generator, env_id: str, max_steps: int) -> dict:
+    """How a ``SemReloc-*`` episode starts, drawn: a global start (a third), a tracking start (a third) or a
+    tracking start kidnapped to a random free pose at a step within the time limit; ``"kind"`` names it (the
+    rest are the reset's options). ``SemSlam-*`` episodes start as they do (``{}``, no kind)."""
+    if not env_id.startswith("SemReloc-"):
+        return {}
+    kind = ["global", "tracking", "kidnap"][int(rng.integers(3))]
+    if kind == "global":
+        return {"kind": kind}
+    out = {"kind": kind, "tracking": True}
+    if kind == "kidnap":
+        out["kidnap_at_step"] = int(rng.integers(1, max_steps + 1))
+    return out
+
+
 def resident_mb() -> float | None:
     """This process's resident set size in MB (Linux ``/proc/self/statm``), or None where unreadable."""
     try:
@@ -303,6 +319,10 @@ def soak(
         c["mapping_runs"] += kw.get("map_source") == "mapping"
         ep_seed = int(rng.integers(0, 2**31 - 1))
         max_steps = int(rng.integers(5, episode_steps + 1))
+        start = reset_options(rng, env_id, max_steps)
+        if "kind" in start:
+            c[f"starts_{start['kind']}"] += 1
+        options = {k: v for k, v in start.items() if k != "kind"} or None
         try:
             env = gym.make(env_id, max_episode_steps=max_steps, **layout_kw, **kw)
             twin = (
@@ -310,9 +330,9 @@ def soak(
                 if c["episodes"] % twin_every == 0
                 else None
             )
-            obs, info = env.reset(seed=ep_seed)
+            obs, info = env.reset(seed=ep_seed, options=options)
             if twin is not None:
-                twin.reset(seed=ep_seed)
+                twin.reset(seed=ep_seed, options=options)
             world = env.unwrapped.world
             r = world.robot_params.radius_m
             bad_at = int(rng.integers(0, max_steps))
