@@ -209,11 +209,8 @@ class LearnedPolicy:
         self.options = option_names(options, explorer_option)
         self.explorer_option = self.options == ("explore",)
         self.seed = int(seed)
-        if not self.deterministic and getattr(model, "use_sde", False):
-            raise ValueError(
-                "a model trained with state-dependent exploration (use_sde) cannot sample from the policy's own "
-                "generator: use deterministic=True"
-            )
+        if not self.deterministic:
+            check_samplable(model)
         self._rng = np.random.default_rng(self.seed)
         self._t = 0
         self._action = None
@@ -282,6 +279,21 @@ class LearnedPolicy:
             self._action = int(action) if isinstance(self.model.action_space, spaces.Discrete) else np.asarray(action)
         self._t += 1
         return self._action
+
+
+def check_samplable(model) -> None:
+    """ValueError unless `sample_action` can draw ``model``'s actions: a policy with an action distribution
+    (DQN's has none) and no state-dependent exploration (``use_sde``, whose noise `sample_action` does not draw)."""
+    if not hasattr(model.policy, "get_distribution"):
+        raise ValueError(
+            f"sampling draws from the model's action distribution; a {type(model).__name__} policy has none: "
+            "use deterministic=True"
+        )
+    if getattr(model, "use_sde", False):
+        raise ValueError(
+            "a model trained with state-dependent exploration (use_sde) cannot sample from the policy's own "
+            "generator: use deterministic=True"
+        )
 
 
 def sample_action(model, obs, rng: np.random.Generator):

@@ -322,13 +322,9 @@ def _as_action_fn(
                 return action
 
         else:  # drawn from a generator of its own, not torch's global one (as predict samples)
-            from .learned import sample_action
+            from .learned import check_samplable, sample_action
 
-            if not hasattr(model_or_policy.policy, "get_distribution"):
-                raise ValueError(
-                    f"deterministic=False samples from the model's action distribution; a "
-                    f"{type(model_or_policy).__name__} policy has none: use deterministic=True"
-                )
+            check_samplable(model_or_policy)
             rng = np.random.default_rng(seed)
 
             def act(obs: dict):
