@@ -362,7 +362,7 @@ def test_v7_is_v6_whose_audit_searches_more_places_and_comes_first():
     _same_until_the_first_audit("SemReloc-v7", "SemReloc-v6", v7_off)
 
 
-def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
+def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing(monkeypatch):
     """v8 differs from v7 only in the mapping run behind ``map_source="mapping"`` (version 3: the camera's
     no-return beams, objects nearer than its minimum range among them, update nothing): the same relocalizer,
     the same episode bit for bit on a map that is not a mapping run's, and on a layout whose mapping drive
@@ -383,12 +383,9 @@ def test_v8_is_v7_with_maps_whose_camera_no_returns_clear_nothing():
     from semreloc_env.maps import map_key, mapped
 
     sensors = (LidarParams(), CameraParams())
-    libraries = semreloc_env.maps.mapping_libraries
-    try:  # the key's text is what it was before it named the libraries, which it now appends
-        semreloc_env.maps.mapping_libraries = lambda: ()
+    with monkeypatch.context() as m:  # the key's text is what it was before it named the libraries it appends
+        m.setattr(semreloc_env.maps, "mapping_libraries", lambda: ())
         assert map_key(get_layout("lab"), *sensors, version="2") == "0dc7b7f6ab70a8810d1b227a455888b5"
-    finally:
-        semreloc_env.maps.mapping_libraries = libraries
     versions = {"SemReloc-v12": "6", "SemReloc-v11": "5", "SemReloc-v10": "4", "SemReloc-v9": "3", "SemReloc-v8": "3"}
     versions["SemReloc-v7"] = "2"
     for env_id, version in versions.items():

@@ -39,6 +39,7 @@ import time
 import traceback
 from collections import Counter
 from dataclasses import dataclass
+from unittest import mock
 
 import gymnasium as gym
 import numpy as np
@@ -464,16 +465,11 @@ def main(argv: list[str] | None = None) -> int:
         c = soak_layouts(a.layouts, a.seed)
     else:
         # mapped maps of random layouts go to a temporary cache, not the user's
-        with tempfile.TemporaryDirectory(prefix="semreloc-soak-") as cache:
-            before = os.environ.get("SEMRELOC_CACHE_DIR")
-            os.environ["SEMRELOC_CACHE_DIR"] = cache
-            try:
-                c = soak(a.steps, a.seed, a.episode_steps, a.twin_every, a.env_ids, a.memory_growth_mb)
-            finally:
-                if before is None:
-                    del os.environ["SEMRELOC_CACHE_DIR"]
-                else:
-                    os.environ["SEMRELOC_CACHE_DIR"] = before
+        with (
+            tempfile.TemporaryDirectory(prefix="semreloc-soak-") as cache,
+            mock.patch.dict(os.environ, {"SEMRELOC_CACHE_DIR": cache}),
+        ):
+            c = soak(a.steps, a.seed, a.episode_steps, a.twin_every, a.env_ids, a.memory_growth_mb)
     fails = {k: v for k, v in c.items() if k.startswith("FAIL_")}
     for k in sorted(c, key=lambda k: (k.startswith("FAIL_"), k)):
         print(f"{k:<34} {c[k]}")
