@@ -56,7 +56,7 @@ MAPPING_RUN_VERSIONS = ("2", "3", "4", "5", "6")
   that returns cross too rarely to mark free (near and beyond the lidar's range from every surface: the middle
   of a large hall) was left unknown, so the relocalizer could neither start nor inject particles there.
   Elsewhere the maps are version 4's but for unknown cells the pass reaches (docs/maps.md, "Unobserved space").
-* ``"6"`` (``SemReloc-v12`` to ``-v16``): version 5 on a drive that also enters passages between its lattice's rows and
+* ``"6"`` (``SemReloc-v12`` to ``-v17``): version 5 on a drive that also enters passages between its lattice's rows and
   columns (`mapping_drive`'s ``narrow``): a corridor about 1 m wide could get no waypoint, so its walls were
   mapped only from its ends, in dashes that differed between two identical corridors, and the relocalizer
   read the difference as evidence for one of them (docs/maps.md, "Narrow passages").

@@ -896,3 +896,45 @@ def test_a_hold_lost_without_a_surprise_turns_the_audit_on():
     assert audited[True] > 0 and again_wrong[True] == 0 and final[True][1] < 0.5
     with pytest.raises(ValueError, match="audit_after_lost_hold needs the audit and a held convergence"):
         MCLConfig(audit_after_lost_hold=True)  # no held convergence in MCLConfig's own defaults
+
+
+def test_a_tracking_start_holds_its_pose():
+    """``hold_init_pose`` (a second outside tester's lattice hall, ``docs/layouts/outside_v16``): a tracking start
+    whose cloud splits into hypotheses is not converged, so it has no hold to lose and no surprise test armed; a
+    kidnapping by one lattice period at step 30 then goes unnoticed and the belief converges again, unaudited,
+    3 m from the truth. Holding the start's pose (the env gives the true pose) makes the start converged, and
+    losing that hold after the kidnapping turns the audit on: once the old hold is lost the belief never converges
+    at a wrong place, and it ends at the truth. (The old place stays held for a while after the kidnapping: the
+    scans there are a lattice period's look-alike.)"""
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
+
+    hall = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v16" / "t29_lattice_hall.json"
+    options = {
+        "tracking": True,
+        "pose": [8.179225017504885, 7.308997909896376, -1.2702634091238574],
+        "kidnap_at_step": 30,
+        "kidnap_pose": [11.506512095311498, 5.949443969277984, -1.3702634091238575],
+    }
+    start, wrong, final = {}, {}, {}
+    for on in (False, True):
+        policy = POLICIES["wall_follow"](6)
+        env = policy.wrap(gym.make("SemReloc-v17", layout=str(hall), relocalizer={"hold_init_pose": on}))
+        policy.reset()
+        obs, info = env.reset(seed=6, options=options)
+        start[on] = info["belief"]["converged"]
+        wrong[on], lost = 0, False
+        for t in range(1, 230):
+            obs, _, _, _, info = env.step(policy.act(obs))
+            lost = lost or (t >= 30 and not info["belief"]["converged"])
+            wrong[on] += lost and info["belief"]["converged"] and info["pose_error"]["position"] > 0.5
+        final[on] = (info["belief"]["converged"], info["pose_error"]["position"])
+    assert start == {False: False, True: True}
+    assert wrong[False] > 10 and wrong[True] == 0
+    assert final[True][0] and final[True][1] < 0.5
+    with pytest.raises(ValueError, match="hold_init_pose needs a held convergence"):
+        MCLConfig(hold_init_pose=True)  # no held convergence in MCLConfig's own defaults

@@ -327,6 +327,16 @@ class MCLConfig:
             tester's pillar hall and class-only rooms at a look-alike place in 10-40 % of episodes
             (docs/relocalizer.md, "A hold lost without a surprise"). Needs ``audit_window`` and
             ``belief.converged_hold_weight``.
+        hold_init_pose: ``init_around`` holds its ``pose`` as a converged hypothesis (``belief.converged_hold_weight``
+            decides, as after an update called converged) and arms the surprise tests, as a convergence does: a
+            tracking start is told its pose, so it is converged at that pose from the first update on, and a
+            kidnapping before the set first met the 95 % rule by itself is still noticed (a surprise, or with
+            ``audit_after_lost_hold`` a lost hold). Meant for a pose known to be right (the envs' tracking starts
+            give the true pose): a wrong ``pose`` is called converged until the hold is lost. False before
+            ``SemReloc-v17``: a tracking start whose cloud split into hypotheses (about 94 % in the heaviest) was not
+            converged, had no hold to lose and no surprise test armed, and a kidnapping then could converge again,
+            unaudited, at a look-alike place (docs/relocalizer.md, "A tracking start holds its pose").
+            Needs ``belief.converged_hold_weight``.
         surprise_own_average: the surprise test compares with an average of its own: the fast average
             (``alpha_fast``) of ``w_avg`` over every update with beams, as ``w_fast``, but restarted at a surprise and
             never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
@@ -409,6 +419,7 @@ class MCLConfig:
     audit_after_surprise: bool = False
     audit_after_surprise_once: bool = False
     audit_after_lost_hold: bool = False
+    hold_init_pose: bool = False
     surprise_own_average: bool = False
     semantic_surprise_ratio: float = 0.0
     semantic_surprise_min_beams: int = 3
@@ -509,7 +520,7 @@ class MCLConfig:
         for name in (
             "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
             "audit_screen_pause_place", "audit_after_surprise", "audit_after_surprise_once", "audit_after_lost_hold",
-            "surprise_own_average",
+            "hold_init_pose", "surprise_own_average",
         ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
@@ -533,6 +544,12 @@ class MCLConfig:
                 False,
                 "MCLConfig.audit_after_lost_hold needs the audit and a held convergence (audit_window > 0 and "
                 f"belief.converged_hold_weight set), got audit_window={self.audit_window}, "
+                f"belief.converged_hold_weight={self.belief.converged_hold_weight}",
+            )
+        if self.hold_init_pose and self.belief.converged_hold_weight is None:
+            needs["hold_init_pose"] = (
+                False,
+                "MCLConfig.hold_init_pose needs a held convergence (belief.converged_hold_weight set), got "
                 f"belief.converged_hold_weight={self.belief.converged_hold_weight}",
             )
         if self.surprise_own_average and not self.surprise_ratio > 0:
@@ -838,6 +855,9 @@ class MonteCarloLocalizer:
             pose: ``(3,)`` centre, metres / radians, within the map's extent (``GridMap.extent_m``).
             std: scalar or ``(3,)`` standard deviations ``(x m, y m, theta rad)``, >= 0.
 
+        With ``MCLConfig.hold_init_pose`` the belief holds ``pose`` as converged from here on (until the hold is
+        lost) and the surprise tests are armed.
+
         Raises:
             ValueError: a pose that is not 3 finite numbers or lies outside the map; a bad ``std``
                 or ``n``. The filter is left as it was.
@@ -867,6 +887,9 @@ class MonteCarloLocalizer:
         poses[:, 2] = wrap_angle(poses[:, 2])
         self._set(poses)
         self._reset_state()
+        if self.config.hold_init_pose:
+            self._held = np.array([p[0], p[1], wrap_angle(p[2])])
+            self._ever_converged = True
 
     def _require_particles(self) -> None:
         if self._poses.shape[0] == 0:

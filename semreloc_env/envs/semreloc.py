@@ -1,4 +1,4 @@
-"""``SemReloc-v16`` (and ``-v15`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v17`` (and ``-v16`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -131,7 +131,7 @@ start audits every convergence, as v14's. Chosen on class-only kidnappings in ``
 half-turn layout of our own; evaluated on an outside tester's four layouts (docs/relocalizer.md, "After a
 surprise, an audit until it clears")."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V15, audit_after_lost_hold=True)
+RELOCALIZER_V16 = dataclasses.replace(RELOCALIZER_V15, audit_after_lost_hold=True)
 """The relocalizer of SemReloc-v16: `RELOCALIZER_V15` in which a held convergence that ends without a surprise also
 turns the audit on in a tracking episode (`MCLConfig.audit_after_lost_hold`), as a surprise does. A kidnapping that
 neither surprise test notices (into a look-alike place whose scans differ mostly in beams without a return, or
@@ -140,6 +140,14 @@ relocalization. v15 called it unaudited, and in an outside tester's pillar hall 
 again at a look-alike place. A global start audits every convergence, as v15's: its episodes are v15's. Chosen on
 the tester's layouts; evaluated on 21 layouts of earlier testers (docs/relocalizer.md, "A hold lost without a
 surprise")."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V16, hold_init_pose=True)
+"""The relocalizer of SemReloc-v17: `RELOCALIZER_V16` whose tracking start holds the pose it is given as a converged
+hypothesis and arms the surprise tests (`MCLConfig.hold_init_pose`). v16's tracking start was often not converged
+(its cloud split, about 94 % in the heaviest hypothesis), so a kidnapping before the belief first met the 95 % rule
+by itself lost no hold, raised no surprise, and the next convergence went unaudited. A global start holds nothing,
+as v16's: its episodes are v16's. Chosen on an outside tester's layouts (docs/layouts/outside_v16); evaluated on a
+third tester's layouts (docs/relocalizer.md, "A tracking start holds its pose")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -268,7 +276,8 @@ class SemRelocEnv(SemRelocBase):
     A global episode (``tracking`` not set) ends at its first correct convergence, often before
     ``kidnap_at_step``: then no kidnap happens (``info["kidnapped"]`` stays False). To kidnap a
     localized robot, reset with ``tracking=True``. The relocalizer notices a kidnap from the scans' fit
-    (its surprise tests, armed once the belief has been converged), one that only the objects' classes reveal
+    (its surprise tests, armed from the start of a tracking episode and once the belief has been converged in a
+    global one), one that only the objects' classes reveal
     once two camera updates in a row contradict the believed classes; one into an exact look-alike goes
     unnoticed (docs/relocalizer.md, "What the surprise test cannot see", "A surprise test of the camera's own").
     When the held convergence of a kidnap it did not notice fades, the next convergence is audited all the same
@@ -278,9 +287,17 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v17: a tracking start holds the pose it is given (the true pose) as a converged hypothesis and arms the
+      surprise tests from the first update (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V16` with ``hold_init_pose``), so
+      ``info["belief"]["converged"]`` is True from the reset on while the heaviest hypothesis keeps the pose. v16's
+      tracking start was converged only once its cloud had at least 95 % in one hypothesis (often not at the
+      reset): until then a kidnapping lost no hold and raised no surprise, and the next convergence went
+      unaudited, in an outside tester's look-alike layouts at a wrong place (docs/relocalizer.md, "A tracking start
+      holds its pose"). Global episodes run as v16's. Maps, worlds, sensors, observations, rewards and info keys
+      are v16's (`SemRelocEnvV16` is v16).
     * v16: a held convergence that ends without a surprise (its hypothesis fades below the hold weight or leaves
       its place, and the belief is not converged elsewhere) turns the convergence audit on in a tracking episode, as a surprise does, and off again once it
-      has cleared a convergence (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V15` with ``audit_after_lost_hold``). A
+      has cleared a convergence (`RELOCALIZER_V16`: `RELOCALIZER_V15` with ``audit_after_lost_hold``). A
       kidnapping that neither surprise test noticed (into a look-alike place whose scans differ mostly in beams
       without a return, or before the camera's test has judged an update) ended the hold all the same, and v15
       called the next convergence unaudited: in an outside tester's pillar hall and class-only rooms it converged
@@ -711,10 +728,18 @@ def _belief_title(belief) -> str:
     return f"  best hypothesis {100 * best.weight:.0f} % (std {best.pos_std_m:.1f} m)"
 
 
-class SemRelocEnvV15(SemRelocEnv):
+class SemRelocEnvV16(SemRelocEnv):
+    """``SemReloc-v16``: `SemRelocEnv` with the relocalizer of v16 (`RELOCALIZER_V16`: a tracking start holds no
+    pose, and its surprise tests are armed only once the belief has met the 95 % rule). Otherwise identical to
+    ``SemReloc-v17``. Kept so that results made with v16 can be reproduced; new work should use ``SemReloc-v17``."""
+
+    default_relocalizer = RELOCALIZER_V16
+
+
+class SemRelocEnvV15(SemRelocEnvV16):
     """``SemReloc-v15``: `SemRelocEnv` with the relocalizer of v15 (`RELOCALIZER_V15`: a held convergence that ends
     without a surprise leaves the audit off in a tracking episode). Otherwise identical to ``SemReloc-v16``. Kept so
-    that results made with v15 can be reproduced; new work should use ``SemReloc-v16``."""
+    that results made with v15 can be reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V15
 
@@ -722,7 +747,7 @@ class SemRelocEnvV15(SemRelocEnv):
 class SemRelocEnvV14(SemRelocEnvV15):
     """``SemReloc-v14``: `SemRelocEnv` with the relocalizer of v14 (`RELOCALIZER_V14`: the audit a surprise turns on
     in a tracking episode stays on until the next reset). Otherwise identical to ``SemReloc-v15``. Kept so that
-    results made with v14 can be reproduced; new work should use ``SemReloc-v16``."""
+    results made with v14 can be reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V14
 
@@ -730,7 +755,7 @@ class SemRelocEnvV14(SemRelocEnvV15):
 class SemRelocEnvV13(SemRelocEnvV14):
     """``SemReloc-v13``: `SemRelocEnv` with the relocalizer of v13 (`RELOCALIZER_V13`: no surprise test of the
     camera's own). Otherwise identical to ``SemReloc-v14``. Kept so that results made with v13 can be reproduced;
-    new work should use ``SemReloc-v16``."""
+    new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V13
 
@@ -738,7 +763,7 @@ class SemRelocEnvV13(SemRelocEnvV14):
 class SemRelocEnvV12(SemRelocEnvV13):
     """``SemReloc-v12``: `SemRelocEnv` with the relocalizer of v12 (`RELOCALIZER_V12`: its surprise test compares
     with augmented MCL's fast average, which injections restart). Otherwise identical to ``SemReloc-v13``. Kept
-    so that results made with v12 can be reproduced; new work should use ``SemReloc-v16``."""
+    so that results made with v12 can be reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V12
 
@@ -747,7 +772,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
     """``SemReloc-v11``: `SemRelocEnvV12` with the maps of the mapping run's version 5 (a drive that skips passages
     between its lattice's rows and columns) and the relocalizer of v10 and v11 (`RELOCALIZER_V10`: no audit in
     a tracking episode, also after a surprise). Otherwise identical to ``SemReloc-v12``. Kept so that results
-    made with v11 can be reproduced; new work should use ``SemReloc-v16``."""
+    made with v11 can be reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V10
     mapping_run_version = "5"
@@ -756,7 +781,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
 class SemRelocEnvV10(SemRelocEnvV11):
     """``SemReloc-v10``: `SemRelocEnvV11` with the maps of the mapping run's version 4 (space the lidar's returns
     did not reach left unknown). Otherwise identical to ``SemReloc-v11``. Kept so that results made with v10
-    can be reproduced; new work should use ``SemReloc-v16``."""
+    can be reproduced; new work should use ``SemReloc-v17``."""
 
     mapping_run_version = "4"
 
@@ -765,7 +790,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
     """``SemReloc-v9``: `SemRelocEnvV10` with the maps of the mapping run's version 3 (stray class cells kept)
     and the relocalizer of v9 (`RELOCALIZER_V9`: the screen's pause ignores where the belief is). Otherwise
     identical to ``SemReloc-v10``. Kept so that results made with v9 can be reproduced; new work should use
-    ``SemReloc-v16``."""
+    ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V9
     mapping_run_version = "3"
@@ -774,7 +799,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
 class SemRelocEnvV8(SemRelocEnvV9):
     """``SemReloc-v8``: `SemRelocEnvV9` with the relocalizer of v7 and v8 (`RELOCALIZER_V7`: the convergence
     audit searches near its candidates and the particles only). Otherwise identical to ``SemReloc-v9``.
-    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v16``."""
+    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V7
 
@@ -783,7 +808,7 @@ class SemRelocEnvV7(SemRelocEnvV8):
     """``SemReloc-v7``: `SemRelocEnvV8` with the maps of the mapping run's version 2, whose camera beams
     without a return (objects nearer than the camera's minimum range among them) cleared the classes along
     the camera's range. Otherwise identical to ``SemReloc-v8``. Kept so that results made with v7 can be
-    reproduced; new work should use ``SemReloc-v16``."""
+    reproduced; new work should use ``SemReloc-v17``."""
 
     mapping_run_version = "2"
 
@@ -792,7 +817,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
     """``SemReloc-v6``: `SemRelocEnvV7` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
     coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
     identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
-    ``SemReloc-v16``."""
+    ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V6
 
@@ -800,7 +825,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
 class SemRelocEnvV5(SemRelocEnvV6):
     """``SemReloc-v5``: `SemRelocEnvV6` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
-    results made with v5 can be reproduced; new work should use ``SemReloc-v16``."""
+    results made with v5 can be reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V5
 
@@ -808,7 +833,7 @@ class SemRelocEnvV5(SemRelocEnvV6):
 class SemRelocEnvV4(SemRelocEnvV5):
     """``SemReloc-v4``: `SemRelocEnvV5` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
     audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
-    reproduced; new work should use ``SemReloc-v16``."""
+    reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V4
 
@@ -816,7 +841,7 @@ class SemRelocEnvV4(SemRelocEnvV5):
 class SemRelocEnvV3(SemRelocEnvV4):
     """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v16``."""
+    v3 can be reproduced; new work should use ``SemReloc-v17``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -824,7 +849,7 @@ class SemRelocEnvV3(SemRelocEnvV4):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v16``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v17``."""
 
     procedural_version = 1
 
@@ -833,7 +858,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v16``."""
+    v1 keep working; new work should use ``SemReloc-v17``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -841,6 +866,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v16``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v17``."""
 
     default_relocalizer = LEGACY_RELOCALIZER
