@@ -368,6 +368,32 @@ def _checkpoint_options(path: Path, action_space) -> tuple[str, ...]:
     )
 
 
+ALGORITHMS = ("PPO", "A2C", "DQN", "SAC", "TD3", "DDPG")
+"""The stable-baselines3 algorithms `load_model` (and so `load_policy`) loads, by class name."""
+
+
+def load_model(path: str | Path, algorithm: str = "PPO", device: str = "cpu", env=None):
+    """The stable-baselines3 ``algorithm`` model (a name of `ALGORITHMS`) saved in ``path``, on ``device``,
+    with ``env`` attached if given.
+
+    Raises:
+        ValueError: ``algorithm`` is not one of `ALGORITHMS`, or ``path`` is not a model of it (another
+            algorithm's, a damaged file, a zip of something else).
+    """
+    if algorithm not in ALGORITHMS:
+        raise ValueError(
+            f"{path}: algorithm {algorithm!r} is none of stable-baselines3's {list(ALGORITHMS)}; load the model "
+            "yourself and wrap it: agents.learned.LearnedPolicy(model, observation={...}, repeat=N)"
+        )
+    import stable_baselines3
+
+    try:
+        return getattr(stable_baselines3, algorithm).load(path, env=env, device=device)
+    except (AssertionError, AttributeError, EOFError, KeyError, TypeError, ValueError, RuntimeError,
+            zipfile.BadZipFile) as e:  # fmt: skip
+        raise ValueError(f"{path}: not a loadable stable-baselines3 {algorithm} model ({type(e).__name__}: {e})") from e
+
+
 def load_policy(
     path: str | Path,
     device: str = "cpu",
@@ -378,7 +404,9 @@ def load_policy(
     seed: int = 0,
     options: tuple[str, ...] | None = None,
 ) -> LearnedPolicy:
-    """Load a policy saved by `save_policy` (or a bare SB3 PPO checkpoint, given its settings).
+    """Load a policy saved by `save_policy` (or a bare SB3 PPO checkpoint, given its settings). The model loads
+    with the stable-baselines3 class its metadata names (``"algorithm"``: PPO, A2C, DQN, SAC, TD3 or DDPG; a
+    bare checkpoint: PPO).
 
     Args:
         path: the ``.zip``.
@@ -398,10 +426,9 @@ def load_policy(
 
     Raises:
         FileNotFoundError, ValueError: see `read_metadata`; ValueError also when the options of a
-            bare checkpoint with more than five actions cannot be known (pass ``options``).
+            bare checkpoint with more than five actions cannot be known (pass ``options``), when the
+            model does not load (`load_model`) and when ``device`` is none this machine has.
     """
-    from stable_baselines3 import PPO
-
     path = Path(path)
     if observation is None or repeat is None or (explorer_option is None and options is None):
         try:
@@ -422,9 +449,10 @@ def load_policy(
 
     check_device(device)
     try:
-        model = PPO.load(path, device=device)
-    except (AssertionError, KeyError, ValueError, RuntimeError, zipfile.BadZipFile) as e:
-        raise ValueError(f"{path}: not a loadable stable-baselines3 PPO model ({type(e).__name__}: {e})") from e
+        algorithm = read_metadata(path).get("algorithm", "PPO")
+    except ValueError:  # a bare checkpoint: train_active's and train_ppo's are PPO's
+        algorithm = "PPO"
+    model = load_model(path, algorithm, device)
     if options is None and explorer_option is None:
         options = _checkpoint_options(path, model.action_space)
     return LearnedPolicy(model, observation, repeat, deterministic, bool(explorer_option), seed, options)

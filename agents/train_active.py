@@ -43,7 +43,7 @@ from semreloc_env.wrappers import ActionRepeat
 
 from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
-from .learned import option_names, read_metadata, run_folder_of, save_policy, saved_run_config
+from .learned import load_model, option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
 from .vec_env import closing_venv
@@ -398,7 +398,7 @@ def _comparable(config: dict[str, Any]) -> dict[str, Any]:
 
 
 def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path | None = None) -> Path:
-    """The checkpoint's path; RunFolderError if it is missing, if ``out`` holds another run than the
+    """The checkpoint's path; RunFolderError if it is missing or not a PPO model, if ``out`` holds another run than the
     checkpoint's (`check_fresh_out`), or if ``config`` changes a field that shapes the policy's spaces
     (`SPACE_FIELDS`) from what the checkpoint was trained with (`run_config_of`); a changed field of
     `DISTRIBUTION_FIELDS` is printed (continuing on other layouts can be meant). Checked before any
@@ -408,6 +408,10 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
         path = path.with_suffix(".zip")
     if not path.is_file():
         raise RunFolderError(f"--resume {resume}: no such checkpoint")
+    try:  # a file of something else fails here, before a run folder or an env is made
+        load_model(path, "PPO")
+    except ValueError as e:
+        raise RunFolderError(f"--resume {resume}: not a checkpoint of a training run: {e}") from None
     if out is not None and Path(out).resolve() != run_folder_of(path).resolve():
         check_fresh_out(Path(out))
     saved = run_config_of(path)

@@ -42,9 +42,12 @@ def is_exponent_form(v: str) -> bool:
 
 
 def yaml_number_hint(v) -> str:
-    """A hint for a string written in exponent form, which YAML 1.1 (PyYAML) reads as a number only
-    with a dot and a signed exponent (``1.0e-3``, ``1.0e+3``; ``1e-3`` and ``1.0e3`` are strings);
-    "" for anything else. For error messages about YAML files."""
+    """A hint for a value YAML 1.1 (PyYAML) read otherwise than a number was meant: a boolean (``no``,
+    ``yes``, ``off``, ``on`` are booleans), or a string written in exponent form, which YAML 1.1 reads as a
+    number only with a dot and a signed exponent (``1.0e-3``, ``1.0e+3``; ``1e-3`` and ``1.0e3`` are
+    strings); "" for anything else. For error messages about YAML files."""
+    if isinstance(v, bool):
+        return " (YAML reads yes/no, on/off and true/false as booleans: write a number)"
     if not (isinstance(v, str) and is_exponent_form(v)):
         return ""
     return (

@@ -239,6 +239,13 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     assert not (tmp_path / "new").exists()
     assert tool.main(["--out", str(out), "--config.particles", "100"]) == 2
     assert "holds a training run already" in capsys.readouterr().err
+    # an outside tester's trial: a file that is no checkpoint gave a traceback after the envs were built
+    (tmp_path / "notes.txt").write_text("not a checkpoint")
+    with pytest.raises(RunFolderError, match="notes.txt: not a checkpoint of a training run"):
+        check_resume(tmp_path / "notes.txt", config)
+    argv = ["--out", str(tmp_path / "resumed"), "--resume", str(tmp_path / "notes.txt")]
+    assert tool.main(argv) == 2 and not (tmp_path / "resumed").exists()
+    assert "not a checkpoint of a training run" in capsys.readouterr().err
 
 
 def test_resume_compares_layout_files_by_path_not_spelling(monkeypatch, tmp_path):
@@ -389,6 +396,17 @@ def test_evaluate_active_runs_a_learned_policy_and_reuses_earlier_rows(smoke_run
     assert strip[0] == strip[1] and all(r["settings"]["sample_learned"] for r in d)
     with pytest.raises(SystemExit):
         ev.main(["--policies", f"ppo={tmp_path / 'nope.zip'}"])
+    # an outside tester's trial: a saved policy whose spaces do not fit the env failed in the first episode,
+    # with a traceback, and lost the other policies' episodes; now it is refused before any episode
+    other = tmp_path / "other.zip"
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(other, "w") as dst:
+        for member in src.namelist():
+            meta = json.loads(src.read(member)) if member == META_NAME else None
+            if meta is not None:
+                meta["observation"] = {**meta["observation"], "ego_size": 48}
+            dst.writestr(member, src.read(member) if meta is None else json.dumps(meta))
+    assert ev.main([*common, "--policies", "spin", f"other={other}", "--out", str(tmp_path / "f")]) == 2
+    assert not (tmp_path / "f").exists()
 
 
 def test_shipped_policy_loads_and_acts():
@@ -598,6 +616,35 @@ def test_a_policy_of_continuous_actions_wraps_a_continuous_env(tmp_path):
     a = np.asarray(policy.act(obs), dtype=np.float32)
     assert env.action_space.contains(a)  # SB3 clips a Box policy's actions to the space
     env.step(a)
+
+
+def test_a_policy_of_another_algorithm_loads_with_its_own_class(tmp_path):
+    # an outside tester's trial: a DQN saved with save_policy failed in PPO.load with a traceback
+    from stable_baselines3 import DQN
+
+    from agents.learned import save_policy
+
+    model = DQN("MultiInputPolicy", ActiveObservation(_env()), buffer_size=16, learning_starts=0, seed=0,
+                policy_kwargs={"features_extractor_class": ActiveExtractor,
+                               "features_extractor_kwargs": {"features_dim": 16, "cnn_channels": (4, 4, 4)},
+                               "net_arch": [8]})  # fmt: skip
+    path = save_policy(model, tmp_path / "dqn.zip", observation={}, repeat=2)
+    assert read_metadata(path)["algorithm"] == "DQN"
+    policy = load_policy(path)
+    assert isinstance(policy.model, DQN)
+    env = policy.wrap(_env())
+    policy.reset()
+    obs, _ = env.reset(seed=0)
+    assert env.action_space.contains(policy.act(obs))
+    with pytest.raises(ValueError, match="DQN policy has none"):  # sampling needs an action distribution
+        load_policy(path, deterministic=False)
+    other = tmp_path / "other.zip"
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(other, "w") as dst:
+        for member in src.namelist():
+            meta = {**json.loads(src.read(member)), "algorithm": "MyAlgo"} if member == META_NAME else None
+            dst.writestr(member, src.read(member) if meta is None else json.dumps(meta))
+    with pytest.raises(ValueError, match=r"algorithm 'MyAlgo' is none of stable-baselines3's.*LearnedPolicy\(model"):
+        load_policy(other)
 
 
 def test_resume_never_overwrites_an_earlier_run_and_keeps_the_checkpoints_settings(smoke_run, tmp_path, capsys):

@@ -1,4 +1,5 @@
 import csv
+import json
 import math
 import tempfile
 
@@ -329,6 +330,20 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
     with pytest.raises(SystemExit) as e:
         mod.main(small)
     assert e.value.code == 2 and "holds a training run already" in capsys.readouterr().err
+    assert (run / "model.zip").read_bytes() == before
+    # an outside tester's trial: --load on another layout appended "same env options" to results.md
+    reeval = [*small, "--load", str(run / "model.zip"), "--layout", "twin_rooms"]
+    mod.run(parse(mod.Args, reeval), reeval)
+    assert "note: evaluating with env options layout 'twin_rooms'" in capsys.readouterr().err
+    assert "**other than its training run's**: layout 'lab'" in (run / "results.md").read_text()
+    same = [*small, "--load", str(run / "model.zip")]
+    mod.run(parse(mod.Args, same), same)
+    table = mod.results_table(json.loads((run / "results_reeval.json").read_text())["results"])
+    expected = (
+        "the env options of its training run (layout 'lab', lidar_only False, map_source 'perfect', n_particles 200, "
+        f"max_episode_steps 10).\n\n{table}"
+    )
+    assert (run / "results.md").read_text().endswith(expected)
     assert (run / "model.zip").read_bytes() == before
 
 

@@ -438,6 +438,17 @@ class NoAct(Policy):
 class Bad(Policy):
     def act(self, obs):
         return 7
+
+
+class LateNaN(Policy):
+    """Turns left, then sends NaN at its third step (a bug that shows only within an episode)."""
+
+    def reset(self):
+        self.t = 0
+
+    def act(self, obs):
+        self.t += 1
+        return 1 if self.t < 3 else float("nan")
 '''
 
 
@@ -477,8 +488,26 @@ def test_a_users_own_policy_class_is_evaluated_and_its_edits_rerun(tmp_path, cap
     assert "reused 6 episodes" in capsys.readouterr().out
     ev.policy_code.cache_clear()
     bad = f"bad={tmp_path / 'mine' / 'mypol.py'}:Bad"  # an invalid action names the policy and the case
-    with pytest.raises(ValueError, match=r"policy 'bad' on case 0 \(twin_rooms\): .*invalid action 7"):
-        ev.run_case((ev.build_cases(ev.Args(layouts_per_kind=0, starts=1))[0], (bad,), ev.Args(policies=(bad,))))
+    case = ev.build_cases(ev.Args(layouts_per_kind=0, starts=1))[0]
+    with pytest.raises(ValueError, match=r"policy 'bad' on case 0 \(twin_rooms\), step 1: .*invalid action 7"):
+        ev.run_episode(case, bad, ev.Args(policies=(bad,)))
+    (row,) = ev.run_case((case, (bad,), ev.Args(policies=(bad,))))  # one policy's failure is its row's
+    assert row["policy"] == "bad" and "invalid action 7" in row["error"]
+    out = tmp_path / "refused"  # refused before any episode, naming the policy
+    assert ev.main([*common[:3], bad, *common[3:], "--out", str(out)]) == 2 and not out.exists()
+    assert "policies: bad=" in capsys.readouterr().err
+    # an outside tester's trial: a policy failing within an episode cost every other policy's episodes
+    late = f"late={tmp_path / 'mine' / 'mypol.py'}:LateNaN"
+    argv = [*common[:3], late, *common[3:], "--max-steps", "5", "--out", str(tmp_path / "g")]
+    assert ev.main(argv) == 1
+    err = capsys.readouterr().err
+    assert "policy 'late' failed" in err and "step 3" in err and f"--reuse {tmp_path / 'g'}" in err
+    rows = json.loads((tmp_path / "g" / "episodes.json").read_text())
+    assert {r["policy"] for r in rows} == {"spin", "left"} and len(rows) == 6
+    assert "late" not in json.loads((tmp_path / "g" / "summary.json").read_text())["all"]
+    (tmp_path / "file.txt").write_text("x")
+    with pytest.raises(ValueError, match="is a file; the outputs go into a folder"):
+        ev.Args(policies=("spin",), out=str(tmp_path / "file.txt"))
     for bad, match in [
         (f"x={tmp_path / 'mine' / 'mypol.py'}:broken", r"lacks \['wrap', 'reset', 'act'\]"),
         (f"x={tmp_path / 'mine' / 'mypol.py'}:NoAct", r"NoAct lacks \['act'\]"),

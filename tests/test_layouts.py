@@ -152,6 +152,9 @@ def test_malformed_layouts_name_the_entry(data, match):
         ({"class": "chair", "center": ["1e-3", 1], "size": [1, 1]}, r"center: .*str '1e-3'.*write 1\.0e-3"),
         ({"class": "chair", "center": ["1.0e0", 1], "size": [1, 1]}, r"'1.0e0' \(YAML .*signed exponent"),
         ({"class": "chair", "center": [1, 1], "size": [1, 1], "angle_rad": "1e-3"}, r"angle_rad.*'1e-3' \(YAML"),
+        # an outside tester's YAML file: `angle_rad: no` read as False, and the message said only "got False"
+        ({"class": "chair", "center": [1, 1], "size": [1, 1], "angle_rad": False}, r"got False \(YAML reads yes/no"),
+        ({"class": "chair", "center": [True, 1], "size": [1, 1]}, r"got bool True \(YAML reads yes/no"),
         ({"class": "chair", "center": ["nan", 1], "size": [1, 1]}, r"got str 'nan'$"),
         ({"class": "chair", "polygon": np.array(0.5)}, r"objects\[0\]: expected a list of \[x, y\] points"),
         ({"class": "chair", "polygon": [[1, 1], [2, 1], [2]]}, r"objects\[0\]\[2\]: expected an \[x, y\] point"),

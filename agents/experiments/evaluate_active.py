@@ -213,6 +213,8 @@ class Args:
         names = [x.partition("=")[0] for x in self.policies]
         if len(set(names)) < len(names) or not all(names):
             raise ValueError(f"policies: names must be unique and non-empty, got {names}")
+        if Path(self.out).exists() and not Path(self.out).is_dir():
+            raise ValueError(f"out: {self.out!r} is a file; the outputs go into a folder")
         missing = [d for d in self.reuse if not (Path(d) / "episodes.json").is_file()]
         if missing:
             raise ValueError(f"reuse: no episodes.json in {missing}")
@@ -413,59 +415,96 @@ def build_cases(args: Args) -> list[dict]:
 
 # ---------------------------------------------------------------------- episodes
 def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
-    """Every policy on one (layout, start) pair."""
-    from agents.metrics import EpisodeTracker
-
+    """Every policy on one (layout, start) pair: a row per policy (`run_episode`), or for a policy that failed
+    on this pair ``{"case", "policy", "error"}`` (its message names the policy and the case), so that one
+    policy's failure does not cost the others' episodes."""
     case, policies, args = job
     rows = []
     for spec in policies:
-        name = spec.partition("=")[0]
-        env = case_env(case, args)
+        try:
+            rows.append(run_episode(case, spec, args))
+        except Exception as e:  # a user's class or a saved model can fail in any way: keep the message
+            rows.append({"case": case["case"], "policy": spec.partition("=")[0], "error": str(e)})
+    return rows
+
+
+def run_episode(case: dict, spec: str, args: Args) -> dict:
+    """One episode of policy ``spec`` on ``case``: its row of episodes.json.
+
+    Raises:
+        ValueError: the policy cannot be built with the case's seed, or the env refused its action (the
+            message names the policy and the case); whatever else the policy raises, with the same prefix.
+    """
+    from agents.metrics import EpisodeTracker
+
+    name = spec.partition("=")[0]
+    where = f"policy {name!r} on case {case['case']} ({case['kind']})"
+    env = case_env(case, args)
+    try:
         try:
             policy = make_policy(spec, case["episode_seed"], args.sample_learned)
         except Exception as e:  # a user's constructor that fails for this seed
             raise ValueError(
-                f"policy {name!r} on case {case['case']}: cannot build it with seed {case['episode_seed']}: "
-                f"{type(e).__name__}: {e}"
+                f"{where}: cannot build it with seed {case['episode_seed']}: {type(e).__name__}: {e}"
             ) from None
-        env = policy.wrap(env)
-        policy.reset()
         tracker = EpisodeTracker()
-        obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
-        tracker.observe(info, is_step=False)
         collisions = 0
         t0 = time.perf_counter()
         actions: dict[str, int] = {}  # discrete actions taken (for learned policies: options included)
-        while True:
-            action = policy.act(obs)
-            try:
+        try:
+            env = policy.wrap(env)
+            policy.reset()
+            obs, info = env.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+            tracker.observe(info, is_step=False)
+            while True:
+                action = policy.act(obs)
                 obs, reward, term, trunc, info = env.step(action)
-            except ValueError as e:  # the env refused the action: say whose, and where
-                raise ValueError(f"policy {name!r} on case {case['case']} ({case['kind']}): {e}") from None
-            key = str(int(action)) if isinstance(action, (int, np.integer)) else motion_kind(action)
-            actions[key] = actions.get(key, 0) + 1
-            tracker.observe(info, reward)
-            collisions += bool(info["collided"])
-            if term or trunc:
-                break
-        res = tracker.finish()
-        rows.append(
-            {
-                **case,
-                "policy": name,
-                "outcome": res.outcome,
-                "length": res.length,
-                "steps_to_success": res.steps_to_converge,
-                "first_convergence_wrong": res.first_convergence_wrong,
-                "collisions": collisions,
-                "final_position_error_m": res.final_position_error_m,
-                "seconds": time.perf_counter() - t0,
-                "actions": actions,
-                "settings": settings(args, spec),
-            }
-        )
+                key = str(int(action)) if isinstance(action, (int, np.integer)) else motion_kind(action)
+                actions[key] = actions.get(key, 0) + 1
+                tracker.observe(info, reward)
+                collisions += bool(info["collided"])
+                if term or trunc:
+                    break
+        except ValueError as e:  # the env refused the action, or the policy its observation: say whose, and where
+            raise ValueError(f"{where}, step {tracker.length + 1}: {e}") from None
+        except Exception as e:
+            raise RuntimeError(f"{where}, step {tracker.length + 1}: {type(e).__name__}: {e}") from e
+    finally:
         env.close()
-    return rows
+    res = tracker.finish()
+    return {
+        **case,
+        "policy": name,
+        "outcome": res.outcome,
+        "length": res.length,
+        "steps_to_success": res.steps_to_converge,
+        "first_convergence_wrong": res.first_convergence_wrong,
+        "collisions": collisions,
+        "final_position_error_m": res.final_position_error_m,
+        "seconds": time.perf_counter() - t0,
+        "actions": actions,
+        "settings": settings(args, spec),
+    }
+
+
+def check_policy_runs(spec: str, case: dict, args: Args) -> None:
+    """ValueError unless policy ``spec`` builds with ``case``'s seed, wraps ``case``'s env, and takes a first
+    step in it: a saved model whose spaces do not fit the env (another action space, algorithm or sensor) or a
+    class of your own that fails at once is refused before any episode runs."""
+    env = case_env(case, args)
+    try:
+        policy = make_policy(spec, case["episode_seed"], args.sample_learned)
+        wrapped = policy.wrap(env)
+        policy.reset()
+        obs, _ = wrapped.reset(seed=case["episode_seed"], options={"pose": case["start"]})
+        wrapped.step(policy.act(obs))
+    except Exception as e:  # anything a user's class or a saved model raises: name it, no traceback
+        raise ValueError(
+            f"policies: {spec}: fails on its first step of case {case['case']} ({case['kind']}): "
+            f"{type(e).__name__}: {e}"
+        ) from None
+    finally:
+        env.close()
 
 
 def motion_kind(action) -> str:
@@ -997,6 +1036,12 @@ def main(argv: list[str] | None = None) -> int:
         return usage_error(
             "evaluate_active", f"--gif-case {args.gif_case} is not a case (there are {len(cases)}, 0-{len(cases) - 1})"
         )
+    for spec in specs:  # a saved model or a class of your own that cannot even start is an argument error
+        if "=" in spec:
+            try:
+                check_policy_runs(spec, cases[0], args)
+            except ValueError as e:
+                return usage_error("evaluate_active", e)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     n_unin = sum(c["uninformative"] for c in cases)
@@ -1038,6 +1083,19 @@ def main(argv: list[str] | None = None) -> int:
     on_result = report if args.runner.progress else None  # --no-progress: nothing per pair
     for r in run_jobs(run_case, jobs, args.runner, desc="pairs", on_result=on_result):  # results in job order
         rows += r
+    failed: dict[str, str] = {}  # policy -> its first error; its episodes are left out, the others' written
+    for r in rows:
+        if "error" in r:
+            failed.setdefault(r["policy"], r["error"])
+    if failed:
+        rows = [r for r in rows if r["policy"] not in failed]
+        specs = [s for s in specs if s.partition("=")[0] not in failed]
+        policies = [p for p in policies if p not in failed]
+        for name, message in failed.items():
+            print(f"evaluate_active: policy {name!r} failed, its episodes are left out: {message}", file=sys.stderr)
+        if not policies:
+            print("evaluate_active: no policy finished; nothing written", file=sys.stderr)
+            return 1
     rows.sort(key=lambda r: (r["case"], policies.index(r["policy"])))
     summary = {
         g: {p: summarise([r for r in rs if r["policy"] == p]) for p in policies} for g, rs in groups(rows).items()
@@ -1064,7 +1122,15 @@ def main(argv: list[str] | None = None) -> int:
     print(table({"all": summary["all"]}, policies))
     if comparisons:
         print(paired_table(comparisons))
-    print(f"wrote {out}/table.md, success.png, summary.json, episodes.json ({time.time() - t0:.0f} s)")
+    gifs = "".join(f", gif_{p}.gif" for p in policies) if 0 <= args.gif_case < len(cases) else ""
+    print(f"wrote {out}/table.md, success.png, summary.json, episodes.json{gifs} ({time.time() - t0:.0f} s)")
+    if failed:
+        print(
+            f"evaluate_active: {', '.join(map(repr, failed))} left out; after fixing, `--reuse {out}` keeps the "
+            "other policies' episodes",
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 

@@ -76,7 +76,8 @@ class Args:
     doc: str = ""
     """also write the report to this Markdown file, which must not exist yet ('' to skip; --load appends)"""
     load: str = ""
-    """skip training: evaluate this saved model.zip (trained with the same env options) and append the
+    """skip training: evaluate this saved model.zip with the env options given (the report says where they
+    differ from those its run's results.json records) and append the
     table under a 'Re-evaluation' heading to results.md in --config.log-dir (the model's own run folder only
     if that is the one given) and to --doc, instead of rewriting them"""
 
@@ -109,6 +110,40 @@ class Args:
     def out(self) -> Path:
         """The run's folder (``config.log_dir``)."""
         return Path(str(self.config.log_dir))
+
+
+ENV_OPTIONS = ("layout", "lidar_only", "map_source", "n_particles", "max_episode_steps")
+"""The fields of `Args` that make the env (`env_kwargs_of`)."""
+
+
+def trained_env_options(model: str | Path) -> dict | None:
+    """The env options (`ENV_OPTIONS`) of the run that saved ``model``, from the ``results.json`` of its run
+    folder (the model's folder, or the one above for ``checkpoints/`` and ``eval/``); None if none says."""
+    model = Path(model)
+    for folder in (model.parent, model.parent.parent):
+        f = folder / "results.json"
+        try:
+            saved = json.loads(f.read_text())["args"]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if isinstance(saved, dict) and all(k in saved for k in ENV_OPTIONS):
+            return {k: saved[k] for k in ENV_OPTIONS}
+    return None
+
+
+def env_options_note(args: Args) -> str:
+    """How ``--load``'s env options compare with those the model was trained with (`trained_env_options`)."""
+    now = {k: getattr(args, k) for k in ENV_OPTIONS}
+    listed = ", ".join(f"{k} {v!r}" for k, v in now.items())
+    trained = trained_env_options(args.load)
+    if trained is None:
+        return f"env options {listed} (the model's training options are unknown: no results.json beside it)"
+    differ = {k: trained[k] for k in ENV_OPTIONS if trained[k] != now[k]}
+    if not differ:
+        return f"the env options of its training run ({listed})"
+    return f"env options {listed}; **other than its training run's**: " + ", ".join(
+        f"{k} {v!r}" for k, v in differ.items()
+    )
 
 
 def env_kwargs_of(args: Args) -> dict:
@@ -179,6 +214,9 @@ def run(args: Args, argv: list[str] | None = None) -> dict:
 
         model, train_s = PPO.load(args.load, device=config.device), 0.0
         print(f"[train_ppo] loaded {args.load}", file=sys.stderr, flush=True)
+        note = env_options_note(args)
+        if "other than" in note:
+            print(f"[train_ppo] note: evaluating with {note.replace('**', '')}", file=sys.stderr, flush=True)
     else:
         print(
             f"[train_ppo] training PPO for {config.total_timesteps} steps on {env_kwargs}", file=sys.stderr, flush=True
@@ -234,7 +272,7 @@ def _append_reevaluation(path: Path, args: Args, command: str, table: str) -> No
 ```
 
 {args.eval_episodes} episodes per policy, seeds `{args.eval_seed}` to `{args.eval_seed + args.eval_episodes - 1}`,
-same env options.
+{env_options_note(args)}.
 
 {table}"""
     with path.open("a") as f:
