@@ -25,6 +25,7 @@ doorway closes it. Openings are gaps between ``walls``. A ``block`` is solid spa
 its edges are walls to every sensor (the camera labels them 0, as walls), and no robot is placed
 inside it (walls alone that enclose a space leave it free, so starts could be drawn in a sealed room).
 Every problem found raises `LayoutError` naming the offending entry.
+The user guide, with a worked example and the error messages: docs/layouts.md.
 """
 
 from __future__ import annotations
