@@ -74,6 +74,23 @@ def twin_image(layout: str, pose) -> list[float]:
     return [2.0 * cx - x, 2.0 * cy - y, math.atan2(math.sin(th + math.pi), math.cos(th + math.pi))]
 
 
+LOOKALIKE_MIN_DISTANCE_M = 3.0
+"""How far from the pose a ``*_lookalike_kidnap`` teleport goes at least (m)."""
+
+
+def lookalike_kidnap_pose(env, pose, seed: int):
+    """The `semreloc_env.lookalike.Lookalike` a ``*_lookalike_kidnap`` episode teleports to: the place at least
+    `LOOKALIKE_MIN_DISTANCE_M` from ``pose`` whose all-round view within the env's lidar and camera ranges is
+    most like ``pose``'s, searched with a generator seeded by ``seed`` + 7919 (apart from the episode's own)."""
+    from semreloc_env.lookalike import lookalike_pose
+
+    u = env.unwrapped
+    return lookalike_pose(
+        u.world, pose, np.random.default_rng(seed + 7919), min_distance_m=LOOKALIKE_MIN_DISTANCE_M,
+        max_range_m=u.lidar.params.range_max_m, camera_range_m=u.camera.params.range_max_m,
+    )  # fmt: skip
+
+
 @dataclass(frozen=True)
 class EpisodeSpec:
     """One evaluation episode. ``mcl`` holds ``MCLConfig`` overrides (applied to the env's
@@ -98,9 +115,10 @@ class EpisodeSpec:
     label: str = ""
     kidnap_after_global: bool = False
     kidnap_to_twin: bool = False
+    kidnap_to_lookalike: bool = False
 
     def __post_init__(self) -> None:
-        for name in ("tracking", "kidnap_after_global", "kidnap_to_twin"):
+        for name in ("tracking", "kidnap_after_global", "kidnap_to_twin", "kidnap_to_lookalike"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"EpisodeSpec.{name} must be True or False, got {getattr(self, name)!r:.60}")
         if not is_int(self.n_steps) or self.n_steps < 1:
@@ -128,6 +146,12 @@ class EpisodeSpec:
                 raise ValueError(
                     f"EpisodeSpec.kidnap_to_twin needs a layout of {sorted(TWIN_CENTRES)}, got {self.layout!r:.60}"
                 )
+        if self.kidnap_to_lookalike and (self.kidnap_at_step < 2 or self.kidnap_after_global or self.kidnap_to_twin):
+            raise ValueError(
+                "EpisodeSpec.kidnap_to_lookalike needs a tracking start and kidnap_at_step >= 2 (the pose after step "
+                f"kidnap_at_step - 1 is matched), and not kidnap_to_twin, got kidnap_at_step={self.kidnap_at_step}, "
+                f"kidnap_after_global={self.kidnap_after_global}, kidnap_to_twin={self.kidnap_to_twin}"
+            )
         if self.kidnap_at_step > self.n_steps:
             raise ValueError(
                 f"EpisodeSpec.kidnap_at_step {self.kidnap_at_step} is after the last step (n_steps {self.n_steps}): "
@@ -144,6 +168,8 @@ class EpisodeSpec:
             return name + "_global_kidnap"
         if self.kidnap_to_twin:
             return name + "_twin_kidnap"
+        if self.kidnap_to_lookalike:
+            return name + "_lookalike_kidnap"
         return name + ("_kidnap" if self.kidnap_at_step else "_tracking" if self.tracking else "")
 
     @property
@@ -255,12 +281,17 @@ def run_episode(spec: EpisodeSpec) -> dict:
     )
     k = spec.kidnap_at_step
     options = spec.reset_options
-    if spec.kidnap_to_twin:  # the episode is deterministic: its first k - 1 steps say where the robot will be
+    if spec.kidnap_to_twin or spec.kidnap_to_lookalike:
+        # the episode is deterministic: its first k - 1 steps say where the robot will be
         obs, info = env.reset(seed=spec.seed, options={"tracking": True})
         policy = make_policy(spec.policy, spec.seed)
         for _ in range(k - 1):
             obs, _, _, _, info = env.step(policy(obs))
-        options = {**options, "kidnap_pose": twin_image(spec.layout, info["pose"])}
+        if spec.kidnap_to_twin:
+            target = twin_image(spec.layout, info["pose"])
+        else:
+            target = lookalike_kidnap_pose(env, info["pose"], spec.seed).pose.tolist()
+        options = {**options, "kidnap_pose": target}
     obs, info = env.reset(seed=spec.seed, options=options)
     cfg = env.mcl_config
     policy = make_policy(spec.policy, spec.seed)

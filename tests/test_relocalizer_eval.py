@@ -46,6 +46,9 @@ def test_row_names_and_reset_options():
         ({"kidnap_to_twin": True, "layout": "twin_rooms"}, "kidnap_to_twin needs a tracking start"),
         ({"kidnap_to_twin": True, "layout": "twin_rooms", "kidnap_at_step": 1}, "kidnap_at_step >= 2"),
         ({"kidnap_to_twin": 1, "layout": "twin_rooms", "kidnap_at_step": 30}, "kidnap_to_twin must be True or False"),
+        ({"kidnap_to_lookalike": True}, "kidnap_to_lookalike needs a tracking start"),
+        ({"kidnap_to_lookalike": True, "kidnap_at_step": 1}, "kidnap_at_step >= 2"),
+        ({"kidnap_to_lookalike": True, "kidnap_at_step": 5, "kidnap_after_global": True}, "needs a tracking start"),
     ],
 )
 def test_bad_specs_are_refused(kwargs, match):
@@ -93,6 +96,36 @@ def test_a_global_kidnap_spec_starts_global_and_teleports_at_k_also_after_termin
     for name in ("reconverged_wrong", "converged_at_kidnap"):
         assert isinstance(out[name], bool)
     assert out["recovery_steps"] >= 0 and out["stale_audits"] >= 0
+
+
+def test_a_lookalike_kidnap_teleports_to_the_place_that_looks_most_like_the_pose_before_it():
+    """``<layout>_lookalike_kidnap``: tracking, then at step 30 a teleport to `lookalike_kidnap_pose` of the pose
+    after step 29; in ``twin_rooms`` that is the half-turned image (the same walls and shapes, other classes)."""
+    from agents.relocalizer_eval import lookalike_kidnap_pose
+    from semreloc_env.envs.semreloc import SemRelocEnv
+    from semreloc_env.lookalike import view_mismatch
+
+    (spec,) = specs_for("twin_rooms_lookalike_kidnap", 1, 3, [0], {}, "after")
+    expected = ("twin_rooms_lookalike_kidnap", "twin_rooms", 30, 230)
+    assert (spec.row, spec.layout, spec.kidnap_at_step, spec.n_steps) == expected
+    assert spec.kidnap_to_lookalike and not spec.kidnap_to_twin
+    assert "twin_rooms_lookalike_kidnap" not in Args().rows  # not a default row
+    short = EpisodeSpec(**{**spec.__dict__, "n_steps": 32})
+    out = run_episode(short)
+    again = run_episode(short)
+    assert {k: v for k, v in out.items() if k != "cpu_s_per_step"} == {
+        k: v for k, v in again.items() if k != "cpu_s_per_step"
+    }  # the search is seeded by the episode
+    env = SemRelocEnv(layout="twin_rooms")
+    obs, info = env.reset(seed=short.seed, options={"tracking": True})
+    policy = make_policy(short.policy, short.seed)
+    for _ in range(29):
+        obs, _, _, _, info = env.step(policy(obs))
+    found = lookalike_kidnap_pose(env, info["pose"], short.seed)
+    assert out["kidnapped_at"] == 30 and out["kidnap_pose"] == found.pose.tolist()
+    # this pose lies 0.2 m from the rooms' shared wall, its half-turned image 1.25 m away: too near to be a kidnap
+    assert math.dist(info["pose"][:2], twin_image("twin_rooms", info["pose"])[:2]) < 3.0 <= found.distance_m
+    assert view_mismatch(env.world, info["pose"], found.pose) == pytest.approx(found.mismatch_m, abs=0.02)
 
 
 def test_a_twin_kidnap_teleports_to_the_half_turned_image_of_the_pose_before_it():
@@ -220,9 +253,10 @@ def test_summary_and_tables_carry_the_kidnap_columns():
 # ------------------------------------------------------------------ layout files of your own
 
 
-def test_layout_files_add_three_rows_named_by_the_file(tmp_path):
-    """``--layout-files``: a global, a tracking-then-kidnap and a global-then-kidnap row per file, named by its
-    stem; the episodes run on the file's layout and the table has the rows."""
+def test_layout_files_add_four_rows_named_by_the_file(tmp_path):
+    """``--layout-files``: a global, a tracking-then-kidnap, a tracking-then-look-alike-kidnap and a
+    global-then-kidnap row per file, named by its stem; the episodes run on the file's layout and the table has
+    the rows."""
     import json
     import shutil
 
@@ -232,7 +266,7 @@ def test_layout_files_add_three_rows_named_by_the_file(tmp_path):
     shutil.copy(TWIN_OFFICES, path)
     files, rows = er.file_rows([path])
     assert files == {"my_offices": str(path)}
-    assert rows == ["my_offices", "my_offices_kidnap", "my_offices_global_kidnap"]
+    assert rows == ["my_offices", "my_offices_kidnap", "my_offices_lookalike_kidnap", "my_offices_global_kidnap"]
     (s,) = specs_for("my_offices_global_kidnap", 1, 0, [0], {}, "after", files)
     assert (s.layout, s.row, s.kidnap_after_global) == (str(path), "my_offices_global_kidnap", True)
     out = tmp_path / "out"

@@ -9,7 +9,9 @@ episode ``i`` with seed ``--seed-base + i``. Rows: the built-in layouts, the cha
 step 150, 200 steps after it), a class-only kidnap row (``twin_rooms_twin_kidnap``: tracking, then a
 teleport at step 30 to the half-turned image of the pose in the other room, whose walls and furniture
 shapes are the same and whose classes differ) and a tracking row (300 steps from the true pose: error and step
-time). ``--layout-files`` adds a global, a kidnap and a global-kidnap row for each layout file of yours.
+time). Not by default: a look-alike kidnap row of any layout (``<layout>_lookalike_kidnap``: tracking, then a
+teleport at step 30 to the place at least 3 m away whose all-round view is most like the pose's). ``--layout-files``
+adds a global, a kidnap, a look-alike kidnap and a global-kidnap row for each layout file of yours.
 
 Tuning and reporting use disjoint seeds: defaults were chosen with ``--seed-base 5000
 --sym-seeds 100 101 102 103 104``; the report in docs/relocalizer_eval.md uses the defaults below.
@@ -59,11 +61,16 @@ GLOBAL_KIDNAP_STEP = 150
 TWIN_KIDNAP_ROWS = ("twin_rooms_twin_kidnap",)
 """Tracking, then a teleport at step 30 to the half-turned image of the pose: a kidnap only the classes reveal."""
 TRACKING_ROWS = ("lab_tracking",)
+LOOKALIKE_SUFFIX = "_lookalike_kidnap"
+"""A row ``<layout>_lookalike_kidnap``: tracking, then a teleport at step 30 to the place at least 3 m away whose
+all-round view is most like the pose's (`agents.relocalizer_eval.lookalike_kidnap_pose`); any layout, not a
+default row."""
 
 
 def row_layout(row: str, files: dict[str, str] | None = None) -> tuple[str, str]:
     """``(base, layout)`` of a row: its name without the kind's suffix, and the layout (name or file) it runs."""
-    base = row.removesuffix("_global_kidnap").removesuffix("_twin_kidnap").removesuffix("_kidnap")
+    base = row.removesuffix("_global_kidnap").removesuffix("_twin_kidnap").removesuffix(LOOKALIKE_SUFFIX)
+    base = base.removesuffix("_kidnap")
     base = base.removesuffix("_tracking")
     return base, "lab" if base == "lab_changed" else (files or {}).get(base, base)
 
@@ -74,6 +81,7 @@ def specs_for(
     """The ``n`` episodes of ``row`` for one variant; ``files``: ``{row name: layout file}`` of `file_rows`."""
     global_kidnap = row.endswith("_global_kidnap")
     twin = row.endswith("_twin_kidnap")
+    lookalike = row.endswith(LOOKALIKE_SUFFIX)
     kidnap = row.endswith("_kidnap") and not global_kidnap
     tracking = row.endswith("_tracking")
     base, layout = row_layout(row, files)
@@ -94,6 +102,7 @@ def specs_for(
                 label=label,
                 kidnap_after_global=global_kidnap,
                 kidnap_to_twin=twin,
+                kidnap_to_lookalike=lookalike,
             )
         )
     return out
@@ -101,7 +110,8 @@ def specs_for(
 
 def file_rows(paths) -> tuple[dict[str, str], list[str]]:
     """``({row name: path}, rows)`` of ``--layout-files``: per file, named by its file name's stem, a global row,
-    a tracking-then-kidnap row (``*_kidnap``) and a global-then-kidnap row (``*_global_kidnap``).
+    a tracking-then-kidnap row (``*_kidnap``), a tracking-then-look-alike-kidnap row (``*_lookalike_kidnap``) and a
+    global-then-kidnap row (``*_global_kidnap``).
 
     Raises:
         ValueError: a file that is not a valid layout (the message names it and the entry), two files with one
@@ -127,7 +137,7 @@ def file_rows(paths) -> tuple[dict[str, str], list[str]]:
         except (LayoutError, ValueError, OSError) as e:
             raise ValueError(f"layout file {path!r}: {e}") from None
         files[stem] = path
-    rows = [r for stem in files for r in (stem, f"{stem}_kidnap", f"{stem}_global_kidnap")]
+    rows = [r for stem in files for r in (stem, f"{stem}_kidnap", f"{stem}{LOOKALIKE_SUFFIX}", f"{stem}_global_kidnap")]
     return files, rows
 
 
@@ -220,8 +230,9 @@ class Args:
     rows: tuple[str, ...] = GLOBAL_ROWS + KIDNAP_ROWS + GLOBAL_KIDNAP_ROWS + TWIN_KIDNAP_ROWS + TRACKING_ROWS
     """rows to run ('none' = only the log rows)"""
     layout_files: tuple[str, ...] = ()
-    """layout files of your own (.json / .yaml): each adds three rows named by the file name's stem: a global
-    start, a tracking start kidnapped at step 30, a global start kidnapped at step 150"""
+    """layout files of your own (.json / .yaml): each adds four rows named by the file name's stem: a global
+    start, a tracking start kidnapped at step 30 to a random place (_kidnap) and to the place that looks most
+    like the pose (_lookalike_kidnap), a global start kidnapped at step 150"""
     episodes: int = 200
     """episodes per row and variant"""
     before_episodes: int = 0
