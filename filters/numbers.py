@@ -47,7 +47,7 @@ def yaml_number_hint(v) -> str:
     number only with a dot and a signed exponent (``1.0e-3``, ``1.0e+3``; ``1e-3`` and ``1.0e3`` are
     strings); "" for anything else. For error messages about YAML files."""
     if isinstance(v, bool):
-        return " (YAML reads yes/no, on/off and true/false as booleans: write a number)"
+        return " (a boolean; in a YAML file yes/no, on/off and true/false are booleans: write a number)"
     if not (isinstance(v, str) and is_exponent_form(v)):
         return ""
     return (

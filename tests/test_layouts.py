@@ -153,8 +153,13 @@ def test_malformed_layouts_name_the_entry(data, match):
         ({"class": "chair", "center": ["1.0e0", 1], "size": [1, 1]}, r"'1.0e0' \(YAML .*signed exponent"),
         ({"class": "chair", "center": [1, 1], "size": [1, 1], "angle_rad": "1e-3"}, r"angle_rad.*'1e-3' \(YAML"),
         # an outside tester's YAML file: `angle_rad: no` read as False, and the message said only "got False"
-        ({"class": "chair", "center": [1, 1], "size": [1, 1], "angle_rad": False}, r"got False \(YAML reads yes/no"),
-        ({"class": "chair", "center": [True, 1], "size": [1, 1]}, r"got bool True \(YAML reads yes/no"),
+        ({"class": "chair", "center": [1, 1], "size": [1, 1], "angle_rad": False}, r"got False \(a boolean; in a YAML"),
+        ({"class": "chair", "center": [True, 1], "size": [1, 1]}, r"got bool True \(a boolean; in a YAML file yes/no"),
+        # a polygon with angle_rad was told "not both" of polygon and center/size, which it did not give
+        (
+            {"class": "chair", "polygon": [[1, 1], [2, 1], [2, 2]], "angle_rad": 0.3},
+            r"it has 'polygon' and \['angle_rad'\] \(a polygon's corners carry its turn\)",
+        ),
         ({"class": "chair", "center": ["nan", 1], "size": [1, 1]}, r"got str 'nan'$"),
         ({"class": "chair", "polygon": np.array(0.5)}, r"objects\[0\]: expected a list of \[x, y\] points"),
         ({"class": "chair", "polygon": [[1, 1], [2, 1], [2]]}, r"objects\[0\]\[2\]: expected an \[x, y\] point"),

@@ -367,8 +367,13 @@ _BLOCK_KEYS = {"polygon", "center", "size", "angle_rad"}
 def _shape(entry: Mapping, what: str) -> np.ndarray:
     """The polygon of an object or block entry: its ``polygon``, or the box of ``center`` and ``size``."""
     if "polygon" in entry:
-        if "center" in entry or "size" in entry or "angle_rad" in entry:
-            raise LayoutError(f"{what}: give either 'polygon' or 'center' and 'size', not both")
+        box = [k for k in ("center", "size", "angle_rad") if k in entry]
+        if box:
+            turn = " (a polygon's corners carry its turn)" if box == ["angle_rad"] else ""
+            raise LayoutError(
+                f"{what}: give either 'polygon' or the box shorthand ('center', 'size' and optionally 'angle_rad'), "
+                f"not both: it has 'polygon' and {_key_list(box)}{turn}"
+            )
         return _ring(entry["polygon"], what)
     if "center" in entry and "size" in entry:
         return _ring(_box(entry, what), what)
