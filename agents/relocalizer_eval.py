@@ -75,20 +75,28 @@ def twin_image(layout: str, pose) -> list[float]:
 
 
 LOOKALIKE_MIN_DISTANCE_M = 3.0
-"""How far from the pose a ``*_lookalike_kidnap`` teleport goes at least (m)."""
+"""How far from the pose a ``*_lookalike_kidnap`` teleport goes at least (m), or half, a quarter, ... of it down to
+0.375 m where no free place lies that far (a cluttered room of 3 m x 2.5 m has none 3 m from most poses)."""
 
 
 def lookalike_kidnap_pose(env, pose, seed: int):
     """The `semreloc_env.lookalike.Lookalike` a ``*_lookalike_kidnap`` episode teleports to: the place at least
     `LOOKALIKE_MIN_DISTANCE_M` from ``pose`` whose all-round view within the env's lidar and camera ranges is
     most like ``pose``'s, searched with a generator seeded by ``seed`` + 7919 (apart from the episode's own)."""
-    from semreloc_env.lookalike import lookalike_pose
+    from semreloc_env.lookalike import NoPlaceError, lookalike_pose
 
     u = env.unwrapped
-    return lookalike_pose(
-        u.world, pose, np.random.default_rng(seed + 7919), min_distance_m=LOOKALIKE_MIN_DISTANCE_M,
-        max_range_m=u.lidar.params.range_max_m, camera_range_m=u.camera.params.range_max_m,
-    )  # fmt: skip
+    least = LOOKALIKE_MIN_DISTANCE_M
+    while True:
+        try:
+            return lookalike_pose(
+                u.world, pose, np.random.default_rng(seed + 7919), min_distance_m=least,
+                max_range_m=u.lidar.params.range_max_m, camera_range_m=u.camera.params.range_max_m,
+            )  # fmt: skip
+        except NoPlaceError:
+            if least < 0.5:
+                raise
+            least /= 2.0
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,11 @@ import numpy as np
 
 from filters.numbers import is_int, is_real
 
-__all__ = ["Lookalike", "all_round_views", "lookalike_pose", "view_mismatch"]
+__all__ = ["Lookalike", "NoPlaceError", "all_round_views", "lookalike_pose", "view_mismatch"]
+
+
+class NoPlaceError(ValueError):
+    """`lookalike_pose` found no free place as far from the pose as asked."""
 
 
 @dataclass(frozen=True)
@@ -122,7 +126,8 @@ def lookalike_pose(
         label_weight_m: a beam whose object class differs counts as this range difference.
 
     Raises:
-        ValueError: bad arguments, or no free place ``min_distance_m`` or more away among the draws.
+        ValueError: bad arguments; `NoPlaceError` (a ValueError): no free place ``min_distance_m`` or more away
+            among the draws.
     """
     p = np.asarray(pose, dtype=np.float64).reshape(-1)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
@@ -141,7 +146,7 @@ def lookalike_pose(
     xy = rng.uniform((x0, y0), (x1, y1), size=(4 * candidates, 2))
     xy = xy[world.free_points(xy, margin_m) & (np.hypot(*(xy - p[:2]).T) >= min_distance_m)][:candidates]
     if not len(xy):
-        raise ValueError(
+        raise NoPlaceError(
             f"no free place {min_distance_m} m or more from {p[:2].tolist()} among {4 * candidates} random draws"
         )
     n_classes = max((o.label for o in world.layout.objects), default=0)

@@ -126,6 +126,11 @@ def test_a_lookalike_kidnap_teleports_to_the_place_that_looks_most_like_the_pose
     # this pose lies 0.2 m from the rooms' shared wall, its half-turned image 1.25 m away: too near to be a kidnap
     assert math.dist(info["pose"][:2], twin_image("twin_rooms", info["pose"])[:2]) < 3.0 <= found.distance_m
     assert view_mismatch(env.world, info["pose"], found.pose) == pytest.approx(found.mismatch_m, abs=0.02)
+    # a cluttered 3.2 m x 2.6 m room has no free place 3 m from most poses: the kidnapping goes half as far, or less
+    tiny = SemRelocEnv(layout=str(DOCS_LAYOUTS / "outside_v11" / "d4_tiny_cluttered.json"), map_source="perfect")
+    tiny.reset(seed=0)
+    near = lookalike_kidnap_pose(tiny, [0.8476569465482231, 1.4808593565037547, 0.0], 0)
+    assert 0.375 <= near.distance_m < 3.0 and tiny.world.is_free(near.pose[:2])
 
 
 def test_a_twin_kidnap_teleports_to_the_half_turned_image_of_the_pose_before_it():
