@@ -938,3 +938,38 @@ def test_a_tracking_start_holds_its_pose():
     assert final[True][0] and final[True][1] < 0.5
     with pytest.raises(ValueError, match="hold_init_pose needs a held convergence"):
         MCLConfig(hold_init_pose=True)  # no held convergence in MCLConfig's own defaults
+
+
+def test_a_lost_holds_audit_judges_only_the_scans_since_the_hold_began_to_fade():
+    """``lost_hold_window`` (a look-alike kidnapping of `semreloc_env.lookalike` in the first outside tester's pillar
+    hall, ``docs/layouts/outside_v15``): the kidnapping at step 30 goes unnoticed, the held convergence fades, and
+    the audit it turns on judged a window whose older scans came from before the kidnapping, where they fit the
+    old track: it cleared a convergence at a look-alike place, and the episode ended converged there. Keeping only
+    the scans since the set last met the 95 % rule by itself, and judging once five are in, the belief never
+    converges at a wrong place after the hold is lost."""
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    import semreloc_env  # noqa: F401
+    from agents.relocalizer_eval import make_policy
+
+    hall = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v15" / "t28_pillar_hall.json"
+    options = {"tracking": True, "kidnap_at_step": 30, "kidnap_pose": [2.341973057562, 1.684764250658, -1.69351002247]}
+    wrong, final = {}, {}
+    for trim in (0, 5):
+        env = gym.make("SemReloc-v18", layout=str(hall), relocalizer={"lost_hold_window": trim})
+        policy = make_policy("wall_follow", 11)
+        obs, info = env.reset(seed=11, options=options)
+        wrong[trim], lost = 0, False
+        for t in range(1, 231):
+            obs, _, _, _, info = env.step(policy(obs))
+            lost = lost or (t >= 30 and not info["belief"]["converged"])
+            wrong[trim] += lost and info["belief"]["converged"] and info["pose_error"]["position"] > 0.5
+        final[trim] = (info["belief"]["converged"], info["pose_error"]["position"])
+    assert wrong[0] > 50 and final[0][0] and final[0][1] > 0.5  # converged again at a wrong place, and ended so
+    assert wrong[5] == 0
+    with pytest.raises(ValueError, match="lost_hold_window needs audit_after_lost_hold"):
+        MCLConfig(lost_hold_window=5)
+    with pytest.raises(ValueError, match=r"lost_hold_window must be an int in \[0, "):
+        MCLConfig(lost_hold_window=-1)

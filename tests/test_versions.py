@@ -1,4 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v17 (v16 whose tracking start holds its pose),
+"""The registered ids behave as their Version History says: SemReloc-v18 (v17 whose audit after a lost hold judges
+only the scans since it faded), SemReloc-v17 (v16 whose tracking start holds its pose),
 SemReloc-v16 (v15 whose audit also follows a held
 convergence lost without a surprise), SemReloc-v15 (v14 whose audit after a surprise turns off once it clears),
 SemReloc-v14 (v13 with a surprise test of the camera's own), SemReloc-v13 (v12 whose surprise test keeps its own
@@ -49,6 +50,7 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v18",
         "SemReloc-v17",
         "SemReloc-v16",
         "SemReloc-v15",
@@ -75,6 +77,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v18", typed),
         ("SemReloc-v17", typed),
         ("SemReloc-v16", typed),
         ("SemReloc-v15", typed),
@@ -685,6 +688,25 @@ def test_v15_is_v14_whose_audit_after_a_surprise_turns_off_once_it_clears():
             np.testing.assert_equal(x, y)
 
 
+def test_v18_is_v17_whose_audit_after_a_lost_hold_judges_only_the_scans_since_its_fade():
+    """v18 differs from v17 only in its relocalizer's `MCLConfig.lost_hold_window` (its effect on a look-alike
+    kidnapping: tests/test_audit.py). A global start's audit is on from its start, so no hold is lost with the audit
+    off and its episode is v17's, bit for bit."""
+    v18, v17 = make("SemReloc-v18", **FAST).unwrapped, make("SemReloc-v17", **FAST).unwrapped
+    assert v18.mcl_config == dataclasses.replace(v17.mcl_config, lost_hold_window=5)
+    assert v17.mcl_config.lost_hold_window == 0
+    assert v18.mapping_run_version == v17.mapping_run_version == "6"
+    venv = gym.make_vec("SemRelocVec-v18", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    assert venv.envs[0].unwrapped.mcl_config.lost_hold_window == 5
+    venv.close()
+    assert semreloc_env.envs.batched.SINGLE_ENV_ID == "SemReloc-v18"
+    actions = ACTIONS + [1] * 20 + [0] * 10
+    a = rollout(make("SemReloc-v18", **FAST), options=START, actions=actions)
+    b = rollout(make("SemReloc-v17", **FAST), options=START, actions=actions)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+
+
 def test_v17_is_v16_whose_tracking_start_holds_its_pose():
     """v17 differs from v16 only in its relocalizer's `MCLConfig.hold_init_pose` (its effect on a kidnapping:
     tests/test_audit.py). A global start holds nothing, so its episode is v16's, bit for bit; a tracking start is
@@ -696,7 +718,6 @@ def test_v17_is_v16_whose_tracking_start_holds_its_pose():
     venv = gym.make_vec("SemRelocVec-v17", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
     assert venv.envs[0].unwrapped.mcl_config.hold_init_pose
     venv.close()
-    assert semreloc_env.envs.batched.SINGLE_ENV_ID == "SemReloc-v17"
     actions = ACTIONS + [1] * 20 + [0] * 10
     a = rollout(make("SemReloc-v17", **FAST), options=START, actions=actions)
     b = rollout(make("SemReloc-v16", **FAST), options=START, actions=actions)

@@ -337,6 +337,13 @@ class MCLConfig:
             converged, had no hold to lose and no surprise test armed, and a kidnapping then could converge again,
             unaudited, at a look-alike place (docs/relocalizer.md, "A tracking start holds its pose").
             Needs ``belief.converged_hold_weight``.
+        lost_hold_window: ``M`` (0 = off): when a held convergence ends without a surprise (``audit_after_lost_hold``),
+            the audit's window keeps only the scans of the updates after the last one whose set met the "converged"
+            criterion by itself (the hold's fade), and the audit judges a convergence only once the window holds at
+            least ``M`` scans (until then the belief is not called converged). The scans before the fade fit the held
+            place: after an unnoticed kidnapping they come from before it and testify for the old track, which
+            v16 and v17 let the audit judge on (docs/relocalizer.md, "The window's old scans"). 0 before
+            ``SemReloc-v18``. Needs ``audit_after_lost_hold``.
         surprise_own_average: the surprise test compares with an average of its own: the fast average
             (``alpha_fast``) of ``w_avg`` over every update with beams, as ``w_fast``, but restarted at a surprise and
             never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
@@ -420,6 +427,7 @@ class MCLConfig:
     audit_after_surprise_once: bool = False
     audit_after_lost_hold: bool = False
     hold_init_pose: bool = False
+    lost_hold_window: int = 0
     surprise_own_average: bool = False
     semantic_surprise_ratio: float = 0.0
     semantic_surprise_min_beams: int = 3
@@ -444,6 +452,10 @@ class MCLConfig:
         if not (is_int(k) and 0 <= k <= MAX_AUDIT_WINDOW):
             raise ValueError(f"MCLConfig.audit_window must be an int in [0, {MAX_AUDIT_WINDOW}], got {k!r}")
         object.__setattr__(self, "audit_window", int(k))
+        m = self.lost_hold_window
+        if not (is_int(m) and 0 <= m <= MAX_AUDIT_WINDOW):
+            raise ValueError(f"MCLConfig.lost_hold_window must be an int in [0, {MAX_AUDIT_WINDOW}], got {m!r}")
+        object.__setattr__(self, "lost_hold_window", int(m))
         names = ("n_particles", "min_particles", "max_particles", "cluster_min_particles", "proposal_candidates")
         p = self.audit_screen_pause
         if not (is_int(p) and p >= 0):
@@ -551,6 +563,12 @@ class MCLConfig:
                 False,
                 "MCLConfig.hold_init_pose needs a held convergence (belief.converged_hold_weight set), got "
                 f"belief.converged_hold_weight={self.belief.converged_hold_weight}",
+            )
+        if self.lost_hold_window and not self.audit_after_lost_hold:
+            needs["lost_hold_window"] = (
+                0,
+                "MCLConfig.lost_hold_window needs audit_after_lost_hold=True (and what that needs), got "
+                f"audit_after_lost_hold={self.audit_after_lost_hold}",
             )
         if self.surprise_own_average and not self.surprise_ratio > 0:
             needs["surprise_own_average"] = (
@@ -753,6 +771,10 @@ class MonteCarloLocalizer:
         """Measurement updates that ran since the last init."""
         self._window: audit.Window = []
         """The last ``audit_window`` updates' scans and odometry (`filters.localization.audit.Window`)."""
+        self._window_met: list[bool] = []
+        """Per `_window` entry, whether the set met the "converged" criterion by itself after that update
+        (`MCLConfig.lost_hold_window`)."""
+        self._window_least = 0  # scans the window must hold before the audit judges (`MCLConfig.lost_hold_window`)
         self._was_converged = False
         self._cleared: tuple[np.ndarray, int] | None = None  # (mean, n_updates) of the last hypothesis an audit cleared
         # (n_updates, hypothesis mean carried along the odometry since) of the last audit whose screen found nothing
@@ -1032,6 +1054,7 @@ class MonteCarloLocalizer:
                     self._w_sem_surprise = w_sem if a == 0.0 else a + c.alpha_fast * (w_sem - a)
             if surprise:
                 self._held, self._window, self._cleared, self._was_converged = None, [], None, False
+                self._window_met, self._window_least = [], 0
                 self._screen_cleared = None
                 if c.audit_after_surprise and not self._audit_on:
                     self._audit_on = self._audit_by_surprise = True
@@ -1061,6 +1084,8 @@ class MonteCarloLocalizer:
         if c.audit_window and (self._audit_on or c.audit_after_lost_hold):
             # kept while the audit is off too when a lost hold may turn it on: it then judges a full window
             self._window = [*self._window, (lid, sem, delta, beams)][-c.audit_window :]
+            if c.lost_hold_window:
+                self._window_met = [*self._window_met, self._summary().converged][-c.audit_window :]
         if c.audit_window and self._audit_on:
             audit_ratio, n_audit = self._audit(lidar, sem)
             if n_audit:
@@ -1103,6 +1128,13 @@ class MonteCarloLocalizer:
                 # judged on the window's scans (a fading hold gives no reason to drop the earlier ones)
                 self._audit_on = self._audit_by_surprise = True
                 self._cleared, self._screen_cleared, self._was_converged = None, None, False
+                if c.lost_hold_window:
+                    # the scans up to the last update whose set met the criterion by itself fit the held place:
+                    # from before an unnoticed kidnapping, they would testify for it (and its odometry track)
+                    met = [i for i, m in enumerate(self._window_met) if m]
+                    start = met[-1] + 1 if met else 0
+                    self._window, self._window_met = self._window[start:], self._window_met[start:]
+                    self._window_least = c.lost_hold_window
             self._ever_converged = self._ever_converged or b.converged
         return diag
 
@@ -1269,6 +1301,9 @@ class MonteCarloLocalizer:
         if not b.converged or self._was_converged:
             self._was_converged = b.converged
             return math.nan, 0
+        if len(self._window) < self._window_least:
+            return math.nan, 0  # too few scans since the lost hold to judge: not called converged yet
+        self._window_least = 0
         self._was_converged = True
         # with the "spread" rule a belief can converge while no cluster reaches cluster_min_weight: audit it whole
         hyp = b.hypotheses[0] if b.hypotheses else Hypothesis(1.0, b.mean, b.cov, b.n_particles)
