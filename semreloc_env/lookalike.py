@@ -8,7 +8,9 @@ within the camera's range) at the pose with the views at a few thousand free pla
 (a circular cross-correlation), and refines the best few.
 
 The view is the world's exact geometry, not a sensor reading: no noise, no dropouts, the lidar's full circle
-and class labels all round (the camera sees 70 deg at a time; a robot that turns sees the rest).
+and class labels all round (the camera sees 70 deg at a time; a robot that turns sees the rest), also of objects
+nearer than the camera's minimum range. Views are compared on rays at fixed world angles (1 deg apart by default), so
+a heading is found to the ray spacing and ``mismatch_m`` is that of the views at the found heading rounded to it.
 """
 
 from __future__ import annotations

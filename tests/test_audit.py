@@ -952,6 +952,7 @@ def test_a_lost_holds_audit_judges_only_the_scans_since_the_hold_began_to_fade()
     import gymnasium as gym
 
     import semreloc_env  # noqa: F401
+    from agents.policies import POLICIES
     from agents.relocalizer_eval import make_policy
 
     hall = Path(__file__).resolve().parents[1] / "docs" / "layouts" / "outside_v15" / "t28_pillar_hall.json"
@@ -969,7 +970,29 @@ def test_a_lost_holds_audit_judges_only_the_scans_since_the_hold_began_to_fade()
         final[trim] = (info["belief"]["converged"], info["pose_error"]["position"])
     assert wrong[0] > 50 and final[0][0] and final[0][1] > 0.5  # converged again at a wrong place, and ended so
     assert wrong[5] == 0
-    with pytest.raises(ValueError, match="lost_hold_window needs audit_after_lost_hold"):
+    # the wait ends: in the second tester's lattice hall (kidnapped by one lattice period, a hold lost without a
+    # surprise) the belief converges again after the wait, at the truth, and ends so
+    lattice = hall.parents[1] / "outside_v16" / "t29_lattice_hall.json"
+    options = {
+        "tracking": True,
+        "pose": [8.179225017504885, 7.308997909896376, -1.2702634091238574],
+        "kidnap_at_step": 30,
+        "kidnap_pose": [11.506512095311498, 5.949443969277984, -1.3702634091238575],
+    }
+    policy = POLICIES["wall_follow"](6)
+    env = policy.wrap(gym.make("SemReloc-v18", layout=str(lattice)))
+    policy.reset()
+    obs, info = env.reset(seed=6, options=options)
+    waited = again = 0
+    for _ in range(229):
+        obs, _, _, _, info = env.step(policy.act(obs))
+        waited = max(waited, env.unwrapped.mcl._window_least)
+        again += waited > 0 and info["belief"]["converged"] and info["pose_error"]["position"] < 0.5
+    assert waited == 5 and again > 20
+    assert info["belief"]["converged"] and info["pose_error"]["position"] < 0.5
+    with pytest.raises(ValueError, match="lost_hold_window needs audit_after_lost_hold=True and audited_convergence"):
         MCLConfig(lost_hold_window=5)
     with pytest.raises(ValueError, match=r"lost_hold_window must be an int in \[0, "):
         MCLConfig(lost_hold_window=-1)
+    with pytest.raises(ValueError, match="at most audit_window scans"):  # a wait the window could never fill
+        gym.make("SemReloc-v18", relocalizer={"audit_window": 3})

@@ -304,7 +304,11 @@ def test_bad_layout_files_are_refused_before_any_episode(tmp_path):
         ([lab], "row name 'lab' is taken \\(by a built-in row\\)"),
         ([tmp_path / "lab2.json", twin / "lab2.json"], "row name 'lab2' is taken \\(by '"),
         (["docs/layouts"], "must end in one of"),
-        ([tmp_path / "hall_kidnap.json"], "ending in _kidnap or _tracking"),
+        ([tmp_path / "hall_kidnap.json"], "ending in _kidnap or _tracking or"),
+        # a review's: office_lookalike's random-kidnap row, office_lookalike_kidnap, ran as office's look-alike row
+        ([tmp_path / "office_lookalike.json"], "names a row kind"),
+        ([tmp_path / "office_twin.json"], "names a row kind"),
+        ([tmp_path / "office_global.json"], "names a row kind"),
     ]:
         with pytest.raises(ValueError, match=match):
             er.file_rows(paths)

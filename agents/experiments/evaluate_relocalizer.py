@@ -61,6 +61,8 @@ GLOBAL_KIDNAP_STEP = 150
 TWIN_KIDNAP_ROWS = ("twin_rooms_twin_kidnap",)
 """Tracking, then a teleport at step 30 to the half-turned image of the pose: a kidnap only the classes reveal."""
 TRACKING_ROWS = ("lab_tracking",)
+ROW_KIND_WORDS = ("_kidnap", "_tracking", "_lookalike", "_twin", "_global")
+"""Endings a layout file's stem may not have: its rows' names (``<stem>_kidnap``, ...) would read as another kind's."""
 LOOKALIKE_SUFFIX = "_lookalike_kidnap"
 """A row ``<layout>_lookalike_kidnap``: tracking, then a teleport at step 30 to the place at least 3 m away whose
 all-round view is most like the pose's (`agents.relocalizer_eval.lookalike_kidnap_pose`); any layout, not a
@@ -125,8 +127,11 @@ def file_rows(paths) -> tuple[dict[str, str], list[str]]:
         stem = Path(path).stem
         if not path.endswith(LAYOUT_FILE_SUFFIXES):
             raise ValueError(f"layout file {path!r}: must end in one of {LAYOUT_FILE_SUFFIXES}")
-        if stem.endswith(("_kidnap", "_tracking")):
-            raise ValueError(f"layout file {path!r}: a name ending in _kidnap or _tracking names a row kind; rename it")
+        if stem.endswith(ROW_KIND_WORDS):
+            raise ValueError(
+                f"layout file {path!r}: a name ending in {' or '.join(ROW_KIND_WORDS)} names a row kind (its rows "
+                "would be read as another kind's); rename it"
+            )
         if stem in files or stem in GLOBAL_ROWS:
             raise ValueError(
                 f"layout file {path!r}: its row name {stem!r} is taken "

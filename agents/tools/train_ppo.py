@@ -117,8 +117,8 @@ ENV_OPTIONS = ("layout", "lidar_only", "map_source", "n_particles", "max_episode
 
 
 def trained_env_options(model: str | Path) -> dict | None:
-    """The env options (`ENV_OPTIONS`) of the run that saved ``model``, from the ``results.json`` of its run
-    folder (the model's folder, or the one above for ``checkpoints/`` and ``eval/``); None if none says."""
+    """The env options (`ENV_OPTIONS`, and ``env_id``) of the run that saved ``model``, from the ``results.json`` of
+    its run folder (the model's folder, or the one above for ``checkpoints/`` and ``eval/``); None if none says."""
     model = Path(model)
     for folder in (model.parent, model.parent.parent):
         f = folder / "results.json"
@@ -127,18 +127,19 @@ def trained_env_options(model: str | Path) -> dict | None:
         except (OSError, ValueError, KeyError, TypeError):
             continue
         if isinstance(saved, dict) and all(k in saved for k in ENV_OPTIONS):
-            return {k: saved[k] for k in ENV_OPTIONS}
+            env_id = saved.get("config", {}).get("env_id") if isinstance(saved.get("config"), dict) else None
+            return {"env_id": env_id, **{k: saved[k] for k in ENV_OPTIONS}}
     return None
 
 
 def env_options_note(args: Args) -> str:
     """How ``--load``'s env options compare with those the model was trained with (`trained_env_options`)."""
-    now = {k: getattr(args, k) for k in ENV_OPTIONS}
+    now = {"env_id": args.config.env_id, **{k: getattr(args, k) for k in ENV_OPTIONS}}
     listed = ", ".join(f"{k} {v!r}" for k, v in now.items())
     trained = trained_env_options(args.load)
     if trained is None:
         return f"env options {listed} (the model's training options are unknown: no results.json beside it)"
-    differ = {k: trained[k] for k in ENV_OPTIONS if trained[k] != now[k]}
+    differ = {k: trained[k] for k in now if trained[k] is not None and trained[k] != now[k]}
     if not differ:
         return f"the env options of its training run ({listed})"
     return f"env options {listed}; **other than its training run's**: " + ", ".join(

@@ -342,8 +342,10 @@ class MCLConfig:
             criterion by itself (the hold's fade), and the audit judges a convergence only once the window holds at
             least ``M`` scans (until then the belief is not called converged). The scans before the fade fit the held
             place: after an unnoticed kidnapping they come from before it and testify for the old track, which
-            v16 and v17 let the audit judge on (docs/relocalizer.md, "The window's old scans"). 0 before
-            ``SemReloc-v18``. Needs ``audit_after_lost_hold``.
+            v16 and v17 let the audit judge on (docs/relocalizer.md, "The window's old scans"). If no scan in the
+            window met the criterion by itself (the fade began before the window), the whole window is kept. 0 before
+            ``SemReloc-v18``. Needs ``audit_after_lost_hold`` and ``audited_convergence`` (which holds "converged"
+            back until an audit has judged), and ``M <= audit_window``.
         surprise_own_average: the surprise test compares with an average of its own: the fast average
             (``alpha_fast``) of ``w_avg`` over every update with beams, as ``w_fast``, but restarted at a surprise and
             never by an injection. False before ``SemReloc-v13``: it compared with the augmented-MCL
@@ -564,11 +566,16 @@ class MCLConfig:
                 "MCLConfig.hold_init_pose needs a held convergence (belief.converged_hold_weight set), got "
                 f"belief.converged_hold_weight={self.belief.converged_hold_weight}",
             )
-        if self.lost_hold_window and not self.audit_after_lost_hold:
+        if self.lost_hold_window and not (
+            self.audit_after_lost_hold and self.audited_convergence and self.lost_hold_window <= self.audit_window
+        ):
             needs["lost_hold_window"] = (
                 0,
-                "MCLConfig.lost_hold_window needs audit_after_lost_hold=True (and what that needs), got "
-                f"audit_after_lost_hold={self.audit_after_lost_hold}",
+                "MCLConfig.lost_hold_window needs audit_after_lost_hold=True and audited_convergence=True (and what "
+                "those need), and at most audit_window scans (the window holds no more: a larger wait would never "
+                f"end), got audit_after_lost_hold={self.audit_after_lost_hold}, "
+                f"audited_convergence={self.audited_convergence}, lost_hold_window={self.lost_hold_window}, "
+                f"audit_window={self.audit_window}",
             )
         if self.surprise_own_average and not self.surprise_ratio > 0:
             needs["surprise_own_average"] = (
