@@ -123,7 +123,8 @@ def lookalike_pose(
     Args:
         world: a `semreloc_env.world.World` (``env.unwrapped.world``).
         pose: ``[x, y, theta]`` (m, rad).
-        max_range_m, camera_range_m: how far the view reaches (the lidar's and the camera's ranges).
+        max_range_m: how far the view's ranges reach (the lidar's range).
+        camera_range_m: how far its classes reach (the camera's range).
         margin_m: room to spare around the robot's disc at the pose found (`World.free_points`).
         label_weight_m: a beam whose object class differs counts as this range difference.
 
