@@ -105,7 +105,7 @@ def get_layout(
     """Resolve a layout spec to a validated `Layout`.
 
     Args:
-        spec: a built-in name (``"lab"``, ``"twin_rooms"``), ``"procedural"``,
+        spec: a built-in name (``"lab"``, ``"twin_rooms"``, ``"three_rooms"``, ``"open_hall"``), ``"procedural"``,
             ``"procedural_sym"``, ``"procedural_lookalike"`` or ``"procedural_ring"`` (`ring_layout`; all
             generated from ``seed``), the name of a
             layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (`find_layout_file`; the built-in and
