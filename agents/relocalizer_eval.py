@@ -126,6 +126,10 @@ class EpisodeSpec:
     kidnap_to_lookalike: bool = False
 
     def __post_init__(self) -> None:
+        if self.policy not in policy_names():
+            raise ValueError(
+                f"EpisodeSpec.policy: unknown policy {self.policy!r:.60}; choose one of {list(policy_names())}"
+            )
         for name in ("tracking", "kidnap_after_global", "kidnap_to_twin", "kidnap_to_lookalike"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"EpisodeSpec.{name} must be True or False, got {getattr(self, name)!r:.60}")
@@ -191,8 +195,16 @@ class EpisodeSpec:
         return {"tracking": True} if self.tracking else None
 
 
+def policy_names() -> tuple[str, ...]:
+    """Every policy an episode can run: `POLICIES` (the rows' own, the same episodes as ever) and the other
+    policies of `agents.policies.POLICIES` (the viewpoint planner ``"viewpoint"``, ...)."""
+    from agents.policies import POLICIES as AGENT_POLICIES
+
+    return (*POLICIES, *sorted(set(AGENT_POLICIES) - set(POLICIES)))
+
+
 def make_policy(name: str, seed: int):
-    """A fresh policy callable ``obs -> action`` (discrete actions)."""
+    """A fresh policy callable ``obs -> action`` (discrete actions) of `POLICIES`."""
     from agents.baselines import TURN_LEFT, RandomWalk, WallFollowExplorer
 
     if name == "random":
@@ -202,6 +214,22 @@ def make_policy(name: str, seed: int):
     if name == "spin":
         return lambda obs: TURN_LEFT
     raise ValueError(f"unknown policy {name!r}; choose one of {POLICIES}")
+
+
+def driver(name: str, seed: int, env):
+    """``(env, act)``: the env to step and a fresh ``act(obs) -> action`` for policy ``name`` (`policy_names`):
+    `make_policy`'s for `POLICIES`; else the `agents.policies` policy built with ``seed``, its ``wrap(env)``
+    (which the planners read the filter through) and its ``act``, reset for a new episode."""
+    if name in POLICIES:
+        return env, make_policy(name, seed)
+    from agents.policies import POLICIES as AGENT_POLICIES
+
+    if name not in AGENT_POLICIES:
+        raise ValueError(f"unknown policy {name!r}; choose one of {list(policy_names())}")
+    policy = AGENT_POLICIES[name](seed)
+    wrapped = policy.wrap(env)
+    policy.reset()
+    return wrapped, policy.act
 
 
 def score_steps(converged: Sequence[bool], near: Sequence[bool], kidnap_at_step: int = 0) -> dict:
@@ -280,7 +308,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
     """
     from semreloc_env.envs.semreloc import SemRelocEnv
 
-    env = SemRelocEnv(
+    base = SemRelocEnv(
         layout=spec.layout,
         layout_seed=spec.layout_seed,
         scenario=spec.scenario,
@@ -291,18 +319,18 @@ def run_episode(spec: EpisodeSpec) -> dict:
     options = spec.reset_options
     if spec.kidnap_to_twin or spec.kidnap_to_lookalike:
         # the episode is deterministic: its first k - 1 steps say where the robot will be
+        env, policy = driver(spec.policy, spec.seed, base)
         obs, info = env.reset(seed=spec.seed, options={"tracking": True})
-        policy = make_policy(spec.policy, spec.seed)
         for _ in range(k - 1):
             obs, _, _, _, info = env.step(policy(obs))
         if spec.kidnap_to_twin:
             target = twin_image(spec.layout, info["pose"])
         else:
-            target = lookalike_kidnap_pose(env, info["pose"], spec.seed).pose.tolist()
+            target = lookalike_kidnap_pose(base, info["pose"], spec.seed).pose.tolist()
         options = {**options, "kidnap_pose": target}
+    env, policy = driver(spec.policy, spec.seed, base)
     obs, info = env.reset(seed=spec.seed, options=options)
-    cfg = env.mcl_config
-    policy = make_policy(spec.policy, spec.seed)
+    cfg = base.mcl_config
 
     def near(err: dict) -> bool:
         return err["position"] < 0.5 and err["heading"] < math.radians(15.0)
@@ -351,7 +379,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
             diag["audit_adds"] += added
             diag["stale_audits"] += stale
             diag["stale_audit_adds"] += stale and added
-    env.close()
+    base.close()
     out = asdict(spec)
     out.update(row=spec.row, **score_steps(converged, close, k))
     out.update(

@@ -365,3 +365,25 @@ def test_a_run_with_nothing_to_do_or_a_row_twice_is_refused_before_anything_chan
     # what a review found refused that runs: "before" episodes alone, a layout on the search path
     er.Args(rows=("lab",), variants=("before",), episodes=0, before_episodes=5, log_starts=0)
     er.Args(rows=(str(DOCS_LAYOUTS / "quad_rooms.json"),), log_starts=0)
+
+
+def test_rows_can_run_other_policies_the_viewpoint_planner_among_them(tmp_path):
+    """``--policies``: the rows' episodes take the given policies in turn (the default three keep the documented
+    rows); a policy of `agents.policies` (the viewpoint planner) runs through its own ``wrap``, deterministically."""
+    from agents.experiments import evaluate_relocalizer as er
+
+    specs = specs_for("lab_kidnap", 4, 0, [0], {}, "after", policies=("viewpoint", "spin"))
+    assert [s.policy for s in specs] == ["viewpoint", "spin", "viewpoint", "spin"]
+    assert [s.policy for s in specs_for("lab_kidnap", 3, 0, [0], {}, "after")] == ["random", "spin", "wall_follow"]
+    assert er.Args().policies == ("random", "spin", "wall_follow")
+    with pytest.raises(ValueError, match=r"policies: unknown \['nope'\]"):
+        er.Args(policies=("nope",))
+    with pytest.raises(ValueError, match="EpisodeSpec.policy: unknown policy 'nope'"):
+        EpisodeSpec(layout="lab", seed=0, policy="nope")
+    spec = EpisodeSpec(layout="twin_rooms", seed=1, policy="viewpoint", n_steps=33, kidnap_at_step=30,
+                       kidnap_to_lookalike=True, env_kwargs={"map_source": "perfect"})  # fmt: skip
+    out, again = run_episode(spec), run_episode(spec)
+    assert out["kidnapped_at"] == 30 and out["kidnap_pose"] == again["kidnap_pose"]
+    assert {k: v for k, v in out.items() if k != "cpu_s_per_step"} == {
+        k: v for k, v in again.items() if k != "cpu_s_per_step"
+    }

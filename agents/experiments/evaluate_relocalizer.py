@@ -38,6 +38,7 @@ from agents.relocalizer_eval import (
     log_tracking,
     log_trial,
     pct,
+    policy_names,
     run_episode,
     save_jsonl,
     summarize,
@@ -78,9 +79,17 @@ def row_layout(row: str, files: dict[str, str] | None = None) -> tuple[str, str]
 
 
 def specs_for(
-    row: str, n: int, seed_base: int, sym_seeds: list[int], mcl: dict, label: str, files: dict[str, str] | None = None
+    row: str,
+    n: int,
+    seed_base: int,
+    sym_seeds: list[int],
+    mcl: dict,
+    label: str,
+    files: dict[str, str] | None = None,
+    policies: tuple[str, ...] = POLICIES,
 ) -> list[EpisodeSpec]:
-    """The ``n`` episodes of ``row`` for one variant; ``files``: ``{row name: layout file}`` of `file_rows`."""
+    """The ``n`` episodes of ``row`` for one variant, episode ``i`` run by ``policies[i % len(policies)]``;
+    ``files``: ``{row name: layout file}`` of `file_rows`."""
     global_kidnap = row.endswith("_global_kidnap")
     twin = row.endswith("_twin_kidnap")
     lookalike = row.endswith(LOOKALIKE_SUFFIX)
@@ -94,7 +103,7 @@ def specs_for(
             EpisodeSpec(
                 layout=layout,
                 seed=seed_base + i,
-                policy=POLICIES[i % len(POLICIES)],
+                policy=policies[i % len(policies)],
                 layout_seed=sym_seeds[i % len(sym_seeds)] if layout.startswith("procedural") else 0,
                 scenario=scenario,
                 n_steps=GLOBAL_KIDNAP_STEP + 200 if global_kidnap else 230 if kidnap else 300 if tracking else 400,
@@ -240,6 +249,10 @@ class Args:
     like the pose (_lookalike_kidnap), a global start kidnapped at step 150"""
     episodes: int = 200
     """episodes per row and variant"""
+    policies: tuple[str, ...] = POLICIES
+    """the policies each row's episodes take in turn (episode i: policies[i % n]); the default three make the
+    documented rows; any of random, spin, wall_follow, spin_backup, info_gain, viewpoint (the viewpoint planner,
+    agents.policies)"""
     before_episodes: int = 0
     """episodes per row of 'before' (0 = --episodes)"""
     seed_base: int = 0
@@ -262,6 +275,9 @@ class Args:
             raise ValueError(f"unknown variants {unknown}; known: {sorted(self.all_variants())}")
         if self.episodes < 0 or self.before_episodes < 0 or self.log_starts < 0 or not self.sym_seeds:
             raise ValueError("episodes, before_episodes and log_starts must be >= 0 and sym_seeds not empty")
+        unknown_policies = [p for p in self.policies if p not in policy_names()]
+        if unknown_policies or not self.policies:
+            raise ValueError(f"policies: unknown {unknown_policies} (or none); choose from {list(policy_names())}")
         if self.log_starts and not 1 <= self.log_steps <= 440:
             raise ValueError(f"log_steps must be in 1..440 (the log has 440 scans), got {self.log_steps}")
         files, rows = self.row_list()  # raises on a bad file, before any episode runs
@@ -316,7 +332,7 @@ def main(argv: list[str] | None = None) -> int:
             n = args.episodes_of(v)
             if row.endswith("_tracking"):
                 n = min(n, 30)  # tracking rows measure error and step time only
-            specs += specs_for(row, n, args.seed_base, list(args.sym_seeds), variants[v], v, files)
+            specs += specs_for(row, n, args.seed_base, list(args.sym_seeds), variants[v], v, files, args.policies)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
