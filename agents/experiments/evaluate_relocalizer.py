@@ -2,9 +2,9 @@
 
 Each *variant* is a dict of ``MCLConfig`` overrides applied to ``SemReloc``'s default relocalizer
 (``{}`` = the env's defaults). Every variant runs the same episodes: per row, ``--episodes``
-episodes pooled over the baseline policies (random walk, spin in place, wall following), each
-episode ``i`` with seed ``--seed-base + i``. Rows: the built-in layouts, the changed lab,
-``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30,
+episodes pooled over the baseline policies (random walk, spin in place, wall following; ``--policies`` names
+others, the viewpoint planner among them), each episode ``i`` with seed ``--seed-base + i``. Rows: the built-in
+layouts, the changed lab, ``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30,
 200 steps after it), global-kidnap rows (``*_global_kidnap``: a global start, a teleport at
 step 150, 200 steps after it), a class-only kidnap row (``twin_rooms_twin_kidnap``: tracking, then a
 teleport at step 30 to the half-turned image of the pose in the other room, whose walls and furniture
