@@ -180,6 +180,14 @@ def test_layouts_by_name_on_the_search_path(tmp_path, monkeypatch):
         LayoutError, match=r"not found: lab_moved.json \(a name with an extension is a path.*'lab_moved' is"
     ):
         get_layout("lab_moved.json")
+    # a review's: a folder named like the layout in the working folder hid the file on the search path
+    work = tmp_path / "work"
+    (work / "lab_moved").mkdir(parents=True)
+    monkeypatch.chdir(work)
+    assert get_layout("lab_moved").name == "lab_moved"
+    (work / "maps").mkdir()
+    with pytest.raises(LayoutError, match="maps"):  # a folder and no such file on the path: its own error
+        get_layout("maps")
 
 
 def test_a_search_path_file_named_like_a_built_in_warns_that_the_built_in_is_used(tmp_path, monkeypatch):

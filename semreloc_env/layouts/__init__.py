@@ -160,11 +160,13 @@ def get_layout(
                 f"layout file not found: {path} (a name with an extension is a path; the layouts on "
                 f"${LAYOUT_PATH_ENV} are named without one: {path.stem!r} is {find_layout_file(path.stem)})"
             )
-        if path.suffix.lower() in (".json", ".yaml", ".yml") or path.exists():
+        if path.suffix.lower() in (".json", ".yaml", ".yml") or path.is_file():
             return load_layout(path)
         found = find_layout_file(str(spec))
-        if found is not None:
+        if found is not None:  # also when a folder of that name lies in the working folder
             return load_layout(found)
+        if path.exists():
+            return load_layout(path)  # a folder, say: its error names it
         raise LayoutError(
             f"unknown layout {str(spec)!r}: not one of {list(LAYOUT_NAMES)}, not a layout file path, and no "
             f"<name>.yaml/.yml/.json in ${LAYOUT_PATH_ENV} ({os.environ.get(LAYOUT_PATH_ENV, 'unset')})"
