@@ -48,6 +48,29 @@ def rollout(env, seed=4, options=START, actions=ACTIONS):
     return out
 
 
+def assert_one_option_apart(new: str, old: str, **option) -> None:
+    """``new``'s relocalizer is ``old``'s with ``option`` set (which ``old`` does not have), on maps of the same
+    mapping run (version 6), and its ``SemRelocVec`` id runs it."""
+    a, b = make(new, **FAST).unwrapped, make(old, **FAST).unwrapped
+    assert a.mcl_config == dataclasses.replace(b.mcl_config, **option)
+    assert all(getattr(b.mcl_config, k) != v for k, v in option.items())
+    assert a.mapping_run_version == b.mapping_run_version == "6"
+    venv = gym.make_vec(new.replace("-", "Vec-"), num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    assert all(getattr(venv.envs[0].unwrapped.mcl_config, k) == v for k, v in option.items())
+    venv.close()
+
+
+def assert_same_episode(new: str, old: str, options: dict = START) -> list:
+    """The lab episode of ``options`` (a global start unless told) and ``ACTIONS``, then turns and drives, runs the
+    same in ``new`` and ``old``, bit for bit; returns ``new``'s steps."""
+    actions = ACTIONS + [1] * 20 + [0] * 10
+    a = rollout(make(new, **FAST), options=options, actions=actions)
+    b = rollout(make(old, **FAST), options=options, actions=actions)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+    return a
+
+
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
         "SemReloc-v18",
@@ -638,12 +661,7 @@ def test_v14_is_v13_with_a_surprise_test_of_the_cameras_own():
     furniture shapes are the same and the classes differ: v13 raises no surprise and its held convergence keeps
     the belief in the old room for 44 steps while the camera contradicts it; v14's camera test raises one at
     the second contradicting update, and the belief stops calling the old room converged."""
-    v14, v13 = make("SemReloc-v14", **FAST).unwrapped, make("SemReloc-v13", **FAST).unwrapped
-    assert v14.mcl_config == dataclasses.replace(v13.mcl_config, semantic_surprise_ratio=0.4)
-    assert v14.mapping_run_version == v13.mapping_run_version == "6"
-    venv = gym.make_vec("SemRelocVec-v14", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
-    assert venv.envs[0].unwrapped.mcl_config.semantic_surprise_ratio == 0.4
-    venv.close()
+    assert_one_option_apart("SemReloc-v14", "SemReloc-v13", semantic_surprise_ratio=0.4)
 
     from agents.policies import POLICIES
 
@@ -673,56 +691,28 @@ def test_v15_is_v14_whose_audit_after_a_surprise_turns_off_once_it_clears():
     """v15 differs from v14 only in its relocalizer's `MCLConfig.audit_after_surprise_once` (its effect on a
     kidnapping: tests/test_audit.py). A global start's audit is on from the start, so its episode is v14's, bit
     for bit; so is a tracking episode without a surprise."""
-    v15, v14 = make("SemReloc-v15", **FAST).unwrapped, make("SemReloc-v14", **FAST).unwrapped
-    assert v15.mcl_config == dataclasses.replace(v14.mcl_config, audit_after_surprise_once=True)
-    assert v15.mapping_run_version == v14.mapping_run_version == "6"
-    venv = gym.make_vec("SemRelocVec-v15", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
-    assert venv.envs[0].unwrapped.mcl_config.audit_after_surprise_once
-    venv.close()
-    actions = ACTIONS + [1] * 20 + [0] * 10
+    assert_one_option_apart("SemReloc-v15", "SemReloc-v14", audit_after_surprise_once=True)
     for options in (START, {**START, "tracking": True}):
-        a = rollout(make("SemReloc-v15", **FAST), options=options, actions=actions)
-        b = rollout(make("SemReloc-v14", **FAST), options=options, actions=actions)
+        a = assert_same_episode("SemReloc-v15", "SemReloc-v14", options)
         assert any("audit_log_ratio" in step[-1]["mcl"] for step in a) == ("tracking" not in options)
-        for x, y in zip(a, b):
-            np.testing.assert_equal(x, y)
 
 
 def test_v18_is_v17_whose_audit_after_a_lost_hold_judges_only_the_scans_since_its_fade():
     """v18 differs from v17 only in its relocalizer's `MCLConfig.lost_hold_window` (its effect on a look-alike
     kidnapping: tests/test_audit.py). A global start's audit is on from its start, so no hold is lost with the audit
     off and its episode is v17's, bit for bit."""
-    v18, v17 = make("SemReloc-v18", **FAST).unwrapped, make("SemReloc-v17", **FAST).unwrapped
-    assert v18.mcl_config == dataclasses.replace(v17.mcl_config, lost_hold_window=5)
-    assert v17.mcl_config.lost_hold_window == 0
-    assert v18.mapping_run_version == v17.mapping_run_version == "6"
-    venv = gym.make_vec("SemRelocVec-v18", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
-    assert venv.envs[0].unwrapped.mcl_config.lost_hold_window == 5
-    venv.close()
+    assert_one_option_apart("SemReloc-v18", "SemReloc-v17", lost_hold_window=5)
+    assert make("SemReloc-v17", **FAST).unwrapped.mcl_config.lost_hold_window == 0
     assert semreloc_env.envs.batched.SINGLE_ENV_ID == "SemReloc-v18"
-    actions = ACTIONS + [1] * 20 + [0] * 10
-    a = rollout(make("SemReloc-v18", **FAST), options=START, actions=actions)
-    b = rollout(make("SemReloc-v17", **FAST), options=START, actions=actions)
-    for x, y in zip(a, b):
-        np.testing.assert_equal(x, y)
+    assert_same_episode("SemReloc-v18", "SemReloc-v17")
 
 
 def test_v17_is_v16_whose_tracking_start_holds_its_pose():
     """v17 differs from v16 only in its relocalizer's `MCLConfig.hold_init_pose` (its effect on a kidnapping:
     tests/test_audit.py). A global start holds nothing, so its episode is v16's, bit for bit; a tracking start is
     converged at once in v17."""
-    v17, v16 = make("SemReloc-v17", **FAST).unwrapped, make("SemReloc-v16", **FAST).unwrapped
-    assert v17.mcl_config == dataclasses.replace(v16.mcl_config, hold_init_pose=True)
-    assert not v16.mcl_config.hold_init_pose
-    assert v17.mapping_run_version == v16.mapping_run_version == "6"
-    venv = gym.make_vec("SemRelocVec-v17", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
-    assert venv.envs[0].unwrapped.mcl_config.hold_init_pose
-    venv.close()
-    actions = ACTIONS + [1] * 20 + [0] * 10
-    a = rollout(make("SemReloc-v17", **FAST), options=START, actions=actions)
-    b = rollout(make("SemReloc-v16", **FAST), options=START, actions=actions)
-    for x, y in zip(a, b):
-        np.testing.assert_equal(x, y)
+    assert_one_option_apart("SemReloc-v17", "SemReloc-v16", hold_init_pose=True)
+    assert_same_episode("SemReloc-v17", "SemReloc-v16")
     # a tracking start whose cloud v16 does not call converged (91 % in the heaviest hypothesis): v17 holds it
     first = {}
     for env_id in ("SemReloc-v17", "SemReloc-v16"):
@@ -735,20 +725,10 @@ def test_v16_is_v15_whose_audit_also_follows_a_hold_lost_without_a_surprise():
     """v16 differs from v15 only in its relocalizer's `MCLConfig.audit_after_lost_hold` (its effect on a kidnapping
     no surprise test notices: tests/test_audit.py). A global start's audit is on from the start, so its episode is
     v15's, bit for bit, also when a hold is lost on the way; a tracking episode is v15's until a hold is lost."""
-    v16, v15 = make("SemReloc-v16", **FAST).unwrapped, make("SemReloc-v15", **FAST).unwrapped
-    assert v16.mcl_config == dataclasses.replace(v15.mcl_config, audit_after_lost_hold=True)
-    assert not v15.mcl_config.audit_after_lost_hold
-    assert v16.mapping_run_version == v15.mapping_run_version == "6"
-    venv = gym.make_vec("SemRelocVec-v16", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
-    assert venv.envs[0].unwrapped.mcl_config.audit_after_lost_hold
-    venv.close()
-    actions = ACTIONS + [1] * 20 + [0] * 10
-    a = rollout(make("SemReloc-v16", **FAST), options=START, actions=actions)
-    b = rollout(make("SemReloc-v15", **FAST), options=START, actions=actions)
+    assert_one_option_apart("SemReloc-v16", "SemReloc-v15", audit_after_lost_hold=True)
+    a = assert_same_episode("SemReloc-v16", "SemReloc-v15")
     held = [step[-1]["belief"]["converged"] for step in a]
     assert any(was and not now for was, now in zip(held, held[1:]))  # a hold is lost on the way
-    for x, y in zip(a, b):
-        np.testing.assert_equal(x, y)
     # a tracking episode whose hold fades (spinning in three_rooms' corridor): v16 audits from then on, v15 never
     kw = dict(FAST, layout="three_rooms")
     options = {"tracking": True, "pose": [7.5, 1.2, 0.0]}
