@@ -22,7 +22,7 @@ import numpy as np
 
 from filters.numbers import is_int, is_real
 
-__all__ = ["Lookalike", "NoPlaceError", "all_round_views", "lookalike_pose", "view_mismatch"]
+__all__ = ["Lookalike", "NoPlaceError", "all_round_views", "exact_views", "lookalike_pose", "view_mismatch"]
 
 
 class NoPlaceError(ValueError):
@@ -45,23 +45,32 @@ class Lookalike:
     distance_m: float
 
 
-def all_round_views(
-    world, positions: np.ndarray, max_range_m: float, camera_range_m: float, n_beams: int = 360
+def exact_views(
+    world, positions: np.ndarray, angles: np.ndarray, max_range_m: float, camera_range_m: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The exact views from ``positions`` ``(R, 2)`` (m): rays at world angles ``2 pi k / n_beams - pi``.
+    """The exact views from ``positions`` ``(R, 2)`` (m) along world-frame ``angles`` ``(R, B)`` (rad).
 
     Returns:
-        ``ranges`` ``(R, n_beams)`` float64 (m; ``max_range_m`` where nothing is hit) and ``labels``
-        ``(R, n_beams)`` int64: the class label (1..4) of the object a ray hits within ``camera_range_m``, else 0.
+        ``ranges`` ``(R, B)`` float64 (m; ``max_range_m`` where nothing is hit) and ``labels`` ``(R, B)`` int64:
+        the class label (1..4) of the object a ray hits within ``camera_range_m``, else 0.
     """
     xy = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-    angles = np.linspace(-math.pi, math.pi, n_beams, endpoint=False)
-    ranges, hit = world.scene.cast_many(xy, np.broadcast_to(angles, (len(xy), n_beams)), max_range_m)
+    ranges, hit = world.scene.cast_many(xy, angles, max_range_m)
     object_labels = np.array([0, *(o.label for o in world.layout.objects)], dtype=np.int64)
     owner = np.where(hit >= 0, world.scene.owner[np.maximum(hit, 0)], -1)  # -1: a wall, a block or nothing
     labels = object_labels[np.where(owner >= 0, owner + 1, 0)]
     labels[ranges >= camera_range_m] = 0
     return ranges, labels
+
+
+def all_round_views(
+    world, positions: np.ndarray, max_range_m: float, camera_range_m: float, n_beams: int = 360
+) -> tuple[np.ndarray, np.ndarray]:
+    """`exact_views` from ``positions`` ``(R, 2)`` (m) on rays at the same world angles ``2 pi k / n_beams - pi``
+    for every position: ``(R, n_beams)`` ranges and labels."""
+    xy = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    angles = np.linspace(-math.pi, math.pi, n_beams, endpoint=False)
+    return exact_views(world, xy, np.broadcast_to(angles, (len(xy), n_beams)), max_range_m, camera_range_m)
 
 
 def _mismatch_by_shift(

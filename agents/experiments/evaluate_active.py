@@ -293,11 +293,12 @@ def layout_file_kinds(files: tuple[str, ...] | list[str]) -> dict[str, str]:
     return {f: (s if s not in BUILTIN_ROWS and stems.count(s) == 1 else f"file:{f}") for f, s in zip(files, stems)}
 
 
-def _view(world, pose, lidar_max, cam_max, angles, labels):
-    r, hit = world.scene.cast(np.asarray(pose[:2]), pose[2] + angles, lidar_max)
-    owner = np.where(hit >= 0, world.scene.owner[np.maximum(hit, 0)], -1)
-    lab = np.where((owner >= 0) & (r < cam_max), labels[np.maximum(owner, 0)], 0)
-    return r, lab
+def _view(world, pose, lidar_max, cam_max, angles):
+    """The exact view from ``pose`` along ``angles`` (rad) relative to its heading: ranges and class labels."""
+    from semreloc_env.lookalike import exact_views
+
+    r, lab = exact_views(world, np.asarray(pose[:2])[None], (pose[2] + angles)[None], lidar_max, cam_max)
+    return r[0], lab[0]
 
 
 def _image(frame, local):
@@ -315,7 +316,6 @@ def uninformative_start(layout_seed: int, world, rng, lidar_max: float, cam_max:
     _, frames = lookalike_layout(np.random.default_rng(layout_seed), ProceduralParams(lookalike=True))
     width = frames[1][0] - frames[0][0] if len(frames) > 2 else 3.0
     depth = min(y for w in world.layout.walls for _, y in w if y > 0)
-    labels = np.array([o.label for o in world.layout.objects], dtype=np.int64)
     angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
     for _ in range(tries):
         room = int(rng.integers(0, len(frames)))
@@ -323,12 +323,12 @@ def uninformative_start(layout_seed: int, world, rng, lidar_max: float, cam_max:
         pose = _image(frames[room], local)
         if world.clearance(pose[:2]) < 0.45:
             continue
-        r0, l0 = _view(world, pose, lidar_max, cam_max, angles, labels)
+        r0, l0 = _view(world, pose, lidar_max, cam_max, angles)
         for other in range(len(frames)):
             if other == room:
                 continue
             q = _image(frames[other], local)
-            r1, l1 = _view(world, q, lidar_max, cam_max, angles, labels)
+            r1, l1 = _view(world, q, lidar_max, cam_max, angles)
             if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
                 return pose
     return None
@@ -341,17 +341,16 @@ def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries
 
     x0, x1, y0, y1 = world.layout.bounds()
     side = x1 - x0
-    labels = np.array([o.label for o in world.layout.objects], dtype=np.int64)
     angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
     for _ in range(tries):
         pose = world.sample_free_pose(rng, margin_m=0.3)
-        r0, l0 = _view(world, pose, lidar_max, cam_max, angles, labels)
+        r0, l0 = _view(world, pose, lidar_max, cam_max, angles)
         for k in (1, 2, 3):  # k quarter turns counter-clockwise about the hall's centre
             xy = quarter_turn(pose[:2] - (x0, y0), k, side) + (x0, y0)
             q = np.array([xy[0], xy[1], math.remainder(pose[2] + k * math.pi / 2, 2 * math.pi)])
             if not world.is_free(q[:2], 0.3):
                 continue
-            r1, l1 = _view(world, q, lidar_max, cam_max, angles, labels)
+            r1, l1 = _view(world, q, lidar_max, cam_max, angles)
             if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
                 return pose
     return None
