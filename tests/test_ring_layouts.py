@@ -118,15 +118,14 @@ def test_evaluate_active_adds_ring_cases_after_the_others_and_flags_lookalike_st
     lmax, cmax = LidarParams().range_max_m, CameraParams().range_max_m
     for c in flagged:  # some quarter-turned image of the start sees exactly what the start sees
         world = build_world(get_layout("procedural_ring", seed=c["layout_seed"]))
-        labels = np.array([o.label for o in world.layout.objects])
         side = world.layout.bounds()[1]
         pose = np.array(c["start"])
-        r0, l0 = _view(world, pose, lmax, cmax, angles, labels)
+        r0, l0 = _view(world, pose, lmax, cmax, angles)
         same = []
         q = pose.copy()
         for _ in range(3):
             q = np.array([*_turn(q[:2], side), q[2] + math.pi / 2])
-            r1, l1 = _view(world, q, lmax, cmax, angles, labels)
+            r1, l1 = _view(world, q, lmax, cmax, angles)
             same.append(np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1))
         assert any(same)
 
