@@ -428,8 +428,9 @@ def run_case(job: tuple[dict, tuple[str, ...], Args]) -> list[dict]:
     return rows
 
 
-def run_episode(case: dict, spec: str, args: Args) -> dict:
-    """One episode of policy ``spec`` on ``case``: its row of episodes.json.
+def run_episode(case: dict, spec: str, args: Args, max_steps: int | None = None) -> dict:
+    """One episode of policy ``spec`` on ``case``: its row of episodes.json (``max_steps``: stop after that many
+    steps, a check rather than an episode to score).
 
     Raises:
         ValueError: the policy cannot be built with the case's seed, or the env refused its action (the
@@ -463,7 +464,7 @@ def run_episode(case: dict, spec: str, args: Args) -> dict:
                 actions[key] = actions.get(key, 0) + 1
                 tracker.observe(info, reward)
                 collisions += bool(info["collided"])
-                if term or trunc:
+                if term or trunc or tracker.length == max_steps:
                     break
         except ValueError as e:  # the env refused the action, or the policy its observation: say whose, and where
             raise ValueError(f"{where}, step {tracker.length + 1}: {e}") from None
@@ -491,20 +492,10 @@ def check_policy_runs(spec: str, case: dict, args: Args) -> None:
     """ValueError unless policy ``spec`` builds with ``case``'s seed, wraps ``case``'s env, and takes a first
     step in it: a saved model whose spaces do not fit the env (another action space, algorithm or sensor) or a
     class of your own that fails at once is refused before any episode runs."""
-    env = case_env(case, args)
     try:
-        policy = make_policy(spec, case["episode_seed"], args.sample_learned)
-        wrapped = policy.wrap(env)
-        policy.reset()
-        obs, _ = wrapped.reset(seed=case["episode_seed"], options={"pose": case["start"]})
-        wrapped.step(policy.act(obs))
+        run_episode(case, spec, args, max_steps=1)
     except Exception as e:  # anything a user's class or a saved model raises: name it, no traceback
-        raise ValueError(
-            f"policies: {spec}: fails on its first step of case {case['case']} ({case['kind']}): "
-            f"{type(e).__name__}: {e}"
-        ) from None
-    finally:
-        env.close()
+        raise ValueError(f"policies: {spec}: fails on its first step: {e}") from None
 
 
 def motion_kind(action) -> str:
