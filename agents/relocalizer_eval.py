@@ -99,6 +99,12 @@ def lookalike_kidnap_pose(env, pose, seed: int):
             least /= 2.0
 
 
+KIDNAP_STEP = 30
+"""The step of the evaluation's tracking-then-kidnap rows' teleport, and the kidnap step whose look-alike place a
+``global_at_lookalike`` episode starts at: a ``*_lookalike_global`` row starts where the ``*_lookalike_kidnap`` row
+teleports to, seed for seed."""
+
+
 @dataclass(frozen=True)
 class EpisodeSpec:
     """One evaluation episode. ``mcl`` holds ``MCLConfig`` overrides (applied to the env's
@@ -108,7 +114,11 @@ class EpisodeSpec:
     ``tracking`` a tracking episode (the belief starts at the true pose; only the error and the
     step time are of interest). ``kidnap_to_twin``: a tracking-then-kidnap episode whose teleport goes to the
     half-turned image of the pose after step ``kidnap_at_step - 1`` (`twin_image`; row ``*_twin_kidnap``): the
-    same scans for the lidar, other classes for the camera. Inconsistent values raise ``ValueError``."""
+    same scans for the lidar, other classes for the camera. ``kidnap_to_lookalike``: the same with the teleport going to
+    `lookalike_kidnap_pose` of that pose (row ``*_lookalike_kidnap``). ``global_at_lookalike``: no kidnap, a global
+    start at the place a ``kidnap_to_lookalike`` episode of the same seed and policy kidnapped at step
+    `KIDNAP_STEP` would go to (row ``*_lookalike_global``): what a belief that knows nothing does from
+    there, beside what the belief after that kidnapping does. Inconsistent values raise ``ValueError``."""
 
     layout: str
     seed: int
@@ -124,13 +134,14 @@ class EpisodeSpec:
     kidnap_after_global: bool = False
     kidnap_to_twin: bool = False
     kidnap_to_lookalike: bool = False
+    global_at_lookalike: bool = False
 
     def __post_init__(self) -> None:
         if self.policy not in policy_names():
             raise ValueError(
                 f"EpisodeSpec.policy: unknown policy {self.policy!r:.60}; choose one of {list(policy_names())}"
             )
-        for name in ("tracking", "kidnap_after_global", "kidnap_to_twin", "kidnap_to_lookalike"):
+        for name in ("tracking", "kidnap_after_global", "kidnap_to_twin", "kidnap_to_lookalike", "global_at_lookalike"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"EpisodeSpec.{name} must be True or False, got {getattr(self, name)!r:.60}")
         if not is_int(self.n_steps) or self.n_steps < 1:
@@ -164,6 +175,11 @@ class EpisodeSpec:
                 f"kidnap_at_step - 1 is matched), and not kidnap_to_twin, got kidnap_at_step={self.kidnap_at_step}, "
                 f"kidnap_after_global={self.kidnap_after_global}, kidnap_to_twin={self.kidnap_to_twin}"
             )
+        if self.global_at_lookalike and (self.kidnap_at_step or self.tracking):
+            raise ValueError(
+                "EpisodeSpec.global_at_lookalike is a global start without a kidnap: kidnap_at_step must be 0 and "
+                f"tracking False, got kidnap_at_step={self.kidnap_at_step}, tracking={self.tracking}"
+            )
         if self.kidnap_at_step > self.n_steps:
             raise ValueError(
                 f"EpisodeSpec.kidnap_at_step {self.kidnap_at_step} is after the last step (n_steps {self.n_steps}): "
@@ -182,6 +198,8 @@ class EpisodeSpec:
             return name + "_twin_kidnap"
         if self.kidnap_to_lookalike:
             return name + "_lookalike_kidnap"
+        if self.global_at_lookalike:
+            return name + "_lookalike_global"
         return name + ("_kidnap" if self.kidnap_at_step else "_tracking" if self.tracking else "")
 
     @property
@@ -317,17 +335,17 @@ def run_episode(spec: EpisodeSpec) -> dict:
     )
     k = spec.kidnap_at_step
     options = spec.reset_options
-    if spec.kidnap_to_twin or spec.kidnap_to_lookalike:
+    if spec.kidnap_to_twin or spec.kidnap_to_lookalike or spec.global_at_lookalike:
         # the episode is deterministic: its first k - 1 steps say where the robot will be
         env, policy = driver(spec.policy, spec.seed, base)
         obs, info = env.reset(seed=spec.seed, options={"tracking": True})
-        for _ in range(k - 1):
+        for _ in range((KIDNAP_STEP if spec.global_at_lookalike else k) - 1):
             obs, _, _, _, info = env.step(policy(obs))
         if spec.kidnap_to_twin:
             target = twin_image(spec.layout, info["pose"])
         else:
             target = lookalike_kidnap_pose(base, info["pose"], spec.seed).pose.tolist()
-        options = {**options, "kidnap_pose": target}
+        options = {"pose": target} if spec.global_at_lookalike else {**options, "kidnap_pose": target}
     env, policy = driver(spec.policy, spec.seed, base)
     obs, info = env.reset(seed=spec.seed, options=options)
     cfg = base.mcl_config
@@ -390,6 +408,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
         median_error_m=float(np.median(errors)) if errors else math.nan,
         kidnapped_at=kidnapped_at,
         kidnap_pose=options.get("kidnap_pose") if options else None,
+        start_pose=options.get("pose") if options else None,
     )
     if k:
         out.update(

@@ -49,6 +49,9 @@ def test_row_names_and_reset_options():
         ({"kidnap_to_lookalike": True}, "kidnap_to_lookalike needs a tracking start"),
         ({"kidnap_to_lookalike": True, "kidnap_at_step": 1}, "kidnap_at_step >= 2"),
         ({"kidnap_to_lookalike": True, "kidnap_at_step": 5, "kidnap_after_global": True}, "needs a tracking start"),
+        ({"global_at_lookalike": True, "kidnap_at_step": 30}, "global_at_lookalike is a global start without a kidnap"),
+        ({"global_at_lookalike": True, "tracking": True}, "global_at_lookalike is a global start without a kidnap"),
+        ({"global_at_lookalike": 1}, "global_at_lookalike must be True or False"),
     ],
 )
 def test_bad_specs_are_refused(kwargs, match):
@@ -131,6 +134,29 @@ def test_a_lookalike_kidnap_teleports_to_the_place_that_looks_most_like_the_pose
     tiny.reset(seed=0)
     near = lookalike_kidnap_pose(tiny, [0.8476569465482231, 1.4808593565037547, 0.0], 0)
     assert 0.375 <= near.distance_m < 3.0 and tiny.world.is_free(near.pose[:2])
+
+
+def test_a_lookalike_global_row_starts_globally_where_the_lookalike_kidnap_row_teleports_seed_for_seed():
+    """``<layout>_lookalike_global``: a global start (a spread belief, no kidnap) at the pose the
+    ``<layout>_lookalike_kidnap`` episode of the same seed and policy teleports to, scored over 200 steps."""
+    from semreloc_env.envs.semreloc import SemRelocEnv
+
+    (kid,) = specs_for("twin_rooms_lookalike_kidnap", 1, 4, [0], {}, "after", policies=("wall_follow",))
+    (glob,) = specs_for("twin_rooms_lookalike_global", 1, 4, [0], {}, "after", policies=("wall_follow",))
+    expected = ("twin_rooms_lookalike_global", "twin_rooms", 4, "wall_follow")
+    assert (glob.row, glob.layout, glob.seed, glob.policy) == expected
+    assert (glob.n_steps, glob.kidnap_at_step, glob.tracking, glob.reset_options) == (200, 0, False, None)
+    assert glob.global_at_lookalike and not kid.global_at_lookalike
+    assert "twin_rooms_lookalike_global" not in Args().rows  # not a default row
+    kidnapped = run_episode(EpisodeSpec(**{**kid.__dict__, "n_steps": 31}))
+    out = run_episode(EpisodeSpec(**{**glob.__dict__, "n_steps": 3}))
+    assert out["row"] == "twin_rooms_lookalike_global" and out["kidnapped_at"] is None and out["kidnap_pose"] is None
+    assert out["start_pose"] == kidnapped["kidnap_pose"] and kidnapped["start_pose"] is None
+    env = SemRelocEnv(layout="twin_rooms")
+    _, info = env.reset(seed=glob.seed, options={"pose": out["start_pose"]})
+    assert info["pose"] == pytest.approx(out["start_pose"], abs=1e-9)
+    assert not info["belief"]["converged"] and info["belief"]["pos_std_m"] > 1.0  # spread over the map
+    assert out["reconverged_wrong"] is None  # scored as a global start
 
 
 def test_a_twin_kidnap_teleports_to_the_half_turned_image_of_the_pose_before_it():

@@ -10,7 +10,9 @@ step 150, 200 steps after it), a class-only kidnap row (``twin_rooms_twin_kidnap
 teleport at step 30 to the half-turned image of the pose in the other room, whose walls and furniture
 shapes are the same and whose classes differ) and a tracking row (300 steps from the true pose: error and step
 time). Not by default: a look-alike kidnap row of any layout (``<layout>_lookalike_kidnap``: tracking, then a
-teleport at step 30 to the place at least 3 m away whose all-round view is most like the pose's). ``--layout-files``
+teleport at step 30 to the place at least 3 m away whose all-round view is most like the pose's) and its pair,
+``<layout>_lookalike_global`` (a global start at the place that row's episode of the same seed teleports to, 200
+steps: whether a look-alike kidnapping fails for the place or for the belief it leaves). ``--layout-files``
 adds a global, a kidnap, a look-alike kidnap and a global-kidnap row for each layout file of yours.
 
 Tuning and reporting use disjoint seeds: defaults were chosen with ``--seed-base 5000
@@ -31,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.relocalizer_eval import (
+    KIDNAP_STEP,
     LAYOUT_FILE_SUFFIXES,
     POLICIES,
     EpisodeSpec,
@@ -68,11 +71,16 @@ LOOKALIKE_SUFFIX = "_lookalike_kidnap"
 """A row ``<layout>_lookalike_kidnap``: tracking, then a teleport at step 30 to the place at least 3 m away whose
 all-round view is most like the pose's (`agents.relocalizer_eval.lookalike_kidnap_pose`); any layout, not a
 default row."""
+LOOKALIKE_GLOBAL_SUFFIX = "_lookalike_global"
+"""A row ``<layout>_lookalike_global``: a global start, 200 steps, at the place the ``<layout>_lookalike_kidnap`` row's
+episode of the same seed teleports to: whether a look-alike kidnapping fails for the place or for the belief the
+kidnapping leaves (the two rows' episodes pair by seed); any layout, not a default row."""
 
 
 def row_layout(row: str, files: dict[str, str] | None = None) -> tuple[str, str]:
     """``(base, layout)`` of a row: its name without the kind's suffix, and the layout (name or file) it runs."""
     base = row.removesuffix("_global_kidnap").removesuffix("_twin_kidnap").removesuffix(LOOKALIKE_SUFFIX)
+    base = base.removesuffix(LOOKALIKE_GLOBAL_SUFFIX)
     base = base.removesuffix("_kidnap")
     base = base.removesuffix("_tracking")
     return base, "lab" if base == "lab_changed" else (files or {}).get(base, base)
@@ -93,10 +101,13 @@ def specs_for(
     global_kidnap = row.endswith("_global_kidnap")
     twin = row.endswith("_twin_kidnap")
     lookalike = row.endswith(LOOKALIKE_SUFFIX)
+    lookalike_global = row.endswith(LOOKALIKE_GLOBAL_SUFFIX)
     kidnap = row.endswith("_kidnap") and not global_kidnap
     tracking = row.endswith("_tracking")
     base, layout = row_layout(row, files)
     scenario = "changed" if base == "lab_changed" else "nominal"
+    kidnap_at = GLOBAL_KIDNAP_STEP if global_kidnap else KIDNAP_STEP if kidnap else 0
+    n_steps = kidnap_at + 200 if kidnap_at else 300 if tracking else 200 if lookalike_global else 400
     out = []
     for i in range(n):
         out.append(
@@ -106,14 +117,15 @@ def specs_for(
                 policy=policies[i % len(policies)],
                 layout_seed=sym_seeds[i % len(sym_seeds)] if layout.startswith("procedural") else 0,
                 scenario=scenario,
-                n_steps=GLOBAL_KIDNAP_STEP + 200 if global_kidnap else 230 if kidnap else 300 if tracking else 400,
-                kidnap_at_step=GLOBAL_KIDNAP_STEP if global_kidnap else 30 if kidnap else 0,
+                n_steps=n_steps,
+                kidnap_at_step=kidnap_at,
                 tracking=tracking,
                 mcl=mcl,
                 label=label,
                 kidnap_after_global=global_kidnap,
                 kidnap_to_twin=twin,
                 kidnap_to_lookalike=lookalike,
+                global_at_lookalike=lookalike_global,
             )
         )
     return out
