@@ -281,6 +281,31 @@ def test_summary_and_tables_carry_the_kidnap_columns():
     assert table(old, ["after"], ["lab_global_kidnap"]).splitlines()[2].endswith("| — | — |")  # older results
 
 
+def test_the_pair_table_pairs_lookalike_kidnaps_with_global_starts_at_the_same_places():
+    """Per layout with both rows, the same (seed, policy) pairs; a row without its pair, another variant's
+    episodes and an unpaired episode are left out; an ``all`` line sums the layouts; McNemar's exact p."""
+    from agents.experiments.evaluate_relocalizer import lookalike_pair_table
+    from filters.experiments.stats import mcnemar_exact_p
+
+    def ep(row, seed, ok, label="after", policy="viewpoint"):
+        return {"row": row, "seed": seed, "policy": policy, "label": label, "outcome": "success" if ok else "wrong"}
+
+    a_kid = [True, True, False, False, False, True]  # seeds 0-5 of layout a: kidnapping ...
+    a_glob = [True, False, True, True, False, True]  # ... and the global start at its place
+    rs = [ep("a_lookalike_kidnap", i, k) for i, k in enumerate(a_kid)]
+    rs += [ep("a_lookalike_global", i, g) for i, g in enumerate(a_glob)]
+    rs += [ep("a_lookalike_kidnap", 9, True), ep("a_lookalike_global", 0, False, label="before")]  # unpaired, other
+    rs += [ep("b_lookalike_kidnap", 0, False), ep("b_lookalike_global", 0, True), ep("c_lookalike_kidnap", 0, True)]
+    rows = ["a_lookalike_kidnap", "a_lookalike_global", "b_lookalike_kidnap", "b_lookalike_global",
+            "c_lookalike_kidnap"]  # fmt: skip
+    lines = lookalike_pair_table(rs, ["after"], rows).splitlines()
+    assert lines[2] == f"| a | after | 6 | 3 | 4 | 1 | 2 | {mcnemar_exact_p(1, 2):.2g} |"
+    assert lines[3] == f"| b | after | 1 | 0 | 1 | 0 | 1 | {mcnemar_exact_p(0, 1):.2g} |"
+    assert lines[4] == f"| all | after | 7 | 3 | 5 | 1 | 3 | {mcnemar_exact_p(1, 3):.2g} |"
+    assert len(lines) == 5  # no line for c, which has no global row
+    assert lookalike_pair_table(rs, ["after"], ["c_lookalike_kidnap"]) == ""
+
+
 # ------------------------------------------------------------------ layout files of your own
 
 

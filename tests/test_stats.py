@@ -98,3 +98,17 @@ def test_holm_adjusted_by_hand():
     assert holm_adjusted([]).size == 0
     with pytest.raises(ValueError, match="p-values"):
         holm_adjusted([1.5])
+
+
+def test_mcnemar_exact_p_is_the_two_sided_binomial_tail_of_the_discordant_pairs():
+    from filters.experiments.stats import mcnemar_exact_p
+
+    # at 1/2 the two-sided p is twice the smaller tail: 2 * P(X <= min(a, b)), X ~ Bin(a + b, 1/2), at most 1
+    for a, b in [(0, 5), (1, 9), (9, 1), (3, 3), (2, 1), (19, 62)]:
+        n = a + b
+        tail = sum(math.comb(n, i) for i in range(min(a, b) + 1)) / 2**n
+        assert mcnemar_exact_p(a, b) == pytest.approx(min(1.0, 2 * tail), rel=1e-12)
+    assert mcnemar_exact_p(0, 5) == pytest.approx(0.0625)
+    assert mcnemar_exact_p(0, 0) == 1.0  # no discordant pair: no evidence either way
+    with pytest.raises(ValueError, match="counts must be >= 0"):
+        mcnemar_exact_p(-1, 3)

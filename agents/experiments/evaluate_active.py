@@ -938,9 +938,7 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
     of the success rates with a paired bootstrap 95 % interval (``filters.experiments.stats``,
     seeded; None with a single case, which has no spread to resample) and McNemar's exact p-value (a
     binomial test on the discordant pairs)."""
-    from scipy.stats import binomtest
-
-    from filters.experiments.stats import paired_bootstrap_interval
+    from filters.experiments.stats import mcnemar_exact_p, paired_bootstrap_interval
 
     by = {(r["case"], r["policy"]): r["outcome"] == "success" for r in rows}
     cases = sorted({r["case"] for r in rows})
@@ -957,7 +955,7 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
             else:
                 point, ci95 = float(np.mean(x - y)), None
             wins, losses = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
-            p = binomtest(wins, wins + losses).pvalue if wins + losses else 1.0
+            p = mcnemar_exact_p(wins, losses)
             out.append(
                 {
                     "policy": a,

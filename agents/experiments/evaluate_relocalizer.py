@@ -50,6 +50,7 @@ from agents.relocalizer_eval import (
 from filters.experiments.cli import Runner, command, parse
 from filters.experiments.report import markdown_table
 from filters.experiments.runner import RunnerConfig, run_jobs
+from filters.experiments.stats import mcnemar_exact_p
 from filters.robot_data import ACES_LOG
 from semreloc_env.envs.semreloc import LEGACY_RELOCALIZER_OVERRIDES
 
@@ -222,6 +223,46 @@ def kidnap_table(results: list[dict], variants: list[str], rows: list[str]) -> s
     return markdown_table(header, lines) + "\n" if lines else ""
 
 
+def lookalike_pair_table(results: list[dict], variants: list[str], rows: list[str]) -> str:
+    """The Markdown table pairing each ``<layout>_lookalike_kidnap`` row with its ``<layout>_lookalike_global`` row
+    where both ran, episode by episode (the same seed and policy: the global start is at the place the kidnapping
+    went to), per variant, with an ``all`` line over the layouts when there are several: successes after the
+    kidnapping and from the global start, the places only one of them succeeded from, McNemar's exact p ("" when no
+    layout has both rows)."""
+    header = ["layout", "variant", "places", "success after the kidnap", "success from a global start there",
+              "only after the kidnap", "only from the global start", "McNemar p"]  # fmt: skip
+    stems = [r.removesuffix(LOOKALIKE_SUFFIX) for r in rows if r.endswith(LOOKALIKE_SUFFIX)]
+    stems = [b for b in stems if b + LOOKALIKE_GLOBAL_SUFFIX in rows]
+    lines = []
+    for v in variants:
+        total = np.zeros(4, dtype=np.int64)  # places, only after the kidnap, only from the global start, both
+        done = 0
+        for stem in stems:
+            by = {}
+            for r in results:
+                if r["label"] == v and r["row"] in (stem + LOOKALIKE_SUFFIX, stem + LOOKALIKE_GLOBAL_SUFFIX):
+                    by.setdefault((r["seed"], r["policy"]), {})[r["row"] == stem + LOOKALIKE_SUFFIX] = (
+                        r["outcome"] == "success"
+                    )
+            pairs = [(d[True], d[False]) for d in by.values() if len(d) == 2]
+            if not pairs:
+                continue
+            kid, glob = np.array(pairs, dtype=bool).T
+            counts = np.array([kid.size, np.sum(kid & ~glob), np.sum(~kid & glob), np.sum(kid & glob)])
+            total += counts
+            done += 1
+            lines.append(_pair_line(stem, v, counts))
+        if done > 1:
+            lines.append(_pair_line("all", v, total))
+    return markdown_table(header, lines) + "\n" if lines else ""
+
+
+def _pair_line(name: str, variant: str, counts: np.ndarray) -> list:
+    n, only_kidnap, only_global, both = (int(c) for c in counts)
+    return [name, variant, n, both + only_kidnap, both + only_global, only_kidnap, only_global,
+            f"{mcnemar_exact_p(only_kidnap, only_global):.2g}"]  # fmt: skip
+
+
 def log_table(trials: list[dict], tracks: list[dict], names: list[str]) -> str:
     """The Markdown table of the log rows: global-localization trials and tracking per variant."""
     header = ["variant", "starts", "correct", "wrong", "unconverged", "median scans to correct",
@@ -353,6 +394,9 @@ def main(argv: list[str] | None = None) -> int:
     kt = kidnap_table(results, names, rows)
     if kt:
         md += "\n### After the kidnap (episodes)\n\n" + kt
+    pt = lookalike_pair_table(results, names, rows)
+    if pt:
+        md += "\n### Look-alike kidnappings beside global starts at the same places (paired by seed)\n\n" + pt
     if args.log_starts > 0:
         log_path = str(ACES_LOG)
         n_scans = 440

@@ -5,6 +5,7 @@
 * `normal_mean_interval` -- mean and normal-approximation half-width (``z * s / sqrt(n)``).
 * `paired_bootstrap_interval` -- percentile bootstrap interval of a statistic of paired samples.
 * `holm_adjusted` -- Holm's step-down adjustment of p-values for a family of tests.
+* `mcnemar_exact_p` -- McNemar's exact test of paired successes, from the discordant pairs.
 
 Effective sample size lives with the weights it describes:
 `filters.smc.resampling.effective_sample_size`.
@@ -25,6 +26,7 @@ __all__ = [
     "paired_bootstrap_interval",
     "relative_reduction_pct",
     "holm_adjusted",
+    "mcnemar_exact_p",
 ]
 
 
@@ -121,6 +123,16 @@ def paired_bootstrap_interval(
     )
     ci = res.confidence_interval
     return (float(statistic(base, new)), float(ci.low), float(ci.high))
+
+
+def mcnemar_exact_p(only_a: int, only_b: int) -> float:
+    """McNemar's exact two-sided p-value for paired binary outcomes: ``only_a`` pairs where only A succeeded,
+    ``only_b`` where only B did (the concordant pairs do not enter); a binomial test of ``only_a`` of
+    ``only_a + only_b`` at 1/2. 1.0 without discordant pairs. Raises ``ValueError`` on a negative count."""
+    if only_a < 0 or only_b < 0:
+        raise ValueError(f"counts must be >= 0, got {only_a} and {only_b}")
+    n = int(only_a) + int(only_b)
+    return float(stats.binomtest(int(only_a), n).pvalue) if n else 1.0
 
 
 def holm_adjusted(p_values) -> np.ndarray:
