@@ -136,14 +136,15 @@ def test_a_lookalike_kidnap_teleports_to_the_place_that_looks_most_like_the_pose
     assert 0.375 <= near.distance_m < 3.0 and tiny.world.is_free(near.pose[:2])
 
 
-def test_a_lookalike_global_row_starts_globally_where_the_lookalike_kidnap_row_teleports_seed_for_seed():
+@pytest.mark.parametrize("policy", ["wall_follow", "viewpoint"])
+def test_a_lookalike_global_row_starts_globally_where_the_lookalike_kidnap_row_teleports_seed_for_seed(policy):
     """``<layout>_lookalike_global``: a global start (a spread belief, no kidnap) at the pose the
     ``<layout>_lookalike_kidnap`` episode of the same seed and policy teleports to, scored over 200 steps."""
     from semreloc_env.envs.semreloc import SemRelocEnv
 
-    (kid,) = specs_for("twin_rooms_lookalike_kidnap", 1, 4, [0], {}, "after", policies=("wall_follow",))
-    (glob,) = specs_for("twin_rooms_lookalike_global", 1, 4, [0], {}, "after", policies=("wall_follow",))
-    expected = ("twin_rooms_lookalike_global", "twin_rooms", 4, "wall_follow")
+    (kid,) = specs_for("twin_rooms_lookalike_kidnap", 1, 4, [0], {}, "after", policies=(policy,))
+    (glob,) = specs_for("twin_rooms_lookalike_global", 1, 4, [0], {}, "after", policies=(policy,))
+    expected = ("twin_rooms_lookalike_global", "twin_rooms", 4, policy)
     assert (glob.row, glob.layout, glob.seed, glob.policy) == expected
     assert (glob.n_steps, glob.kidnap_at_step, glob.tracking, glob.reset_options) == (200, 0, False, None)
     assert glob.global_at_lookalike and not kid.global_at_lookalike
@@ -282,28 +283,43 @@ def test_summary_and_tables_carry_the_kidnap_columns():
 
 
 def test_the_pair_table_pairs_lookalike_kidnaps_with_global_starts_at_the_same_places():
-    """Per layout with both rows, the same (seed, policy) pairs; a row without its pair, another variant's
-    episodes and an unpaired episode are left out; an ``all`` line sums the layouts; McNemar's exact p."""
+    """Per layout and policy with both rows, the same (seed, policy) pairs whose global start is at the kidnapping's
+    place; a row without its pair, another variant's episodes, an unpaired episode and a pair whose places differ
+    are left out; an ``all`` line per policy sums the layouts; McNemar's exact p."""
     from agents.experiments.evaluate_relocalizer import lookalike_pair_table
     from filters.experiments.stats import mcnemar_exact_p
 
-    def ep(row, seed, ok, label="after", policy="viewpoint"):
-        return {"row": row, "seed": seed, "policy": policy, "label": label, "outcome": "success" if ok else "wrong"}
+    def ep(row, seed, ok, label="after", policy="viewpoint", place=None):
+        place = [float(seed), 1.0, 0.0] if place is None else place
+        where = {"kidnap_pose": place} if row.endswith("_kidnap") else {"start_pose": place}
+        return {"row": row, "seed": seed, "policy": policy, "label": label, "outcome": "success" if ok else "wrong",
+                **where}  # fmt: skip
 
     a_kid = [True, True, False, False, False, True]  # seeds 0-5 of layout a: kidnapping ...
     a_glob = [True, False, True, True, False, True]  # ... and the global start at its place
     rs = [ep("a_lookalike_kidnap", i, k) for i, k in enumerate(a_kid)]
     rs += [ep("a_lookalike_global", i, g) for i, g in enumerate(a_glob)]
     rs += [ep("a_lookalike_kidnap", 9, True), ep("a_lookalike_global", 0, False, label="before")]  # unpaired, other
+    rs += [ep("a_lookalike_kidnap", 7, False), ep("a_lookalike_global", 7, True, place=[0.0, 0.0, 0.0])]  # elsewhere
     rs += [ep("b_lookalike_kidnap", 0, False), ep("b_lookalike_global", 0, True), ep("c_lookalike_kidnap", 0, True)]
+    rs += [ep("a_lookalike_kidnap", 0, False, policy="spin"), ep("a_lookalike_global", 0, False, policy="spin")]
     rows = ["a_lookalike_kidnap", "a_lookalike_global", "b_lookalike_kidnap", "b_lookalike_global",
             "c_lookalike_kidnap"]  # fmt: skip
     lines = lookalike_pair_table(rs, ["after"], rows).splitlines()
-    assert lines[2] == f"| a | after | 6 | 3 | 4 | 1 | 2 | {mcnemar_exact_p(1, 2):.2g} |"
-    assert lines[3] == f"| b | after | 1 | 0 | 1 | 0 | 1 | {mcnemar_exact_p(0, 1):.2g} |"
-    assert lines[4] == f"| all | after | 7 | 3 | 5 | 1 | 3 | {mcnemar_exact_p(1, 3):.2g} |"
-    assert len(lines) == 5  # no line for c, which has no global row
+    assert lines[2] == f"| a | after | spin | 1 | 0 | 0 | 0 | 0 | {mcnemar_exact_p(0, 0):.2g} |"
+    assert lines[3] == f"| a | after | viewpoint | 6 | 3 | 4 | 1 | 2 | {mcnemar_exact_p(1, 2):.2g} |"
+    assert lines[4] == f"| b | after | viewpoint | 1 | 0 | 1 | 0 | 1 | {mcnemar_exact_p(0, 1):.2g} |"
+    assert lines[5] == f"| all | after | viewpoint | 7 | 3 | 5 | 1 | 3 | {mcnemar_exact_p(1, 3):.2g} |"
+    assert len(lines) == 6  # no line for c, which has no global row, nor an "all" for spin's one layout
     assert lookalike_pair_table(rs, ["after"], ["c_lookalike_kidnap"]) == ""
+
+
+def test_a_row_name_with_two_kinds_endings_is_refused():
+    """``lab_kidnap_lookalike_global`` would run ``lab_lookalike_global``'s episodes under a name no table line
+    shows (a review's); refused before any episode runs, as ``lab_tracking_kidnap`` is."""
+    for row, ran in (("lab_kidnap_lookalike_global", "lab_lookalike_global"), ("lab_tracking_kidnap", "lab_kidnap")):
+        with pytest.raises(ValueError, match=f"'{row}' is not a row name .*'{ran}'"):
+            Args(rows=(row,), log_starts=0)
 
 
 # ------------------------------------------------------------------ layout files of your own

@@ -225,41 +225,44 @@ def kidnap_table(results: list[dict], variants: list[str], rows: list[str]) -> s
 
 def lookalike_pair_table(results: list[dict], variants: list[str], rows: list[str]) -> str:
     """The Markdown table pairing each ``<layout>_lookalike_kidnap`` row with its ``<layout>_lookalike_global`` row
-    where both ran, episode by episode (the same seed and policy: the global start is at the place the kidnapping
-    went to), per variant, with an ``all`` line over the layouts when there are several: successes after the
-    kidnapping and from the global start, the places only one of them succeeded from, McNemar's exact p ("" when no
-    layout has both rows)."""
-    header = ["layout", "variant", "places", "success after the kidnap", "success from a global start there",
+    where both ran, episode by episode (the same seed and policy, and the global start at the place the kidnapping
+    went to: an episode whose ``start_pose`` is not its pair's ``kidnap_pose`` is left out), one line per layout,
+    variant and policy, with an ``all`` line per variant and policy over the layouts when there are several:
+    successes after the kidnapping and from the global start, the places only one of them succeeded from, McNemar's
+    exact p ("" when no layout has both rows)."""
+    header = ["layout", "variant", "policy", "places", "success after the kidnap", "success from a global start there",
               "only after the kidnap", "only from the global start", "McNemar p"]  # fmt: skip
     stems = [r.removesuffix(LOOKALIKE_SUFFIX) for r in rows if r.endswith(LOOKALIKE_SUFFIX)]
     stems = [b for b in stems if b + LOOKALIKE_GLOBAL_SUFFIX in rows]
     lines = []
     for v in variants:
-        total = np.zeros(4, dtype=np.int64)  # places, only after the kidnap, only from the global start, both
-        done = 0
-        for stem in stems:
-            by = {}
-            for r in results:
-                if r["label"] == v and r["row"] in (stem + LOOKALIKE_SUFFIX, stem + LOOKALIKE_GLOBAL_SUFFIX):
-                    by.setdefault((r["seed"], r["policy"]), {})[r["row"] == stem + LOOKALIKE_SUFFIX] = (
-                        r["outcome"] == "success"
-                    )
-            pairs = [(d[True], d[False]) for d in by.values() if len(d) == 2]
-            if not pairs:
-                continue
-            kid, glob = np.array(pairs, dtype=bool).T
-            counts = np.array([kid.size, np.sum(kid & ~glob), np.sum(~kid & glob), np.sum(kid & glob)])
-            total += counts
-            done += 1
-            lines.append(_pair_line(stem, v, counts))
-        if done > 1:
-            lines.append(_pair_line("all", v, total))
+        policies = sorted({r["policy"] for r in results if r["label"] == v})
+        for policy in policies:
+            total = np.zeros(4, dtype=np.int64)  # places, only after the kidnap, only from the global start, both
+            done = 0
+            mine = [r for r in results if r["label"] == v and r["policy"] == policy]
+            for stem in stems:
+                kid = {r["seed"]: r for r in mine if r["row"] == stem + LOOKALIKE_SUFFIX}
+                glob = {r["seed"]: r for r in mine if r["row"] == stem + LOOKALIKE_GLOBAL_SUFFIX}
+                same = [
+                    k for k in sorted(kid.keys() & glob.keys()) if glob[k].get("start_pose") == kid[k]["kidnap_pose"]
+                ]
+                pairs = [(kid[k]["outcome"] == "success", glob[k]["outcome"] == "success") for k in same]
+                if not pairs:
+                    continue
+                a, b = np.array(pairs, dtype=bool).T
+                counts = np.array([a.size, np.sum(a & ~b), np.sum(~a & b), np.sum(a & b)])
+                total += counts
+                done += 1
+                lines.append(_pair_line(stem, v, policy, counts))
+            if done > 1:
+                lines.append(_pair_line("all", v, policy, total))
     return markdown_table(header, lines) + "\n" if lines else ""
 
 
-def _pair_line(name: str, variant: str, counts: np.ndarray) -> list:
+def _pair_line(name: str, variant: str, policy: str, counts: np.ndarray) -> list:
     n, only_kidnap, only_global, both = (int(c) for c in counts)
-    return [name, variant, n, both + only_kidnap, both + only_global, only_kidnap, only_global,
+    return [name, variant, policy, n, both + only_kidnap, both + only_global, only_kidnap, only_global,
             f"{mcnemar_exact_p(only_kidnap, only_global):.2g}"]  # fmt: skip
 
 
@@ -344,6 +347,11 @@ class Args:
             base, layout = row_layout(row, files)
             if row != "none" and base not in files:  # a built-in name, a name on $SEMRELOC_LAYOUT_PATH, a path
                 check_layout_option(layout, f"rows: unknown row {row!r}")
+        for row in rows:  # a name with two kinds' endings would run another row's episodes under a name never shown
+            ran = specs_for(row, 1, self.seed_base, list(self.sym_seeds), {}, "", files, self.policies)[0].row
+            base = row_layout(row, files)[0]
+            if ran != (Path(base).stem + row[len(base) :] if base.endswith(LAYOUT_FILE_SUFFIXES) else row):
+                raise ValueError(f"rows: {row!r} is not a row name (it would run the episodes of {ran!r})")
         episodes = [self.episodes_of(v) for v in self.variants]
         if not self.variants or ((not rows or max(episodes) == 0) and self.log_starts == 0):
             raise ValueError("nothing to run: no variant, or no rows (or no episodes) and --log-starts 0")
@@ -355,7 +363,7 @@ class Args:
             check_overrides(variants[name], f"variant {name!r}", DEFAULT_RELOCALIZER)
 
     def row_list(self) -> tuple[dict[str, str], list[str]]:
-        """``({row name: layout file}, the rows to run)``: ``--rows`` (without ``none``), then three rows per
+        """``({row name: layout file}, the rows to run)``: ``--rows`` (without ``none``), then four rows per
         ``--layout-files`` file (`file_rows`)."""
         files, extra_rows = file_rows(self.layout_files)
         return files, [r for r in self.rows if r and r != "none"] + extra_rows
