@@ -74,29 +74,17 @@ def twin_image(layout: str, pose) -> list[float]:
     return [2.0 * cx - x, 2.0 * cy - y, math.atan2(math.sin(th + math.pi), math.cos(th + math.pi))]
 
 
-LOOKALIKE_MIN_DISTANCE_M = 3.0
-"""How far from the pose a ``*_lookalike_kidnap`` teleport goes at least (m), or half, a quarter, ... of it down to
-0.375 m where no free place lies that far (a cluttered room of 3 m x 2.5 m has none 3 m from most poses)."""
-
-
 def lookalike_kidnap_pose(env, pose, seed: int):
-    """The `semreloc_env.lookalike.Lookalike` a ``*_lookalike_kidnap`` episode teleports to: the place at least
-    `LOOKALIKE_MIN_DISTANCE_M` from ``pose`` whose all-round view within the env's lidar and camera ranges is
-    most like ``pose``'s, searched with a generator seeded by ``seed`` + 7919 (apart from the episode's own)."""
-    from semreloc_env.lookalike import NoPlaceError, lookalike_pose
+    """The `semreloc_env.lookalike.Lookalike` a ``*_lookalike_kidnap`` episode teleports to:
+    `semreloc_env.lookalike.lookalike_kidnap` of ``pose`` within the env's lidar and camera ranges, searched with a
+    generator seeded by ``seed`` + 7919 (apart from the episode's own)."""
+    from semreloc_env.lookalike import lookalike_kidnap
 
     u = env.unwrapped
-    least = LOOKALIKE_MIN_DISTANCE_M
-    while True:
-        try:
-            return lookalike_pose(
-                u.world, pose, np.random.default_rng(seed + 7919), min_distance_m=least,
-                max_range_m=u.lidar.params.range_max_m, camera_range_m=u.camera.params.range_max_m,
-            )  # fmt: skip
-        except NoPlaceError:
-            if least < 0.5:
-                raise
-            least /= 2.0
+    return lookalike_kidnap(
+        u.world, pose, np.random.default_rng(seed + 7919),
+        max_range_m=u.lidar.params.range_max_m, camera_range_m=u.camera.params.range_max_m,
+    )  # fmt: skip
 
 
 KIDNAP_STEP = 30
@@ -204,8 +192,9 @@ class EpisodeSpec:
 
     @property
     def reset_options(self) -> dict | None:
-        """The ``options`` of the episode's ``env.reset`` (a ``kidnap_to_twin`` episode's ``kidnap_pose`` is added by
-        `run_episode`, which finds it by running the steps before the kidnap)."""
+        """The ``options`` of the episode's ``env.reset``. `run_episode` finds the target of a ``kidnap_to_twin`` or
+        ``kidnap_to_lookalike`` episode by running the steps before the kidnap and adds it as ``kidnap_pose``; a
+        ``global_at_lookalike`` episode's options are ``{"pose": target}`` (None here)."""
         if self.kidnap_after_global:
             return {"kidnap_at_step": self.kidnap_at_step}  # global start, teleport at kidnap_at_step
         if self.kidnap_at_step:
@@ -336,7 +325,7 @@ def run_episode(spec: EpisodeSpec) -> dict:
     k = spec.kidnap_at_step
     options = spec.reset_options
     if spec.kidnap_to_twin or spec.kidnap_to_lookalike or spec.global_at_lookalike:
-        # the episode is deterministic: its first k - 1 steps say where the robot will be
+        # the episode is deterministic: its steps before the kidnap (KIDNAP_STEP's for a global row) say where it goes
         env, policy = driver(spec.policy, spec.seed, base)
         obs, info = env.reset(seed=spec.seed, options={"tracking": True})
         for _ in range((KIDNAP_STEP if spec.global_at_lookalike else k) - 1):

@@ -22,7 +22,21 @@ import numpy as np
 
 from filters.numbers import is_int, is_real
 
-__all__ = ["Lookalike", "NoPlaceError", "all_round_views", "exact_views", "lookalike_pose", "view_mismatch"]
+__all__ = [
+    "KIDNAP_MIN_DISTANCE_M",
+    "Lookalike",
+    "NoPlaceError",
+    "all_round_views",
+    "exact_views",
+    "lookalike_kidnap",
+    "lookalike_pose",
+    "view_mismatch",
+]
+
+KIDNAP_MIN_DISTANCE_M = 3.0
+"""How far from the pose a look-alike kidnapping (`lookalike_kidnap`) goes at least (m), or half, a quarter, ... of
+it down to 0.375 m where no free place lies that far (a cluttered room of 3 m x 2.5 m has none 3 m from most
+poses)."""
 
 
 class NoPlaceError(ValueError):
@@ -184,3 +198,26 @@ def lookalike_pose(
     theta = -math.pi if theta >= math.pi else theta
     distance = float(np.hypot(*(xy[i] - p[:2])))
     return Lookalike(np.array([xy[i, 0], xy[i, 1], theta]), math.sqrt(float(cost[i])), distance)
+
+
+def lookalike_kidnap(world, pose, rng: np.random.Generator, *, max_range_m: float, camera_range_m: float) -> Lookalike:
+    """Where a look-alike kidnapping of a robot at ``pose`` goes: `lookalike_pose` at least `KIDNAP_MIN_DISTANCE_M`
+    away, or half as far, a quarter, ... down to 0.375 m where no free place lies that far. The target of the
+    envs' reset option ``kidnap_pose="lookalike"`` and of ``evaluate_relocalizer``'s ``*_lookalike_kidnap`` rows.
+    Each try draws from ``rng`` as it was given (its state is set back before a nearer try).
+
+    Raises:
+        NoPlaceError: no free place even 0.375 m away among the draws.
+    """
+    least = KIDNAP_MIN_DISTANCE_M
+    state = rng.bit_generator.state
+    while True:
+        rng.bit_generator.state = state
+        try:
+            return lookalike_pose(
+                world, pose, rng, min_distance_m=least, max_range_m=max_range_m, camera_range_m=camera_range_m
+            )
+        except NoPlaceError:
+            if least < 0.5:
+                raise
+            least /= 2.0

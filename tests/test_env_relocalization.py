@@ -87,6 +87,40 @@ def test_kidnap_teleports_without_telling_the_filter():
     assert info["rewards"]["wrong_convergence"] < 0  # converged, but in the wrong place
 
 
+def test_a_lookalike_kidnap_teleports_to_the_place_that_looks_most_like_the_pose_at_that_step():
+    """``kidnap_pose="lookalike"``: at ``kidnap_at_step`` the robot goes to `lookalike_kidnap` of where it stands
+    (searched with the episode's own seeded generator: the same seed, the same episode); in ``twin_rooms`` the
+    filter, tracking, keeps its belief at the old place (the lidar sees the same walls)."""
+    from semreloc_env.lookalike import lookalike_kidnap, view_mismatch
+
+    def run(seed):
+        env = gym.make("SemReloc-v18", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
+        _, info = env.reset(seed=seed, options={"tracking": True, "kidnap_at_step": 4, "kidnap_pose": "lookalike"})
+        infos = [info]
+        for _ in range(5):
+            infos.append(env.step(3)[-1])  # stop: the pose at the kidnap is the pose after step 3
+        return env.unwrapped, infos
+
+    env, infos = run(5)
+    assert [i["kidnapped"] for i in infos[1:]] == [False, False, False, True, True]
+    before, after = infos[3]["pose"], infos[4]["pose"]
+    assert np.hypot(*(after[:2] - before[:2])) >= 3.0  # a kidnapping, not a step
+    assert infos[4]["pose_error"]["position"] >= 3.0 and infos[4]["belief"]["converged"]  # not noticed at once
+    # as like the view where it stood as the places lookalike_kidnap finds with other generators, and unlike
+    # random free places' (twin_rooms' half-turned image has the same walls, other classes: about 1 m)
+    world = env.world
+    found = [
+        lookalike_kidnap(world, before, np.random.default_rng(s), max_range_m=8.0, camera_range_m=4.5) for s in (0, 1)
+    ]
+    mismatch = view_mismatch(world, before, after)
+    assert mismatch <= min(f.mismatch_m for f in found) + 0.01
+    rng = np.random.default_rng(1)
+    assert mismatch < 0.6 * min(view_mismatch(world, before, world.sample_free_pose(rng)) for _ in range(20))
+    _, again = run(5)
+    assert [i["pose"].tolist() for i in again] == [i["pose"].tolist() for i in infos]  # the same seed: the same
+    assert [i["belief"]["mean"] for i in again] == [i["belief"]["mean"] for i in infos]
+
+
 def test_changed_scenario_adds_obstacles_the_map_lacks():
     nominal = gym.make("SemReloc-v18", map_source="perfect", relocalizer={"n_particles": 200}).unwrapped
     changed = gym.make(
@@ -157,6 +191,11 @@ def test_bad_kidnap_options():
         ({"kidnap_at_step": True}, "kidnap_at_step"),
         ({"kidnap_at_step": 2, "kidnap_pose": {"x": 1}}, "three finite numbers"),
         ({"kidnap_at_step": 2, "kidnap_pose": [2.5, 5.0]}, "three finite numbers"),
+        (
+            {"kidnap_at_step": 2, "kidnap_pose": "look-alike"},
+            r"a pose \[x, y, theta\] or 'lookalike', got 'look-alike'",
+        ),
+        ({"kidnap_pose": "lookalike"}, "needs kidnap_at_step"),
     ]:
         with pytest.raises(ValueError, match=match):
             env.reset(seed=0, options=options)

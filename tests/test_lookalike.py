@@ -83,3 +83,22 @@ def test_bad_arguments_are_refused(kwargs, match):
     kw = {"pose": [2.0, 3.0, 0.0], **kwargs}
     with pytest.raises(ValueError, match=match):
         lookalike_pose(world, kw.pop("pose"), np.random.default_rng(0), **kw)
+
+
+def test_a_lookalike_kidnap_goes_half_as_far_where_no_place_is_3_m_away_each_try_from_the_generator_as_given():
+    """`lookalike_kidnap`: in a room with no free place 3 m from the pose it tries 1.5 m, 0.75 m, ... (0.375 m
+    at least), each try drawing from the generator in the state it was given, so the place it finds is
+    `lookalike_pose`'s at that distance with a fresh generator of the same seed."""
+    from semreloc_env.lookalike import KIDNAP_MIN_DISTANCE_M, NoPlaceError, lookalike_kidnap
+
+    small = {"outer": [[0, 0], [3.2, 0], [3.2, 2.6], [0, 2.6]], "walls": [], "objects": []}
+    world = _world(small)
+    pose = [0.8, 1.3, 0.0]
+    ranges = {"max_range_m": 8.0, "camera_range_m": 4.5}
+    with pytest.raises(NoPlaceError):
+        lookalike_pose(world, pose, np.random.default_rng(3), min_distance_m=KIDNAP_MIN_DISTANCE_M, **ranges)
+    found = lookalike_kidnap(world, pose, np.random.default_rng(3), **ranges)
+    least = next(d for d in (1.5, 0.75, 0.375) if found.distance_m >= d)
+    direct = lookalike_pose(world, pose, np.random.default_rng(3), min_distance_m=least, **ranges)
+    np.testing.assert_array_equal(found.pose, direct.pose)
+    assert 0.375 <= found.distance_m < KIDNAP_MIN_DISTANCE_M and world.is_free(found.pose[:2])

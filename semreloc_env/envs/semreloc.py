@@ -17,6 +17,7 @@ from filters.pose import wrap_angle
 
 from ..config import check_reward_weights
 from ..layouts import LAYOUT_NAMES, get_layout
+from ..lookalike import lookalike_kidnap
 from ..map_world import check_map_matches_world
 from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
@@ -166,6 +167,9 @@ LEGACY_RELOCALIZER_OVERRIDES = LEGACY_RELOCALIZER.as_dict()
 """Every field of `LEGACY_RELOCALIZER` as ``relocalizer=`` overrides (for before/after
 comparisons in one env id)."""
 
+KIDNAP_TO_LOOKALIKE = "lookalike"
+"""The reset option ``kidnap_pose`` that teleports to `semreloc_env.lookalike.lookalike_kidnap` of the pose at the
+kidnap step (a kidnapping the scans need not give away)."""
 SUCCESS_POSITION_M = 0.5
 SUCCESS_HEADING_RAD = math.radians(15.0)
 
@@ -280,7 +284,9 @@ class SemRelocEnv(SemRelocBase):
 
     ## Reset options
     ``pose``; ``tracking`` (bool); ``kidnap_at_step`` (int >= 1, at most the time limit when
-    made by ``gym.make``: at that step the robot is teleported without telling the filter) and ``kidnap_pose`` (default: random free pose).
+    made by ``gym.make``: at that step the robot is teleported without telling the filter) and ``kidnap_pose`` (default: random free pose;
+    ``"lookalike"``: the place at least 3 m away, or less in a small layout, whose all-round view is most like the
+    robot's view where it stands at that step, `semreloc_env.lookalike.lookalike_kidnap`, searched in about 0.2 s).
     A global episode (``tracking`` not set) ends at its first correct convergence, often before
     ``kidnap_at_step``: then no kidnap happens (``info["kidnapped"]`` stays False). To kidnap a
     localized robot, reset with ``tracking=True``. The relocalizer notices a kidnap from the scans' fit
@@ -614,9 +620,12 @@ class SemRelocEnv(SemRelocBase):
         if k is not None and (not is_int(k) or k < 1):
             raise ValueError(f"kidnap_at_step must be an integer >= 1, got {k!r}")
         kp = options.get("kidnap_pose")
-        if kp is not None:
-            if k is None:
-                raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
+        if kp is not None and k is None:
+            raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
+        if isinstance(kp, str):
+            if kp != KIDNAP_TO_LOOKALIKE:
+                raise ValueError(f"kidnap_pose must be a pose [x, y, theta] or {KIDNAP_TO_LOOKALIKE!r}, got {kp!r:.60}")
+        elif kp is not None:
             kp = as_pose(kp, "kidnap_pose")
             reason = world.not_free_reason(kp[:2])
             if reason:
@@ -632,7 +641,7 @@ class SemRelocEnv(SemRelocBase):
             self.mcl.init_global()
         self._kidnap_at = options.get("kidnap_at_step")
         kp = options.get("kidnap_pose")  # the checked copy: the caller may change its array later
-        self._kidnap_pose = None if kp is None else as_pose(kp, "kidnap_pose")
+        self._kidnap_pose = None if kp is None else kp if isinstance(kp, str) else as_pose(kp, "kidnap_pose")
         self._kidnapped = False
         self._tracking = bool(options.get("tracking"))
         self._succeeded = False
@@ -644,6 +653,11 @@ class SemRelocEnv(SemRelocBase):
             target = self._kidnap_pose
             if target is None:
                 target = self.world.sample_free_pose(self._start_rng)
+            elif isinstance(target, str):  # KIDNAP_TO_LOOKALIKE: the place that looks most like where it is now
+                target = lookalike_kidnap(
+                    self.world, self.world.pose, self._start_rng,
+                    max_range_m=self.lidar.params.range_max_m, camera_range_m=self.camera.params.range_max_m,
+                ).pose  # fmt: skip
             self.world.set_pose(target)
             self._kidnapped = True
             # the odometry must not see the jump: drive from the new pose, report that motion only
