@@ -78,12 +78,29 @@ episode of the same seed teleports to: whether a look-alike kidnapping fails for
 kidnapping leaves (the two rows' episodes pair by seed); any layout, not a default row."""
 
 
+ROW_KINDS = (
+    ("_global_kidnap", "global_kidnap"),
+    ("_twin_kidnap", "twin_kidnap"),
+    (LOOKALIKE_SUFFIX, "lookalike_kidnap"),
+    (LOOKALIKE_GLOBAL_SUFFIX, "lookalike_global"),
+    ("_kidnap", "kidnap"),
+    ("_tracking", "tracking"),
+)
+"""A row's name ending and its kind, longer endings first; a name with none is a global row."""
+
+
+def row_kind(row: str) -> tuple[str, str]:
+    """``(base, kind)`` of a row: its name without its kind's ending (one ending only: ``lab_kidnap_tracking``'s
+    base is ``lab_kidnap``), and the kind (`ROW_KINDS`, or ``"global"``)."""
+    for suffix, kind in ROW_KINDS:
+        if row.endswith(suffix):
+            return row[: -len(suffix)], kind
+    return row, "global"
+
+
 def row_layout(row: str, files: dict[str, str] | None = None) -> tuple[str, str]:
     """``(base, layout)`` of a row: its name without the kind's suffix, and the layout (name or file) it runs."""
-    base = row.removesuffix("_global_kidnap").removesuffix("_twin_kidnap").removesuffix(LOOKALIKE_SUFFIX)
-    base = base.removesuffix(LOOKALIKE_GLOBAL_SUFFIX)
-    base = base.removesuffix("_kidnap")
-    base = base.removesuffix("_tracking")
+    base = row_kind(row)[0]
     return base, "lab" if base == "lab_changed" else (files or {}).get(base, base)
 
 
@@ -99,16 +116,15 @@ def specs_for(
 ) -> list[EpisodeSpec]:
     """The ``n`` episodes of ``row`` for one variant, episode ``i`` run by ``policies[i % len(policies)]``;
     ``files``: ``{row name: layout file}`` of `file_rows`."""
-    global_kidnap = row.endswith("_global_kidnap")
-    twin = row.endswith("_twin_kidnap")
-    lookalike = row.endswith(LOOKALIKE_SUFFIX)
-    lookalike_global = row.endswith(LOOKALIKE_GLOBAL_SUFFIX)
-    kidnap = row.endswith("_kidnap") and not global_kidnap
-    tracking = row.endswith("_tracking")
+    kind = row_kind(row)[1]
+    kidnap = kind in ("kidnap", "twin_kidnap", "lookalike_kidnap")  # tracking, then a teleport at KIDNAP_STEP
+    global_kidnap = kind == "global_kidnap"
     base, layout = row_layout(row, files)
     scenario = "changed" if base == "lab_changed" else "nominal"
     kidnap_at = GLOBAL_KIDNAP_STEP if global_kidnap else KIDNAP_STEP if kidnap else 0
-    n_steps = kidnap_at + 200 if kidnap_at else 300 if tracking else 200 if lookalike_global else 400
+    n_steps = (
+        kidnap_at + 200 if kidnap_at else 300 if kind == "tracking" else 200 if kind == "lookalike_global" else 400
+    )
     out = []
     for i in range(n):
         out.append(
@@ -120,13 +136,13 @@ def specs_for(
                 scenario=scenario,
                 n_steps=n_steps,
                 kidnap_at_step=kidnap_at,
-                tracking=tracking,
+                tracking=kind == "tracking",
                 mcl=mcl,
                 label=label,
                 kidnap_after_global=global_kidnap,
-                kidnap_to_twin=twin,
-                kidnap_to_lookalike=lookalike,
-                global_at_lookalike=lookalike_global,
+                kidnap_to_twin=kind == "twin_kidnap",
+                kidnap_to_lookalike=kind == "lookalike_kidnap",
+                global_at_lookalike=kind == "lookalike_global",
             )
         )
     return out
@@ -347,11 +363,6 @@ class Args:
             base, layout = row_layout(row, files)
             if row != "none" and base not in files:  # a built-in name, a name on $SEMRELOC_LAYOUT_PATH, a path
                 check_layout_option(layout, f"rows: unknown row {row!r}")
-        for row in rows:  # a name with two kinds' endings would run another row's episodes under a name never shown
-            ran = specs_for(row, 1, self.seed_base, list(self.sym_seeds), {}, "", files, self.policies)[0].row
-            base = row_layout(row, files)[0]
-            if ran != (Path(base).stem + row[len(base) :] if base.endswith(LAYOUT_FILE_SUFFIXES) else row):
-                raise ValueError(f"rows: {row!r} is not a row name (it would run the episodes of {ran!r})")
         episodes = [self.episodes_of(v) for v in self.variants]
         if not self.variants or ((not rows or max(episodes) == 0) and self.log_starts == 0):
             raise ValueError("nothing to run: no variant, or no rows (or no episodes) and --log-starts 0")
