@@ -125,9 +125,10 @@ class EpisodeSpec:
     global_at_lookalike: bool = False
 
     def __post_init__(self) -> None:
-        if self.policy not in policy_names():
+        if self.policy not in policy_names() and "=" not in self.policy:
             raise ValueError(
-                f"EpisodeSpec.policy: unknown policy {self.policy!r:.60}; choose one of {list(policy_names())}"
+                f"EpisodeSpec.policy: unknown policy {self.policy!r:.60}; choose one of {list(policy_names())}, "
+                "NAME=PATH (a saved policy) or NAME=MODULE:CLASS (your own)"
             )
         for name in ("tracking", "kidnap_after_global", "kidnap_to_twin", "kidnap_to_lookalike", "global_at_lookalike"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
@@ -224,16 +225,22 @@ def make_policy(name: str, seed: int):
 
 
 def driver(name: str, seed: int, env):
-    """``(env, act)``: the env to step and a fresh ``act(obs) -> action`` for policy ``name`` (`policy_names`):
-    `make_policy`'s for `POLICIES`; else the `agents.policies` policy built with ``seed``, its ``wrap(env)``
-    (which the planners read the filter through) and its ``act``, reset for a new episode."""
+    """``(env, act)``: the env to step and a fresh ``act(obs) -> action`` for policy ``name``: `make_policy`'s for
+    `POLICIES`; else the policy built with ``seed`` (an `agents.policies` name, ``NAME=PATH`` of a saved policy or
+    ``NAME=MODULE:CLASS`` of your own, as ``evaluate_active`` takes them), its ``wrap(env)`` (which the planners read
+    the filter through, and a learned policy its observation) and its ``act``, reset for a new episode."""
     if name in POLICIES:
         return env, make_policy(name, seed)
     from agents.policies import POLICIES as AGENT_POLICIES
 
-    if name not in AGENT_POLICIES:
+    if "=" in name:
+        from agents.experiments.evaluate_active import make_policy as make_named_policy
+
+        policy = make_named_policy(name, seed)
+    elif name not in AGENT_POLICIES:
         raise ValueError(f"unknown policy {name!r}; choose one of {list(policy_names())}")
-    policy = AGENT_POLICIES[name](seed)
+    else:
+        policy = AGENT_POLICIES[name](seed)
     wrapped = policy.wrap(env)
     policy.reset()
     return wrapped, policy.act

@@ -460,3 +460,40 @@ def test_rows_can_run_other_policies_the_viewpoint_planner_among_them(tmp_path):
     assert {k: v for k, v in out.items() if k != "cpu_s_per_step"} == {
         k: v for k, v in again.items() if k != "cpu_s_per_step"
     }
+
+
+def test_rows_run_your_own_policy_class_as_evaluate_active_takes_it(tmp_path):
+    """``--policies NAME=file.py:CLASS`` (or ``NAME=PATH`` of a saved policy): a class that turns left at every step
+    gives the built-in spin's episode, bit for bit but for the policy's name; bad specs are refused up front."""
+    from agents.experiments import evaluate_relocalizer as er
+
+    (tmp_path / "mine.py").write_text(
+        "from agents.baselines import TURN_LEFT\n\n\n"
+        "class Spin:\n"
+        "    def __init__(self, seed=0):\n        pass\n\n"
+        "    def wrap(self, env):\n        return env\n\n"
+        "    def reset(self):\n        pass\n\n"
+        "    def act(self, obs):\n        return TURN_LEFT\n"
+    )  # fmt: skip
+    mine = f"mine={tmp_path / 'mine.py'}:Spin"
+    (ours,) = specs_for("twin_rooms_lookalike_kidnap", 1, 2, [0], {}, "after", policies=("spin",))
+    (theirs,) = specs_for("twin_rooms_lookalike_kidnap", 1, 2, [0], {}, "after", policies=(mine,))
+    a = run_episode(EpisodeSpec(**{**ours.__dict__, "n_steps": 40}))
+    b = run_episode(EpisodeSpec(**{**theirs.__dict__, "n_steps": 40}))
+    assert b["policy"] == mine
+    same = ("cpu_s_per_step", "policy")
+    assert {k: v for k, v in a.items() if k not in same} == {k: v for k, v in b.items() if k not in same}
+    er.Args(rows=("lab_kidnap",), policies=("spin", mine), log_starts=0)
+    import agents
+
+    shipped = f"ppo={agents.SHIPPED_POLICY}"  # a saved PPO policy: its own observation wrappers around the env
+    out = run_episode(EpisodeSpec(**{**theirs.__dict__, "policy": shipped, "n_steps": 32}))
+    assert (out["policy"], out["kidnapped_at"]) == (shipped, 30) and out["kidnap_pose"] != a["kidnap_pose"]  # drove
+    for policies, match in (
+        ((f"x={tmp_path / 'missing.zip'}",), "no policy file"),
+        ((f"x={tmp_path / 'mine.py'}:Nope",), "has no 'Nope'"),
+        (("bogus",), r"unknown \['bogus'\]"),
+        ((mine, mine), "names must be unique"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            er.Args(rows=("lab_kidnap",), policies=policies, log_starts=0)

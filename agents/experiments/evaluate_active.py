@@ -51,6 +51,7 @@ import re
 import sys
 import time
 import types
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -186,34 +187,7 @@ class Args:
         return overrides
 
     def __post_init__(self) -> None:
-        from agents.policies import POLICIES
-
-        if not self.policies:
-            raise ValueError("policies: give at least one")
-        comma = [x for x in self.policies if "," in x]
-        if comma:
-            raise ValueError(f"policies: {comma} holds a comma; separate the policies with spaces")
-        unknown = [x for x in self.policies if x not in POLICIES and "=" not in x]
-        if unknown:
-            raise ValueError(
-                f"policies: unknown {unknown}; choose from {sorted(POLICIES)}, NAME=PATH (a saved policy) or "
-                "NAME=MODULE:CLASS (your own)"
-            )
-        py = [x for x in self.policies if is_learned(x) and x.endswith(".py")]
-        if py:
-            raise ValueError(f"policies: {py}: name the class too, NAME=path/to/file.py:CLASS")
-        bad_files = [x for x in self.policies if is_learned(x) and not Path(x.split("=", 1)[1]).is_file()]
-        if bad_files:
-            raise ValueError(
-                f"policies: no policy file for {bad_files} (your own policy class: NAME=MODULE:CLASS or "
-                "NAME=path/to/file.py:CLASS)"
-            )
-        for x in self.policies:
-            if "=" in x and not is_learned(x):
-                check_user_policy(x)
-        names = [x.partition("=")[0] for x in self.policies]
-        if len(set(names)) < len(names) or not all(names):
-            raise ValueError(f"policies: names must be unique and non-empty, got {names}")
+        check_policy_specs(self.policies)
         if Path(self.out).exists() and not Path(self.out).is_dir():
             raise ValueError(f"out: {self.out!r} is a file; the outputs go into a folder")
         missing = [d for d in self.reuse if not (Path(d) / "episodes.json").is_file()]
@@ -585,6 +559,41 @@ def user_factory(spec: str):
     if factory is None:
         raise ValueError(f"{m['source']} has no {m['attr']!r}")
     return factory
+
+
+def check_policy_specs(policies: Sequence[str], known: Sequence[str] | None = None) -> None:
+    """ValueError unless every one of ``policies`` is a name of ``known`` (default: `agents.policies.POLICIES`),
+    ``NAME=PATH`` of an existing policy file or a ``NAME=MODULE:CLASS`` that builds (`check_user_policy`), with
+    unique, non-empty names; at least one."""
+    from agents.policies import POLICIES
+
+    known = sorted(POLICIES) if known is None else list(known)
+    if not policies:
+        raise ValueError("policies: give at least one")
+    comma = [x for x in policies if "," in x]
+    if comma:
+        raise ValueError(f"policies: {comma} holds a comma; separate the policies with spaces")
+    unknown = [x for x in policies if x not in known and "=" not in x]
+    if unknown:
+        raise ValueError(
+            f"policies: unknown {unknown}; choose from {known}, NAME=PATH (a saved policy) or "
+            "NAME=MODULE:CLASS (your own)"
+        )
+    py = [x for x in policies if is_learned(x) and x.endswith(".py")]
+    if py:
+        raise ValueError(f"policies: {py}: name the class too, NAME=path/to/file.py:CLASS")
+    bad_files = [x for x in policies if is_learned(x) and not Path(x.split("=", 1)[1]).is_file()]
+    if bad_files:
+        raise ValueError(
+            f"policies: no policy file for {bad_files} (your own policy class: NAME=MODULE:CLASS or "
+            "NAME=path/to/file.py:CLASS)"
+        )
+    for x in policies:
+        if "=" in x and not is_learned(x):
+            check_user_policy(x)
+    names = [x.partition("=")[0] for x in policies]
+    if len(set(names)) < len(names) or not all(names):
+        raise ValueError(f"policies: names must be unique and non-empty, got {names}")
 
 
 def check_user_policy(spec: str) -> None:

@@ -324,7 +324,8 @@ class Args:
     policies: tuple[str, ...] = POLICIES
     """the policies each row's episodes take in turn (episode i: policies[i % n]); the default three make the
     documented rows; any of random, spin, wall_follow, spin_backup, info_gain, viewpoint (the viewpoint planner,
-    agents.policies)"""
+    agents.policies), NAME=PATH (a policy saved by train_active, discrete actions) or NAME=MODULE:CLASS /
+    NAME=path/to/file.py:CLASS (your own, CLASS(seed) with wrap, reset and act), as evaluate_active takes them"""
     before_episodes: int = 0
     """episodes per row of 'before' (0 = --episodes)"""
     seed_base: int = 0
@@ -347,9 +348,9 @@ class Args:
             raise ValueError(f"unknown variants {unknown}; known: {sorted(self.all_variants())}")
         if self.episodes < 0 or self.before_episodes < 0 or self.log_starts < 0 or not self.sym_seeds:
             raise ValueError("episodes, before_episodes and log_starts must be >= 0 and sym_seeds not empty")
-        unknown_policies = [p for p in self.policies if p not in policy_names()]
-        if unknown_policies or not self.policies:
-            raise ValueError(f"policies: unknown {unknown_policies} (or none); choose from {list(policy_names())}")
+        from agents.experiments.evaluate_active import check_policy_specs
+
+        check_policy_specs(self.policies, policy_names())
         if self.log_starts and not 1 <= self.log_steps <= 440:
             raise ValueError(f"log_steps must be in 1..440 (the log has 440 scans), got {self.log_steps}")
         files, rows = self.row_list()  # raises on a bad file, before any episode runs
