@@ -39,7 +39,7 @@ from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
 from semreloc_env.observations import ActiveObservation
 from semreloc_env.observations.active import check_arguments as check_active_arguments
 from semreloc_env.rewards import BeliefMassReward
-from semreloc_env.wrappers import ActionRepeat
+from semreloc_env.wrappers import ActionRepeat, ResetOptions
 
 from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
@@ -90,6 +90,10 @@ class ActiveTrainConfig:
     """the relocalizer's particle count while training (the observation does not depend on it)"""
     max_episode_steps: int = 200
     """env steps per episode (the evaluation's success limit is 200)"""
+    reset_options: JsonDict = field(default_factory=dict)
+    """options of every episode's reset (`semreloc_env.wrappers.ResetOptions`), e.g. '{"tracking": true,
+    "kidnap_at_step": 30, "kidnap_pose": "lookalike"}' for look-alike kidnappings (success then counts from the
+    kidnapping on; give max_episode_steps room after it); default: global starts"""
     repeat: int = 4
     """env steps per decision (`semreloc_env.wrappers.ActionRepeat`)"""
     options: tuple[str, ...] = ("explore",)
@@ -181,6 +185,14 @@ class ActiveTrainConfig:
             raise ValueError("checkpoint_every must be None or >= 1")
         check_options(self.options)
         check_ppo_settings(self)
+        from semreloc_env.envs.semreloc import SemRelocEnv
+
+        unknown = sorted(set(self.reset_options) - SemRelocEnv._reset_option_keys)
+        if unknown:
+            raise ValueError(f"reset_options: unknown {unknown}; known {sorted(SemRelocEnv._reset_option_keys)}")
+        k = self.reset_options.get("kidnap_at_step")
+        if k is not None and not (is_int(k) and 1 <= k <= self.max_episode_steps):
+            raise ValueError(f"reset_options: kidnap_at_step must be an int in [1, max_episode_steps], got {k!r}")
         self.layout_sampler()  # the layout stream's arguments, checked here rather than in the env workers
         allowed = set(observation_defaults())
         unknown = sorted(set(self.observation) - allowed)
@@ -251,6 +263,8 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str,
     )
     sampler = config.layout_sampler()
     env = RandomLayout(env, sampler, seed=seed)
+    if config.reset_options:
+        env = ResetOptions(env, dict(config.reset_options))
     if config.belief_mass_weight:
         env = BeliefMassReward(env, weight=config.belief_mass_weight, mode="gain")
     if config.options:

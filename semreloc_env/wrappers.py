@@ -12,6 +12,8 @@
   for algorithms and networks that want a flat vector.
 * `CheckedReset` is the outermost wrapper of the registered envs: it checks the reset
   arguments before Gymnasium's ``TimeLimit`` (which zeroes its step counter first) sees them.
+* `ResetOptions` gives reset options at every reset that names none (a training run's look-alike
+  kidnappings, for instance: SB3's vec envs reset without options).
 
 Typical use::
 
@@ -223,6 +225,23 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def reset(self, *, seed=None, options=None):
         check_reset(self.env, seed=seed, options=options)
         return self.env.reset(seed=seed, options=options)
+
+
+class ResetOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Reset with ``options`` whenever a reset is given none: for example
+    ``ResetOptions(env, {"tracking": True, "kidnap_at_step": 30, "kidnap_pose": "lookalike"})`` makes every
+    episode a look-alike kidnapping, also under SB3's vec envs, which reset without options. Options given to a
+    ``reset`` call replace these entry by entry. The env checks them at each reset, as any options."""
+
+    def __init__(self, env: gym.Env, options: dict):
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict, got {type(options).__name__}")
+        gym.utils.RecordConstructorArgs.__init__(self, options=options)
+        gym.Wrapper.__init__(self, env)
+        self.options = dict(options)
+
+    def reset(self, *, seed=None, options=None):
+        return self.env.reset(seed=seed, options={**self.options, **(options or {})})
 
 
 def check_reset(env: gym.Env, seed=None, options=None) -> None:

@@ -115,6 +115,31 @@ def test_training_envs_draw_layout_files(tmp_path):
     assert older.unwrapped.spec.id == "SemReloc-v10" and older.unwrapped.mapping_run_version == "4"
 
 
+def test_training_envs_take_reset_options_look_alike_kidnappings_among_them():
+    """``reset_options``: every training episode resets with them (SB3 resets without options), here a tracking start
+    kidnapped at step 6 to a look-alike place; a reset given options replaces them entry by entry; bad ones are
+    refused when the config is made."""
+    from agents.train_active import make_active_env
+
+    opts = {"tracking": True, "kidnap_at_step": 6, "kidnap_pose": "lookalike"}
+    config = ActiveTrainConfig(kinds=("procedural",), kind_weights=None, particles=100, repeat=1, reset_options=opts)
+    env = make_active_env(config, seed=0)
+    env.reset(seed=0)
+    base = env.unwrapped
+    assert base._tracking and base._kidnap_at == 6 and base._kidnap_pose == "lookalike"
+    kidnapped = [env.step(3)[-1]["kidnapped"] for _ in range(6)]  # stop
+    assert kidnapped == [False] * 5 + [True]
+    env.reset(seed=1, options={"kidnap_at_step": 3})  # a call's own options win, entry by entry
+    assert base._tracking and base._kidnap_at == 3 and base._kidnap_pose == "lookalike"
+    assert json.loads(json.dumps(config.as_dict()))["reset_options"] == opts  # config.json records them
+    for bad, match in (
+        ({"kidnap": 5}, r"reset_options: unknown \['kidnap'\]"),
+        ({"tracking": True, "kidnap_at_step": 500}, r"kidnap_at_step must be an int in \[1, max_episode_steps\]"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            ActiveTrainConfig(reset_options=bad)
+
+
 @pytest.fixture(scope="module")
 def smoke_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("active")
