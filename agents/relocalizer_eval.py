@@ -125,7 +125,8 @@ class EpisodeSpec:
     global_at_lookalike: bool = False
 
     def __post_init__(self) -> None:
-        if self.policy not in policy_names() and "=" not in self.policy:
+        name, eq, target = self.policy.partition("=")
+        if self.policy not in policy_names() and not (eq and name and target):
             raise ValueError(
                 f"EpisodeSpec.policy: unknown policy {self.policy!r:.60}; choose one of {list(policy_names())}, "
                 "NAME=PATH (a saved policy) or NAME=MODULE:CLASS (your own)"

@@ -185,14 +185,7 @@ class ActiveTrainConfig:
             raise ValueError("checkpoint_every must be None or >= 1")
         check_options(self.options)
         check_ppo_settings(self)
-        from semreloc_env.envs.semreloc import SemRelocEnv
-
-        unknown = sorted(set(self.reset_options) - SemRelocEnv._reset_option_keys)
-        if unknown:
-            raise ValueError(f"reset_options: unknown {unknown}; known {sorted(SemRelocEnv._reset_option_keys)}")
-        k = self.reset_options.get("kidnap_at_step")
-        if k is not None and not (is_int(k) and 1 <= k <= self.max_episode_steps):
-            raise ValueError(f"reset_options: kidnap_at_step must be an int in [1, max_episode_steps], got {k!r}")
+        self._check_reset_options()
         self.layout_sampler()  # the layout stream's arguments, checked here rather than in the env workers
         allowed = set(observation_defaults())
         unknown = sorted(set(self.observation) - allowed)
@@ -209,6 +202,33 @@ class ActiveTrainConfig:
             coerce_config(RewardWeights, dict(self.reward_weights), "reward_weights")
         except TypeError as e:
             raise ValueError(str(e)) from None
+
+    def _check_reset_options(self) -> None:
+        """What every episode of a run can take (checked here: a bad value would fail only at the first reset, in the
+        workers, after the run folder was made): ``tracking`` (bool; then a kidnap, or no episode could succeed),
+        ``kidnap_at_step`` within the episode, ``kidnap_pose`` "lookalike" only (the layout changes every episode,
+        so a fixed pose fits none of them; nor does ``pose``)."""
+        from semreloc_env.envs.semreloc import KIDNAP_TO_LOOKALIKE
+
+        opts = self.reset_options
+        keys = ("tracking", "kidnap_at_step", "kidnap_pose")
+        unknown = sorted(set(opts) - set(keys))
+        if unknown:
+            raise ValueError(
+                f"reset_options: {unknown} cannot be given to every episode (known: {list(keys)}; a pose fits one "
+                "layout, and the layout changes every episode)"
+            )
+        tracking, k, kp = (opts.get(key) for key in keys)
+        if tracking is not None and not isinstance(tracking, bool):
+            raise ValueError(f"reset_options: tracking must be true or false, got {tracking!r}")
+        if k is not None and not (is_int(k) and 1 <= k <= self.max_episode_steps):
+            raise ValueError(f"reset_options: kidnap_at_step must be an int in [1, max_episode_steps], got {k!r}")
+        if kp is not None and (kp != KIDNAP_TO_LOOKALIKE or k is None):
+            raise ValueError(
+                f"reset_options: kidnap_pose can only be {KIDNAP_TO_LOOKALIKE!r}, with a kidnap_at_step, got {kp!r}"
+            )
+        if tracking and k is None:
+            raise ValueError("reset_options: a tracking start needs a kidnap_at_step (else no episode can succeed)")
 
     @property
     def weights(self) -> tuple[float, ...] | None:
@@ -351,7 +371,7 @@ def plot_learning_curve(progress_csv: str | Path, path: str | Path, repeat: int 
 SPACE_FIELDS = ("options", "repeat", "observation")
 """Fields of `ActiveTrainConfig` that shape the policy's spaces: a resumed run must keep them."""
 DISTRIBUTION_FIELDS = ("env_id", "kinds", "files", "kind_weights", "layout_seeds", "particles", "max_episode_steps",
-                       "belief_mass_weight", "reward_weights")  # fmt: skip
+                       "reset_options", "belief_mass_weight", "reward_weights")  # fmt: skip
 """Fields that shape what a run trains on: a resumed run that changes them is told so."""
 
 

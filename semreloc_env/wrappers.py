@@ -23,7 +23,7 @@ Typical use::
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -228,14 +228,14 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 
 class ResetOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
-    """Reset with ``options`` whenever a reset is given none: for example
+    """Reset with ``options`` merged into those of every ``reset`` call (the call's entries win): for example
     ``ResetOptions(env, {"tracking": True, "kidnap_at_step": 30, "kidnap_pose": "lookalike"})`` makes every
-    episode a look-alike kidnapping, also under SB3's vec envs, which reset without options. Options given to a
-    ``reset`` call replace these entry by entry. The env checks them at each reset, as any options."""
+    episode a look-alike kidnapping, also under SB3's vec envs, which reset without options. The env checks the
+    merged options at each reset, as any options. ``options``: a mapping (ValueError otherwise)."""
 
-    def __init__(self, env: gym.Env, options: dict):
-        if not isinstance(options, dict):
-            raise TypeError(f"options must be a dict, got {type(options).__name__}")
+    def __init__(self, env: gym.Env, options: Mapping):
+        if not isinstance(options, Mapping):
+            raise ValueError(f"options must be a mapping of reset options, got {type(options).__name__}")
         gym.utils.RecordConstructorArgs.__init__(self, options=options)
         gym.Wrapper.__init__(self, env)
         self.options = dict(options)
@@ -281,6 +281,7 @@ __all__ = [
     "ActiveObservation",
     "BeliefObservation",
     "CheckedReset",
+    "ResetOptions",
     "check_reset",
     "FlatObservation",
     "find_wrapper",

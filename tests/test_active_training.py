@@ -133,8 +133,13 @@ def test_training_envs_take_reset_options_look_alike_kidnappings_among_them():
     assert base._tracking and base._kidnap_at == 3 and base._kidnap_pose == "lookalike"
     assert json.loads(json.dumps(config.as_dict()))["reset_options"] == opts  # config.json records them
     for bad, match in (
-        ({"kidnap": 5}, r"reset_options: unknown \['kidnap'\]"),
+        ({"kidnap": 5}, r"reset_options: \['kidnap'\] cannot be given to every episode"),
+        ({"pose": [1.0, 1.0, 0.0]}, r"\['pose'\] cannot be given to every episode .*the layout changes"),
         ({"tracking": True, "kidnap_at_step": 500}, r"kidnap_at_step must be an int in \[1, max_episode_steps\]"),
+        ({"tracking": True, "kidnap_at_step": 30, "kidnap_pose": "look-alike"}, "kidnap_pose can only be 'lookalike'"),
+        ({"tracking": True, "kidnap_at_step": 30, "kidnap_pose": [1.0, 1.0, 0.0]}, "kidnap_pose can only be"),
+        ({"tracking": "yes", "kidnap_at_step": 30}, "tracking must be true or false"),
+        ({"tracking": True}, "a tracking start needs a kidnap_at_step"),
     ):
         with pytest.raises(ValueError, match=match):
             ActiveTrainConfig(reset_options=bad)

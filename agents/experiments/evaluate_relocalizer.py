@@ -270,9 +270,9 @@ def lookalike_pair_table(results: list[dict], variants: list[str], rows: list[st
                 counts = np.array([a.size, np.sum(a & ~b), np.sum(~a & b), np.sum(a & b)])
                 total += counts
                 done += 1
-                lines.append(_pair_line(stem, v, policy, counts))
+                lines.append(_pair_line(stem, v, policy.partition("=")[0], counts))
             if done > 1:
-                lines.append(_pair_line("all", v, policy, total))
+                lines.append(_pair_line("all", v, policy.partition("=")[0], total))
     return markdown_table(header, lines) + "\n" if lines else ""
 
 

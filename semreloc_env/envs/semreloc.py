@@ -17,7 +17,7 @@ from filters.pose import wrap_angle
 
 from ..config import check_reward_weights
 from ..layouts import LAYOUT_NAMES, get_layout
-from ..lookalike import lookalike_kidnap
+from ..lookalike import NoPlaceError, lookalike_kidnap
 from ..map_world import check_map_matches_world
 from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout
 from ..scenarios import SCENARIOS, changed_obstacles
@@ -654,10 +654,15 @@ class SemRelocEnv(SemRelocBase):
             if target is None:
                 target = self.world.sample_free_pose(self._start_rng)
             elif isinstance(target, str):  # KIDNAP_TO_LOOKALIKE: the place that looks most like where it is now
-                target = lookalike_kidnap(
-                    self.world, self.world.pose, self._start_rng,
-                    max_range_m=self.lidar.params.range_max_m, camera_range_m=self.camera.params.range_max_m,
-                ).pose  # fmt: skip
+                try:
+                    target = lookalike_kidnap(
+                        self.world, self.world.pose, self._start_rng,
+                        max_range_m=self.lidar.params.range_max_m, camera_range_m=self.camera.params.range_max_m,
+                    ).pose  # fmt: skip
+                except NoPlaceError as e:
+                    raise NoPlaceError(
+                        f"reset option kidnap_pose={KIDNAP_TO_LOOKALIKE!r} at step {self._kidnap_at}: {e}"
+                    ) from None
             self.world.set_pose(target)
             self._kidnapped = True
             # the odometry must not see the jump: drive from the new pose, report that motion only
