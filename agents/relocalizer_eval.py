@@ -232,16 +232,11 @@ def driver(name: str, seed: int, env):
     the filter through, and a learned policy its observation) and its ``act``, reset for a new episode."""
     if name in POLICIES:
         return env, make_policy(name, seed)
-    from agents.policies import POLICIES as AGENT_POLICIES
-
-    if "=" in name:
-        from agents.experiments.evaluate_active import make_policy as make_named_policy
-
-        policy = make_named_policy(name, seed)
-    elif name not in AGENT_POLICIES:
+    if name not in policy_names() and "=" not in name:
         raise ValueError(f"unknown policy {name!r}; choose one of {list(policy_names())}")
-    else:
-        policy = AGENT_POLICIES[name](seed)
+    from agents.experiments.evaluate_active import make_policy as make_named_policy
+
+    policy = make_named_policy(name, seed)
     wrapped = policy.wrap(env)
     policy.reset()
     return wrapped, policy.act

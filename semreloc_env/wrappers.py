@@ -12,8 +12,8 @@
   for algorithms and networks that want a flat vector.
 * `CheckedReset` is the outermost wrapper of the registered envs: it checks the reset
   arguments before Gymnasium's ``TimeLimit`` (which zeroes its step counter first) sees them.
-* `ResetOptions` gives reset options at every reset that names none (a training run's look-alike
-  kidnappings, for instance: SB3's vec envs reset without options).
+* `ResetOptions` merges given reset options into every reset's (the call's entries win): a training
+  run's look-alike kidnappings, for instance, since SB3's vec envs reset without options.
 
 Typical use::
 
