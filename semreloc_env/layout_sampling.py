@@ -72,8 +72,8 @@ class LayoutSampler:
 
     Args:
         kinds: layout names: procedural generators (``"procedural"``, ``"procedural_sym"``,
-            ``"procedural_lookalike"``, ``"procedural_ring"``) and built-ins (``"lab"``, ``"twin_rooms"``,
-            ``"three_rooms"``, ``"open_hall"``).
+            ``"procedural_lookalike"``, ``"procedural_ring"``, ``"procedural_corridor"``) and built-ins (``"lab"``,
+            ``"twin_rooms"``, ``"three_rooms"``, ``"open_hall"``).
         files: layout files (``.json`` / ``.yaml``), each one more entry.
         seeds: the procedural seeds to draw from (a range or a sequence of ints); the held-out
             ones are left out.

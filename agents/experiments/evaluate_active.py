@@ -91,6 +91,10 @@ class Args:
     """held-out seeds of procedural_ring (a ring corridor whose four quarters look alike; its cases come
     after the built-in layouts', so those and the procedural cases keep their indices and episode seeds;
     --layout-files cases come after the ring cases, so they move)"""
+    corridor_layouts: int = 0
+    """held-out seeds of procedural_corridor (a long corridor whose furniture repeats at one period; its
+    cases come after the ring cases, so every earlier case keeps its index and episode seed; --layout-files
+    cases come after them)"""
     seed_set: Literal["held_out", "tuning"] = "held_out"
     """held_out: the held-out layout seeds plus twin_rooms and the lab (what results are reported
     on); tuning: procedural seeds 0, 1, ... of the training range and other starts, for choosing
@@ -153,7 +157,8 @@ class Args:
         from semreloc_env.maps import check_map_source_name, maps_for
 
         check_map_source_name(self.map_source)
-        if self.layouts_per_kind or self.ring_layouts or self.builtin_layouts or not self.layout_files:
+        generated = self.layouts_per_kind or self.ring_layouts or self.corridor_layouts
+        if generated or self.builtin_layouts or not self.layout_files:
             raise ValueError(
                 "map_source: one map for every case needs worlds that fit it: --layout-files alone "
                 "(--layouts-per-kind 0 --no-builtin-layouts)"
@@ -193,21 +198,22 @@ class Args:
         missing = [d for d in self.reuse if not (Path(d) / "episodes.json").is_file()]
         if missing:
             raise ValueError(f"reuse: no episodes.json in {missing}")
-        for name in ("layouts_per_kind", "ring_layouts", "starts", "max_steps", "particles"):
-            least = 0 if name in ("layouts_per_kind", "ring_layouts") else 1
+        for name in ("layouts_per_kind", "ring_layouts", "corridor_layouts", "starts", "max_steps", "particles"):
+            least = 0 if name in ("layouts_per_kind", "ring_layouts", "corridor_layouts") else 1
             if getattr(self, name) < least:
                 raise ValueError(f"{name} must be >= {least}, got {getattr(self, name)}")
         self.relocalizer_overrides()  # a bad JSON object or field is an error now, not in every worker
         from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
 
-        for name in ("layouts_per_kind", "ring_layouts"):
+        for name in ("layouts_per_kind", "ring_layouts", "corridor_layouts"):
             if self.seed_set == "held_out" and getattr(self, name) > len(HELD_OUT_LAYOUT_SEEDS):
                 raise ValueError(
                     f"{name}: at most {len(HELD_OUT_LAYOUT_SEEDS)} held-out seeds per kind, got {getattr(self, name)}"
                 )
-        if self.seed_set == "tuning" and self.layouts_per_kind < 1 and self.ring_layouts < 1:
+        if self.seed_set == "tuning" and max(self.layouts_per_kind, self.ring_layouts, self.corridor_layouts) < 1:
             raise ValueError(
-                "layouts_per_kind (or ring_layouts) must be >= 1 with seed_set tuning (it has no fixed layouts)"
+                "layouts_per_kind (or ring_layouts, or corridor_layouts) must be >= 1 with seed_set tuning (it has no "
+                "fixed layouts)"
             )
         from semreloc_env.layouts import find_layout_file
 
@@ -228,9 +234,11 @@ class Args:
 
         for f in self.layout_files:  # a malformed file fails here, not in a worker with a traceback
             check_layout_option(f, "layout_files")
-        if self.layouts_per_kind == 0 and self.ring_layouts == 0 and not self.layout_files and not self.builtin_layouts:
+        generated = self.layouts_per_kind or self.ring_layouts or self.corridor_layouts
+        if not generated and not self.layout_files and not self.builtin_layouts:
             raise ValueError(
-                "no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files or --ring-layouts"
+                "no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files, --ring-layouts or "
+                "--corridor-layouts"
             )
         self._check_map_source()
         for spec in self.policies:
@@ -253,8 +261,10 @@ draws again; v4 to v7 change the relocalizer and v8 the maps, so every episode.)
 # ---------------------------------------------------------------------- cases
 PROCEDURAL_KINDS = ("procedural", "procedural_sym", "procedural_lookalike")
 RING_KIND = "procedural_ring"
+CORRIDOR_KIND = "procedural_corridor"
 BUILTIN_ROWS = (
-    *PROCEDURAL_KINDS, "twin_rooms", "lab", "lab_changed", RING_KIND, "all", "uninformative starts", "paired"
+    *PROCEDURAL_KINDS, "twin_rooms", "lab", "lab_changed", RING_KIND, CORRIDOR_KIND, "all", "uninformative starts",
+    "paired",
 )  # fmt: skip
 """The rows (and summary keys) the built-in cases fill (`groups`); a layout file never shares one."""
 
@@ -330,6 +340,34 @@ def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries
     return None
 
 
+def uninformative_corridor_start(world, rng, lidar_max: float, cam_max: float, tries: int = 300):
+    """A pose in a `corridor_layout` whose exact all-round view equals that of the same pose shifted along the
+    corridor by the distance between two pieces of one class on one wall (a whole number of periods), or None
+    if none was found in ``tries`` draws."""
+    objects = world.layout.objects
+    centres = [o.centroid() for o in objects]
+    shifts = sorted(
+        {
+            round(abs(float(ca[0] - cb[0])), 6)
+            for i, (a, ca) in enumerate(zip(objects, centres))
+            for b, cb in zip(objects[i + 1 :], centres[i + 1 :])
+            if a.cls == b.cls and abs(ca[1] - cb[1]) < 1e-6 and abs(ca[0] - cb[0]) > 0.5
+        }
+    )
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    for _ in range(tries):
+        pose = world.sample_free_pose(rng, margin_m=0.3)
+        r0, l0 = _view(world, pose, lidar_max, cam_max, angles)
+        for dx in shifts:
+            for q in (pose + (dx, 0.0, 0.0), pose - (dx, 0.0, 0.0)):
+                if not world.is_free(q[:2], 0.3):
+                    continue
+                r1, l1 = _view(world, q, lidar_max, cam_max, angles)
+                if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
+                    return pose
+    return None
+
+
 def build_cases(args: Args) -> list[dict]:
     """Every (layout, start) pair, in a fixed order."""
     from semreloc_env.config import CameraParams, LidarParams
@@ -345,6 +383,8 @@ def build_cases(args: Args) -> list[dict]:
         layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
     ring_seeds = range(args.ring_layouts) if tuning else HELD_OUT_LAYOUT_SEEDS[: args.ring_layouts]
     layouts += [(RING_KIND, int(s), "nominal") for s in ring_seeds]
+    corridor_seeds = range(args.corridor_layouts) if tuning else HELD_OUT_LAYOUT_SEEDS[: args.corridor_layouts]
+    layouts += [(CORRIDOR_KIND, int(s), "nominal") for s in corridor_seeds]
     n_fixed = len(layouts)  # the layout files' cases come after these
     layouts += [(f, 0, "nominal") for f in args.layout_files]
     lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
@@ -364,6 +404,9 @@ def build_cases(args: Args) -> list[dict]:
                 flag = pose is not None
             elif spec == RING_KIND and not is_file and si % 2 == 0:
                 pose = uninformative_ring_start(world, rng, lidar_max, cam_max)
+                flag = pose is not None
+            elif spec == CORRIDOR_KIND and not is_file and si % 2 == 0:
+                pose = uninformative_corridor_start(world, rng, lidar_max, cam_max)
                 flag = pose is not None
             if pose is None:
                 pose = world.sample_free_pose(rng, margin_m=0.3)

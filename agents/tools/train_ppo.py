@@ -57,8 +57,8 @@ class Args:
     checkpoints/, eval/, results.json/.md); eval_* are the periodic EvalCallback evaluations"""
     layout: str = "lab"
     """layout: a name of semreloc_env.layouts.LAYOUT_NAMES (lab, twin_rooms, three_rooms, open_hall,
-    procedural, procedural_sym, procedural_lookalike, procedural_ring), a name on $SEMRELOC_LAYOUT_PATH or a
-    .json/.yaml file"""
+    procedural, procedural_sym, procedural_lookalike, procedural_ring, procedural_corridor), a name on
+    $SEMRELOC_LAYOUT_PATH or a .json/.yaml file"""
     lidar_only: bool = False
     """run the relocalizer without the semantic factor (semantic=False)"""
     map_source: str = "mapping"

@@ -13,10 +13,13 @@ from .builtin import BUILTIN_LAYOUTS
 from .layout import CLASS_NAMES, Layout, LayoutError, SemanticObject, layout_from_dict, load_layout, point_in_polygon
 from .procedural import (
     PROCEDURAL_VERSION,
+    CorridorParams,
     ProceduralParams,
     RingParams,
+    corridor_layout,
     half_turn_asymmetry,
     lookalike_layout,
+    period_asymmetry,
     procedural_layout,
     quarter_turn_asymmetry,
     ring_layout,
@@ -24,6 +27,7 @@ from .procedural import (
 
 __all__ = [
     "CLASS_NAMES",
+    "CorridorParams",
     "LAYOUT_NAMES",
     "LAYOUT_PATH_ENV",
     "PROCEDURAL_VERSION",
@@ -34,11 +38,13 @@ __all__ = [
     "RingParams",
     "SemanticObject",
     "check_layout_option",
+    "corridor_layout",
     "get_layout",
     "half_turn_asymmetry",
     "layout_from_dict",
     "load_layout",
     "lookalike_layout",
+    "period_asymmetry",
     "point_in_polygon",
     "procedural_layout",
     "quarter_turn_asymmetry",
@@ -46,7 +52,7 @@ __all__ = [
 ]
 
 BUILTIN_LAYOUTS_NAMES = tuple(BUILTIN_LAYOUTS)
-PROCEDURAL_LAYOUTS = ("procedural", "procedural_sym", "procedural_lookalike", "procedural_ring")
+PROCEDURAL_LAYOUTS = ("procedural", "procedural_sym", "procedural_lookalike", "procedural_ring", "procedural_corridor")
 LAYOUT_NAMES = (*BUILTIN_LAYOUTS, *PROCEDURAL_LAYOUTS)
 
 
@@ -106,8 +112,8 @@ def get_layout(
 
     Args:
         spec: a built-in name (``"lab"``, ``"twin_rooms"``, ``"three_rooms"``, ``"open_hall"``), ``"procedural"``,
-            ``"procedural_sym"``, ``"procedural_lookalike"`` or ``"procedural_ring"`` (`ring_layout`; all
-            generated from ``seed``), the name of a
+            ``"procedural_sym"``, ``"procedural_lookalike"``, ``"procedural_ring"`` (`ring_layout`) or
+            ``"procedural_corridor"`` (`corridor_layout`; all generated from ``seed``), the name of a
             layout file on the search path ``$SEMRELOC_LAYOUT_PATH`` (`find_layout_file`; the built-in and
             procedural names come first: a file of such a name warns and is not used), a path
             to a ``.json`` / ``.yaml`` file, a dict in the layout format, a Layout (returned as is), or a
@@ -146,6 +152,8 @@ def get_layout(
         return layout_from_dict(BUILTIN_LAYOUTS[spec]())
     if isinstance(spec, str) and spec == "procedural_ring":
         return layout_from_dict(ring_layout(np.random.default_rng(seed)))
+    if isinstance(spec, str) and spec == "procedural_corridor":
+        return layout_from_dict(corridor_layout(np.random.default_rng(seed)))
     if isinstance(spec, str) and spec in PROCEDURAL_LAYOUTS:
         params = ProceduralParams(
             symmetric=spec == "procedural_sym",

@@ -480,3 +480,165 @@ def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> d
         "objects": objects + extra,
         "blocks": [core],
     }
+
+
+# -------------------------------------------------------------------------------- corridor layouts
+@dataclass(frozen=True)
+class CorridorParams:
+    """Knobs of `corridor_layout` (metres).
+
+    Attributes:
+        length_m: range of the corridor's length (the lidar sees 8 m, so a long corridor has a middle
+            from which neither end wall is in range).
+        width_m: range of the corridor's width.
+        period_m: range of the period at which the furniture repeats along the corridor.
+        objects_per_period: inclusive range of the furniture pieces of one period (against either long
+            wall; a piece that finds no room in 50 tries is left out).
+        telling_objects: inclusive range of the objects placed once along the corridor (as many as find
+            room).
+        min_asymmetry_m: a telling object's centre keeps at least this distance from every whole-period
+            shift of every furniture piece of its class (`period_asymmetry`), so no shift of a pose by whole
+            periods sees it where the pose does; a draw that does not is drawn again.
+    """
+
+    length_m: tuple[float, float] = (18.0, 32.0)
+    width_m: tuple[float, float] = (2.4, 3.4)
+    period_m: tuple[float, float] = (3.0, 6.0)
+    objects_per_period: tuple[int, int] = (1, 3)
+    telling_objects: tuple[int, int] = (1, 2)
+    min_asymmetry_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("length_m", "width_m", "period_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_real(x) and math.isfinite(x) for x in v)):
+                raise ValueError(f"CorridorParams.{name} must be two finite numbers (lo, hi), got {v!r}")
+            if not 0 < v[0] <= v[1]:
+                raise ValueError(f"CorridorParams.{name} must be 0 < lo <= hi, got {v!r}")
+        if self.width_m[0] < 2.0:
+            raise ValueError(f"CorridorParams.width_m: at least 2 m wide, got {self.width_m!r}")
+        if self.period_m[0] < 1.5:
+            raise ValueError(f"CorridorParams.period_m: a period of at least 1.5 m, got {self.period_m!r}")
+        if self.length_m[0] < 2 * self.period_m[1]:
+            raise ValueError(
+                f"CorridorParams: length_m[0] must hold two of the longest periods, got length_m={self.length_m!r}, "
+                f"period_m={self.period_m!r}"
+            )
+        for name in ("objects_per_period", "telling_objects"):
+            lo, hi = getattr(self, name)
+            if not (is_int(lo) and is_int(hi) and 0 <= lo <= hi):
+                raise ValueError(f"CorridorParams.{name} must be 0 <= lo <= hi, got {getattr(self, name)!r}")
+        if self.telling_objects[0] < 1:
+            raise ValueError("CorridorParams.telling_objects: at least one telling object, or the corridor is periodic")
+        m = self.min_asymmetry_m
+        if not (is_real(m) and math.isfinite(m) and m >= 0):
+            raise ValueError(f"CorridorParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
+
+
+_MAX_CORRIDOR_LAYOUT_DRAWS = 100
+"""Draws of a telling object before `corridor_layout` gives up on `CorridorParams.min_asymmetry_m`."""
+
+
+def period_asymmetry(obj: dict, furniture: list, period: float) -> float:
+    """How far ``obj`` (a layout-dict object) lies from every whole-period shift along x of every piece of
+    ``furniture`` of its class, metres (``inf`` when there is none): the distance, over the pieces and the
+    shifts ``k * period`` (any integer ``k``), to the nearest shifted centre."""
+    best = math.inf
+    x, y = obj["center"]
+    for o in furniture:
+        if o["class"] != obj["class"]:
+            continue
+        ox, oy = o["center"]
+        dx = (x - ox) - period * round((x - ox) / period)
+        best = min(best, math.hypot(dx, y - oy))
+    return best
+
+
+def corridor_layout(rng: np.random.Generator, params: CorridorParams | None = None) -> dict:
+    """A long corridor whose furniture repeats at one period: a pose and its shifts by whole periods see
+    the same until an end wall or a telling object comes into view.
+
+    One period's furniture (doors flat on a long wall, cabinets against it, chairs and bins standing off
+    it) is drawn once and repeated along the corridor, centred so that both ends keep the same margin;
+    ``telling_objects`` objects are then placed once, each at least ``min_asymmetry_m`` from every
+    whole-period shift of the furniture of its class (`period_asymmetry`) and from the other telling
+    objects' shifts. No two pieces overlap along the corridor (0.3 m apart), so it stays passable.
+
+    Returns a layout dict (`semreloc_env.layouts.layout_from_dict` validates it); the same generator
+    state gives the same layout.
+    """
+    p = params or CorridorParams()
+    length = float(rng.uniform(*p.length_m))
+    width = float(rng.uniform(*p.width_m))
+    period = float(rng.uniform(*p.period_m))
+    n_periods = int(length // period)
+    start = (length - n_periods * period) / 2
+    classes = sorted(_RING_OBJECTS)
+
+    def piece(cls: str, cx: float, wall: str) -> dict:
+        along, away = _RING_OBJECTS[cls]
+        gap = 0.0 if cls in ("cabinet", "door") else float(rng.uniform(0.05, 0.25))
+        cy = gap + away / 2 if wall == "south" else width - gap - away / 2
+        return {"class": cls, "center": [cx, cy], "size": [along, away]}
+
+    def free(span: tuple[float, float], taken: list) -> bool:
+        return all(span[1] + 0.3 <= a or b + 0.3 <= span[0] for a, b in taken)
+
+    pattern, taken = [], []  # one period's pieces, in x from the period's start
+    for _ in range(int(rng.integers(p.objects_per_period[0], p.objects_per_period[1] + 1))):
+        for _attempt in range(50):
+            cls = str(rng.choice(classes))
+            along = _RING_OBJECTS[cls][0]
+            if period - 0.3 < along + 0.2:
+                continue
+            cx = float(rng.uniform(0.15 + along / 2, period - 0.15 - along / 2))
+            span = (cx - along / 2, cx + along / 2)
+            # pieces of neighbouring periods must keep their distance too
+            if not free(span, [(a + k * period, b + k * period) for a, b in taken for k in (-1, 0, 1)]):
+                continue
+            taken.append(span)
+            pattern.append(piece(cls, cx, str(rng.choice(["south", "north"]))))
+            break
+    furniture = [
+        {**o, "center": [start + k * period + o["center"][0], o["center"][1]]}
+        for k in range(n_periods)
+        for o in pattern
+    ]
+    spans = [(o["center"][0] - o["size"][0] / 2, o["center"][0] + o["size"][0] / 2) for o in furniture]
+
+    telling: list = []
+    for _ in range(int(rng.integers(p.telling_objects[0], p.telling_objects[1] + 1))):
+        for attempt in range(_MAX_CORRIDOR_LAYOUT_DRAWS):
+            cls = str(rng.choice(classes))
+            along = _RING_OBJECTS[cls][0]
+            # the first half of the tries look for free wall; the second half put the object in place of a
+            # piece of furniture (a crowded period leaves no free wall)
+            gone = int(rng.integers(len(furniture))) if attempt >= _MAX_CORRIDOR_LAYOUT_DRAWS // 2 else None
+            if gone is None:
+                cx = float(rng.uniform(0.4 + along / 2, length - 0.4 - along / 2))
+            else:
+                cx = min(max(furniture[gone]["center"][0], 0.4 + along / 2), length - 0.4 - along / 2)
+            span = (cx - along / 2, cx + along / 2)
+            if not free(span, [s for i, s in enumerate(spans) if i != gone]):
+                continue
+            obj = piece(cls, cx, str(rng.choice(["south", "north"])))
+            kept = [o for i, o in enumerate(furniture) if i != gone]
+            if p.min_asymmetry_m > 0 and period_asymmetry(obj, kept + telling, period) < p.min_asymmetry_m:
+                continue
+            if gone is not None:
+                del furniture[gone], spans[gone]
+            telling.append(obj)
+            spans.append(span)
+            break
+    if not telling:
+        raise ValueError(
+            f"corridor_layout: no telling object found room {_MAX_CORRIDOR_LAYOUT_DRAWS} times at least "
+            f"min_asymmetry_m={p.min_asymmetry_m} m from the period's furniture (length {length:.2f} m, period "
+            f"{period:.2f} m); lower it or allow fewer objects per period"
+        )
+    return {
+        "name": "procedural_corridor",
+        "outer": [[0.0, 0.0], [length, 0.0], [length, width], [0.0, width]],
+        "walls": [],
+        "objects": furniture + telling,
+    }
