@@ -195,6 +195,7 @@ def test_bad_kidnap_options():
             {"kidnap_at_step": 2, "kidnap_pose": "look-alike"},
             r"a pose \[x, y, theta\] or 'lookalike', got 'look-alike'",
         ),
+        ({"kidnap_at_step": 2, "kidnap_pose": b"lookalike"}, r"or 'lookalike', got b'lookalike'"),
         ({"kidnap_pose": "lookalike"}, "needs kidnap_at_step"),
     ]:
         with pytest.raises(ValueError, match=match):

@@ -622,8 +622,8 @@ class SemRelocEnv(SemRelocBase):
         kp = options.get("kidnap_pose")
         if kp is not None and k is None:
             raise ValueError("kidnap_pose needs kidnap_at_step (the step at which to teleport)")
-        if isinstance(kp, str):
-            if kp != KIDNAP_TO_LOOKALIKE:
+        if isinstance(kp, (str, bytes)):
+            if kp != KIDNAP_TO_LOOKALIKE:  # bytes too: b"lookalike" is not the option's string
                 raise ValueError(f"kidnap_pose must be a pose [x, y, theta] or {KIDNAP_TO_LOOKALIKE!r}, got {kp!r:.60}")
         elif kp is not None:
             kp = as_pose(kp, "kidnap_pose")
