@@ -161,3 +161,19 @@ def test_evaluate_active_adds_corridor_cases_last_and_flags_starts_a_shift_sees_
                 same = True
                 break
         assert same
+
+
+def test_a_corridor_env_runs_the_same_episode_from_the_same_seeds():
+    import gymnasium as gym
+
+    def episode():
+        env = gym.make("SemReloc-v18", layout="procedural_corridor", layout_seed=7, relocalizer={"n_particles": 300})
+        obs, info = env.reset(seed=3)
+        out = [info["pose"].tolist(), env.unwrapped.mcl.poses.tobytes()]
+        for a in [0] * 10 + [1] * 5:
+            obs, r, term, trunc, info = env.step(a)
+            out.append((r, info["pose"].tolist(), obs["lidar"].tobytes(), env.unwrapped.mcl.poses.tobytes()))
+        env.close()
+        return out
+
+    assert episode() == episode()

@@ -124,7 +124,7 @@ def test_frames_have_even_sizes_for_video_encoders():
     from semreloc_env.layouts import get_layout
 
     shapes = set()
-    for kind in ("procedural", "procedural_lookalike", "procedural_ring"):
+    for kind in ("procedural", "procedural_lookalike", "procedural_ring", "procedural_corridor"):
         for seed in range(4):
             env = gym.make("SemReloc-v18", layout=kind, layout_seed=seed, map_source="perfect", render_mode="rgb_array")
             env.reset(seed=0)
