@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS, LayoutSampler
-from semreloc_env.layouts import CorridorParams, corridor_layout, get_layout, period_asymmetry
+from semreloc_env.layouts import CorridorParams, corridor_layout, get_layout, period_shift_distance
 from semreloc_env.world import build_world
 
 
@@ -26,11 +26,12 @@ def _period(d):
     return max(sorted(set(gaps)), key=gaps.count) if gaps else None
 
 
-def test_same_seed_same_layout_and_a_valid_open_corridor():
-    a, b = corridor_layout(np.random.default_rng(3)), corridor_layout(np.random.default_rng(3))
+@pytest.mark.parametrize("seed", [3, 11, 1_000_004])
+def test_same_seed_same_layout_and_a_valid_open_corridor(seed):
+    a, b = corridor_layout(np.random.default_rng(seed)), corridor_layout(np.random.default_rng(seed))
     assert a == b
-    assert corridor_layout(np.random.default_rng(4)) != a
-    layout = get_layout("procedural_corridor", seed=3)
+    assert corridor_layout(np.random.default_rng(seed + 1)) != a
+    layout = get_layout("procedural_corridor", seed=seed)
     assert layout.name == "procedural_corridor" and not layout.walls and not layout.blocks
     x0, x1, y0, y1 = layout.bounds()
     p = CorridorParams()
@@ -65,9 +66,9 @@ def test_furniture_repeats_and_a_telling_object_breaks_every_shift(seed):
         )
 
     lone = [o for o in objs if not shifted_twin(o)]
-    assert lone, "no telling object"
+    assert 1 <= len(lone) <= CorridorParams().telling_objects[1]
 
-    # independently of period_asymmetry: some lone object keeps 1 m from every whole-period shift of its class
+    # independently of period_shift_distance: each lone object keeps 1 m from every whole-period shift of its class
     def far(o):
         x, y = o["center"]
         for p in objs:
@@ -78,17 +79,20 @@ def test_furniture_repeats_and_a_telling_object_breaks_every_shift(seed):
                     return False
         return True
 
-    assert any(far(o) for o in lone)
+    assert all(far(o) for o in lone)
 
 
-def test_period_asymmetry_by_hand():
+def test_period_shift_distance_by_hand_and_a_bad_period():
     chairs = [{"class": "chair", "center": [1.0 + 4.0 * k, 0.5]} for k in range(5)]
-    assert period_asymmetry({"class": "chair", "center": [9.0, 0.5]}, chairs, 4.0) == pytest.approx(0.0, abs=1e-12)
+    assert period_shift_distance({"class": "chair", "center": [9.0, 0.5]}, chairs, 4.0) == pytest.approx(0.0, abs=1e-12)
     # 1.5 m past a chair and 2.5 m before the next: 1.5; beyond the last chair the shifts go on
-    assert period_asymmetry({"class": "chair", "center": [6.5, 0.5]}, chairs, 4.0) == pytest.approx(1.5)
+    assert period_shift_distance({"class": "chair", "center": [6.5, 0.5]}, chairs, 4.0) == pytest.approx(1.5)
     far_off = {"class": "chair", "center": [40.0, 1.5]}
-    assert period_asymmetry(far_off, chairs, 4.0) == pytest.approx(math.hypot(1.0, 1.0))
-    assert period_asymmetry({"class": "door", "center": [9.0, 0.5]}, chairs, 4.0) == math.inf
+    assert period_shift_distance(far_off, chairs, 4.0) == pytest.approx(math.hypot(1.0, 1.0))
+    assert period_shift_distance({"class": "door", "center": [9.0, 0.5]}, chairs, 4.0) == math.inf
+    for bad in (0.0, -4.0, math.nan, math.inf, "4"):
+        with pytest.raises(ValueError, match="period must be a finite number > 0"):
+            period_shift_distance(far_off, chairs, bad)
 
 
 @pytest.mark.parametrize(
@@ -103,6 +107,11 @@ def test_period_asymmetry_by_hand():
         ({"telling_objects": (0, 1)}, "at least one telling object"),
         ({"objects_per_period": (2, 1)}, "objects_per_period"),
         ({"objects_per_period": (True, True)}, "objects_per_period"),
+        ({"objects_per_period": (1, 2, 3)}, "objects_per_period must be two integers"),
+        ({"objects_per_period": 3}, "objects_per_period must be two integers"),
+        ({"telling_objects": None}, "telling_objects must be two integers"),
+        ({"telling_objects": (1, 10**9)}, "hi <= 20"),
+        ({"length_m": (20.0, 1e300)}, "at most 1000.0 m long"),
         ({"min_asymmetry_m": float("nan")}, "min_asymmetry_m"),
     ],
 )
@@ -122,7 +131,25 @@ def test_crowded_periods_still_get_a_telling_object_or_an_honest_error():
             continue
         get_layout(d)
         made += 1
+        period = _period(d)  # the telling object(s) keep their distance in crowded periods too
+        telling = [
+            o for o in d["objects"] if period_shift_distance(o, [q for q in d["objects"] if q is not o], period) > 0.5
+        ]
+        assert telling and all(
+            period_shift_distance(o, [q for q in d["objects"] if q is not o], period) >= 1.0 - 1e-9 for o in telling
+        )
     assert 10 <= made < 20  # seed 4 draws a period too crowded for one
+
+
+def test_no_furniture_left_is_not_a_crash():
+    # every telling object may take a piece's place until none is left, or there is none to begin with
+    for params in (
+        CorridorParams(telling_objects=(20, 20)),
+        CorridorParams(objects_per_period=(0, 0), telling_objects=(5, 5), min_asymmetry_m=50.0),
+    ):
+        for seed in range(5):
+            d = corridor_layout(np.random.default_rng(seed), params)
+            get_layout(d)
 
 
 def test_sampler_draws_corridors_but_never_a_held_out_seed():
@@ -131,6 +158,23 @@ def test_sampler_draws_corridors_but_never_a_held_out_seed():
     draws = [s.draw(rng) for _ in range(100)]
     assert {d.kind for d in draws} == {"procedural_corridor"}
     assert not {d.seed for d in draws} & set(HELD_OUT_LAYOUT_SEEDS)
+
+
+def test_evaluate_active_corridor_layouts_argument():
+    from agents.experiments.evaluate_active import Args, build_cases
+
+    for kwargs, match in [
+        ({"corridor_layouts": -1}, "corridor_layouts must be >= 0"),
+        ({"corridor_layouts": 501}, "corridor_layouts: at most 500 held-out seeds"),
+        ({"seed_set": "tuning", "layouts_per_kind": 0}, "corridor_layouts"),
+        ({"layouts_per_kind": 0, "builtin_layouts": False}, "--corridor-layouts"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            Args(**kwargs)
+    tuning = build_cases(Args(seed_set="tuning", layouts_per_kind=0, corridor_layouts=2, starts=1))
+    assert [c["layout_seed"] for c in tuning] == [0, 1] and {c["kind"] for c in tuning} == {"procedural_corridor"}
+    held = build_cases(Args(layouts_per_kind=0, builtin_layouts=False, corridor_layouts=2, starts=1))
+    assert [c["layout_seed"] for c in held] == list(HELD_OUT_LAYOUT_SEEDS[:2])
 
 
 def test_evaluate_active_adds_corridor_cases_last_and_flags_starts_a_shift_sees_alike():

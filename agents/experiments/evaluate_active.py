@@ -4,7 +4,8 @@ Layouts: the first ``--layouts-per-kind`` held-out seeds
 (`semreloc_env.layout_sampling.HELD_OUT_LAYOUT_SEEDS`, never drawn for training) of
 ``procedural``, ``procedural_sym`` and ``procedural_lookalike``, then ``twin_rooms``, ``lab``,
 the changed lab (``scenario="changed"``), the first ``--ring-layouts`` held-out seeds of
-``procedural_ring`` (none by default) and every ``--layout-files`` entry. Each layout gets
+``procedural_ring`` and the first ``--corridor-layouts`` of ``procedural_corridor`` (none by default),
+and every ``--layout-files`` entry. Each layout gets
 ``--starts`` start poses, drawn from a generator seeded by the layout's index and the start's;
 every policy runs from the same start with the same episode seed (sensor noise and filter
 draws), a global relocalization of at most ``--max-steps`` steps.
@@ -13,8 +14,10 @@ Starts "from which nothing telling is in sensor range": in a ``procedural_lookal
 every other start is drawn inside a room where the exact all-round view (lidar to its range, the
 semantic classes to the camera's) equals the view from the same place in another, identical
 room; spinning in place cannot tell them apart, only moving out can; in a ``procedural_ring``
-layout, every other start is one whose view equals that of a quarter-turned image of it. These are
-flagged ``uninformative`` and summarised on their own.
+layout, every other start is one whose view equals that of a quarter-turned image of it; in a
+``procedural_corridor`` layout, one whose view equals that of a shift of it along the corridor
+(each where one is found in 300 draws; a random start otherwise). These are flagged
+``uninformative`` and summarised on their own.
 
 Per policy (overall, per layout kind, and on the uninformative starts): success within the
 step limit (the env's own test, `agents.metrics`), wrong convergence (converged, wrong
@@ -342,8 +345,8 @@ def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries
 
 def uninformative_corridor_start(world, rng, lidar_max: float, cam_max: float, tries: int = 300):
     """A pose in a `corridor_layout` whose exact all-round view equals that of the same pose shifted along the
-    corridor by the distance between two pieces of one class on one wall (a whole number of periods), or None
-    if none was found in ``tries`` draws."""
+    corridor, or None if none was found in ``tries`` draws. The shifts tried are the x distances between two
+    objects of one class whose centres have the same y (among them the whole periods)."""
     objects = world.layout.objects
     centres = [o.centroid() for o in objects]
     shifts = sorted(

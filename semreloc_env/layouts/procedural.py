@@ -355,8 +355,8 @@ class RingParams:
             raise ValueError(f"RingParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
 
 
-_RING_OBJECTS = {"cabinet": (1.0, 0.5), "door": (1.0, 0.1), "chair": (0.5, 0.5), "trash_bin": (0.4, 0.4)}
-"""Footprints (along the wall, away from it) of a ring layout's objects, metres."""
+_WALL_OBJECTS = {"cabinet": (1.0, 0.5), "door": (1.0, 0.1), "chair": (0.5, 0.5), "trash_bin": (0.4, 0.4)}
+"""Footprints (along the wall, away from it) of the objects of ring and corridor layouts, metres."""
 
 _MAX_RING_DRAWS = 100
 """Draws of the telling objects before `ring_layout` gives up on `RingParams.min_asymmetry_m`."""
@@ -392,14 +392,32 @@ def quarter_turn_asymmetry(objects: list, side: float) -> float:
     return min(_farthest_from_class(objects, centres, quarter_turn(centres, k, side)) for k in (1, 2, 3))
 
 
+def _wall_gap(rng, cls: str) -> float:
+    """How far a ``cls`` object stands off its wall, metres: cabinets and doors touch it (no draw), chairs and bins
+    stand 0.05-0.25 m off (one draw)."""
+    return 0.0 if cls in ("cabinet", "door") else float(rng.uniform(0.05, 0.25))
+
+
+def _wall_box(cls: str, cx: float, gap: float, far_y: float, near: bool) -> dict:
+    """A ``cls`` box centred at ``cx`` along a wall, ``gap`` off the wall at ``y = 0`` (``near``) or off the one at
+    ``y = far_y`` (facing it)."""
+    along, away = _WALL_OBJECTS[cls]
+    cy = gap + away / 2 if near else far_y - gap - away / 2
+    return {"class": cls, "center": [cx, cy], "size": [along, away]}
+
+
+def _clear_of(span: tuple[float, float], taken: list, margin_m: float = 0.3) -> bool:
+    """Whether the x interval ``span`` keeps ``margin_m`` from every interval of ``taken``."""
+    return all(span[1] + margin_m <= a or b + margin_m <= span[0] for a, b in taken)
+
+
 def _against_wall(rng, cls: str, corridor: float, lo: float, hi: float, wall: str):
     """A ``cls`` object against the south outer wall (``wall="outer"``) or the core's south face
     (``"core"``), centred at an ``x`` in ``[lo, hi]`` (its footprint inside); ``(dict, x interval)``."""
-    along, away = _RING_OBJECTS[cls]
-    gap = 0.0 if cls in ("cabinet", "door") else float(rng.uniform(0.05, 0.25))  # chairs and bins stand off
+    along = _WALL_OBJECTS[cls][0]
+    gap = _wall_gap(rng, cls)
     cx = float(rng.uniform(lo + along / 2, hi - along / 2))
-    cy = gap + away / 2 if wall == "outer" else corridor - gap - away / 2
-    return {"class": cls, "center": [cx, cy], "size": [along, away]}, (cx - along / 2, cx + along / 2)
+    return _wall_box(cls, cx, gap, corridor, wall == "outer"), (cx - along / 2, cx + along / 2)
 
 
 def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> dict:
@@ -425,7 +443,7 @@ def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> d
         [side - corridor, side - corridor],
         [corridor, side - corridor],
     ]
-    classes = sorted(_RING_OBJECTS)
+    classes = sorted(_WALL_OBJECTS)
 
     def place(n: int, taken: dict, x_range: tuple[float, float]) -> list:
         out = []
@@ -434,10 +452,10 @@ def ring_layout(rng: np.random.Generator, params: RingParams | None = None) -> d
                 cls = str(rng.choice(classes))
                 wall = str(rng.choice(["outer", "core"]))
                 lo, hi = x_range if wall == "outer" else (max(x_range[0], corridor), min(x_range[1], side - corridor))
-                if hi - lo < _RING_OBJECTS[cls][0] + 0.2:
+                if hi - lo < _WALL_OBJECTS[cls][0] + 0.2:
                     continue
                 obj, span = _against_wall(rng, cls, corridor, lo + 0.1, hi - 0.1, wall)
-                if any(not (span[1] + 0.3 <= a or b + 0.3 <= span[0]) for a, b in taken[wall]):
+                if not _clear_of(span, taken[wall]):
                     continue
                 taken[wall].append(span)
                 out.append(obj)
@@ -493,12 +511,15 @@ class CorridorParams:
         width_m: range of the corridor's width.
         period_m: range of the period at which the furniture repeats along the corridor.
         objects_per_period: inclusive range of the furniture pieces of one period (against either long
-            wall; a piece that finds no room in 50 tries is left out).
+            wall; a piece that finds no room in 50 tries is left out), at most `MAX_CORRIDOR_COUNT`.
         telling_objects: inclusive range of the objects placed once along the corridor (as many as find
-            room).
+            room), at most `MAX_CORRIDOR_COUNT`.
         min_asymmetry_m: a telling object's centre keeps at least this distance from every whole-period
-            shift of every furniture piece of its class (`period_asymmetry`), so no shift of a pose by whole
-            periods sees it where the pose does; a draw that does not is drawn again.
+            shift of every furniture piece of its class and of the telling objects placed before it
+            (`period_shift_distance`), so no shift of a pose by whole periods sees it where the pose does; a
+            draw that does not is drawn again.
+
+    The length is at most `MAX_CORRIDOR_LENGTH_M`.
     """
 
     length_m: tuple[float, float] = (18.0, 32.0)
@@ -515,6 +536,8 @@ class CorridorParams:
                 raise ValueError(f"CorridorParams.{name} must be two finite numbers (lo, hi), got {v!r}")
             if not 0 < v[0] <= v[1]:
                 raise ValueError(f"CorridorParams.{name} must be 0 < lo <= hi, got {v!r}")
+        if self.length_m[1] > MAX_CORRIDOR_LENGTH_M:
+            raise ValueError(f"CorridorParams.length_m: at most {MAX_CORRIDOR_LENGTH_M} m long, got {self.length_m!r}")
         if self.width_m[0] < 2.0:
             raise ValueError(f"CorridorParams.width_m: at least 2 m wide, got {self.width_m!r}")
         if self.period_m[0] < 1.5:
@@ -525,9 +548,11 @@ class CorridorParams:
                 f"period_m={self.period_m!r}"
             )
         for name in ("objects_per_period", "telling_objects"):
-            lo, hi = getattr(self, name)
-            if not (is_int(lo) and is_int(hi) and 0 <= lo <= hi):
-                raise ValueError(f"CorridorParams.{name} must be 0 <= lo <= hi, got {getattr(self, name)!r}")
+            v = getattr(self, name)
+            if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_int(x) for x in v)):
+                raise ValueError(f"CorridorParams.{name} must be two integers (lo, hi), got {v!r}")
+            if not 0 <= v[0] <= v[1] <= MAX_CORRIDOR_COUNT:
+                raise ValueError(f"CorridorParams.{name} must be 0 <= lo <= hi <= {MAX_CORRIDOR_COUNT}, got {v!r}")
         if self.telling_objects[0] < 1:
             raise ValueError("CorridorParams.telling_objects: at least one telling object, or the corridor is periodic")
         m = self.min_asymmetry_m
@@ -535,17 +560,29 @@ class CorridorParams:
             raise ValueError(f"CorridorParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
 
 
-_MAX_CORRIDOR_LAYOUT_DRAWS = 100
-"""Draws of a telling object before `corridor_layout` gives up on `CorridorParams.min_asymmetry_m`."""
+MAX_CORRIDOR_LENGTH_M = 1000.0
+"""Longest corridor `CorridorParams` accepts, metres."""
+
+MAX_CORRIDOR_COUNT = 20
+"""Most furniture pieces per period, and most telling objects, `CorridorParams` accepts."""
+
+_MAX_TELLING_DRAWS = 100
+"""Draws of one telling object before `corridor_layout` gives up on it (`CorridorParams.min_asymmetry_m`)."""
 
 
-def period_asymmetry(obj: dict, furniture: list, period: float) -> float:
-    """How far ``obj`` (a layout-dict object) lies from every whole-period shift along x of every piece of
-    ``furniture`` of its class, metres (``inf`` when there is none): the distance, over the pieces and the
-    shifts ``k * period`` (any integer ``k``), to the nearest shifted centre."""
+def period_shift_distance(obj: dict, objects: list, period: float) -> float:
+    """How far ``obj`` (a layout-dict object) lies from every whole-period shift along x of every object of
+    its class in ``objects``, metres (``inf`` when there is none): the distance, over those objects and the
+    shifts ``k * period`` (any integer ``k``), to the nearest shifted centre.
+
+    Raises:
+        ValueError: ``period`` is not a finite number > 0.
+    """
+    if not (is_real(period) and math.isfinite(period) and period > 0):
+        raise ValueError(f"period must be a finite number > 0, got {period!r}")
     best = math.inf
     x, y = obj["center"]
-    for o in furniture:
+    for o in objects:
         if o["class"] != obj["class"]:
             continue
         ox, oy = o["center"]
@@ -561,8 +598,11 @@ def corridor_layout(rng: np.random.Generator, params: CorridorParams | None = No
     One period's furniture (doors flat on a long wall, cabinets against it, chairs and bins standing off
     it) is drawn once and repeated along the corridor, centred so that both ends keep the same margin;
     ``telling_objects`` objects are then placed once, each at least ``min_asymmetry_m`` from every
-    whole-period shift of the furniture of its class (`period_asymmetry`) and from the other telling
-    objects' shifts. No two pieces overlap along the corridor (0.3 m apart), so it stays passable.
+    whole-period shift of the furniture of its class and of the telling objects before it
+    (`period_shift_distance`). A telling object is first sought on free wall (50 draws); failing that
+    (no free wall, or none far enough from its class's shifts), in the place of a piece of furniture,
+    which is then missing from its period (50 draws). No two pieces overlap along the corridor (0.3 m
+    apart), so it stays passable.
 
     Returns a layout dict (`semreloc_env.layouts.layout_from_dict` validates it); the same generator
     state gives the same layout.
@@ -573,31 +613,24 @@ def corridor_layout(rng: np.random.Generator, params: CorridorParams | None = No
     period = float(rng.uniform(*p.period_m))
     n_periods = int(length // period)
     start = (length - n_periods * period) / 2
-    classes = sorted(_RING_OBJECTS)
+    classes = sorted(_WALL_OBJECTS)
 
-    def piece(cls: str, cx: float, wall: str) -> dict:
-        along, away = _RING_OBJECTS[cls]
-        gap = 0.0 if cls in ("cabinet", "door") else float(rng.uniform(0.05, 0.25))
-        cy = gap + away / 2 if wall == "south" else width - gap - away / 2
-        return {"class": cls, "center": [cx, cy], "size": [along, away]}
-
-    def free(span: tuple[float, float], taken: list) -> bool:
-        return all(span[1] + 0.3 <= a or b + 0.3 <= span[0] for a, b in taken)
+    def piece(cls: str, cx: float) -> dict:
+        near = str(rng.choice(["south", "north"])) == "south"
+        return _wall_box(cls, cx, _wall_gap(rng, cls), width, near)
 
     pattern, taken = [], []  # one period's pieces, in x from the period's start
     for _ in range(int(rng.integers(p.objects_per_period[0], p.objects_per_period[1] + 1))):
         for _attempt in range(50):
             cls = str(rng.choice(classes))
-            along = _RING_OBJECTS[cls][0]
-            if period - 0.3 < along + 0.2:
-                continue
+            along = _WALL_OBJECTS[cls][0]  # at most 1 m, and a period is at least 1.5 m
             cx = float(rng.uniform(0.15 + along / 2, period - 0.15 - along / 2))
             span = (cx - along / 2, cx + along / 2)
             # pieces of neighbouring periods must keep their distance too
-            if not free(span, [(a + k * period, b + k * period) for a, b in taken for k in (-1, 0, 1)]):
+            if not _clear_of(span, [(a + k * period, b + k * period) for a, b in taken for k in (-1, 0, 1)]):
                 continue
             taken.append(span)
-            pattern.append(piece(cls, cx, str(rng.choice(["south", "north"]))))
+            pattern.append(piece(cls, cx))
             break
     furniture = [
         {**o, "center": [start + k * period + o["center"][0], o["center"][1]]}
@@ -608,22 +641,23 @@ def corridor_layout(rng: np.random.Generator, params: CorridorParams | None = No
 
     telling: list = []
     for _ in range(int(rng.integers(p.telling_objects[0], p.telling_objects[1] + 1))):
-        for attempt in range(_MAX_CORRIDOR_LAYOUT_DRAWS):
+        for attempt in range(_MAX_TELLING_DRAWS):
             cls = str(rng.choice(classes))
-            along = _RING_OBJECTS[cls][0]
+            along = _WALL_OBJECTS[cls][0]
             # the first half of the tries look for free wall; the second half put the object in place of a
-            # piece of furniture (a crowded period leaves no free wall)
-            gone = int(rng.integers(len(furniture))) if attempt >= _MAX_CORRIDOR_LAYOUT_DRAWS // 2 else None
+            # piece of furniture (free wall may be lacking, or too near its class's shifts)
+            in_place = bool(furniture) and attempt >= _MAX_TELLING_DRAWS // 2
+            gone = int(rng.integers(len(furniture))) if in_place else None
             if gone is None:
                 cx = float(rng.uniform(0.4 + along / 2, length - 0.4 - along / 2))
             else:
                 cx = min(max(furniture[gone]["center"][0], 0.4 + along / 2), length - 0.4 - along / 2)
             span = (cx - along / 2, cx + along / 2)
-            if not free(span, [s for i, s in enumerate(spans) if i != gone]):
+            if not _clear_of(span, [s for i, s in enumerate(spans) if i != gone]):
                 continue
-            obj = piece(cls, cx, str(rng.choice(["south", "north"])))
+            obj = piece(cls, cx)
             kept = [o for i, o in enumerate(furniture) if i != gone]
-            if p.min_asymmetry_m > 0 and period_asymmetry(obj, kept + telling, period) < p.min_asymmetry_m:
+            if p.min_asymmetry_m > 0 and period_shift_distance(obj, kept + telling, period) < p.min_asymmetry_m:
                 continue
             if gone is not None:
                 del furniture[gone], spans[gone]
@@ -632,7 +666,7 @@ def corridor_layout(rng: np.random.Generator, params: CorridorParams | None = No
             break
     if not telling:
         raise ValueError(
-            f"corridor_layout: no telling object found room {_MAX_CORRIDOR_LAYOUT_DRAWS} times at least "
+            f"corridor_layout: no telling object found room {_MAX_TELLING_DRAWS} times at least "
             f"min_asymmetry_m={p.min_asymmetry_m} m from the period's furniture (length {length:.2f} m, period "
             f"{period:.2f} m); lower it or allow fewer objects per period"
         )
