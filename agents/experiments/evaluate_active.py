@@ -321,6 +321,22 @@ def uninformative_start(layout_seed: int, world, rng, lidar_max: float, cam_max:
     return None
 
 
+def _start_seen_alike(world, rng, lidar_max: float, cam_max: float, images, tries: int):
+    """The first of ``tries`` free poses drawn from ``rng`` whose exact all-round view equals that of one of its
+    ``images(pose)`` (candidate poses; those not free are skipped), or None."""
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    for _ in range(tries):
+        pose = world.sample_free_pose(rng, margin_m=0.3)
+        r0, l0 = _view(world, pose, lidar_max, cam_max, angles)
+        for q in images(pose):
+            if not world.is_free(q[:2], 0.3):
+                continue
+            r1, l1 = _view(world, q, lidar_max, cam_max, angles)
+            if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
+                return pose
+    return None
+
+
 def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries: int = 300):
     """A pose in a `ring_layout` whose exact all-round view equals that of one of its quarter-turned
     images about the hall's centre, or None if none was found in ``tries`` draws."""
@@ -328,19 +344,13 @@ def uninformative_ring_start(world, rng, lidar_max: float, cam_max: float, tries
 
     x0, x1, y0, y1 = world.layout.bounds()
     side = x1 - x0
-    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
-    for _ in range(tries):
-        pose = world.sample_free_pose(rng, margin_m=0.3)
-        r0, l0 = _view(world, pose, lidar_max, cam_max, angles)
-        for k in (1, 2, 3):  # k quarter turns counter-clockwise about the hall's centre
+
+    def turned(pose):  # k quarter turns counter-clockwise about the hall's centre
+        for k in (1, 2, 3):
             xy = quarter_turn(pose[:2] - (x0, y0), k, side) + (x0, y0)
-            q = np.array([xy[0], xy[1], math.remainder(pose[2] + k * math.pi / 2, 2 * math.pi)])
-            if not world.is_free(q[:2], 0.3):
-                continue
-            r1, l1 = _view(world, q, lidar_max, cam_max, angles)
-            if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
-                return pose
-    return None
+            yield np.array([xy[0], xy[1], math.remainder(pose[2] + k * math.pi / 2, 2 * math.pi)])
+
+    return _start_seen_alike(world, rng, lidar_max, cam_max, turned, tries)
 
 
 def uninformative_corridor_start(world, rng, lidar_max: float, cam_max: float, tries: int = 300):
@@ -357,18 +367,13 @@ def uninformative_corridor_start(world, rng, lidar_max: float, cam_max: float, t
             if a.cls == b.cls and abs(ca[1] - cb[1]) < 1e-6 and abs(ca[0] - cb[0]) > 0.5
         }
     )
-    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
-    for _ in range(tries):
-        pose = world.sample_free_pose(rng, margin_m=0.3)
-        r0, l0 = _view(world, pose, lidar_max, cam_max, angles)
+
+    def shifted(pose):
         for dx in shifts:
-            for q in (pose + (dx, 0.0, 0.0), pose - (dx, 0.0, 0.0)):
-                if not world.is_free(q[:2], 0.3):
-                    continue
-                r1, l1 = _view(world, q, lidar_max, cam_max, angles)
-                if np.allclose(r0, r1, atol=1e-6) and np.array_equal(l0, l1):
-                    return pose
-    return None
+            yield pose + (dx, 0.0, 0.0)
+            yield pose - (dx, 0.0, 0.0)
+
+    return _start_seen_alike(world, rng, lidar_max, cam_max, shifted, tries)
 
 
 def build_cases(args: Args) -> list[dict]:
