@@ -144,7 +144,7 @@ class Args:
     gif_case: int = -1
     """if >= 0: also write gif_<policy>.gif of every policy on this case (index into the cases, in this
     order, --starts per layout: the procedural kinds' layouts, twin_rooms, lab, lab changed, the ring
-    layouts, then the layout files; episodes.json lists every case with its index)"""
+    layouts, the corridor layouts, then the layout files; episodes.json lists every case with its index)"""
     sample_learned: bool = False
     """learned policies sample their actions (seeded by the episode) instead of taking the most likely"""
     out: str = "out/evaluate_active"
