@@ -87,6 +87,7 @@ def test_quarter_turn_asymmetry_by_hand():
         ({"side_m": (6.0, 7.0)}, "core of at least 1 m"),
         ({"telling_objects": (0, 1)}, "at least one telling object"),
         ({"objects_per_quarter": (2, 1)}, "objects_per_quarter"),
+        ({"objects_per_quarter": (1, 2, 3)}, "objects_per_quarter must be two integers"),
         ({"min_asymmetry_m": float("nan")}, "min_asymmetry_m"),
     ],
 )

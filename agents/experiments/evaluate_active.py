@@ -151,6 +151,13 @@ class Args:
     """output folder"""
     runner: Runner = RunnerConfig(workers=2)
 
+    GENERATED = ("layouts_per_kind", "ring_layouts", "corridor_layouts")
+    """The fields that count generated layouts (held-out or tuning seeds)."""
+
+    def generates(self) -> bool:
+        """Whether any generated layout is asked for (`GENERATED`)."""
+        return any(getattr(self, name) for name in self.GENERATED)
+
     def _check_map_source(self) -> None:
         """A map layout must fit every case's world (checked here, with its mapping run, not in a worker)."""
         if self.map_source in ("mapping", "perfect"):
@@ -160,8 +167,7 @@ class Args:
         from semreloc_env.maps import check_map_source_name, maps_for
 
         check_map_source_name(self.map_source)
-        generated = self.layouts_per_kind or self.ring_layouts or self.corridor_layouts
-        if generated or self.builtin_layouts or not self.layout_files:
+        if self.generates() or self.builtin_layouts or not self.layout_files:
             raise ValueError(
                 "map_source: one map for every case needs worlds that fit it: --layout-files alone "
                 "(--layouts-per-kind 0 --no-builtin-layouts)"
@@ -201,19 +207,19 @@ class Args:
         missing = [d for d in self.reuse if not (Path(d) / "episodes.json").is_file()]
         if missing:
             raise ValueError(f"reuse: no episodes.json in {missing}")
-        for name in ("layouts_per_kind", "ring_layouts", "corridor_layouts", "starts", "max_steps", "particles"):
-            least = 0 if name in ("layouts_per_kind", "ring_layouts", "corridor_layouts") else 1
+        for name in (*self.GENERATED, "starts", "max_steps", "particles"):
+            least = 0 if name in self.GENERATED else 1
             if getattr(self, name) < least:
                 raise ValueError(f"{name} must be >= {least}, got {getattr(self, name)}")
         self.relocalizer_overrides()  # a bad JSON object or field is an error now, not in every worker
         from semreloc_env.layout_sampling import HELD_OUT_LAYOUT_SEEDS
 
-        for name in ("layouts_per_kind", "ring_layouts", "corridor_layouts"):
+        for name in self.GENERATED:
             if self.seed_set == "held_out" and getattr(self, name) > len(HELD_OUT_LAYOUT_SEEDS):
                 raise ValueError(
                     f"{name}: at most {len(HELD_OUT_LAYOUT_SEEDS)} held-out seeds per kind, got {getattr(self, name)}"
                 )
-        if self.seed_set == "tuning" and max(self.layouts_per_kind, self.ring_layouts, self.corridor_layouts) < 1:
+        if self.seed_set == "tuning" and not self.generates():
             raise ValueError(
                 "layouts_per_kind (or ring_layouts, or corridor_layouts) must be >= 1 with seed_set tuning (it has no "
                 "fixed layouts)"
@@ -237,8 +243,7 @@ class Args:
 
         for f in self.layout_files:  # a malformed file fails here, not in a worker with a traceback
             check_layout_option(f, "layout_files")
-        generated = self.layouts_per_kind or self.ring_layouts or self.corridor_layouts
-        if not generated and not self.layout_files and not self.builtin_layouts:
+        if not self.generates() and not self.layout_files and not self.builtin_layouts:
             raise ValueError(
                 "no layouts: --layouts-per-kind 0 and --no-builtin-layouts need --layout-files, --ring-layouts or "
                 "--corridor-layouts"
@@ -376,6 +381,10 @@ def uninformative_corridor_start(world, rng, lidar_max: float, cam_max: float, t
     return _start_seen_alike(world, rng, lidar_max, cam_max, shifted, tries)
 
 
+SEEN_ALIKE_STARTS = {RING_KIND: uninformative_ring_start, CORRIDOR_KIND: uninformative_corridor_start}
+"""The search for an uninformative start of each generated kind whose images are poses of the same layout."""
+
+
 def build_cases(args: Args) -> list[dict]:
     """Every (layout, start) pair, in a fixed order."""
     from semreloc_env.config import CameraParams, LidarParams
@@ -389,10 +398,8 @@ def build_cases(args: Args) -> list[dict]:
     layouts = [(k, int(s), "nominal") for k in PROCEDURAL_KINDS for s in seeds]
     if not tuning and args.builtin_layouts:
         layouts += [("twin_rooms", 0, "nominal"), ("lab", 0, "nominal"), ("lab", 0, "changed")]
-    ring_seeds = range(args.ring_layouts) if tuning else HELD_OUT_LAYOUT_SEEDS[: args.ring_layouts]
-    layouts += [(RING_KIND, int(s), "nominal") for s in ring_seeds]
-    corridor_seeds = range(args.corridor_layouts) if tuning else HELD_OUT_LAYOUT_SEEDS[: args.corridor_layouts]
-    layouts += [(CORRIDOR_KIND, int(s), "nominal") for s in corridor_seeds]
+    for kind, n in ((RING_KIND, args.ring_layouts), (CORRIDOR_KIND, args.corridor_layouts)):
+        layouts += [(kind, int(s), "nominal") for s in (range(n) if tuning else HELD_OUT_LAYOUT_SEEDS[:n])]
     n_fixed = len(layouts)  # the layout files' cases come after these
     layouts += [(f, 0, "nominal") for f in args.layout_files]
     lidar_max, cam_max = LidarParams().range_max_m, CameraParams().range_max_m
@@ -410,11 +417,8 @@ def build_cases(args: Args) -> list[dict]:
             if spec == "procedural_lookalike" and si % 2 == 0:
                 pose = uninformative_start(seed, world, rng, lidar_max, cam_max)
                 flag = pose is not None
-            elif spec == RING_KIND and not is_file and si % 2 == 0:
-                pose = uninformative_ring_start(world, rng, lidar_max, cam_max)
-                flag = pose is not None
-            elif spec == CORRIDOR_KIND and not is_file and si % 2 == 0:
-                pose = uninformative_corridor_start(world, rng, lidar_max, cam_max)
+            elif spec in SEEN_ALIKE_STARTS and not is_file and si % 2 == 0:
+                pose = SEEN_ALIKE_STARTS[spec](world, rng, lidar_max, cam_max)
                 flag = pose is not None
             if pose is None:
                 pose = world.sample_free_pose(rng, margin_m=0.3)

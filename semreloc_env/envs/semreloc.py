@@ -259,8 +259,8 @@ class SemRelocEnv(SemRelocBase):
     ## Arguments
     * ``layout``: ``"lab"`` (default, unless ``map_source`` is a map), another built-in
       (``"twin_rooms"``, ``"three_rooms"``, ``"open_hall"``), a procedural kind (``"procedural"``,
-      ``"procedural_sym"``, ``"procedural_lookalike"``, ``"procedural_ring"``, ``"procedural_corridor"``; ``layout_seed`` seeds them), the name of a
-      layout file on ``$SEMRELOC_LAYOUT_PATH``, a ``.json``/``.yaml`` path, a dict, a `Layout`, or a
+      ``"procedural_sym"``, ``"procedural_lookalike"``, ``"procedural_ring"``, ``"procedural_corridor"``;
+      ``layout_seed`` seeds them), the name of a layout file on ``$SEMRELOC_LAYOUT_PATH``, a ``.json``/``.yaml`` path, a dict, a `Layout`, or a
       ROS map ``.yaml`` / GridMap (the world it shows). `semreloc_env.layouts.LAYOUT_NAMES` lists the names.
     * ``action_type``: ``"discrete"`` or ``"continuous"``.
     * ``robot``, ``physics``, ``lidar``, ``camera``, ``odometry``: dicts of overrides of

@@ -310,6 +310,37 @@ def _corridor_objects(rng, p, length, depth, corridor, south_doors, north_doors,
 
 
 # ------------------------------------------------------------------------------------ ring layouts
+def _check_real_ranges(params, *names: str) -> None:
+    """ValueError unless each field of ``params`` named is two finite numbers ``(lo, hi)``."""
+    for name in names:
+        v = getattr(params, name)
+        if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_real(x) and math.isfinite(x) for x in v)):
+            raise ValueError(f"{type(params).__name__}.{name} must be two finite numbers (lo, hi), got {v!r}")
+
+
+def _check_count_ranges(params, *names: str, most: int | None = None) -> None:
+    """ValueError unless each field of ``params`` named is two integers ``0 <= lo <= hi`` (``<= most`` if given)."""
+    owner = type(params).__name__
+    for name in names:
+        v = getattr(params, name)
+        if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_int(x) for x in v)):
+            raise ValueError(f"{owner}.{name} must be two integers (lo, hi), got {v!r}")
+        if not (0 <= v[0] <= v[1] and (most is None or v[1] <= most)):
+            bound = "" if most is None else f" <= {most}"
+            raise ValueError(f"{owner}.{name} must be 0 <= lo <= hi{bound}, got {v!r}")
+
+
+def _check_telling(params, symmetric: str) -> None:
+    """ValueError unless ``params`` asks for at least one telling object and a finite ``min_asymmetry_m >= 0``
+    (``symmetric``: what the layout would be without telling objects)."""
+    owner = type(params).__name__
+    if params.telling_objects[0] < 1:
+        raise ValueError(f"{owner}.telling_objects: at least one telling object, or {symmetric}")
+    m = params.min_asymmetry_m
+    if not (is_real(m) and math.isfinite(m) and m >= 0):
+        raise ValueError(f"{owner}.min_asymmetry_m must be a finite number >= 0, got {m!r}")
+
+
 @dataclass(frozen=True)
 class RingParams:
     """Knobs of `ring_layout` (metres).
@@ -334,25 +365,15 @@ class RingParams:
     min_asymmetry_m: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("side_m", "corridor_m"):
-            v = getattr(self, name)
-            if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_real(x) and math.isfinite(x) for x in v)):
-                raise ValueError(f"RingParams.{name} must be two finite numbers (lo, hi), got {v!r}")
+        _check_real_ranges(self, "side_m", "corridor_m")
         (s0, s1), (c0, c1) = self.side_m, self.corridor_m
         if not (0 < c0 <= c1 and 0 < s0 <= s1 and s0 - 2 * c1 >= 1.0 and c0 >= 2.0):
             raise ValueError(
                 f"RingParams: need 2 <= corridor_m[0] <= corridor_m[1] and side_m[0] - 2 * corridor_m[1] >= 1 "
                 f"(a core of at least 1 m), got side_m={self.side_m!r}, corridor_m={self.corridor_m!r}"
             )
-        for name in ("objects_per_quarter", "telling_objects"):
-            lo, hi = getattr(self, name)
-            if not (is_int(lo) and is_int(hi) and 0 <= lo <= hi):
-                raise ValueError(f"RingParams.{name} must be 0 <= lo <= hi, got {getattr(self, name)!r}")
-        if self.telling_objects[0] < 1:
-            raise ValueError("RingParams.telling_objects: at least one telling object, or the ring is symmetric")
-        m = self.min_asymmetry_m
-        if not (is_real(m) and math.isfinite(m) and m >= 0):
-            raise ValueError(f"RingParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
+        _check_count_ranges(self, "objects_per_quarter", "telling_objects")
+        _check_telling(self, "the ring is symmetric")
 
 
 _WALL_OBJECTS = {"cabinet": (1.0, 0.5), "door": (1.0, 0.1), "chair": (0.5, 0.5), "trash_bin": (0.4, 0.4)}
@@ -530,10 +551,9 @@ class CorridorParams:
     min_asymmetry_m: float = 1.0
 
     def __post_init__(self) -> None:
+        _check_real_ranges(self, "length_m", "width_m", "period_m")
         for name in ("length_m", "width_m", "period_m"):
             v = getattr(self, name)
-            if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_real(x) and math.isfinite(x) for x in v)):
-                raise ValueError(f"CorridorParams.{name} must be two finite numbers (lo, hi), got {v!r}")
             if not 0 < v[0] <= v[1]:
                 raise ValueError(f"CorridorParams.{name} must be 0 < lo <= hi, got {v!r}")
         if self.length_m[1] > MAX_CORRIDOR_LENGTH_M:
@@ -547,17 +567,8 @@ class CorridorParams:
                 f"CorridorParams: length_m[0] must hold two of the longest periods, got length_m={self.length_m!r}, "
                 f"period_m={self.period_m!r}"
             )
-        for name in ("objects_per_period", "telling_objects"):
-            v = getattr(self, name)
-            if not (isinstance(v, (tuple, list)) and len(v) == 2 and all(is_int(x) for x in v)):
-                raise ValueError(f"CorridorParams.{name} must be two integers (lo, hi), got {v!r}")
-            if not 0 <= v[0] <= v[1] <= MAX_CORRIDOR_COUNT:
-                raise ValueError(f"CorridorParams.{name} must be 0 <= lo <= hi <= {MAX_CORRIDOR_COUNT}, got {v!r}")
-        if self.telling_objects[0] < 1:
-            raise ValueError("CorridorParams.telling_objects: at least one telling object, or the corridor is periodic")
-        m = self.min_asymmetry_m
-        if not (is_real(m) and math.isfinite(m) and m >= 0):
-            raise ValueError(f"CorridorParams.min_asymmetry_m must be a finite number >= 0, got {m!r}")
+        _check_count_ranges(self, "objects_per_period", "telling_objects", most=MAX_CORRIDOR_COUNT)
+        _check_telling(self, "the corridor is periodic")
 
 
 MAX_CORRIDOR_LENGTH_M = 1000.0
