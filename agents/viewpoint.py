@@ -335,7 +335,11 @@ class ViewpointPlanner(Policy):
         min_score: viewpoints scoring below this are not goals; with none left, drive as the
             explorer instead.
         views: filter updates counted at a viewpoint (the likelihood is raised to this times the
-            filter's ``likelihood_scale``).
+            filter's ``likelihood_scale``). 1 since a later session (6 before): the filter does not
+            keep what several updates at one place would add up to (its scan proposals refill the
+            look-alikes while nothing telling is in view), and counting 6 made nearby viewpoints
+            promise nearly all the entropy gone, so that in corridors and rings the planner dithered
+            (docs/active.md, "Counting one update per viewpoint").
         replan_every: steps (observations the planner took in) after which a plan is made again
             even if its goal was not reached.
         explore_steps: steps driven as the explorer before planning again.
@@ -393,7 +397,7 @@ class ViewpointPlanner(Policy):
         cluster_bin_m: float = 0.5,
         cost_per_m: float = 0.05,
         min_score: float = 0.05,
-        views: float = 6.0,
+        views: float = 1.0,
         replan_every: int = 40,
         min_reachable: int = 60,
         explore_steps: int = 10,
