@@ -89,6 +89,22 @@ def test_3_clear_errors_for_odd_layout_input(tmp_path):
         load_layout(bad)
 
 
+def test_layout_files_with_a_byte_order_mark_load_as_without(tmp_path):
+    # Windows editors write one; json.loads refused it with a hint ("decode using utf-8-sig") a user cannot act on
+    import json
+
+    data = {"name": "bom", "outer": SQUARE, "objects": [_chair(2, 2)]}
+    for suffix, text in ((".json", json.dumps(data)), (".yaml", "name: bom\nouter: [[0, 0], [8, 0], [8, 8], [0, 8]]\n")):
+        plain, marked = tmp_path / f"plain{suffix}", tmp_path / f"marked{suffix}"
+        plain.write_text(text, encoding="utf-8")
+        marked.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+        assert load_layout(marked) == load_layout(plain)
+    bad = tmp_path / "twice.json"
+    bad.write_bytes(b"\xef\xbb\xbf\xef\xbb\xbf" + json.dumps(data).encode("utf-8"))
+    with pytest.raises(LayoutError, match=r"twice.json: not valid JSON"):
+        load_layout(bad)
+
+
 def test_3_clear_errors_for_odd_env_input():
     env = gym.make("SemSlam-v1", **SLAM_FAST)
     env.reset(seed=0)
@@ -199,6 +215,22 @@ def test_7_the_slack_is_1e_5_on_both_sides_and_clips_to_the_bound(env_id, kw):
     for outside in ([1 + 1.1e-5, 0.0], [0.0, -1 - 1.1e-5]):
         with pytest.raises(ValueError, match="invalid action"):
             env.step(outside)
+    assert_identical(env.step([0.3, 0.1]), twin.step([0.3, 0.1]))
+
+
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v18", FAST), ("SemSlam-v1", SLAM_FAST)])
+def test_continuous_actions_are_checked_by_value_not_dtype(env_id, kw):
+    # the env docstrings say so: ints and float64 within the bounds are the same actions as float32 ones,
+    # though Gymnasium's Box.contains refuses them
+    env, twin = gym.make(env_id, action_type="continuous", **kw), gym.make(env_id, action_type="continuous", **kw)
+    env.reset(seed=0)
+    twin.reset(seed=0)
+    for action in (np.array([1, 0]), np.array([0.25, -0.5], np.float64), [0, -1]):
+        assert isinstance(action, list) or not env.action_space.contains(action)
+        assert_identical(env.step(action), twin.step(np.asarray(action, np.float32)))
+    for bad in (np.array([2, 0]), np.array([True, False]), np.array([0.5, 0.5, 0.0])):
+        with pytest.raises(ValueError, match="invalid action"):
+            env.step(bad)
     assert_identical(env.step([0.3, 0.1]), twin.step([0.3, 0.1]))
 
 

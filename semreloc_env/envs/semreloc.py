@@ -205,7 +205,10 @@ class SemRelocEnv(SemRelocBase):
     ``action_type="discrete"`` (default): ``Discrete(4)`` — 0 forward at
     ``robot.max_linear_mps``, 1 turn left, 2 turn right (at ``robot.max_angular_rps``), 3 stop.
     ``action_type="continuous"``: ``Box(-1, 1, (2,))`` — ``(v, omega)`` scaled by the same maxima.
-    Anything outside the space, or NaN, raises ``ValueError`` and changes nothing.
+    Anything outside the space, or NaN, raises ``ValueError`` and changes nothing. Continuous actions are checked
+    by value, not dtype: any two finite real numbers in ``[-1, 1]`` (ints, float64) are taken, and values within
+    ``semreloc_env.envs.spaces.ACTION_BOUND_SLACK`` (1e-5) of the bounds are clipped to them, where Gymnasium's
+    ``Box.contains`` would refuse both.
 
     ## Observation Space
     ``Dict`` of float32 boxes and one ``MultiDiscrete`` (``SemReloc-v2``, ``observation_layout = "typed"``):

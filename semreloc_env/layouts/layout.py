@@ -483,7 +483,7 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
 
 
 def load_layout(path: str | Path) -> Layout:
-    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text; ``~`` is expanded)."""
+    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text, with or without a byte-order mark; ``~`` is expanded)."""
     path = Path(path).expanduser()
     if path.is_dir():
         raise LayoutError(f"{path} is a folder; give one layout file in it (.json, .yaml or .yml)")
@@ -492,7 +492,7 @@ def load_layout(path: str | Path) -> Layout:
     if path.suffix.lower() not in (".yaml", ".yml", ".json"):
         raise LayoutError(f"{path}: layout files must end in .json, .yaml or .yml")
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = path.read_bytes().decode("utf-8-sig")  # a byte-order mark, as some editors write, is dropped
     except UnicodeDecodeError as e:
         raise LayoutError(f"{path}: not UTF-8 text (byte {e.start}: {e.reason})") from None
     try:
