@@ -115,7 +115,8 @@ class Args:
     scaled by the robot's maximum speeds; the baselines and learned policies send their discrete
     choices as such pairs, the viewpoint planner (and a learned policy's planner option) drives arcs)"""
     particles: int = 2000
-    """relocalizer particles"""
+    """relocalizer particles (``n_particles``: drawn at the reset and at most per KLD resampling; clustered
+    resampling's floors and the audit can add to a set)"""
     env_id: EvaluatedEnvId = "SemReloc-v18"
     """the env the episodes run in: SemReloc-v18 (the newest), SemReloc-v17, SemReloc-v16, SemReloc-v15, SemReloc-v14,
     SemReloc-v13, SemReloc-v12, SemReloc-v11, SemReloc-v10, SemReloc-v9, SemReloc-v8, SemReloc-v7, SemReloc-v6,
