@@ -89,12 +89,20 @@ def test_3_clear_errors_for_odd_layout_input(tmp_path):
         load_layout(bad)
 
 
+def test_a_single_wall_not_wrapped_in_a_list_says_walls_is_a_list_of_polylines():
+    for walls in ([[1, 2], [3, 2]], [(1.0, 2.0)]):
+        with pytest.raises(LayoutError, match=r"walls\[0\]: expected a polyline.*\[\[\[1, 2\], \[3, 2\]\]\]"):
+            layout_from_dict({"outer": SQUARE, "walls": walls})
+    assert len(layout_from_dict({"outer": SQUARE, "walls": [[[1, 2], [3, 2]]]}).walls) == 1
+
+
 def test_layout_files_with_a_byte_order_mark_load_as_without(tmp_path):
     # Windows editors write one; json.loads refused it with a hint ("decode using utf-8-sig") a user cannot act on
     import json
 
     data = {"name": "bom", "outer": SQUARE, "objects": [_chair(2, 2)]}
-    for suffix, text in ((".json", json.dumps(data)), (".yaml", "name: bom\nouter: [[0, 0], [8, 0], [8, 8], [0, 8]]\n")):
+    yaml_text = "name: bom\nouter: [[0, 0], [8, 0], [8, 8], [0, 8]]\n"
+    for suffix, text in ((".json", json.dumps(data)), (".yaml", yaml_text)):
         plain, marked = tmp_path / f"plain{suffix}", tmp_path / f"marked{suffix}"
         plain.write_text(text, encoding="utf-8")
         marked.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))

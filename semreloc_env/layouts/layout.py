@@ -432,6 +432,11 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     walls, walls_what = [], []
     for i, w in enumerate(raw_walls):
         what = f"walls[{i}]"
+        if isinstance(w, (list, tuple)) and w and all(_is_number(v) for v in w):
+            raise LayoutError(
+                f"{what}: expected a polyline, a list of [x, y] points, got {w!r:.80}; `walls` is a list of "
+                "polylines, so one wall from (1, 2) to (3, 2) is written [[[1, 2], [3, 2]]]"
+            )
         p = _points(w, what, 2)
         if np.any(np.all(p[1:] == p[:-1], axis=1)):
             raise LayoutError(f"{what}: repeated consecutive point (zero-length segment)")
@@ -483,7 +488,8 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
 
 
 def load_layout(path: str | Path) -> Layout:
-    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text, with or without a byte-order mark; ``~`` is expanded)."""
+    """Load and validate a layout from a ``.json``, ``.yaml`` or ``.yml`` file (UTF-8 text, with or without a
+    byte-order mark; ``~`` is expanded)."""
     path = Path(path).expanduser()
     if path.is_dir():
         raise LayoutError(f"{path} is a folder; give one layout file in it (.json, .yaml or .yml)")
