@@ -42,6 +42,68 @@ def _crosses(p: np.ndarray, q: np.ndarray, a: np.ndarray, e: np.ndarray) -> bool
     return bool(np.any((s1 * s2 < 0) & (s3 * s4 < 0)))
 
 
+@numba.njit(cache=True, nogil=True)
+def _drive_kernel(x, y, th, v, omega, dt, substeps, r, skin, a, e, iters):  # pragma: no cover - compiled
+    """`World.drive`'s substeps against the segments ``a + s * e`` ``(M, 2)`` near the robot: ``(x, y, th,
+    touched)``. The operations of `World.drive_reference` (and `World._resolve`, `_crosses`) one by one, in
+    their order, so the same bits."""
+    m = a.shape[0]
+    ee = np.empty(m)
+    for i in range(m):
+        ee[i] = max(e[i, 0] * e[i, 0] + e[i, 1] * e[i, 1], 1e-300)
+    collided = False
+    for _ in range(substeps):
+        nx = x + v * math.cos(th) * dt
+        ny = y + v * math.sin(th) * dt
+        th = th + omega * dt
+        if m:
+            px, py = nx, ny
+            touched = False
+            freed = False
+            for _ in range(iters):
+                k = -1
+                dk = 0.0
+                ck0 = ck1 = 0.0
+                for i in range(m):
+                    t = ((px - a[i, 0]) * e[i, 0] + (py - a[i, 1]) * e[i, 1]) / ee[i]
+                    t = min(max(t, 0.0), 1.0)
+                    c0 = a[i, 0] + t * e[i, 0]
+                    c1 = a[i, 1] + t * e[i, 1]
+                    d = math.hypot(px - c0, py - c1)
+                    if k < 0 or d < dk:
+                        k, dk, ck0, ck1 = i, d, c0, c1
+                if dk >= r:
+                    freed = True
+                    break
+                touched = True
+                if dk > 1e-12:
+                    n0, n1 = (px - ck0) / dk, (py - ck1) / dk
+                else:  # on the segment: push back towards where the robot came from
+                    sq = math.sqrt(ee[k])
+                    n0, n1 = -e[k, 1] / sq, e[k, 0] / sq
+                    if (x - ck0) * n0 + (y - ck1) * n1 < 0:
+                        n0, n1 = -n0, -n1
+                px = ck0 + n0 * (r + skin)
+                py = ck1 + n1 * (r + skin)
+            if not freed:
+                px, py, touched = x, y, True
+            elif touched:
+                dx, dy = px - x, py - y
+                for i in range(m):
+                    ax, ay, ex, ey = a[i, 0], a[i, 1], e[i, 0], e[i, 1]
+                    s1 = dx * (ay - y) - dy * (ax - x)
+                    s2 = dx * (ay + ey - y) - dy * (ax + ex - x)
+                    s3 = ex * (y - ay) - ey * (x - ax)
+                    s4 = ex * (py - ay) - ey * (px - ax)
+                    if s1 * s2 < 0 and s3 * s4 < 0:
+                        px, py = x, y
+                        break
+            collided |= touched
+            nx, ny = px, py
+        x, y = nx, ny
+    return x, y, th, collided
+
+
 def _counter_clockwise(poly: np.ndarray) -> np.ndarray:
     x, y = poly[:, 0], poly[:, 1]
     area = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
@@ -396,7 +458,23 @@ class World:
         clearance never drops below its radius (to ``_SKIN_M``), and the outcome is a
         function of the pose alone: copies (``copy.deepcopy``, pickle) of a world in
         contact evolve identically. Returns True if the robot touched an obstacle.
+
+        Compiled (`_drive_kernel`); `drive_reference` is the same in Python, the same bits.
         """
+        phys = self.physics
+        r = self.robot_params.radius_m
+        x, y = self.body.position
+        reach = r + abs(v_mps) * phys.dt_s + 2 * self._skin
+        near = self.scene.near(np.array([x, y]), reach)
+        x, y, th, collided = _drive_kernel(
+            float(x), float(y), float(self.body.angle), float(v_mps), float(omega_rps), phys.dt_s / phys.substeps,
+            int(phys.substeps), float(r), float(self._skin), self.scene.a[near], self.scene.e[near], _RESOLVE_ITERS,
+        )  # fmt: skip
+        self._place(x, y, th)
+        return bool(collided)
+
+    def drive_reference(self, v_mps: float, omega_rps: float) -> bool:
+        """`drive` in Python and NumPy (the reference the compiled kernel is tested against)."""
         phys = self.physics
         dt = phys.dt_s / phys.substeps
         r = self.robot_params.radius_m
@@ -413,12 +491,16 @@ class World:
                 (nx, ny), hit = self._resolve(np.array([x, y]), np.array([nx, ny]), near)
                 collided |= hit
             x, y = float(nx), float(ny)
+        self._place(x, y, th)
+        return collided
+
+    def _place(self, x: float, y: float, th: float) -> None:
+        """The robot at ``(x, y)`` with body angle ``th`` (not wrapped), at rest."""
         self.body.position = (x, y)
         self.body.angle = th
         self.body.velocity = (0.0, 0.0)
         self.body.angular_velocity = 0.0
         self._reindex()
-        return collided
 
     def _resolve(self, prev: np.ndarray, p: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, bool]:
         """``(position, touched)``: ``p`` pushed out of the segments ``near`` (indices), or ``prev``."""

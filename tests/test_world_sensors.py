@@ -187,6 +187,34 @@ def test_robot_never_enters_walls_or_objects():
     assert worst >= 0.25 - 1e-4  # ... and never went in (0.1 mm numerical tolerance)
 
 
+def test_compiled_drive_is_the_reference_bit_for_bit():
+    # World.drive runs `_drive_kernel`; drive_reference is the Python it replaced: the same poses and contacts,
+    # in the lab (many contacts, corners) and through a gap narrower than the robot (the blocked-move branch)
+    import copy
+
+    from semreloc_env.layouts import get_layout
+
+    gap = layout_from_dict(
+        {**ROOM, "walls": [[[2.0, 0.0], [2.0, 1.8]], [[2.0, 2.15], [2.0, 4.0]]]}  # 0.35 m gap, robot 0.4 m wide
+    )
+    rng = np.random.default_rng(1)
+    contacts = blocked = 0
+    for layout in (get_layout("lab"), gap):
+        world = build_world(layout)
+        for trial in range(60):
+            world.set_pose(world.sample_free_pose(rng, margin_m=0.0) if trial % 2 else [1.6, 1.97, 0.0])
+            fast, ref = copy.deepcopy(world), copy.deepcopy(world)
+            for _ in range(40):
+                v, omega = rng.uniform(-0.6, 0.6), rng.uniform(-1.2, 1.2)
+                before = ref.pose
+                hit = ref.drive_reference(v, omega)
+                assert fast.drive(v, omega) is hit
+                assert fast.pose.tobytes() == ref.pose.tobytes() and fast.body.angle == ref.body.angle
+                contacts += hit
+                blocked += hit and bool(np.all(ref.pose[:2] == before[:2]))
+    assert contacts > 50 and blocked > 0, (contacts, blocked)  # 80 and 3 with these seeds
+
+
 def test_set_pose_rejects_blocked_and_bad_poses_without_moving():
     world = square_room([{"class": "chair", "center": [2.0, 2.0], "size": [0.5, 0.5]}])
     world.set_pose([1.0, 1.0, 0.0])
