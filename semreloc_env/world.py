@@ -459,7 +459,8 @@ class World:
         function of the pose alone: copies (``copy.deepcopy``, pickle) of a world in
         contact evolve identically. Returns True if the robot touched an obstacle.
 
-        Compiled (`_drive_kernel`); `drive_reference` is the same in Python, the same bits.
+        Compiled (`_drive_kernel`); `drive_reference` is the same in Python, the same bits. The speeds are
+        taken as Python floats (float64), whatever their type.
         """
         phys = self.physics
         r = self.robot_params.radius_m
@@ -475,6 +476,7 @@ class World:
 
     def drive_reference(self, v_mps: float, omega_rps: float) -> bool:
         """`drive` in Python and NumPy (the reference the compiled kernel is tested against)."""
+        v_mps, omega_rps = float(v_mps), float(omega_rps)
         phys = self.physics
         dt = phys.dt_s / phys.substeps
         r = self.robot_params.radius_m
@@ -521,7 +523,8 @@ class World:
                 n = off[k] / d[k]
             else:  # on the segment: push back towards where the robot came from
                 n = np.array([-e[k, 1], e[k, 0]]) / math.sqrt(ee[k])
-                n = n if np.dot(prev - closest[k], n) >= 0 else -n
+                back = prev - closest[k]  # written out: np.dot would go through BLAS, whose fused multiply-add
+                n = n if back[0] * n[0] + back[1] * n[1] >= 0 else -n  # rounds otherwise (and per library)
             p = closest[k] + n * (r + self._skin)
         else:
             return prev, True

@@ -188,31 +188,49 @@ def test_robot_never_enters_walls_or_objects():
 
 
 def test_compiled_drive_is_the_reference_bit_for_bit():
-    # World.drive runs `_drive_kernel`; drive_reference is the Python it replaced: the same poses and contacts,
-    # in the lab (many contacts, corners) and through a gap narrower than the robot (the blocked-move branch)
+    # World.drive runs `_drive_kernel`; drive_reference is the Python it replaced: the same poses and contacts, from
+    # free starts, from starts touching a wall and facing it, and from poses written onto walls and corners (which
+    # set_pose refuses, but which take the projection's every branch), in the lab, a gap narrower than the robot
+    # and a zig-zag wall
     import copy
 
     from semreloc_env.layouts import get_layout
 
-    gap = layout_from_dict(
-        {**ROOM, "walls": [[[2.0, 0.0], [2.0, 1.8]], [[2.0, 2.15], [2.0, 4.0]]]}  # 0.35 m gap, robot 0.4 m wide
-    )
+    walls = [[[2.0, 0.0], [2.0, 1.8]], [[2.0, 2.15], [2.0, 4.0]], [[0.5, 3.5], [1.0, 0.5], [1.5, 3.5], [1.7, 0.8]]]
+    odd = layout_from_dict({**ROOM, "walls": walls})  # a 0.35 m gap for a 0.4 m robot, acute corners
     rng = np.random.default_rng(1)
-    contacts = blocked = 0
-    for layout in (get_layout("lab"), gap):
+    counts = {"contacts": 0, "blocked": 0}
+
+    def same_drives(world, n):
+        fast, ref = copy.deepcopy(world), copy.deepcopy(world)
+        for _ in range(n):
+            v = rng.choice([-0.5, 0.5, rng.uniform(-0.5, 0.5), 0.0, 1e-300])  # 0: stay on a wall, a corner
+            omega = rng.choice([0.0, rng.uniform(-1.2, 1.2)])
+            before = ref.pose
+            hit = ref.drive_reference(v, omega)
+            assert fast.drive(v, omega) is hit
+            assert fast.pose.tobytes() == ref.pose.tobytes() and fast.body.angle == ref.body.angle
+            counts["contacts"] += hit
+            counts["blocked"] += hit and bool(np.all(ref.pose[:2] == before[:2]))
+
+    for layout in (get_layout("lab"), odd):
         world = build_world(layout)
-        for trial in range(60):
-            world.set_pose(world.sample_free_pose(rng, margin_m=0.0) if trial % 2 else [1.6, 1.97, 0.0])
-            fast, ref = copy.deepcopy(world), copy.deepcopy(world)
-            for _ in range(40):
-                v, omega = rng.uniform(-0.6, 0.6), rng.uniform(-1.2, 1.2)
-                before = ref.pose
-                hit = ref.drive_reference(v, omega)
-                assert fast.drive(v, omega) is hit
-                assert fast.pose.tobytes() == ref.pose.tobytes() and fast.body.angle == ref.body.angle
-                contacts += hit
-                blocked += hit and bool(np.all(ref.pose[:2] == before[:2]))
-    assert contacts > 50 and blocked > 0, (contacts, blocked)  # 80 and 3 with these seeds
+        a, e, r = world.scene.a, world.scene.e, world.robot_params.radius_m
+        for _ in range(30):  # free starts
+            world.set_pose(world.sample_free_pose(rng, margin_m=0.0))
+            same_drives(world, 20)
+        for _ in range(150):  # touching a wall (at the radius, give or take a rounding), facing it
+            i, t, ang = rng.integers(len(a)), rng.choice([0.0, 1.0, rng.uniform()]), rng.uniform(-math.pi, math.pi)
+            gap = rng.choice([world._skin, 0.0, 1e-12, 2 * world._skin, 1e-6])
+            xy = a[i] + t * e[i] + (r + gap) * np.array([math.cos(ang), math.sin(ang)])
+            world.body.position, world.body.angle = (float(xy[0]), float(xy[1])), ang + math.pi
+            same_drives(world, 10)
+        for _ in range(300):  # on a vertex, on a segment, or into a wall
+            i = rng.integers(len(a))
+            xy = rng.choice([a[i], a[i] + 0.5 * e[i], a[i] + rng.uniform() * e[i] + rng.normal(0, r, 2)])
+            world.body.position, world.body.angle = (float(xy[0]), float(xy[1])), float(rng.uniform(-4, 4))
+            same_drives(world, 8)
+    assert counts["contacts"] > 2000 and counts["blocked"] > 500, counts  # 2899 and 892 with these seeds
 
 
 def test_set_pose_rejects_blocked_and_bad_poses_without_moving():
