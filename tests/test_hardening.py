@@ -90,7 +90,7 @@ def test_3_clear_errors_for_odd_layout_input(tmp_path):
 
 
 def test_a_single_wall_not_wrapped_in_a_list_says_walls_is_a_list_of_polylines():
-    for walls in ([[1, 2], [3, 2]], [(1.0, 2.0)]):
+    for walls in ([[1, 2], [3, 2]], [(1.0, 2.0)], np.array([[1, 2], [3, 2]])):
         with pytest.raises(LayoutError, match=r"walls\[0\]: expected a polyline.*\[\[\[1, 2\], \[3, 2\]\]\]"):
             layout_from_dict({"outer": SQUARE, "walls": walls})
     assert len(layout_from_dict({"outer": SQUARE, "walls": [[[1, 2], [3, 2]]]}).walls) == 1

@@ -119,10 +119,10 @@ class SemSlamEnv(SemRelocBase):
     ``action_type="discrete"`` (default): ``Discrete(4)`` -- 0 forward at ``robot.max_linear_mps``,
     1 turn left, 2 turn right (at ``robot.max_angular_rps``), 3 stop.
     ``action_type="continuous"``: ``Box(-1, 1, (2,))`` -- ``(v, omega)`` scaled by the same maxima.
-    Anything outside the space, or NaN, raises ``ValueError`` and changes nothing. Continuous actions are checked
-    by value, not dtype: any two finite real numbers in ``[-1, 1]`` (ints, float64) are taken, and values within
-    ``semreloc_env.envs.spaces.ACTION_BOUND_SLACK`` (1e-5) of the bounds are clipped to them, where Gymnasium's
-    ``Box.contains`` would refuse both.
+    An invalid action (out of range, NaN, the wrong shape or kind) raises ``ValueError`` and changes nothing.
+    Continuous actions are checked by value, not dtype: any two finite real numbers (not bools) in ``[-1, 1]``
+    are taken, int64 and float64 arrays included, which Gymnasium's ``Box.contains`` refuses; values within
+    ``semreloc_env.envs.spaces.ACTION_BOUND_SLACK`` (1e-5) of a bound are clipped to it.
 
     ## Observation Space
     Identical to ``SemReloc-v2``: a ``Dict`` of float32 boxes and one ``MultiDiscrete``.

@@ -432,7 +432,8 @@ def layout_from_dict(data: Mapping, default_name: str = "layout") -> Layout:
     walls, walls_what = [], []
     for i, w in enumerate(raw_walls):
         what = f"walls[{i}]"
-        if isinstance(w, (list, tuple)) and w and all(_is_number(v) for v in w):
+        flat = isinstance(w, (list, tuple)) or (isinstance(w, np.ndarray) and w.ndim == 1)
+        if flat and len(w) and all(_is_number(v) for v in w):
             raise LayoutError(
                 f"{what}: expected a polyline, a list of [x, y] points, got {w!r:.80}; `walls` is a list of "
                 "polylines, so one wall from (1, 2) to (3, 2) is written [[[1, 2], [3, 2]]]"
