@@ -242,7 +242,7 @@ def is_ros_map_file(path) -> bool:
     try:
         text = p.read_text(encoding="utf-8")
     except UnicodeDecodeError:
-        return True  # let load_map report what is wrong with it
+        return False  # neither kind can be read: the layout loader's LayoutError says why (not UTF-8 text)
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError:  # broken YAML: a ROS map if it has a top-level image key and no outer wall

@@ -501,3 +501,73 @@ def test_observations_are_writable_copies_that_change_nothing(env_id, kw):
         obs = env.step(0)[0]
         twin.step(0)
     assert_identical([env.step(1) for _ in range(3)], [twin.step(1) for _ in range(3)])
+
+
+# ---------------------------------------------------------------- an outside trial's findings (a later session)
+def test_a_yaml_layout_that_is_not_utf8_is_a_layout_error_however_it_is_named(tmp_path):
+    # load_layout said LayoutError, but get_layout and gym.make took the file for a ROS map: MapFormatError
+    bad = tmp_path / "latin1.yaml"
+    bad.write_bytes("name: caf\xe9\nouter: [[0, 0], [4, 0], [4, 3], [0, 3]]\n".encode("latin-1"))
+    with pytest.raises(LayoutError, match=r"latin1.yaml: not UTF-8"):
+        get_layout(str(bad))
+    with pytest.raises(LayoutError, match=r"latin1.yaml: not UTF-8"):
+        gym.make("SemReloc-v18", layout=str(bad), **FAST)
+
+
+def test_a_room_without_objects_needs_its_floor_too():
+    # the 0.01 m^2 floor check ran only for layouts with objects; this one failed at reset instead
+    with pytest.raises(LayoutError, match=r"outer: encloses 0.0025 m\^2"):
+        layout_from_dict({"outer": [[0, 0], [0.05, 0], [0.05, 0.05], [0, 0.05]]})
+    layout_from_dict({"outer": [[0, 0], [0.2, 0], [0.2, 0.2], [0, 0.2]]})  # 0.04 m^2 of floor: a layout
+
+
+def test_a_label_without_a_class_is_refused_whether_or_not_the_motion_gate_lets_the_update_run():
+    # it was refused only by updates past the motion gate: a standing robot's bad scans passed unnoticed
+    from filters.robot_data.scans import SemanticScan
+
+    env = gym.make("SemReloc-v18", **FAST)
+    env.reset(seed=0)
+    mcl = env.unwrapped.mcl
+    lidar, sem = env.unwrapped._last["lidar"], env.unwrapped._last["semantic"]
+    bad = SemanticScan(sem.ranges, sem.angles, np.full(sem.labels.shape, 9), sem.range_max_m)
+    assert not mcl.moved_enough()
+    before = copy.deepcopy(mcl)
+    with pytest.raises(ValueError, match=r"semantic label 9 has no class in the map"):
+        mcl.update(lidar, bad)
+    assert_identical(pickle.dumps(mcl.poses), pickle.dumps(before.poses))
+    assert_identical(mcl.log_weights, before.log_weights)
+    assert mcl.update(lidar, sem).updated is False  # the good scan still waits for motion
+
+
+@pytest.mark.parametrize("z", [np.array([[1 + 1j, 0.0]]), np.array([[True, False]]), np.array([["1", "0"]])])
+def test_slam_observations_must_be_real_numbers(z):
+    # complex observations lost their imaginary part with a ComplexWarning; bools and strings became numbers
+    from filters.motion.velocity import UnicycleModel
+    from filters.slam.ekf_slam import EKFSLAM
+    from filters.slam.fastslam import FastSLAM, FastSLAMConfig
+    from filters.slam.landmarks import RangeBearingNoise
+
+    noise = RangeBearingNoise(0.1, 0.02)
+    for f in (
+        EKFSLAM(UnicycleModel(), noise),
+        FastSLAM(UnicycleModel(), noise, FastSLAMConfig(n_particles=5), np.random.default_rng(0)),
+    ):
+        with pytest.raises(ValueError, match=r"observations must be real numbers"):
+            f.update(z)
+        f.update(np.array([[2.0, 0.1]]))  # and the filter still takes a good scan
+
+
+def test_slam_filters_check_their_config_and_noise_types_when_made():
+    # EKFSLAM took config="x" and failed at the first update with an AttributeError
+    from filters.motion.velocity import UnicycleModel
+    from filters.slam.ekf_slam import EKFSLAM
+    from filters.slam.fastslam import FastSLAM
+    from filters.slam.landmarks import RangeBearingNoise
+
+    noise = RangeBearingNoise(0.1, 0.02)
+    with pytest.raises(TypeError, match=r"config must be an EKFSLAMConfig or None, got str"):
+        EKFSLAM(UnicycleModel(), noise, config="x")
+    with pytest.raises(TypeError, match=r"obs_noise must be a RangeBearingNoise"):
+        EKFSLAM(UnicycleModel(), (0.1, 0.02))
+    with pytest.raises(TypeError, match=r"config must be a FastSLAMConfig, got dict"):
+        FastSLAM(UnicycleModel(), noise, {"n_particles": 5}, np.random.default_rng(0))

@@ -623,6 +623,17 @@ class LikelihoodFieldModel:
         self._tables[key] = (tables, floors, flat)
         return self._tables[key]
 
+    def check_labels(self, semantic: SemanticScan) -> None:
+        """ValueError if a label of ``semantic`` has no class in the map (labels ``1..n_classes``).
+
+        `filters.localization.mcl.MonteCarloLocalizer.update` calls it before its motion gate, so a
+        bad scan is refused whether or not the update runs."""
+        if semantic.labels.size and semantic.labels.max() > self.n_classes:
+            raise ValueError(
+                f"semantic label {int(semantic.labels.max())} has no class in the map "
+                f"(labels 1..{self.n_classes} = {self.grid.class_names})"
+            )
+
     def beams(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> BeamSet:
         """Select the beams of one update and turn them into robot-frame end points.
 
@@ -648,11 +659,7 @@ class LikelihoodFieldModel:
         if semantic is not None:
             if not isinstance(semantic, SemanticScan):
                 raise TypeError(f"semantic must be a SemanticScan, got {type(semantic).__name__}")
-            if semantic.labels.size and semantic.labels.max() > self.n_classes:
-                raise ValueError(
-                    f"semantic label {int(semantic.labels.max())} has no class in the map "
-                    f"(labels 1..{self.n_classes} = {self.grid.class_names})"
-                )
+            self.check_labels(semantic)
             c = self.semantic_config
             idx = select_beams(semantic.labelled, c.beam_stride, c.max_beams)
             ex, ey = beam_endpoints(semantic.ranges[idx], semantic.angles[idx], semantic.sensor_pose)

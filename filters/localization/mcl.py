@@ -969,6 +969,9 @@ class MonteCarloLocalizer:
         if not isinstance(force, (bool, np.bool_)):
             raise TypeError(f"force must be a bool, got {force!r}")
         c = self.config
+        check_labels = getattr(self.measurement_model, "check_labels", None)
+        if semantic is not None and c.use_semantic and check_labels is not None:
+            check_labels(semantic)  # refused whether or not the motion gate lets this update run
         n = self.n_particles
         if self._has_updated and not force and not self.moved_enough():
             diag = UpdateDiagnostics(

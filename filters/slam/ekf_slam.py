@@ -54,6 +54,10 @@ class EKFSLAM:
         initial_pose=(0.0, 0.0, 0.0),
         initial_pose_cov=None,
     ) -> None:
+        if config is not None and not isinstance(config, EKFSLAMConfig):
+            raise TypeError(f"config must be an EKFSLAMConfig or None, got {type(config).__name__} {config!r:.60}")
+        if not isinstance(obs_noise, RangeBearingNoise):
+            raise TypeError(f"obs_noise must be a RangeBearingNoise, got {type(obs_noise).__name__} {obs_noise!r:.60}")
         self.motion = motion
         self.R = obs_noise.cov
         self.config = config if config is not None else EKFSLAMConfig()

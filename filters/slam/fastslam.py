@@ -171,6 +171,10 @@ class FastSLAM:
         initial_pose=(0.0, 0.0, 0.0),
         initial_pose_cov=None,
     ) -> None:
+        if not isinstance(config, FastSLAMConfig):
+            raise TypeError(f"config must be a FastSLAMConfig, got {type(config).__name__} {config!r:.60}")
+        if not isinstance(obs_noise, RangeBearingNoise):
+            raise TypeError(f"obs_noise must be a RangeBearingNoise, got {type(obs_noise).__name__} {obs_noise!r:.60}")
         self.motion = motion
         self.obs_noise = obs_noise
         self.R = obs_noise.cov

@@ -118,12 +118,16 @@ def validate_observations(z, ids=None) -> tuple[np.ndarray, np.ndarray | None]:
     ``(r, b)``. ``ids``, if given, is ``K`` non-negative integer landmark ids.
     Returns ``(z float64 (K, 2) with bearings wrapped to [-pi, pi), ids int64 (K,) or None)``.
 
-    Raises ValueError for a wrong shape, NaN/inf, a negative range or one above `MAX_RANGE_M`, a bearing
-    outside ``[-pi, pi]``, or ids of the wrong length / negative / non-integer.
+    Raises ValueError for values that are not real numbers (bools, complex numbers, strings), a wrong shape,
+    NaN/inf, a negative range or one above `MAX_RANGE_M`, a bearing outside ``[-pi, pi]``, or ids of the wrong
+    length / negative / non-integer. Ids may repeat: the filters apply each observation to its landmark in turn.
     """
     if z is None:
         z = np.zeros((0, 2))
-    z = np.asarray(z, dtype=np.float64)
+    z = np.asarray(z)
+    if z.size and z.dtype.kind not in "iuf":  # no bools, complex numbers, strings or objects
+        raise ValueError(f"observations must be real numbers (range_m, bearing_rad), got dtype {z.dtype}")
+    z = z.astype(np.float64)
     if z.size == 0:
         z = z.reshape(0, 2)
     if z.ndim != 2 or z.shape[1] != 2:

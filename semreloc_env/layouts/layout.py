@@ -334,6 +334,10 @@ def _check_geometry(outer: np.ndarray, walls: list, walls_what: list, objects: l
     for g, what in zip(obj_geoms, objects_what):
         if not region.covers(g):
             raise LayoutError(f"{what}: lies partly outside the outer wall{_where(shifted(g.difference(outer_poly)))}")
+    if outer_poly.area <= MIN_FREE_AREA_M2:
+        raise LayoutError(
+            f"outer: encloses {outer_poly.area:.3g} m^2, less than the {MIN_FREE_AREA_M2} m^2 of floor a layout needs"
+        )
     if not obj_geoms:
         return
     cores = [g.buffer(-TOLERANCE_M, join_style="mitre") for g in obj_geoms]  # interiors, less the tolerance
