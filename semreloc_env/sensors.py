@@ -16,6 +16,7 @@ import math
 import numba
 import numpy as np
 
+from filters.arrays import frozen_array
 from filters.mapping.grid import NO_CLASS
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.robot_data.scans import LaserScan, SemanticScan
@@ -42,7 +43,7 @@ class Lidar:
 
     def __init__(self, params: LidarParams):
         self.params = params
-        self.angles = beam_angles(int(params.n_beams), params.fov_rad)
+        self.angles = frozen_array(beam_angles(int(params.n_beams), params.fov_rad), np.float64)  # shared by its scans
 
     def true_ranges(self, world: World, pose: np.ndarray) -> np.ndarray:
         """Noise-free ranges ``(B,)`` from ``pose``; ``range_max_m`` where nothing is hit."""
@@ -57,7 +58,7 @@ class Lidar:
         noisy = r + p.noise_std_m * rng.standard_normal(r.shape)
         dropped = rng.random(r.shape) < p.dropout_prob
         noisy = np.where(hit & ~dropped, np.clip(noisy, 0.0, p.range_max_m), p.range_max_m)
-        return LaserScan(noisy, self.angles, p.range_max_m)
+        return LaserScan.from_simulator(noisy, self.angles, p.range_max_m)  # noisy: fresh, finite, in [0, max]
 
     def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Noisy ranges ``(P, B)`` from ``poses (P, 3)`` in one pass (beam angles: `angles`).
@@ -96,7 +97,7 @@ class SemanticCamera:
 
     def __init__(self, params: CameraParams):
         self.params = params
-        self.angles = beam_angles(int(params.n_beams), params.fov_rad)
+        self.angles = frozen_array(beam_angles(int(params.n_beams), params.fov_rad), np.float64)  # shared by its scans
 
     def true_hits(self, world: World, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Noise-free ranges ``(S,)`` and the object index hit per beam (``-1``: wall / nothing / out of range)."""
@@ -146,7 +147,7 @@ class SemanticCamera:
             if wall_runs:
                 a, b = wall_runs[start_run]
                 labels[a : min(b, a + length)] = cls
-        return SemanticScan(noisy, self.angles, labels, p.range_max_m)
+        return SemanticScan.from_simulator(noisy, self.angles, labels, p.range_max_m)
 
     def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Noisy ranges and labels ``(P, S)`` from ``poses (P, 3)`` in one pass (for mapping runs).

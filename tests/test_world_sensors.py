@@ -268,3 +268,32 @@ def test_config_validation():
         CameraParams(miss_rate=1.5)
     with pytest.raises(ValueError):
         RobotParams(radius_m=-1)
+
+
+def test_simulated_scans_skip_the_checks_but_are_the_scans_the_constructor_makes():
+    # the sensors build their scans with from_simulator (no checks, no copies): the same fields, owned and read-only
+    from filters.robot_data.scans import LaserScan, SemanticScan
+    from semreloc_env.layouts import get_layout
+
+    world = build_world(get_layout("lab"))
+    lidar, camera = Lidar(LidarParams(dropout_prob=0.2)), SemanticCamera(CameraParams(false_positive_rate=0.5))
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        world.set_pose(world.sample_free_pose(rng))
+        made = [lidar.read(world, world.pose, rng), camera.read(world, world.pose, rng)]
+        checked = [
+            LaserScan(made[0].ranges, made[0].angles, made[0].range_max_m),
+            SemanticScan(made[1].ranges, made[1].angles, made[1].labels, made[1].range_max_m),
+        ]
+        for a, b in zip(made, checked):
+            assert type(a) is type(b)
+            for name in ("ranges", "angles", "labels", "sensor_pose"):
+                if hasattr(b, name):
+                    x, y = getattr(a, name), getattr(b, name)
+                    assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y)
+                    assert not x.flags.writeable
+            for name in ("range_max_m", "range_min_m"):
+                if hasattr(b, name):
+                    assert type(getattr(a, name)) is float and getattr(a, name) == getattr(b, name)
+    assert made[0].ranges.base is None and made[1].labels.base is None  # the scan's own arrays
+    assert made[0].angles is lidar.angles and not lidar.angles.flags.writeable  # shared, and no one can change it

@@ -33,6 +33,19 @@ def _checked_sensor_pose(sensor_pose, what: str) -> np.ndarray:
     return sp
 
 
+_AT_ROBOT_CENTRE = np.zeros(3)
+_AT_ROBOT_CENTRE.setflags(write=False)
+
+
+def _handed_over(scan, **arrays) -> None:
+    """Set a new scan's fields without `_checked_beams`' checks and copies (`LaserScan.from_simulator`,
+    `SemanticScan.from_simulator`): the arrays are made read-only in place, not copied."""
+    for name, value in arrays.items():
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+        object.__setattr__(scan, name, value)
+
+
 def beam_endpoints(ranges: np.ndarray, angles: np.ndarray, sensor_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Robot-frame end points ``(x (B,), y (B,))`` of beams with ``ranges`` / sensor-frame ``angles``.
 
@@ -99,6 +112,21 @@ class LaserScan:
         object.__setattr__(self, "range_max_m", float(self.range_max_m))
         object.__setattr__(self, "range_min_m", float(rmin))
         object.__setattr__(self, "sensor_pose", _checked_sensor_pose(self.sensor_pose, "LaserScan"))
+
+    @classmethod
+    def from_simulator(cls, ranges: np.ndarray, angles: np.ndarray, range_max_m: float) -> LaserScan:
+        """A scan of a simulated sensor at the robot centre, without the checks and copies of the
+        constructor (an env builds one per step): the same scan as ``LaserScan(ranges, angles, range_max_m)``.
+
+        The caller guarantees what the constructor would check and hands its arrays over: ``ranges``
+        a fresh ``(B,)`` float64 array of finite ranges ``>= 0`` that nothing else holds (made read-only
+        here), ``angles`` a read-only ``(B,)`` float64 array of finite angles (a sensor's own, shared
+        by its scans), ``range_max_m`` a positive float.
+        """
+        scan = object.__new__(cls)
+        _handed_over(scan, ranges=ranges, angles=angles, range_max_m=float(range_max_m), range_min_m=0.0,
+                     sensor_pose=_AT_ROBOT_CENTRE)  # fmt: skip
+        return scan
 
     @classmethod
     def from_ros(
@@ -203,6 +231,20 @@ class SemanticScan:
         object.__setattr__(self, "labels", lab)
         object.__setattr__(self, "range_max_m", float(self.range_max_m))
         object.__setattr__(self, "sensor_pose", _checked_sensor_pose(self.sensor_pose, "SemanticScan"))
+
+    @classmethod
+    def from_simulator(
+        cls, ranges: np.ndarray, angles: np.ndarray, labels: np.ndarray, range_max_m: float
+    ) -> SemanticScan:
+        """A scan of a simulated camera at the robot centre, without the checks and copies of the
+        constructor: the same scan as ``SemanticScan(ranges, angles, labels, range_max_m)``. The caller
+        guarantees what `LaserScan.from_simulator` asks, and hands over ``labels``, a fresh ``(B,)``
+        int64 array of class indices ``>= 0`` (made read-only here).
+        """
+        scan = object.__new__(cls)
+        _handed_over(scan, ranges=ranges, angles=angles, labels=labels, range_max_m=float(range_max_m),
+                     sensor_pose=_AT_ROBOT_CENTRE)  # fmt: skip
+        return scan
 
     @property
     def labelled(self) -> np.ndarray:

@@ -188,17 +188,17 @@ class SemRelocBase(gym.Env):
         pose = self.world.pose
         return self.lidar.read(self.world, pose, self._sensor_rng), self.camera.read(self.world, pose, self._sensor_rng)
 
-    def _move(self, action) -> tuple[bool, np.ndarray]:
-        """Drive one control step; returns (collided, true previous pose). Hook for kidnapping."""
-        v, w = decode_action(action, self.action_type, self.action_space, self.robot_params)
+    def _move(self, v: float, w: float) -> tuple[bool, np.ndarray]:
+        """Drive one control step at ``v`` m/s and ``w`` rad/s (a decoded action); returns (collided, true
+        previous pose). Hook for kidnapping."""
         prev = self.world.pose
         return self.world.drive(v, w), prev
 
     def step(self, action):
         if self.world is None:
             raise RuntimeError("call reset() before step()")
-        decode_action(action, self.action_type, self.action_space, self.robot_params)  # validate first
-        collided, prev = self._move(action)
+        v, w = decode_action(action, self.action_type, self.action_space, self.robot_params)  # validate first
+        collided, prev = self._move(v, w)
         self._steps += 1
         odom = self.odometry.read(prev, self.world.pose, self._odom_rng)
         lidar_scan, semantic_scan = self._sense()

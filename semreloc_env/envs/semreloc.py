@@ -651,7 +651,7 @@ class SemRelocEnv(SemRelocBase):
         self._belief = None
         self._prev_entropy = None
 
-    def _move(self, action):
+    def _move(self, v, w):
         if self._kidnap_at is not None and self._steps + 1 == self._kidnap_at:
             target = self._kidnap_pose
             if target is None:
@@ -669,7 +669,7 @@ class SemRelocEnv(SemRelocBase):
             self.world.set_pose(target)
             self._kidnapped = True
             # the odometry must not see the jump: drive from the new pose, report that motion only
-        return super()._move(action)
+        return super()._move(v, w)
 
     def _step_estimator(self, odom, lidar_scan, semantic_scan) -> None:
         self.mcl.predict(odom)
