@@ -242,6 +242,8 @@ class ResetOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.options = dict(options)
 
     def reset(self, *, seed=None, options=None):
+        if options is not None and not isinstance(options, Mapping):  # as the env itself says it
+            raise ValueError(f"reset options must be a dict or None, got {type(options).__name__} {options!r:.60}")
         return self.env.reset(seed=seed, options={**self.options, **(options or {})})
 
 

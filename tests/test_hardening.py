@@ -571,3 +571,65 @@ def test_slam_filters_check_their_config_and_noise_types_when_made():
         EKFSLAM(UnicycleModel(), (0.1, 0.02))
     with pytest.raises(TypeError, match=r"config must be a FastSLAMConfig, got dict"):
         FastSLAM(UnicycleModel(), noise, {"n_particles": 5}, np.random.default_rng(0))
+
+
+# ---------------------------------------------------------------- a bug-hunting review's findings (a later session)
+def _lab_filter(**cfg):
+    from filters.localization.mcl import MonteCarloLocalizer
+
+    env = gym.make("SemReloc-v18", **FAST)
+    env.reset(seed=0)
+    return MonteCarloLocalizer(env.unwrapped.grid, MCLConfig(**cfg), np.random.default_rng(0))
+
+
+def test_init_around_with_a_huge_std_is_refused_and_keeps_the_filter():
+    # 1e308 passed the check and left infinite poses; the set before was lost
+    mcl = _lab_filter(n_particles=100)
+    mcl.init_global()
+    twin = copy.deepcopy(mcl)
+    with pytest.raises(ValueError, match=r"std 1e\+308 spreads the particles to non-finite poses"):
+        mcl.init_around([5.0, 2.5, 0.0], 1e308)
+    assert_identical(mcl.poses, twin.poses)
+    mcl.init_around([5.0, 2.5, 0.0], 0.1)  # the generator is where it was, too
+    twin.init_around([5.0, 2.5, 0.0], 0.1)
+    assert_identical(mcl.poses, twin.poses)
+
+
+def test_the_update_cap_does_not_give_weight_back_to_what_the_model_rules_out():
+    # max_update_log_ratio lifted -inf (a custom model's "impossible") to the cap
+    from filters.localization.likelihood_field import BeamSet
+
+    class RulesOutTheRight:
+        def log_likelihood_terms(self, poses, lidar, semantic):
+            beams = BeamSet(np.zeros(1), np.zeros(1), np.zeros(1, np.int64), 1, 0, 0, 1.0, 1.0)
+            return np.where(poses[:, 0] >= 5.0, -np.inf, 0.0), 0.0, beams
+
+    for cap in (np.inf, 5.0):
+        mcl = _lab_filter(n_particles=1000, max_update_log_ratio=cap, resample_ess_frac=0.0)
+        mcl.measurement_model = RulesOutTheRight()
+        mcl.init_global()
+        mcl.update(None, force=True)
+        assert mcl.weights[mcl.poses[:, 0] >= 5.0].sum() == 0.0
+
+
+def test_summarize_refuses_poses_beyond_its_rasters_alike_on_both_backends():
+    # beyond ~4.6e18 m the rasters' int64 cell numbers overflowed: numba gave no hypothesis, numpy a reshape error
+    from filters.localization.belief import summarize
+
+    poses = np.array([[1.0, 1.0, 0.0], [1.1, 1.0, 0.0], [1e19, 0.0, 0.0]])
+    for backend in ("numba", "numpy"):
+        with pytest.raises(ValueError, match=r"poses lie 1e\+19 m from the origin"):
+            summarize(poses, np.array([0.5, 0.5, 1e-9]), backend=backend)
+        with pytest.raises(ValueError, match=r"poses contain NaN or inf"):
+            summarize(np.vstack([poses[:2], [1.0, 1.0, np.inf]]), np.ones(3), backend=backend)
+
+
+def test_reset_options_wrapper_says_what_the_env_says_of_options_that_are_not_a_dict():
+    # a list gave "TypeError: 'list' object is not a mapping"; [] and "" were taken as no options
+    from semreloc_env.wrappers import ResetOptions
+
+    env = ResetOptions(gym.make("SemReloc-v18", **FAST), {"tracking": True})
+    for bad in ([("tracking", False)], [], ""):
+        with pytest.raises(ValueError, match=r"reset options must be a dict or None"):
+            env.reset(seed=0, options=bad)
+    assert env.reset(seed=0)[1]["belief"]["converged"]  # tracking, as the wrapper asks

@@ -177,8 +177,8 @@ class Hypothesis:
     def as_dict(self) -> dict:
         return {
             "weight": float(self.weight),
-            "mean": [float(v) for v in self.mean],
-            "cov": [[float(v) for v in row] for row in self.cov],
+            "mean": _floats(self.mean),
+            "cov": _floats(self.cov),
             "n_particles": int(self.n_particles),
         }
 
@@ -227,9 +227,9 @@ class Belief:
         """Plain Python values (floats, ints, bools, nested lists) for a Gymnasium ``info``;
         at most ``max_hypotheses`` hypotheses are listed (``n_clusters`` counts them all)."""
         return {
-            "mean": [float(v) for v in self.mean],
-            "cov": [[float(v) for v in row] for row in self.cov],
-            "estimate": [float(v) for v in self.estimate],
+            "mean": _floats(self.mean),
+            "cov": _floats(self.cov),
+            "estimate": _floats(self.estimate),
             "ess": float(self.ess),
             "n_particles": int(self.n_particles),
             "entropy_nats": float(self.entropy_nats),
@@ -239,6 +239,17 @@ class Belief:
             "converged": bool(self.converged),
             "hypotheses": [h.as_dict() for h in self.hypotheses[:max_hypotheses]],
         }
+
+
+MAX_POSE_M = 1e15
+"""Largest distance of a pose from the map origin `summarize` takes (m): its rasters number cells of 0.5 m in
+int64, which overflows near 4.6e18 m; no map in metres comes near it."""
+_POSE_LIMIT = np.array([MAX_POSE_M, MAX_POSE_M, np.inf])
+
+
+def _floats(values) -> list:
+    """``values`` as (nested) lists of Python floats: the numbers of ``float(v)`` for each entry."""
+    return np.asarray(values, dtype=np.float64).tolist()
 
 
 def _normalised(weights: np.ndarray, n: int) -> np.ndarray:
@@ -464,8 +475,13 @@ def summarize(
     n = p.shape[0]
     if n == 0:
         raise ValueError("no particles to summarise")
-    if not np.all(np.isfinite(p)):
-        raise ValueError("poses contain NaN or inf")
+    if not (np.abs(p) < _POSE_LIMIT).all():
+        if not np.isfinite(p).all():
+            raise ValueError("poses contain NaN or inf")
+        raise ValueError(
+            f"poses lie {np.abs(p[:, :2]).max():.3g} m from the origin, beyond the {MAX_POSE_M:g} m the pose rasters "
+            "take (not metres?)"
+        )
     w = _normalised(weights, n)
     x, y, th = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
 

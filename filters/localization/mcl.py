@@ -912,7 +912,12 @@ class MonteCarloLocalizer:
             s = None
         if s is None or not np.all(np.isfinite(s)) or np.any(s < 0):
             raise ValueError(f"std must be a number or 3 numbers, finite and >= 0, got {std!r:.80}")
-        poses = p + self.rng.standard_normal((n, 3)) * s
+        rng_state = self.rng.bit_generator.state
+        with np.errstate(over="ignore", invalid="ignore"):
+            poses = p + self.rng.standard_normal((n, 3)) * s
+        if not np.all(np.isfinite(poses)):  # a huge std (1e308): keep the filter as it was
+            self.rng.bit_generator.state = rng_state
+            raise ValueError(f"std {std!r:.80} spreads the particles to non-finite poses")
         poses[:, 2] = wrap_angle(poses[:, 2])
         self._set(poses)
         self._reset_state()
@@ -1011,7 +1016,9 @@ class MonteCarloLocalizer:
 
         tempered = c.likelihood_scale * ll
         if math.isfinite(c.max_update_log_ratio) and np.isfinite(tempered).any():
-            tempered = np.maximum(tempered, np.max(tempered) - c.max_update_log_ratio)
+            # the cap lifts the unlikely, not what the model rules out (-inf stays -inf)
+            floor = np.max(tempered) - c.max_update_log_ratio
+            tempered = np.where(np.isfinite(tempered), np.maximum(tempered, floor), -np.inf)
         predicted = (self._poses, self._logw)  # the belief before this update (routine proposals' prior)
         logw = self._logw + tempered
         finite_any = bool(np.any(np.isfinite(logw)))
