@@ -688,3 +688,37 @@ def test_the_semantic_surprise_test_sees_a_kidnapping_only_the_classes_reveal():
 def test_bad_semantic_surprise_settings_are_refused(kw, match):
     with pytest.raises(ValueError, match=match):
         MCLConfig(**kw)
+
+
+def test_a_held_convergence_follows_the_odometry_when_the_robot_moves_far_between_updates():
+    # v18's relocalizer keeps the held place where the last update left it: with scans 1.2-1.6 m apart the hold
+    # lapsed under a tight, right belief (and turned the audit on, as after a kidnapping); places_follow_odometry
+    # carries it along the odometry, as the screen's pause is carried
+    import dataclasses
+
+    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER
+
+    grid = symmetric_room()
+    lapsed = {}
+    for follow in (False, True):
+        cfg = dataclasses.replace(DEFAULT_RELOCALIZER, places_follow_odometry=follow)
+        lapsed[follow] = 0
+        for seed in range(6):
+            for gap_m in (1.2, 1.6):
+                mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(seed))
+                pose = np.array([1.5, 3.0, 0.0])
+                mcl.init_around(pose, (0.1, 0.1, math.radians(5)))
+                rng = np.random.default_rng(seed + 100)
+                for k in range(4):
+                    for _ in range(int(round((0.15 if k < 3 else gap_m) / 0.05))):
+                        mcl.predict([0.05, 0.0, 0.0])
+                        pose = compose(pose, [0.05, 0.0, 0.0])
+                    mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng),
+                               simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0))  # fmt: skip
+                b = mcl.belief()
+                assert math.hypot(*(b.estimate[:2] - pose[:2])) < 0.15  # right, and tight, either way
+                lapsed[follow] += not b.converged
+    assert lapsed[True] == 0
+    assert lapsed[False] >= 3  # the reviewer's run: 5 of these 12
+    assert MCLConfig().places_follow_odometry is True  # the library's default follows
+    assert DEFAULT_RELOCALIZER.places_follow_odometry is False  # the registered envs keep their episodes

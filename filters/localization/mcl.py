@@ -337,6 +337,14 @@ class MCLConfig:
             converged, had no hold to lose and no surprise test armed, and a kidnapping then could converge again,
             unaudited, at a look-alike place (docs/relocalizer.md, "A tracking start holds its pose").
             Needs ``belief.converged_hold_weight``.
+        places_follow_odometry: the places the filter remembers between updates, a held convergence's
+            (``belief.converged_hold_weight``) and the last one an audit cleared (``audit_window``), move with the
+            odometry at each ``predict``, as the screen's pause does (``audit_screen_pause_place``), so they stay
+            on the robot's track. False in every registered env (``SemReloc-v1`` to ``-v18`` keep their episodes):
+            there they stay where the last update left them, so a hold lapses, and a cleared place is audited
+            again, once the robot has moved 1 m or turned 45 deg between the updates that compare them (at the
+            envs' speeds a hold never moves that far between two updates; a robot whose scans come that far
+            apart needs True).
         lost_hold_window: ``M`` (0 = off): when a held convergence ends without a surprise (``audit_after_lost_hold``),
             the audit's window keeps only the scans of the updates after the last one whose set met the "converged"
             criterion by itself (the hold's fade), and the audit judges a convergence only once the window holds at
@@ -429,6 +437,7 @@ class MCLConfig:
     audit_after_surprise_once: bool = False
     audit_after_lost_hold: bool = False
     hold_init_pose: bool = False
+    places_follow_odometry: bool = True
     lost_hold_window: int = 0
     surprise_own_average: bool = False
     semantic_surprise_ratio: float = 0.0
@@ -534,7 +543,7 @@ class MCLConfig:
         for name in (
             "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
             "audit_screen_pause_place", "audit_after_surprise", "audit_after_surprise_once", "audit_after_lost_hold",
-            "hold_init_pose", "surprise_own_average",
+            "hold_init_pose", "surprise_own_average", "places_follow_odometry",
         ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
@@ -946,6 +955,11 @@ class MonteCarloLocalizer:
         self._since_update = compose(self._since_update, d)
         if self._screen_cleared is not None:
             self._screen_cleared = (self._screen_cleared[0], compose(self._screen_cleared[1], d))
+        if self.config.places_follow_odometry:
+            if self._held is not None:
+                self._held = compose(self._held, d)
+            if self._cleared is not None:
+                self._cleared = (compose(self._cleared[0], d), self._cleared[1])
 
     def moved_enough(self) -> bool:
         """Whether the motion since the last update passes the ``update_min_*`` gate."""

@@ -36,12 +36,15 @@ RELOCALIZER_V1 = MCLConfig(
     proposal_frac=0.05,
     lidar_on_rotation=False,
     likelihood_scale=0.06,
+    places_follow_odometry=False,
 )
 """The relocalizer of SemReloc-v1 to -v3 (`filters.localization.mcl.MCLConfig` with these overrides):
 50 particles per m^2 of free space (500 to 20,000) with KLD sampling, clustered resampling,
 5 % of the particles replaced every update by poses drawn from the current scan (semantic
 detections first) plus augmented-MCL recovery, the lidar factor left out of turn-in-place
-updates, tempering 0.06. Chosen on tuning seeds 5000+ and procedural_sym layouts 100-104
+updates, tempering 0.06; the places remembered between updates stay where the last update left them
+(``places_follow_odometry=False``, kept by every later version so their episodes stay as they were; it matters
+only from v5's audits and v6's holds on). Chosen on tuning seeds 5000+ and procedural_sym layouts 100-104
 (docs/relocalizer_eval.md, "Choosing the defaults"); evaluated on other seeds and layouts."""
 
 RELOCALIZER_V4 = dataclasses.replace(RELOCALIZER_V1, negative_evidence=NegativeEvidenceConfig(p_detect=0.8))
