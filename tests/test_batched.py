@@ -326,3 +326,33 @@ def test_in_wrapped_space_casts_only_into_a_float_box():
     assert in_wrapped_space(np.array([1, 2]), ints)
     assert not in_wrapped_space(np.array([0.7, 1.0]), ints)  # a cast would truncate 0.7 to 0
     assert in_wrapped_space(2, gym.spaces.Discrete(4)) and not in_wrapped_space(4, gym.spaces.Discrete(4))
+
+
+def test_a_robot_that_raises_mid_step_stops_the_vector_env_until_a_reset():
+    # robots before it had stepped and those after it had not: stepping on would have run them out of step silently
+    class FailsOnce(gym.Wrapper):
+        armed = False
+
+        def step(self, action):
+            if FailsOnce.armed:
+                FailsOnce.armed = False
+                raise KeyError("a robot's own failure")
+            return self.env.step(action)
+
+    venv = SemRelocLoopVectorEnv(num_envs=3, **VKW, wrapper=lambda env: env)
+    venv.envs[1] = FailsOnce(venv.envs[1])
+    venv.reset(seed=0)
+    venv.step([0, 0, 0])
+    FailsOnce.armed = True
+    with pytest.raises(KeyError, match="a robot's own failure"):
+        venv.step([0, 0, 0])
+    assert [e.unwrapped._steps for e in venv.envs] == [2, 1, 1]
+    for _ in range(2):  # refused, and no robot moves
+        with pytest.raises(
+            RuntimeError, match=r"robot 1 raised KeyError in the last step\(\).*robot 0 had run it and robot 2 had not"
+        ):
+            venv.step([0, 0, 0])
+    assert [e.unwrapped._steps for e in venv.envs] == [2, 1, 1]
+    venv.reset(seed=0)
+    venv.step([0, 0, 0])
+    assert [e.unwrapped._steps for e in venv.envs] == [1, 1, 1]

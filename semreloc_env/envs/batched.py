@@ -22,6 +22,7 @@ ignores that robot's action and returns its reset observation with reward 0,
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from copy import deepcopy
 from typing import Any
@@ -121,6 +122,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         self._spec = None
         self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
         self._done = np.zeros(self.num_envs, dtype=np.bool_)
+        self._out_of_step: str | None = None  # why `step` must wait for a reset (a robot raised mid-loop)
 
     @property
     def spec(self):
@@ -219,26 +221,33 @@ class SemRelocLoopVectorEnv(VectorEnv):
         super().reset(seed=seeds[0])
         obs_list, infos = [], {}
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
-            obs, info = env.reset(seed=s, options=o)
+            with self._naming_who_raised(i, "reset"):
+                obs, info = env.reset(seed=s, options=o)
             obs_list.append(obs)
             infos = self._add_info(infos, info, i)
         self._done[:] = False
+        self._out_of_step = None
         return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), infos
 
     def step(self, actions):
         """Step every robot with its action (a robot that ended last step is reset instead).
 
-        Every action is checked before any robot moves (ValueError naming the robot)."""
+        Every action is checked before any robot moves (ValueError naming the robot). A robot that raises
+        while stepping (say, a look-alike kidnapping with no place to go) leaves the robots before it stepped
+        and those after it not: the error passes on, and `step` refuses to run (RuntimeError) until `reset`."""
+        if self._out_of_step is not None:
+            raise RuntimeError(self._out_of_step)
         acts = self.check_actions(actions, skip_done=True)
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terms = np.zeros(self.num_envs, dtype=np.bool_)
         truncs = np.zeros(self.num_envs, dtype=np.bool_)
         obs_list, infos = [], {}
         for i, env in enumerate(self.envs):
-            if self._done[i]:
-                obs, info = env.reset()
-            else:
-                obs, rewards[i], terms[i], truncs[i], info = env.step(acts[i])
+            with self._naming_who_raised(i, "step"):
+                if self._done[i]:
+                    obs, info = env.reset()
+                else:
+                    obs, rewards[i], terms[i], truncs[i], info = env.step(acts[i])
             obs_list.append(obs)
             infos = self._add_info(infos, info, i)
         self._done = terms | truncs
@@ -249,6 +258,22 @@ class SemRelocLoopVectorEnv(VectorEnv):
             env.close()
 
     # ------------------------------------------------------------------ helpers
+    @contextlib.contextmanager
+    def _naming_who_raised(self, i: int, call: str):
+        """Let an exception of robot ``i``'s ``call`` pass, and remember that the robots are out of step."""
+        try:
+            yield
+        except Exception as e:
+            ran = ("no other robot had run it", "robot 0 had run it", f"robots 0 to {i - 1} had run it")[min(i, 2)]
+            n_left = self.num_envs - 1 - i
+            left = ("it was the last", f"robot {i + 1} had not", f"robots {i + 1} to {self.num_envs - 1} had not")
+            left = left[min(n_left, 2)]
+            self._out_of_step = (
+                f"robot {i} raised {type(e).__name__} in the last {call}() ({e!s:.200}); {ran} and {left}: "
+                "the robots are out of step, call reset()"
+            )
+            raise
+
     def _add_info(self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int) -> dict[str, Any]:
         """Gymnasium's info batching (arrays per key plus ``_key`` masks), but lossless: an array whose
         dtype cannot hold a later robot's value exactly (None in a float array, a float in an int
