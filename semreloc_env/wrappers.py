@@ -53,7 +53,8 @@ class BeliefObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Clipping only bites beyond the bounds, which the defaults make rare: the entropy of a
     histogram of N particles is at most ``log N``, and the default ``entropy_max_nats`` is the
     log of the relocalizer's particle budget (clustered resampling and the audit can take a set
-    somewhat above it, up to about 1.8 times at small budgets: ``log 1.8`` = 0.6 nats more at most).
+    somewhat above it, up to about 1.8 times at budgets of 100 to 1000: ``log 1.8`` = 0.6 nats more at most; an
+    audit adds 50 particles whatever the budget, so below about 60 pass ``entropy_max_nats`` yourself).
 
     The wrapped env must put ``belief`` in ``info`` at every reset and step (``SemReloc-v2``
     does); a `SemSlam` env is refused with ``TypeError``, and a missing key at a reset or step raises a
