@@ -70,16 +70,27 @@ def check_ppo_settings(config) -> None:
         v = getattr(config, name)
         if not (is_real(v) and math.isfinite(v) and ok(v)):
             raise ValueError(f"{name} must be a finite number {what}, got {v!r}")
+    if hasattr(config, "n_steps") and hasattr(config, "n_envs") and int(config.n_steps) * int(config.n_envs) < 2:
+        raise ValueError(
+            f"n_steps * n_envs (the rollout) must be at least 2 for PPO, got {config.n_steps} * {config.n_envs}"
+        )
     check_device(config.device)
 
 
 def check_device(device) -> None:
-    """ValueError unless ``device`` is ``"auto"`` or names a torch device (``"cpu"``, ``"cuda:0"``, ...)."""
+    """ValueError unless ``device`` is ``"auto"`` or names a torch device (``"cpu"``, ``"cuda:0"``, ...) that this
+    machine has (SB3 would quietly train on the CPU instead of a CUDA device it does not find)."""
+    if device == "auto":
+        return
     try:
-        if device != "auto":
-            torch.device(device)
+        kind = torch.device(device).type
     except (RuntimeError, TypeError) as e:
         raise ValueError(f"device must be 'auto' or a torch device such as 'cpu', got {device!r}") from e
+    if kind == "cuda" and not torch.cuda.is_available():
+        raise ValueError(
+            f"device {device!r}: torch finds no CUDA device here (torch.cuda.is_available() is False); "
+            "use 'cpu', or 'auto' to take a GPU only where there is one"
+        )
 
 
 @dataclass(frozen=True)

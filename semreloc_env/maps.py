@@ -232,8 +232,13 @@ def _perfect(layout: Layout) -> GridMap:
     return rasterize(layout)
 
 
+_ROS_MAP_KEYS = {"image", "resolution", "origin", "occupied_thresh", "free_thresh", "negate", "mode"}
+"""Keys of a ROS map YAML (map_server's); a layout has none of them."""
+
+
 def is_ros_map_file(path) -> bool:
-    """True for a ``.yaml`` / ``.yml`` file that is a ROS map (has ``image``, no ``outer``), not a layout."""
+    """True for a ``.yaml`` / ``.yml`` file that is a ROS map (one of map_server's keys, ``image``, ``resolution``,
+    ``origin``, ..., and no ``outer``), not a layout."""
     p = Path(path).expanduser()
     if p.suffix.lower() not in (".yaml", ".yml") or not p.is_file():
         return False
@@ -245,11 +250,12 @@ def is_ros_map_file(path) -> bool:
         return False  # neither kind can be read: the layout loader's LayoutError says why (not UTF-8 text)
     try:
         doc = yaml.safe_load(text)
-    except yaml.YAMLError:  # broken YAML: a ROS map if it has a top-level image key and no outer wall
-        key = re.compile(r"^(image|outer)\s*:", re.M)
+    except yaml.YAMLError:  # broken YAML: a ROS map if a top-level key is one of a map's and none is outer
+        key = re.compile(r"^(\w+)\s*:", re.M)
         keys = {m.group(1) for m in key.finditer(text)}
-        return "image" in keys and "outer" not in keys
-    return isinstance(doc, dict) and "image" in doc and "outer" not in doc
+        return "outer" not in keys and bool(_ROS_MAP_KEYS & keys)
+    # a map file that lacks its image (or misspells it) is still a map: load_map says what is missing
+    return isinstance(doc, dict) and "outer" not in doc and bool(_ROS_MAP_KEYS & set(doc))
 
 
 def names_a_layout(source) -> bool:

@@ -93,9 +93,13 @@ def test_config_rejects_bad_values():
         ({"kinds": (), "files": ("/no/such/layout.json",), "kind_weights": None}, "layout"),
         ({"env_id": "SemReloc-v1"}, "env_id"),  # the flat observation: ActiveObservation needs v2 or newer
         ({"env_id": "SemSlam-v1"}, "env_id"),
+        ({"n_steps": 1, "n_envs": 1, "batch_size": 1}, r"n_steps \* n_envs"),  # SB3's AssertionError before
     ]:
         with pytest.raises((ValueError, OSError), match=match):
             ActiveTrainConfig(**bad)
+    if not torch.cuda.is_available():  # SB3 trained on the CPU without a word, and the run said "cuda"
+        with pytest.raises(ValueError, match=r"device 'cuda': torch finds no CUDA device here"):
+            ActiveTrainConfig(device="cuda")
 
 
 def test_training_envs_draw_layout_files(tmp_path):

@@ -303,6 +303,21 @@ def test_train_ppo_takes_every_map_source_the_env_does(tmp_path):
             mod.Args(config=cfg, map_source=str(tmp_path / missing))
 
 
+def test_train_ppo_refuses_a_layout_it_cannot_make_before_the_run_starts(tmp_path):
+    # an outside trial: --layout nosuch printed "training PPO ...", made the run folder, then a traceback
+    import agents.tools.train_ppo as mod
+
+    cfg = mod.TrainConfig(log_dir=str(tmp_path / "run"))
+    assert mod.Args(config=cfg, layout="twin_rooms").layout == "twin_rooms"
+    with pytest.raises(ValueError, match=r"layout must be one of \[.*'lab'.*\] or a layout file, got 'nosuch'"):
+        mod.Args(config=cfg, layout="nosuch")
+    with pytest.raises(ValueError, match="no such file"):
+        mod.Args(config=cfg, layout=str(tmp_path / "none.json"))
+    with pytest.raises(ValueError, match=r"n_steps \* n_envs"):
+        mod.TrainConfig(log_dir=str(tmp_path / "run"), n_envs=1, n_steps=1, batch_size=1)
+    assert not (tmp_path / "run").exists()
+
+
 def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path, monkeypatch, capsys):
     import agents.tools.train_ppo as mod
 

@@ -142,3 +142,18 @@ def test_a_start_on_an_unknown_cell_of_a_map_world_says_so(tmp_path):
     with pytest.raises(ValueError, match=r"is not free: the robot \(radius 0.2 m\) would overlap a wall"):
         env.reset(seed=0, options={"pose": (0.05, 3.0, 0.0)})  # in the outer wall's cells: occupied, not unknown
     env.reset(seed=0, options={"pose": (1.0, 1.0, 0.0)})
+
+
+def test_a_ros_map_yaml_without_its_image_key_gets_the_map_loaders_error(tmp_path):
+    # an outside trial: "imag:" made the file a layout, and the error listed a layout's keys
+    from filters.mapping.ros_map import MapFormatError
+
+    (tmp_path / "typo.yaml").write_text(
+        "imag: room.pgm\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    with pytest.raises(MapFormatError, match=r"typo.yaml: missing key 'image'"):
+        gym.make("SemReloc-v18", layout="twin_rooms", map_source=str(tmp_path / "typo.yaml"), semantic=False)
+    (tmp_path / "broken.yaml").write_text("resolution: 0.05\norigin: [-1.0, 2.0\n")
+    with pytest.raises(MapFormatError, match="broken.yaml"):
+        gym.make("SemReloc-v18", layout="twin_rooms", map_source=str(tmp_path / "broken.yaml"), semantic=False)

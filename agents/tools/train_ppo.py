@@ -86,8 +86,15 @@ class Args:
             raise ValueError("config.log_dir: the command needs a run folder")
         if self.config.env_kwargs:
             raise ValueError("config.env_kwargs: set the env through layout, lidar_only, map_source, ...")
-        from semreloc_env.maps import check_map_source_name
+        from semreloc_env.maps import check_map_source_name, names_a_layout
 
+        lay = self.layout
+        if lay.lower().endswith((".json", ".yaml", ".yml")) and not Path(lay).expanduser().is_file():
+            raise ValueError(f"layout {lay!r}: no such file")
+        if not names_a_layout(lay):
+            from semreloc_env.layouts import LAYOUT_NAMES
+
+            raise ValueError(f"layout must be one of {sorted(LAYOUT_NAMES)} or a layout file, got {lay!r}")
         src = self.map_source
         if src.lower().endswith((".json", ".yaml", ".yml")) and not Path(src).expanduser().is_file():
             raise ValueError(f"map_source {src!r}: no such file")
