@@ -491,6 +491,7 @@ class ViewpointPlanner(Policy):
             if not hasattr(base, attr):
                 raise TypeError(f"ViewpointPlanner needs a SemReloc env; {type(base).__name__} has no {attr!r}")
         self.explorer = WallFollowExplorer(beam_angles=np.asarray(base.lidar.angles))
+        self._map = None  # another env may share the grid but not the robot's radius or the filter's model
         self._radius_m = float(base.robot_params.radius_m)
         # backing up needs the lidar to see behind: beams all around, none more than 0.2 rad apart
         b = np.sort(np.mod(np.asarray(base.lidar.angles, dtype=np.float64), 2 * math.pi))

@@ -465,34 +465,53 @@ class World:
         phys = self.physics
         r = self.robot_params.radius_m
         x, y = self.body.position
-        reach = r + abs(v_mps) * phys.dt_s + 2 * self._skin
-        near = self.scene.near(np.array([x, y]), reach)
-        x, y, th, collided = _drive_kernel(
-            float(x), float(y), float(self.body.angle), float(v_mps), float(omega_rps), phys.dt_s / phys.substeps,
-            int(phys.substeps), float(r), float(self._skin), self.scene.a[near], self.scene.e[near], _RESOLVE_ITERS,
-        )  # fmt: skip
+        th0 = float(self.body.angle)
+
+        def run(near):
+            return _drive_kernel(
+                float(x), float(y), th0, float(v_mps), float(omega_rps), phys.dt_s / phys.substeps,
+                int(phys.substeps), float(r), float(self._skin), self.scene.a[near], self.scene.e[near], _RESOLVE_ITERS,
+            )  # fmt: skip
+
+        x, y, th, collided = self._with_every_segment_reached(float(x), float(y), float(v_mps), run)
         self._place(x, y, th)
         return bool(collided)
+
+    def _with_every_segment_reached(self, x: float, y: float, v_mps: float, run) -> tuple:
+        """``run(near)`` (a control step from ``(x, y)`` that tests the segments ``near``, returning ``(x, y, th,
+        collided)``) with ``near`` every segment within reach of the start, and again with more while the step
+        ends within the robot's radius of a segment it did not test: a push out of one wall can carry the robot
+        farther than ``v * dt`` (a review found 0.95 m against 0.90 at the substep limit), up to one it never saw."""
+        r = self.robot_params.radius_m
+        near = self.scene.near(np.array([x, y]), r + abs(v_mps) * self.physics.dt_s + 2 * self._skin)
+        while True:
+            out = run(near)
+            missed = np.setdiff1d(self.scene.near(np.array([out[0], out[1]]), r), near)
+            if not missed.size:
+                return out
+            near = np.union1d(near, missed)
 
     def drive_reference(self, v_mps: float, omega_rps: float) -> bool:
         """`drive` in Python and NumPy (the reference the compiled kernel is tested against)."""
         v_mps, omega_rps = float(v_mps), float(omega_rps)
         phys = self.physics
         dt = phys.dt_s / phys.substeps
-        r = self.robot_params.radius_m
-        x, y = self.body.position
-        th = float(self.body.angle)
-        reach = r + abs(v_mps) * phys.dt_s + 2 * self._skin
-        near = self.scene.near(np.array([x, y]), reach)
-        collided = False
-        for _ in range(int(phys.substeps)):
-            nx = x + v_mps * math.cos(th) * dt
-            ny = y + v_mps * math.sin(th) * dt
-            th = th + omega_rps * dt
-            if len(near):
-                (nx, ny), hit = self._resolve(np.array([x, y]), np.array([nx, ny]), near)
-                collided |= hit
-            x, y = float(nx), float(ny)
+        x0, y0 = (float(c) for c in self.body.position)
+        th0 = float(self.body.angle)
+
+        def run(near):
+            x, y, th, collided = x0, y0, th0, False
+            for _ in range(int(phys.substeps)):
+                nx = x + v_mps * math.cos(th) * dt
+                ny = y + v_mps * math.sin(th) * dt
+                th = th + omega_rps * dt
+                if len(near):
+                    (nx, ny), hit = self._resolve(np.array([x, y]), np.array([nx, ny]), near)
+                    collided |= hit
+                x, y = float(nx), float(ny)
+            return x, y, th, collided
+
+        x, y, th, collided = self._with_every_segment_reached(x0, y0, v_mps, run)
         self._place(x, y, th)
         return collided
 

@@ -594,3 +594,31 @@ def test_clear_segment_matches_sampling_the_segment_with_numpy():
         outcomes.append(pm.clear_segment(a, b))
         assert outcomes[-1] == reference(a, b), (a, b)
     assert 0 < sum(outcomes) < len(outcomes)
+
+
+def test_a_planner_wrapped_on_another_env_plans_as_a_fresh_one():
+    # a review: envs of one layout share a grid, and the planner kept the first env's plan graph (its robot's
+    # radius) and likelihood tables (its filter's model) when wrapped on a second
+    kw = dict(layout="twin_rooms", map_source="perfect")
+    a = gym.make("SemReloc-v18", **kw, relocalizer={"n_particles": 300})
+    b = gym.make(
+        "SemReloc-v18", **kw, robot={"radius_m": 0.3},
+        relocalizer={"n_particles": 300, "lidar_field": {"sigma_hit_m": 0.6, "z_hit": 0.5}},
+    )  # fmt: skip
+    a.reset(seed=0)
+    b.reset(seed=0)
+    used = ViewpointPlanner(seed=0)
+    used.wrap(a)
+    used.reset()
+    used.plan()
+    used.wrap(b)
+    used.reset()
+    fresh = ViewpointPlanner(seed=0)
+    fresh.wrap(b)
+    fresh.reset()
+    poses, w = fresh.hypotheses()
+    assert used._plan_map().xy.shape == fresh._plan_map().xy.shape
+    cand = np.arange(0, fresh._plan_map().xy.shape[0], 40)
+    assert np.array_equal(
+        used._gains(used._plan_map(), poses, w, cand)[0], fresh._gains(fresh._plan_map(), poses, w, cand)[0]
+    )

@@ -794,7 +794,8 @@ def _module_names(module: types.ModuleType) -> list[str]:
 @functools.cache
 def env_code() -> str:
     """A fingerprint (16 hex digits) of the code every episode runs whatever the policy: the source
-    files of `filters` and `semreloc_env` and this module (the episode runner), and the versions of the
+    files of `filters` and `semreloc_env`, this module (the episode runner) and `agents.metrics` (which scores
+    an episode: success, wrong, unconverged), and the versions of the
     libraries they compute with (`semreloc_env.maps.mapping_libraries` and SciPy). Read once per process."""
     import scipy
 
@@ -802,8 +803,11 @@ def env_code() -> str:
 
     h = hashlib.sha256()
     roots = [Path(importlib.import_module(p).__file__).parent for p in ("filters", "semreloc_env")]
-    for f in sorted(f for root in roots for f in root.rglob("*.py")) + [Path(__file__)]:
-        h.update(f.relative_to(roots[0].parent).as_posix().encode() + b"\0" + f.read_bytes())
+    files = [(f.relative_to(roots[0].parent).as_posix(), f) for f in sorted(f for r in roots for f in r.rglob("*.py"))]
+    files += [("agents/experiments/evaluate_active.py", Path(__file__))]
+    files += [("agents/metrics.py", Path(importlib.import_module("agents.metrics").__file__))]  # scores an episode
+    for name, f in files:
+        h.update(name.encode() + b"\0" + f.read_bytes())
     h.update(repr((*mapping_libraries(), f"scipy=={scipy.__version__}")).encode())
     return h.hexdigest()[:16]
 
@@ -1106,7 +1110,6 @@ def main(argv: list[str] | None = None) -> int:
         keep = {c["case"]: c for c in cases}
         wanted = {p: settings(args, s) for p, s in zip(policies, specs)}
         seen: set[tuple[int, str]] = set()
-        unverified = 0
         for r in old:
             c = keep.get(r["case"])
             if (
@@ -1114,14 +1117,11 @@ def main(argv: list[str] | None = None) -> int:
                 and c is not None
                 and all(r.get(k) == v for k, v in c.items())
                 and (r["case"], r["policy"]) not in seen
-                and r.get("settings", wanted[r["policy"]]) == wanted[r["policy"]]
+                and r.get("settings") == wanted[r["policy"]]  # rows without settings cannot be checked: run again
                 and "first_convergence_wrong" in r  # rows of runs before it was recorded are run again
             ):
-                unverified += "settings" not in r
                 seen.add((r["case"], r["policy"]))
                 rows.append(r)
-        if unverified:
-            print(f"warning: {unverified} reused rows predate the settings check (particles, steps, map, policy code)")
         done = {(r["case"], r["policy"]) for r in rows}
         print(f"reused {len(rows)} episodes from {', '.join(args.reuse)}", flush=True)
     else:
