@@ -35,6 +35,14 @@ def test_cases_are_held_out_fixed_and_include_uninformative_starts():
         ev.Args(policies=("spin,random",))
     with pytest.raises(ValueError, match="episodes.json"):
         ev.Args(reuse=("/nonexistent/run",))
+    # the same pairs under other noise: only the episode seeds differ (so --reuse never mixes the two)
+    other = ev.build_cases(
+        parse(ev.Args, ["--layouts-per-kind", "2", "--starts", "2", "--noise-seed-offset", "100000"])
+    )
+    assert [{**c, "episode_seed": 0} for c in other] == [{**c, "episode_seed": 0} for c in cases]
+    assert [c["episode_seed"] - 100_000 for c in other] == [c["episode_seed"] for c in cases]
+    with pytest.raises(ValueError, match="noise_seed_offset must be >= 0"):
+        ev.Args(noise_seed_offset=-1)
     tuning = ev.build_cases(parse(ev.Args, ["--layouts-per-kind", "2", "--starts", "2", "--seed-set", "tuning"]))
     assert len(tuning) == 3 * 2 * 2 and not any(is_held_out(c["layout_seed"]) for c in tuning)
     assert {c["episode_seed"] for c in tuning}.isdisjoint(c["episode_seed"] for c in cases)

@@ -104,6 +104,9 @@ class Args:
     a policy's settings without touching the held-out cases"""
     starts: int = 10
     """start poses per layout"""
+    noise_seed_offset: int = 0
+    """added to every pair's episode seed: the same (layout, start) pairs under other sensor, odometry and filter
+    noise (and other draws of a policy that draws), to tell what is a pair's from what is the draw's"""
     layout_files: tuple[str, ...] = ()
     """layout files (.json / .yaml) to add (a file's starts and episode seeds follow from its position in
     the case list: adding or reordering files gives the later files other starts, and --reuse then keeps
@@ -208,8 +211,8 @@ class Args:
         missing = [d for d in self.reuse if not (Path(d) / "episodes.json").is_file()]
         if missing:
             raise ValueError(f"reuse: no episodes.json in {missing}")
-        for name in (*self.GENERATED, "starts", "max_steps", "particles"):
-            least = 0 if name in self.GENERATED else 1
+        for name in (*self.GENERATED, "starts", "max_steps", "particles", "noise_seed_offset"):
+            least = 0 if name in (*self.GENERATED, "noise_seed_offset") else 1
             if getattr(self, name) < least:
                 raise ValueError(f"{name} must be >= {least}, got {getattr(self, name)}")
         self.relocalizer_overrides()  # a bad JSON object or field is an error now, not in every worker
@@ -435,7 +438,7 @@ def build_cases(args: Args) -> list[dict]:
                     "layout_seed": seed,
                     "scenario": scenario,
                     "start": [float(v) for v in pose],
-                    "episode_seed": (60_000 if tuning else 50_000) + len(cases),
+                    "episode_seed": (60_000 if tuning else 50_000) + len(cases) + args.noise_seed_offset,
                     "uninformative": flag,
                     **digest,
                 }
