@@ -88,17 +88,15 @@ class Args:
             raise ValueError("config.env_kwargs: set the env through layout, lidar_only, map_source, ...")
         from semreloc_env.maps import check_map_source_name, names_a_layout
 
-        lay = self.layout
-        if lay.lower().endswith((".json", ".yaml", ".yml")) and not Path(lay).expanduser().is_file():
-            raise ValueError(f"layout {lay!r}: no such file")
-        if not names_a_layout(lay):
+        for name in ("layout", "map_source"):  # a file name that names no file
+            v = getattr(self, name)
+            if v.lower().endswith((".json", ".yaml", ".yml")) and not Path(v).expanduser().is_file():
+                raise ValueError(f"{name} {v!r}: no such file")
+        if not names_a_layout(self.layout):
             from semreloc_env.layouts import LAYOUT_NAMES
 
-            raise ValueError(f"layout must be one of {sorted(LAYOUT_NAMES)} or a layout file, got {lay!r}")
-        src = self.map_source
-        if src.lower().endswith((".json", ".yaml", ".yml")) and not Path(src).expanduser().is_file():
-            raise ValueError(f"map_source {src!r}: no such file")
-        check_map_source_name(src)
+            raise ValueError(f"layout must be one of {sorted(LAYOUT_NAMES)} or a layout file, got {self.layout!r}")
+        check_map_source_name(self.map_source)
         if self.n_particles < 1 or self.max_episode_steps < 1 or self.eval_episodes < 1:
             raise ValueError(
                 f"n_particles, max_episode_steps and eval_episodes must be >= 1, got "
