@@ -75,28 +75,35 @@ class SB3VecEnvAdapter(VecEnv):
         self.venv.check_seeds(list(self._seeds), [o or None for o in self._options])  # before any robot resets
         obs = []
         for i, env in enumerate(self.envs):
-            o, self.reset_infos[i] = env.reset(
-                seed=self._seeds[i], **({"options": self._options[i]} if self._options[i] else {})
-            )
+            with self.venv.naming_who_raised(i, "reset"):
+                o, self.reset_infos[i] = env.reset(
+                    seed=self._seeds[i], **({"options": self._options[i]} if self._options[i] else {})
+                )
             obs.append(o)
+        self.venv.all_reset()
         self._reset_seeds()
         self._reset_options()
         return self._stack(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = self.venv.check_actions(actions)  # all checked before any robot moves
+        """RuntimeError after a robot raised in the last step or reset (until `reset`); ValueError naming the robot
+        if an action is invalid (all are checked before any robot moves)."""
+        self.venv.check_in_step()
+        self._actions = self.venv.check_actions(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
         obs, infos = [], []
         rewards = np.zeros(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
         for i, env in enumerate(self.envs):
-            o, r, term, trunc, info = env.step(self._actions[i])
+            with self.venv.naming_who_raised(i, "step"):
+                o, r, term, trunc, info = env.step(self._actions[i])
             rewards[i], dones[i] = r, term or trunc
             info["TimeLimit.truncated"] = bool(trunc and not term)
             if dones[i]:
                 info["terminal_observation"] = o
-                o, self.reset_infos[i] = env.reset()
+                with self.venv.naming_who_raised(i, "reset"):
+                    o, self.reset_infos[i] = env.reset()
             obs.append(o)
             infos.append(info)
         return self._stack(obs), rewards, dones, infos

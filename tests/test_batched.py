@@ -151,10 +151,15 @@ def test_a_kidnap_beyond_one_robots_time_limit_resets_no_robot():
 
 
 def test_a_float_array_of_discrete_actions_says_which_robots_hold_nan():
-    # a new user's trial: [0, 1, nan] is a float array, so robot 0's 0.0 was blamed alone
+    # a new user's trial: [0, 1, nan] is a float array, so robot 0's 0.0 was blamed alone; a later trial: naming robot
+    # 0 first still misled, since every robot's action is a float
     venv = SemRelocLoopVectorEnv(num_envs=3, **VKW)
     venv.reset(seed=0)
-    with pytest.raises(ValueError, match=r"robot 0: .*float64 array: discrete actions must be integers; robots \[2\]"):
+    with pytest.raises(
+        ValueError,
+        match=r"^invalid actions \(the actions are a float64 array: discrete actions must be "
+        r"integers; robots \[2\] hold NaN or inf\)$",
+    ):
         venv.step(np.array([0, 1, np.nan]))
     with pytest.raises(ValueError, match=r"discrete actions must be integers\)$"):
         venv.step(np.array([0.0, 1.0, 2.0]))
@@ -355,4 +360,34 @@ def test_a_robot_that_raises_mid_step_stops_the_vector_env_until_a_reset():
     assert [e.unwrapped._steps for e in venv.envs] == [2, 1, 1]
     venv.reset(seed=0)
     venv.step([0, 0, 0])
+    assert [e.unwrapped._steps for e in venv.envs] == [1, 1, 1]
+
+
+def test_the_sb3_adapter_also_stops_after_a_robot_raised_until_a_reset():
+    # an outside tester's trial: the adapter loops over the robots itself, and stepped on with them out of step
+    from agents.vec_env import SB3VecEnvAdapter
+
+    class FailsOnce(gym.Wrapper):
+        armed = False
+
+        def step(self, action):
+            if FailsOnce.armed:
+                FailsOnce.armed = False
+                raise KeyError("a robot's own failure")
+            return self.env.step(action)
+
+    venv = SemRelocLoopVectorEnv(num_envs=3, **VKW, wrapper=lambda env: env)
+    venv.envs[1] = FailsOnce(venv.envs[1])
+    adapter = SB3VecEnvAdapter(venv)
+    adapter.seed(0)
+    adapter.reset()
+    adapter.step(np.array([0, 0, 0]))
+    FailsOnce.armed = True
+    with pytest.raises(KeyError, match="a robot's own failure"):
+        adapter.step(np.array([0, 0, 0]))
+    with pytest.raises(RuntimeError, match=r"robot 1 raised KeyError in the last step\(\).*robot 0 had run it"):
+        adapter.step(np.array([0, 0, 0]))
+    assert [e.unwrapped._steps for e in venv.envs] == [2, 1, 1]
+    adapter.reset()
+    adapter.step(np.array([0, 0, 0]))
     assert [e.unwrapped._steps for e in venv.envs] == [1, 1, 1]

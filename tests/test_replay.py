@@ -198,3 +198,13 @@ def test_replay_command_reports_bad_input_without_a_traceback(tmp_path, capsys):
         replay_log.main(["--trials", "3", *out])
     err = " ".join(capsys.readouterr().err.replace("│", " ").split())  # tyro's box, wrapped
     assert "it needs --mode global" in err
+
+
+def test_replay_command_says_none_correct_instead_of_nan(tmp_path, capsys):
+    # an outside reviewer's trial: with no correct trial the medians of nothing printed as "nan scans, error nan m"
+    from filters.tools import replay_log
+
+    argv = ["--mode", "global", "--trials", "2", "--trial-steps", "2", "--steps", "10", "--frame-every", "0"]
+    assert replay_log.main([*argv, "--out", str(tmp_path)]) in (0, None)
+    out = capsys.readouterr().out
+    assert "0 correct" in out and "none correct" in out and "nan" not in out

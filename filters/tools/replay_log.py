@@ -181,11 +181,15 @@ def run(args: Args) -> dict:
         starts = np.linspace(0, len(log) - 1, args.trials).round().astype(int)
         res = global_localization_trials(log, grid, cfg, starts, args.trial_steps, rng_seed=args.seed)
         summary = summarize_trials(res)
-        print(
-            f"  global localization from {summary['trials']} start scans ({args.trial_steps} scans each): "
-            f"{summary['correct']} correct, {summary['wrong']} wrong, {summary['unconverged']} unconverged; "
+        correct = (
             f"correct ones after a median {summary['median_steps_correct']:.0f} scans, "
             f"error {summary['median_pos_error_correct_m']:.3f} m"
+            if summary["correct"]
+            else "none correct"
+        )
+        print(
+            f"  global localization from {summary['trials']} start scans ({args.trial_steps} scans each): "
+            f"{summary['correct']} correct, {summary['wrong']} wrong, {summary['unconverged']} unconverged; {correct}"
         )
         result["trials"] = summary
     wrote = f"{out}/error.png" + (f", {out}/particles.gif" if gif else "")

@@ -154,6 +154,11 @@ class SemRelocLoopVectorEnv(VectorEnv):
         if len(acts) != self.num_envs:
             raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
         one = self.single_action_space
+        hint = _float_array_hint(actions, one)
+        if hint and all(env.action_space is env.unwrapped.action_space for env in self.envs):
+            raise ValueError(
+                f"invalid actions{hint}"
+            )  # every robot's action is a float: robot 0 is not the one to name
         if isinstance(actions, np.ndarray) and isinstance(one, gym.spaces.Box) and actions.shape[1:] != one.shape:
             raise ValueError(
                 f"actions must have shape {(self.num_envs, *one.shape)} (one {one.shape} action per robot), "
@@ -221,12 +226,11 @@ class SemRelocLoopVectorEnv(VectorEnv):
         super().reset(seed=seeds[0])
         obs_list, infos = [], {}
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
-            with self._naming_who_raised(i, "reset"):
+            with self.naming_who_raised(i, "reset"):
                 obs, info = env.reset(seed=s, options=o)
             obs_list.append(obs)
             infos = self._add_info(infos, info, i)
-        self._done[:] = False
-        self._out_of_step = None
+        self.all_reset()
         return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), infos
 
     def step(self, actions):
@@ -235,15 +239,14 @@ class SemRelocLoopVectorEnv(VectorEnv):
         Every action is checked before any robot moves (ValueError naming the robot). A robot that raises
         while stepping (say, a look-alike kidnapping with no place to go) leaves the robots before it stepped
         and those after it not: the error passes on, and `step` refuses to run (RuntimeError) until `reset`."""
-        if self._out_of_step is not None:
-            raise RuntimeError(self._out_of_step)
+        self.check_in_step()
         acts = self.check_actions(actions, skip_done=True)
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terms = np.zeros(self.num_envs, dtype=np.bool_)
         truncs = np.zeros(self.num_envs, dtype=np.bool_)
         obs_list, infos = [], {}
         for i, env in enumerate(self.envs):
-            with self._naming_who_raised(i, "step"):
+            with self.naming_who_raised(i, "step"):
                 if self._done[i]:
                     obs, info = env.reset()
                 else:
@@ -258,9 +261,22 @@ class SemRelocLoopVectorEnv(VectorEnv):
             env.close()
 
     # ------------------------------------------------------------------ helpers
+    def check_in_step(self) -> None:
+        """RuntimeError if a robot raised in the last ``step()`` or ``reset()``: the robots are out of step until
+        a reset of all of them (`reset`, or the SB3 adapter's)."""
+        if self._out_of_step is not None:
+            raise RuntimeError(self._out_of_step)
+
+    def all_reset(self) -> None:
+        """Every robot has just been reset: `step` may run again."""
+        self._done[:] = False
+        self._out_of_step = None
+
     @contextlib.contextmanager
-    def _naming_who_raised(self, i: int, call: str):
-        """Let an exception of robot ``i``'s ``call`` pass, and remember that the robots are out of step."""
+    def naming_who_raised(self, i: int, call: str):
+        """Let an exception of robot ``i``'s ``call`` (``"step"`` or ``"reset"``) pass, and remember that the robots
+        are out of step (`check_in_step` then refuses). For loops over the robots outside this class too (the SB3
+        adapter's)."""
         try:
             yield
         except Exception as e:
@@ -277,7 +293,8 @@ class SemRelocLoopVectorEnv(VectorEnv):
     def _add_info(self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int) -> dict[str, Any]:
         """Gymnasium's info batching (arrays per key plus ``_key`` masks), but lossless: an array whose
         dtype cannot hold a later robot's value exactly (None in a float array, a float in an int
-        array, another shape) becomes an object array, so `robot_info` returns every value as given."""
+        array, another shape) becomes an object array, so `robot_info` returns every value as given (a NumPy
+        scalar or 0-d array as the Python number of the same value)."""
         n = self.num_envs
         for key, value in env_info.items():
             if isinstance(value, dict):
@@ -299,7 +316,9 @@ class SemRelocLoopVectorEnv(VectorEnv):
 
     @staticmethod
     def robot_info(infos: dict[str, Any], i: int) -> dict[str, Any]:
-        """Robot ``i``'s ``info`` dict back from the batched ``infos`` (keys its ``_key`` masks mark present)."""
+        """Robot ``i``'s ``info`` dict back from the batched ``infos`` (keys its ``_key`` masks mark present): the
+        values its own env gave, except that NumPy scalars and 0-d arrays come back as Python numbers (``.item()``:
+        the same value; the batched arrays do not keep whether a number was a NumPy scalar)."""
         out = {}
         for key, value in infos.items():
             if key.startswith("_"):
