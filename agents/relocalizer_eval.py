@@ -118,6 +118,7 @@ class EpisodeSpec:
     tracking: bool = False
     mcl: dict = field(default_factory=dict)
     env_kwargs: dict = field(default_factory=dict)
+    env_id: str = ""
     label: str = ""
     kidnap_after_global: bool = False
     kidnap_to_twin: bool = False
@@ -310,15 +311,40 @@ def score_steps(converged: Sequence[bool], near: Sequence[bool], kidnap_at_step:
     return out
 
 
+ENV_ID_KEY = "env_id"
+"""The key of a variant dict (`agents.experiments.evaluate_relocalizer`) that names the registered ``SemReloc-vN``
+id its episodes run in (the newest without it); its other keys are overrides of that id's relocalizer."""
+
+
+def variant_parts(variant: dict) -> tuple[str, dict]:
+    """``(env id or "" for the newest, relocalizer overrides)`` of a variant dict (`ENV_ID_KEY`)."""
+    overrides = {k: v for k, v in variant.items() if k != ENV_ID_KEY}
+    return variant.get(ENV_ID_KEY, ""), overrides
+
+
+def env_class(env_id: str = ""):
+    """The env class of a registered ``SemReloc-vN`` id (``""``: the newest, `SemRelocEnv`); ValueError for
+    another id."""
+    from semreloc_env import default_relocalizer
+    from semreloc_env.envs.semreloc import SemRelocEnv
+
+    if not env_id:
+        return SemRelocEnv
+    if not isinstance(env_id, str):
+        raise ValueError(f"env_id must be a SemReloc id string, got {env_id!r:.60}")
+    default_relocalizer(env_id)  # ValueError naming the ids for anything else
+    from gymnasium.envs.registration import load_env_creator, registry
+
+    return load_env_creator(registry[env_id].entry_point)
+
+
 def run_episode(spec: EpisodeSpec) -> dict:
     """Run one episode; returns a plain dict (the spec's fields plus the outcome fields).
 
     Every one of the ``n_steps`` steps is run, also after the env said ``terminated`` (a success,
     which in a global-start kidnap episode may come before the kidnap).
     """
-    from semreloc_env.envs.semreloc import SemRelocEnv
-
-    base = SemRelocEnv(
+    base = env_class(spec.env_id)(
         layout=spec.layout,
         layout_seed=spec.layout_seed,
         scenario=spec.scenario,
@@ -485,6 +511,16 @@ def _log_and_map(path: str):
     return _LOG_CACHE[path]
 
 
+def _log_config(variant: dict):
+    """The relocalizer of a variant (`variant_parts`: its env id's default with its overrides), lidar only."""
+    from semreloc_env.config import coerce_config
+    from semreloc_env.envs.semreloc import MCLConfig
+
+    env_id, overrides = variant_parts(variant)
+    default = env_class(env_id).default_relocalizer
+    return coerce_config(MCLConfig, {**overrides, "use_semantic": False}, "relocalizer", default)
+
+
 def log_trial(job: tuple) -> dict:
     """One global-localization trial on a log: ``(path, label, mcl_overrides, start, n_steps)``.
 
@@ -492,11 +528,9 @@ def log_trial(job: tuple) -> dict:
     has no semantic scans); the trial is seeded by its start scan.
     """
     from filters.robot_data.replay import global_localization_trials
-    from semreloc_env.config import coerce_config
-    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER, MCLConfig
 
-    path, label, overrides, start, n_steps = job
-    cfg = coerce_config(MCLConfig, {**overrides, "use_semantic": False}, "relocalizer", DEFAULT_RELOCALIZER)
+    path, label, variant, start, n_steps = job
+    cfg = _log_config(variant)
     log, grid = _log_and_map(path)
     c0 = time.process_time()
     (r,) = global_localization_trials(log, grid, cfg, [start], n_steps, rng_seed=start)
@@ -513,11 +547,9 @@ def log_trial(job: tuple) -> dict:
 def log_tracking(job: tuple) -> dict:
     """Tracking over a whole log: ``(path, label, mcl_overrides, seed)`` -> error statistics."""
     from filters.robot_data.replay import track
-    from semreloc_env.config import coerce_config
-    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER, MCLConfig
 
-    path, label, overrides, seed = job
-    cfg = coerce_config(MCLConfig, {**overrides, "use_semantic": False}, "relocalizer", DEFAULT_RELOCALIZER)
+    path, label, variant, seed = job
+    cfg = _log_config(variant)
     log, grid = _log_and_map(path)
     c0 = time.process_time()
     tr = track(log, grid, cfg, rng_seed=seed)

@@ -1,8 +1,8 @@
-"""Train PPO on ``SemReloc-v18`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
+"""Train PPO on ``SemReloc-v19`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
 
 * `TrainConfig` — every knob of a training run (env keyword arguments, vectorisation,
   PPO hyper-parameters, network sizes, seed).
-* `make_env` — ``gym.make("SemReloc-v18", **env_kwargs)`` wrapped in
+* `make_env` — ``gym.make("SemReloc-v19", **env_kwargs)`` wrapped in
   `BeliefObservation` (the policy sees the belief summary, not the pose).
 * `train` — builds the vectorised envs and PPO (``MultiInputPolicy`` with
   `SemRelocExtractor`), learns, returns the model. With a ``log_dir`` it
@@ -46,7 +46,7 @@ from .callbacks import RelocalizationMetricsCallback
 from .features import SemRelocExtractor
 from .metrics import EpisodeTracker, summarize_episodes
 
-ENV_ID = "SemReloc-v18"
+ENV_ID = "SemReloc-v19"
 """The env id training and evaluation use unless told otherwise (``TrainConfig.env_id``, ``env_id=``)."""
 VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv, "batched": None}
 """``"batched"``: `agents.vec_env.SB3VecEnvAdapter` over the batched env (R robots in one process)."""
@@ -95,10 +95,10 @@ def check_device(device) -> None:
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """One PPO training run on ``SemReloc-v18`` (or ``env_id``).
+    """One PPO training run on ``SemReloc-v19`` (or ``env_id``).
 
     Attributes:
-        env_id: the registered single-robot env (``"SemReloc-v18"``; ``"SemReloc-v1"`` has the flat
+        env_id: the registered single-robot env (``"SemReloc-v19"``; ``"SemReloc-v1"`` has the flat
             observation that models trained before v2 expect).
         env_kwargs: ``gym.make`` keyword arguments (e.g. ``layout``, ``semantic``, ``relocalizer``,
             ``max_episode_steps``); unknown ones are errors, as in the env.

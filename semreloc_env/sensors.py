@@ -254,24 +254,47 @@ def _detector_kernel(
 
 
 class Odometry:
-    """Wheel odometry: the true increment between two poses, corrupted by the rot1-trans-rot2 model.
+    """Wheel odometry: the robot's increment between two poses, corrupted by the rot1-trans-rot2 model.
 
     The noise is drawn with the very model the filters assume
     (`filters.motion.odometry.OdometryMotionModel`), applied to one pose at the origin,
     so simulator and filter cannot disagree on its form, only on its alphas.
+
+    ``reads_slides``: whether the reading includes a sideways slide (a push along a wall). A differential
+    drive's wheels cannot roll sideways, so their encoders never see one: with ``reads_slides=False``
+    (`SemReloc-v19`) the increment is the true one projected on the direction a turn of ``dtheta`` without
+    slip moves along (``dtheta / 2`` in the robot's frame at ``prev_pose``): an arc without slip reads as it is,
+    a slide across that direction reads as nothing. The turn reads as it is. (Wheels that spin against a wall
+    and read motion the robot did not make are not modelled.) With ``True`` (`SemReloc-v18` and older, and
+    `SemSlam`) the reading is the true increment, slides included; the rot1-trans-rot2 model then reads a
+    1.7 cm slide across the heading as a quarter turn, a step and a quarter turn back, with about 1 m of
+    translation noise (docs/relocalizer.md, "Wheel odometry").
     """
 
-    def __init__(self, params: OdometryMotionConfig):
+    def __init__(self, params: OdometryMotionConfig, reads_slides: bool = True):
         self.params = params
+        self.reads_slides = bool(reads_slides)
         self._model = OdometryMotionModel(params)
         self._origin = np.zeros(3)
 
     def read(self, prev_pose: np.ndarray, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Noisy robot-frame increment ``(dx, dy, dtheta)`` from ``prev_pose`` to ``pose``.
+        """Noisy robot-frame increment ``(dx m, dy m, dtheta rad)`` from ``prev_pose`` to ``pose``.
 
         Draws 3 normals (`sample_pose`).
         """
-        return self._model.sample_pose(self._origin, _relative(prev_pose, pose), rng)
+        delta = _relative(prev_pose, pose)
+        if not self.reads_slides:
+            delta = wheel_increment(delta)
+        return self._model.sample_pose(self._origin, delta, rng)
+
+
+def wheel_increment(delta: tuple[float, float, float]) -> tuple[float, float, float]:
+    """What a differential drive's wheels read of the robot-frame increment ``delta = (dx, dy, dtheta)``: its
+    part along ``dtheta / 2`` (the direction of an arc without slip), with the turn as it is (see `Odometry`)."""
+    dx, dy, dth = delta
+    c, s = math.cos(0.5 * dth), math.sin(0.5 * dth)
+    along = dx * c + dy * s
+    return along * c, along * s, dth
 
 
 def _relative(pose_from: np.ndarray, pose_to: np.ndarray) -> tuple[float, float, float]:

@@ -110,6 +110,8 @@ def documented_variant_problems(text: str, newest, versions) -> list[str]:
     """Problems of the ``--extra '{...}'`` relocalizer variants in a Markdown ``text``: JSON that does not parse, a
     variant no registered version's relocalizer (``versions``) takes, and a variant in a fenced block (a command
     meant to run as written) that the newest env's relocalizer (``newest``) refuses."""
+    import semreloc_env
+    from agents.relocalizer_eval import variant_parts
     from filters.localization.mcl import check_overrides
 
     def takes(base, overrides) -> bool:
@@ -128,7 +130,17 @@ def documented_variant_problems(text: str, newest, versions) -> list[str]:
         except json.JSONDecodeError as e:
             problems.append(f"line {line}: not JSON ({e})")
             continue
-        for name, overrides in variants.items():
+        for name, variant in variants.items():
+            env_id, overrides = variant_parts(variant)
+            if env_id:  # runs in that version: its relocalizer must take the overrides
+                try:
+                    base = semreloc_env.default_relocalizer(env_id)
+                except ValueError:
+                    problems.append(f"line {line}: variant {name} names no SemReloc id ({env_id!r})")
+                    continue
+                if not takes(base, overrides):
+                    problems.append(f"line {line}: variant {name} does not fit {env_id}'s relocalizer")
+                continue
             if not any(takes(base, overrides) for base in versions):
                 problems.append(f"line {line}: variant {name} fits no registered version")
             elif any(a <= m.start() < b for a, b in fences) and not takes(newest, overrides):
@@ -156,7 +168,10 @@ def test_documented_variant_check_finds_what_it_looks_for():
 x --extra '{"v4": {"audit_window": 0, "audit_after_surprise": false, "audit_after_surprise_once": false}}'
 ```
 prose: --extra '{"v5": {"no_such_field": 1}}' and --extra '{"v6": {"audit_window": 0,}}'
+and --extra '{"old": {"env_id": "SemReloc-v15", "lost_hold_window": 5}, "v18": {"env_id": "SemReloc-v18"}}'
+and --extra '{"none": {"env_id": "SemReloc-v99"}}'
 """
     problems = documented_variant_problems(text, newest, [newest, semreloc_env.default_relocalizer("SemReloc-v15")])
-    assert [p.split(":")[0] for p in problems] == ["line 2", "line 4", "line 4"]
+    assert [p.split(":")[0] for p in problems] == ["line 2", "line 4", "line 4", "line 5", "line 6"]
     assert "fails on the newest" in problems[0] and "fits no" in problems[1] and "not JSON" in problems[2]
+    assert "old does not fit SemReloc-v15's relocalizer" in problems[3] and "names no SemReloc id" in problems[4]

@@ -696,12 +696,12 @@ def test_a_held_convergence_follows_the_odometry_when_the_robot_moves_far_betwee
     # carries it along the odometry, as the screen's pause is carried
     import dataclasses
 
-    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER
+    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER, RELOCALIZER_V18
 
     grid = symmetric_room()
     lapsed = {}
     for follow in (False, True):
-        cfg = dataclasses.replace(DEFAULT_RELOCALIZER, places_follow_odometry=follow)
+        cfg = dataclasses.replace(RELOCALIZER_V18, places_follow_odometry=follow)
         lapsed[follow] = 0
         for seed in range(6):
             for gap_m in (1.2, 1.6):
@@ -721,4 +721,5 @@ def test_a_held_convergence_follows_the_odometry_when_the_robot_moves_far_betwee
     assert lapsed[True] == 0
     assert lapsed[False] >= 3  # the reviewer's run: 5 of these 12
     assert MCLConfig().places_follow_odometry is True  # the library's default follows
-    assert DEFAULT_RELOCALIZER.places_follow_odometry is False  # the registered envs keep their episodes
+    assert RELOCALIZER_V18.places_follow_odometry is False  # v1 to v18 keep their episodes
+    assert DEFAULT_RELOCALIZER.places_follow_odometry is True  # v19 follows

@@ -411,6 +411,28 @@ def test_variants_are_checked_on_top_of_the_env_relocalizer_before_any_episode(t
     assert er.main(["--variants", "v5", "--extra", ok, *common]) == 0
 
 
+def test_a_variant_with_an_env_id_runs_that_version_and_its_relocalizer():
+    """``{"env_id": "SemReloc-v18"}`` runs v18 as it was (its relocalizer and its odometry), the other keys override
+    that version's relocalizer; an id that is no SemReloc id is refused while parsing."""
+    from agents.experiments import evaluate_relocalizer as er
+    from agents.relocalizer_eval import env_class, variant_parts
+
+    assert variant_parts({"env_id": "SemReloc-v18", "kld": False}) == ("SemReloc-v18", {"kld": False})
+    assert variant_parts({"kld": False}) == ("", {"kld": False})
+    assert env_class("SemReloc-v18").__name__ == "SemRelocEnvV18" and env_class("").__name__ == "SemRelocEnv"
+    (spec,) = specs_for("lab", 1, 0, [0], {"env_id": "SemReloc-v18", "kld_epsilon": 0.1}, "old")
+    assert spec.env_id == "SemReloc-v18" and spec.mcl == {"kld_epsilon": 0.1}
+    short = dict(layout="twin_rooms", seed=3, policy="spin", n_steps=4)
+    old = run_episode(EpisodeSpec(**short, env_id="SemReloc-v18"))
+    new = run_episode(EpisodeSpec(**short))
+    assert old["mean_particles"] > new["mean_particles"]  # v18's KLD bound keeps about three times the particles
+    for bad in ("SemReloc-v99", "SemSlam-v1"):
+        with pytest.raises(ValueError, match=f"variant 'x': no SemReloc relocalizer for env id '{bad}'"):
+            er.Args(variants=("x",), extra=f'{{"x": {{"env_id": "{bad}"}}}}')
+    with pytest.raises(ValueError, match="variant .x.: .*lost_hold_window"):  # checked against v15's relocalizer
+        er.Args(variants=("x",), extra='{"x": {"env_id": "SemReloc-v15", "lost_hold_window": 5}}')
+
+
 def test_a_run_with_nothing_to_do_or_a_row_twice_is_refused_before_anything_changes(tmp_path):
     # a twenty-fourth tester's: nothing to run exited 0 and emptied an earlier run's files; a row given twice
     # counted the same seeded episodes twice; an unknown row failed inside its first episode

@@ -1,4 +1,6 @@
-"""The registered ids behave as their Version History says: SemReloc-v18 (v17 whose audit after a lost hold judges
+"""The registered ids behave as their Version History says: SemReloc-v19 (v18 whose wheel odometry reads no slide
+along a wall, whose KLD sampling allows three times the error and whose remembered places follow the odometry),
+SemReloc-v18 (v17 whose audit after a lost hold judges
 only the scans since it faded), SemReloc-v17 (v16 whose tracking start holds its pose),
 SemReloc-v16 (v15 whose audit also follows a held
 convergence lost without a surprise), SemReloc-v15 (v14 whose audit after a surprise turns off once it clears),
@@ -73,6 +75,7 @@ def assert_same_episode(new: str, old: str, options: dict = START) -> list:
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v19",
         "SemReloc-v18",
         "SemReloc-v17",
         "SemReloc-v16",
@@ -100,6 +103,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v19", typed),
         ("SemReloc-v18", typed),
         ("SemReloc-v17", typed),
         ("SemReloc-v16", typed),
@@ -697,13 +701,40 @@ def test_v15_is_v14_whose_audit_after_a_surprise_turns_off_once_it_clears():
         assert any("audit_log_ratio" in step[-1]["mcl"] for step in a) == ("tracking" not in options)
 
 
+def test_v19_is_v18_with_wheel_odometry_a_looser_kld_bound_and_places_that_follow_the_odometry():
+    """v19's relocalizer is v18's with ``kld_epsilon`` 0.15 and ``places_follow_odometry``; its odometry reads no slide
+    along a wall; maps, worlds, observation spaces are v18's; its Vec id runs it."""
+    a, b = make("SemReloc-v19", **FAST).unwrapped, make("SemReloc-v18", **FAST).unwrapped
+    assert a.mcl_config == dataclasses.replace(b.mcl_config, kld_epsilon=0.15, places_follow_odometry=True)
+    assert b.mcl_config.kld_epsilon == 0.05 and not b.mcl_config.places_follow_odometry
+    assert not a.odometry.reads_slides and b.odometry.reads_slides
+    assert a.mapping_run_version == b.mapping_run_version == "6"
+    assert a.observation_space == b.observation_space and a.odometry.params == b.odometry.params
+    assert make("SemSlam-v1", **SLAM_FAST).unwrapped.odometry.reads_slides  # SemSlam keeps its episodes
+    assert semreloc_env.envs.batched.SINGLE_ENV_ID == "SemReloc-v19"
+    venv = gym.make_vec("SemRelocVec-v19", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    assert not venv.envs[0].unwrapped.odometry.reads_slides and venv.envs[0].unwrapped.mcl_config.kld_epsilon == 0.15
+    venv.close()
+
+
+def test_wheel_odometry_reads_an_arc_as_it_is_and_no_sideways_slide():
+    from semreloc_env.sensors import wheel_increment
+
+    for v, w in [(0.05, 0.0), (0.05, 0.4), (-0.03, -0.7), (0.0, 0.5)]:  # arcs without slip (dt = 0.1 s)
+        th = w * 0.1
+        r = v / w if w else None
+        arc = (r * np.sin(th), r * (1 - np.cos(th)), th) if w else (v * 0.1, 0.0, 0.0)
+        np.testing.assert_allclose(wheel_increment(arc), arc, atol=1e-15)
+    np.testing.assert_allclose(wheel_increment((0.0, 0.017, 0.0)), (0.0, 0.0, 0.0), atol=1e-18)  # a slide sideways
+    np.testing.assert_allclose(wheel_increment((0.01, 0.017, 0.0)), (0.01, 0.0, 0.0), atol=1e-18)  # along + across
+
+
 def test_v18_is_v17_whose_audit_after_a_lost_hold_judges_only_the_scans_since_its_fade():
     """v18 differs from v17 only in its relocalizer's `MCLConfig.lost_hold_window` (its effect on a look-alike
     kidnapping: tests/test_audit.py). A global start's audit is on from its start, so no hold is lost with the audit
     off and its episode is v17's, bit for bit."""
     assert_one_option_apart("SemReloc-v18", "SemReloc-v17", lost_hold_window=5)
     assert make("SemReloc-v17", **FAST).unwrapped.mcl_config.lost_hold_window == 0
-    assert semreloc_env.envs.batched.SINGLE_ENV_ID == "SemReloc-v18"
     assert_same_episode("SemReloc-v18", "SemReloc-v17")
 
 

@@ -1,19 +1,20 @@
 """Evaluate the relocalizer: global relocalization and kidnapping, before vs after, Wilson intervals.
 
-Each *variant* is a dict of ``MCLConfig`` overrides applied to ``SemReloc``'s default relocalizer
-(``{}`` = the env's defaults). Every variant runs the same episodes: per row, ``--episodes``
-episodes pooled over the baseline policies (random walk, spin in place, wall following; ``--policies`` names
-others, the viewpoint planner among them), each episode ``i`` with seed ``--seed-base + i``. Rows: the built-in
-layouts, the changed lab, ``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30,
-200 steps after it), global-kidnap rows (``*_global_kidnap``: a global start, a teleport at
-step 150, 200 steps after it), a class-only kidnap row (``twin_rooms_twin_kidnap``: tracking, then a
-teleport at step 30 to the half-turned image of the pose in the other room, whose walls and furniture
-shapes are the same and whose classes differ) and a tracking row (300 steps from the true pose: error and step
-time). Not by default: a look-alike kidnap row of any layout (``<layout>_lookalike_kidnap``: tracking, then a
-teleport at step 30 to the place at least 3 m away whose all-round view is most like the pose's) and its pair,
-``<layout>_lookalike_global`` (a global start at the place that row's episode of the same seed teleports to, 200
-steps: whether a look-alike kidnapping fails for the place or for the belief it leaves). ``--layout-files``
-adds a global, a kidnap, a look-alike kidnap and a global-kidnap row for each layout file of yours.
+Each *variant* is a dict of ``MCLConfig`` overrides applied to ``SemReloc``'s default relocalizer (``{}`` = the env's
+defaults); a variant's ``"env_id"`` key runs its episodes in another registered id (``{"env_id": "SemReloc-v18"}``:
+v18 as it was, to compare with the newest). Every variant runs the same episodes: per row, ``--episodes`` episodes
+pooled over the baseline policies (random walk, spin in place, wall following; ``--policies`` names others, the
+viewpoint planner among them), each episode ``i`` with seed ``--seed-base + i``. Rows: the built-in layouts, the
+changed lab, ``procedural_sym`` over ``--sym-seeds``, kidnap rows (tracking, then a teleport at step 30, 200 steps
+after it), global-kidnap rows (``*_global_kidnap``: a global start, a teleport at step 150, 200 steps after it), a
+class-only kidnap row (``twin_rooms_twin_kidnap``: tracking, then a teleport at step 30 to the half-turned image of
+the pose in the other room, whose walls and furniture shapes are the same and whose classes differ) and a tracking row
+(300 steps from the true pose: error and step time). Not by default: a look-alike kidnap row of any layout
+(``<layout>_lookalike_kidnap``: tracking, then a teleport at step 30 to the place at least 3 m away whose all-round
+view is most like the pose's) and its pair, ``<layout>_lookalike_global`` (a global start at the place that row's
+episode of the same seed teleports to, 200 steps: whether a look-alike kidnapping fails for the place or for the
+belief it leaves). ``--layout-files`` adds a global, a kidnap, a look-alike kidnap and a global-kidnap row for each
+layout file of yours.
 
 Tuning and reporting use disjoint seeds: defaults were chosen with ``--seed-base 5000
 --sym-seeds 100 101 102 103 104``; the report in docs/relocalizer_eval.md uses the defaults below.
@@ -38,6 +39,7 @@ from agents.relocalizer_eval import (
     POLICIES,
     EpisodeSpec,
     count_pct,
+    env_class,
     log_tracking,
     log_trial,
     pct,
@@ -45,6 +47,7 @@ from agents.relocalizer_eval import (
     run_episode,
     save_jsonl,
     summarize,
+    variant_parts,
     wilson,
 )
 from filters.experiments.cli import Runner, command, parse
@@ -117,6 +120,7 @@ def specs_for(
     """The ``n`` episodes of ``row`` for one variant, episode ``i`` run by ``policies[i % len(policies)]``;
     ``files``: ``{row name: layout file}`` of `file_rows`."""
     kind = row_kind(row)[1]
+    env_id, overrides = variant_parts(mcl)
     kidnap = kind in ("kidnap", "twin_kidnap", "lookalike_kidnap")  # tracking, then a teleport at KIDNAP_STEP
     global_kidnap = kind == "global_kidnap"
     base, layout = row_layout(row, files)
@@ -137,7 +141,8 @@ def specs_for(
                 n_steps=n_steps,
                 kidnap_at_step=kidnap_at,
                 tracking=kind == "tracking",
-                mcl=mcl,
+                mcl=overrides,
+                env_id=env_id,
                 label=label,
                 kidnap_after_global=global_kidnap,
                 kidnap_to_twin=kind == "twin_kidnap",
@@ -312,7 +317,8 @@ class Args:
     variants: tuple[str, ...] = ("before", "after")
     """names of VARIANTS (or of --extra) to run"""
     extra: str = "{}"
-    """JSON {"name": {MCLConfig overrides}} of more variants"""
+    """JSON {"name": {MCLConfig overrides}} of more variants; an "env_id" key names the SemReloc id they run in
+    (default: the newest)"""
     rows: tuple[str, ...] = GLOBAL_ROWS + KIDNAP_ROWS + GLOBAL_KIDNAP_ROWS + TWIN_KIDNAP_ROWS + TRACKING_ROWS
     """rows to run ('none' = only the log rows)"""
     layout_files: tuple[str, ...] = ()
@@ -368,11 +374,15 @@ class Args:
         if not self.variants or ((not rows or max(episodes) == 0) and self.log_starts == 0):
             raise ValueError("nothing to run: no variant, or no rows (or no episodes) and --log-starts 0")
         from filters.localization.mcl import check_overrides
-        from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER
 
         variants = self.all_variants()
         for name in self.variants:  # on top of the env's relocalizer, as the episodes apply them
-            check_overrides(variants[name], f"variant {name!r}", DEFAULT_RELOCALIZER)
+            env_id, overrides = variant_parts(variants[name])
+            try:
+                default = env_class(env_id).default_relocalizer
+            except ValueError as e:
+                raise ValueError(f"variant {name!r}: {e}") from None
+            check_overrides(overrides, f"variant {name!r}", default)
 
     def row_list(self) -> tuple[dict[str, str], list[str]]:
         """``({row name: layout file}, the rows to run)``: ``--rows`` (without ``none``), then four rows per

@@ -248,7 +248,7 @@ def bench_likelihood(args: Args) -> list[Row]:
     ]
 
 
-ENV_ID = "SemReloc-v18"
+ENV_ID = "SemReloc-v19"
 
 
 def _env(**kwargs):
@@ -293,7 +293,7 @@ class RandomPolicy:
 
 
 def bench_env(args: Args) -> list[Row]:
-    """Single ``SemReloc-v18`` at its defaults (lab, mapped map, map-sized particle set with KLD, 60 + 32
+    """Single ``SemReloc-v19`` at its defaults (lab, mapped map, map-sized particle set with KLD, 60 + 32
     beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
     code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
     explorer and under random actions (which stay near the start, so their belief is often tight: a mean of
@@ -473,13 +473,13 @@ from semreloc_env.layouts import get_layout
 from semreloc_env.layouts.tiling import tiled_layout
 from semreloc_env.mapping_run import build_maps, mapping_drive
 build_maps(get_layout("twin_rooms"))  # warm numba caches (not counted)
-gym.make("SemReloc-v18", layout="twin_rooms").reset(seed=0)
+gym.make("SemReloc-v19", layout="twin_rooms").reset(seed=0)
 base_rss = peak_rss_mb()
 nx, ny = int(sys.argv[1]), int(sys.argv[2])
 layout = tiled_layout(get_layout("lab"), nx, ny)
 n_poses = len(mapping_drive(layout, narrow=True)[0])  # the drive of SemReloc-v12 to v17 (mapping run version 6)
 c0, w0 = time.process_time(), time.perf_counter()
-env = gym.make("SemReloc-v18", layout=layout)
+env = gym.make("SemReloc-v19", layout=layout)
 env.reset(seed=0)
 c1, w1 = time.process_time(), time.perf_counter()
 x0, x1, y0, y1 = layout.bounds()

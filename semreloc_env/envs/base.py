@@ -59,6 +59,8 @@ class SemRelocBase(gym.Env):
     (`semreloc_env.layouts.get_layout`); older env ids keep 1, so that their episodes stay as they were."""
     _world_option_keys: frozenset[str] = frozenset({"pose"})
     """Reset options whose check needs the world (`check_reset` builds one only for them)."""
+    odometry_reads_slides: bool = True
+    """Whether the simulated odometry reads a slide along a wall (`semreloc_env.sensors.Odometry`)."""
 
     def __init__(
         self,
@@ -85,7 +87,10 @@ class SemRelocBase(gym.Env):
         self.metadata = {**type(self).metadata, "render_fps": self.physics_params.control_hz}
         self.lidar = Lidar(coerce_config(LidarParams, lidar, "lidar"))
         self.camera = SemanticCamera(coerce_config(CameraParams, camera, "camera"))
-        self.odometry = Odometry(coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()))
+        self.odometry = Odometry(
+            coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()),
+            reads_slides=self.odometry_reads_slides,
+        )
         self.action_space = make_action_space(action_type)
         self.action_type = action_type
         self.observation_space = make_observation_space(self.lidar.params, self.camera.params, self.observation_layout)

@@ -1,4 +1,4 @@
-"""``SemReloc-v18`` (and ``-v17`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v19`` (and ``-v18`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -153,13 +153,21 @@ by itself lost no hold, raised no surprise, and the next convergence went unaudi
 as v16's: its episodes are v16's. Chosen on an outside tester's layouts (docs/layouts/outside_v16); evaluated on a
 third tester's layouts (docs/relocalizer.md, "A tracking start holds its pose")."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V17, lost_hold_window=5)
+RELOCALIZER_V18 = dataclasses.replace(RELOCALIZER_V17, lost_hold_window=5)
 """The relocalizer of SemReloc-v18: `RELOCALIZER_V17` in which the audit a hold lost without a surprise turns on
 judges only the scans since the hold began to fade, and only once it has five (`MCLConfig.lost_hold_window`). v17's
 judged the last 20 updates' scans, which after an unnoticed kidnapping came mostly from before it and fitted the old
 track, and cleared convergences at look-alike places. Global starts never lose a hold with the audit off: their
 episodes are v17's. Chosen on look-alike kidnappings (`semreloc_env.lookalike`) in three outside testers' layouts;
 evaluated on 21 layouts of earlier testers (docs/relocalizer.md, "The window's old scans")."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V18, kld_epsilon=0.15, places_follow_odometry=True)
+"""The relocalizer of SemReloc-v19: `RELOCALIZER_V18` whose KLD sampling allows three times the error
+(``kld_epsilon`` 0.15 instead of 0.05), so a spread belief holds about a third of the particles (in the lab, a mean of
+650 instead of 1,180 over the relocalizer evaluation's episodes; right after a global reset, about 6,000 instead of
+18,000); and whose remembered places (a held convergence's, a place an audit cleared) move with the odometry between
+updates (``places_follow_odometry``). Chosen on the relocalizer evaluation's tuning seeds; evaluated on its reported
+seeds and the 930 held-out active pairs (docs/relocalizer.md, "SemReloc-v19")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -307,6 +315,15 @@ class SemRelocEnv(SemRelocBase):
     time limit keeps counting the old episode.
 
     ## Version History
+    * v19: the simulated wheel odometry no longer reads a slide along a wall (`semreloc_env.sensors.Odometry`,
+      ``reads_slides=False``: the increment projected on the direction of an arc without slip). v18's odometry read
+      the true increment, and the rot1-trans-rot2 model read a 1.7 cm slide across the heading as a quarter turn,
+      a step and a quarter turn back, with about 1 m of translation noise: an outside reviewer's tracking robot
+      pushing into a wall at 72 deg ended 5.7 m off. The relocalizer's KLD sampling allows three times the error
+      (``kld_epsilon`` 0.15), so a spread belief holds about a third of the particles, and its remembered places move
+      with the odometry (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V18` with both). Every episode changes; outcomes
+      on held-out seeds in docs/relocalizer.md, "SemReloc-v19". Maps, worlds, observations, rewards and info keys
+      are v18's (`SemRelocEnvV18` is v18).
     * v18: when a held convergence fades without a surprise in a tracking episode, the audit it turns on judges only
       the scans since the set last met the 95 % rule by itself, and calls nothing converged until it has five
       (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V17` with ``lost_hold_window=5``). v17's audit judged the last 20
@@ -488,6 +505,9 @@ class SemRelocEnv(SemRelocBase):
     _world_option_keys = frozenset({"pose", "kidnap_pose"})
     default_relocalizer: MCLConfig = DEFAULT_RELOCALIZER
     """What ``relocalizer=None`` stands for and a dict of overrides applies to."""
+    odometry_reads_slides = False
+    """The simulated odometry reads what the wheels see, not a slide along a wall (`semreloc_env.sensors.Odometry`;
+    True in v18 and older)."""
     mapping_run_version: str = "6"
     """The mapping run (`semreloc_env.mapping_run.MAPPING_RUN_VERSIONS`) behind ``map_source="mapping"``
     and maps built from another layout."""
@@ -769,10 +789,20 @@ def _belief_title(belief) -> str:
     return f"  best hypothesis {100 * best.weight:.0f} % (std {best.pos_std_m:.1f} m)"
 
 
-class SemRelocEnvV17(SemRelocEnv):
+class SemRelocEnvV18(SemRelocEnv):
+    """``SemReloc-v18``: `SemRelocEnv` with the relocalizer of v18 (`RELOCALIZER_V18`: KLD's ``kld_epsilon`` 0.05, the
+    remembered places stay where the last update left them) and odometry that reads the true increment, a slide
+    along a wall included. Otherwise identical to ``SemReloc-v19``. Kept so that results made with v18 can be
+    reproduced; new work should use ``SemReloc-v19``."""
+
+    default_relocalizer = RELOCALIZER_V18
+    odometry_reads_slides = True
+
+
+class SemRelocEnvV17(SemRelocEnvV18):
     """``SemReloc-v17``: `SemRelocEnv` with the relocalizer of v17 (`RELOCALIZER_V17`: the audit a hold lost without a
     surprise turns on judges the last 20 updates' scans at once). Otherwise identical to ``SemReloc-v18``. Kept so
-    that results made with v17 can be reproduced; new work should use ``SemReloc-v18``."""
+    that results made with v17 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V17
 
@@ -780,7 +810,7 @@ class SemRelocEnvV17(SemRelocEnv):
 class SemRelocEnvV16(SemRelocEnvV17):
     """``SemReloc-v16``: `SemRelocEnv` with the relocalizer of v16 (`RELOCALIZER_V16`: a tracking start holds no
     pose, and its surprise tests are armed only once the belief has met the 95 % rule). Otherwise identical to
-    ``SemReloc-v17``. Kept so that results made with v16 can be reproduced; new work should use ``SemReloc-v18``."""
+    ``SemReloc-v17``. Kept so that results made with v16 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V16
 
@@ -788,7 +818,7 @@ class SemRelocEnvV16(SemRelocEnvV17):
 class SemRelocEnvV15(SemRelocEnvV16):
     """``SemReloc-v15``: `SemRelocEnv` with the relocalizer of v15 (`RELOCALIZER_V15`: a held convergence that ends
     without a surprise leaves the audit off in a tracking episode). Otherwise identical to ``SemReloc-v16``. Kept so
-    that results made with v15 can be reproduced; new work should use ``SemReloc-v18``."""
+    that results made with v15 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V15
 
@@ -796,7 +826,7 @@ class SemRelocEnvV15(SemRelocEnvV16):
 class SemRelocEnvV14(SemRelocEnvV15):
     """``SemReloc-v14``: `SemRelocEnv` with the relocalizer of v14 (`RELOCALIZER_V14`: the audit a surprise turns on
     in a tracking episode stays on until the next reset). Otherwise identical to ``SemReloc-v15``. Kept so that
-    results made with v14 can be reproduced; new work should use ``SemReloc-v18``."""
+    results made with v14 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V14
 
@@ -804,7 +834,7 @@ class SemRelocEnvV14(SemRelocEnvV15):
 class SemRelocEnvV13(SemRelocEnvV14):
     """``SemReloc-v13``: `SemRelocEnv` with the relocalizer of v13 (`RELOCALIZER_V13`: no surprise test of the
     camera's own). Otherwise identical to ``SemReloc-v14``. Kept so that results made with v13 can be reproduced;
-    new work should use ``SemReloc-v18``."""
+    new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V13
 
@@ -812,7 +842,7 @@ class SemRelocEnvV13(SemRelocEnvV14):
 class SemRelocEnvV12(SemRelocEnvV13):
     """``SemReloc-v12``: `SemRelocEnv` with the relocalizer of v12 (`RELOCALIZER_V12`: its surprise test compares
     with augmented MCL's fast average, which injections restart). Otherwise identical to ``SemReloc-v13``. Kept
-    so that results made with v12 can be reproduced; new work should use ``SemReloc-v18``."""
+    so that results made with v12 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V12
 
@@ -821,7 +851,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
     """``SemReloc-v11``: `SemRelocEnvV12` with the maps of the mapping run's version 5 (a drive that skips passages
     between its lattice's rows and columns) and the relocalizer of v10 and v11 (`RELOCALIZER_V10`: no audit in
     a tracking episode, also after a surprise). Otherwise identical to ``SemReloc-v12``. Kept so that results
-    made with v11 can be reproduced; new work should use ``SemReloc-v18``."""
+    made with v11 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V10
     mapping_run_version = "5"
@@ -830,7 +860,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
 class SemRelocEnvV10(SemRelocEnvV11):
     """``SemReloc-v10``: `SemRelocEnvV11` with the maps of the mapping run's version 4 (space the lidar's returns
     did not reach left unknown). Otherwise identical to ``SemReloc-v11``. Kept so that results made with v10
-    can be reproduced; new work should use ``SemReloc-v18``."""
+    can be reproduced; new work should use ``SemReloc-v19``."""
 
     mapping_run_version = "4"
 
@@ -839,7 +869,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
     """``SemReloc-v9``: `SemRelocEnvV10` with the maps of the mapping run's version 3 (stray class cells kept)
     and the relocalizer of v9 (`RELOCALIZER_V9`: the screen's pause ignores where the belief is). Otherwise
     identical to ``SemReloc-v10``. Kept so that results made with v9 can be reproduced; new work should use
-    ``SemReloc-v18``."""
+    ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V9
     mapping_run_version = "3"
@@ -848,7 +878,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
 class SemRelocEnvV8(SemRelocEnvV9):
     """``SemReloc-v8``: `SemRelocEnvV9` with the relocalizer of v7 and v8 (`RELOCALIZER_V7`: the convergence
     audit searches near its candidates and the particles only). Otherwise identical to ``SemReloc-v9``.
-    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v18``."""
+    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V7
 
@@ -857,7 +887,7 @@ class SemRelocEnvV7(SemRelocEnvV8):
     """``SemReloc-v7``: `SemRelocEnvV8` with the maps of the mapping run's version 2, whose camera beams
     without a return (objects nearer than the camera's minimum range among them) cleared the classes along
     the camera's range. Otherwise identical to ``SemReloc-v8``. Kept so that results made with v7 can be
-    reproduced; new work should use ``SemReloc-v18``."""
+    reproduced; new work should use ``SemReloc-v19``."""
 
     mapping_run_version = "2"
 
@@ -866,7 +896,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
     """``SemReloc-v6``: `SemRelocEnvV7` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
     coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
     identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
-    ``SemReloc-v18``."""
+    ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V6
 
@@ -874,7 +904,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
 class SemRelocEnvV5(SemRelocEnvV6):
     """``SemReloc-v5``: `SemRelocEnvV6` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
-    results made with v5 can be reproduced; new work should use ``SemReloc-v18``."""
+    results made with v5 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V5
 
@@ -882,7 +912,7 @@ class SemRelocEnvV5(SemRelocEnvV6):
 class SemRelocEnvV4(SemRelocEnvV5):
     """``SemReloc-v4``: `SemRelocEnvV5` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
     audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
-    reproduced; new work should use ``SemReloc-v18``."""
+    reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V4
 
@@ -890,7 +920,7 @@ class SemRelocEnvV4(SemRelocEnvV5):
 class SemRelocEnvV3(SemRelocEnvV4):
     """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v18``."""
+    v3 can be reproduced; new work should use ``SemReloc-v19``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -898,7 +928,7 @@ class SemRelocEnvV3(SemRelocEnvV4):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v18``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v19``."""
 
     procedural_version = 1
 
@@ -907,7 +937,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v18``."""
+    v1 keep working; new work should use ``SemReloc-v19``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -915,6 +945,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v18``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v19``."""
 
     default_relocalizer = LEGACY_RELOCALIZER

@@ -106,7 +106,7 @@ class SemSlamEnv(SemRelocBase):
 
     ## Description
     The world, robot and sensors of ``SemReloc-v18`` (a pymunk world built from a *layout*, a 360 deg
-    lidar, a forward semantic camera, wheel odometry). Inside the env runs **WOCPF SLAM** (paper 000):
+    lidar, a forward semantic camera, wheel odometry that reads the true increment, a slide along a wall included). Inside the env runs **WOCPF SLAM** (paper 000):
     FastSLAM (`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
     through the WOC step ``psi = (K-1)/K w + mean(w)/K`` before resampling. Its controls are the noisy
     odometry increments (`filters.motion.odometry_slam.OdometryIncrementModel`); its observations
