@@ -164,8 +164,8 @@ evaluated on 21 layouts of earlier testers (docs/relocalizer.md, "The window's o
 DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V18, kld_epsilon=0.15, places_follow_odometry=True)
 """The relocalizer of SemReloc-v19: `RELOCALIZER_V18` whose KLD sampling allows three times the error
 (``kld_epsilon`` 0.15 instead of 0.05), so a spread belief holds about a third of the particles (in the lab, a mean of
-650 instead of 1,180 over the relocalizer evaluation's episodes; right after a global reset, about 6,000 instead of
-18,000); and whose remembered places (a held convergence's, a place an audit cleared) move with the odometry between
+650 instead of 1,200 over the relocalizer evaluation's episodes; right after a global reset 1,600-4,000 instead of
+17,800-20,000, ten seeds); and whose remembered places (a held convergence's, a place an audit cleared) move with the odometry between
 updates (``places_follow_odometry``). Chosen on the relocalizer evaluation's tuning seeds; evaluated on its reported
 seeds and the 930 held-out active pairs (docs/relocalizer.md, "SemReloc-v19")."""
 
