@@ -319,7 +319,10 @@ id its episodes run in (the newest without it); its other keys are overrides of 
 def variant_parts(variant: dict) -> tuple[str, dict]:
     """``(env id or "" for the newest, relocalizer overrides)`` of a variant dict (`ENV_ID_KEY`)."""
     overrides = {k: v for k, v in variant.items() if k != ENV_ID_KEY}
-    return variant.get(ENV_ID_KEY, ""), overrides
+    env_id = variant.get(ENV_ID_KEY, "")
+    if ENV_ID_KEY in variant and not (isinstance(env_id, str) and env_id):
+        raise ValueError(f"{ENV_ID_KEY} must name a SemReloc id (a non-empty string), got {env_id!r:.60}")
+    return env_id, overrides
 
 
 def env_class(env_id: str = ""):

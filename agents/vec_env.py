@@ -102,7 +102,7 @@ class SB3VecEnvAdapter(VecEnv):
             info["TimeLimit.truncated"] = bool(trunc and not term)
             if dones[i]:
                 info["terminal_observation"] = o
-                with self.venv.naming_who_raised(i, "reset"):
+                with self.venv.naming_who_raised(i, "step", ", resetting it after its episode ended"):
                     o, self.reset_infos[i] = env.reset()
             obs.append(o)
             infos.append(info)

@@ -262,18 +262,22 @@ class Odometry:
 
     ``reads_slides``: whether the reading includes a sideways slide (a push along a wall). A differential
     drive's wheels cannot roll sideways, so their encoders never see one: with ``reads_slides=False``
-    (`SemReloc-v19`) the increment is the true one projected on the direction a turn of ``dtheta`` without
-    slip moves along (``dtheta / 2`` in the robot's frame at ``prev_pose``): an arc without slip reads as it is,
-    a slide across that direction reads as nothing. The turn reads as it is. (Wheels that spin against a wall
-    and read motion the robot did not make are not modelled.) With ``True`` (`SemReloc-v18` and older, and
-    `SemSlam`) the reading is the true increment, slides included; the rot1-trans-rot2 model then reads a
-    1.7 cm slide across the heading as a quarter turn, a step and a quarter turn back, with about 1 m of
-    translation noise (docs/relocalizer.md, "Wheel odometry").
+    (`SemReloc-v19`) the increment is the true one projected on the direction a step without slip moves along
+    (`wheel_increment`), the turn as it is: a step without slip reads as it is, a slide across that direction reads
+    as nothing. (Wheels that spin against a wall and read motion the robot did not make are not modelled.) With
+    ``True`` (`SemReloc-v18` and older, and `SemSlam`) the reading is the true increment, slides included; the
+    rot1-trans-rot2 model then reads a 1.7 cm slide across the heading as a quarter turn, a step and a quarter turn
+    back, with about 1 m of translation noise (docs/relocalizer.md, "SemReloc-v19").
+
+    ``substeps``: the simulator's physics substeps per control step (`semreloc_env.world.World.drive` moves along the
+    heading at each substep's start, so a step without slip moves along ``dtheta (substeps - 1) / (2 substeps)``);
+    None for a continuous arc (``dtheta / 2``).
     """
 
-    def __init__(self, params: OdometryMotionConfig, reads_slides: bool = True):
+    def __init__(self, params: OdometryMotionConfig, reads_slides: bool = True, substeps: int | None = None):
         self.params = params
         self.reads_slides = bool(reads_slides)
+        self.substeps = substeps
         self._model = OdometryMotionModel(params)
         self._origin = np.zeros(3)
 
@@ -284,15 +288,20 @@ class Odometry:
         """
         delta = _relative(prev_pose, pose)
         if not self.reads_slides:
-            delta = wheel_increment(delta)
+            delta = wheel_increment(delta, self.substeps)
         return self._model.sample_pose(self._origin, delta, rng)
 
 
-def wheel_increment(delta: tuple[float, float, float]) -> tuple[float, float, float]:
-    """What a differential drive's wheels read of the robot-frame increment ``delta = (dx, dy, dtheta)``: its
-    part along ``dtheta / 2`` (the direction of an arc without slip), with the turn as it is (see `Odometry`)."""
+def wheel_increment(delta: tuple[float, float, float], substeps: int | None = None) -> tuple[float, float, float]:
+    """What a differential drive's wheels read of the robot-frame increment ``delta = (dx m, dy m, dtheta rad)``: its
+    part along the direction a step without slip moves along, with the turn as it is (see `Odometry`).
+
+    That direction is ``dtheta / 2`` for a continuous arc (``substeps`` None) and ``dtheta (n - 1) / (2 n)`` for
+    ``n = substeps`` straight moves, each along the heading at its start, as `semreloc_env.world.World.drive`
+    integrates a control step."""
     dx, dy, dth = delta
-    c, s = math.cos(0.5 * dth), math.sin(0.5 * dth)
+    half = 0.5 * dth if substeps is None else dth * (substeps - 1) / (2.0 * substeps)
+    c, s = math.cos(half), math.sin(half)
     along = dx * c + dy * s
     return along * c, along * s, dth
 

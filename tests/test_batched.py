@@ -391,3 +391,22 @@ def test_the_sb3_adapter_also_stops_after_a_robot_raised_until_a_reset():
     adapter.reset()
     adapter.step(np.array([0, 0, 0]))
     assert [e.unwrapped._steps for e in venv.envs] == [1, 1, 1]
+
+    # a reviewer's check: a robot whose reset after its episode ended raises is named as such, not as a reset() call
+    class FailsToReset(gym.Wrapper):
+        armed = False
+
+        def reset(self, **kwargs):
+            if FailsToReset.armed:
+                raise KeyError("a robot's own reset failure")
+            return self.env.reset(**kwargs)
+
+    short = SemRelocLoopVectorEnv(num_envs=3, **{**VKW, "max_episode_steps": 1}, wrapper=lambda env: env)
+    short.envs[2] = FailsToReset(short.envs[2])
+    adapter = SB3VecEnvAdapter(short)
+    adapter.reset()
+    FailsToReset.armed = True
+    with pytest.raises(KeyError):
+        adapter.step(np.array([0, 0, 0]))
+    with pytest.raises(RuntimeError, match=r"robot 2 raised KeyError in the last step\(\), resetting it after its "):
+        adapter.step(np.array([0, 0, 0]))

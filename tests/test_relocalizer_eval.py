@@ -419,6 +419,9 @@ def test_a_variant_with_an_env_id_runs_that_version_and_its_relocalizer():
 
     assert variant_parts({"env_id": "SemReloc-v18", "kld": False}) == ("SemReloc-v18", {"kld": False})
     assert variant_parts({"kld": False}) == ("", {"kld": False})
+    for falsy in (None, "", 0):  # a reviewer's case: these ran the newest version without a word
+        with pytest.raises(ValueError, match="env_id must name a SemReloc id"):
+            variant_parts({"env_id": falsy})
     assert env_class("SemReloc-v18").__name__ == "SemRelocEnvV18" and env_class("").__name__ == "SemRelocEnv"
     (spec,) = specs_for("lab", 1, 0, [0], {"env_id": "SemReloc-v18", "kld_epsilon": 0.1}, "old")
     assert spec.env_id == "SemReloc-v18" and spec.mcl == {"kld_epsilon": 0.1}

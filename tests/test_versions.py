@@ -16,6 +16,7 @@ SemSlam-v1 (typed observation, not-computed info values left out) against SemRel
 observation, None)."""
 
 import dataclasses
+import math
 import warnings
 from pathlib import Path
 
@@ -711,7 +712,9 @@ def test_v19_is_v18_with_wheel_odometry_a_looser_kld_bound_and_places_that_follo
     assert a.mapping_run_version == b.mapping_run_version == "6"
     assert a.observation_space == b.observation_space and a.odometry.params == b.odometry.params
     assert make("SemSlam-v1", **SLAM_FAST).unwrapped.odometry.reads_slides  # SemSlam keeps its episodes
-    assert semreloc_env.envs.batched.SINGLE_ENV_ID == "SemReloc-v19"
+    from semreloc_env.envs.batched import SINGLE_ENV_ID
+
+    assert SINGLE_ENV_ID == "SemReloc-v19"
     venv = gym.make_vec("SemRelocVec-v19", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
     assert not venv.envs[0].unwrapped.odometry.reads_slides and venv.envs[0].unwrapped.mcl_config.kld_epsilon == 0.15
     venv.close()
@@ -727,6 +730,8 @@ def test_wheel_odometry_reads_an_arc_as_it_is_and_no_sideways_slide():
         np.testing.assert_allclose(wheel_increment(arc), arc, atol=1e-15)
     np.testing.assert_allclose(wheel_increment((0.0, 0.017, 0.0)), (0.0, 0.0, 0.0), atol=1e-18)  # a slide sideways
     np.testing.assert_allclose(wheel_increment((0.01, 0.017, 0.0)), (0.01, 0.0, 0.0), atol=1e-18)  # along + across
+    chord = (0.05 * math.cos(0.04), 0.05 * math.sin(0.04), 0.1)  # 5 moves along headings 0, 0.02, ..., 0.08
+    np.testing.assert_allclose(wheel_increment(chord, 5), chord, atol=1e-15)
 
 
 def test_v18_is_v17_whose_audit_after_a_lost_hold_judges_only_the_scans_since_its_fade():

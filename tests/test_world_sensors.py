@@ -177,6 +177,27 @@ def test_wheel_odometry_reads_no_slide_along_a_wall():
     np.testing.assert_allclose(a, b, atol=1e-12)  # an arc without slip reads the same either way
 
 
+def test_wheel_odometry_reads_the_simulators_free_arcs_as_they_are():
+    """A reviewer's check: `World.drive` moves along the heading at each substep's start, so a free arc's chord
+    points at dtheta (n - 1) / (2 n), not dtheta / 2; read along dtheta / 2 a 30-step arc dead-reckoned 1 cm off."""
+    import gymnasium as gym
+
+    from semreloc_env.sensors import _relative, wheel_increment
+
+    for substeps in (5, 2, 1):
+        env = gym.make("SemReloc-v19", layout="open_hall", map_source="perfect", physics={"substeps": substeps})
+        env.reset(seed=0, options={"pose": [3.5, 7.5, 0.3]})  # 3 m from anything
+        world = env.unwrapped.world
+        assert env.unwrapped.odometry.substeps == substeps
+        for v, w in [(0.5, 1.0), (-0.3, 1.0), (0.3, -1.5), (0.0, 1.0)]:
+            est = world.pose.copy()
+            for _ in range(30):
+                prev = world.pose.copy()
+                assert not world.drive(v, w)  # free: no wall within reach
+                est = compose(est, np.array(wheel_increment(_relative(prev, world.pose), substeps)))
+            np.testing.assert_allclose(est, world.pose, atol=1e-9)
+
+
 def test_dead_reckoning_drifts():
     odo = Odometry(OdometryMotionConfig(alpha1=0.02, alpha2=0.02, alpha3=0.02, alpha4=0.01))
     rng = np.random.default_rng(1)

@@ -90,6 +90,7 @@ class SemRelocBase(gym.Env):
         self.odometry = Odometry(
             coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()),
             reads_slides=self.odometry_reads_slides,
+            substeps=self.physics_params.substeps,
         )
         self.action_space = make_action_space(action_type)
         self.action_type = action_type

@@ -273,19 +273,19 @@ class SemRelocLoopVectorEnv(VectorEnv):
         self._out_of_step = None
 
     @contextlib.contextmanager
-    def naming_who_raised(self, i: int, call: str):
+    def naming_who_raised(self, i: int, call: str, detail: str = ""):
         """Let an exception of robot ``i``'s ``call`` (``"step"`` or ``"reset"``) pass, and remember that the robots
-        are out of step (`check_in_step` then refuses). For loops over the robots outside this class too (the SB3
-        adapter's)."""
+        are out of step (`check_in_step` then refuses); ``detail`` says more of what the robot was doing. For loops
+        over the robots outside this class too (the SB3 adapter's). A Ctrl-C in the loop counts too."""
         try:
             yield
-        except Exception as e:
+        except BaseException as e:
             ran = ("no other robot had run it", "robot 0 had run it", f"robots 0 to {i - 1} had run it")[min(i, 2)]
             n_left = self.num_envs - 1 - i
             left = ("it was the last", f"robot {i + 1} had not", f"robots {i + 1} to {self.num_envs - 1} had not")
             left = left[min(n_left, 2)]
             self._out_of_step = (
-                f"robot {i} raised {type(e).__name__} in the last {call}() ({e!s:.200}); {ran} and {left}: "
+                f"robot {i} raised {type(e).__name__} in the last {call}(){detail} ({e!s:.200}); {ran} and {left}: "
                 "the robots are out of step, call reset()"
             )
             raise
