@@ -333,17 +333,20 @@ def test_in_wrapped_space_casts_only_into_a_float_box():
     assert in_wrapped_space(2, gym.spaces.Discrete(4)) and not in_wrapped_space(4, gym.spaces.Discrete(4))
 
 
+class FailsOnce(gym.Wrapper):
+    """A robot whose next step raises once ``FailsOnce.armed`` is set."""
+
+    armed = False
+
+    def step(self, action):
+        if FailsOnce.armed:
+            FailsOnce.armed = False
+            raise KeyError("a robot's own failure")
+        return self.env.step(action)
+
+
 def test_a_robot_that_raises_mid_step_stops_the_vector_env_until_a_reset():
     # robots before it had stepped and those after it had not: stepping on would have run them out of step silently
-    class FailsOnce(gym.Wrapper):
-        armed = False
-
-        def step(self, action):
-            if FailsOnce.armed:
-                FailsOnce.armed = False
-                raise KeyError("a robot's own failure")
-            return self.env.step(action)
-
     venv = SemRelocLoopVectorEnv(num_envs=3, **VKW, wrapper=lambda env: env)
     venv.envs[1] = FailsOnce(venv.envs[1])
     venv.reset(seed=0)
@@ -366,15 +369,6 @@ def test_a_robot_that_raises_mid_step_stops_the_vector_env_until_a_reset():
 def test_the_sb3_adapter_also_stops_after_a_robot_raised_until_a_reset():
     # an outside tester's trial: the adapter loops over the robots itself, and stepped on with them out of step
     from agents.vec_env import SB3VecEnvAdapter
-
-    class FailsOnce(gym.Wrapper):
-        armed = False
-
-        def step(self, action):
-            if FailsOnce.armed:
-                FailsOnce.armed = False
-                raise KeyError("a robot's own failure")
-            return self.env.step(action)
 
     venv = SemRelocLoopVectorEnv(num_envs=3, **VKW, wrapper=lambda env: env)
     venv.envs[1] = FailsOnce(venv.envs[1])
