@@ -163,8 +163,8 @@ evaluated on 21 layouts of earlier testers (docs/relocalizer.md, "The window's o
 
 DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V18, kld_epsilon=0.15, places_follow_odometry=True)
 """The relocalizer of SemReloc-v19: `RELOCALIZER_V18` whose KLD sampling allows three times the error
-(``kld_epsilon`` 0.15 instead of 0.05), so a spread belief holds about a third of the particles (in the lab, a mean of
-675 instead of 1,154 over the relocalizer evaluation's tuning episodes; right after a global reset 1,600-4,000 instead of
+(``kld_epsilon`` 0.15 instead of 0.05), so a spread belief holds fewer particles (a mean of 675 instead of 1,154 over
+the relocalizer evaluation's tuning episodes; right after a global reset in the lab 1,550-4,000 instead of
 17,800-20,000, ten seeds); and whose remembered places (a held convergence's, a place an audit cleared) move with the odometry between
 updates (``places_follow_odometry``). Chosen on the relocalizer evaluation's tuning seeds; evaluated on its reported
 seeds and the 930 held-out active pairs (docs/relocalizer.md, "SemReloc-v19")."""
@@ -320,7 +320,7 @@ class SemRelocEnv(SemRelocBase):
       the true increment, and the rot1-trans-rot2 model read a 1.7 cm slide across the heading as a quarter turn,
       a step and a quarter turn back, with about 1 m of translation noise: an outside reviewer's tracking robot
       pushing into a wall at 72 deg ended 5.8 m off. The relocalizer's KLD sampling allows three times the error
-      (``kld_epsilon`` 0.15), so a spread belief holds about a third of the particles, and its remembered places move
+      (``kld_epsilon`` 0.15), so a spread belief holds fewer particles, and its remembered places move
       with the odometry (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V18` with both). Every episode changes; outcomes
       on held-out seeds in docs/relocalizer.md, "SemReloc-v19". Maps, worlds, observations, rewards and info keys
       are v18's (`SemRelocEnvV18` is v18).
