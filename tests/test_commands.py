@@ -73,6 +73,18 @@ def test_cheap_benchmarks_run_and_print_finite_figures(name):
     assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows
 
 
+def test_the_bench_runs_the_version_it_is_told():
+    """``--env-id`` names the version the env benchmarks run (the docs compare v19 with v18 that way)."""
+    from agents.tools import bench
+    from filters.experiments.cli import parse
+
+    args = parse(bench.Args, ["--env-id", "SemReloc-v18", "--only", "env"])
+    assert type(bench._env(args)).__name__ == "SemRelocEnvV18"
+    assert type(bench._env(parse(bench.Args, []))).__name__ == "SemRelocEnv"
+    with pytest.raises(ValueError, match="env_id: 'SemSlam-v1' is not one of"):
+        bench.Args(env_id="SemSlam-v1")
+
+
 def test_quick_reproductions_write_under_build_not_docs():
     """A smoke run must never overwrite the shipped reports and figures in docs/."""
     from agents.experiments import paper004

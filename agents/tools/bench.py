@@ -58,8 +58,16 @@ class Args:
     """skip the building-size layout and PPO."""
     only: tuple[str, ...] = ()
     """benchmark names, space-separated (e.g. likelihood env); empty = all."""
+    env_id: str = ""
+    """the SemReloc id the env, batched, stages, scaling, reset and PPO benchmarks run (empty = the newest,
+    SemReloc-v19; e.g. SemReloc-v18 to compare a version in the next run)"""
 
     def __post_init__(self) -> None:
+        if self.env_id:
+            from semreloc_env import semreloc_ids_since
+
+            if self.env_id not in semreloc_ids_since(2):
+                raise ValueError(f"env_id: {self.env_id!r} is not one of {list(semreloc_ids_since(2))}")
         names = [b.__name__.removeprefix("bench_") for b in BENCHMARKS]
         unknown = [o for o in self.only if o not in names]
         if unknown:
@@ -251,12 +259,12 @@ def bench_likelihood(args: Args) -> list[Row]:
 ENV_ID = "SemReloc-v19"
 
 
-def _env(**kwargs):
+def _env(args: Args, **kwargs):
     import gymnasium as gym
 
     import semreloc_env  # noqa: F401
 
-    return gym.make(ENV_ID, **kwargs).unwrapped
+    return gym.make(args.env_id or ENV_ID, **kwargs).unwrapped
 
 
 def _steps_per_s(env, steps: int, seed: int, policy=None) -> tuple[float, float]:
@@ -293,24 +301,25 @@ class RandomPolicy:
 
 
 def bench_env(args: Args) -> list[Row]:
-    """Single ``SemReloc-v19`` at its defaults (lab, mapped map, map-sized particle set with KLD, 60 + 32
-    beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
+    """Single ``SemReloc-v19`` (or ``--env-id``) at its defaults (lab, mapped map, map-sized particle set with KLD,
+    60 + 32 beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
     code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
     explorer and under random actions (which stay near the start, so their belief is often tight: a mean of
     about 1,900 particles in an outside tester's count, and the cheaper row)."""
     from filters import _blas
 
     rows = []
+    env_id = args.env_id or ENV_ID
     for label, make_policy in (("explorer", lambda: None), ("random", lambda: RandomPolicy(args.seed))):
         fast = ref = (0.0, 0.0)
         for _ in range(2):  # interleaved rounds: the load changes over minutes; best of each
-            f = _steps_per_s(_env(), args.steps // 2, args.seed, make_policy())
-            r = _steps_per_s(_env(relocalizer={"fast_path": False}), args.steps // 2, args.seed, make_policy())
+            f = _steps_per_s(_env(args), args.steps // 2, args.seed, make_policy())
+            r = _steps_per_s(_env(args, relocalizer={"fast_path": False}), args.steps // 2, args.seed, make_policy())
             fast = max(fast, f)
             ref = max(ref, r)
         rows += [
-            Row(f"{ENV_ID} step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
-            Row(f"{ENV_ID} step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
+            Row(f"{env_id} step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
+            Row(f"{env_id} step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
             Row("  fast / reference", fast[0] / ref[0], fast[1] / ref[1], "x", "target >= 3"),
         ]
     rows.append(
@@ -324,11 +333,11 @@ def bench_belief(args: Args) -> list[Row]:
     converged one): the numba kernels against the NumPy reference (same Belief bit for bit)."""
     from filters.localization.belief import summarize
 
-    env = _env()
+    env = _env(args)
     env.reset(seed=args.seed)
     mcl = env.mcl
     sets = [("spread", mcl.poses.copy(), mcl.weights)]
-    env_t = _env()
+    env_t = _env(args)
     env_t.reset(seed=args.seed, options={"tracking": True})
     sets.append(("tracking", env_t.mcl.poses.copy(), env_t.mcl.weights))
     rows = []
@@ -364,7 +373,7 @@ def bench_batched(args: Args) -> list[Row]:
     ]
     for r, relocalizer, what, why in cases:
         kwargs = {} if relocalizer is None else {"relocalizer": relocalizer}
-        venv = SemRelocLoopVectorEnv(num_envs=r, env_id=ENV_ID, **kwargs)
+        venv = SemRelocLoopVectorEnv(num_envs=r, env_id=args.env_id or ENV_ID, **kwargs)
         venv.reset(seed=args.seed)
         rng = np.random.default_rng(args.seed)
         with Clock() as c:
@@ -381,7 +390,7 @@ def bench_stages(args: Args) -> list[Row]:
     from agents.baselines import WallFollowExplorer
     from agents.tools.profile_step import stage_breakdown
 
-    stages, total, _ = stage_breakdown(_env(), WallFollowExplorer(), max(200, args.steps // 2), args.seed)
+    stages, total, _ = stage_breakdown(_env(args), WallFollowExplorer(), max(200, args.steps // 2), args.seed)
     rows = [Row("step under cProfile", total * 1e3, float("nan"), "ms CPU", "stages below")]
     for k, v in stages.items():
         rows.append(Row(f"  {k}", v * 1e3, 100 * v / total, "ms CPU | %", ""))
@@ -392,7 +401,7 @@ def bench_scaling(args: Args) -> list[Row]:
     """time(10000 particles, 180 beams) / time(2000, 60) per env step (all lidar beams used)."""
     out = {}
     for n, b in ((2000, 60), (10000, 180)):
-        env = _env(lidar={"n_beams": b}, relocalizer={"n_particles": n, "lidar_field": {"max_beams": b}})
+        env = _env(args, lidar={"n_beams": b}, relocalizer={"n_particles": n, "lidar_field": {"max_beams": b}})
         out[(n, b)] = _steps_per_s(env, max(100, args.steps // 3), args.seed)
     r_cpu = out[(2000, 60)][0] / out[(10000, 180)][0]
     r_wall = out[(2000, 60)][1] / out[(10000, 180)][1]
@@ -404,16 +413,16 @@ def bench_reset(args: Args) -> list[Row]:
     """reset() with a cached map, gym.make with a cached map, and a new layout (no disk cache)."""
     import os
 
-    env = _env()
+    env = _env(args)
     env.reset(seed=0)
     seeds = iter(range(1, 10**6))
     r_cpu, r_wall = _median_time(lambda: env.reset(seed=next(seeds)), max(20, args.repeats))
     n_spread = env.mcl.global_particle_count()
     t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), max(20, args.repeats))
-    small = _env(relocalizer={"n_particles": 2000})
+    small = _env(args, relocalizer={"n_particles": 2000})
     small.reset(seed=0)
     s_cpu, s_wall = _median_time(lambda: small.reset(seed=next(seeds)), max(20, args.repeats))
-    m_cpu, m_wall = _median_time(_env, 5)
+    m_cpu, m_wall = _median_time(lambda: _env(args), 5)
     old = os.environ.get("SEMRELOC_CACHE_DIR")
     os.environ["SEMRELOC_CACHE_DIR"] = ""
     try:
@@ -424,7 +433,7 @@ def bench_reset(args: Args) -> list[Row]:
         rows = []
         for name, seed in (("procedural", 1001), ("procedural", 1002)):
             with Clock() as c:
-                e = _env(layout=name, layout_seed=seed)
+                e = _env(args, layout=name, layout_seed=seed)
                 e.reset(seed=0)
             rows.append((c.cpu, c.wall, e.layout.bounds()))
     finally:
@@ -572,7 +581,7 @@ def bench_ppo(args: Args) -> list[Row]:
     for vec_env, n_envs in (("dummy", 4), ("batched", 16)):
         cfg = TrainConfig(
             n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, total_timesteps=args.ppo_steps,
-            seed=args.seed,
+            seed=args.seed, **({"env_id": args.env_id} if args.env_id else {}),
         )  # fmt: skip
         venv = make_venv(cfg)
         venv.reset()
