@@ -327,18 +327,11 @@ def variant_parts(variant: dict) -> tuple[str, dict]:
 
 def env_class(env_id: str = ""):
     """The env class of a registered ``SemReloc-vN`` id (``""``: the newest, `SemRelocEnv`); ValueError for
-    another id."""
-    from semreloc_env import default_relocalizer
+    another id (`semreloc_env.semreloc_class`)."""
+    from semreloc_env import semreloc_class
     from semreloc_env.envs.semreloc import SemRelocEnv
 
-    if not env_id:
-        return SemRelocEnv
-    if not isinstance(env_id, str):
-        raise ValueError(f"env_id must be a SemReloc id string, got {env_id!r:.60}")
-    default_relocalizer(env_id)  # ValueError naming the ids for anything else
-    from gymnasium.envs.registration import load_env_creator, registry
-
-    return load_env_creator(registry[env_id].entry_point)
+    return semreloc_class(env_id) if env_id else SemRelocEnv
 
 
 def run_episode(spec: EpisodeSpec) -> dict:

@@ -24,6 +24,7 @@ __all__ = [
     "get_layout",
     "load_layout",
     "default_relocalizer",
+    "semreloc_class",
     "semreloc_ids_since",
 ]
 
@@ -81,14 +82,20 @@ VECTOR_ENV_IDS = (
 / ``-v2`` / ``-v1`` in one process."""
 
 
+def semreloc_class(env_id: str):
+    """The env class a registered ``SemReloc-*`` id makes (``SemReloc-v18``: `SemRelocEnvV18`). ValueError for
+    another id."""
+    from gymnasium.envs.registration import load_env_creator
+
+    if env_id not in semreloc_ids_since(0):
+        raise ValueError(f"no SemReloc relocalizer for env id {env_id!r}; ids: {semreloc_ids_since(0)}")
+    return load_env_creator(registry[env_id].entry_point)
+
+
 def default_relocalizer(env_id: str):
     """The `MCLConfig` a ``SemReloc-*`` id's relocalizer has unless ``relocalizer=`` overrides it (what
     command-line overrides are checked against). ValueError for another id."""
-    from gymnasium.envs.registration import load_env_creator
-
-    if env_id not in ENV_IDS or not env_id.startswith("SemReloc-"):
-        raise ValueError(f"no SemReloc relocalizer for env id {env_id!r}; ids: {semreloc_ids_since(0)}")
-    return load_env_creator(registry[env_id].entry_point).default_relocalizer
+    return semreloc_class(env_id).default_relocalizer
 
 
 def semreloc_ids_since(version: int) -> tuple[str, ...]:

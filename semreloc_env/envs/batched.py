@@ -156,9 +156,8 @@ class SemRelocLoopVectorEnv(VectorEnv):
         one = self.single_action_space
         hint = _float_array_hint(actions, one)
         if hint and all(env.action_space is env.unwrapped.action_space for env in self.envs):
-            raise ValueError(
-                f"invalid actions{hint}"
-            )  # every robot's action is a float: robot 0 is not the one to name
+            # every robot's action is a float: robot 0 is not the one to name
+            raise ValueError(f"invalid actions{hint}")
         if isinstance(actions, np.ndarray) and isinstance(one, gym.spaces.Box) and actions.shape[1:] != one.shape:
             raise ValueError(
                 f"actions must have shape {(self.num_envs, *one.shape)} (one {one.shape} action per robot), "
