@@ -179,12 +179,9 @@ class Args:
                 "(--layouts-per-kind 0 --no-builtin-layouts)"
             )
         semantic = self.relocalizer.get("use_semantic", True) if isinstance(self.relocalizer, dict) else True
-        import gymnasium as gym
-        from gymnasium.envs.registration import load_env_creator
+        from semreloc_env import semreloc_class
 
-        import semreloc_env  # noqa: F401  (registers the ids)
-
-        version = getattr(load_env_creator(gym.spec(self.env_id).entry_point), "mapping_run_version", None)
+        version = semreloc_class(self.env_id).mapping_run_version
         for f in self.layout_files:
             try:
                 maps_for(get_layout(f), self.map_source, LidarParams(), CameraParams(), semantic, version)
