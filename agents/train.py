@@ -105,7 +105,9 @@ class TrainConfig:
         n_envs: parallel envs.
         vec_env: ``"dummy"`` (one process), ``"subproc"`` (one process per env) or ``"batched"``
             (`semreloc_env.envs.batched.SemRelocLoopVectorEnv` through `agents.vec_env.SB3VecEnvAdapter`:
-            one process, the same episodes as ``"dummy"``).
+            one process, the same episodes as ``"dummy"``; in ``workers`` processes with ``workers > 1``).
+        workers: processes the ``"batched"`` robots are split over (`agents.worker_vec_env.WorkersVecEnv`, the same
+            episodes as in one process; 1: this process). At most ``n_envs``; other vec envs take 1 only.
         total_timesteps: env steps to train for (summed over envs). SB3 stops at the end of a rollout,
             so a run trains a whole number of rollouts (``n_steps * n_envs`` steps each), at least one:
             a smaller value still trains one rollout (the progress bar then shows e.g. "512/64").
@@ -142,6 +144,7 @@ class TrainConfig:
     env_id: str = ENV_ID
     n_envs: int = 4
     vec_env: str = "dummy"
+    workers: int = 1
     total_timesteps: int = 100_000
     seed: int = 0
     n_steps: int = 256
@@ -173,7 +176,8 @@ class TrainConfig:
         trainable = semreloc_ids_since(0)  # a SemSlam env takes other arguments
         if self.env_id not in trainable:
             raise ValueError(f"env_id must be one of {list(trainable)}, got {self.env_id!r}")
-        positive = ("n_envs", "total_timesteps", "n_steps", "batch_size", "n_epochs", "torch_threads", "eval_episodes")
+        positive = ("n_envs", "workers", "total_timesteps", "n_steps", "batch_size", "n_epochs", "torch_threads")
+        positive += ("eval_episodes",)
         for name in positive:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
@@ -186,6 +190,12 @@ class TrainConfig:
             object.__setattr__(self, name, int(every))
             if self.log_dir is None:
                 raise ValueError(f"{name} needs a log_dir to write to")
+        if self.workers > 1 and self.vec_env != "batched":
+            raise ValueError(
+                f"workers > 1 needs vec_env 'batched' (got {self.vec_env!r}; 'subproc' is a process per env already)"
+            )
+        if self.workers > self.n_envs:
+            raise ValueError(f"workers must be at most n_envs ({self.n_envs}), got {self.workers}")
         check_ppo_settings(self)
 
     def as_dict(self) -> dict[str, Any]:
@@ -220,7 +230,8 @@ def make_venv(config: TrainConfig, n_envs: int | None = None, seed: int | None =
 
     ``n_envs`` / ``seed`` default to ``config.n_envs`` / ``config.seed``; the evaluation env is the same
     kind with one env seeded ``config.eval_seed`` (SB3's ``EvalCallback`` warns when the kinds differ), but for
-    a ``"subproc"`` config a ``DummyVecEnv``: one env needs no process (`train` asks for that).
+    a ``"subproc"`` config a ``DummyVecEnv``: one env needs no process (`train` asks for that). ``workers`` beyond
+    ``n_envs`` are not started.
     """
     env_kwargs = dict(config.env_kwargs)
     n_envs = config.n_envs if n_envs is None else n_envs
@@ -231,15 +242,18 @@ def make_venv(config: TrainConfig, n_envs: int | None = None, seed: int | None =
         from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
         from .vec_env import SB3VecEnvAdapter
+        from .worker_vec_env import WorkersVecEnv, batched_block
 
-        venv = SB3VecEnvAdapter(
-            SemRelocLoopVectorEnv(
-                num_envs=n_envs,
-                env_id=config.env_id,
-                wrapper=lambda e: Monitor(BeliefObservation(e)),
-                **env_kwargs,
+        def wrapper(e):
+            return Monitor(BeliefObservation(e))
+
+        workers = min(int(config.workers), n_envs)
+        if workers > 1:
+            venv = WorkersVecEnv(batched_block(config.env_id, wrapper, **env_kwargs), n_envs, workers)
+        else:
+            venv = SB3VecEnvAdapter(
+                SemRelocLoopVectorEnv(num_envs=n_envs, env_id=config.env_id, wrapper=wrapper, **env_kwargs)
             )
-        )
         venv.seed(seed)
         return venv
     return make_vec_env(

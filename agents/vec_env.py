@@ -46,6 +46,13 @@ def closing_venv(venv) -> Iterator:
     venv.close()
 
 
+def check_seed(seed):
+    """``seed`` as an int or None; ValueError for anything else (SB3's ``VecEnv.seed`` would add an index to it)."""
+    if seed is not None and not is_int(seed):
+        raise ValueError(f"seed must be None or an int, got {seed!r:.80}")
+    return None if seed is None else int(seed)
+
+
 class SB3VecEnvAdapter(VecEnv):
     """SB3 ``VecEnv`` view of a `SemRelocLoopVectorEnv` (``venv``); seeds via `seed` as in SB3."""
 
@@ -62,17 +69,19 @@ class SB3VecEnvAdapter(VecEnv):
     def seed(self, seed: int | None = None):
         """SB3's seeding (robot ``i`` gets ``seed + i`` at the next reset); ValueError unless ``seed`` is None
         or an int."""
-        if seed is not None and not is_int(seed):
-            raise ValueError(f"seed must be None or an int, got {seed!r:.80}")
-        return super().seed(None if seed is None else int(seed))
+        return super().seed(check_seed(seed))
 
     def _stack(self, obs_list: list) -> VecEnvObs:
         if self._keys is None:  # a Box observation (FlattenObservation, FlatObservation): one array
             return np.stack(obs_list)
         return {k: np.stack([o[k] for o in obs_list]) for k in self._keys}
 
+    def check_reset(self) -> None:
+        """ValueError naming the robot unless every robot takes the seed and options of the next `reset`."""
+        self.venv.check_seeds(list(self._seeds), [o or None for o in self._options])
+
     def reset(self) -> VecEnvObs:
-        self.venv.check_seeds(list(self._seeds), [o or None for o in self._options])  # before any robot resets
+        self.check_reset()  # before any robot resets
         obs = []
         for i, env in enumerate(self.envs):
             with self.venv.naming_who_raised(i, "reset"):

@@ -404,3 +404,25 @@ def test_the_sb3_adapter_also_stops_after_a_robot_raised_until_a_reset():
         adapter.step(np.array([0, 0, 0]))
     with pytest.raises(RuntimeError, match=r"robot 2 raised KeyError in the last step\(\), resetting it after its "):
         adapter.step(np.array([0, 0, 0]))
+
+
+def test_first_robot_numbers_the_robots_in_error_messages():
+    # a block of a larger set (agents.worker_vec_env) names its robots by their number in the set
+    venv = SemRelocLoopVectorEnv(num_envs=3, **VKW, first_robot=5)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^robot 7: invalid action"):
+        venv.step([0, 1, 9])
+    with pytest.raises(ValueError, match=r"robots \[6\] hold NaN or inf"):
+        venv.step(np.array([0.0, np.nan, 1.0]))
+    with pytest.raises(ValueError, match=r"^robot 6: "):
+        venv.reset(seed=[0, "x", 2])
+    venv.envs[1] = FailsOnce(venv.envs[1])
+    FailsOnce.armed = True
+    with pytest.raises(KeyError):
+        venv.step([0, 0, 0])
+    with pytest.raises(RuntimeError, match=r"robot 6 raised KeyError in the last step\(\).*robot 5 had run it and robot 7"):
+        venv.step([0, 0, 0])
+    venv.close()
+    for bad in (-1, 1.5, "0"):
+        with pytest.raises(ValueError, match="first_robot must be an int >= 0"):
+            SemRelocLoopVectorEnv(num_envs=1, **VKW, first_robot=bad)

@@ -16,7 +16,6 @@ excluded (warm-up calls before timing); repeated timings report the median.
 
 from __future__ import annotations
 
-import dataclasses
 import statistics
 import sys
 import time
@@ -52,8 +51,8 @@ class Args:
     """seed of the synthetic map, poses and scans."""
     steps: int = 600
     """env steps per steps/s measurement."""
-    ppo_steps: int = 4096
-    """PPO training steps (4 envs x 256-step rollouts: 4 rollouts)."""
+    ppo_steps: int = 6144
+    """PPO training steps per vec env (1024-step rollouts: six, timed after the first)."""
     quick: bool = False
     """skip the building-size layout and PPO."""
     only: tuple[str, ...] = ()
@@ -535,27 +534,48 @@ def bench_mapping(args: Args) -> list[Row]:
     return rows
 
 
+def _workers_cpu(venv) -> float:
+    """The CPU seconds so far of ``venv``'s worker processes (`agents.worker_vec_env.WorkersVecEnv`), 0 for an
+    in-process vec env."""
+    cpu = getattr(venv, "worker_cpu_seconds", None)
+    return float(sum(cpu())) if cpu is not None else 0.0
+
+
 def _env_clock():
-    """An SB3 callback that times (CPU and wall: its ``cpu``, ``wall``) every ``step_wait`` of the
-    training VecEnv: the env's share of a PPO run, measured inside that run (same episodes, same
-    actions). In-process vec envs only: a SubprocVecEnv's workers are other processes, whose CPU
-    time this process does not see. (SB3 is imported here, when the PPO benchmark runs.)"""
+    """An SB3 callback that marks every rollout's end with the CPU and wall clocks of this process, the CPU of the
+    VecEnv's worker processes (`agents.worker_vec_env.WorkersVecEnv`; 0 in one process) and the time spent in the
+    VecEnv's ``step_wait`` so far: its `steady` gives a PPO run's rates from the first rollout's end to the last's
+    (the same number of rollouts collected and trained on; the first rollout, with the workers' start, numba's and
+    torch's first calls, left out), and the env's share of that time (same episodes, same actions). A SubprocVecEnv's
+    workers are other processes, whose CPU time this process does not see. (SB3 is imported here, when the PPO
+    benchmark runs.)"""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class EnvClock(BaseCallback):
-        cpu = wall = 0.0
+        env_cpu = env_wall = 0.0
 
         def _on_training_start(self) -> None:
+            self.marks: list[tuple[float, ...]] = []
             env, orig = self.training_env, self.training_env.step_wait
 
             def timed():
                 with Clock() as c:
                     out = orig()
-                self.cpu += c.cpu
-                self.wall += c.wall
+                self.env_cpu += c.cpu
+                self.env_wall += c.wall
                 return out
 
             env.step_wait = timed  # an instance attribute: VecEnv.step calls it
+
+        def _on_rollout_end(self) -> None:
+            now = (
+                time.process_time(),
+                time.perf_counter(),
+                _workers_cpu(self.training_env),
+                self.env_cpu,
+                self.env_wall,
+            )
+            self.marks.append(now)
 
         def _on_training_end(self) -> None:
             vars(self.training_env).pop("step_wait", None)  # the class's method again
@@ -563,56 +583,84 @@ def _env_clock():
         def _on_step(self) -> bool:
             return True
 
+        def steady(self) -> dict[str, float]:
+            """``steps``, ``cpu`` (this process's plus the workers'), ``wall``, ``env_cpu``, ``env_wall`` between
+            the first and the last rollout's end (ValueError with fewer than two rollouts)."""
+            if len(self.marks) < 2:
+                raise ValueError("the PPO benchmark needs at least two rollouts (ppo_steps >= 2048)")
+            (c0, w0, k0, e0, f0), (c1, w1, k1, e1, f1) = self.marks[0], self.marks[-1]
+            steps = (len(self.marks) - 1) * self.model.n_steps * self.training_env.num_envs
+            return {"steps": steps, "cpu": c1 - c0 + k1 - k0, "wall": w1 - w0, "env_cpu": e1 - e0, "env_wall": f1 - f0}
+
     return EnvClock()
 
 
 def bench_ppo(args: Args) -> list[Row]:
     """PPO training steps/s vs raw steps/s of the same vec env (``agents.train``: BeliefObservation,
-    metrics callback, rollout 1024 steps): DummyVecEnv x4 and the batched env (SB3 adapter) x16.
+    metrics callback, rollout 1024 steps): DummyVecEnv x4, the batched env (SB3 adapter) x16, and the same 16
+    robots in two worker processes (`agents.worker_vec_env.WorkersVecEnv`; its CPU figures add the workers' CPU
+    to this process's, and its last row is the wall-clock gain over one process).
 
-    The raw rate comes from random actions in a separate run, so it also differs by the episodes
-    (the belief's spread sets a step's cost); the env's share of the PPO run itself (its
-    ``step_wait`` time, same episodes) isolates what PPO adds."""
+    Both rates leave out the start: the raw rate times the last three quarters of its steps, PPO's the rollouts after
+    the first (`_env_clock`). The raw rate comes from random actions in a separate run, so it also differs by the
+    episodes (the belief's spread sets a step's cost); the env's share of the PPO run itself (its ``step_wait`` time,
+    same episodes) isolates what PPO adds."""
     if args.quick:
         return []
     from agents.train import TrainConfig, make_venv, train
 
-    rows = []
-    for vec_env, n_envs in (("dummy", 4), ("batched", 16)):
+    rows, one_process_wall = [], None
+    for vec_env, n_envs, workers in (("dummy", 4, 1), ("batched", 16, 1), ("batched", 16, 2)):
         cfg = TrainConfig(
-            n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, total_timesteps=args.ppo_steps,
+            n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, workers=workers, total_timesteps=args.ppo_steps,
             seed=args.seed, **({"env_id": args.env_id} if args.env_id else {}),
         )  # fmt: skip
+        name = f"{vec_env} x{n_envs}" + (f" in {workers} workers" if workers > 1 else "")
         venv = make_venv(cfg)
         venv.reset()
         rng = np.random.default_rng(args.seed)
         n_raw = args.ppo_steps // n_envs
+        for _ in range(n_raw // 4):
+            venv.step(rng.integers(0, 4, n_envs))
+        before = _workers_cpu(venv)
         with Clock() as raw:
-            for _ in range(n_raw):
+            for _ in range(n_raw - n_raw // 4):
                 venv.step(rng.integers(0, 4, n_envs))
+        raw_cpu = raw.cpu + _workers_cpu(venv) - before
         venv.close()
-        warm = dataclasses.replace(cfg, total_timesteps=1024)
-        train(warm).get_env().close()  # warm-up: torch, numba
-        env_clock = _env_clock()
-        with Clock() as ppo:
-            model = train(cfg, callbacks=[env_clock])
-        model.get_env().close()
-        raw_cpu, raw_wall = n_raw * n_envs / raw.cpu, n_raw * n_envs / raw.wall
-        ppo_cpu, ppo_wall = args.ppo_steps / ppo.cpu, args.ppo_steps / ppo.wall
+        clock = _env_clock()
+        train(cfg, callbacks=[clock]).get_env().close()
+        ppo = clock.steady()
+        n_timed = (n_raw - n_raw // 4) * n_envs
+        raw_cpu, raw_wall = n_timed / raw_cpu, n_timed / raw.wall
+        ppo_cpu, ppo_wall = ppo["steps"] / ppo["cpu"], ppo["steps"] / ppo["wall"]
         rows += [
-            Row(f"{vec_env} x{n_envs}: raw vec env", raw_cpu, raw_wall, "steps/s", "random actions"),
-            Row(
-                f"{vec_env} x{n_envs}: PPO training", ppo_cpu, ppo_wall, "steps/s", f"{args.ppo_steps} steps, 4 epochs"
-            ),
+            Row(f"{name}: raw vec env", raw_cpu, raw_wall, "steps/s", "random actions"),
+            Row(f"{name}: PPO training", ppo_cpu, ppo_wall, "steps/s", f"{ppo['steps']} steps after the first rollout"),
             Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
-            Row(
-                "  env's share of the PPO run",
-                env_clock.cpu / ppo.cpu,
-                env_clock.wall / ppo.wall,
-                "x",
-                "PPO / env-only steps/s of the same episodes",
-            ),
         ]
+        if workers == 1:  # the workers' env time is wall time this process waits, not CPU it spends
+            rows.append(
+                Row(
+                    "  env's share of the PPO run",
+                    ppo["env_cpu"] / ppo["cpu"],
+                    ppo["env_wall"] / ppo["wall"],
+                    "x",
+                    "PPO / env-only steps/s of the same episodes",
+                )
+            )
+        if vec_env == "batched" and workers == 1:
+            one_process_wall = ppo_wall
+        elif one_process_wall is not None:
+            rows.append(
+                Row(
+                    f"  PPO wall steps/s, {workers} workers / one process",
+                    float("nan"),
+                    ppo_wall / one_process_wall,
+                    "x",
+                    "the same 16 robots and episodes",
+                )
+            )
     return rows
 
 
@@ -659,7 +707,8 @@ def print_table(rows: list[Row]) -> None:
     for r in rows:
         wall = "" if r.wall != r.wall else f"{r.wall:12.3f}"
         cpu = f"{r.cpu:12.3g}" if abs(r.cpu) < 1e-3 and r.cpu else f"{r.cpu:12.3f}"
-        print(f"{r.name:<{w}}  {cpu}  {wall:>12}  {r.unit:<20} {r.note}")
+        cpu = "" if r.cpu != r.cpu else cpu  # a wall-only figure
+        print(f"{r.name:<{w}}  {cpu:>12}  {wall:>12}  {r.unit:<20} {r.note}")
 
 
 def run(args: Args) -> list[Row]:

@@ -40,13 +40,13 @@ from .spaces import decode_action
 SINGLE_ENV_ID = "SemReloc-v19"
 
 
-def _float_array_hint(actions, space) -> str:
+def _float_array_hint(actions, space, first: int = 0) -> str:
     """For a float array of discrete actions (NumPy turns ``[0, 1, nan]`` into floats): which robots'
     entries are not finite, since the first robot's error names a float that looked fine."""
     if not (isinstance(actions, np.ndarray) and actions.dtype.kind == "f" and isinstance(space, gym.spaces.Discrete)):
         return ""
     bad = np.flatnonzero(~np.isfinite(actions.reshape(len(actions), -1)).all(axis=1))
-    where = f"; robots {bad.tolist()} hold NaN or inf" if bad.size else ""
+    where = f"; robots {(bad + first).tolist()} hold NaN or inf" if bad.size else ""
     return f" (the actions are a {actions.dtype} array: discrete actions must be integers{where})"
 
 
@@ -80,6 +80,8 @@ class SemRelocLoopVectorEnv(VectorEnv):
         max_episode_steps: time limit per robot (default: the single env's registration).
         wrapper: optional callable applied to each robot's env (e.g.
             `semreloc_env.wrappers.BeliefObservation`); the spaces are the wrapped env's.
+        first_robot: the number error messages give robot 0 (default 0; `agents.worker_vec_env` runs blocks of a
+            larger set of robots, each named by its number in the set).
         **kwargs: ``gym.make`` keyword arguments of the single env (layout, relocalizer, ...).
     """
 
@@ -91,8 +93,12 @@ class SemRelocLoopVectorEnv(VectorEnv):
         env_id: str = SINGLE_ENV_ID,
         max_episode_steps: int | None = None,
         wrapper=None,
+        first_robot: int = 0,
         **kwargs,
     ):
+        if not (is_int(first_robot) and first_robot >= 0):
+            raise ValueError(f"first_robot must be an int >= 0, got {first_robot!r:.60}")
+        self.first_robot = int(first_robot)
         if not (is_int(num_envs) and num_envs >= 1):
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
         if kwargs.get("render_mode") is not None:
@@ -154,7 +160,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         if len(acts) != self.num_envs:
             raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
         one = self.single_action_space
-        hint = _float_array_hint(actions, one)
+        hint = _float_array_hint(actions, one, self.first_robot)
         if hint and all(env.action_space is env.unwrapped.action_space for env in self.envs):
             # every robot's action is a float: robot 0 is not the one to name
             raise ValueError(f"invalid actions{hint}")
@@ -173,7 +179,8 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 elif not in_wrapped_space(a, env.action_space):
                     raise ValueError(f"invalid action {a!r:.80} for {env.action_space}")
             except ValueError as e:
-                raise ValueError(f"robot {i}: {e}{_float_array_hint(actions, env.action_space)}") from None
+                hint = _float_array_hint(actions, env.action_space, self.first_robot)
+                raise ValueError(f"robot {self.first_robot + i}: {e}{hint}") from None
         return acts
 
     def _per_robot(self, options) -> list:
@@ -211,7 +218,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
             try:
                 check_reset(env, seed=s, options=o)
             except ValueError as e:
-                raise ValueError(f"robot {i}: {e}") from None
+                raise ValueError(f"robot {self.first_robot + i}: {e}") from None
         return seeds
 
     # ------------------------------------------------------------------ API
@@ -279,12 +286,13 @@ class SemRelocLoopVectorEnv(VectorEnv):
         try:
             yield
         except BaseException as e:
-            ran = ("no other robot had run it", "robot 0 had run it", f"robots 0 to {i - 1} had run it")[min(i, 2)]
-            n_left = self.num_envs - 1 - i
-            left = ("it was the last", f"robot {i + 1} had not", f"robots {i + 1} to {self.num_envs - 1} had not")
-            left = left[min(n_left, 2)]
+            f, last = self.first_robot, self.first_robot + self.num_envs - 1
+            ran = ("no other robot had run it", f"robot {f} had run it", f"robots {f} to {f + i - 1} had run it")
+            ran = ran[min(i, 2)]
+            left = ("it was the last", f"robot {f + i + 1} had not", f"robots {f + i + 1} to {last} had not")
+            left = left[min(self.num_envs - 1 - i, 2)]
             self._out_of_step = (
-                f"robot {i} raised {type(e).__name__} in the last {call}(){detail} ({e!s:.200}); {ran} and {left}: "
+                f"robot {f + i} raised {type(e).__name__} in the last {call}(){detail} ({e!s:.200}); {ran} and {left}: "
                 "the robots are out of step, call reset()"
             )
             raise

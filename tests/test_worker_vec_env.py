@@ -1,0 +1,165 @@
+"""`agents.worker_vec_env.WorkersVecEnv`: batched robots in worker processes, equal bit for bit to one process."""
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+
+from agents.train import TrainConfig, train
+from agents.vec_env import SB3VecEnvAdapter
+from agents.worker_vec_env import WorkersVecEnv, batched_block
+from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+from semreloc_env.wrappers import BeliefObservation
+
+KW = dict(layout="twin_rooms", relocalizer={"n_particles": 200}, max_episode_steps=7)
+
+
+class RaisesAtStep(gym.Wrapper):
+    """Raises KeyError at its ``at``-th step (counted over episodes); a picklable wrapper for the workers."""
+
+    def __init__(self, env, at: int):
+        super().__init__(env)
+        self.at, self.count = at, 0
+
+    def step(self, action):
+        self.count += 1
+        if self.count == self.at:
+            raise KeyError("a robot's own failure")
+        return self.env.step(action)
+
+
+def _block_where_robot_3_fails_at_step_3(n: int, first: int):
+    block = batched_block("SemReloc-v19", **{**KW, "max_episode_steps": 50})(n, first)
+    if first <= 3 < first + n:
+        block.envs[3 - first] = RaisesAtStep(block.envs[3 - first], 3)  # the adapter's list is the batched env's
+    return block
+
+
+def _pair(num_envs=5, workers=2, **kw):
+    kw = {**KW, **kw}
+    ref = SB3VecEnvAdapter(SemRelocLoopVectorEnv(num_envs, wrapper=BeliefObservation, **kw))
+    return WorkersVecEnv(batched_block("SemReloc-v19", BeliefObservation, **kw), num_envs, workers), ref
+
+
+def _equal(a, b) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray):
+        return isinstance(b, np.ndarray) and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
+    return type(a) is type(b) and (a == b or (a != a and b != b))
+
+
+@pytest.fixture(scope="module")
+def pair():
+    workers, ref = _pair()
+    yield workers, ref
+    workers.close()
+    ref.close()
+
+
+def test_the_workers_equal_one_process_bit_for_bit_through_episode_ends(pair):
+    workers, ref = pair
+    assert workers.workers == 2 and workers.num_envs == 5
+    assert workers.observation_space == ref.observation_space and workers.action_space == ref.action_space
+    for v in pair:
+        v.seed(30)
+    assert _equal(workers.reset(), ref.reset())
+    assert _equal(workers.reset_infos, ref.reset_infos)
+    rng = np.random.default_rng(1)
+    ends = 0
+    for _ in range(16):  # two episode ends per robot: SB3's terminal_observation and the reset inside the step
+        actions = rng.integers(0, 4, 5)
+        got, want = workers.step(actions), ref.step(actions)
+        assert _equal(list(got), list(want))
+        ends += int(got[2].sum())
+    assert ends == 10
+    assert _equal(workers.reset_infos, ref.reset_infos)
+
+
+def test_attributes_and_methods_reach_the_robots_asked_in_the_order_asked(pair):
+    workers, _ = pair
+    workers.set_attr("marker", "x", indices=[4, 1])
+    assert workers.get_attr("marker", indices=[4, 1]) == ["x", "x"]
+    assert workers.get_attr("marker", indices=4) == ["x"]
+    seeds = workers.env_method("get_wrapper_attr", "np_random_seed")
+    assert len(seeds) == 5
+    assert workers.env_method("get_wrapper_attr", "np_random_seed", indices=[3, 0, 4]) == [seeds[3], seeds[0], seeds[4]]
+    assert workers.env_is_wrapped(BeliefObservation) == [True] * 5
+    cpu = workers.worker_cpu_seconds()
+    assert len(cpu) == 2 and all(c > 0 for c in cpu)
+
+
+def test_an_invalid_action_or_seed_is_refused_before_any_robot_moves(pair):
+    workers, ref = pair
+    for v in pair:
+        v.seed(50)
+        v.reset()
+    with pytest.raises(ValueError, match=r"robot 4: invalid action") as err:
+        workers.step(np.array([0, 1, 2, 3, 9]))  # worker 1's second robot
+    assert any("worker 1, which runs robots 3 to 4" in n for n in getattr(err.value, "__notes__", [])) or not hasattr(
+        err.value, "add_note"
+    )
+    with pytest.raises(ValueError, match="got 4 actions for 5 robots"):
+        workers.step(np.array([0, 1, 2, 3]))
+    with pytest.raises(ValueError, match="seed must be None or an int"):
+        workers.seed("7")
+    workers.set_options([{}, {}, {}, {"no_such_option": 1}, {}])
+    with pytest.raises(ValueError, match="robot 3: "):
+        workers.reset()
+    actions = np.array([0, 1, 2, 3, 0])  # nothing moved or reset above: the same step as the reference's
+    assert _equal(list(workers.step(actions)), list(ref.step(actions)))
+
+
+def test_a_robot_raising_mid_step_stops_every_worker_until_a_reset():
+    workers = WorkersVecEnv(_block_where_robot_3_fails_at_step_3, num_envs=4, workers=2)
+    try:
+        workers.reset()
+        workers.step(np.zeros(4, dtype=np.int64))
+        workers.step(np.zeros(4, dtype=np.int64))
+        with pytest.raises(KeyError, match="a robot's own failure") as err:
+            workers.step(np.zeros(4, dtype=np.int64))
+        assert "in step" in str(err.value.__cause__)  # the worker's traceback
+        with pytest.raises(
+            RuntimeError,
+            match=r"worker 1's robots \(robots 2 to 3\) raised KeyError in the last step\(\).*call reset\(\)",
+        ):
+            workers.step(np.zeros(4, dtype=np.int64))
+        workers.reset()
+        assert workers.step(np.zeros(4, dtype=np.int64))[0]["lidar"].shape[0] == 4
+    finally:
+        workers.close()
+    workers.close()  # twice is fine
+    with pytest.raises(RuntimeError, match="closed"):
+        workers.reset()
+
+
+def test_bad_arguments_and_a_block_that_fails_to_build_are_clear_errors():
+    with pytest.raises(ValueError, match="workers must be an int from 1 to num_envs"):
+        WorkersVecEnv(batched_block("SemReloc-v19"), num_envs=2, workers=3)
+    with pytest.raises(ValueError, match="num_envs must be an int >= 1"):
+        WorkersVecEnv(batched_block("SemReloc-v19"), num_envs=0)
+    with pytest.raises(TypeError, match="make_block must be a callable"):
+        WorkersVecEnv("SemReloc-v19", num_envs=2)
+    with pytest.raises(TypeError, match="no_such_argument"):
+        WorkersVecEnv(batched_block("SemReloc-v19", no_such_argument=1), num_envs=2, workers=2)
+    with pytest.raises(ValueError, match="workers > 1 needs vec_env 'batched'"):
+        TrainConfig(vec_env="dummy", workers=2)
+    with pytest.raises(ValueError, match=r"workers must be at most n_envs \(4\)"):
+        TrainConfig(vec_env="batched", n_envs=4, workers=5)
+
+
+def test_ppo_trains_the_same_model_with_the_robots_in_two_workers():
+    cfg = TrainConfig(
+        n_envs=4, vec_env="batched", n_steps=32, batch_size=64, n_epochs=1, total_timesteps=256, env_kwargs=dict(KW)
+    )
+    one = train(cfg)
+    two = train(dataclasses.replace(cfg, workers=2))
+    assert isinstance(two.get_env(), WorkersVecEnv)
+    for v in (one.get_env(), two.get_env()):
+        v.close()
+    a, b = one.policy.state_dict(), two.policy.state_dict()
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
