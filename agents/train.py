@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -190,6 +191,8 @@ class TrainConfig:
             object.__setattr__(self, name, int(every))
             if self.log_dir is None:
                 raise ValueError(f"{name} needs a log_dir to write to")
+        if not is_int(self.workers):
+            raise ValueError(f"workers must be an int >= 1, got {self.workers!r}")
         if self.workers > 1 and self.vec_env != "batched":
             raise ValueError(
                 f"workers > 1 needs vec_env 'batched' (got {self.vec_env!r}; 'subproc' is a process per env already)"
@@ -229,9 +232,10 @@ def make_venv(config: TrainConfig, n_envs: int | None = None, seed: int | None =
     """The training ``VecEnv`` of ``config``: env ``k`` seeded ``seed + k``, each in SB3's ``Monitor``.
 
     ``n_envs`` / ``seed`` default to ``config.n_envs`` / ``config.seed``; the evaluation env is the same
-    kind with one env seeded ``config.eval_seed`` (SB3's ``EvalCallback`` warns when the kinds differ), but for
-    a ``"subproc"`` config a ``DummyVecEnv``: one env needs no process (`train` asks for that). ``workers`` beyond
-    ``n_envs`` are not started.
+    kind with one env seeded ``config.eval_seed``, but for a ``"subproc"`` config a ``DummyVecEnv`` and for a
+    batched one in ``workers`` processes the batched env in this process: one env needs no process (`train` asks for
+    that, and silences SB3's ``EvalCallback`` warning that the kinds differ). ``workers`` beyond ``n_envs`` are not
+    started.
     """
     env_kwargs = dict(config.env_kwargs)
     n_envs = config.n_envs if n_envs is None else n_envs
@@ -328,7 +332,10 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
         )
     cbs.extend(callbacks)
     try:
-        model.learn(total_timesteps=config.total_timesteps, callback=cbs, progress_bar=config.progress_bar)
+        with warnings.catch_warnings():
+            # the evaluation env is one robot in this process by design (make_venv), also for "subproc" and workers
+            warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
+            model.learn(total_timesteps=config.total_timesteps, callback=cbs, progress_bar=config.progress_bar)
     finally:
         logger.close()
         if eval_venv is not None:

@@ -18,9 +18,11 @@ refuses (RuntimeError) until `reset`, as the batched env does.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import pickle
 import signal
+import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -33,6 +35,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
 from filters.numbers import is_int
+from semreloc_env.envs.batched import float_array_hint
 
 from .vec_env import check_seed
 
@@ -92,16 +95,24 @@ def _serve(venv: VecEnv, cmd: str, data: Any) -> Any:
     raise ValueError(f"unknown command {cmd!r}")
 
 
+def _failure(venv: VecEnv | None, e: BaseException) -> tuple:
+    """An error's message to the main process: the exception, its traceback, and why the block's robots are out of
+    step if they are (a batched block names the robot that raised)."""
+    batched = getattr(venv, "venv", None)
+    return "error", (_picklable(e), traceback.format_exc(), getattr(batched, "out_of_step", None))
+
+
 def _worker(conn, parent_end, payload: bytes, n: int, first: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's to handle (it closes us)
     parent_end.close()
+    venv = None
     try:
         venv = cloudpickle.loads(payload)(n, first)
         if not isinstance(venv, VecEnv) or venv.num_envs != n:
             raise TypeError(f"make_block({n}, {first}) must return an SB3 VecEnv of {n} envs, got {venv!r:.80}")
         conn.send(("ok", (venv.observation_space, venv.action_space)))
     except BaseException as e:
-        conn.send(("error", (_picklable(e), traceback.format_exc())))
+        conn.send(_failure(None, e))
         return
     while True:
         try:
@@ -115,8 +126,28 @@ def _worker(conn, parent_end, payload: bytes, n: int, first: int) -> None:
         try:
             out = ("ok", _serve(venv, cmd, data))
         except BaseException as e:
-            out = ("error", (_picklable(e), traceback.format_exc()))
-        conn.send(out)
+            out = _failure(venv, e)
+        try:
+            conn.send(out)  # pickled before anything is written: a result that does not pickle leaves the pipe clean
+        except Exception as e:
+            conn.send(_failure(venv, e))
+
+
+@contextlib.contextmanager
+def _whole_messages():
+    """Hold a Ctrl-C (SIGINT) back until the block ends, so that a message to or from a worker is never cut in two
+    (the pipe would be out of step for good); in the main thread only, where Python runs signal handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if held and callable(previous):
+            previous(signal.SIGINT, None)  # Python's own handler raises KeyboardInterrupt here
 
 
 class WorkersVecEnv(VecEnv):
@@ -132,6 +163,10 @@ class WorkersVecEnv(VecEnv):
         start_method: ``multiprocessing`` start method (default ``"forkserver"`` where there is one, else
             ``"spawn"``, as SB3's ``SubprocVecEnv``; both need the main module import-safe: ``if __name__ ==
             "__main__":``).
+
+    A Ctrl-C while the workers step interrupts the wait (the robots are then out of step until `reset`); a message
+    to or from a worker is never cut in two. A worker that dies makes every later call a RuntimeError that says
+    so: `close` is what is left.
     """
 
     def __init__(
@@ -156,6 +191,7 @@ class WorkersVecEnv(VecEnv):
         self._sizes = sizes
         self._worker_of = np.repeat(np.arange(len(sizes)), sizes)
         self._out_of_step: str | None = None
+        self._gone: str | None = None  # why the workers cannot be used any more (one died)
         self._waiting = [False] * len(sizes)
         self.closed = False
         payload = cloudpickle.dumps(make_block)
@@ -169,13 +205,12 @@ class WorkersVecEnv(VecEnv):
             self.processes.append(proc)
         try:
             spaces = self._gather(range(len(sizes)))
+            if any(s != spaces[0] for s in spaces[1:]):
+                raise ValueError(f"the workers' blocks have different spaces: {spaces}")
+            super().__init__(self.num_envs, *spaces[0])
         except BaseException:
             self.close()
             raise
-        if any(s != spaces[0] for s in spaces[1:]):
-            self.close()
-            raise ValueError(f"the workers' blocks have different spaces: {spaces}")
-        super().__init__(self.num_envs, *spaces[0])
 
     @property
     def workers(self) -> int:
@@ -185,19 +220,43 @@ class WorkersVecEnv(VecEnv):
     def _block(self, w: int) -> slice:
         return slice(self._first[w], self._first[w] + self._sizes[w])
 
-    def _send(self, w: int, cmd: str, data: Any = None) -> None:
+    def _block_text(self, w: int) -> str:
+        block = self._block(w)
+        return f"robot {block.start}" if self._sizes[w] == 1 else f"robots {block.start} to {block.stop - 1}"
+
+    def _usable(self) -> None:
         if self.closed:
             raise RuntimeError("this WorkersVecEnv is closed")
-        self._conns[w].send((cmd, data))
-        self._waiting[w] = True
+        if self._gone is not None:
+            raise RuntimeError(self._gone)
+
+    def _lost(self, w: int, e: BaseException) -> RuntimeError:
+        self.processes[w].join(timeout=0.5)
+        self._gone = (
+            f"worker {w} ({self._block_text(w)}) is gone (exit code {self.processes[w].exitcode}): close this VecEnv"
+        )
+        return RuntimeError(self._gone)
+
+    def _send(self, w: int, cmd: str, data: Any = None) -> None:
+        self._usable()
+        with _whole_messages():
+            try:
+                self._conns[w].send((cmd, data))
+            except OSError as e:
+                raise self._lost(w, e) from e
+            self._waiting[w] = True
 
     def _recv(self, w: int) -> tuple[str, Any]:
+        conn = self._conns[w]
         try:
-            status, out = self._conns[w].recv()
+            while not conn.poll(0.05):  # a Ctrl-C while waiting leaves the answer for `_drain`
+                if not self.processes[w].is_alive() and not conn.poll():
+                    raise EOFError
+            with _whole_messages():
+                status, out = conn.recv()
+                self._waiting[w] = False
         except (EOFError, OSError) as e:
-            self._out_of_step = f"worker {w} is gone (exit code {self.processes[w].exitcode}): close this VecEnv"
-            raise RuntimeError(self._out_of_step) from e
-        self._waiting[w] = False
+            raise self._lost(w, e) from e
         return status, out
 
     def _gather(self, ws: Sequence[int]) -> list:
@@ -213,28 +272,45 @@ class WorkersVecEnv(VecEnv):
             raise error
         return outs
 
-    def _block_text(self, w: int) -> str:
-        block = self._block(w)
-        return f"robot {block.start}" if self._sizes[w] == 1 else f"robots {block.start} to {block.stop - 1}"
-
-    def _noted(self, w: int, e: BaseException, tb: str) -> BaseException:
-        self._failed = w
+    def _noted(self, w: int, e: BaseException, tb: str, out_of_step: str | None) -> BaseException:
+        self._failed, self._failed_why = w, out_of_step
         if hasattr(e, "add_note"):  # Python 3.11+
             e.add_note(f"(raised in worker {w}, which runs {self._block_text(w)})")
         e.__cause__ = RemoteTraceback(tb)  # printed above the error, as concurrent.futures does
         return e
 
     def _drain(self) -> None:
-        """Read the answers of commands a Ctrl-C left unread, so the pipes are in step again."""
+        """Read the answers a Ctrl-C left unread, so the pipes are in step again."""
         for w, waiting in enumerate(self._waiting):
             if waiting:
                 self._recv(w)
 
     def _all(self, cmd: str, per_worker: Sequence[Any] | None = None) -> list:
+        self._usable()
+        self._drain()
         ws = range(self.workers)
         for w in ws:
             self._send(w, cmd, None if per_worker is None else per_worker[w])
         return self._gather(ws)
+
+    def _stopped(self, call: str, e: BaseException) -> None:
+        """Remember that the robots are out of step after ``e`` interrupted ``call`` (unless a worker is gone)."""
+        if self._gone is not None:
+            return
+        if isinstance(e, KeyboardInterrupt):
+            self._out_of_step = (
+                f"the last {call}() was interrupted (KeyboardInterrupt): the robots are out of step, call reset()"
+            )
+            return
+        w = getattr(self, "_failed", None)
+        if w is None:
+            self._out_of_step = f"the last {call}() raised {type(e).__name__} ({e!s:.200}): call reset()"
+            return
+        others = [self._block_text(v) for v in range(self.workers) if v != w]
+        why = self._failed_why or f"{self._block_text(w)} raised {type(e).__name__} in the last {call}() ({e!s:.200})"
+        why = why.removesuffix(": the robots are out of step, call reset()")
+        ran = f"; the other workers' {', '.join(others)} had run it" if others and call == "step" else ""
+        self._out_of_step = f"{why} (worker {w}){ran}: the robots are out of step, call reset()"
 
     # ------------------------------------------------------------------ VecEnv
     def seed(self, seed: int | None = None):
@@ -244,13 +320,17 @@ class WorkersVecEnv(VecEnv):
 
     def reset(self) -> VecEnvObs:
         """Reset every robot; every robot's seed and options are checked first (ValueError, nothing reset)."""
-        self._drain()
+        self._usable()
         seeds, options = list(self._seeds), list(self._options)
+        if len(options) != self.num_envs:  # set_options takes a list of any length
+            raise ValueError(
+                f"got {len(options)} options dicts for {self.num_envs} robots (one dict, or one per robot)"
+            )
         self._all("check_reset", [(seeds[self._block(w)], options[self._block(w)]) for w in range(self.workers)])
         try:
             outs = self._all("reset")
-        except BaseException:
-            self._out_of_step = "a worker raised in the last reset(): call reset()"
+        except BaseException as e:
+            self._stopped("reset", e)
             raise
         self._out_of_step = None
         self._reset_seeds()
@@ -261,6 +341,7 @@ class WorkersVecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         """RuntimeError after a robot raised in the last step or reset (until `reset`); ValueError naming the robot
         if an action is invalid (every worker checks its robots' actions before any robot moves)."""
+        self._usable()
         if self._out_of_step is not None:
             raise RuntimeError(self._out_of_step)
         try:
@@ -269,22 +350,16 @@ class WorkersVecEnv(VecEnv):
             raise ValueError(f"actions must be a sequence of {self.num_envs} actions, got {actions!r:.80}") from None
         if n != self.num_envs:
             raise ValueError(f"got {n} actions for {self.num_envs} robots")
-        self._drain()
+        hint = float_array_hint(actions, self.action_space)
+        if hint:  # a float array of discrete actions: the robots with NaN, by their numbers in the whole set
+            raise ValueError(f"invalid actions{hint}")
         self._all("step_async", [actions[self._block(w)] for w in range(self.workers)])
 
     def step_wait(self) -> VecEnvStepReturn:
         try:
             outs = self._all("step_wait")
         except BaseException as e:
-            who = (
-                f"worker {self._failed}'s robots ({self._block_text(self._failed)})"
-                if self._failed is not None
-                else "a robot"
-            )
-            self._out_of_step = (
-                f"{who} raised {type(e).__name__} in the last step() ({e!s:.200}); the other workers' robots "
-                "stepped: the robots are out of step, call reset()"
-            )
+            self._stopped("step", e)
             raise
         for w, (_, reset_infos) in enumerate(outs):
             for i, info in reset_infos.items():
@@ -296,42 +371,51 @@ class WorkersVecEnv(VecEnv):
         return obs, rewards, dones, [info for o in outs for info in o[3]]
 
     def close(self) -> None:
+        """Ask every worker to close its robots and stop (waiting up to 10 s for one still stepping), then end the
+        processes; twice is fine."""
         if self.closed:
             return
         for w, conn in enumerate(self._conns):
             try:
-                if self._waiting[w]:
-                    conn.recv()
-                conn.send(("close", None))
-                if conn.poll(10.0):
-                    conn.recv()
+                with _whole_messages():
+                    if self._waiting[w] and conn.poll(10.0):
+                        conn.recv()
+                    conn.send(("close", None))
+                    if conn.poll(10.0):
+                        conn.recv()
             except (EOFError, OSError):
                 pass
         for proc in self.processes:
             proc.join(timeout=5.0)
             if proc.is_alive():
                 proc.terminate()
+                proc.join(timeout=5.0)
         for conn in self._conns:
             conn.close()
+        self._waiting = [False] * self.workers
         self.closed = True
 
     def worker_cpu_seconds(self) -> list[float]:
         """Each worker's CPU time so far (``time.process_time`` in that process, s): what a CPU-time benchmark adds
         to this process's own."""
-        self._drain()
         return self._all("cpu")
 
-    def _call(self, name: str, indices, *args, **kwargs) -> list:
-        """``block.name(*args, indices=<the block's own indices>, **kwargs)`` in each worker, the results in the
-        order of ``indices``."""
+    def _call(self, method: str, indices, /, *args, **kwargs) -> list:
+        """``block.method(*args, indices=<the block's own indices>, **kwargs)`` in each worker, the results in the
+        order of ``indices`` (negative ones count from the end, as in ``DummyVecEnv``)."""
+        self._usable()
         self._drain()
-        order = self._get_indices(indices)
+        order = []
+        for i in self._get_indices(indices):
+            if not -self.num_envs <= int(i) < self.num_envs:
+                raise IndexError(f"robot index {i} out of range for {self.num_envs} robots")
+            order.append(int(i) % self.num_envs)
         parts: dict[int, list[int]] = {}
         for i in order:
             w = int(self._worker_of[i])
             parts.setdefault(w, []).append(i - self._first[w])
         for w, local in parts.items():
-            self._send(w, "call", (name, args, {**kwargs, "indices": local}))
+            self._send(w, "call", (method, args, {**kwargs, "indices": local}))
         answers = {w: iter(out or [None] * len(parts[w])) for w, out in zip(parts, self._gather(list(parts)))}
         return [next(answers[int(self._worker_of[i])]) for i in order]
 

@@ -3,6 +3,8 @@
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import semreloc_env  # noqa: F401
 from semreloc_env.envs.batched import SemRelocLoopVectorEnv
@@ -427,3 +429,63 @@ def test_first_robot_numbers_the_robots_in_error_messages():
     for bad in (-1, 1.5, "0"):
         with pytest.raises(ValueError, match="first_robot must be an int >= 0"):
             SemRelocLoopVectorEnv(num_envs=1, **VKW, first_robot=bad)
+
+
+def _strictly_equal(a, b) -> bool:
+    """Equal keys in the same order, arrays of the same dtype and shape, and elements of the same type and value."""
+    if isinstance(a, dict):
+        return isinstance(b, dict) and list(a) == list(b) and all(_strictly_equal(a[k], b[k]) for k in a)
+    if isinstance(a, np.ndarray):
+        if not (isinstance(b, np.ndarray) and a.dtype == b.dtype and a.shape == b.shape):
+            return False
+        if a.dtype != object:
+            return a.tobytes() == b.tobytes()
+        return all(_strictly_equal(x, y) for x, y in zip(a.tolist(), b.tolist()))
+    if isinstance(a, (list, tuple)):
+        return type(a) is type(b) and len(a) == len(b) and all(_strictly_equal(x, y) for x, y in zip(a, b))
+    return type(a) is type(b) and (a == b or (a != a and b != b))
+
+
+_leaf = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**40), 2**40),
+    st.floats(allow_nan=True),
+    st.sampled_from([np.float64(1.5), np.float32(2.0), np.int64(3), np.bool_(True)]),
+    st.lists(st.floats(-5, 5), max_size=3),
+    st.sampled_from([np.zeros(3), np.ones(2), np.arange(3), np.array(4.0), np.zeros((2, 2), np.float32)]),
+    st.text(max_size=3),
+)
+_info = st.recursive(
+    st.dictionaries(st.sampled_from(["a", "b", "c", "d"]), _leaf, max_size=4),
+    lambda inner: st.dictionaries(st.sampled_from(["a", "b", "e", "f"]), inner | _leaf, max_size=4),
+    max_leaves=12,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_info, min_size=1, max_size=5))
+def test_batch_infos_equals_gymnasium_style_batching_robot_by_robot(infos):
+    from semreloc_env.envs.batched import batch_infos
+
+    class Batcher:
+        num_envs = len(infos)
+        _add_info = SemRelocLoopVectorEnv._add_info
+
+    def mixed(dicts) -> bool:  # a key that is a dict for one robot and not for another, at any depth
+        keys = {k for d in dicts for k in d}
+        for k in keys:
+            values = [d[k] for d in dicts if k in d]
+            nested = [isinstance(v, dict) for v in values]
+            if any(nested) and not all(nested) or all(nested) and mixed(values):
+                return True
+        return False
+
+    if mixed(infos):  # robot by robot, such infos crash or lose the dict; batched at once, a clear error
+        with pytest.raises(TypeError, match="holds a dict for some robots and not for others"):
+            batch_infos(infos)
+        return
+    one_by_one = {}
+    for i, info in enumerate(infos):
+        one_by_one = Batcher()._add_info(one_by_one, info, i)
+    assert _strictly_equal(batch_infos(infos), one_by_one)

@@ -1,6 +1,10 @@
 """`agents.worker_vec_env.WorkersVecEnv`: batched robots in worker processes, equal bit for bit to one process."""
 
 import dataclasses
+import os
+import signal
+import threading
+import time
 
 import gymnasium as gym
 import numpy as np
@@ -28,6 +32,23 @@ class RaisesAtStep(gym.Wrapper):
         if self.count == self.at:
             raise KeyError("a robot's own failure")
         return self.env.step(action)
+
+
+class Slow(gym.Wrapper):
+    """Sleeps ``delay`` seconds in each step (set through ``set_attr``); holds a lock when asked (no pickling)."""
+
+    delay = 0.0
+
+    def step(self, action):
+        time.sleep(self.delay)
+        return self.env.step(action)
+
+    def hold_a_lock(self):
+        self.lock = threading.Lock()
+
+
+def _slow_block(n: int, first: int):
+    return batched_block("SemReloc-v19", Slow, **KW)(n, first)
 
 
 def _block_where_robot_3_fails_at_step_3(n: int, first: int):
@@ -125,7 +146,7 @@ def test_a_robot_raising_mid_step_stops_every_worker_until_a_reset():
         assert "in step" in str(err.value.__cause__)  # the worker's traceback
         with pytest.raises(
             RuntimeError,
-            match=r"worker 1's robots \(robots 2 to 3\) raised KeyError in the last step\(\).*call reset\(\)",
+            match=r"robot 3 raised KeyError in the last step\(\).*\(worker 1\); the other workers' robots 0 to 1 had",
         ):
             workers.step(np.zeros(4, dtype=np.int64))
         workers.reset()
@@ -163,3 +184,52 @@ def test_ppo_trains_the_same_model_with_the_robots_in_two_workers():
         v.close()
     a, b = one.policy.state_dict(), two.policy.state_dict()
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_ctrl_c_a_dead_worker_and_odd_calls_leave_clear_errors_and_nothing_lost():
+    workers = WorkersVecEnv(_slow_block, num_envs=6, workers=2)
+    try:
+        workers.seed(0)
+        workers.reset()
+        # a NaN among discrete actions is named by its robot in the whole set
+        with pytest.raises(ValueError, match=r"robots \[4\] hold NaN or inf"):
+            workers.step(np.array([0, 1, 0, 0, np.nan, 0.0]))
+        # options must be one per robot, as in one process
+        workers.set_options([{}] * 7)
+        with pytest.raises(ValueError, match="got 7 options dicts for 6 robots"):
+            workers.reset()
+        workers.set_options(None)
+        # keyword arguments of any name, and negative indices as in DummyVecEnv
+        workers.set_attr("tag", "t5", indices=-1)
+        assert workers.env_method("get_wrapper_attr", name="tag", indices=[-1]) == ["t5"]
+        assert workers.get_attr("tag", indices=[5, -1]) == ["t5", "t5"]
+        with pytest.raises(IndexError, match="robot index 6 out of range"):
+            workers.get_attr("tag", indices=[6])
+        # a result that does not pickle is an error, and the worker goes on
+        workers.env_method("hold_a_lock", indices=[4])
+        with pytest.raises(TypeError, match="pickle"):
+            workers.get_attr("lock", indices=[4])
+        assert workers.get_attr("tag", indices=[5]) == ["t5"]
+        # Ctrl-C while the workers step: the robots are out of step until a reset, which works
+        workers.set_attr("delay", 1.5, indices=[3])
+        threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+        with pytest.raises(KeyboardInterrupt):
+            workers.step(np.zeros(6, dtype=np.int64))
+        with pytest.raises(RuntimeError, match=r"the last step\(\) was interrupted .*call reset\(\)"):
+            workers.step(np.zeros(6, dtype=np.int64))
+        workers.set_attr("delay", 0.0)
+        workers.reset()
+        assert workers.step(np.zeros(6, dtype=np.int64))[1].shape == (6,)
+        # a worker that dies: every later call says so, and close still works
+        os.kill(workers.processes[1].pid, signal.SIGKILL)
+        workers.processes[1].join(5.0)
+        for _ in range(2):
+            with pytest.raises(RuntimeError, match=r"worker 1 \(robots 3 to 5\) is gone \(exit code -9\): close"):
+                workers.step(np.zeros(6, dtype=np.int64))
+        with pytest.raises(RuntimeError, match="is gone"):
+            workers.reset()
+    finally:
+        workers.close()
+    assert not any(p.is_alive() for p in workers.processes)
+    with pytest.raises(RuntimeError, match="closed"):
+        workers.step(np.zeros(6, dtype=np.int64))

@@ -40,7 +40,7 @@ from .spaces import decode_action
 SINGLE_ENV_ID = "SemReloc-v19"
 
 
-def _float_array_hint(actions, space, first: int = 0) -> str:
+def float_array_hint(actions, space, first: int = 0) -> str:
     """For a float array of discrete actions (NumPy turns ``[0, 1, nan]`` into floats): which robots'
     entries are not finite, since the first robot's error names a float that looked fine."""
     if not (isinstance(actions, np.ndarray) and actions.dtype.kind == "f" and isinstance(space, gym.spaces.Discrete)):
@@ -160,7 +160,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         if len(acts) != self.num_envs:
             raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
         one = self.single_action_space
-        hint = _float_array_hint(actions, one, self.first_robot)
+        hint = float_array_hint(actions, one, self.first_robot)
         if hint and all(env.action_space is env.unwrapped.action_space for env in self.envs):
             # every robot's action is a float: robot 0 is not the one to name
             raise ValueError(f"invalid actions{hint}")
@@ -179,7 +179,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 elif not in_wrapped_space(a, env.action_space):
                     raise ValueError(f"invalid action {a!r:.80} for {env.action_space}")
             except ValueError as e:
-                hint = _float_array_hint(actions, env.action_space, self.first_robot)
+                hint = float_array_hint(actions, env.action_space, self.first_robot)
                 raise ValueError(f"robot {self.first_robot + i}: {e}{hint}") from None
         return acts
 
@@ -230,14 +230,14 @@ class SemRelocLoopVectorEnv(VectorEnv):
         seeds = self.check_seeds(seed, options)
         per_robot = self._per_robot(options)
         super().reset(seed=seeds[0])
-        obs_list, infos = [], {}
+        obs_list, info_list = [], []
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
             with self.naming_who_raised(i, "reset"):
                 obs, info = env.reset(seed=s, options=o)
             obs_list.append(obs)
-            infos = self._add_info(infos, info, i)
+            info_list.append(info)
         self.all_reset()
-        return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), infos
+        return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), batch_infos(info_list)
 
     def step(self, actions):
         """Step every robot with its action (a robot that ended last step is reset instead).
@@ -250,7 +250,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terms = np.zeros(self.num_envs, dtype=np.bool_)
         truncs = np.zeros(self.num_envs, dtype=np.bool_)
-        obs_list, infos = [], {}
+        obs_list, info_list = [], []
         for i, env in enumerate(self.envs):
             with self.naming_who_raised(i, "step"):
                 if self._done[i]:
@@ -258,15 +258,21 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 else:
                     obs, rewards[i], terms[i], truncs[i], info = env.step(acts[i])
             obs_list.append(obs)
-            infos = self._add_info(infos, info, i)
+            info_list.append(info)
         self._done = terms | truncs
-        return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), rewards, terms, truncs, infos
+        obs = deepcopy(concatenate(self.single_observation_space, obs_list, self._obs))
+        return obs, rewards, terms, truncs, batch_infos(info_list)
 
     def close_extras(self, **kwargs) -> None:
         for env in self.envs:
             env.close()
 
     # ------------------------------------------------------------------ helpers
+    @property
+    def out_of_step(self) -> str | None:
+        """Why `step` refuses to run until a reset (a robot raised in the last ``step()`` or ``reset()``), or None."""
+        return self._out_of_step
+
     def check_in_step(self) -> None:
         """RuntimeError if a robot raised in the last ``step()`` or ``reset()``: the robots are out of step until
         a reset of all of them (`reset`, or the SB3 adapter's)."""
@@ -301,7 +307,10 @@ class SemRelocLoopVectorEnv(VectorEnv):
         """Gymnasium's info batching (arrays per key plus ``_key`` masks), but lossless: an array whose
         dtype cannot hold a later robot's value exactly (None in a float array, a float in an int
         array, another shape) becomes an object array, so `robot_info` returns every value as given (a NumPy
-        scalar or 0-d array as the Python number of the same value)."""
+        scalar or 0-d array as the Python number of the same value).
+
+        One robot at a time, as Gymnasium's own: the specification of `batch_infos`, which batches all the robots'
+        infos at once with the same result and which `reset` and `step` use."""
         n = self.num_envs
         for key, value in env_info.items():
             if isinstance(value, dict):
@@ -337,6 +346,65 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 v = value[i]
                 out[key] = v.item() if isinstance(v, np.generic) else v
         return out
+
+
+def batch_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
+    """The robots' ``infos`` (robot ``i``'s dict at ``i``) batched as `SemRelocLoopVectorEnv._add_info` batches them
+    one robot after the other, the same keys in the same order, arrays and masks: key by key, each array built once
+    from all the robots' values. TypeError if a key holds a dict for one robot and something else for another."""
+    return _batched(list(infos), len(infos))
+
+
+def _batched(dicts: list[dict[str, Any] | None], n: int) -> dict[str, Any]:
+    present = [d for d in dicts if d is not None]
+    uniform = len(present) == n and all(d.keys() == present[0].keys() for d in present)
+    if uniform:  # every robot has every key (the usual case): the first robot's order is the order
+        order = list(present[0])
+    else:
+        union: dict[str, None] = {}
+        for d in present:
+            union.update(dict.fromkeys(d))
+        order = list(union)
+    everyone = list(range(n))
+    out: dict[str, Any] = {}
+    for key in order:
+        where = everyone if uniform else [i for i, d in enumerate(dicts) if d is not None and key in d]
+        values = [dicts[i][key] for i in where]
+        kinds = set(map(type, values))
+        nested = [k for k in kinds if issubclass(k, dict)]
+        if nested and len(nested) == len(kinds):
+            out[key] = _batched([d.get(key) if d is not None else None for d in dicts], n)
+        elif nested:
+            raise TypeError(f"info key {key!r} holds a dict for some robots and not for others: it cannot be batched")
+        else:
+            out[key] = _info_array(values, where, n, kinds)
+        mask = np.zeros(n, dtype=np.bool_)
+        mask[where] = True
+        out[f"_{key}"] = mask
+    return out
+
+
+def _info_array(values: list, rows: list[int], n: int, kinds: set[type]) -> np.ndarray:
+    """The array `SemRelocLoopVectorEnv._add_info` ends with after storing ``values`` at ``rows``: one call of the
+    typed shortcuts where every value has the same type (``kinds``, the set of them) and, for arrays, the same shape
+    and dtype."""
+    first = values[0]
+    if len(kinds) == 1:
+        kind = type(first)
+        if kind in (int, float, bool) or issubclass(kind, np.number):
+            arr = np.zeros(n, dtype=kind)
+            arr[rows] = np.array(values, dtype=arr.dtype)
+            return arr
+        if kind is np.ndarray and all(v.shape == first.shape and v.dtype == first.dtype for v in values):
+            arr = np.zeros((n, *first.shape), dtype=first.dtype)
+            arr[rows] = np.stack(values)
+            return arr
+    arr = _new_info_array(first, n)
+    for i, value in zip(rows, values):
+        if arr.dtype != object and not _fits(arr, value):
+            arr = _as_object(arr)
+        arr[i] = value
+    return arr
 
 
 def _new_info_array(value, n: int) -> np.ndarray:
