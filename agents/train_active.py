@@ -113,7 +113,10 @@ class ActiveTrainConfig:
     n_envs: int = 4
     """parallel envs"""
     vec_env: str = "subproc"
-    """subproc (one process per env) or dummy (all in this process)"""
+    """subproc (one process per env), dummy (all in this process) or workers (the envs split over `workers`
+    processes, several each: `agents.worker_vec_env.WorkersVecEnv`, the same episodes as dummy)"""
+    workers: int = 2
+    """processes of vec_env workers (at most n_envs; the other vec envs ignore it)"""
     total_timesteps: int = 60_000
     """decisions to train for, summed over envs (env steps: up to `repeat` times more)"""
     seed: int = 0
@@ -156,12 +159,12 @@ class ActiveTrainConfig:
     """SB3 verbosity"""
 
     def __post_init__(self) -> None:
-        if self.vec_env not in ("subproc", "dummy"):
-            raise ValueError(f"vec_env must be 'subproc' or 'dummy', got {self.vec_env!r}")
+        if self.vec_env not in ("subproc", "dummy", "workers"):
+            raise ValueError(f"vec_env must be 'subproc', 'dummy' or 'workers', got {self.vec_env!r}")
         if self.env_id not in TRAINABLE_ENV_IDS:
             raise ValueError(f"env_id must be one of {TRAINABLE_ENV_IDS}, got {self.env_id!r}")
         ints = ("particles", "max_episode_steps", "repeat", "n_envs", "total_timesteps", "n_steps", "batch_size")
-        for name in ints + ("n_epochs", "torch_threads"):
+        for name in ints + ("n_epochs", "torch_threads", "workers"):
             v = getattr(self, name)
             if not is_int(v) or v < 1:
                 raise ValueError(f"{name} must be an int >= 1, got {v!r}")
@@ -298,11 +301,31 @@ def make_active_env(config: ActiveTrainConfig, seed: int = 0, teacher: dict[str,
 
 def make_active_venv(config: ActiveTrainConfig, teacher: dict[str, Any] | None = None):
     """``n_envs`` training envs, env ``k`` seeded ``seed + k`` (``teacher``: as `make_active_env`)."""
+    if config.vec_env == "workers":
+        from .worker_vec_env import WorkersVecEnv
+
+        venv = WorkersVecEnv(
+            functools.partial(_active_block, config, teacher), config.n_envs, min(config.workers, config.n_envs)
+        )
+        venv.seed(config.seed)
+        return venv
     return make_vec_env(
         functools.partial(make_active_env, config, config.seed, teacher=teacher),
         n_envs=config.n_envs,
         seed=config.seed,
         vec_env_cls=SubprocVecEnv if config.vec_env == "subproc" else DummyVecEnv,
+    )
+
+
+def _active_block(config: ActiveTrainConfig, teacher: dict[str, Any] | None, n: int, first: int) -> DummyVecEnv:
+    """Envs ``first .. first + n - 1`` of `make_active_venv`, in a worker process: made as ``make_vec_env`` makes
+    them there (its Monitor, each action space seeded ``seed + k``)."""
+    return make_vec_env(
+        functools.partial(make_active_env, config, config.seed, teacher=teacher),
+        n_envs=n,
+        seed=config.seed,
+        start_index=first,
+        vec_env_cls=DummyVecEnv,
     )
 
 

@@ -102,6 +102,38 @@ def test_config_rejects_bad_values():
             ActiveTrainConfig(device="cuda")
 
 
+def test_workers_give_the_training_envs_of_one_process():
+    """`vec_env="workers"` splits the envs over worker processes (`agents.worker_vec_env.WorkersVecEnv`): the
+    observations, rewards, dones and infos of `make_active_venv` in one process (dummy), bit for bit."""
+    from agents.train_active import make_active_venv
+    from agents.worker_vec_env import WorkersVecEnv
+
+    with pytest.raises(ValueError, match="workers must be an int >= 1"):
+        ActiveTrainConfig(workers=0)
+    config = ActiveTrainConfig(
+        kinds=("procedural",), kind_weights=None, particles=100, max_episode_steps=12, n_envs=3, vec_env="dummy"
+    )
+    one = make_active_venv(config)
+    two = make_active_venv(dataclasses.replace(config, vec_env="workers", workers=2))
+    try:
+        assert isinstance(two, WorkersVecEnv) and two.workers == 2
+        first = one.reset(), two.reset()
+        assert all(np.array_equal(first[0][k], first[1][k]) for k in first[0])
+        rng, ends = np.random.default_rng(0), 0
+        for _ in range(8):  # the decisions repeat actions: episodes of 12 steps end within these
+            actions = rng.integers(0, one.action_space.n, 3)
+            (o1, r1, d1, i1), (o2, r2, d2, i2) = one.step(actions), two.step(actions)
+            assert all(np.array_equal(o1[k], o2[k]) for k in o1)
+            for info in i1 + i2:  # SB3's Monitor times its episodes: a wall-clock figure
+                info.get("episode", {}).pop("t", None)
+            assert np.array_equal(r1, r2) and np.array_equal(d1, d2) and repr(i1) == repr(i2)
+            ends += int(d1.sum())
+        assert ends >= 3
+    finally:
+        one.close()
+        two.close()
+
+
 def test_training_envs_draw_layout_files(tmp_path):
     # a new user's trial: train_active could not train on one's own layout files
     from agents.train_active import make_active_env
