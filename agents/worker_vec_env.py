@@ -116,9 +116,14 @@ def _worker(conn, parent_end, payload: bytes, n: int, first: int) -> None:
         return
     while True:
         try:
-            cmd, data = conn.recv()
+            message = conn.recv_bytes()
         except (EOFError, OSError):  # the main process is gone
             break
+        try:
+            cmd, data = pickle.loads(message)
+        except Exception as e:  # say, an argument whose class this process cannot import
+            conn.send(_failure(venv, e))
+            continue
         if cmd == "close":
             venv.close()
             conn.send(("ok", None))
@@ -137,8 +142,8 @@ def _worker(conn, parent_end, payload: bytes, n: int, first: int) -> None:
 def _whole_messages():
     """Hold a Ctrl-C (SIGINT) back until the block ends, so that a message to or from a worker is never cut in two
     (the pipe would be out of step for good); in the main thread only, where Python runs signal handlers."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is None:
+        yield  # not the main thread, or a handler installed from C, which Python cannot put back
         return
     held: list[int] = []
     previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
@@ -242,7 +247,7 @@ class WorkersVecEnv(VecEnv):
         with _whole_messages():
             try:
                 self._conns[w].send((cmd, data))
-            except OSError as e:
+            except ConnectionError as e:
                 raise self._lost(w, e) from e
             self._waiting[w] = True
 
@@ -253,11 +258,16 @@ class WorkersVecEnv(VecEnv):
                 if not self.processes[w].is_alive() and not conn.poll():
                     raise EOFError
             with _whole_messages():
-                status, out = conn.recv()
+                message = conn.recv_bytes()
                 self._waiting[w] = False
-        except (EOFError, OSError) as e:
+        except (EOFError, ConnectionError) as e:  # not any OSError: a signal handler's TimeoutError is the caller's
             raise self._lost(w, e) from e
-        return status, out
+        try:
+            return pickle.loads(message)
+        except Exception as e:  # an answer whose class this process cannot rebuild: that call's error
+            error = RuntimeError(f"worker {w}'s answer did not unpickle here: {type(e).__name__}: {e}")
+            error.__cause__ = e
+            return "error", (error, traceback.format_exc(), None)
 
     def _gather(self, ws: Sequence[int]) -> list:
         """Every worker's answer, in order; the first worker's error is raised once all have answered."""
@@ -371,29 +381,43 @@ class WorkersVecEnv(VecEnv):
         return obs, rewards, dones, [info for o in outs for info in o[3]]
 
     def close(self) -> None:
-        """Ask every worker to close its robots and stop (waiting up to 10 s for one still stepping), then end the
-        processes; twice is fine."""
+        """Ask every worker to close its robots and stop, waiting 10 s in all for those still stepping, then end the
+        processes (terminated if they have not stopped by then, or on a Ctrl-C meanwhile); twice is fine."""
         if self.closed:
             return
-        for w, conn in enumerate(self._conns):
-            try:
-                with _whole_messages():
-                    if self._waiting[w] and conn.poll(10.0):
-                        conn.recv()
-                    conn.send(("close", None))
-                    if conn.poll(10.0):
-                        conn.recv()
-            except (EOFError, OSError):
-                pass
-        for proc in self.processes:
-            proc.join(timeout=5.0)
-            if proc.is_alive():
-                proc.terminate()
-                proc.join(timeout=5.0)
-        for conn in self._conns:
-            conn.close()
-        self._waiting = [False] * self.workers
-        self.closed = True
+        deadline = time.monotonic() + 10.0
+
+        def left() -> float:
+            return max(0.0, deadline - time.monotonic())
+
+        try:
+            for w, conn in enumerate(self._conns):
+                try:
+                    if self._waiting[w] and conn.poll(left()):
+                        with _whole_messages():
+                            conn.recv_bytes()
+                            self._waiting[w] = False
+                    if not self._waiting[w]:
+                        with _whole_messages():
+                            conn.send(("close", None))
+                except (EOFError, OSError):
+                    pass
+            for w, conn in enumerate(self._conns):
+                try:
+                    if not self._waiting[w] and conn.poll(left()):
+                        conn.recv_bytes()
+                except (EOFError, OSError):
+                    pass
+        finally:
+            for proc in self.processes:
+                proc.join(timeout=left())
+                if proc.is_alive():
+                    proc.terminate()
+                    proc.join(timeout=2.0)
+            for conn in self._conns:
+                conn.close()
+            self._waiting = [False] * self.workers
+            self.closed = True
 
     def worker_cpu_seconds(self) -> list[float]:
         """Each worker's CPU time so far (``time.process_time`` in that process, s): what a CPU-time benchmark adds

@@ -46,6 +46,16 @@ class Slow(gym.Wrapper):
     def hold_a_lock(self):
         self.lock = threading.Lock()
 
+    def make_bad(self):
+        return TwoArgs("a", "b")
+
+
+class TwoArgs(Exception):
+    """Pickles, but does not unpickle (its arguments are not its ``args``)."""
+
+    def __init__(self, a, b):
+        super().__init__(a)
+
 
 def _slow_block(n: int, first: int):
     return batched_block("SemReloc-v19", Slow, **KW)(n, first)
@@ -233,3 +243,37 @@ def test_ctrl_c_a_dead_worker_and_odd_calls_leave_clear_errors_and_nothing_lost(
     assert not any(p.is_alive() for p in workers.processes)
     with pytest.raises(RuntimeError, match="closed"):
         workers.step(np.zeros(6, dtype=np.int64))
+
+
+def test_answers_and_arguments_that_do_not_unpickle_and_a_signal_handlers_error_leave_the_workers_usable():
+    workers = WorkersVecEnv(_slow_block, num_envs=4, workers=2)
+    try:
+        workers.seed(0)
+        workers.reset()
+        with pytest.raises(RuntimeError, match="worker 0's answer did not unpickle here"):
+            workers.env_method("make_bad", indices=[0])
+        assert workers.get_attr("delay", indices=[0, 3]) == [0.0, 0.0]  # no hang, no stale answer
+        with pytest.raises(TypeError, match="missing 1 required positional argument"):
+            workers.set_attr("bad", TwoArgs("a", "b"), indices=[3])
+        assert workers.get_attr("delay", indices=[3]) == [0.0]  # the worker lives on
+        # a TimeoutError from the caller's own alarm is the caller's: the workers are not "gone"
+        workers.set_attr("delay", 1.0, indices=[3])
+
+        def alarm(signum, frame):
+            raise TimeoutError("the caller's own time limit")
+
+        previous = signal.signal(signal.SIGALRM, alarm)
+        try:
+            signal.setitimer(signal.ITIMER_REAL, 0.3)
+            with pytest.raises(TimeoutError):
+                workers.step(np.zeros(4, dtype=np.int64))
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, previous)
+        with pytest.raises(RuntimeError, match=r"the last step\(\) raised TimeoutError .*call reset\(\)"):
+            workers.step(np.zeros(4, dtype=np.int64))
+        workers.set_attr("delay", 0.0)
+        workers.reset()
+        assert workers.step(np.zeros(4, dtype=np.int64))[2].shape == (4,)
+    finally:
+        workers.close()
