@@ -35,9 +35,9 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
 from filters.numbers import is_int
-from semreloc_env.envs.batched import float_array_hint
+from semreloc_env.envs.batched import SemRelocLoopVectorEnv, float_array_hint
 
-from .vec_env import check_seed
+from .vec_env import SB3VecEnvAdapter, check_seed
 
 
 class RemoteTraceback(Exception):
@@ -48,10 +48,6 @@ class RemoteTraceback(Exception):
 
 
 def _make_batched_block(n: int, first: int, env_id: str, wrapper, kwargs: dict[str, Any]) -> VecEnv:
-    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
-
-    from .vec_env import SB3VecEnvAdapter
-
     return SB3VecEnvAdapter(
         SemRelocLoopVectorEnv(num_envs=n, env_id=env_id, wrapper=wrapper, first_robot=first, **kwargs)
     )
