@@ -169,6 +169,8 @@ class ActiveTrainConfig:
             if not is_int(v) or v < 1:
                 raise ValueError(f"{name} must be an int >= 1, got {v!r}")
             object.__setattr__(self, name, int(v))
+        if self.vec_env == "workers" and self.workers > self.n_envs:
+            raise ValueError(f"workers must be at most n_envs ({self.n_envs}), got {self.workers}")
         lo, hi = self.layout_seeds
         if not (0 <= lo < hi):
             raise ValueError(f"layout_seeds must be (start, stop) with 0 <= start < stop, got {self.layout_seeds!r}")
@@ -304,9 +306,7 @@ def make_active_venv(config: ActiveTrainConfig, teacher: dict[str, Any] | None =
     if config.vec_env == "workers":
         from .worker_vec_env import WorkersVecEnv
 
-        venv = WorkersVecEnv(
-            functools.partial(_active_block, config, teacher), config.n_envs, min(config.workers, config.n_envs)
-        )
+        venv = WorkersVecEnv(functools.partial(_active_block, config, teacher), config.n_envs, config.workers)
         venv.seed(config.seed)
         return venv
     return make_vec_env(

@@ -63,6 +63,7 @@ class SB3VecEnvAdapter(VecEnv):
         self.envs = venv.envs
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self._actions: np.ndarray | None = None
+        self.closed = False
         space = venv.single_observation_space
         self._keys = tuple(space.spaces) if isinstance(space, gym.spaces.Dict) else None  # None: one array
 
@@ -81,6 +82,7 @@ class SB3VecEnvAdapter(VecEnv):
         self.venv.check_seeds(list(self._seeds), [o or None for o in self._options])
 
     def reset(self) -> VecEnvObs:
+        self._check_open()
         self.check_reset()  # before any robot resets
         obs = []
         for i, env in enumerate(self.envs):
@@ -95,8 +97,9 @@ class SB3VecEnvAdapter(VecEnv):
         return self._stack(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        """RuntimeError after a robot raised in the last step or reset (until `reset`); ValueError naming the robot
-        if an action is invalid (all are checked before any robot moves)."""
+        """RuntimeError after `close` or after a robot raised in the last step or reset (until `reset`); ValueError
+        naming the robot if an action is invalid (all are checked before any robot moves)."""
+        self._check_open()
         self.venv.check_in_step()
         self._actions = self.venv.check_actions(actions)
 
@@ -119,6 +122,11 @@ class SB3VecEnvAdapter(VecEnv):
 
     def close(self) -> None:
         self.venv.close()
+        self.closed = True
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError("this SB3VecEnvAdapter is closed")
 
     def _targets(self, indices) -> list:
         return [self.envs[i] for i in self._get_indices(indices)]

@@ -30,6 +30,7 @@ from functools import partial
 from typing import Any
 
 import cloudpickle
+import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
@@ -356,7 +357,13 @@ class WorkersVecEnv(VecEnv):
             raise ValueError(f"actions must be a sequence of {self.num_envs} actions, got {actions!r:.80}") from None
         if n != self.num_envs:
             raise ValueError(f"got {n} actions for {self.num_envs} robots")
-        hint = float_array_hint(actions, self.action_space)
+        space = self.action_space
+        if isinstance(actions, np.ndarray) and isinstance(space, gym.spaces.Box) and actions.shape[1:] != space.shape:
+            raise ValueError(
+                f"actions must have shape {(self.num_envs, *space.shape)} (one {space.shape} action per robot), "
+                f"got shape {actions.shape}"
+            )
+        hint = float_array_hint(actions, space)
         if hint:  # a float array of discrete actions: the robots with NaN, by their numbers in the whole set
             raise ValueError(f"invalid actions{hint}")
         self._all("step_async", [actions[self._block(w)] for w in range(self.workers)])

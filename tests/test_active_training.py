@@ -110,6 +110,8 @@ def test_workers_give_the_training_envs_of_one_process():
 
     with pytest.raises(ValueError, match="workers must be an int >= 1"):
         ActiveTrainConfig(workers=0)
+    with pytest.raises(ValueError, match=r"workers must be at most n_envs \(2\), got 3"):
+        ActiveTrainConfig(vec_env="workers", n_envs=2, workers=3)
     config = ActiveTrainConfig(
         kinds=("procedural",), kind_weights=None, particles=100, max_episode_steps=12, n_envs=3, vec_env="dummy"
     )

@@ -277,3 +277,22 @@ def test_answers_and_arguments_that_do_not_unpickle_and_a_signal_handlers_error_
         assert workers.step(np.zeros(4, dtype=np.int64))[2].shape == (4,)
     finally:
         workers.close()
+
+
+def test_continuous_actions_of_the_wrong_shape_and_a_closed_adapter_are_refused_as_in_one_process():
+    kw = {**KW, "action_type": "continuous"}
+    workers = WorkersVecEnv(batched_block("SemReloc-v19", **kw), num_envs=3, workers=2)
+    one = SB3VecEnvAdapter(SemRelocLoopVectorEnv(3, **kw))
+    try:
+        for v in (workers, one):
+            v.reset()
+            for bad in (np.zeros((3, 3), np.float32), np.zeros(3, np.float32)):
+                with pytest.raises(ValueError, match=r"must have shape \(3, 2\)") as err:
+                    v.step(bad)
+                assert f"got shape {bad.shape}" in str(err.value)
+    finally:
+        workers.close()
+        one.close()
+    for v in (workers, one):
+        with pytest.raises(RuntimeError, match="is closed"):
+            v.step(np.zeros((3, 2), np.float32))
