@@ -347,10 +347,13 @@ def _as_action_fn(
     model_or_policy: Any, deterministic: bool, seed: int = 0
 ) -> tuple[Callable[[dict], Any], Callable[[], None]]:
     if isinstance(model_or_policy, BaseAlgorithm):
+        # a model trained under VecNormalize sees observations as it did in training: normalised by its statistics
+        vec_normalize = model_or_policy.get_vec_normalize_env()
+        seen = (lambda obs: obs) if vec_normalize is None else vec_normalize.normalize_obs
         if deterministic:
 
             def act(obs: dict):
-                action, _ = model_or_policy.predict(obs, deterministic=True)
+                action, _ = model_or_policy.predict(seen(obs), deterministic=True)
                 return action
 
         else:  # drawn from a generator of its own, not torch's global one (as predict samples)
@@ -360,7 +363,7 @@ def _as_action_fn(
             rng = np.random.default_rng(seed)
 
             def act(obs: dict):
-                return sample_action(model_or_policy, obs, rng)
+                return sample_action(model_or_policy, seen(obs), rng)
 
         return act, lambda: None
     if not callable(model_or_policy):
@@ -381,7 +384,9 @@ def evaluate(
     """Run ``n_episodes`` episodes of ``model_or_policy`` and summarise them.
 
     Args:
-        model_or_policy: an SB3 model (``BaseAlgorithm``; acts with ``predict``) or a callable
+        model_or_policy: an SB3 model (``BaseAlgorithm``; acts with ``predict``, on observations normalised by
+            its ``VecNormalize`` statistics if its env has them: ``model.get_vec_normalize_env()``; for a loaded
+            model, ``model.set_env(VecNormalize.load(path, venv))`` first) or a callable
             ``obs dict -> action`` such as `agents.baselines.WallFollowExplorer` (its ``reset()``
             is called at every episode start, if it has one). Callables see the same observation
             as models, including the ``belief`` key.

@@ -477,3 +477,33 @@ def test_vec_envs_close_quietly_after_ctrl_c():
     with pytest.raises(EOFError):  # without an interrupt a failing close is news
         with closing_venv(Gone()):
             pass
+
+
+def test_evaluate_shows_a_vecnormalize_model_the_observations_it_trained_on():
+    """A model trained under SB3's VecNormalize acts on observations normalised by its statistics in `evaluate`, not
+    on the raw ones (a new user's trial: evaluate built a plain env and said nothing)."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from agents.train import _as_action_fn
+    from agents.vec_env import SB3VecEnvAdapter
+    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+    from semreloc_env.wrappers import BeliefObservation
+
+    kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 200}, "max_episode_steps": 10}
+    keys = ["belief", "lidar", "odometry", "semantic_range"]
+    venv = VecNormalize(SB3VecEnvAdapter(SemRelocLoopVectorEnv(2, wrapper=BeliefObservation, **kw)), norm_obs_keys=keys)
+    model = PPO("MultiInputPolicy", venv, n_steps=8, batch_size=16, n_epochs=1, seed=0)
+    model.set_logger(Logger(None, []))
+    model.learn(16)
+    raw, _ = make_env(kw).reset(seed=0)
+    seen = []
+    model.predict = lambda obs, deterministic: (seen.append(obs), (0, None))[1]
+    act, _ = _as_action_fn(model, deterministic=True)
+    act(raw)
+    want = venv.normalize_obs(raw)
+    assert all(np.array_equal(seen[0][k], want[k]) for k in raw)
+    assert not np.array_equal(seen[0]["lidar"], raw["lidar"])
+    assert evaluate(model, kw, n_episodes=1)["success_rate"] in (0.0, 1.0)  # runs end to end with the spy's action
+    venv.close()
