@@ -46,7 +46,7 @@ from .callbacks import RelocalizationMetricsCallback
 from .learned import load_model, option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings
-from .vec_env import closing_venv
+from .vec_env import close_after_interrupt, closing_venv
 
 ENV_ID = "SemReloc-v19"
 TRAINABLE_ENV_IDS = semreloc_ids_since(2)
@@ -577,41 +577,44 @@ def train_active(
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(int(config.torch_threads))
     venv = make_active_venv(config)
-    if resume is not None:
-        model = PPO.load(resume, env=venv, device=config.device)
-        # the checkpoint's episode statistics would fill the resumed run's rollout/* rows and its curve
-        model.ep_info_buffer = model.ep_success_buffer = None
-        config = resumed_config(model, config)  # its n_steps also bounds the checkpoints it will write
-        n = int(model.num_timesteps)
-        names = ("progress.csv", "timing.json", "config.json", "policy.zip", "learning_curve.png")
-        taken = [f"{Path(m).stem}_before_{n}{Path(m).suffix}" for m in names]
-        taken = [t for t in taken if (out / t).exists()] + _checkpoints_overwritten(out, n, config)
-        if taken:  # resuming would overwrite an earlier run's files
-            venv.close()
-            raise RunFolderError(
-                f"--resume {resume} into {out} would overwrite {', '.join(taken)} (this folder continued from "
-                f"{n} decisions before, or holds later checkpoints): give a new --out"
+    try:  # the envs (subprocesses, workers) are closed if the model cannot be set up
+        if resume is not None:
+            model = PPO.load(resume, env=venv, device=config.device)
+            # the checkpoint's episode statistics would fill the resumed run's rollout/* rows and its curve
+            model.ep_info_buffer = model.ep_success_buffer = None
+            config = resumed_config(model, config)  # its n_steps also bounds the checkpoints it will write
+            n = int(model.num_timesteps)
+            names = ("progress.csv", "timing.json", "config.json", "policy.zip", "learning_curve.png")
+            taken = [f"{Path(m).stem}_before_{n}{Path(m).suffix}" for m in names]
+            taken = [t for t in taken if (out / t).exists()] + _checkpoints_overwritten(out, n, config)
+            if taken:  # resuming would overwrite an earlier run's files
+                raise RunFolderError(
+                    f"--resume {resume} into {out} would overwrite {', '.join(taken)} (this folder continued from "
+                    f"{n} decisions before, or holds later checkpoints): give a new --out"
+                )
+            for name in names:
+                if (out / name).exists():
+                    (out / name).rename(out / f"{Path(name).stem}_before_{n}{Path(name).suffix}")
+        else:
+            model = build_model(config, venv)
+        (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
+        logger = configure(str(out), (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
+        model.set_logger(logger)
+        cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=100)]
+        if config.checkpoint_every is not None:
+            cbs.append(
+                CheckpointCallback(
+                    save_freq=max(1, config.checkpoint_every // config.n_envs),
+                    save_path=str(out / "checkpoints"),
+                    name_prefix="ppo",
+                )
             )
-        for name in names:
-            if (out / name).exists():
-                (out / name).rename(out / f"{Path(name).stem}_before_{n}{Path(name).suffix}")
-    else:
-        model = build_model(config, venv)
-    (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
-    logger = configure(str(out), (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
-    model.set_logger(logger)
-    cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=100)]
-    if config.checkpoint_every is not None:
-        cbs.append(
-            CheckpointCallback(
-                save_freq=max(1, config.checkpoint_every // config.n_envs),
-                save_path=str(out / "checkpoints"),
-                name_prefix="ppo",
-            )
-        )
-    if config.time_budget_s is not None:
-        cbs.append(WallClockBudget(config.time_budget_s))
-    cbs += list(callbacks or [])
+        if config.time_budget_s is not None:
+            cbs.append(WallClockBudget(config.time_budget_s))
+        cbs += list(callbacks or [])
+    except BaseException:
+        close_after_interrupt(venv)
+        raise
     t0, c0 = time.time(), time.process_time()
     start_decisions = int(model.num_timesteps)  # > 0 when resumed
     with closing_venv(venv):

@@ -136,6 +136,23 @@ def test_workers_give_the_training_envs_of_one_process():
         two.close()
 
 
+def test_a_model_that_cannot_be_set_up_leaves_no_worker_running(monkeypatch, tmp_path):
+    import multiprocessing
+
+    import agents.train_active as ta
+
+    def broken(config, venv):
+        raise RuntimeError("no model today")
+
+    monkeypatch.setattr(ta, "build_model", broken)
+    config = ActiveTrainConfig(
+        kinds=("procedural",), kind_weights=None, particles=100, n_envs=2, vec_env="workers", progress_bar=False
+    )
+    with pytest.raises(RuntimeError, match="no model today"):
+        train_active(config, tmp_path / "run")
+    assert not multiprocessing.active_children()
+
+
 def test_training_envs_draw_layout_files(tmp_path):
     # a new user's trial: train_active could not train on one's own layout files
     from agents.train_active import make_active_env
