@@ -46,6 +46,7 @@ from semreloc_env.wrappers import BeliefObservation
 from .callbacks import RelocalizationMetricsCallback
 from .features import SemRelocExtractor
 from .metrics import EpisodeTracker, summarize_episodes
+from .vec_env import close_after_interrupt
 
 ENV_ID = "SemReloc-v19"
 """The env id training and evaluation use unless told otherwise (``TrainConfig.env_id``, ``env_id=``)."""
@@ -275,71 +276,75 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
     log, ``log_dir/progress.csv`` and TensorBoard), plus SB3's ``CheckpointCallback`` and
     ``EvalCallback`` when ``config.checkpoint_every`` / ``config.eval_every`` are set, plus
     ``callbacks``. The logger is closed when learning ends (or fails); the model's env is left open,
-    ``model.get_env().close()`` releases it.
+    ``model.get_env().close()`` releases it (a run that fails closes it).
     """
     torch.set_num_threads(int(config.torch_threads))
     venv = make_venv(config)
-    model = PPO(
-        "MultiInputPolicy",
-        venv,
-        n_steps=config.n_steps,
-        batch_size=config.batch_size,
-        n_epochs=config.n_epochs,
-        learning_rate=config.learning_rate,
-        gamma=config.gamma,
-        gae_lambda=config.gae_lambda,
-        ent_coef=config.ent_coef,
-        clip_range=config.clip_range,
-        policy_kwargs={
-            "features_extractor_class": SemRelocExtractor,
-            "features_extractor_kwargs": {"features_dim": config.features_dim},
-            "net_arch": list(config.net_arch),
-        },
-        seed=config.seed,
-        device=config.device,
-        verbose=config.verbose,
-    )
-    if config.log_dir is not None:
-        logger = configure(config.log_dir, (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
-    else:
-        # configure(None, ...) would make an empty folder under the temp dir for every run.
-        logger = Logger(None, [HumanOutputFormat(sys.stdout)] if config.verbose else [])
-    model.set_logger(logger)
-    cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=config.metrics_window)]
-    eval_venv = None
-    if config.checkpoint_every is not None:
-        cbs.append(
-            CheckpointCallback(
-                save_freq=max(1, config.checkpoint_every // config.n_envs),
-                save_path=str(Path(config.log_dir) / "checkpoints"),
-                name_prefix="ppo",
-            )
+    try:  # a run that fails closes its envs (subprocesses, workers): the caller has no model to close them by
+        model = PPO(
+            "MultiInputPolicy",
+            venv,
+            n_steps=config.n_steps,
+            batch_size=config.batch_size,
+            n_epochs=config.n_epochs,
+            learning_rate=config.learning_rate,
+            gamma=config.gamma,
+            gae_lambda=config.gae_lambda,
+            ent_coef=config.ent_coef,
+            clip_range=config.clip_range,
+            policy_kwargs={
+                "features_extractor_class": SemRelocExtractor,
+                "features_extractor_kwargs": {"features_dim": config.features_dim},
+                "net_arch": list(config.net_arch),
+            },
+            seed=config.seed,
+            device=config.device,
+            verbose=config.verbose,
         )
-    if config.eval_every is not None:
-        eval_kind = dataclasses.replace(config, vec_env="dummy") if config.vec_env == "subproc" else config
-        eval_venv = make_venv(eval_kind, n_envs=1, seed=config.eval_seed)
-        eval_dir = str(Path(config.log_dir) / "eval")
-        cbs.append(
-            EvalCallback(
-                eval_venv,
-                n_eval_episodes=config.eval_episodes,
-                eval_freq=max(1, config.eval_every // config.n_envs),
-                log_path=eval_dir,
-                best_model_save_path=eval_dir,
-                deterministic=True,
-                verbose=config.verbose,
+        if config.log_dir is not None:
+            logger = configure(config.log_dir, (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
+        else:
+            # configure(None, ...) would make an empty folder under the temp dir for every run.
+            logger = Logger(None, [HumanOutputFormat(sys.stdout)] if config.verbose else [])
+        model.set_logger(logger)
+        cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=config.metrics_window)]
+        eval_venv = None
+        if config.checkpoint_every is not None:
+            cbs.append(
+                CheckpointCallback(
+                    save_freq=max(1, config.checkpoint_every // config.n_envs),
+                    save_path=str(Path(config.log_dir) / "checkpoints"),
+                    name_prefix="ppo",
+                )
             )
-        )
-    cbs.extend(callbacks)
-    try:
-        with warnings.catch_warnings():
-            # the evaluation env is one robot in this process by design (make_venv), also for "subproc" and workers
-            warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
-            model.learn(total_timesteps=config.total_timesteps, callback=cbs, progress_bar=config.progress_bar)
-    finally:
-        logger.close()
-        if eval_venv is not None:
-            eval_venv.close()
+        if config.eval_every is not None:
+            eval_kind = dataclasses.replace(config, vec_env="dummy") if config.vec_env == "subproc" else config
+            eval_venv = make_venv(eval_kind, n_envs=1, seed=config.eval_seed)
+            eval_dir = str(Path(config.log_dir) / "eval")
+            cbs.append(
+                EvalCallback(
+                    eval_venv,
+                    n_eval_episodes=config.eval_episodes,
+                    eval_freq=max(1, config.eval_every // config.n_envs),
+                    log_path=eval_dir,
+                    best_model_save_path=eval_dir,
+                    deterministic=True,
+                    verbose=config.verbose,
+                )
+            )
+        cbs.extend(callbacks)
+        try:
+            with warnings.catch_warnings():
+                # the evaluation env is one robot in this process by design (make_venv), also for "subproc" and workers
+                warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
+                model.learn(total_timesteps=config.total_timesteps, callback=cbs, progress_bar=config.progress_bar)
+        finally:
+            logger.close()
+            if eval_venv is not None:
+                eval_venv.close()
+    except BaseException:
+        close_after_interrupt(venv)
+        raise
     return model
 
 

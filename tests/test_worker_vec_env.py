@@ -296,3 +296,21 @@ def test_continuous_actions_of_the_wrong_shape_and_a_closed_adapter_are_refused_
     for v in (workers, one):
         with pytest.raises(RuntimeError, match="is closed"):
             v.step(np.zeros((3, 2), np.float32))
+
+
+def test_a_training_run_that_fails_stops_its_workers():
+    import multiprocessing
+
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Fails(BaseCallback):
+        def _on_step(self) -> bool:
+            raise RuntimeError("a callback's own failure")
+
+    cfg = TrainConfig(
+        n_envs=2, vec_env="batched", workers=2, n_steps=16, batch_size=32, total_timesteps=32, env_kwargs=KW
+    )
+    before = set(multiprocessing.active_children())  # the module's fixture keeps its own workers
+    with pytest.raises(RuntimeError, match="a callback's own failure"):
+        train(cfg, callbacks=[Fails()])
+    assert not set(multiprocessing.active_children()) - before
