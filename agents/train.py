@@ -79,6 +79,24 @@ def check_ppo_settings(config) -> None:
     check_device(config.device)
 
 
+PPO_HYPERPARAMETERS = (
+    "n_steps",
+    "batch_size",
+    "n_epochs",
+    "learning_rate",
+    "gamma",
+    "gae_lambda",
+    "ent_coef",
+    "clip_range",
+)
+"""The PPO arguments a training config (`TrainConfig`, `agents.train_active.ActiveTrainConfig`) holds as fields."""
+
+
+def ppo_hyperparameters(config) -> dict[str, Any]:
+    """``config``'s `PPO_HYPERPARAMETERS` as SB3 ``PPO`` keyword arguments."""
+    return {name: getattr(config, name) for name in PPO_HYPERPARAMETERS}
+
+
 def check_device(device) -> None:
     """ValueError unless ``device`` is ``"auto"`` or names a torch device (``"cpu"``, ``"cuda:0"``, ...) that this
     machine has (SB3 would quietly train on the CPU instead of a CUDA device it does not find)."""
@@ -284,14 +302,7 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
         model = PPO(
             "MultiInputPolicy",
             venv,
-            n_steps=config.n_steps,
-            batch_size=config.batch_size,
-            n_epochs=config.n_epochs,
-            learning_rate=config.learning_rate,
-            gamma=config.gamma,
-            gae_lambda=config.gae_lambda,
-            ent_coef=config.ent_coef,
-            clip_range=config.clip_range,
+            **ppo_hyperparameters(config),
             policy_kwargs={
                 "features_extractor_class": SemRelocExtractor,
                 "features_extractor_kwargs": {"features_dim": config.features_dim},

@@ -45,7 +45,7 @@ from .active_features import ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
 from .learned import load_model, option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
-from .train import check_ppo_settings
+from .train import check_ppo_settings, ppo_hyperparameters
 from .vec_env import close_after_interrupt, closing_venv
 
 ENV_ID = "SemReloc-v19"
@@ -334,14 +334,7 @@ def build_model(config: ActiveTrainConfig, venv) -> PPO:
     return PPO(
         "MultiInputPolicy",
         venv,
-        n_steps=config.n_steps,
-        batch_size=config.batch_size,
-        n_epochs=config.n_epochs,
-        learning_rate=config.learning_rate,
-        gamma=config.gamma,
-        gae_lambda=config.gae_lambda,
-        ent_coef=config.ent_coef,
-        clip_range=config.clip_range,
+        **ppo_hyperparameters(config),
         vf_coef=config.vf_coef,
         policy_kwargs={
             "features_extractor_class": ActiveExtractor,
