@@ -383,7 +383,15 @@ def _as_action_fn(
 
         return act, lambda: None
     if not callable(model_or_policy):
-        raise TypeError(f"expected an SB3 model or a callable obs -> action, got {type(model_or_policy).__name__}")
+        hint = ""
+        if hasattr(model_or_policy, "wrap") and hasattr(model_or_policy, "act"):  # agents.policies' interface
+            hint = (
+                " (a policy of agents.policies, or agents.learned.load_policy's of a train_active run, acts on its own "
+                "wrapped env: evaluate it with scripts/evaluate_active.py, agents.experiments.evaluate_active)"
+            )
+        raise TypeError(
+            f"expected an SB3 model or a callable obs -> action, got {type(model_or_policy).__name__}{hint}"
+        )
     reset = getattr(model_or_policy, "reset", None)
     return model_or_policy, (reset if callable(reset) else lambda: None)
 

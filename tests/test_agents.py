@@ -507,3 +507,12 @@ def test_evaluate_shows_a_vecnormalize_model_the_observations_it_trained_on():
     assert not np.array_equal(seen[0]["lidar"], raw["lidar"])
     assert evaluate(model, kw, n_episodes=1)["success_rate"] in (0.0, 1.0)  # runs end to end with the spy's action
     venv.close()
+
+
+def test_evaluate_points_a_policy_of_its_own_env_to_evaluate_active():
+    """A new user's trial passed `load_policy`'s policy of a train_active run to `evaluate`: the error says where such
+    policies (agents.policies' interface: `wrap` and `act`) are evaluated."""
+    from agents.policies import POLICIES
+
+    with pytest.raises(TypeError, match=r"got SpinPolicy \(a policy of agents.policies.*evaluate_active"):
+        evaluate(POLICIES["spin"](0), {"layout": "twin_rooms"}, n_episodes=1)
