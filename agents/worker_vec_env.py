@@ -30,13 +30,12 @@ from functools import partial
 from typing import Any
 
 import cloudpickle
-import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
 from filters.numbers import is_int
-from semreloc_env.envs.batched import SemRelocLoopVectorEnv, float_array_hint
+from semreloc_env.envs.batched import SemRelocLoopVectorEnv, action_list
 
 from .vec_env import SB3VecEnvAdapter, check_seed
 
@@ -351,21 +350,7 @@ class WorkersVecEnv(VecEnv):
         self._usable()
         if self._out_of_step is not None:
             raise RuntimeError(self._out_of_step)
-        try:
-            n = len(actions)
-        except TypeError:
-            raise ValueError(f"actions must be a sequence of {self.num_envs} actions, got {actions!r:.80}") from None
-        if n != self.num_envs:
-            raise ValueError(f"got {n} actions for {self.num_envs} robots")
-        space = self.action_space
-        if isinstance(actions, np.ndarray) and isinstance(space, gym.spaces.Box) and actions.shape[1:] != space.shape:
-            raise ValueError(
-                f"actions must have shape {(self.num_envs, *space.shape)} (one {space.shape} action per robot), "
-                f"got shape {actions.shape}"
-            )
-        hint = float_array_hint(actions, space)
-        if hint:  # a float array of discrete actions: the robots with NaN, by their numbers in the whole set
-            raise ValueError(f"invalid actions{hint}")
+        action_list(actions, self.num_envs, self.action_space)  # the batch's checks, with the whole set's numbers
         self._all("step_async", [actions[self._block(w)] for w in range(self.workers)])
 
     def step_wait(self) -> VecEnvStepReturn:

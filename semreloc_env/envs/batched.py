@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+from collections.abc import Callable
 from copy import deepcopy
 from typing import Any
 
@@ -48,6 +49,33 @@ def float_array_hint(actions, space, first: int = 0) -> str:
     bad = np.flatnonzero(~np.isfinite(actions.reshape(len(actions), -1)).all(axis=1))
     where = f"; robots {(bad + first).tolist()} hold NaN or inf" if bad.size else ""
     return f" (the actions are a {actions.dtype} array: discrete actions must be integers{where})"
+
+
+def action_list(
+    actions, num_envs: int, space: gym.spaces.Space, first: int = 0, hint_applies: Callable[[], bool] = lambda: True
+) -> list:
+    """``actions`` as a list of ``num_envs`` robots' actions, each robot's single action space ``space``; ValueError if
+    ``actions`` is no sequence or holds another count, if it is an array of Box actions of another shape, or if it is
+    a float array of discrete actions (`float_array_hint`, robots numbered from ``first``) where ``hint_applies()``
+    (the robots' own checks would refuse every such float). Checks of the whole batch, before each robot's own."""
+    try:
+        scalar = isinstance(actions, (str, bytes)) or np.ndim(actions) == 0
+    except ValueError:  # a ragged nested sequence: each robot's action is checked on its own
+        scalar = False
+    if scalar:
+        raise ValueError(f"actions must be a sequence of {num_envs} actions, got {actions!r:.80}")
+    acts = list(actions)
+    if len(acts) != num_envs:
+        raise ValueError(f"got {len(acts)} actions for {num_envs} robots")
+    hint = float_array_hint(actions, space, first)
+    if hint and hint_applies():  # every robot's action is a float: robot 0 is not the one to name
+        raise ValueError(f"invalid actions{hint}")
+    if isinstance(actions, np.ndarray) and isinstance(space, gym.spaces.Box) and actions.shape[1:] != space.shape:
+        raise ValueError(
+            f"actions must have shape {(num_envs, *space.shape)} (one {space.shape} action per robot), "
+            f"got shape {actions.shape}"
+        )
+    return acts
 
 
 def in_wrapped_space(action, space: gym.spaces.Space) -> bool:
@@ -150,25 +178,13 @@ class SemRelocLoopVectorEnv(VectorEnv):
         Checks all of them before any robot moves, so a rejected call changes nothing. With
         ``skip_done`` the robots that `step` will reset instead (their action is ignored) are not
         checked."""
-        try:
-            scalar = isinstance(actions, (str, bytes)) or np.ndim(actions) == 0
-        except ValueError:  # a ragged nested sequence: each robot's action is checked below
-            scalar = False
-        if scalar:
-            raise ValueError(f"actions must be a sequence of {self.num_envs} actions, got {actions!r:.80}")
-        acts = list(actions)
-        if len(acts) != self.num_envs:
-            raise ValueError(f"got {len(acts)} actions for {self.num_envs} robots")
-        one = self.single_action_space
-        hint = float_array_hint(actions, one, self.first_robot)
-        if hint and all(env.action_space is env.unwrapped.action_space for env in self.envs):
-            # every robot's action is a float: robot 0 is not the one to name
-            raise ValueError(f"invalid actions{hint}")
-        if isinstance(actions, np.ndarray) and isinstance(one, gym.spaces.Box) and actions.shape[1:] != one.shape:
-            raise ValueError(
-                f"actions must have shape {(self.num_envs, *one.shape)} (one {one.shape} action per robot), "
-                f"got shape {actions.shape}"
-            )
+        acts = action_list(
+            actions,
+            self.num_envs,
+            self.single_action_space,
+            self.first_robot,
+            lambda: all(env.action_space is env.unwrapped.action_space for env in self.envs),
+        )
         for i, (env, a) in enumerate(zip(self.envs, acts)):
             if skip_done and self._done[i]:
                 continue
