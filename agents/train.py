@@ -262,21 +262,14 @@ def make_venv(config: TrainConfig, n_envs: int | None = None, seed: int | None =
     if config.vec_env == "batched":
         from stable_baselines3.common.monitor import Monitor
 
-        from semreloc_env.envs.batched import SemRelocLoopVectorEnv
-
-        from .vec_env import SB3VecEnvAdapter
         from .worker_vec_env import WorkersVecEnv, batched_block
 
         def wrapper(e):
             return Monitor(BeliefObservation(e))
 
+        make_block = batched_block(config.env_id, wrapper, **env_kwargs)
         workers = min(int(config.workers), n_envs)
-        if workers > 1:
-            venv = WorkersVecEnv(batched_block(config.env_id, wrapper, **env_kwargs), n_envs, workers)
-        else:
-            venv = SB3VecEnvAdapter(
-                SemRelocLoopVectorEnv(num_envs=n_envs, env_id=config.env_id, wrapper=wrapper, **env_kwargs)
-            )
+        venv = WorkersVecEnv(make_block, n_envs, workers) if workers > 1 else make_block(n_envs, 0)
         venv.seed(seed)
         return venv
     return make_vec_env(

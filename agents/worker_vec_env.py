@@ -193,6 +193,8 @@ class WorkersVecEnv(VecEnv):
         self._worker_of = np.repeat(np.arange(len(sizes)), sizes)
         self._out_of_step: str | None = None
         self._gone: str | None = None  # why the workers cannot be used any more (one died)
+        self._failed: int | None = None  # the worker whose error the last call raised
+        self._failed_why: str | None = None  # why its robots are out of step, as its block says
         self._waiting = [False] * len(sizes)
         self.closed = False
         payload = cloudpickle.dumps(make_block)
@@ -231,7 +233,7 @@ class WorkersVecEnv(VecEnv):
         if self._gone is not None:
             raise RuntimeError(self._gone)
 
-    def _lost(self, w: int, e: BaseException) -> RuntimeError:
+    def _lost(self, w: int) -> RuntimeError:
         self.processes[w].join(timeout=0.5)
         self._gone = (
             f"worker {w} ({self._block_text(w)}) is gone (exit code {self.processes[w].exitcode}): close this VecEnv"
@@ -244,7 +246,7 @@ class WorkersVecEnv(VecEnv):
             try:
                 self._conns[w].send((cmd, data))
             except ConnectionError as e:
-                raise self._lost(w, e) from e
+                raise self._lost(w) from e
             self._waiting[w] = True
 
     def _recv(self, w: int) -> tuple[str, Any]:
@@ -257,7 +259,7 @@ class WorkersVecEnv(VecEnv):
                 message = conn.recv_bytes()
                 self._waiting[w] = False
         except (EOFError, ConnectionError) as e:  # not any OSError: a signal handler's TimeoutError is the caller's
-            raise self._lost(w, e) from e
+            raise self._lost(w) from e
         try:
             return pickle.loads(message)
         except Exception as e:  # an answer whose class this process cannot rebuild: that call's error
@@ -268,7 +270,7 @@ class WorkersVecEnv(VecEnv):
     def _gather(self, ws: Sequence[int]) -> list:
         """Every worker's answer, in order; the first worker's error is raised once all have answered."""
         outs, error = [], None
-        self._failed: int | None = None
+        self._failed = None
         for w in ws:
             status, out = self._recv(w)
             if status == "error" and error is None:
@@ -308,7 +310,7 @@ class WorkersVecEnv(VecEnv):
                 f"the last {call}() was interrupted (KeyboardInterrupt): the robots are out of step, call reset()"
             )
             return
-        w = getattr(self, "_failed", None)
+        w = self._failed
         if w is None:
             self._out_of_step = f"the last {call}() raised {type(e).__name__} ({e!s:.200}): call reset()"
             return
