@@ -3,6 +3,7 @@
 import gymnasium as gym
 import numpy as np
 import pytest
+from helpers import strictly_equal
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -431,21 +432,6 @@ def test_first_robot_numbers_the_robots_in_error_messages():
             SemRelocLoopVectorEnv(num_envs=1, **VKW, first_robot=bad)
 
 
-def _strictly_equal(a, b) -> bool:
-    """Equal keys in the same order, arrays of the same dtype and shape, and elements of the same type and value."""
-    if isinstance(a, dict):
-        return isinstance(b, dict) and list(a) == list(b) and all(_strictly_equal(a[k], b[k]) for k in a)
-    if isinstance(a, np.ndarray):
-        if not (isinstance(b, np.ndarray) and a.dtype == b.dtype and a.shape == b.shape):
-            return False
-        if a.dtype != object:
-            return a.tobytes() == b.tobytes()
-        return all(_strictly_equal(x, y) for x, y in zip(a.tolist(), b.tolist()))
-    if isinstance(a, (list, tuple)):
-        return type(a) is type(b) and len(a) == len(b) and all(_strictly_equal(x, y) for x, y in zip(a, b))
-    return type(a) is type(b) and (a == b or (a != a and b != b))
-
-
 _leaf = st.one_of(
     st.none(),
     st.booleans(),
@@ -488,4 +474,4 @@ def test_batch_infos_equals_gymnasium_style_batching_robot_by_robot(infos):
     one_by_one = {}
     for i, info in enumerate(infos):
         one_by_one = Batcher()._add_info(one_by_one, info, i)
-    assert _strictly_equal(batch_infos(infos), one_by_one)
+    assert strictly_equal(batch_infos(infos), one_by_one)

@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
+from helpers import strictly_equal
 
 from agents.train import TrainConfig, train
 from agents.vec_env import SB3VecEnvAdapter
@@ -74,16 +75,6 @@ def _pair(num_envs=5, workers=2, **kw):
     return WorkersVecEnv(batched_block("SemReloc-v19", BeliefObservation, **kw), num_envs, workers), ref
 
 
-def _equal(a, b) -> bool:
-    if isinstance(a, dict):
-        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    if isinstance(a, (list, tuple)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
-    if isinstance(a, np.ndarray):
-        return isinstance(b, np.ndarray) and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
-    return type(a) is type(b) and (a == b or (a != a and b != b))
-
-
 @pytest.fixture(scope="module")
 def pair():
     workers, ref = _pair()
@@ -98,17 +89,17 @@ def test_the_workers_equal_one_process_bit_for_bit_through_episode_ends(pair):
     assert workers.observation_space == ref.observation_space and workers.action_space == ref.action_space
     for v in pair:
         v.seed(30)
-    assert _equal(workers.reset(), ref.reset())
-    assert _equal(workers.reset_infos, ref.reset_infos)
+    assert strictly_equal(workers.reset(), ref.reset())
+    assert strictly_equal(workers.reset_infos, ref.reset_infos)
     rng = np.random.default_rng(1)
     ends = 0
     for _ in range(16):  # two episode ends per robot: SB3's terminal_observation and the reset inside the step
         actions = rng.integers(0, 4, 5)
         got, want = workers.step(actions), ref.step(actions)
-        assert _equal(list(got), list(want))
+        assert strictly_equal(list(got), list(want))
         ends += int(got[2].sum())
     assert ends == 10
-    assert _equal(workers.reset_infos, ref.reset_infos)
+    assert strictly_equal(workers.reset_infos, ref.reset_infos)
 
 
 def test_attributes_and_methods_reach_the_robots_asked_in_the_order_asked(pair):
@@ -142,7 +133,7 @@ def test_an_invalid_action_or_seed_is_refused_before_any_robot_moves(pair):
     with pytest.raises(ValueError, match="robot 3: "):
         workers.reset()
     actions = np.array([0, 1, 2, 3, 0])  # nothing moved or reset above: the same step as the reference's
-    assert _equal(list(workers.step(actions)), list(ref.step(actions)))
+    assert strictly_equal(list(workers.step(actions)), list(ref.step(actions)))
 
 
 def test_a_robot_raising_mid_step_stops_every_worker_until_a_reset():
