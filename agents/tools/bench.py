@@ -78,6 +78,12 @@ class Args:
                 f"particles, beams, repeats, steps, ppo_steps must be >= 1, semantic_beams >= 0 and map_size_m > 0; "
                 f"got {bad or (self.semantic_beams, self.map_size_m)}"
             )
+        if self.ppo_steps < 2 * PPO_ROLLOUT and not self.quick and (not self.only or "ppo" in self.only):
+            raise ValueError(f"ppo_steps must be >= {2 * PPO_ROLLOUT} (two rollouts: PPO is timed after the first)")
+
+
+PPO_ROLLOUT = 1024
+"""Env steps per rollout of the PPO benchmark, summed over the vec env's envs."""
 
 
 @dataclass(frozen=True)
@@ -587,7 +593,7 @@ def _env_clock():
             """``steps``, ``cpu`` (this process's plus the workers'), ``wall``, ``env_cpu``, ``env_wall`` between
             the first and the last rollout's end (ValueError with fewer than two rollouts)."""
             if len(self.marks) < 2:
-                raise ValueError("the PPO benchmark needs at least two rollouts (ppo_steps >= 2048)")
+                raise ValueError(f"the PPO benchmark needs at least two rollouts (ppo_steps >= {2 * PPO_ROLLOUT})")
             (c0, w0, k0, e0, f0), (c1, w1, k1, e1, f1) = self.marks[0], self.marks[-1]
             steps = (len(self.marks) - 1) * self.model.n_steps * self.training_env.num_envs
             return {"steps": steps, "cpu": c1 - c0 + k1 - k0, "wall": w1 - w0, "env_cpu": e1 - e0, "env_wall": f1 - f0}
@@ -612,8 +618,8 @@ def bench_ppo(args: Args) -> list[Row]:
     rows, one_process_wall = [], None
     for vec_env, n_envs, workers in (("dummy", 4, 1), ("batched", 16, 1), ("batched", 16, 2)):
         cfg = TrainConfig(
-            n_envs=n_envs, n_steps=1024 // n_envs, vec_env=vec_env, workers=workers, total_timesteps=args.ppo_steps,
-            seed=args.seed, **({"env_id": args.env_id} if args.env_id else {}),
+            n_envs=n_envs, n_steps=PPO_ROLLOUT // n_envs, vec_env=vec_env, workers=workers,
+            total_timesteps=args.ppo_steps, seed=args.seed, **({"env_id": args.env_id} if args.env_id else {}),
         )  # fmt: skip
         name = f"{vec_env} x{n_envs}" + (f" in {workers} workers" if workers > 1 else "")
         venv = make_venv(cfg)
