@@ -309,23 +309,21 @@ def make_active_venv(config: ActiveTrainConfig, teacher: dict[str, Any] | None =
         venv = WorkersVecEnv(functools.partial(_active_block, config, teacher), config.n_envs, config.workers)
         venv.seed(config.seed)
         return venv
-    return make_vec_env(
-        functools.partial(make_active_env, config, config.seed, teacher=teacher),
-        n_envs=config.n_envs,
-        seed=config.seed,
-        vec_env_cls=SubprocVecEnv if config.vec_env == "subproc" else DummyVecEnv,
-    )
+    vec_env_cls = SubprocVecEnv if config.vec_env == "subproc" else DummyVecEnv
+    return _active_block(config, teacher, config.n_envs, 0, vec_env_cls)
 
 
-def _active_block(config: ActiveTrainConfig, teacher: dict[str, Any] | None, n: int, first: int) -> DummyVecEnv:
-    """Envs ``first .. first + n - 1`` of `make_active_venv`, in a worker process: made as ``make_vec_env`` makes
-    them there (its Monitor, each action space seeded ``seed + k``)."""
+def _active_block(
+    config: ActiveTrainConfig, teacher: dict[str, Any] | None, n: int, first: int, vec_env_cls=DummyVecEnv
+):
+    """Envs ``first .. first + n - 1`` of `make_active_venv` in a ``vec_env_cls`` (a worker's block: a
+    ``DummyVecEnv``), made by ``make_vec_env`` (its Monitor, each action space seeded ``seed + k``)."""
     return make_vec_env(
         functools.partial(make_active_env, config, config.seed, teacher=teacher),
         n_envs=n,
         seed=config.seed,
         start_index=first,
-        vec_env_cls=DummyVecEnv,
+        vec_env_cls=vec_env_cls,
     )
 
 
