@@ -6,6 +6,8 @@ Arrays of poses have shape ``(N, 3)``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -14,6 +16,12 @@ def wrap_angle(a):
     ``nextafter(-pi, -inf)``) comes out as ``+pi`` itself, the same angle (the compiled kernels use the same
     formula, and the episodes' bits depend on it)."""
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def wrap_float(a: float) -> float:
+    """`wrap_angle` of one Python float, as a Python float, without NumPy's per-call cost: the same bits (Python's
+    floored modulo of floats is NumPy's)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def compose(pose: np.ndarray, delta: np.ndarray, trig: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:

@@ -19,6 +19,7 @@ import numpy as np
 from filters.arrays import frozen_array
 from filters.mapping.grid import NO_CLASS
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
+from filters.pose import wrap_float
 from filters.robot_data.scans import LaserScan, SemanticScan
 
 from .config import CameraParams, LidarParams
@@ -312,4 +313,4 @@ def _relative(pose_from: np.ndarray, pose_to: np.ndarray) -> tuple[float, float,
     bx, by, bth = (float(v) for v in pose_to)
     dx, dy = bx - ax, by - ay
     c, s = math.cos(ath), math.sin(ath)
-    return (c * dx + s * dy, -s * dx + c * dy, (bth - ath + math.pi) % (2.0 * math.pi) - math.pi)
+    return (c * dx + s * dy, -s * dx + c * dy, wrap_float(bth - ath))

@@ -161,3 +161,48 @@ def test_label_components_kernel_matches_a_graph_oracle(seed):
             want, n_want = _components_oracle(occupied, ny, nx, nt, wrap_t)
             assert n == n_want
             same_bits(lab, want)
+
+
+def test_wrap_float_is_wrap_angle():
+    """`filters.pose.wrap_float` (Python floats, used for single angles) gives `wrap_angle`'s bits."""
+    from filters.pose import wrap_float
+
+    rng = np.random.default_rng(1)
+    edges = [np.pi, -np.pi, 0.0, -0.0, 1e-300, -5e-324, 3 * np.pi, -3 * np.pi, 1e6, -1e6]
+    edges += [np.nextafter(v, d) for v in (np.pi, -np.pi) for d in (-np.inf, np.inf)]
+    a = np.concatenate([rng.uniform(-4, 4, 20000), rng.uniform(-1e4, 1e4, 2000), edges])
+    same_bits(np.array([wrap_float(v) for v in a.tolist()]), wrap_angle(a))
+
+
+@pytest.mark.parametrize(
+    "w",
+    [
+        np.array([0.25, 0.5, 0.25]),
+        np.random.default_rng(0).random(5000) ** 20,
+        np.array([1e308, 1e308, 1.0]),  # finite weights whose sum overflows: scaled first
+        np.array([1e300, 3e299, 0.0, 5e-324]),
+        np.array([0.0, 5e-324]),
+        np.array([7.0]),
+    ],
+)
+def test_summary_weights_are_normalise_weights_bit_for_bit(w):
+    from filters.localization.belief import _normalised
+    from filters.smc.resampling import normalise_weights
+
+    same_bits(_normalised(w, w.size), normalise_weights(w))
+
+
+@pytest.mark.parametrize(
+    ("w", "match"),
+    [
+        (np.zeros(3), "sum to zero"),
+        (np.array([1.0, -0.5]), "non-negative"),
+        (np.array([1.0, np.nan]), "finite"),
+        (np.array([np.inf, 1.0]), "finite"),
+    ],
+)
+def test_summary_refuses_the_weights_normalise_weights_refuses(w, match):
+    p = np.zeros((w.size, 3))
+    for backend in ("numba", "numpy"):
+        with pytest.raises(ValueError, match=match):
+            summarize(p, w, backend=backend)

@@ -67,27 +67,18 @@ from scipy.sparse.csgraph import connected_components
 from filters import _blas
 from filters.localization import belief_kernels as _k
 from filters.numbers import is_int, is_real
-from filters.pose import wrap_angle
+from filters.pose import wrap_angle, wrap_float
 from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
+_SAFE_SUM = 1e300
+"""`_normalised` sums weights whose largest is at most this over their count directly: their sum cannot overflow."""
 BACKENDS = ("numba", "numpy")
 
 
 def _check_backend(backend: str) -> None:
     if backend not in BACKENDS:
         raise ValueError(f"belief backend must be one of {BACKENDS}, got {backend!r}")
-
-
-def _raster(poses: np.ndarray, bin_xy_m: float, bin_theta_rad: float):
-    """``(ix, iy, it, nx, ny, nt)`` raster cells of ``poses`` (the numba version of the reference's binning)."""
-    n = poses.shape[0]
-    ix = np.empty(n, dtype=np.int64)
-    iy = np.empty(n, dtype=np.int64)
-    it = np.empty(n, dtype=np.int64)
-    nt, scale = _k.heading_scale(bin_theta_rad)
-    nx, ny = _k.raster_bins(poses, float(bin_xy_m), nt, scale, ix, iy, it)
-    return ix, iy, it, int(nx), int(ny), nt
 
 
 @dataclass(frozen=True)
@@ -253,10 +244,15 @@ def _floats(values) -> list:
 
 
 def _normalised(weights: np.ndarray, n: int) -> np.ndarray:
+    """`normalise_weights` of ``weights`` ``(n,)``, the same bits: one compiled pass checks them and finds the
+    largest, and `normalise_weights` itself runs only for weights it must refuse or whose sum could overflow."""
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
     if w.shape != (n,):
         raise ValueError(f"weights must have shape ({n},), got {w.shape}")
-    return normalise_weights(w)
+    ok, largest = _k.finite_non_negative_max(np.ascontiguousarray(w))
+    if not (ok and 0.0 < largest <= _SAFE_SUM / n):
+        return normalise_weights(w)
+    return w / w.sum()
 
 
 def _bin_keys(values: np.ndarray, size: float) -> np.ndarray:
@@ -286,13 +282,10 @@ def histogram_entropy(
     _check_backend(backend)
     if backend == "numba":
         p = np.ascontiguousarray(poses, dtype=np.float64)
-        ix, iy, it, nx, ny, nt = _raster(p, bin_xy_m, bin_theta_rad)
-        if nx * ny * nt <= _MAX_RASTER_CELLS:
-            mass = np.zeros(nx * ny * nt)
-            _k.raster_mass(
-                ix, iy, it, nx, nt, np.ascontiguousarray(w, dtype=np.float64), mass, np.zeros(mass.size, dtype=np.int64)
-            )
-            mass = _k.nonzero_mass(mass)
+        nt, scale = _k.heading_scale(bin_theta_rad)
+        ww = np.ascontiguousarray(w, dtype=np.float64)
+        mass, fits = _k.entropy_masses(p, ww, float(bin_xy_m), nt, scale, _MAX_RASTER_CELLS)
+        if fits:
             return max(float(-(mass * np.log(mass)).sum()), 0.0)
         return histogram_entropy(poses, w, bin_xy_m, bin_theta_rad, "numpy")
     ix = _bin_keys(poses[:, 0], bin_xy_m)
@@ -373,25 +366,18 @@ def cluster_labels(
 
 def _cluster_labels_numba(poses, bin_m, bin_theta_rad, weights, min_bin_frac) -> tuple[np.ndarray, int]:
     p = np.ascontiguousarray(poses, dtype=np.float64)
-    ix, iy, it, nx, ny, nt = _raster(p, bin_m, bin_theta_rad)
-    size = nx * ny * nt
-    if size > _MAX_RASTER_CELLS:  # absurdly spread cloud: coarser raster, as the reference
-        return _cluster_labels_numba(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
-    mass = np.zeros(size)
-    count = np.zeros(size, dtype=np.int64)
+    nt, scale = _k.heading_scale(bin_theta_rad)
     w = np.zeros(p.shape[0]) if weights is None else np.ascontiguousarray(weights, dtype=np.float64)
-    _k.raster_mass(ix, iy, it, nx, nt, w, mass, count)
-    held = count > 0
+    cell, mass, count, nx, ny, held, fits = _k.cluster_raster(p, w, float(bin_m), nt, scale, _MAX_RASTER_CELLS)
+    if not fits:  # absurdly spread cloud: coarser raster, as the reference
+        return _cluster_labels_numba(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
     if weights is not None and min_bin_frac > 0:
-        # the reference's threshold, with the same NumPy reductions (pairwise sum over the raster)
-        occupied = (mass >= min_bin_frac * mass.sum() / held.sum()) & held
+        # the reference's threshold, with the same NumPy reduction (pairwise sum over the raster)
+        threshold = float(min_bin_frac * mass.sum() / held)
     else:
-        occupied = held
-    lab = np.zeros(size, dtype=np.int64)
-    n = _k.label_components(occupied, ny, nx, nt, nt > 2, lab)
-    out = np.empty(p.shape[0], dtype=np.int64)
-    _k.particle_labels(ix, iy, it, nx, nt, lab, out)
-    return out, int(n)
+        threshold = -math.inf
+    labels, n = _k.cell_labels(mass, count, threshold, ny, nx, nt, cell)
+    return labels, int(n)
 
 
 def cluster_stats(
@@ -475,7 +461,13 @@ def summarize(
     n = p.shape[0]
     if n == 0:
         raise ValueError("no particles to summarise")
-    if not (np.abs(p) < _POSE_LIMIT).all():
+    if backend == "numba":
+        xyt = np.empty((3, n))
+        in_limit = _k.transposed_in_limit(p, MAX_POSE_M, xyt)
+    else:
+        in_limit = (np.abs(p) < _POSE_LIMIT).all()
+        xyt = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
+    if not in_limit:
         if not np.isfinite(p).all():
             raise ValueError("poses contain NaN or inf")
         raise ValueError(
@@ -483,12 +475,12 @@ def summarize(
             "take (not metres?)"
         )
     w = _normalised(weights, n)
-    x, y, th = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
+    x, y, th = xyt
 
     dot = _blas.dot  # both backends: one order whatever the BLAS thread count
     mx, my = float(dot(w, x)), float(dot(w, y))
     sin_th, cos_th = np.sin(th), np.cos(th)
-    mth = float(wrap_angle(np.arctan2(dot(w, sin_th), dot(w, cos_th))))
+    mth = wrap_float(float(np.arctan2(dot(w, sin_th), dot(w, cos_th))))
     if backend == "numba":
         res = np.empty((3, n))
         _k.residuals(p, mx, my, mth, res)

@@ -235,3 +235,103 @@ def heading_scale(bin_theta_rad: float) -> tuple[int, float]:
     """``(nt, nt / (2 pi))`` of the reference's ``heading_bins``."""
     nt = max(1, round(2.0 * math.pi / bin_theta_rad))
     return nt, nt / (2.0 * math.pi)
+
+
+# ------------------------------------------------------------------ fused stages of the summary
+# Each replaces a chain of the kernels above and the NumPy glue between them with one call, with the same
+# operations in the same order (so the same bits); `filters.localization.belief.summarize` uses them.
+
+
+@numba.njit(cache=True, nogil=True)
+def transposed_in_limit(poses, limit, out):  # pragma: no cover - compiled
+    """``out (3, N)`` = ``poses.T`` (a copy) and whether every ``|x|, |y| < limit`` and every ``|theta| < inf``
+    (the reference's ``(np.abs(poses) < (limit, limit, inf)).all()``: False for NaN)."""
+    ok = True
+    for i in range(poses.shape[0]):
+        x = poses[i, 0]
+        y = poses[i, 1]
+        t = poses[i, 2]
+        out[0, i] = x
+        out[1, i] = y
+        out[2, i] = t
+        if not (abs(x) < limit and abs(y) < limit and abs(t) < np.inf):
+            ok = False
+    return ok
+
+
+@numba.njit(cache=True, nogil=True)
+def finite_non_negative_max(w):  # pragma: no cover - compiled
+    """``(all finite and >= 0, max)`` of ``w`` (``max`` is meaningful only when the first is True)."""
+    m = 0.0
+    for i in range(w.shape[0]):
+        v = w[i]
+        if not (v >= 0.0 and v < np.inf):
+            return False, 0.0
+        if v > m:
+            m = v
+    return True, m
+
+
+@numba.njit(cache=True, nogil=True)
+def entropy_masses(poses, w, bin_xy_m, nt, scale, max_cells):  # pragma: no cover - compiled
+    """The nonzero raster masses of ``histogram_entropy`` (``raster_bins``, ``raster_mass``, ``nonzero_mass``
+    in one call); ``(masses, True)``, or ``(empty, False)`` when the raster would exceed ``max_cells``."""
+    n = poses.shape[0]
+    ix = np.empty(n, dtype=np.int64)
+    iy = np.empty(n, dtype=np.int64)
+    it = np.empty(n, dtype=np.int64)
+    nx, ny = raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it)
+    size = nx * ny * nt
+    if size > max_cells:
+        return np.empty(0), False
+    mass = np.zeros(size)
+    count = np.zeros(size, dtype=np.int64)
+    raster_mass(ix, iy, it, nx, nt, w, mass, count)
+    return nonzero_mass(mass), True
+
+
+@numba.njit(cache=True, nogil=True)
+def cluster_raster(poses, w, bin_m, nt, scale, max_cells):  # pragma: no cover - compiled
+    """The raster of ``cluster_labels``: ``(cell (N,), mass, count, nx, ny, held, fits)`` with ``cell[i]`` the
+    flat raster cell ``(iy nx + ix) nt + it`` of particle ``i``, the cells' weight ``mass`` and particle
+    ``count`` (``raster_mass``), the number ``held`` of cells with particles, and ``fits = False`` (and
+    empty arrays) when the raster would exceed ``max_cells``."""
+    n = poses.shape[0]
+    ix = np.empty(n, dtype=np.int64)
+    iy = np.empty(n, dtype=np.int64)
+    it = np.empty(n, dtype=np.int64)
+    nx, ny = raster_bins(poses, bin_m, nt, scale, ix, iy, it)
+    size = nx * ny * nt
+    cell = np.empty(n, dtype=np.int64)
+    if size > max_cells:
+        return cell, np.empty(0), np.empty(0, dtype=np.int64), nx, ny, 0, False
+    mass = np.zeros(size)
+    count = np.zeros(size, dtype=np.int64)
+    for i in range(n):
+        c = (iy[i] * nx + ix[i]) * nt + it[i]
+        cell[i] = c
+        mass[c] += w[i]
+        count[c] += 1
+    held = 0
+    for c in range(size):
+        if count[c] > 0:
+            held += 1
+    return cell, mass, count, nx, ny, held, True
+
+
+@numba.njit(cache=True, nogil=True)
+def cell_labels(mass, count, threshold, ny, nx, nt, cell):  # pragma: no cover - compiled
+    """``(labels (N,), n)`` of ``cluster_labels`` from `cluster_raster`'s output: a cell is occupied when it
+    holds particles and ``mass >= threshold`` (``threshold`` -inf: any cell with particles), its components
+    are `label_components`' (heading circular when ``nt > 2``), and particle ``i`` gets its cell's component
+    ``- 1`` (-1: in no cluster)."""
+    size = ny * nx * nt
+    occupied = np.empty(size, dtype=np.bool_)
+    for c in range(size):
+        occupied[c] = count[c] > 0 and mass[c] >= threshold
+    lab = np.zeros(size, dtype=np.int64)
+    n = label_components(occupied, ny, nx, nt, nt > 2, lab)
+    out = np.empty(cell.shape[0], dtype=np.int64)
+    for i in range(cell.shape[0]):
+        out[i] = lab[cell[i]] - 1
+    return out, n

@@ -38,7 +38,7 @@ import numba
 import numpy as np
 
 from filters.numbers import is_real
-from filters.pose import wrap_angle
+from filters.pose import wrap_angle, wrap_float
 
 
 @dataclass(frozen=True)
@@ -180,7 +180,7 @@ class OdometryMotionModel:
         c = self.config
         trans = float(np.hypot(dx, dy))
         rot1 = float(np.arctan2(dy, dx)) if trans >= c.min_trans_m else 0.0
-        rot2 = (dth - rot1 + math.pi) % (2.0 * math.pi) - math.pi
+        rot2 = wrap_float(dth - rot1)
         r1, r2 = _fold(rot1), _fold(rot2)
         s_r1 = math.sqrt(c.alpha1 * r1 * r1 + c.alpha2 * trans * trans)
         s_t = math.sqrt(c.alpha3 * trans * trans + c.alpha4 * (r1 * r1 + r2 * r2))
@@ -191,5 +191,5 @@ class OdometryMotionModel:
         out = np.empty(3)
         out[0] = x + t * math.cos(heading)
         out[1] = y + t * math.sin(heading)
-        out[2] = (heading + (rot2 - s_r2 * n2) + math.pi) % (2.0 * math.pi) - math.pi
+        out[2] = wrap_float(heading + (rot2 - s_r2 * n2))
         return out
