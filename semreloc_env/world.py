@@ -19,7 +19,7 @@ import pymunk
 from pymunk.autogeometry import convex_decomposition
 
 from filters.numbers import is_real
-from filters.pose import wrap_angle
+from filters.pose import wrap_angle, wrap_float
 
 from .config import PhysicsParams, RobotParams
 from .layouts import Layout, point_in_polygon
@@ -367,7 +367,7 @@ class World:
     def pose(self) -> np.ndarray:
         """True robot pose ``(3,)`` float64."""
         x, y = self.body.position
-        return np.array([x, y, wrap_angle(self.body.angle)], dtype=np.float64)
+        return np.array([x, y, wrap_float(self.body.angle)], dtype=np.float64)
 
     def clearance(self, xy: np.ndarray) -> float:
         """Distance (m) from a point to the nearest wall or obstacle edge."""

@@ -703,7 +703,10 @@ class UpdateDiagnostics:
 
     def as_dict(self) -> dict:
         """Plain Python values for a Gymnasium ``info``."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        return {name: getattr(self, name) for name in _DIAGNOSTICS_FIELDS}
+
+
+_DIAGNOSTICS_FIELDS = tuple(f.name for f in fields(UpdateDiagnostics))
 
 
 def _beam_average(prior: np.ndarray, ll: np.ndarray, n_beams: int) -> float:
@@ -944,11 +947,11 @@ class MonteCarloLocalizer:
         (metres / radians, previous robot frame, as `filters.pose.relative` gives)."""
         self._require_particles()
         d = np.asarray(delta, dtype=np.float64).reshape(-1)
-        if d.shape != (3,) or not np.all(np.isfinite(d)):
+        if d.shape != (3,) or not np.isfinite(d).all():
             raise ValueError(f"odometry delta must be 3 finite numbers, got {delta!r}")
         rng_state = self.rng.bit_generator.state
         poses = self.motion_model.sample(self._poses, d, self.rng)
-        if not np.all(np.isfinite(poses)):  # e.g. a delta of 1e300 m: keep the filter as it was
+        if not np.isfinite(poses).all():  # e.g. a delta of 1e300 m: keep the filter as it was
             self.rng.bit_generator.state = rng_state
             raise ValueError(f"odometry delta {delta!r} moves particles to non-finite poses")
         self._poses = poses

@@ -72,11 +72,11 @@ class OdometryMotionConfig:
 def decompose(delta: np.ndarray, min_trans_m: float = 0.01) -> tuple[float, float, float]:
     """Split a robot-frame increment ``(dx, dy, dtheta)`` into ``(rot1, trans, rot2)`` (rad, m, rad)."""
     d = np.asarray(delta, dtype=np.float64).reshape(-1)
-    if d.shape != (3,) or not np.all(np.isfinite(d)):
+    if d.shape != (3,) or not np.isfinite(d).all():
         raise ValueError(f"odometry delta must be 3 finite numbers (dx, dy, dtheta), got {delta!r}")
     trans = float(np.hypot(d[0], d[1]))
     rot1 = float(np.arctan2(d[1], d[0])) if trans >= min_trans_m else 0.0
-    rot2 = float(wrap_angle(d[2] - rot1))
+    rot2 = wrap_float(float(d[2]) - rot1)
     return rot1, trans, rot2
 
 
@@ -111,13 +111,16 @@ class OdometryMotionModel:
 
     def stds(self, delta: np.ndarray) -> tuple[float, float, float]:
         """Standard deviations ``(rot1 rad, trans m, rot2 rad)`` of the noise for ``delta``."""
+        return self._stds(*decompose(delta, self.config.min_trans_m))
+
+    def _stds(self, rot1: float, trans: float, rot2: float) -> tuple[float, float, float]:
+        """`stds` of the decomposed increment ``(rot1, trans, rot2)``."""
         c = self.config
-        rot1, trans, rot2 = decompose(delta, c.min_trans_m)
         r1, r2 = _fold(rot1), _fold(rot2)
         var_r1 = c.alpha1 * r1 * r1 + c.alpha2 * trans * trans
         var_t = c.alpha3 * trans * trans + c.alpha4 * (r1 * r1 + r2 * r2)
         var_r2 = c.alpha1 * r2 * r2 + c.alpha2 * trans * trans
-        return float(np.sqrt(var_r1)), float(np.sqrt(var_t)), float(np.sqrt(var_r2))
+        return math.sqrt(var_r1), math.sqrt(var_t), math.sqrt(var_r2)  # correctly rounded, as np.sqrt
 
     def sample(self, poses: np.ndarray, delta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """New ``(N, 3)`` poses: each of ``poses`` moved by a noisy copy of ``delta``.
@@ -137,7 +140,7 @@ class OdometryMotionModel:
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
         rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
-        s_r1, s_t, s_r2 = self.stds(delta)
+        s_r1, s_t, s_r2 = self._stds(rot1, trans, rot2)
         noise = rng.standard_normal((3, p.shape[0]))
         out = np.empty_like(p)
         _sample_kernel(np.ascontiguousarray(p), rot1, trans, rot2, s_r1, s_t, s_r2, noise, out)
