@@ -53,6 +53,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
+from filters.localization.beam_kernels import beam_parts
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.mapping.grid import GridMap
 from filters.numbers import MAX_LENGTH_M, is_int, is_real
@@ -251,6 +252,10 @@ _ZERO_START.setflags(write=False)
 _NO_TABLE = np.zeros(1)  # read-only, as `negative_table`'s: one compiled signature of `window_entry_kernel`
 _NO_TABLE.setflags(write=False)
 _NO_STEP = np.zeros(3)  # writable, as `audit.back_steps`' steps: likewise
+_EMPTY_I = np.zeros(0, np.int64)
+_EMPTY_I.setflags(write=False)
+_ZERO_POSE = np.zeros(3)  # read-only, as the scans' sensor poses: one compiled signature of `beam_parts`
+_ZERO_POSE.setflags(write=False)
 
 
 def negative_beams(labels: np.ndarray, ranges: np.ndarray, range_max_m: float, max_beams: int) -> np.ndarray:
@@ -635,12 +640,53 @@ class LikelihoodFieldModel:
             )
 
     def beams(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> BeamSet:
-        """Select the beams of one update and turn them into robot-frame end points.
+        """Select the beams of one update and turn them into robot-frame end points (the numba backend in one
+        compiled pass, `filters.localization.beam_kernels.beam_parts`; the numpy backend by `beams_reference`: the
+        same arrays, bit for bit).
 
         Raises:
             ValueError: a semantic label has no class in the map.
             TypeError: the scans are not `LaserScan` / `SemanticScan`.
         """
+        if self.backend == "numpy":
+            return self.beams_reference(lidar, semantic)
+        if lidar is not None:
+            if not isinstance(lidar, LaserScan):
+                raise TypeError(f"lidar must be a LaserScan, got {type(lidar).__name__}")
+            c = self.lidar_config
+            lid = (lidar.ranges, lidar.angles, float(lidar.range_min_m), float(lidar.range_max_m), lidar.sensor_pose)
+            lid += (int(c.beam_stride), int(c.max_beams))
+        else:
+            lid = (_EMPTY_F, _EMPTY_F, 0.0, 1.0, _ZERO_POSE, 1, 0)
+        if semantic is not None:
+            if not isinstance(semantic, SemanticScan):
+                raise TypeError(f"semantic must be a SemanticScan, got {type(semantic).__name__}")
+            self.check_labels(semantic)
+            c = self.semantic_config
+            neg = self.negative_config
+            sem = (semantic.ranges, semantic.angles, semantic.labels, float(semantic.range_max_m), semantic.sensor_pose)
+            sem += (int(c.beam_stride), int(c.max_beams), int(neg.max_beams) if neg.enabled else 0)
+            sem += (float(neg.margin_m), float(neg.step_m))
+        else:
+            sem = (_EMPTY_F, _EMPTY_F, _EMPTY_I, 1.0, _ZERO_POSE, 1, 0, 0, 0.0, 1.0)
+        lx, ly, table, n_l, n_s, n_det, nx, ny, n_starts = beam_parts(*lid, *sem)
+        return BeamSet(
+            lx=lx,
+            ly=ly,
+            table=table,
+            n_lidar=int(n_l),
+            n_semantic=int(n_s),
+            n_detections=int(n_det),
+            lidar_range_max_m=float(lidar.range_max_m) if lidar is not None else 1.0,
+            semantic_range_max_m=float(semantic.range_max_m) if semantic is not None else 1.0,
+            nx=nx,
+            ny=ny,
+            n_starts=n_starts,
+        )
+
+    def beams_reference(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> BeamSet:
+        """`beams` as NumPy array code (the specification the compiled pass is tested against; the numpy
+        backend's)."""
         lxs, lys, tabs = [], [], []
         nx, ny, n_starts = _EMPTY_F, _EMPTY_F, _ZERO_START
         n_l = n_s = n_det = 0
