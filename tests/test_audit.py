@@ -592,17 +592,23 @@ def test_distinct_places_matches_the_plain_greedy_rule():
     """The compiled pick equals the rule written out with `outside` (best first, a pose joins if it is a
     place apart from every one picked), on random poses with headings across the wrap and -inf scores."""
     rng = np.random.default_rng(7)
-    for _ in range(20):
-        poses = np.column_stack([rng.uniform(0, 4, 300), rng.uniform(0, 3, 300), rng.uniform(-np.pi, np.pi, 300)])
-        ll = rng.normal(0, 5, 300)
-        ll[rng.random(300) < 0.1] = -np.inf
+    for trial in range(60):
+        n = int(rng.choice([1, 5, 300, 3000]))
+        poses = np.column_stack([rng.uniform(0, 4, n), rng.uniform(0, 3, n), rng.uniform(-np.pi, np.pi, n)])
+        ll = rng.normal(0, 5, n)
+        if trial % 3 == 1:  # ties, broken by index as a stable sort breaks them; -0.0 ties 0.0
+            ll = np.round(ll) * rng.choice([1.0, -1.0], n) * 0.0 if trial % 2 else np.round(ll)
+        ll[rng.random(n) < 0.1] = -np.inf
+        ll[rng.random(n) < 0.03] = np.inf  # not finite: never a place, as -inf and NaN
+        ll[rng.random(n) < 0.03] = np.nan
+        places = int(rng.choice([1, 3, 16]))
         want: list[int] = []
-        for i in np.argsort(-ll, kind="stable"):
-            if len(want) == 16 or not np.isfinite(ll[i]):
+        for i in np.argsort(-np.where(np.isfinite(ll), ll, -np.inf), kind="stable"):
+            if len(want) == places or not np.isfinite(ll[i]):
                 break
             if not want or outside(poses[want], poses[i], audit_module.PLACE_M, audit_module.PLACE_RAD).all():
                 want.append(int(i))
-        assert audit_module._distinct_places(poses, ll, 16) == want
+        assert audit_module._distinct_places(poses, ll, places) == want
 
 
 def test_screen_model_is_built_once_per_model_and_blurred():

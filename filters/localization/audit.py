@@ -242,23 +242,55 @@ def _refined_best(
 
 def _distinct_places(poses: np.ndarray, ll: np.ndarray, places: int) -> list[int]:
     """Indices of the best (by ``ll``, finite only) poses of up to ``places`` different places, best first: a
-    pose joins if it lies `PLACE_M` or `PLACE_RAD` from every pose already picked (`outside`'s test)."""
-    finite = np.isfinite(ll)
-    order = np.argsort(-np.where(finite, ll, -np.inf), kind="stable")
+    pose joins if it lies `PLACE_M` or `PLACE_RAD` from every pose already picked (`outside`'s test).
+
+    The poses are visited in the order of a stable sort of ``-ll`` (ties: lower index first), popped lazily off
+    a heap: a screen of thousands of poses usually finds its places among the first few dozen."""
     p = np.ascontiguousarray(poses, dtype=np.float64)
-    return _distinct_kernel(p, order, finite, places, PLACE_M, PLACE_RAD).tolist()
+    return _distinct_kernel(p, np.ascontiguousarray(ll, dtype=np.float64), places, PLACE_M, PLACE_RAD).tolist()
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _before(ll, a, b):  # pragma: no cover - compiled
+    """Whether pose ``a`` comes before pose ``b``: higher ``ll``, then lower index (a stable sort's order)."""
+    return ll[a] > ll[b] or (ll[a] == ll[b] and a < b)
 
 
 @numba.njit(cache=True, nogil=True)
-def _distinct_kernel(poses, order, finite, places, place_m, place_rad):  # pragma: no cover - compiled
-    picked = np.empty(places, dtype=np.int64)
+def _sift_down(heap, n, i, ll):  # pragma: no cover - compiled
+    while True:
+        first = i
+        left = 2 * i + 1
+        if left < n and _before(ll, heap[left], heap[first]):
+            first = left
+        if left + 1 < n and _before(ll, heap[left + 1], heap[first]):
+            first = left + 1
+        if first == i:
+            return
+        heap[i], heap[first] = heap[first], heap[i]
+        i = first
+
+
+@numba.njit(cache=True, nogil=True)
+def _distinct_kernel(poses, ll, places, place_m, place_rad):  # pragma: no cover - compiled
+    heap = np.empty(ll.shape[0], dtype=np.int64)
     n = 0
+    for i in range(ll.shape[0]):
+        if np.isfinite(ll[i]):
+            heap[n] = i
+            n += 1
+    for i in range(n // 2 - 1, -1, -1):
+        _sift_down(heap, n, i, ll)
+    picked = np.empty(places, dtype=np.int64)
+    k = 0
     two_pi = 2.0 * np.pi
-    for i in order:
-        if n == places or not finite[i]:
-            break
+    while k < places and n > 0:
+        i = heap[0]
+        n -= 1
+        heap[0] = heap[n]
+        _sift_down(heap, n, 0, ll)
         alone = True
-        for j in range(n):
+        for j in range(k):
             q = picked[j]
             far = math.hypot(poses[q, 0] - poses[i, 0], poses[q, 1] - poses[i, 1]) > place_m
             turn = abs((poses[q, 2] - poses[i, 2] + np.pi) % two_pi - np.pi) > place_rad
@@ -266,9 +298,9 @@ def _distinct_kernel(poses, order, finite, places, place_m, place_rad):  # pragm
                 alone = False
                 break
         if alone:
-            picked[n] = i
-            n += 1
-    return picked[:n]
+            picked[k] = i
+            k += 1
+    return picked[:k]
 
 
 def _local_search(
