@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 
@@ -16,6 +17,24 @@ def wrap_angle(a):
     ``nextafter(-pi, -inf)``) comes out as ``+pi`` itself, the same angle (the compiled kernels use the same
     formula, and the episodes' bits depend on it)."""
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@numba.njit(cache=True, nogil=True)
+def _cos_sin(theta, c, s):  # pragma: no cover - compiled
+    for i in range(theta.shape[0]):
+        c[i] = math.cos(theta[i])  # LLVM makes the pair one sincos call
+        s[i] = math.sin(theta[i])
+
+
+def cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(np.cos(theta), np.sin(theta))`` of a 1D float64 array in one compiled pass (the C library's ``sincos``,
+    about 1.6x faster). The same bits where NumPy's float64 ``cos`` and ``sin`` are the C library's, as on the
+    platforms this package is tested on (``tests/test_belief_kernels.py`` checks it, and the compiled kernels'
+    tests against their NumPy references rely on it too)."""
+    c = np.empty(theta.shape[0])
+    s = np.empty(theta.shape[0])
+    _cos_sin(theta, c, s)
+    return c, s
 
 
 def wrap_float(a: float) -> float:

@@ -42,7 +42,7 @@ import numpy as np
 
 from filters.localization.likelihood_field import BeamSet, LikelihoodFieldModel, _checked_poses
 from filters.mapping.grid import GridMap
-from filters.pose import compose, relative, wrap_angle
+from filters.pose import compose, cos_sin, relative, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.smc.resampling import inverse_cdf
 
@@ -128,7 +128,7 @@ def window_log_likelihood(
     if isinstance(model, LikelihoodFieldModel) and model.backend == "numba" and all(e[3] is not None for e in window):
         p = _checked_poses(p)  # one compiled call per entry, the same numbers as the loop below
         for i, (_, _, _, beams) in enumerate(reversed(window)):
-            trig = (np.cos(p[:, 2]), np.sin(p[:, 2]))
+            trig = cos_sin(p[:, 2])
             p = model.add_window_entry(p, trig, beams, scale, total, steps[i] if i < len(steps) else None)
         return np.where(np.isfinite(total), total, -np.inf)
     by_beams = getattr(model, "beam_log_likelihoods", None)

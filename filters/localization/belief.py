@@ -67,7 +67,7 @@ from scipy.sparse.csgraph import connected_components
 from filters import _blas
 from filters.localization import belief_kernels as _k
 from filters.numbers import is_int, is_real
-from filters.pose import wrap_angle, wrap_float
+from filters.pose import cos_sin, wrap_angle, wrap_float
 from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
@@ -479,7 +479,10 @@ def summarize(
 
     dot = _blas.dot  # both backends: one order whatever the BLAS thread count
     mx, my = float(dot(w, x)), float(dot(w, y))
-    sin_th, cos_th = np.sin(th), np.cos(th)
+    if backend == "numba":
+        cos_th, sin_th = cos_sin(th)
+    else:
+        sin_th, cos_th = np.sin(th), np.cos(th)
     mth = wrap_float(float(np.arctan2(dot(w, sin_th), dot(w, cos_th))))
     if backend == "numba":
         res = np.empty((3, n))

@@ -57,6 +57,7 @@ from filters.localization.beam_kernels import beam_parts
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.mapping.grid import GridMap
 from filters.numbers import MAX_LENGTH_M, is_int, is_real
+from filters.pose import cos_sin
 from filters.robot_data.scans import LaserScan, SemanticScan, beam_endpoints
 
 
@@ -850,7 +851,7 @@ class LikelihoodFieldModel:
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
             inv_res = 1.0 / self.grid.resolution_m
-            cos_t, sin_t = trig if trig is not None else (np.cos(p[:, 2]), np.sin(p[:, 2]))
+            cos_t, sin_t = trig if trig is not None else cos_sin(p[:, 2])
             x, y = p[:, 0].copy(), p[:, 1].copy()
             if beams.lx.size:
                 log_likelihood_kernel(
