@@ -4,6 +4,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from filters.localization import belief_kernels as K
 from filters.localization.belief import BeliefConfig, cluster_labels, cluster_stats, histogram_entropy, summarize
@@ -150,17 +152,97 @@ def _components_oracle(occupied: np.ndarray, ny: int, nx: int, nt: int, wrap_t: 
 
 @pytest.mark.parametrize("seed", range(3))
 def test_label_components_kernel_matches_a_graph_oracle(seed):
-    """Random rasters of every shape from 1 x 1 x 1 on, sparse to full, with and without the heading wrap."""
+    """Random rasters of every shape from 1 x 1 x 1 on, sparse to full, with and without the heading wrap:
+    both kernels, the run-based one and the flood fill it calls for ``nt > 64``."""
     rng = np.random.default_rng(seed)
     for _ in range(200):
-        ny, nx, nt = (int(v) for v in rng.integers(1, 8, 3))
+        ny, nx = (int(v) for v in rng.integers(1, 8, 2))
+        nt = int(rng.choice([1, 2, 3, 4, 5, 7, 8, 16, 63, 64, 65]))
         occupied = rng.random(ny * nx * nt) < rng.uniform(0.0, 1.0)
         for wrap_t in (False, True):
-            lab = np.zeros(ny * nx * nt, dtype=np.int64)
-            n = K.label_components(occupied, ny, nx, nt, wrap_t, lab)
             want, n_want = _components_oracle(occupied, ny, nx, nt, wrap_t)
-            assert n == n_want
-            same_bits(lab, want)
+            for kernel in (K.label_components, K._label_components_flood):
+                lab = np.zeros(ny * nx * nt, dtype=np.int64)
+                n = kernel(occupied, ny, nx, nt, wrap_t, lab)
+                assert n == n_want
+                same_bits(lab, want)
+
+
+def same_as_flood(occupied: np.ndarray, ny: int, nx: int, nt: int, wrap_t: bool) -> None:
+    """`label_components` gives the flood fill's ``lab`` and ``n`` exactly, and writes no unoccupied cell."""
+    lab = np.zeros(ny * nx * nt, dtype=np.int64)
+    n = K.label_components(occupied, ny, nx, nt, wrap_t, lab)
+    ref = np.zeros(ny * nx * nt, dtype=np.int64)
+    n_ref = K._label_components_flood(occupied, ny, nx, nt, wrap_t, ref)
+    assert n == n_ref, (ny, nx, nt, wrap_t)
+    assert np.array_equal(lab, ref), (ny, nx, nt, wrap_t)
+    marked = np.where(occupied, 0, -7).astype(np.int64)  # unoccupied cells keep what they hold
+    assert K.label_components(occupied, ny, nx, nt, wrap_t, marked) == n
+    assert np.array_equal(marked, np.where(occupied, lab, -7))
+
+
+def _all_patterns(bits: int) -> np.ndarray:
+    return ((np.arange(2**bits)[:, None] >> np.arange(bits)) & 1).astype(bool)
+
+
+@pytest.mark.parametrize(
+    "ny, nx, nts",
+    [(1, 1, range(1, 13)), (1, 2, range(1, 7)), (2, 1, range(1, 7)), (2, 2, range(1, 4)), (1, 3, (1, 2, 3))],
+)
+def test_label_components_matches_the_flood_fill_on_every_small_raster(ny, nx, nts):
+    """Every occupancy pattern of one column (headings 1..12), of two neighbouring columns (1..6 headings)
+    and of 2 x 2 columns (1..3): every run split, seam merge and pairing of runs in neighbouring columns."""
+    for nt in nts:
+        for occupied in _all_patterns(ny * nx * nt):
+            for wrap_t in (False, True):
+                same_as_flood(occupied, ny, nx, nt, wrap_t)
+
+
+def _edge_rasters():
+    """``(name, rasters, ny, nx, nt)``: empty, full, each single cell, strips one column wide, runs across the
+    heading seam, every other heading, the env's raster."""
+    for ny, nx, nt in ((1, 1, 1), (1, 1, 2), (1, 1, 3), (2, 3, 8), (3, 2, 63), (2, 2, 64), (2, 2, 65), (20, 30, 8)):
+        yield "empty", [np.zeros(ny * nx * nt, dtype=bool)], ny, nx, nt
+        yield "full", [np.ones(ny * nx * nt, dtype=bool)], ny, nx, nt
+    for ny, nx, nt in ((3, 4, 1), (3, 4, 2), (3, 4, 3), (2, 3, 8), (2, 2, 63), (2, 2, 64), (1, 2, 65)):
+        yield "single cells", list(np.eye(ny * nx * nt, dtype=bool)), ny, nx, nt
+    rng = np.random.default_rng(11)
+    for ny, nx, nt in ((1, 40, 8), (40, 1, 8), (1, 25, 64), (25, 1, 63), (1, 1, 64), (1, 1, 65), (1, 9, 65)):
+        yield "strip", [rng.random(ny * nx * nt) < p for p in (0.1, 0.5, 0.9)], ny, nx, nt
+    for nt in (3, 4, 8, 63, 64):
+        seam = np.zeros((3, 3, nt), dtype=bool)
+        seam[0, 0, [0, nt - 1]] = True  # one circular run, or two runs without the wrap
+        seam[1, 1, nt - 1] = True  # touches (0, 0) at nt - 1, and (2, 2) only across the seam
+        seam[2, 2, 0] = True
+        seam[0, 2, 1 : nt - 1] = True  # the middle headings, touching (1, 1) at nt - 2
+        alternate = np.zeros((2, 3, nt), dtype=bool)
+        alternate[:, :, ::2] = True  # every other heading: runs of one
+        alternate[1, 1] = ~alternate[1, 1]
+        yield "seam", [seam.ravel()], 3, 3, nt
+        yield "alternate", [alternate.ravel()], 2, 3, nt
+    yield "env", [rng.random(20 * 30 * 8) < p for p in (0.05, 0.4, 0.8)], 20, 30, 8
+
+
+@pytest.mark.parametrize(
+    "rasters, ny, nx, nt", [pytest.param(*r[1:], id=f"{r[0]}-{r[2]}x{r[3]}x{r[4]}") for r in _edge_rasters()]
+)
+def test_label_components_matches_the_flood_fill_on_edge_cases(rasters, ny, nx, nt):
+    for occupied in rasters:
+        for wrap_t in (False, True):
+            same_as_flood(occupied, ny, nx, nt, wrap_t)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    ny=st.integers(1, 9),
+    nx=st.integers(1, 9),
+    nt=st.sampled_from([1, 2, 3, 8, 16, 63, 64, 65]) | st.integers(1, 70),
+    wrap_t=st.booleans(),
+    density=st.floats(0.0, 1.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_label_components_matches_the_flood_fill(ny, nx, nt, wrap_t, density, seed):
+    same_as_flood(np.random.default_rng(seed).random(ny * nx * nt) < density, ny, nx, nt, wrap_t)
 
 
 def test_wrap_float_is_wrap_angle():

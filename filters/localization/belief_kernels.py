@@ -23,6 +23,9 @@ import math
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.extending import intrinsic
 
 _TWO_PI = 2.0 * np.pi
 
@@ -111,13 +114,8 @@ def nonzero_mass(mass):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - compiled
-    """Connected components of the occupied cells of a ``(ny, nx, nt)`` raster (flat, C order).
-
-    26-neighbourhood; with ``wrap_t`` the heading axis is circular. ``lab`` (out, zeroed) gets
-    ``1..n`` for occupied cells and 0 elsewhere; components are numbered in the order of their
-    first cell in C order, which is the numbering ``scipy.ndimage.label`` plus the reference's
-    seam merge produce. Returns ``n``.
+def _label_components_flood(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - compiled
+    """`label_components` for any ``nt``, cell by cell: its fallback for ``nt > 64`` and its reference in the tests.
 
     A flood fill from each unlabelled occupied cell in C order; the stack holds each cell's
     coordinates beside its index, so no visit divides to find them (a cell is pushed once, when
@@ -163,6 +161,162 @@ def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - c
                                     stack[top, 1] = xx
                                     stack[top, 2] = tt
                                     top += 1
+    return n
+
+
+@intrinsic
+def _ctz(typingctx, v):  # pragma: no cover - compiled
+    """Trailing zero bits of an unsigned integer (the bit width for 0): one ``tzcnt``."""
+    if not isinstance(v, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.cttz(args[0], ir.Constant(ir.IntType(1), 0))
+
+    return v(v), codegen
+
+
+@intrinsic
+def _popcount(typingctx, v):  # pragma: no cover - compiled
+    """Set bits of an unsigned integer: one ``popcnt``."""
+    if not isinstance(v, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.ctpop(args[0])
+
+    return v(v), codegen
+
+
+@numba.njit(cache=True, nogil=True)
+def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - compiled
+    """Connected components of the occupied cells of a ``(ny, nx, nt)`` raster (flat, C order).
+
+    26-neighbourhood; with ``wrap_t`` the heading axis is circular. ``lab`` (out, zeroed) gets
+    ``1..n`` for occupied cells and is not written elsewhere; components are numbered in the order
+    of their first cell in C order, which is the numbering ``scipy.ndimage.label`` plus the
+    reference's seam merge produce. Returns ``n``. The same ``lab`` and ``n`` as the cell-by-cell
+    flood fill `_label_components_flood`, which this calls for ``nt > 64``.
+
+    Runs of headings, not cells: each ``(y, x)`` column's occupied headings are an ``nt``-bit mask,
+    and its maximal runs of set bits are its segments (with ``wrap_t`` a run through ``nt - 1`` and
+    one through ``0`` are one segment). Two runs of one column never touch; segments of 8-neighbour
+    columns touch when one meets the other's heading dilation ``m | m << 1 | m >> 1`` (rotations on
+    the ring with ``wrap_t``). One scan in C order joins each column's segments to the touching ones
+    of the columns already seen, ``(y - 1, x - 1 .. x + 1)`` and ``(y, x - 1)`` (union-find whose
+    links point to lower segments, so a root is the first segment of its set). Segments are stored
+    in column order and, in a column, by their lowest heading: numbering the roots in segment order
+    numbers the components by their first cell. With ``nt <= 2`` the wrap adds no neighbour
+    (every heading touches every other), as in the flood fill.
+    """
+    if nt > 64:
+        return _label_components_flood(occupied, ny, nx, nt, wrap_t, lab)
+    if ny <= 0 or nx <= 0 or nt <= 0:
+        return 0
+    ncol = ny * nx
+    zero = np.uint64(0)
+    one = np.uint64(1)
+    top = np.uint64(nt - 1)
+    full = ~zero if nt == 64 else (one << np.uint64(nt)) - one
+    ring = nt > 2 and bool(wrap_t)
+    cap = ncol * ((nt + 1) // 2)  # at most ceil(nt / 2) runs in a column
+    seg_m = np.empty(cap, dtype=np.uint64)  # the segment's headings
+    parent = np.empty(cap, dtype=np.int64)  # parent[s] <= s
+    col_m = np.empty(ncol, dtype=np.uint64)  # the column's headings
+    col_first = np.empty(ncol, dtype=np.int64)  # its first segment
+    col_wlo = np.empty(ncol, dtype=np.int64)  # where its wrapping segment's top part starts, nt if none
+    nseg = 0
+    for y in range(ny):
+        for x in range(nx):
+            col = y * nx + x
+            base = col * nt
+            m = zero
+            for t in range(nt):
+                m |= np.uint64(occupied[base + t] != 0) << np.uint64(t)
+            col_m[col] = m
+            first = nseg
+            col_first[col] = first
+            col_wlo[col] = nt
+            r = m
+            while r != zero:
+                run = ((r + (r & (~r + one))) ^ r) & r  # the lowest run of r
+                seg_m[nseg] = run
+                parent[nseg] = nseg
+                nseg += 1
+                r ^= run
+            if ring and nseg - first > 1 and (m & one) != zero and (m >> top) != zero:
+                nseg -= 1  # the last run (up to nt - 1) continues the first (from 0)
+                seg_m[first] |= seg_m[nseg]
+                col_wlo[col] = np.int64(_ctz(seg_m[nseg]))
+            for s in range(first, nseg):
+                sm = seg_m[s]
+                if ring:
+                    d = sm | ((sm << one) & full) | (sm >> one) | (sm >> top) | ((sm & one) << top)
+                else:
+                    d = sm | ((sm << one) & full) | (sm >> one)
+                rs = s  # the root of s's set
+                for k in range(4):
+                    if k < 3:
+                        if y == 0 or x + k == 0 or x + k > nx:
+                            continue
+                        q = col - nx - 1 + k
+                    else:
+                        if x == 0:
+                            continue
+                        q = col - 1
+                    mq = col_m[q]
+                    tm = mq & d  # q's headings that touch s
+                    if tm == zero:
+                        continue
+                    q0 = col_first[q]
+                    wlo = col_wlo[q]
+                    starts = mq & ~(mq << one)
+                    while True:
+                        # o: the segment of q's lowest touching heading b (its run's rank among q's runs)
+                        b = np.uint64(_ctz(tm))
+                        if np.int64(b) >= wlo:
+                            o = q0
+                        else:
+                            o = q0 + np.int64(_popcount(starts & (((one << b) << one) - one))) - 1
+                        tm &= ~seg_m[o]
+                        ro = parent[o]
+                        if ro != rs:
+                            while parent[ro] != ro:
+                                parent[ro] = parent[parent[ro]]  # path halving
+                                ro = parent[ro]
+                            if ro < rs:
+                                parent[rs] = ro
+                                rs = ro
+                            elif rs < ro:
+                                parent[ro] = rs
+                        if tm == zero:
+                            break
+    # num[s]: the component number of segment s. A root is the first segment of its set, and the
+    # parent of any other segment comes before it, so its number is already known.
+    num = np.empty(nseg, dtype=np.int64)
+    n = 0
+    for s in range(nseg):
+        p = parent[s]
+        if p == s:
+            n += 1
+            num[s] = n
+        else:
+            num[s] = num[p]
+    for col in range(ncol):
+        m = col_m[col]
+        starts = m & ~(m << one)
+        first = col_first[col]
+        wlo = col_wlo[col]
+        base = col * nt
+        r = m
+        while r != zero:
+            b = np.uint64(_ctz(r))
+            if np.int64(b) >= wlo:
+                k = num[first]
+            else:
+                k = num[first + np.int64(_popcount(starts & (((one << b) << one) - one))) - 1]
+            lab[base + np.int64(b)] = k
+            r &= r - one
     return n
 
 
