@@ -11,9 +11,10 @@ from operations whose order is fixed and reproducible here without fastmath:
   below do.
 
 What is *not* reproducible here stays in NumPy in the callers: BLAS dot products (OpenBLAS
-splits long ones over threads), pairwise ``np.sum`` and the transcendental functions
-(``np.sin``, ``np.log``, ``np.arctan2``, whose SIMD versions may differ from libm in the last
-bit). Tests: ``tests/test_belief_kernels.py`` (kernels against the reference on random and
+splits long ones over threads), pairwise ``np.sum`` and the transcendental functions ``np.log`` and
+``np.arctan2``, whose SIMD versions may differ from libm in the last bit. The headings' ``cos`` and
+``sin`` are the exception: NumPy's float64 ones are the C library's, which `filters.pose.cos_sin` calls
+too (a test checks it on each machine the suite runs on). Tests: ``tests/test_belief_kernels.py`` (kernels against the reference on random and
 adversarial clouds) and ``tests/test_fast_path.py`` (whole seeded episodes).
 """
 
