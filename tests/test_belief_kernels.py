@@ -306,3 +306,14 @@ def test_cos_sin_is_numpys_cos_and_sin():
     c, s = cos_sin(p[:, 2])
     same_bits(c, np.cos(p[:, 2]))
     same_bits(s, np.sin(p[:, 2]))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_group_order_is_a_stable_argsort_and_its_starts(seed):
+    rng = np.random.default_rng(seed)
+    for n, k in ((0, 1), (1, 1), (7, 3), (5000, 1), (5000, 40), (300, 301)):
+        labels = rng.integers(0, k, n)
+        order, starts = K.group_order(labels, k)
+        want = np.argsort(labels, kind="stable")
+        assert np.array_equal(order, want)
+        assert np.array_equal(starts, np.searchsorted(labels[want], np.arange(k + 1)))

@@ -14,8 +14,9 @@ What is *not* reproducible here stays in NumPy in the callers: BLAS dot products
 splits long ones over threads), pairwise ``np.sum`` and the transcendental functions ``np.log`` and
 ``np.arctan2``, whose SIMD versions may differ from libm in the last bit. The headings' ``cos`` and
 ``sin`` are the exception: NumPy's float64 ones are the C library's, which `filters.pose.cos_sin` calls
-too (a test checks it on each machine the suite runs on). Tests: ``tests/test_belief_kernels.py`` (kernels against the reference on random and
-adversarial clouds) and ``tests/test_fast_path.py`` (whole seeded episodes).
+too (a test checks it on each machine the suite runs on). Tests: ``tests/test_belief_kernels.py``
+(kernels against the reference on random and adversarial clouds) and ``tests/test_fast_path.py``
+(whole seeded episodes).
 """
 
 from __future__ import annotations
@@ -490,3 +491,22 @@ def cell_labels(mass, count, threshold, ny, nx, nt, cell):  # pragma: no cover -
     for i in range(cell.shape[0]):
         out[i] = lab[cell[i]] - 1
     return out, n
+
+
+@numba.njit(cache=True, nogil=True)
+def group_order(labels, n_groups):  # pragma: no cover - compiled
+    """``(order, starts)`` of labels in ``0 .. n_groups - 1``: ``order`` = ``np.argsort(labels, kind="stable")``
+    (a counting sort: by label, then by index) and ``starts`` = ``np.searchsorted(labels[order],
+    np.arange(n_groups + 1))``, so group ``k``'s members are ``order[starts[k]:starts[k + 1]]``."""
+    starts = np.zeros(n_groups + 1, dtype=np.int64)
+    for i in range(labels.shape[0]):
+        starts[labels[i] + 1] += 1
+    for k in range(n_groups):
+        starts[k + 1] += starts[k]
+    fill = starts[:-1].copy()
+    order = np.empty(labels.shape[0], dtype=np.int64)
+    for i in range(labels.shape[0]):
+        k = labels[i]
+        order[fill[k]] = i
+        fill[k] += 1
+    return order, starts

@@ -110,7 +110,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from filters import _blas
-from filters.localization import audit, kld_kernels
+from filters.localization import audit, belief_kernels, kld_kernels
 from filters.localization.belief import (
     Belief,
     BeliefConfig,
@@ -1252,8 +1252,7 @@ class MonteCarloLocalizer:
         keep = np.flatnonzero((cw >= c.cluster_keep_weight) & (cw > 0))  # an empty group has nothing to draw
         if keep.size == 0:
             keep = np.array([int(np.argmax(cw))])
-        order = np.argsort(labels, kind="stable")
-        starts = np.searchsorted(labels[order], np.arange(n_lab + 1))
+        order, starts = belief_kernels.group_order(labels, n_lab)
         total = cw[keep].sum()
         floor = min(c.cluster_min_particles, max(1, n_new // keep.size))  # floors never exceed the budget
         poses, logw = [], []
