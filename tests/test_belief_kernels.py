@@ -317,3 +317,23 @@ def test_group_order_is_a_stable_argsort_and_its_starts(seed):
         want = np.argsort(labels, kind="stable")
         assert np.array_equal(order, want)
         assert np.array_equal(starts, np.searchsorted(labels[want], np.arange(k + 1)))
+
+
+@pytest.mark.parametrize("spread_m", [(2**30 - 1) * 0.5, (2**31 - 1) * 0.5, 1e9, 1e12, 9e14])
+def test_clouds_far_wider_than_any_map_summarise_alike_on_both_backends(spread_m):
+    """Raster sizes beyond 2**63 cells: the compiled size check must not overflow (it wrapped round to a small or
+    negative size and wrote out of bounds); both backends take the coarser fallback alike."""
+    p = np.array([[0.0, 0.0, 0.0], [spread_m, spread_m, 1.0], [0.1, 0.2, 0.3]])
+    w = np.array([0.5, 0.3, 0.2])
+    same_bits(histogram_entropy(p, w, 0.5, math.pi / 8, "numba"), histogram_entropy(p, w, 0.5, math.pi / 8, "numpy"))
+    a, b = summarize(p, w, backend="numba"), summarize(p, w, backend="numpy")
+    assert repr(a.as_dict(10**6)) == repr(b.as_dict(10**6))
+
+
+def test_labels_ignore_the_weights_without_a_bin_fraction_as_the_reference_does():
+    p = np.array([[0.0, 0, 0], [0.1, 0, 0], [5, 5, 1]])
+    w = np.array([np.nan, 1.0, 1.0])
+    lab_a, n_a = cluster_labels(p, 0.5, math.pi / 4, w, 0.0, "numba")
+    lab_b, n_b = cluster_labels(p, 0.5, math.pi / 4, w, 0.0, "numpy")
+    assert n_a == n_b == 2
+    same_bits(lab_a, lab_b)

@@ -367,11 +367,12 @@ def cluster_labels(
 def _cluster_labels_numba(poses, bin_m, bin_theta_rad, weights, min_bin_frac) -> tuple[np.ndarray, int]:
     p = np.ascontiguousarray(poses, dtype=np.float64)
     nt, scale = _k.heading_scale(bin_theta_rad)
-    w = np.zeros(p.shape[0]) if weights is None else np.ascontiguousarray(weights, dtype=np.float64)
+    by_mass = weights is not None and min_bin_frac > 0  # else the reference ignores the weights (NaN ones too)
+    w = np.ascontiguousarray(weights, dtype=np.float64) if by_mass else np.zeros(p.shape[0])
     cell, mass, count, nx, ny, held, fits = _k.cluster_raster(p, w, float(bin_m), nt, scale, _MAX_RASTER_CELLS)
     if not fits:  # absurdly spread cloud: coarser raster, as the reference
         return _cluster_labels_numba(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
-    if weights is not None and min_bin_frac > 0:
+    if by_mass:
         # the reference's threshold, with the same NumPy reduction (pairwise sum over the raster)
         threshold = float(min_bin_frac * mass.sum() / held)
     else:

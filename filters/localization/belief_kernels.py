@@ -90,16 +90,6 @@ def raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it):  # pragma: no cover - c
 
 
 @numba.njit(cache=True, nogil=True)
-def raster_mass(ix, iy, it, nx, nt, w, mass, count):  # pragma: no cover - compiled
-    """``mass[c] += w[i]`` and ``count[c] += 1`` for the cell ``c = (iy nx + ix) nt + it`` of every
-    particle, in index order (``np.bincount``'s order); ``mass`` and ``count`` must be zeroed."""
-    for i in range(ix.shape[0]):
-        c = (iy[i] * nx + ix[i]) * nt + it[i]
-        mass[c] += w[i]
-        count[c] += 1
-
-
-@numba.njit(cache=True, nogil=True)
 def nonzero_mass(mass):  # pragma: no cover - compiled
     """``mass[mass > 0]`` (raster order)."""
     k = 0
@@ -323,13 +313,6 @@ def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - c
 
 
 @numba.njit(cache=True, nogil=True)
-def particle_labels(ix, iy, it, nx, nt, lab, out):  # pragma: no cover - compiled
-    """``out[i] = lab[cell of particle i] - 1`` (-1: the particle's cell is in no cluster)."""
-    for i in range(ix.shape[0]):
-        out[i] = lab[(iy[i] * nx + ix[i]) * nt + it[i]] - 1
-
-
-@numba.njit(cache=True, nogil=True)
 def cluster_sums(labels, n, poses, sin_th, cos_th, w):  # pragma: no cover - compiled
     """First pass of ``cluster_stats``: per cluster the count, weight, ``ww``-weighted sums of
     ``x``, ``y``, ``sin``, ``cos`` (``ww`` = the weight, or ``1 / count`` in a zero-weight
@@ -428,21 +411,44 @@ def finite_non_negative_max(w):  # pragma: no cover - compiled
     return True, m
 
 
-@numba.njit(cache=True, nogil=True)
-def entropy_masses(poses, w, bin_xy_m, nt, scale, max_cells):  # pragma: no cover - compiled
-    """The nonzero raster masses of ``histogram_entropy`` (``raster_bins``, ``raster_mass``, ``nonzero_mass``
-    in one call); ``(masses, True)``, or ``(empty, False)`` when the raster would exceed ``max_cells``."""
+@numba.njit(cache=True, nogil=True, inline="always")
+def _fits(nx, ny, nt, max_cells):  # pragma: no cover - compiled
+    """``nx * ny * nt <= max_cells`` without forming a product that can overflow int64 (a cloud 1e9 m wide
+    has more than 2**63 cells of 0.5 m; ``summarize`` takes poses up to 1e15 m)."""
+    return nx <= max_cells and ny <= max_cells and nx * ny <= max_cells // nt
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _raster_mass(poses, w, bin_xy_m, nt, scale, max_cells):  # pragma: no cover - compiled
+    """``(cell (N,), mass, count, nx, ny, fits)``: `raster_bins`, then the flat cell ``(iy nx + ix) nt + it`` of
+    each particle, and per cell the weights ``w`` summed in particle order (``np.bincount``'s order) and the
+    particles counted; empty ``mass`` and ``count`` and ``fits = False`` when the raster would exceed
+    ``max_cells``."""
     n = poses.shape[0]
     ix = np.empty(n, dtype=np.int64)
     iy = np.empty(n, dtype=np.int64)
     it = np.empty(n, dtype=np.int64)
     nx, ny = raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it)
-    size = nx * ny * nt
-    if size > max_cells:
-        return np.empty(0), False
-    mass = np.zeros(size)
-    count = np.zeros(size, dtype=np.int64)
-    raster_mass(ix, iy, it, nx, nt, w, mass, count)
+    cell = np.empty(n, dtype=np.int64)
+    if not _fits(nx, ny, nt, max_cells):
+        return cell, np.empty(0), np.empty(0, dtype=np.int64), nx, ny, False
+    mass = np.zeros(nx * ny * nt)
+    count = np.zeros(nx * ny * nt, dtype=np.int64)
+    for i in range(n):
+        c = (iy[i] * nx + ix[i]) * nt + it[i]
+        cell[i] = c
+        mass[c] += w[i]
+        count[c] += 1
+    return cell, mass, count, nx, ny, True
+
+
+@numba.njit(cache=True, nogil=True)
+def entropy_masses(poses, w, bin_xy_m, nt, scale, max_cells):  # pragma: no cover - compiled
+    """The nonzero raster masses of ``histogram_entropy`` in raster order (`_raster_mass`, then `nonzero_mass`);
+    ``(masses, True)``, or ``(empty, False)`` when the raster would exceed ``max_cells``."""
+    _, mass, _, _, _, fits = _raster_mass(poses, w, bin_xy_m, nt, scale, max_cells)
+    if not fits:
+        return mass, False
     return nonzero_mass(mass), True
 
 
@@ -450,29 +456,14 @@ def entropy_masses(poses, w, bin_xy_m, nt, scale, max_cells):  # pragma: no cove
 def cluster_raster(poses, w, bin_m, nt, scale, max_cells):  # pragma: no cover - compiled
     """The raster of ``cluster_labels``: ``(cell (N,), mass, count, nx, ny, held, fits)`` with ``cell[i]`` the
     flat raster cell ``(iy nx + ix) nt + it`` of particle ``i``, the cells' weight ``mass`` and particle
-    ``count`` (``raster_mass``), the number ``held`` of cells with particles, and ``fits = False`` (and
+    ``count`` (`_raster_mass`), the number ``held`` of cells with particles, and ``fits = False`` (and
     empty arrays) when the raster would exceed ``max_cells``."""
-    n = poses.shape[0]
-    ix = np.empty(n, dtype=np.int64)
-    iy = np.empty(n, dtype=np.int64)
-    it = np.empty(n, dtype=np.int64)
-    nx, ny = raster_bins(poses, bin_m, nt, scale, ix, iy, it)
-    size = nx * ny * nt
-    cell = np.empty(n, dtype=np.int64)
-    if size > max_cells:
-        return cell, np.empty(0), np.empty(0, dtype=np.int64), nx, ny, 0, False
-    mass = np.zeros(size)
-    count = np.zeros(size, dtype=np.int64)
-    for i in range(n):
-        c = (iy[i] * nx + ix[i]) * nt + it[i]
-        cell[i] = c
-        mass[c] += w[i]
-        count[c] += 1
+    cell, mass, count, nx, ny, fits = _raster_mass(poses, w, bin_m, nt, scale, max_cells)
     held = 0
-    for c in range(size):
+    for c in range(count.shape[0]):
         if count[c] > 0:
             held += 1
-    return cell, mass, count, nx, ny, held, True
+    return cell, mass, count, nx, ny, held, fits
 
 
 @numba.njit(cache=True, nogil=True)
