@@ -27,10 +27,17 @@ def _cos_sin(theta, c, s):  # pragma: no cover - compiled
 
 
 def cos_sin(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(np.cos(theta), np.sin(theta))`` of a 1D float64 array in one compiled pass (the C library's ``sincos``,
-    about 1.6x faster). The same bits where NumPy's float64 ``cos`` and ``sin`` are the C library's, as on the
-    platforms this package is tested on (``tests/test_belief_kernels.py`` checks it, and the compiled kernels'
-    tests against their NumPy references rely on it too)."""
+    """``(np.cos(theta), np.sin(theta))`` of a 1D array of angles (radians, taken as float64) in one compiled pass
+    (the C library's ``sincos``, about 1.6x faster than the two NumPy calls). The same bits where NumPy's float64
+    ``cos`` and ``sin`` are the C library's, as on the platforms this package is tested on
+    (``tests/test_belief_kernels.py`` checks it; the compiled kernels' tests against their NumPy references rely on
+    it too). Unlike NumPy it never warns for an infinite angle (the result is NaN all the same).
+
+    Raises:
+        ValueError: ``theta`` is not 1D."""
+    theta = np.asarray(theta, dtype=np.float64)
+    if theta.ndim != 1:
+        raise ValueError(f"cos_sin takes a 1D array of angles, got shape {theta.shape}")
     c = np.empty(theta.shape[0])
     s = np.empty(theta.shape[0])
     _cos_sin(theta, c, s)

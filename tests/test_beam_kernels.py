@@ -108,3 +108,18 @@ def test_spread_picks_are_numpys_rounded_linspace(count, data):
 def test_select_is_select_beams(mask, stride, max_beams):
     m = np.array(mask, dtype=bool)
     assert np.array_equal(K.select(m, stride, max_beams), select_beams(m, stride, max_beams))
+
+
+def test_returns_too_far_for_negative_evidence_are_refused_alike():
+    """A semantic return 1e20 m away would need ~1e21 points: both paths refuse it with one message (the reference
+    raised NumPy's "repeats may not contain negative values", the compiled pass dropped every negative beam)."""
+    neg = NegativeEvidenceConfig(p_detect=0.8)
+    model = LikelihoodFieldModel(grid(), negative=neg)
+    scan = SemanticScan(np.array([1.0, 2.0, 1e20, 3.0]), np.linspace(-0.5, 0.5, 4), np.zeros(4, int), 1e305)
+    for beams in (model.beams, model.beams_reference):
+        with pytest.raises(ValueError, match="negative evidence samples points along each return"):
+            beams(None, scan)
+    ok = SemanticScan(np.array([1.0, 2.0, 1e20]), np.linspace(-0.5, 0.5, 3), np.zeros(3, int), 5.0)  # no return
+    same_beams(model.beams(None, ok), model.beams_reference(None, ok))
+    plain = LikelihoodFieldModel(grid())  # without negative evidence the distance does not matter
+    same_beams(plain.beams(None, scan), plain.beams_reference(None, scan))

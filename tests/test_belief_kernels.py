@@ -337,3 +337,12 @@ def test_labels_ignore_the_weights_without_a_bin_fraction_as_the_reference_does(
     lab_b, n_b = cluster_labels(p, 0.5, math.pi / 4, w, 0.0, "numpy")
     assert n_a == n_b == 2
     same_bits(lab_a, lab_b)
+
+
+def test_cos_sin_takes_1d_angles_only():
+    from filters.pose import cos_sin
+
+    with pytest.raises(ValueError, match="1D array of angles"):
+        cos_sin(np.zeros((2, 3)))
+    c, s = cos_sin([0.0, np.pi / 2])  # a list is taken as float64
+    same_bits(c, np.cos(np.array([0.0, np.pi / 2])))

@@ -723,3 +723,16 @@ def test_a_held_convergence_follows_the_odometry_when_the_robot_moves_far_betwee
     assert MCLConfig().places_follow_odometry is True  # the library's default follows
     assert RELOCALIZER_V18.places_follow_odometry is False  # v1 to v18 keep their episodes
     assert DEFAULT_RELOCALIZER.places_follow_odometry is True  # v19 follows
+
+
+def test_update_diagnostics_as_dict_lists_a_subclass_fields_too():
+    import dataclasses
+
+    from filters.localization.mcl import UpdateDiagnostics
+
+    @dataclasses.dataclass(frozen=True)
+    class More(UpdateDiagnostics):
+        extra: int = 7
+
+    assert More().as_dict()["extra"] == 7
+    assert list(UpdateDiagnostics().as_dict()) == [f.name for f in dataclasses.fields(UpdateDiagnostics)]

@@ -646,23 +646,20 @@ class LikelihoodFieldModel:
         same arrays, bit for bit).
 
         Raises:
-            ValueError: a semantic label has no class in the map.
+            ValueError: a semantic label has no class in the map, or, with negative evidence, a semantic
+                return lies farther than ``filters.numbers.MAX_LENGTH_M``.
             TypeError: the scans are not `LaserScan` / `SemanticScan`.
         """
         if self.backend == "numpy":
             return self.beams_reference(lidar, semantic)
+        self._check_scans(lidar, semantic)
         if lidar is not None:
-            if not isinstance(lidar, LaserScan):
-                raise TypeError(f"lidar must be a LaserScan, got {type(lidar).__name__}")
             c = self.lidar_config
             lid = (lidar.ranges, lidar.angles, float(lidar.range_min_m), float(lidar.range_max_m), lidar.sensor_pose)
             lid += (int(c.beam_stride), int(c.max_beams))
         else:
             lid = (_EMPTY_F, _EMPTY_F, 0.0, 1.0, _ZERO_POSE, 1, 0)
         if semantic is not None:
-            if not isinstance(semantic, SemanticScan):
-                raise TypeError(f"semantic must be a SemanticScan, got {type(semantic).__name__}")
-            self.check_labels(semantic)
             c = self.semantic_config
             neg = self.negative_config
             sem = (semantic.ranges, semantic.angles, semantic.labels, float(semantic.range_max_m), semantic.sensor_pose)
@@ -685,16 +682,33 @@ class LikelihoodFieldModel:
             n_starts=n_starts,
         )
 
+    def _check_scans(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> None:
+        """`beams`' argument checks (see its Raises)."""
+        if lidar is not None and not isinstance(lidar, LaserScan):
+            raise TypeError(f"lidar must be a LaserScan, got {type(lidar).__name__}")
+        if semantic is None:
+            return
+        if not isinstance(semantic, SemanticScan):
+            raise TypeError(f"semantic must be a SemanticScan, got {type(semantic).__name__}")
+        self.check_labels(semantic)
+        r = semantic.ranges
+        if self.negative_config.enabled and r.size and r.max() > MAX_LENGTH_M:
+            far = r[(r > MAX_LENGTH_M) & (r < semantic.range_max_m)]
+            if far.size:  # a point every step_m along such a return: more than memory holds
+                raise ValueError(
+                    f"semantic return at {far[0]:.3g} m: negative evidence samples points along each return, which "
+                    f"takes returns up to {MAX_LENGTH_M:g} m (filters.numbers.MAX_LENGTH_M); not metres?"
+                )
+
     def beams_reference(self, lidar: LaserScan | None, semantic: SemanticScan | None) -> BeamSet:
         """`beams` as NumPy array code (the specification the compiled pass is tested against; the numpy
         backend's)."""
+        self._check_scans(lidar, semantic)
         lxs, lys, tabs = [], [], []
         nx, ny, n_starts = _EMPTY_F, _EMPTY_F, _ZERO_START
         n_l = n_s = n_det = 0
         l_rmax = s_rmax = 1.0
         if lidar is not None:
-            if not isinstance(lidar, LaserScan):
-                raise TypeError(f"lidar must be a LaserScan, got {type(lidar).__name__}")
             c = self.lidar_config
             idx = select_beams(lidar.valid, c.beam_stride, c.max_beams)
             ex, ey = beam_endpoints(lidar.ranges[idx], lidar.angles[idx], lidar.sensor_pose)
@@ -704,9 +718,6 @@ class LikelihoodFieldModel:
             n_l = int(idx.size)
             l_rmax = lidar.range_max_m
         if semantic is not None:
-            if not isinstance(semantic, SemanticScan):
-                raise TypeError(f"semantic must be a SemanticScan, got {type(semantic).__name__}")
-            self.check_labels(semantic)
             c = self.semantic_config
             idx = select_beams(semantic.labelled, c.beam_stride, c.max_beams)
             ex, ey = beam_endpoints(semantic.ranges[idx], semantic.angles[idx], semantic.sensor_pose)

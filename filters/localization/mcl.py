@@ -703,10 +703,13 @@ class UpdateDiagnostics:
 
     def as_dict(self) -> dict:
         """Plain Python values for a Gymnasium ``info``."""
-        return {name: getattr(self, name) for name in _DIAGNOSTICS_FIELDS}
+        names = _FIELD_NAMES.get(type(self))
+        if names is None:  # once per class: dataclasses.fields is slow for a call per step
+            names = _FIELD_NAMES[type(self)] = tuple(f.name for f in fields(self))
+        return {name: getattr(self, name) for name in names}
 
 
-_DIAGNOSTICS_FIELDS = tuple(f.name for f in fields(UpdateDiagnostics))
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}
 
 
 def _beam_average(prior: np.ndarray, ll: np.ndarray, n_beams: int) -> float:
