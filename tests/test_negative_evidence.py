@@ -2,6 +2,7 @@
 
 import math
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,6 +14,9 @@ from filters.localization.likelihood_field import (
     NegativeEvidenceConfig,
     cached_model,
     negative_beams,
+    negative_evidence_kernel,
+    table_codes,
+    window_entry_kernel,
 )
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
@@ -176,3 +180,116 @@ def test_the_true_pose_rarely_pays_while_tracking_beside_objects():
     # the defaults give 8 % of updates below -1 and a mean of -0.34; the first ones (radius 0.1 m,
     # sigma 0.1 m, points every 0.25 m) gave 62 % and -1.93 on this very run
     assert np.mean(losses < -1.0) < 0.2 and losses.mean() > -0.6, (np.mean(losses < -1.0), losses.mean())
+
+
+# --------------------------------------------------------------- compiled kernel: bit for bit as before
+@numba.njit(nogil=True)
+def _negative_evidence_before(x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out):
+    """`negative_evidence_kernel` as it was before the coded table and the two running minima (commit
+    646b5af: `_beam_cells` then `_negative_sum`, one running minimum per beam), the reference for its bits."""
+    ns = nu.shape[0]
+    idx = np.empty(ns, np.int64)
+    for i in range(x.shape[0]):
+        pu, pv = (x[i] - ox) * inv_res, (y[i] - oy) * inv_res
+        c, s = cos_t[i], sin_t[i]
+        for j in range(ns):
+            fx = pu + (c * nu[j] - s * nv[j])
+            fy = pv + (s * nu[j] + c * nv[j])
+            if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
+                idx[j] = 0 + int(fy) * w + int(fx)
+            else:
+                idx[j] = w * h
+        acc = 0.0
+        for b in range(starts.shape[0] - 1):
+            low = 0.0
+            for j in range(starts[b], starts[b + 1]):
+                low = min(low, table[idx[j]])
+            acc += low
+        out[i] += acc
+
+
+# table values that could tell orders apart: both zeros, the tiniest negatives, infinities, NaN, positives
+_ODD_VALUES = [0.0, -0.0, -5e-324, -1e-300, -1e-17, -0.25, -1.6094379124341005, -math.inf, math.inf, math.nan, 0.5]
+
+
+@st.composite
+def _negative_case(draw):
+    w, h = draw(st.integers(1, 6)), draw(st.integers(1, 5))
+    value = st.one_of(st.sampled_from(_ODD_VALUES), st.floats(-3.0, 0.0), st.floats(allow_nan=True))
+    table = np.array(draw(st.lists(value, min_size=w * h + 1, max_size=w * h + 1)))
+    counts = draw(st.lists(st.integers(0, 9), max_size=7))
+    starts = np.concatenate([[0], np.cumsum(counts, dtype=np.int64)]).astype(np.int64)
+    ns = int(starts[-1])
+    # cell faces (integers and halves in cells), the map's far edges and beyond, and anything in between
+    coord = st.one_of(st.sampled_from([-1.0, -0.0, 0.0, 0.5, 1.0, 2.0, 2.5, float(w), float(h), 7.0]), st.floats(-3, 9))
+    nu = np.array(draw(st.lists(coord, min_size=ns, max_size=ns)), dtype=np.float64)
+    nv = np.array(draw(st.lists(coord, min_size=ns, max_size=ns)), dtype=np.float64)
+    n = draw(st.integers(0, 6))
+    x = np.array(draw(st.lists(coord, min_size=n, max_size=n)), dtype=np.float64)
+    y = np.array(draw(st.lists(coord, min_size=n, max_size=n)), dtype=np.float64)
+    theta = np.array(
+        draw(st.lists(st.sampled_from([0.0, np.pi / 2, np.pi, -np.pi / 2, 0.3, -2.0]), min_size=n, max_size=n))
+    )
+    exact = draw(st.booleans())  # exact axis-aligned headings: points land exactly on the cell faces
+    cos_t = np.round(np.cos(theta)) if exact else np.cos(theta)
+    sin_t = np.round(np.sin(theta)) if exact else np.sin(theta)
+    out = np.array(draw(st.lists(st.sampled_from([0.0, -0.0, -1.5, 2.0, math.nan]), min_size=n, max_size=n)))
+    ox, oy, inv_res = draw(st.sampled_from([(0.0, 0.0, 1.0), (-0.5, 0.25, 2.0), (0.1, -0.3, 20.0)]))
+    return x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out
+
+
+@given(_negative_case())
+@settings(max_examples=300, deadline=None)
+def test_negative_kernels_give_the_bits_of_the_plain_running_minimum(case):
+    """The coded table and the two running minima of `negative_evidence_kernel` (and of the negative part
+    of `window_entry_kernel`) give the bytes of one running minimum over the plain table, for any table
+    (-0.0 and 0.0, NaN, infinities), points on cell faces or off the map, ``out`` starting at -0.0."""
+    x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out = case
+    codes, values = table_codes(table)
+    assert values[codes].tobytes() == table.tobytes()
+    want = out.copy()
+    _negative_evidence_before(x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, want)
+    got = out.copy()
+    negative_evidence_kernel(x, y, cos_t, sin_t, nu, nv, starts, codes, values, ox, oy, inv_res, w, h, got)
+    assert got.tobytes() == want.tobytes()
+    # window_entry_kernel without lidar/semantic beams: total += 1.0 * (0.0 + (0.0 + negative))
+    neg = np.zeros(x.size)
+    _negative_evidence_before(x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, neg)
+    want_total = out + 1.0 * (0.0 + (0.0 + neg))
+    p = np.ascontiguousarray(np.stack([x, y, np.zeros(x.size)], axis=1))
+    total = out.copy()
+    none_f, none_i = np.zeros(0), np.zeros(0, np.int64)
+    window_entry_kernel(
+        p, cos_t, sin_t, none_f, none_f, none_i, none_i, 0, np.zeros(1), nu, nv, starts, codes, values,
+        ox, oy, inv_res, w, h, 1.0, total, np.zeros(3), False, p,
+    )  # fmt: skip
+    assert total.tobytes() == want_total.tobytes()
+
+
+def test_negative_kernel_keeps_plus_zero_over_minus_zero():
+    """A table of -0.0 (``log1p(-0.0)``: no object near) and ``out`` at -0.0: +0.0, as before."""
+    table = np.full(5, -0.0)
+    codes, values = table_codes(table)
+    assert np.signbit(values).all() and codes.dtype == np.uint16
+    args = (np.array([0.5, -9.0]), np.array([0.5, 0.5]), np.ones(2), np.zeros(2), np.array([0.0, 1.0, 9.0]))
+    args += (np.zeros(3), np.array([0, 2, 3], np.int64))
+    for out0 in (-0.0, 0.0):
+        want, got = np.full(2, out0), np.full(2, out0)
+        _negative_evidence_before(*args, table, 0.0, 0.0, 1.0, 2, 2, want)
+        negative_evidence_kernel(*args, codes, values, 0.0, 0.0, 1.0, 2, 2, got)
+        assert got.tobytes() == want.tobytes() == np.zeros(2).tobytes()
+
+
+def test_table_codes_past_65536_values_are_uint32():
+    table = -np.arange(70000, dtype=np.float64)
+    codes, values = table_codes(table)
+    assert codes.dtype == np.uint32 and values[codes].tobytes() == table.tobytes()
+    assert not codes.flags.writeable and not values.flags.writeable
+
+
+def test_model_negative_codes_are_its_table():
+    model = LikelihoodFieldModel(room_grid(), negative=ON)
+    codes, values = model.negative_codes()
+    assert values[codes].tobytes() == model.negative_table().tobytes()
+    assert model.negative_codes()[0] is codes  # computed once
+    assert model.reconfigured(model.lidar_config, model.semantic_config, ON)._negative_codes is None

@@ -214,6 +214,18 @@ DEFAULT_SEMANTIC_FIELD = LikelihoodFieldConfig(sigma_hit_m=0.3, z_hit=0.8, z_ran
 detections are less precise and false detections happen (paper 004 §3)."""
 
 
+def table_codes(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(codes, values)`` with ``values[codes]`` the bytes of the float64 ``table`` (values told apart by their
+    bits: ``-0.0`` and ``0.0`` are two values, so is every NaN payload), ``codes`` ``uint16`` if there are at
+    most 65536 distinct values, else ``uint32``; both read-only."""
+    bits, codes = np.unique(np.ascontiguousarray(table, dtype=np.float64).view(np.int64), return_inverse=True)
+    codes = codes.reshape(-1).astype(np.uint16 if bits.size <= 1 << 16 else np.uint32)
+    values = bits.view(np.float64)
+    codes.setflags(write=False)
+    values.setflags(write=False)
+    return codes, values
+
+
 def distance_field(mask: np.ndarray, resolution_m: float) -> np.ndarray:
     """``(H, W)`` float64 distance (metres) from each cell centre to the nearest ``True`` cell.
 
@@ -250,8 +262,10 @@ _EMPTY_F = np.zeros(0)
 _EMPTY_F.setflags(write=False)
 _ZERO_START = np.zeros(1, np.int64)
 _ZERO_START.setflags(write=False)
-_NO_TABLE = np.zeros(1)  # read-only, as `negative_table`'s: one compiled signature of `window_entry_kernel`
-_NO_TABLE.setflags(write=False)
+_NO_CODES = np.zeros(1, np.uint16)  # read-only, as `negative_codes`': one compiled signature of `window_entry_kernel`
+_NO_CODES.setflags(write=False)
+_NO_VALUES = np.zeros(1)
+_NO_VALUES.setflags(write=False)
 _NO_STEP = np.zeros(3)  # writable, as `audit.back_steps`' steps: likewise
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_I.setflags(write=False)
@@ -391,38 +405,65 @@ def log_likelihood_kernel(
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _negative_sum(table, idx, starts):  # pragma: no cover - compiled
-    """Sum over beams ``b`` of the lowest ``table[idx[j]]`` of its points ``starts[b] <= j < starts[b + 1]``
-    (at most 0 each), beams in order."""
+def _negative_cells(pu, pv, c, s, nu, nv, w, h, idx):  # pragma: no cover - compiled
+    """`_beam_cells` for negative-evidence points: the same cells (``w * h`` off the map), the indices unsigned
+    (no wrap-around check in the look-ups)."""
+    off = w * h
+    for j in range(nu.shape[0]):
+        fx = pu + (c * nu[j] - s * nv[j])
+        fy = pv + (s * nu[j] + c * nv[j])
+        if fx >= 0.0 and fx < w and fy >= 0.0 and fy < h:
+            idx[j] = int(fy) * w + int(fx)
+        else:
+            idx[j] = off
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _negative_sum(codes, values, idx, starts):  # pragma: no cover - compiled
+    """Sum over beams ``b`` of the lowest ``values[codes[idx[j]]]`` of its points ``starts[b] <= j < starts[b + 1]``
+    (at most 0 each), beams in order.
+
+    A beam's points go to two running minima (even and odd positions), which then meet: the same bits as
+    one running minimum ``low = min(low, v)`` from ``low = 0.0``. ``min(a, v)`` is ``v if v < a else a``,
+    so a minimum starting at +0.0 never becomes -0.0 (``-0.0 < 0.0`` is false) nor NaN: it is +0.0 or
+    the lowest negative value seen, whatever the order. (Hence also ``acc`` is +0.0 or negative, never
+    -0.0.) Two chains of ``min`` in flight instead of one."""
     acc = 0.0
     for b in range(starts.shape[0] - 1):
-        low = 0.0
-        for j in range(starts[b], starts[b + 1]):
-            low = min(low, table[idx[j]])
-        acc += low
+        lo0 = 0.0
+        lo1 = 0.0
+        j = starts[b]
+        e = starts[b + 1]
+        while j + 1 < e:
+            lo0 = min(lo0, values[codes[idx[j]]])
+            lo1 = min(lo1, values[codes[idx[j + 1]]])
+            j += 2
+        if j < e:
+            lo0 = min(lo0, values[codes[idx[j]]])
+        acc += min(lo0, lo1)
     return acc
 
 
 @numba.njit(cache=True, nogil=True)
 def negative_evidence_kernel(
-    x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out
+    x, y, cos_t, sin_t, nu, nv, starts, codes, values, ox, oy, inv_res, w, h, out
 ):  # pragma: no cover - compiled
     """Add each particle's negative evidence to ``out`` (see `NegativeEvidenceConfig`).
 
     Beam ``b``'s points (robot frame, cells) are ``nu/nv[starts[b]:starts[b + 1]]``; a point's
     cell is found as in `log_likelihood_kernel` and its value is ``table[row * w + col]``, or
-    ``table[w * h]`` (0: no object) off the ``h x w`` map. A beam contributes the lowest value of
-    its points (at most 0); beams are summed in order. As in `log_likelihood_kernel`, the cell
-    indices of a particle's points come first, then the look-ups.
+    ``table[w * h]`` (0: no object) off the ``h x w`` map, where ``table`` is
+    `LikelihoodFieldModel.negative_table` given as ``values[codes]`` (`negative_codes`: a table of
+    a few hundred distinct values in 2 bytes a cell, not 8, so that the random look-ups mostly hit
+    the cache). A beam contributes the lowest value of its points (at most 0); beams are summed in
+    order. As in `log_likelihood_kernel`, the cell indices of a particle's points come first, then
+    the look-ups.
     """
-    ns = nu.shape[0]
-    offset = np.zeros(ns, np.int64)
-    outside = np.full(ns, w * h, np.int64)
-    idx = np.empty(ns, np.int64)
+    idx = np.empty(nu.shape[0], np.uint64)
     for i in range(x.shape[0]):
         pu, pv = (x[i] - ox) * inv_res, (y[i] - oy) * inv_res
-        _beam_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, offset, outside, w, h, idx)
-        out[i] += _negative_sum(table, idx, starts)
+        _negative_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, w, h, idx)
+        out[i] += _negative_sum(codes, values, idx, starts)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -439,7 +480,8 @@ def window_entry_kernel(
     nu,
     nv,
     starts,
-    table,
+    codes,
+    values,
     ox,
     oy,
     inv_res,
@@ -464,9 +506,7 @@ def window_entry_kernel(
     nneg = starts.shape[0] - 1
     idx = np.empty(nb, np.int64)
     acc = np.empty(16)
-    n_offset = np.zeros(ns, np.int64)
-    n_outside = np.full(ns, w * h, np.int64)
-    n_idx = np.empty(ns, np.int64)
+    n_idx = np.empty(ns, np.uint64)
     two_pi = 2.0 * np.pi
     for i in range(p.shape[0]):
         pu, pv = (p[i, 0] - ox) * inv_res, (p[i, 1] - oy) * inv_res
@@ -477,8 +517,8 @@ def window_entry_kernel(
             ll_l = _gather_sum(flat, idx, 0, n_lidar, acc)
             ll_s = _gather_sum(flat, idx, n_lidar, nb, acc)
         if nneg:
-            _beam_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, n_offset, n_outside, w, h, n_idx)
-            ll_s += _negative_sum(table, n_idx, starts)
+            _negative_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, w, h, n_idx)
+            ll_s += _negative_sum(codes, values, n_idx, starts)
         total[i] += scale * (ll_l + ll_s)
         if back:
             out[i, 0] = p[i, 0] + cos_t[i] * step[0] - sin_t[i] * step[1]
@@ -542,6 +582,7 @@ class LikelihoodFieldModel:
         """``(1 + C, H, W)`` uncapped distances in metres: ``[0]`` to occupied cells, ``[k + 1]`` to class ``k``."""
         self._tables: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._negative_table: np.ndarray | None = None
+        self._negative_codes: tuple[np.ndarray, np.ndarray] | None = None
         self._kernel_beams: weakref.WeakKeyDictionary[BeamSet, tuple] = weakref.WeakKeyDictionary()
 
     def reconfigured(
@@ -559,7 +600,7 @@ class LikelihoodFieldModel:
         new = copy.copy(self)
         new.lidar_config, new.semantic_config = lidar, semantic
         new.negative_config = _negative_in_effect(negative)
-        new._tables, new._negative_table = {}, None
+        new._tables, new._negative_table, new._negative_codes = {}, None, None
         new._kernel_beams = weakref.WeakKeyDictionary()
         return new
 
@@ -589,6 +630,14 @@ class LikelihoodFieldModel:
             t.setflags(write=False)
             self._negative_table = t
         return self._negative_table
+
+    def negative_codes(self) -> tuple[np.ndarray, np.ndarray]:
+        """`negative_table` as ``(codes, values)``, ``values[codes]`` its exact bytes (``-0.0`` kept apart
+        from ``0.0``): ``values`` its distinct values (a few hundred), ``codes`` ``uint16`` (``uint32`` past
+        65536 values), read-only. What the compiled kernels read: a quarter of the table's bytes."""
+        if self._negative_codes is None:
+            self._negative_codes = table_codes(self.negative_table())
+        return self._negative_codes
 
     @property
     def n_classes(self) -> int:
@@ -813,9 +862,11 @@ class LikelihoodFieldModel:
             flat, lu, lv, offset, outside, nu, nv = self._prepared(beams)
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
-            starts, table = (beams.n_starts, self.negative_table()) if negative else (_ZERO_START, _NO_TABLE)
+            starts, (codes, values) = (
+                (beams.n_starts, self.negative_codes()) if negative else (_ZERO_START, (_NO_CODES, _NO_VALUES))
+            )
             window_entry_kernel(
-                p, trig[0], trig[1], lu, lv, offset, outside, beams.n_lidar, flat, nu, nv, starts, table,
+                p, trig[0], trig[1], lu, lv, offset, outside, beams.n_lidar, flat, nu, nv, starts, codes, values,
                 float(ox), float(oy), 1.0 / self.grid.resolution_m, w, h, float(scale), total,
                 step if back else _NO_STEP, back, out,
             )  # fmt: skip
@@ -871,7 +922,7 @@ class LikelihoodFieldModel:
                 )  # fmt: skip
             if negative:
                 negative_evidence_kernel(
-                    x, y, cos_t, sin_t, nu, nv, beams.n_starts, self.negative_table(),
+                    x, y, cos_t, sin_t, nu, nv, beams.n_starts, *self.negative_codes(),
                     float(ox), float(oy), inv_res, w, h, out_s,
                 )  # fmt: skip
         return out_l, out_s
