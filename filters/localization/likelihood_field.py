@@ -407,7 +407,9 @@ def log_likelihood_kernel(
 @numba.njit(cache=True, nogil=True, inline="always")
 def _negative_cells(pu, pv, c, s, nu, nv, w, h, idx):  # pragma: no cover - compiled
     """`_beam_cells` for negative-evidence points: the same cells (``w * h`` off the map), the indices unsigned
-    (no wrap-around check in the look-ups)."""
+    (no wrap-around check in the look-ups). A twin on purpose: `_beam_cells` with zero offsets and unsigned indices
+    made `negative_evidence_kernel` 9-10 % slower on a v19 episode's calls; the tests against the former kernel,
+    which used `_beam_cells`, hold the two to the same cells."""
     off = w * h
     for j in range(nu.shape[0]):
         fx = pu + (c * nu[j] - s * nv[j])

@@ -173,21 +173,11 @@ class OdometryMotionModel:
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
         p = np.asarray(pose, dtype=np.float64).reshape(-1)
-        d = np.asarray(delta, dtype=np.float64).reshape(-1)
         if p.shape != (3,):
             raise ValueError(f"pose must have shape (3,), got {np.shape(pose)}")
-        if d.shape != (3,) or not np.all(np.isfinite(d)):
-            raise ValueError(f"odometry delta must be 3 finite numbers (dx, dy, dtheta), got {delta!r}")
         x, y, th = p.tolist()
-        dx, dy, dth = d.tolist()
-        c = self.config
-        trans = float(np.hypot(dx, dy))
-        rot1 = float(np.arctan2(dy, dx)) if trans >= c.min_trans_m else 0.0
-        rot2 = wrap_float(dth - rot1)
-        r1, r2 = _fold(rot1), _fold(rot2)
-        s_r1 = math.sqrt(c.alpha1 * r1 * r1 + c.alpha2 * trans * trans)
-        s_t = math.sqrt(c.alpha3 * trans * trans + c.alpha4 * (r1 * r1 + r2 * r2))
-        s_r2 = math.sqrt(c.alpha1 * r2 * r2 + c.alpha2 * trans * trans)
+        rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
+        s_r1, s_t, s_r2 = self._stds(rot1, trans, rot2)
         n0, n1, n2 = rng.standard_normal(3).tolist()
         heading = th + (rot1 - s_r1 * n0)
         t = trans - s_t * n1
