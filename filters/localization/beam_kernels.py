@@ -67,6 +67,50 @@ def _endpoint(r, a, sx, sy, st):  # pragma: no cover - compiled
     return x, y
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _negative_points(ranges, angles, labels, r_max, pose, max_beams, margin, step):  # pragma: no cover - compiled
+    """``(nx, ny, n_starts)`` of `beam_parts`: the negative-evidence beams (unlabelled returns with unlabelled
+    neighbours, at most ``max_beams`` evenly spread; none when ``max_beams`` is 0) sampled ``margin`` short of the
+    return and then every ``step`` towards the robot (`NegativeEvidenceConfig.sample_ranges`), their end points
+    beam after beam and where each beam with points starts; empty and ``[0]`` when no point is sampled."""
+    ns = ranges.shape[0]
+    if ns == 0 or max_beams == 0:
+        return np.empty(0), np.empty(0), np.zeros(1, dtype=np.int64)
+    free = np.empty(ns, dtype=np.bool_)
+    for i in range(ns):
+        near = labels[i] > 0 or (i > 0 and labels[i - 1] > 0) or (i + 1 < ns and labels[i + 1] > 0)
+        free[i] = not near and ranges[i] < r_max
+    beams = select(free, 1, max_beams)
+    counts = np.empty(beams.shape[0], dtype=np.int64)
+    first = np.empty(beams.shape[0])
+    total = 0
+    kept = 0
+    for b in range(beams.shape[0]):
+        f = ranges[beams[b]] - margin
+        first[b] = f
+        steps = np.floor((f - step) / step + 1e-9)
+        counts[b] = np.int64(steps + 1.0) if f >= step else 0
+        total += counts[b]
+        if counts[b] > 0:
+            kept += 1
+    if total == 0:
+        return np.empty(0), np.empty(0), np.zeros(1, dtype=np.int64)
+    nx = np.empty(total)
+    ny = np.empty(total)
+    n_starts = np.zeros(kept + 1, dtype=np.int64)
+    q = 0
+    kb = 0
+    for b in range(beams.shape[0]):
+        if counts[b] == 0:
+            continue
+        for k in range(counts[b]):
+            nx[q], ny[q] = _endpoint(first[b] - step * float(k), angles[beams[b]], pose[0], pose[1], pose[2])
+            q += 1
+        kb += 1
+        n_starts[kb] = q
+    return nx, ny, n_starts
+
+
 @numba.njit(cache=True, nogil=True)
 def beam_parts(
     l_ranges, l_angles, l_min, l_max, l_pose, l_stride, l_beams,
@@ -107,40 +151,5 @@ def beam_parts(
         lab = s_labels[i] if labelled[i] else 0
         if lab > 0 and (i == 0 or lab != (s_labels[i - 1] if labelled[i - 1] else 0)):
             n_det += 1
-    nx = np.empty(0)
-    ny = np.empty(0)
-    n_starts = np.zeros(1, dtype=np.int64)
-    if ns and neg_beams > 0:
-        free = np.empty(ns, dtype=np.bool_)
-        for i in range(ns):
-            near = s_labels[i] > 0 or (i > 0 and s_labels[i - 1] > 0) or (i + 1 < ns and s_labels[i + 1] > 0)
-            free[i] = not near and s_ranges[i] < s_max
-        ni = select(free, 1, neg_beams)
-        counts = np.empty(ni.shape[0], dtype=np.int64)
-        first = np.empty(ni.shape[0])
-        total = 0
-        for b in range(ni.shape[0]):
-            f = s_ranges[ni[b]] - neg_margin
-            first[b] = f
-            steps = np.floor((f - neg_step) / neg_step + 1e-9)
-            counts[b] = np.int64(steps + 1.0) if f >= neg_step else 0
-            total += counts[b]
-        if total > 0:
-            nx = np.empty(total)
-            ny = np.empty(total)
-            kept = 0
-            for b in range(ni.shape[0]):
-                if counts[b] > 0:
-                    kept += 1
-            n_starts = np.zeros(kept + 1, dtype=np.int64)
-            q = 0
-            kb = 0
-            for b in range(ni.shape[0]):
-                a = s_angles[ni[b]]
-                for k in range(counts[b]):
-                    nx[q], ny[q] = _endpoint(first[b] - neg_step * float(k), a, s_pose[0], s_pose[1], s_pose[2])
-                    q += 1
-                if counts[b] > 0:
-                    kb += 1
-                    n_starts[kb] = q
+    nx, ny, n_starts = _negative_points(s_ranges, s_angles, s_labels, s_max, s_pose, neg_beams, neg_margin, neg_step)
     return lx, ly, table, n_l, n_s, n_det, nx, ny, n_starts
