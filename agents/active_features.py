@@ -4,8 +4,8 @@
 ``global``) with its own small CNN, and every other entry (``hypotheses``, ``belief``, ``lidar``,
 ``semantic_range``, the one-hot ``semantic_class`` that SB3 makes of a ``MultiDiscrete``,
 ``odometry``, ``last_action``) through one shared MLP over their concatenation; the parts are
-concatenated and mapped to ``features_dim`` features. Use it with ``"MultiInputPolicy"``:
-``policy_kwargs={"features_extractor_class": ActiveExtractor}``.
+concatenated and mapped to ``features_dim`` features. Use it with ``"MultiInputPolicy"`` or
+`agents.features.SemRelocPolicy`: ``policy_kwargs={"features_extractor_class": ActiveExtractor}``.
 
 The images are in ``[0, 1]`` already (float32, so SB3 does not rescale them); vectors are scaled
 to ``[0, 1]`` by their space bounds, as `agents.features` does. Nothing here depends on the

@@ -4,7 +4,7 @@
   PPO hyper-parameters, network sizes, seed).
 * `make_env` — ``gym.make("SemReloc-v19", **env_kwargs)`` wrapped in
   `BeliefObservation` (the policy sees the belief summary, not the pose).
-* `train` — builds the vectorised envs and PPO (``MultiInputPolicy`` with
+* `train` — builds the vectorised envs and PPO (`SemRelocPolicy`: SB3's ``MultiInputPolicy``, with
   `SemRelocExtractor`), learns, returns the model. With a ``log_dir`` it
   writes there, and only there: ``progress.csv``, TensorBoard event files (``tensorboard --logdir
   LOG_DIR``), checkpoints (``checkpoints/``) and the periodic evaluation (``eval/evaluations.npz``,
@@ -44,7 +44,7 @@ from filters.numbers import is_int, is_real
 from semreloc_env.wrappers import BeliefObservation
 
 from .callbacks import RelocalizationMetricsCallback
-from .features import SemRelocExtractor
+from .features import SemRelocExtractor, SemRelocPolicy
 from .metrics import EpisodeTracker, summarize_episodes
 from .vec_env import close_after_interrupt
 
@@ -293,7 +293,7 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
     venv = make_venv(config)
     try:  # a run that fails closes its envs (subprocesses, workers): the caller has no model to close them by
         model = PPO(
-            "MultiInputPolicy",
+            SemRelocPolicy,
             venv,
             **ppo_hyperparameters(config),
             policy_kwargs={

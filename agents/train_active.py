@@ -42,6 +42,7 @@ from semreloc_env.rewards import BeliefMassReward
 from semreloc_env.wrappers import ActionRepeat, ResetOptions
 
 from .active_features import ActiveExtractor
+from .features import SemRelocPolicy
 from .callbacks import RelocalizationMetricsCallback
 from .learned import load_model, option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
@@ -330,7 +331,7 @@ def _active_block(
 def build_model(config: ActiveTrainConfig, venv) -> PPO:
     """A fresh PPO model for ``config`` on ``venv``."""
     return PPO(
-        "MultiInputPolicy",
+        SemRelocPolicy,
         venv,
         **ppo_hyperparameters(config),
         vf_coef=config.vf_coef,

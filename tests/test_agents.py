@@ -220,6 +220,53 @@ def test_features_extractor_gives_the_same_features_for_both_observation_layouts
     torch.testing.assert_close(feats["SemReloc-v3"], feats["SemReloc-v1"], rtol=0, atol=0)
 
 
+
+def test_preprocess_observation_gives_sb3s_tensors():
+    """One one-hot call for a MultiDiscrete whose entries share a class count: the tensors of SB3's
+    preprocess_obs, value for value (the belief observation and the active one, whose Dict also holds Discrete
+    and image entries); other spaces go to SB3's function."""
+    from stable_baselines3.common.preprocessing import preprocess_obs
+
+    from agents.features import preprocess_observation
+    from semreloc_env.observations import ActiveObservation
+
+    spaces = [make_env(FAST).observation_space, ActiveObservation(gym.make("SemReloc-v19", **FAST)).observation_space]
+    spaces.append(gym.spaces.Dict({"mixed": gym.spaces.MultiDiscrete([3, 5, 2]), "one": gym.spaces.Discrete(4)}))
+    for space in spaces:
+        space.seed(0)
+        batch = {k: torch.as_tensor(np.stack([space.sample()[k] for _ in range(7)])) for k in space.spaces}
+        ours, sb3 = preprocess_observation(batch, space), preprocess_obs(batch, space)
+        assert ours.keys() == sb3.keys()
+        for k in sb3:
+            assert ours[k].dtype == sb3[k].dtype and ours[k].shape == sb3[k].shape, k
+            assert torch.equal(ours[k], sb3[k]), k
+    assert "semantic_class" in spaces[0].spaces and isinstance(spaces[0]["semantic_class"], gym.spaces.MultiDiscrete)
+    with pytest.raises(TypeError, match="dict of tensors"):
+        preprocess_observation(torch.zeros(2, 3), spaces[0])
+    with pytest.raises(RuntimeError, match="smaller than num_classes"):  # a label beyond the classes: torch's error
+        preprocess_observation(torch.full((1, 4), 5), gym.spaces.MultiDiscrete([5, 5, 5, 5]))
+
+
+def test_semreloc_policy_trains_bit_for_bit_as_multiinputpolicy():
+    """PPO with SemRelocPolicy and with SB3's "MultiInputPolicy" on the same seeded env: the same parameters
+    after a rollout and an update (the preprocessing gives the same tensors, so nothing else may differ)."""
+    from stable_baselines3 import PPO
+
+    from agents.features import SemRelocPolicy
+
+    params = []
+    for policy in ("MultiInputPolicy", SemRelocPolicy):
+        env = make_env({**FAST, "max_episode_steps": 10})
+        env.reset(seed=3)
+        kw = {"features_extractor_class": SemRelocExtractor, "features_extractor_kwargs": {"features_dim": 16}}
+        model = PPO(policy, env, n_steps=32, batch_size=16, n_epochs=2, seed=0, device="cpu", policy_kwargs=kw)
+        model.learn(32)
+        params.append([t.detach().clone() for t in model.policy.parameters()])
+        env.close()
+    assert isinstance(model.policy, SemRelocPolicy)
+    assert len(params[0]) == len(params[1])
+    assert all(torch.equal(a, b) for a, b in zip(*params, strict=True))
+
 def _info(converged, pos, head=0.0):
     return {"belief": {"converged": converged}, "pose_error": {"position": pos, "heading": head}}
 
