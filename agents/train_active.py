@@ -42,8 +42,8 @@ from semreloc_env.rewards import BeliefMassReward
 from semreloc_env.wrappers import ActionRepeat, ResetOptions
 
 from .active_features import ActiveExtractor
-from .features import SemRelocPolicy
 from .callbacks import RelocalizationMetricsCallback
+from .features import SemRelocPolicy
 from .learned import load_model, option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings, ppo_hyperparameters

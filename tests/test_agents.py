@@ -220,7 +220,6 @@ def test_features_extractor_gives_the_same_features_for_both_observation_layouts
     torch.testing.assert_close(feats["SemReloc-v3"], feats["SemReloc-v1"], rtol=0, atol=0)
 
 
-
 def test_preprocess_observation_gives_sb3s_tensors():
     """One one-hot call for a MultiDiscrete whose entries share a class count: the tensors of SB3's
     preprocess_obs, value for value (the belief observation and the active one, whose Dict also holds Discrete
@@ -266,6 +265,7 @@ def test_semreloc_policy_trains_bit_for_bit_as_multiinputpolicy():
     assert isinstance(model.policy, SemRelocPolicy)
     assert len(params[0]) == len(params[1])
     assert all(torch.equal(a, b) for a, b in zip(*params, strict=True))
+
 
 def _info(converged, pos, head=0.0):
     return {"belief": {"converged": converged}, "pose_error": {"position": pos, "heading": head}}

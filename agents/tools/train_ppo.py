@@ -1,7 +1,7 @@
 """Train PPO for active relocalization and compare it with the hand-written explorers.
 
-Trains a PPO (`agents.features.SemRelocPolicy`, SB3's ``MultiInputPolicy``; `agents.train.train`; observation = lidar, semantic
-pseudo-laser, odometry and the filter's belief summary, never the true pose), saves it, then
+Trains a PPO (`agents.features.SemRelocPolicy`, SB3's ``MultiInputPolicy``; `agents.train.train`; observation =
+lidar, semantic pseudo-laser, odometry and the filter's belief summary, never the true pose), saves it, then
 evaluates PPO, `agents.baselines.WallFollowExplorer` and `agents.baselines.RandomWalk`
 on the *same* episode seeds (same start poses, noise and filter draws) and prints a table of
 success rate, wrong-convergence rate, median steps to converge and median final error.
