@@ -246,25 +246,42 @@ def test_preprocess_observation_gives_sb3s_tensors():
         preprocess_observation(torch.full((1, 4), 5), gym.spaces.MultiDiscrete([5, 5, 5, 5]))
 
 
-def test_semreloc_policy_trains_bit_for_bit_as_multiinputpolicy():
-    """PPO with SemRelocPolicy and with SB3's "MultiInputPolicy" on the same seeded env: the same parameters
-    after a rollout and an update (the preprocessing gives the same tensors, so nothing else may differ)."""
+def test_semreloc_policy_trains_bit_for_bit_as_multiinputpolicy_with_its_optimizer():
+    """PPO with SemRelocPolicy and with SB3's "MultiInputPolicy" given SemRelocPolicy's optimizer settings, on the
+    same seeded env: the same parameters after a rollout and two updates (the preprocessing gives the same tensors,
+    so nothing else may differ); with SB3's own optimizer settings they differ in the last bits only."""
     from stable_baselines3 import PPO
 
-    from agents.features import SemRelocPolicy
+    from agents.features import FUSED_ADAM, SemRelocPolicy
 
-    params = []
-    for policy in ("MultiInputPolicy", SemRelocPolicy):
+    def trained(policy, optimizer_kwargs=None):
         env = make_env({**FAST, "max_episode_steps": 10})
         env.reset(seed=3)
         kw = {"features_extractor_class": SemRelocExtractor, "features_extractor_kwargs": {"features_dim": 16}}
+        if optimizer_kwargs is not None:
+            kw["optimizer_kwargs"] = optimizer_kwargs
         model = PPO(policy, env, n_steps=32, batch_size=16, n_epochs=2, seed=0, device="cpu", policy_kwargs=kw)
         model.learn(32)
-        params.append([t.detach().clone() for t in model.policy.parameters()])
         env.close()
-    assert isinstance(model.policy, SemRelocPolicy)
-    assert len(params[0]) == len(params[1])
-    assert all(torch.equal(a, b) for a, b in zip(*params, strict=True))
+        return model, [t.detach().clone() for t in model.policy.parameters()]
+
+    ours, p_ours = trained(SemRelocPolicy)
+    sb3_fused, p_fused = trained("MultiInputPolicy", dict(FUSED_ADAM))
+    sb3, p_sb3 = trained("MultiInputPolicy")
+    assert isinstance(ours.policy, SemRelocPolicy) and type(sb3.policy).__name__ == "MultiInputActorCriticPolicy"
+    group = ours.policy.optimizer.param_groups[0]
+    assert group["fused"] is True and group["eps"] == 1e-5
+    assert sb3.policy.optimizer.param_groups[0]["eps"] == 1e-5 and not sb3.policy.optimizer.param_groups[0]["fused"]
+    assert len(p_ours) == len(p_fused) == len(p_sb3)
+    assert all(torch.equal(a, b) for a, b in zip(p_ours, p_fused, strict=True))
+    assert not all(torch.equal(a, b) for a, b in zip(p_ours, p_sb3, strict=True))  # another rounding order
+    for a, b in zip(p_ours, p_sb3, strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5)
+    # optimizer_kwargs given: SemRelocPolicy takes them as they are
+    env = make_env(FAST)
+    own = PPO(SemRelocPolicy, env, n_steps=16, batch_size=16, device="cpu", policy_kwargs={"optimizer_kwargs": {}})
+    assert own.policy.optimizer.param_groups[0]["eps"] == 1e-8 and not own.policy.optimizer.param_groups[0]["fused"]
+    env.close()
 
 
 def _info(converged, pos, head=0.0):
