@@ -256,6 +256,24 @@ def test_wrap_float_is_wrap_angle():
     same_bits(np.array([wrap_float(v) for v in a.tolist()]), wrap_angle(a))
 
 
+def test_compose_of_one_pose_is_the_array_path():
+    """`filters.pose.compose` of one ``(3,)`` pose and increment (Python floats, as the filter's bookkeeping composes
+    each step) gives the bits of the same pose composed as a ``(1, 3)`` array, non-finite input included."""
+    from filters.pose import compose
+
+    rng = np.random.default_rng(3)
+    scale = 10.0 ** rng.integers(-3, 5, (20000, 1))
+    poses, deltas = rng.normal(size=(20000, 3)) * scale, rng.normal(size=(20000, 3)) * scale * 0.1
+    poses[::9, 2] = rng.choice([np.pi, -np.pi, np.nextafter(np.pi, 0), 1e5, -1e-300, -0.0], size=poses[::9].shape[0])
+    special = [(0.0, 0.0, np.inf), (np.nan, 0.0, 0.0), (1e308, 0.0, 0.0), (0.0, 0.0, 0.0)]
+    poses = np.vstack([poses, special])
+    deltas = np.vstack([deltas, [(1.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1e308, 0.0, 0.0), (np.inf, 1.0, 0.0)]])
+    with np.errstate(all="ignore"):
+        one = np.array([compose(p, d) for p, d in zip(poses, deltas, strict=True)])
+        same_bits(one, compose(poses, deltas))
+    assert compose([1.0, 2.0, 0.5], (0.1, 0.0, 0.2)).dtype == np.float64  # sequences too
+
+
 @pytest.mark.parametrize(
     "w",
     [

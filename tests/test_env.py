@@ -107,6 +107,23 @@ def test_invalid_actions_raise_and_change_nothing():
     env.step(np.int64(0))  # numpy integers are fine
 
 
+def test_discrete_actions_of_every_integer_type_decode_alike():
+    """Plain integers of any type take a shortcut past the checks: the same commands as the checked path (a 0-d
+    array goes through the checks), and the values the checks refuse (bools, out of range, masked) still refused."""
+    from semreloc_env.envs.spaces import DISCRETE_ACTIONS, decode_action
+
+    env = make().unwrapped
+    space, robot = env.action_space, env.robot_params
+    for i in range(len(DISCRETE_ACTIONS)):
+        want = decode_action(np.array(i), "discrete", space, robot)
+        for a in (i, np.int64(i), np.uint8(i), np.int32(i), np.uint64(i)):
+            assert decode_action(a, "discrete", space, robot) == want
+    assert decode_action(0, "discrete", space, robot) == (robot.max_linear_mps, 0.0)
+    for bad in (True, np.bool_(False), 4, -1, np.int8(-1), np.uint64(2**63 + 1), 2**70, np.ma.masked, 2.0):
+        with pytest.raises(ValueError, match="invalid action"):
+            decode_action(bad, "discrete", space, robot)
+
+
 def test_bad_reset_options_raise_and_keep_the_episode():
     env = make()
     env.reset(seed=0)

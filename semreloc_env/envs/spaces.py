@@ -12,6 +12,8 @@ from ..layouts import CLASS_NAMES
 
 ACTION_TYPES = ("discrete", "continuous")
 DISCRETE_ACTIONS = ("forward", "turn_left", "turn_right", "stop")
+_INT_SCALARS = frozenset((int, *(np.dtype(c).type for c in np.typecodes["AllInteger"])))
+"""The exact types of a plain integer action (Python's ``int``, NumPy's integer scalars; not ``bool``)."""
 ODOMETRY_BOUND = np.array([1.0, 1.0, np.pi], dtype=np.float32)
 """Odometry increments are clipped to ``+-(1 m, 1 m, pi rad)`` per step in the observation."""
 
@@ -32,19 +34,25 @@ def make_action_space(action_type: str) -> spaces.Space:
     raise ValueError(f"unknown action_type {action_type!r}; choose one of {list(ACTION_TYPES)}")
 
 
+def _discrete_command(index: int, robot: RobotParams) -> tuple[float, float]:
+    name = DISCRETE_ACTIONS[index]
+    v = robot.max_linear_mps if name == "forward" else 0.0
+    w = {"turn_left": 1.0, "turn_right": -1.0}.get(name, 0.0) * robot.max_angular_rps
+    return v, w
+
+
 def decode_action(action, action_type: str, space: spaces.Space, robot: RobotParams) -> tuple[float, float]:
     """``(v m/s, omega rad/s)`` for an action; ValueError for anything outside the space or NaN (continuous
     actions within ``ACTION_BOUND_SLACK`` of the Box are clipped to it)."""
+    if action_type == "discrete" and type(action) in _INT_SCALARS and space.start <= action < space.start + space.n:
+        return _discrete_command(int(action), robot)  # a plain integer in range: what the checks below accept, sooner
     if np.ma.is_masked(action):  # np.asarray would take the values under the mask
         raise ValueError(f"invalid action {action!r:.80}: masked values")
     if action_type == "discrete":
         a = np.asarray(action)
         if a.shape != () or not is_int_dtype(a.dtype) or not space.contains(int(a)):
             raise ValueError(f"invalid action {action!r}: expected an integer in [0, {space.n}) {DISCRETE_ACTIONS}")
-        name = DISCRETE_ACTIONS[int(a)]
-        v = robot.max_linear_mps if name == "forward" else 0.0
-        w = {"turn_left": 1.0, "turn_right": -1.0}.get(name, 0.0) * robot.max_angular_rps
-        return v, w
+        return _discrete_command(int(a), robot)
     try:
         a = np.asarray(action)
     except (TypeError, ValueError):
