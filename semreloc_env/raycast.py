@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from filters.pose import cos_sin
+
 _PAD_M = 1e-6
 """Segments are listed in every bucket cell they pass within this distance of (round-off margin)."""
 _MAX_BUCKETS_PER_SIDE = 2048
@@ -239,8 +241,15 @@ class SegmentScene:
             within range; ``hit`` ``(B,)`` int64: index of the segment hit, ``-1`` if none.
         """
         o = np.asarray(origin, dtype=np.float64)
-        ranges, hit = self.cast_many(o[None, :2], np.asarray(angles, dtype=np.float64)[None, :], max_range)
-        return ranges[0], hit[0]
+        ang = np.asarray(angles, dtype=np.float64)
+        if o.shape != (2,) or ang.ndim != 1:  # cast_many checks the shapes
+            ranges, hit = self.cast_many(o[None, :2], ang[None, :], max_range)
+            return ranges[0], hit[0]
+        c, s = cos_sin(ang)  # NumPy's cos and sin (cast_many's), in one pass
+        out_r = np.empty((1, ang.shape[0]))
+        out_hit = np.empty((1, ang.shape[0]), np.int64)
+        _cast_kernel(o[:1], o[1:], c[None], s[None], self._a, self._e, *self._grid, float(max_range), out_r, out_hit)
+        return out_r[0], out_hit[0]
 
     def cast_many(self, origins: np.ndarray, angles: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
         """`cast` for ``R`` origins ``(R, 2)`` at once, angles ``(R, B)``; returns ``(R, B)`` arrays."""

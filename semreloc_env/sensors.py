@@ -58,7 +58,7 @@ class Lidar:
         hit = r < p.range_max_m
         noisy = r + p.noise_std_m * rng.standard_normal(r.shape)
         dropped = rng.random(r.shape) < p.dropout_prob
-        noisy = np.where(hit & ~dropped, np.clip(noisy, 0.0, p.range_max_m), p.range_max_m)
+        noisy = np.where(hit & ~dropped, noisy.clip(0.0, p.range_max_m), p.range_max_m)
         return LaserScan.from_simulator(noisy, self.angles, p.range_max_m)  # noisy: fresh, finite, in [0, max]
 
     def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:

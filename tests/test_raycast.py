@@ -35,12 +35,16 @@ def test_cast_many_equals_one_cast_per_origin_and_checks_shapes():
     rng = np.random.default_rng(1)
     origins = rng.uniform((1, 1), (14, 9), (7, 2))
     angles = rng.uniform(-np.pi, np.pi, (7, 30))
+    angles[3] = rng.uniform(-1e4, 1e4, 30)  # far from [-pi, pi): cos and sin must still be NumPy's
     r, hit = scene.cast_many(origins, angles, 8.0)
-    for k in range(7):
-        rk, hk = scene.cast(origins[k], angles[k], 8.0)
-        assert np.array_equal(r[k], rk) and np.array_equal(hit[k], hk)
+    for k in range(7):  # one origin takes its own path (cos_sin, no shape checks): the same bits
+        for origin in (origins[k], [*origins[k], 0.3], origins[k].tolist()):
+            rk, hk = scene.cast(origin, angles[k], 8.0)
+            assert r[k].tobytes() == rk.tobytes() and np.array_equal(hit[k], hk)
     with pytest.raises(ValueError, match="origins must be"):
         scene.cast_many(origins, angles[:3], 8.0)
+    with pytest.raises(ValueError, match="origins must be"):
+        scene.cast(origins[0], angles[:2], 8.0)  # 2-D angles for one origin
 
 
 def test_cast_hits_a_segment_end_and_misses_parallel_segments():
