@@ -256,6 +256,17 @@ def test_wrap_float_is_wrap_angle():
     same_bits(np.array([wrap_float(v) for v in a.tolist()]), wrap_angle(a))
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_hypothesis_order_is_the_stable_sort_of_the_kept_clusters(seed):
+    rng = np.random.default_rng(seed)
+    for n in (0, 1, 5, 60):
+        cw = rng.choice([0.0, 0.01, 0.02, 0.02 - 5e-13, 0.3, 0.5, np.nan], n) if seed % 2 else rng.random(n) / 10
+        for min_weight in (0.0, 0.02, 1.0):
+            keep = np.flatnonzero((cw >= min_weight - 1e-12) & (cw > 0))
+            want = keep[np.argsort(-cw[keep], kind="stable")]
+            assert np.array_equal(K.hypothesis_order(cw, min_weight), want)
+
+
 def test_compose_of_one_pose_is_the_array_path():
     """`filters.pose.compose` of one ``(3,)`` pose and increment (Python floats, as the filter's bookkeeping composes
     each step) gives the bits of the same pose composed as a ``(1, 3)`` array, non-finite input included."""

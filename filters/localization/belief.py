@@ -502,14 +502,15 @@ def summarize(
         cw, cmean, ccov, ccount = _cluster_stats_numba(np.ascontiguousarray(p), w, labels, n_lab, sin_th, cos_th)
     else:
         cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n_lab, "numpy")
-    keep = np.flatnonzero((cw >= cfg.cluster_min_weight - 1e-12) & (cw > 0))  # a hypothesis has weight (0, 1]
-    keep = keep[np.argsort(-cw[keep], kind="stable")]
-    hyps = []
-    for k in keep:
-        m, c = cmean[k], ccov[k]
-        m.setflags(write=False)
-        c.setflags(write=False)
-        hyps.append(Hypothesis(weight=float(cw[k]), mean=m, cov=c, n_particles=int(ccount[k])))
+    if backend == "numba":
+        keep = _k.hypothesis_order(cw, cfg.cluster_min_weight).tolist()
+    else:
+        keep = np.flatnonzero((cw >= cfg.cluster_min_weight - 1e-12) & (cw > 0))  # a hypothesis has weight (0, 1]
+        keep = keep[np.argsort(-cw[keep], kind="stable")].tolist()
+    cmean.setflags(write=False)  # the hypotheses' means and covariances are read-only views of these
+    ccov.setflags(write=False)
+    weights, counts = cw.tolist(), ccount.tolist()
+    hyps = [Hypothesis(weight=weights[k], mean=cmean[k], cov=ccov[k], n_particles=counts[k]) for k in keep]
     best = hyps[0] if hyps else None
     pos_std = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
     th_std = math.sqrt(max(cov[2, 2], 0.0))

@@ -501,3 +501,23 @@ def group_order(labels, n_groups):  # pragma: no cover - compiled
         order[fill[k]] = i
         fill[k] += 1
     return order, starts
+
+
+@numba.njit(cache=True, nogil=True)
+def hypothesis_order(cw, min_weight):  # pragma: no cover - compiled
+    """The clusters that are hypotheses, heaviest first: the indices ``k`` with ``cw[k] >= min_weight - 1e-12`` and
+    ``cw[k] > 0``, in the order of a stable sort of ``-cw`` (ties: lower index first), as ``summarize``'s NumPy
+    code picks them (an insertion sort: a summary has a few dozen clusters)."""
+    order = np.empty(cw.shape[0], dtype=np.int64)
+    n = 0
+    lo = min_weight - 1e-12
+    for k in range(cw.shape[0]):
+        v = cw[k]
+        if v >= lo and v > 0.0:
+            j = n
+            while j > 0 and cw[order[j - 1]] < v:
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = k
+            n += 1
+    return order[:n]
