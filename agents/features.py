@@ -189,15 +189,15 @@ class _OneCallPreprocessing(BaseModel):
 
 
 class SemRelocPolicy(MultiInputActorCriticPolicy, _OneCallPreprocessing):
-    """SB3's ``MultiInputPolicy`` with `preprocess_observation` and, unless ``optimizer_kwargs`` say otherwise,
-    torch's fused Adam (the module docstring): pass it to ``PPO`` (or ``A2C``) in place of ``"MultiInputPolicy"``,
-    with the same ``policy_kwargs``.
+    """SB3's ``MultiInputPolicy`` with `preprocess_observation` and torch's fused Adam (the module docstring): pass it
+    to ``PPO`` (or ``A2C``) in place of ``"MultiInputPolicy"``, with the same ``policy_kwargs``.
 
-    ``optimizer_kwargs`` None with SB3's default Adam: ``{"eps": 1e-5, "fused": True}``, SB3's ``eps`` with
-    torch's fused implementation (CPU and CUDA), which updates all of a parameter's entries in one kernel
-    instead of a dozen tensor operations per parameter; the same algorithm, rounded in another order, so a run
-    differs from ``"MultiInputPolicy"``'s in the last bits. Pass ``optimizer_kwargs={"eps": 1e-5}`` for SB3's
-    own optimizer."""
+    With Adam (``optimizer_class``, SB3's default; A2C passes RMSprop unless ``use_rms_prop=False``) and no
+    ``optimizer_kwargs``, these are ``{"eps": 1e-5, "fused": True}`` (`FUSED_ADAM`): SB3's ``eps`` with torch's
+    fused implementation (CPU and CUDA), which updates all of a parameter's entries in one kernel instead of a
+    dozen tensor operations per parameter; the same algorithm rounded in another order, so a run differs from
+    ``"MultiInputPolicy"``'s in the last bits. ``optimizer_kwargs={"eps": 1e-5}`` gives SB3's own optimizer; any
+    other ``optimizer_kwargs`` or ``optimizer_class`` is taken as SB3 takes it."""
 
     def __init__(self, *args, optimizer_class=torch.optim.Adam, optimizer_kwargs=None, **kwargs):
         if optimizer_kwargs is None and optimizer_class is torch.optim.Adam:

@@ -63,7 +63,9 @@ def compose(pose: np.ndarray, delta: np.ndarray, trig: tuple[np.ndarray, np.ndar
         dx, dy, dt = delta.tolist()
         if math.isfinite(x0 + y0 + t0 + dx + dy + dt):  # one pose, finite: the same arithmetic in Python floats
             c, s = math.cos(t0), math.sin(t0)  # the C library's, as NumPy's float64 cos and sin (see cos_sin)
-            return np.array([x0 + c * dx - s * dy, y0 + s * dx + c * dy, wrap_float(t0 + dt)])
+            x, y, th = x0 + c * dx - s * dy, y0 + s * dx + c * dy, wrap_float(t0 + dt)
+            if math.isfinite(x + y + th):  # else an overflow: the array path below, with NumPy's warnings
+                return np.array([x, y, th])
     c, s = trig if trig is not None else (np.cos(pose[..., 2]), np.sin(pose[..., 2]))
     x = pose[..., 0] + c * delta[..., 0] - s * delta[..., 1]
     y = pose[..., 1] + s * delta[..., 0] + c * delta[..., 1]
