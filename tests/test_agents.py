@@ -283,7 +283,6 @@ def test_semreloc_policy_trains_bit_for_bit_as_multiinputpolicy_with_its_optimiz
     env.close()
 
 
-
 @pytest.mark.parametrize("shared", [True, False])
 def test_semreloc_policy_preprocesses_through_preprocess_observation(monkeypatch, shared):
     """Acting, the values and the update's evaluation of SemRelocPolicy all go through `preprocess_observation`,
@@ -310,6 +309,7 @@ def test_semreloc_policy_preprocesses_through_preprocess_observation(monkeypatch
         run()
         assert len(calls) > before
     env.close()
+
 
 def _info(converged, pos, head=0.0):
     return {"belief": {"converged": converged}, "pose_error": {"position": pos, "heading": head}}
