@@ -950,7 +950,7 @@ class MonteCarloLocalizer:
         (metres / radians, previous robot frame, as `filters.pose.relative` gives)."""
         self._require_particles()
         d = np.asarray(delta, dtype=np.float64).reshape(-1)
-        if d.shape != (3,) or not np.isfinite(d).all():
+        if d.shape != (3,) or not all(map(math.isfinite, d.tolist())):
             raise ValueError(f"odometry delta must be 3 finite numbers, got {delta!r}")
         rng_state = self.rng.bit_generator.state
         poses = self.motion_model.sample(self._poses, d, self.rng)

@@ -72,12 +72,12 @@ class OdometryMotionConfig:
 def decompose(delta: np.ndarray, min_trans_m: float = 0.01) -> tuple[float, float, float]:
     """Split a robot-frame increment ``(dx, dy, dtheta)`` into ``(rot1, trans, rot2)`` (rad, m, rad)."""
     d = np.asarray(delta, dtype=np.float64).reshape(-1)
-    if d.shape != (3,) or not np.isfinite(d).all():
+    dx, dy, dth = d.tolist() if d.shape == (3,) else (math.nan,) * 3
+    if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dth)):
         raise ValueError(f"odometry delta must be 3 finite numbers (dx, dy, dtheta), got {delta!r}")
-    trans = float(np.hypot(d[0], d[1]))
-    rot1 = float(np.arctan2(d[1], d[0])) if trans >= min_trans_m else 0.0
-    rot2 = wrap_float(float(d[2]) - rot1)
-    return rot1, trans, rot2
+    trans = float(np.hypot(dx, dy))  # NumPy's hypot and arctan2: Python's math rounds differently
+    rot1 = float(np.arctan2(dy, dx)) if trans >= min_trans_m else 0.0
+    return rot1, trans, wrap_float(dth - rot1)
 
 
 def _fold(rot: float) -> float:

@@ -13,7 +13,7 @@ from filters.localization.likelihood_field import NegativeEvidenceConfig, cached
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
 from filters.numbers import is_int
-from filters.pose import wrap_angle
+from filters.pose import wrap_float
 
 from ..config import check_reward_weights
 from ..layouts import LAYOUT_NAMES, get_layout
@@ -699,10 +699,10 @@ class SemRelocEnv(SemRelocBase):
         self.mcl.update(lidar_scan, semantic_scan if self.mcl_config.use_semantic else None, force=self._steps == 0)
         self._prev_entropy = None if self._belief is None else self._belief.entropy_nats
         self._belief = self.mcl.belief()
-        mean, truth = self._belief.estimate, self.world.pose
+        (mx, my, mth), (tx, ty, tth) = self._belief.estimate.tolist(), self.world.pose.tolist()
         self._error = {
-            "position": float(np.hypot(*(mean[:2] - truth[:2]))),
-            "heading": float(abs(wrap_angle(mean[2] - truth[2]))),
+            "position": float(np.hypot(mx - tx, my - ty)),  # NumPy's hypot: Python's math rounds differently
+            "heading": abs(wrap_float(mth - tth)),
         }
 
     @property
