@@ -239,6 +239,9 @@ class SegmentScene:
         Returns:
             ``ranges`` ``(B,)``: distance to the first segment hit, ``max_range`` if none
             within range; ``hit`` ``(B,)`` int64: index of the segment hit, ``-1`` if none.
+
+        The numbers of `cast_many` for the one origin (its cos and sin from `filters.pose.cos_sin`, which unlike
+        NumPy does not warn for an infinite angle).
         """
         o = np.asarray(origin, dtype=np.float64)
         ang = np.asarray(angles, dtype=np.float64)

@@ -67,6 +67,24 @@ def test_cluster_count_and_entropy():
     assert summarize(np.tile([[0.1, 0.1, 0.1]], (5, 1)), np.ones(5)).entropy_nats == 0.0
 
 
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_belief_cannot_be_written_through_its_arrays(backend):
+    """A Belief is frozen, its arrays too: the means and covariances (the hypotheses' share the arrays they are
+    views of) refuse writes and refuse to become writable."""
+    rng = np.random.default_rng(4)
+    two = np.vstack([blob(rng, [1.0, 1.0, 0.0], 300), blob(rng, [6.0, 3.0, 0.0], 300)])
+    b = summarize(two, rng.random(600), backend=backend)
+    assert b.n_clusters == 2
+    for h in b.hypotheses:
+        assert type(h.weight) is float and type(h.n_particles) is int
+    for a in [b.mean, b.cov, b.estimate] + [x for h in b.hypotheses for x in (h.mean, h.cov)]:
+        with pytest.raises(ValueError, match="read-only"):
+            a[0] = 1.0
+    for h in b.hypotheses:
+        with pytest.raises(ValueError, match="WRITEABLE"):
+            h.mean.setflags(write=True)
+
+
 def test_as_dict_is_plain_python_and_bad_input_raises():
     rng = np.random.default_rng(2)
     b = summarize(blob(rng, [0.0, 0.0, 0.0], 50), rng.random(50))

@@ -259,8 +259,9 @@ def test_wrap_float_is_wrap_angle():
 @pytest.mark.parametrize("seed", range(4))
 def test_hypothesis_order_is_the_stable_sort_of_the_kept_clusters(seed):
     rng = np.random.default_rng(seed)
-    for n in (0, 1, 5, 60):
-        cw = rng.choice([0.0, 0.01, 0.02, 0.02 - 5e-13, 0.3, 0.5, np.nan], n) if seed % 2 else rng.random(n) / 10
+    edges = [0.0, 0.01, 0.02, 0.02 - 5e-13, 0.02 - 1e-12, 0.02 - 2e-12, np.nextafter(0.02 - 1e-12, 0), 0.3, 0.5, np.nan]
+    for n in (0, 1, 5, 60, 64, 65, 500):  # beyond 64 kept: the merge sort
+        cw = rng.choice(edges, n) if seed % 2 else rng.random(n) / 10
         for min_weight in (0.0, 0.02, 1.0):
             keep = np.flatnonzero((cw >= min_weight - 1e-12) & (cw > 0))
             want = keep[np.argsort(-cw[keep], kind="stable")]
@@ -283,6 +284,8 @@ def test_compose_of_one_pose_is_the_array_path():
         one = np.array([compose(p, d) for p, d in zip(poses, deltas, strict=True)])
         same_bits(one, compose(poses, deltas))
     assert compose([1.0, 2.0, 0.5], (0.1, 0.0, 0.2)).dtype == np.float64  # sequences too
+    with pytest.warns(RuntimeWarning, match="overflow"):  # finite numbers that overflow: NumPy's warning, as before
+        compose(np.array([1.5e308, -1.5e308, 0.0]), np.array([1.5e308, 0.0, 0.0]))
 
 
 @pytest.mark.parametrize(

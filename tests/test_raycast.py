@@ -45,6 +45,8 @@ def test_cast_many_equals_one_cast_per_origin_and_checks_shapes():
         scene.cast_many(origins, angles[:3], 8.0)
     with pytest.raises(ValueError, match="origins must be"):
         scene.cast(origins[0], angles[:2], 8.0)  # 2-D angles for one origin
+    with pytest.raises(ValueError, match="origins must be"):
+        scene.cast(origins[0][:1], angles[0], 8.0)  # one coordinate
 
 
 def test_cast_hits_a_segment_end_and_misses_parallel_segments():

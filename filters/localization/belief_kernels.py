@@ -507,17 +507,25 @@ def group_order(labels, n_groups):  # pragma: no cover - compiled
 def hypothesis_order(cw, min_weight):  # pragma: no cover - compiled
     """The clusters that are hypotheses, heaviest first: the indices ``k`` with ``cw[k] >= min_weight - 1e-12`` and
     ``cw[k] > 0``, in the order of a stable sort of ``-cw`` (ties: lower index first), as ``summarize``'s NumPy
-    code picks them (an insertion sort: a summary has a few dozen clusters)."""
+    code picks them. An insertion sort for the few dozen a summary usually keeps; a stable merge sort beyond 64
+    (``cluster_min_weight`` 0 keeps every cluster with weight)."""
     order = np.empty(cw.shape[0], dtype=np.int64)
     n = 0
     lo = min_weight - 1e-12
     for k in range(cw.shape[0]):
         v = cw[k]
         if v >= lo and v > 0.0:
-            j = n
-            while j > 0 and cw[order[j - 1]] < v:
-                order[j] = order[j - 1]
-                j -= 1
-            order[j] = k
+            order[n] = k
             n += 1
-    return order[:n]
+    kept = order[:n]
+    if n > 64:
+        return kept[np.argsort(-cw[kept], kind="mergesort")]
+    for i in range(1, n):
+        k = kept[i]
+        v = cw[k]
+        j = i
+        while j > 0 and cw[kept[j - 1]] < v:
+            kept[j] = kept[j - 1]
+            j -= 1
+        kept[j] = k
+    return kept
