@@ -547,21 +547,27 @@ def _workers_cpu(venv) -> float:
     return float(sum(cpu())) if cpu is not None else 0.0
 
 
-def _env_clock():
+def _env_clock(raw=None):
     """An SB3 callback that marks every rollout's end with the CPU and wall clocks of this process, the CPU of the
     VecEnv's worker processes (`agents.worker_vec_env.WorkersVecEnv`; 0 in one process) and the time spent in the
     VecEnv's ``step_wait`` so far: its `steady` gives a PPO run's rates from the first rollout's end to the last's
     (the same number of rollouts collected and trained on; the first rollout, with the workers' start, numba's and
     torch's first calls, left out), and the env's share of that time (same episodes, same actions). A SubprocVecEnv's
     workers are other processes, whose CPU time this process does not see. (SB3 is imported here, when the PPO
-    benchmark runs.)"""
+    benchmark runs.)
+
+    ``raw``: ``(venv, rng)``, a second vec env of the same config: after each rollout's end the callback steps it for
+    a rollout's worth of seeded random actions, timed on its own and left out of PPO's clocks, so that the raw rate
+    is measured in the same minutes as PPO's (`steady`'s ``raw_*`` figures, over the rollouts PPO's cover)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class EnvClock(BaseCallback):
         env_cpu = env_wall = 0.0
+        paused_cpu = paused_wall = 0.0
 
         def _on_training_start(self) -> None:
             self.marks: list[tuple[float, ...]] = []
+            self.raw_chunks: list[tuple[int, float, float]] = []
             env, orig = self.training_env, self.training_env.step_wait
 
             def timed():
@@ -575,13 +581,23 @@ def _env_clock():
 
         def _on_rollout_end(self) -> None:
             now = (
-                time.process_time(),
-                time.perf_counter(),
+                time.process_time() - self.paused_cpu,
+                time.perf_counter() - self.paused_wall,
                 _workers_cpu(self.training_env),
                 self.env_cpu,
                 self.env_wall,
             )
             self.marks.append(now)
+            if raw is not None:
+                venv, rng = raw
+                before = _workers_cpu(venv)
+                with Clock() as c:
+                    for _ in range(self.model.n_steps):
+                        venv.step(rng.integers(0, 4, venv.num_envs))
+                self.paused_cpu += c.cpu
+                self.paused_wall += c.wall
+                steps = self.model.n_steps * venv.num_envs
+                self.raw_chunks.append((steps, c.cpu + _workers_cpu(venv) - before, c.wall))
 
         def _on_training_end(self) -> None:
             vars(self.training_env).pop("step_wait", None)  # the class's method again
@@ -596,7 +612,12 @@ def _env_clock():
                 raise ValueError(f"the PPO benchmark needs at least two rollouts (ppo_steps >= {2 * PPO_ROLLOUT})")
             (c0, w0, k0, e0, f0), (c1, w1, k1, e1, f1) = self.marks[0], self.marks[-1]
             steps = (len(self.marks) - 1) * self.model.n_steps * self.training_env.num_envs
-            return {"steps": steps, "cpu": c1 - c0 + k1 - k0, "wall": w1 - w0, "env_cpu": e1 - e0, "env_wall": f1 - f0}
+            out = {"steps": steps, "cpu": c1 - c0 + k1 - k0, "wall": w1 - w0, "env_cpu": e1 - e0, "env_wall": f1 - f0}
+            chunks = self.raw_chunks[: len(self.marks) - 1]  # those stepped between the first and the last mark
+            if chunks:
+                out.update(raw_steps=sum(c[0] for c in chunks), raw_cpu=sum(c[1] for c in chunks))
+                out["raw_wall"] = sum(c[2] for c in chunks)
+            return out
 
     return EnvClock()
 
@@ -607,10 +628,12 @@ def bench_ppo(args: Args) -> list[Row]:
     robots in two worker processes (`agents.worker_vec_env.WorkersVecEnv`; its CPU figures add the workers' CPU
     to this process's, and its last row is the wall-clock gain over one process).
 
-    Both rates leave out the start: the raw rate times the last three quarters of its steps, PPO's the rollouts after
-    the first (`_env_clock`). The raw rate comes from random actions in a separate run, so it also differs by the
-    episodes (the belief's spread sets a step's cost); the env's share of the PPO run itself (its ``step_wait`` time,
-    same episodes) isolates what PPO adds."""
+    Both rates leave out the start: PPO's covers the rollouts after the first (`_env_clock`), and the raw rate a second
+    vec env of the same config stepped with seeded random actions for a rollout's worth of steps after each of those
+    rollouts' ends (after one such warm-up before training), its time left out of PPO's: the two rates are measured
+    in the same minutes, so a change in the machine's load moves both. The raw env's episodes still differ from PPO's
+    (the belief's spread sets a step's cost); the env's share of the PPO run itself (its ``step_wait`` time, same
+    episodes) isolates what PPO adds."""
     if args.quick:
         return []
     from agents.train import TrainConfig, make_venv, train
@@ -623,25 +646,20 @@ def bench_ppo(args: Args) -> list[Row]:
         )  # fmt: skip
         name = f"{vec_env} x{n_envs}" + (f" in {workers} workers" if workers > 1 else "")
         venv = make_venv(cfg)
-        venv.reset()
-        rng = np.random.default_rng(args.seed)
-        n_raw = args.ppo_steps // n_envs
-        for _ in range(n_raw // 4):
-            venv.step(rng.integers(0, 4, n_envs))
-        before = _workers_cpu(venv)
-        with Clock() as raw:
-            for _ in range(n_raw - n_raw // 4):
+        try:
+            venv.reset()
+            rng = np.random.default_rng(args.seed)
+            for _ in range(cfg.n_steps):  # warm-up, as PPO's first rollout
                 venv.step(rng.integers(0, 4, n_envs))
-        raw_cpu = raw.cpu + _workers_cpu(venv) - before
-        venv.close()
-        clock = _env_clock()
-        train(cfg, callbacks=[clock]).get_env().close()
+            clock = _env_clock(raw=(venv, rng))
+            train(cfg, callbacks=[clock]).get_env().close()
+        finally:
+            venv.close()
         ppo = clock.steady()
-        n_timed = (n_raw - n_raw // 4) * n_envs
-        raw_cpu, raw_wall = n_timed / raw_cpu, n_timed / raw.wall
+        raw_cpu, raw_wall = ppo["raw_steps"] / ppo["raw_cpu"], ppo["raw_steps"] / ppo["raw_wall"]
         ppo_cpu, ppo_wall = ppo["steps"] / ppo["cpu"], ppo["steps"] / ppo["wall"]
         rows += [
-            Row(f"{name}: raw vec env", raw_cpu, raw_wall, "steps/s", "random actions"),
+            Row(f"{name}: raw vec env", raw_cpu, raw_wall, "steps/s", "random actions, between PPO's rollouts"),
             Row(f"{name}: PPO training", ppo_cpu, ppo_wall, "steps/s", f"{ppo['steps']} steps after the first rollout"),
             Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
         ]
