@@ -240,19 +240,15 @@ class SegmentScene:
             ``ranges`` ``(B,)``: distance to the first segment hit, ``max_range`` if none
             within range; ``hit`` ``(B,)`` int64: index of the segment hit, ``-1`` if none.
 
-        The numbers of `cast_many` for the one origin (its cos and sin from `filters.pose.cos_sin`, which unlike
-        NumPy does not warn for an infinite angle).
+        The numbers of `cast_many` for the one origin, without its shape checks where the shapes are these.
         """
         o = np.asarray(origin, dtype=np.float64)
         ang = np.asarray(angles, dtype=np.float64)
         if o.shape != (2,) or ang.ndim != 1:  # cast_many checks the shapes
             ranges, hit = self.cast_many(o[None, :2], ang[None, :], max_range)
             return ranges[0], hit[0]
-        c, s = cos_sin(ang)  # NumPy's cos and sin (cast_many's), in one pass
-        out_r = np.empty((1, ang.shape[0]))
-        out_hit = np.empty((1, ang.shape[0]), np.int64)
-        _cast_kernel(o[:1], o[1:], c[None], s[None], self._a, self._e, *self._grid, float(max_range), out_r, out_hit)
-        return out_r[0], out_hit[0]
+        ranges, hit = self._cast(o[:1], o[1:], ang[None, :], max_range)
+        return ranges[0], hit[0]
 
     def cast_many(self, origins: np.ndarray, angles: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
         """`cast` for ``R`` origins ``(R, 2)`` at once, angles ``(R, B)``; returns ``(R, B)`` arrays."""
@@ -260,20 +256,18 @@ class SegmentScene:
         ang = np.asarray(angles, dtype=np.float64)
         if o.ndim != 2 or o.shape[1] != 2 or ang.ndim != 2 or ang.shape[0] != o.shape[0]:
             raise ValueError(f"origins must be (R, 2) and angles (R, B), got {o.shape} and {ang.shape}")
+        return self._cast(np.ascontiguousarray(o[:, 0]), np.ascontiguousarray(o[:, 1]), ang, max_range)
+
+    def _cast(self, ox: np.ndarray, oy: np.ndarray, ang: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
+        """The compiled cast of checked, contiguous origins ``ox, oy`` ``(R,)`` at float64 angles ``(R, B)``; their cos
+        and sin from `filters.pose.cos_sin`, NumPy's (which, unlike NumPy, does not warn for an infinite angle)."""
+        c, s = cos_sin(ang.reshape(-1))
         out_r = np.empty(ang.shape)
         out_hit = np.empty(ang.shape, np.int64)
         _cast_kernel(
-            np.ascontiguousarray(o[:, 0]),
-            np.ascontiguousarray(o[:, 1]),
-            np.cos(ang),
-            np.sin(ang),
-            self._a,
-            self._e,
-            *self._grid,
-            float(max_range),
-            out_r,
+            ox, oy, c.reshape(ang.shape), s.reshape(ang.shape), self._a, self._e, *self._grid, float(max_range), out_r,
             out_hit,
-        )
+        )  # fmt: skip
         return out_r, out_hit
 
     def cast_reference(self, origin: np.ndarray, angles: np.ndarray, max_range: float) -> tuple[np.ndarray, np.ndarray]:
