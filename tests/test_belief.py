@@ -115,3 +115,57 @@ def test_no_hypothesis_of_weight_zero_and_numpy_numbers_in_configs():
     assert type(OdometryMotionConfig(alpha1=np.float64(0.1)).alpha1) is float
     with pytest.raises(ValueError, match="alpha1"):
         OdometryMotionConfig(alpha1=True)
+
+
+def test_carried_belief_moves_means_and_covariances_with_the_odometry():
+    from filters.localization.belief import carried
+    from filters.pose import compose
+
+    rng = np.random.default_rng(7)
+    # two hypotheses, one 60/40: the carried means are the composed means, the covariances J cov J^T
+    cloud = np.vstack([blob(rng, [2.0, 1.0, 0.4], 600, 0.05, 0.05), blob(rng, [7.0, 3.0, -2.5], 400, 0.05, 0.05)])
+    b = summarize(cloud, np.ones(1000))
+    assert b.n_clusters == 2
+    d = np.array([0.3, -0.1, 0.2])
+    moved = carried(b, d)
+    for h, m in zip(b.hypotheses, moved.hypotheses):
+        np.testing.assert_array_equal(m.mean, compose(h.mean, d))
+        c, s = math.cos(h.mean[2]), math.sin(h.mean[2])
+        jac = np.array([[1.0, 0.0, -s * d[0] - c * d[1]], [0.0, 1.0, c * d[0] - s * d[1]], [0.0, 0.0, 1.0]])
+        np.testing.assert_allclose(m.cov, jac @ h.cov @ jac.T, rtol=1e-12, atol=1e-15)
+        assert (m.weight, m.n_particles) == (h.weight, h.n_particles)
+    np.testing.assert_array_equal(moved.mean, compose(b.mean, d))
+    np.testing.assert_array_equal(moved.estimate, moved.hypotheses[0].mean)
+    assert (moved.entropy_nats, moved.ess, moved.n_particles, moved.n_clusters) == (
+        b.entropy_nats, b.ess, b.n_particles, b.n_clusters
+    )  # fmt: skip
+    assert moved.pos_std_m == pytest.approx(math.sqrt(moved.cov[0, 0] + moved.cov[1, 1]))
+    # close to the summary of the cloud moved without noise (exact for a rigid motion of a tight cloud, to first order)
+    exact = summarize(compose(cloud, d), np.ones(1000))
+    for h, m in zip(exact.hypotheses, moved.hypotheses):
+        np.testing.assert_allclose(m.mean, h.mean, atol=2e-3)
+        np.testing.assert_allclose(m.cov, h.cov, atol=2e-4)
+    assert carried(b, np.zeros(3)) is b
+    with pytest.raises(ValueError, match="3 finite numbers"):
+        carried(b, [0.1, np.nan, 0.0])
+    with pytest.raises(ValueError, match="3 finite numbers"):
+        carried(b, [0.1, 0.0])
+    with pytest.raises(ValueError):
+        moved.mean[0] = 1.0  # read-only, as a summary's
+
+
+def test_carried_belief_judges_convergence_again():
+    from filters.localization.belief import carried
+
+    rng = np.random.default_rng(8)
+    # tight in position, 0.15 rad in heading: converged; carried 2 m ahead, the heading's spread swings the position
+    cloud = blob(rng, [2.0, 2.0, 0.0], 800, 0.02, 0.15)
+    b = summarize(cloud, np.ones(800))
+    assert b.converged
+    far = carried(b, [2.0, 0.0, 0.0])
+    assert far.hypotheses[0].pos_std_m > 0.25 and not far.converged
+    assert carried(b, [0.05, 0.0, 0.0]).converged
+    spread = BeliefConfig(converged_rule="spread")
+    bs = summarize(cloud, np.ones(800), spread)
+    assert bs.converged and not carried(bs, [2.0, 0.0, 0.0], spread).converged
+    np.testing.assert_array_equal(carried(bs, [2.0, 0.0, 0.0], spread).estimate, carried(bs, [2.0, 0, 0], spread).mean)

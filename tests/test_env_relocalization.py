@@ -320,3 +320,37 @@ def test_particle_count_stays_near_the_budget_with_many_look_alike_clusters(relo
             break
     assert resamplings >= 10, "too few resamplings for the test to mean anything"
     assert max(counts) <= limit, max(counts)
+
+
+def test_belief_between_updates_odometry_keeps_the_filter_and_changes_only_the_reported_belief():
+    runs = {}
+    for mode in ("exact", "odometry"):
+        env = gym.make("SemReloc-v19", relocalizer={"belief_between_updates": mode})
+        rng = np.random.default_rng(5)
+        steps = []
+        for options in ({}, {"tracking": True}):  # a global start (ends at its success), a tracking one
+            env.reset(seed=5, options=options)
+            for _ in range(60):
+                obs, reward, term, trunc, info = env.step(int(rng.integers(0, 4)))
+                mcl = env.unwrapped.mcl
+                steps.append((info["mcl"]["updated"], mcl.poses.copy(), info["belief"], info["rewards"], obs))
+                if term or trunc:
+                    break
+        runs[mode] = steps
+    assert len(runs["exact"]) == len(runs["odometry"])
+    skipped = converged_skips = 0
+    for (u, p, b, r, obs), (u2, p2, b2, r2, obs2) in zip(runs["exact"], runs["odometry"]):
+        assert u == u2
+        np.testing.assert_array_equal(p, p2)  # the same particles at every step
+        assert all(np.array_equal(obs[k], obs2[k]) for k in obs)  # the sensors' observation is not the belief
+        if u:
+            assert b == b2
+        else:
+            skipped += 1
+            assert r2["entropy"] == 0.0  # the carried belief keeps the last update's entropy
+            assert b2["n_particles"] == b["n_particles"] and b2["converged"] == b["converged"]
+            if b["converged"]:  # one tight hypothesis: carried or summarised again, the same place
+                near = math.hypot(b2["estimate"][0] - b["estimate"][0], b2["estimate"][1] - b["estimate"][1]) < 0.05
+                converged_skips += near
+    assert skipped > 20  # most control steps move less than the motion gate's 0.1 m / 0.15 rad
+    assert converged_skips > 5

@@ -736,3 +736,49 @@ def test_update_diagnostics_as_dict_lists_a_subclass_fields_too():
 
     assert More().as_dict()["extra"] == 7
     assert list(UpdateDiagnostics().as_dict()) == [f.name for f in dataclasses.fields(UpdateDiagnostics)]
+
+
+def test_belief_between_updates_odometry_carries_the_last_updates_summary():
+    from filters.localization.belief import carried
+
+    grid = symmetric_room()
+    runs = {}
+    for mode in ("exact", "odometry"):
+        cfg = MCLConfig(n_particles=300, update_min_d_m=0.12, belief_between_updates=mode)
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(3))
+        rng = np.random.default_rng(4)
+        mcl.init_global()
+        b0 = mcl.belief()
+        mcl.predict([0.02, 0.0, 0.01])  # before any update: carried from the init's set
+        if mode == "odometry":
+            assert_beliefs_equal(mcl.belief(), carried(b0, [0.02, 0.0, 0.01], cfg.belief))
+        pose, out = np.array([4.0, 1.5, 0.0]), []
+        last = None
+        for _ in range(40):
+            pose, updated = creep(grid, pose, mcl, rng)
+            b = mcl.belief()
+            if updated:
+                last = b
+            elif mode == "odometry":
+                assert_beliefs_equal(b, carried(last, mcl._since_update, cfg.belief))
+            out.append((updated, mcl.poses.copy(), mcl.log_weights.copy(), b.as_dict(), mcl.last_diagnostics))
+        runs[mode] = out
+    n_updates = sum(u for u, *_ in runs["exact"])
+    assert 5 < n_updates < 40  # the gate skipped some steps, and updates ran
+    differ = 0
+    for (u, p, lw, b, diag), (u2, p2, lw2, b2, diag2) in zip(runs["exact"], runs["odometry"]):
+        # the same particles, weights and updates either way: only the belief reported between updates differs
+        assert u == u2 and diag == diag2
+        np.testing.assert_array_equal(p, p2)
+        np.testing.assert_array_equal(lw, lw2)
+        if u:
+            assert b == b2
+        else:
+            differ += b != b2
+    assert differ  # between updates the exact summary of the moved set is not the carried one
+    with pytest.raises(ValueError, match="belief_between_updates"):
+        MCLConfig(belief_between_updates="lazy")
+
+
+def assert_beliefs_equal(a, b):
+    assert a.as_dict() == b.as_dict() and a.converged == b.converged

@@ -67,7 +67,7 @@ from scipy.sparse.csgraph import connected_components
 from filters import _blas
 from filters.localization import belief_kernels as _k
 from filters.numbers import is_int, is_real
-from filters.pose import cos_sin, wrap_angle, wrap_float
+from filters.pose import compose, cos_sin, wrap_angle, wrap_float
 from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
@@ -441,6 +441,66 @@ def holds_as_converged(h: Hypothesis, cfg: BeliefConfig, min_weight: float) -> b
     ``converged_min_weight``, and a held convergence with ``converged_hold_weight``."""
     tight = h.pos_std_m < cfg.converged_pos_std_m and h.theta_std_rad < cfg.converged_theta_std_rad
     return bool(h.weight >= min_weight and tight)
+
+
+def carried(belief: Belief, delta, config: BeliefConfig | None = None) -> Belief:
+    """``belief`` carried by the robot-frame odometry increment ``delta = (dx m, dy m, dtheta rad)``: what a filter
+    reports between its measurement updates without summarising its moved set again (as AMCL reports the pose of its
+    last update composed with the odometry since).
+
+    Every mean (the set's, each hypothesis's, the estimate) is composed with ``delta`` (`filters.pose.compose`), every
+    covariance becomes ``J cov J^T`` with ``J`` the Jacobian of that composition at its mean (the heading's
+    uncertainty swings the position by the distance moved), and ``converged`` is judged again by ``config``'s rule
+    (default `BeliefConfig`) on the carried covariances. The entropy, ESS and the particle and cluster counts are
+    ``belief``'s. No motion noise is added: the carried belief is as certain as the last update left it, where the
+    moved set itself spreads by the motion model's noise. A zero ``delta`` returns ``belief`` itself.
+
+    Raises:
+        ValueError: ``delta`` is not 3 finite numbers.
+    """
+    cfg = config if config is not None else BeliefConfig()
+    d = np.asarray(delta, dtype=np.float64).reshape(-1)
+    if d.shape != (3,) or not all(map(math.isfinite, d.tolist())):
+        raise ValueError(f"delta must be 3 finite numbers (dx m, dy m, dtheta rad), got {delta!r:.80}")
+    if not d.any():
+        return belief
+    hyps = belief.hypotheses
+    means = np.stack([belief.mean, *(h.mean for h in hyps)])
+    covs = np.stack([belief.cov, *(h.cov for h in hyps)])
+    c, s = np.cos(means[:, 2]), np.sin(means[:, 2])
+    moved = compose(means, d, (c, s))
+    jac = np.zeros((means.shape[0], 3, 3))
+    jac[:, 0, 0] = jac[:, 1, 1] = jac[:, 2, 2] = 1.0
+    jac[:, 0, 2] = -s * d[0] - c * d[1]
+    jac[:, 1, 2] = c * d[0] - s * d[1]
+    cov = jac @ covs @ jac.transpose(0, 2, 1)
+    cov = 0.5 * (cov + cov.transpose(0, 2, 1))
+    moved.setflags(write=False)
+    cov.setflags(write=False)
+    new_hyps = tuple(
+        Hypothesis(weight=h.weight, mean=moved[k + 1], cov=cov[k + 1], n_particles=h.n_particles)
+        for k, h in enumerate(hyps)
+    )
+    best = new_hyps[0] if new_hyps else None
+    pos_std = math.sqrt(max(cov[0, 0, 0] + cov[0, 1, 1], 0.0))
+    th_std = math.sqrt(max(cov[0, 2, 2], 0.0))
+    if cfg.converged_rule == "spread":
+        converged = bool(pos_std < cfg.converged_pos_std_m and th_std < cfg.converged_theta_std_rad)
+    else:
+        converged = best is not None and holds_as_converged(best, cfg, cfg.converged_min_weight)
+    return Belief(
+        mean=moved[0],
+        cov=cov[0],
+        ess=belief.ess,
+        n_particles=belief.n_particles,
+        entropy_nats=belief.entropy_nats,
+        n_clusters=belief.n_clusters,
+        pos_std_m=pos_std,
+        theta_std_rad=th_std,
+        converged=converged,
+        hypotheses=new_hyps,
+        estimate=moved[0] if best is None or cfg.converged_rule == "spread" else best.mean,
+    )
 
 
 def summarize(

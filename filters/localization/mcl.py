@@ -116,6 +116,7 @@ from filters.localization.belief import (
     BeliefConfig,
     Hypothesis,
     cluster_labels,
+    carried,
     holds_as_converged,
     linear_bin_keys,
     summarize,
@@ -170,6 +171,9 @@ _SUBCONFIGS = {
     "belief": BeliefConfig,
 }
 
+
+BELIEF_BETWEEN_UPDATES = ("exact", "odometry")
+"""The values of `MCLConfig.belief_between_updates`."""
 
 MAX_PARTICLES = 10_000_000
 """Upper bound of every particle count (a filter of 10 million particles holds ~320 MB of poses
@@ -387,6 +391,14 @@ class MCLConfig:
             and the filter's bookkeeping (True), or the NumPy reference code (False). Unlike
             ``backend`` this changes nothing but speed: both give the same particles, weights,
             diagnostics and beliefs bit for bit (``tests/test_fast_path.py``).
+        belief_between_updates: what `MonteCarloLocalizer.belief` reports after a ``predict`` that no update has
+            followed yet (the motion gate, ``update_min_d_m`` / ``update_min_a_rad``, skips most control steps):
+            ``"exact"`` (default) the summary of the moved set, computed again at every step; ``"odometry"`` the
+            summary of the set the last update (or init) left, carried by the odometry since
+            (`filters.localization.belief.carried`: means composed with it, covariances through its Jacobian, no
+            motion noise added), as AMCL reports its pose between updates. The particles, weights, updates and
+            random draws are the same either way (only the reported belief differs between updates); ``"odometry"``
+            skips the summary, about a third of such a step's cost (docs/performance.md).
     """
 
     n_particles: int | None = 2000
@@ -447,6 +459,7 @@ class MCLConfig:
     lidar_on_rotation: bool = True
     backend: str = "numba"
     fast_path: bool = True
+    belief_between_updates: str = "exact"
 
     def __post_init__(self) -> None:
         for name, cls in _SUBCONFIGS.items():
@@ -549,6 +562,11 @@ class MCLConfig:
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
         if self.backend not in ("numba", "numpy"):
             raise ValueError(f"MCLConfig.backend must be 'numba' or 'numpy', got {self.backend!r}")
+        if self.belief_between_updates not in BELIEF_BETWEEN_UPDATES:
+            raise ValueError(
+                f"MCLConfig.belief_between_updates must be one of {BELIEF_BETWEEN_UPDATES}, "
+                f"got {self.belief_between_updates!r:.60}"
+            )
         needs = {}  # option: (its "off" value, why it cannot stay on); all in one message
         if self.audit_after_surprise and not (self.surprise_ratio > 0 and self.audit_window > 0):
             needs["audit_after_surprise"] = (
@@ -775,6 +793,8 @@ class MonteCarloLocalizer:
         self._logw = np.zeros(0)
         self._budget = 0  # size of the last set given (`_set`): what a resampling without KLD draws
         self._summary_cache: tuple[np.ndarray, np.ndarray, Belief] | None = None
+        self._anchor: tuple[np.ndarray, np.ndarray] | None = None
+        """``(poses, log-weights)``: the set the last update or init left (``belief_between_updates``)."""
         self._reset_state()
         self.last_diagnostics = UpdateDiagnostics()
 
@@ -867,6 +887,7 @@ class MonteCarloLocalizer:
         self._poses = np.ascontiguousarray(poses, dtype=np.float64)
         self._logw = np.full(self._poses.shape[0], -math.log(self._poses.shape[0]))
         self._budget = self._poses.shape[0]
+        self._anchor = (self._poses, self._logw)
 
     @property
     def free_area_m2(self) -> float:
@@ -1153,6 +1174,7 @@ class MonteCarloLocalizer:
             w_semantic=w_sem,
         )
         self.last_diagnostics = diag
+        self._anchor = (self._poses, self._logw)
         if c.belief.converged_min_updates > 1:
             met = self._summary().converged
             self.converged_updates = self.converged_updates + 1 if met else 0
@@ -1396,15 +1418,28 @@ class MonteCarloLocalizer:
     def _summary(self) -> Belief:
         """`summarize` of the current set, computed once per set (the set's arrays are replaced, never
         written, when it changes, so their identity says whether it did)."""
+        return self._summary_of(self._poses, self._logw)
+
+    def _summary_of(self, poses: np.ndarray, logw: np.ndarray) -> Belief:
         cached = self._summary_cache
-        if cached is not None and cached[0] is self._poses and cached[1] is self._logw:
+        if cached is not None and cached[0] is poses and cached[1] is logw:
             return cached[2]
-        b = summarize(self._poses, np.exp(self._logw), self.config.belief, self._belief_backend)
-        self._summary_cache = (self._poses, self._logw, b)
+        b = summarize(poses, np.exp(logw), self.config.belief, self._belief_backend)
+        self._summary_cache = (poses, logw, b)
         return b
 
+    def _reported_summary(self) -> Belief:
+        """The summary `belief` starts from: the current set's, or with ``belief_between_updates="odometry"`` after
+        a ``predict`` the last update's (or init's) set's carried by the odometry since (`carried`)."""
+        anchor = self._anchor
+        if self.config.belief_between_updates == "exact" or anchor is None or anchor[0] is self._poses:
+            return self._summary()
+        return carried(self._summary_of(*anchor), self._since_update, self.config.belief)
+
     def belief(self) -> Belief:
-        """Summary of the current particle set (see `filters.localization.belief`). With
+        """Summary of the current particle set (see `filters.localization.belief`); with
+        ``belief_between_updates="odometry"``, after a ``predict`` no update has followed, the last update's (or
+        init's) set's summary carried by the odometry since (`filters.localization.belief.carried`). With
         ``belief.converged_min_updates = k > 1`` it is ``converged`` only if the current set meets
         the criterion and so did the set after each of the last ``k`` measurement updates
         (`converged_updates`); after an init, ``k`` updates must run first. With
@@ -1414,7 +1449,7 @@ class MonteCarloLocalizer:
         ``audited_convergence`` a set that meets the criterion is ``converged`` only once an update's
         audit has seen it (or a held convergence keeps it)."""
         self._require_particles()
-        b = self._summary()
+        b = self._reported_summary()
         c = self.config
         k = c.belief.converged_min_updates
         if k > 1 and b.converged and self.converged_updates < k:
