@@ -339,7 +339,7 @@ def test_belief_between_updates_odometry_keeps_the_filter_and_changes_only_the_r
         runs[mode] = steps
     assert len(runs["exact"]) == len(runs["odometry"])
     skipped = converged_skips = 0
-    for (u, p, b, r, obs), (u2, p2, b2, r2, obs2) in zip(runs["exact"], runs["odometry"]):
+    for (u, p, b, _r, obs), (u2, p2, b2, r2, obs2) in zip(runs["exact"], runs["odometry"]):
         assert u == u2
         np.testing.assert_array_equal(p, p2)  # the same particles at every step
         assert all(np.array_equal(obs[k], obs2[k]) for k in obs)  # the sensors' observation is not the belief
