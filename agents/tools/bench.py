@@ -363,7 +363,9 @@ def bench_batched(args: Args) -> list[Row]:
     each robot stepped the same number of times from its reset (so every R sees the same episode phases);
     then R = 64 again with a 1000-particle filter (what `agents.train_active` trains with), and with a
     100-particle filter (100 proposal and audit candidates): what a robot-step costs besides the particle
-    work (world, sensors, the filter's per-call code, info, the loop)."""
+    work (world, sensors, the filter's per-call code, info, the loop); and R = 64 with the belief carried by the
+    odometry between updates (``MCLConfig.belief_between_updates="odometry"``: the same particles, no summary on the
+    steps the motion gate skips), measured right after the default R = 64, with their ratio."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
@@ -373,6 +375,7 @@ def bench_batched(args: Args) -> list[Row]:
         (1, None, "", ""),
         (16, None, "", ""),
         (64, None, "", "target 5000 at R=64"),
+        (64, {"belief_between_updates": "odometry"}, ", belief carried between updates", "the same particles"),
         (64, {"n_particles": 1000}, ", 1000-particle filter", "agents.train_active's particle count"),
         (64, small, ", 100-particle filter", "the cost that is not particle work"),
     ]
@@ -387,6 +390,9 @@ def bench_batched(args: Args) -> list[Row]:
         venv.close()
         note = f"random actions, {n} steps per robot" + (f"; {why}" if why else "")
         rows.append(Row(f"batched env R={r}{what}", n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
+        if relocalizer == {"belief_between_updates": "odometry"}:
+            exact = rows[-2]
+            rows.append(Row("  carried / exact belief", rows[-1].cpu / exact.cpu, rows[-1].wall / exact.wall, "x", ""))
     return rows
 
 
