@@ -150,6 +150,8 @@ def test_carried_belief_moves_means_and_covariances_with_the_odometry():
         carried(b, [0.1, np.nan, 0.0])
     with pytest.raises(ValueError, match="3 finite numbers"):
         carried(b, [0.1, 0.0])
+    with pytest.raises(ValueError, match="non-finite"):
+        carried(b, [1e308, 1e308, 0.0])  # finite, but the carried means overflow
     with pytest.raises(ValueError):
         moved.mean[0] = 1.0  # read-only, as a summary's
 

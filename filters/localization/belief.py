@@ -67,7 +67,7 @@ from scipy.sparse.csgraph import connected_components
 from filters import _blas
 from filters.localization import belief_kernels as _k
 from filters.numbers import is_int, is_real
-from filters.pose import compose, cos_sin, wrap_angle, wrap_float
+from filters.pose import cos_sin, wrap_angle, wrap_float
 from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
@@ -443,6 +443,26 @@ def holds_as_converged(h: Hypothesis, cfg: BeliefConfig, min_weight: float) -> b
     return bool(h.weight >= min_weight and tight)
 
 
+def _carried_pose(mean: np.ndarray, cov: np.ndarray, dx: float, dy: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(mean, cov)`` carried by the robot-frame increment ``(dx, dy, dt)`` (`carried`), read-only, in Python floats:
+    a handful of poses per step, where NumPy's per-call cost would outweigh the arithmetic."""
+    x, y, t = mean.tolist()
+    c, s = math.cos(t), math.sin(t)  # the C library's, as NumPy's float64 cos and sin (filters.pose.cos_sin)
+    pose = (x + c * dx - s * dy, y + s * dx + c * dy, wrap_float(t + dt))
+    (sxx, sxy, sxt), (_, syy, syt), (_, _, stt) = cov.tolist()
+    a, b = -s * dx - c * dy, c * dx - s * dy  # d(x, y)/d(theta): J = [[1, 0, a], [0, 1, b], [0, 0, 1]]
+    xt, yt = sxt + a * stt, syt + b * stt
+    xy = sxy + a * syt + b * sxt + a * b * stt
+    xx, yy = sxx + 2.0 * a * sxt + a * a * stt, syy + 2.0 * b * syt + b * b * stt
+    if not all(map(math.isfinite, (*pose, xx, yy, xy, xt, yt))):
+        raise ValueError(f"the increment {(dx, dy, dt)} carries the belief to non-finite poses or covariances")
+    moved = np.array(pose)
+    out = np.array([[xx, xy, xt], [xy, yy, yt], [xt, yt, stt]])
+    moved.setflags(write=False)
+    out.setflags(write=False)
+    return moved, out
+
+
 def carried(belief: Belief, delta, config: BeliefConfig | None = None) -> Belief:
     """``belief`` carried by the robot-frame odometry increment ``delta = (dx m, dy m, dtheta rad)``: what a filter
     reports between its measurement updates without summarising its moved set again (as AMCL reports the pose of its
@@ -456,41 +476,30 @@ def carried(belief: Belief, delta, config: BeliefConfig | None = None) -> Belief
     moved set itself spreads by the motion model's noise. A zero ``delta`` returns ``belief`` itself.
 
     Raises:
-        ValueError: ``delta`` is not 3 finite numbers.
+        ValueError: ``delta`` is not 3 finite numbers, or carries a mean or covariance to non-finite values.
     """
     cfg = config if config is not None else BeliefConfig()
     d = np.asarray(delta, dtype=np.float64).reshape(-1)
-    if d.shape != (3,) or not all(map(math.isfinite, d.tolist())):
+    dx, dy, dt = d.tolist() if d.shape == (3,) else (math.nan,) * 3
+    if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dt)):
         raise ValueError(f"delta must be 3 finite numbers (dx m, dy m, dtheta rad), got {delta!r:.80}")
-    if not d.any():
+    if dx == 0.0 and dy == 0.0 and dt == 0.0:
         return belief
-    hyps = belief.hypotheses
-    means = np.stack([belief.mean, *(h.mean for h in hyps)])
-    covs = np.stack([belief.cov, *(h.cov for h in hyps)])
-    c, s = np.cos(means[:, 2]), np.sin(means[:, 2])
-    moved = compose(means, d, (c, s))
-    jac = np.zeros((means.shape[0], 3, 3))
-    jac[:, 0, 0] = jac[:, 1, 1] = jac[:, 2, 2] = 1.0
-    jac[:, 0, 2] = -s * d[0] - c * d[1]
-    jac[:, 1, 2] = c * d[0] - s * d[1]
-    cov = jac @ covs @ jac.transpose(0, 2, 1)
-    cov = 0.5 * (cov + cov.transpose(0, 2, 1))
-    moved.setflags(write=False)
-    cov.setflags(write=False)
-    new_hyps = tuple(
-        Hypothesis(weight=h.weight, mean=moved[k + 1], cov=cov[k + 1], n_particles=h.n_particles)
-        for k, h in enumerate(hyps)
-    )
-    best = new_hyps[0] if new_hyps else None
-    pos_std = math.sqrt(max(cov[0, 0, 0] + cov[0, 1, 1], 0.0))
-    th_std = math.sqrt(max(cov[0, 2, 2], 0.0))
+    mean, cov = _carried_pose(belief.mean, belief.cov, dx, dy, dt)
+    hyps = []
+    for h in belief.hypotheses:
+        m, c = _carried_pose(h.mean, h.cov, dx, dy, dt)
+        hyps.append(Hypothesis(weight=h.weight, mean=m, cov=c, n_particles=h.n_particles))
+    best = hyps[0] if hyps else None
+    pos_std = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
+    th_std = math.sqrt(max(cov[2, 2], 0.0))
     if cfg.converged_rule == "spread":
         converged = bool(pos_std < cfg.converged_pos_std_m and th_std < cfg.converged_theta_std_rad)
     else:
         converged = best is not None and holds_as_converged(best, cfg, cfg.converged_min_weight)
     return Belief(
-        mean=moved[0],
-        cov=cov[0],
+        mean=mean,
+        cov=cov,
         ess=belief.ess,
         n_particles=belief.n_particles,
         entropy_nats=belief.entropy_nats,
@@ -498,8 +507,8 @@ def carried(belief: Belief, delta, config: BeliefConfig | None = None) -> Belief
         pos_std_m=pos_std,
         theta_std_rad=th_std,
         converged=converged,
-        hypotheses=new_hyps,
-        estimate=moved[0] if best is None or cfg.converged_rule == "spread" else best.mean,
+        hypotheses=tuple(hyps),
+        estimate=mean if best is None or cfg.converged_rule == "spread" else best.mean,
     )
 
 
