@@ -39,6 +39,67 @@ def beam_angles(n_beams: int, fov_rad: float) -> np.ndarray:
     return np.linspace(-fov_rad / 2, fov_rad / 2, n_beams)
 
 
+@numba.njit(cache=True, nogil=True)
+def _noisy_ranges(r, noise, u, dropout_prob, std, range_max, out):  # pragma: no cover - compiled
+    """``out[i] = clip(r[i] + std * noise[i], 0, range_max)`` where ``r[i] < range_max`` and not ``u[i] <
+    dropout_prob`` (``u`` empty: no dropouts), else ``range_max``: NumPy's ``np.where(hit & ~dropped,
+    np.clip(r + std * noise, 0.0, range_max), range_max)`` in one pass, the same bits but for a noisy range of
+    ``-0.0``, which comes out ``0.0`` (NumPy's clip gives ``0.0`` or ``-0.0`` by the element's place in its SIMD
+    loop; a cast's range plus noise is ``-0.0`` only if both are zeros). NaN stays NaN, as in ``np.clip``."""
+    for i in range(r.shape[0]):
+        if r[i] < range_max and not (u.shape[0] and u[i] < dropout_prob):
+            v = r[i] + std * noise[i]
+            if not (v > 0.0 or v != v):
+                v = 0.0
+            if not (v < range_max or v != v):
+                v = range_max
+            out[i] = v
+        else:
+            out[i] = range_max
+
+
+_NO_DROPOUTS = np.zeros(0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _camera_hits(r, seg, owner, range_min, range_max, out_r, out_obj):  # pragma: no cover - compiled
+    """`camera_hits` in one pass (flat arrays)."""
+    for i in range(r.shape[0]):
+        if range_min <= r[i] < range_max:
+            out_r[i] = r[i]
+            out_obj[i] = owner[seg[i]] if seg[i] >= 0 else -1
+        else:
+            out_r[i] = range_max
+            out_obj[i] = -1
+
+
+def camera_hits(
+    r: np.ndarray, seg: np.ndarray, owner: np.ndarray, range_min: float, range_max: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(ranges, objects)`` of cast ranges ``r`` and hit segments ``seg`` (any shape; ``-1``: none): the range where
+    it lies in ``[range_min, range_max)``, else ``range_max``, and the object owning the segment hit in range
+    (``owner[seg]``), else ``-1``."""
+    out_r = np.empty(r.shape)
+    out_obj = np.empty(r.shape, np.int64)
+    _camera_hits(
+        r.reshape(-1), seg.reshape(-1), owner, float(range_min), float(range_max), out_r.reshape(-1),
+        out_obj.reshape(-1),
+    )  # fmt: skip
+    return out_r, out_obj
+
+
+def noisy_ranges(r: np.ndarray, noise: np.ndarray, std: float, range_max: float, u=None, dropout_prob=0.0):
+    """Noisy ranges of the true ranges ``r`` (any shape, float64): ``r + std * noise`` clipped to ``[0, range_max]``
+    where ``r < range_max`` and the beam is not dropped (``u < dropout_prob``; ``u`` None: none is), else
+    ``range_max``. ``noise`` and ``u`` are the caller's draws, shaped as ``r``."""
+    out = np.empty(r.shape)
+    _noisy_ranges(
+        r.reshape(-1), noise.reshape(-1), _NO_DROPOUTS if u is None else u.reshape(-1), float(dropout_prob),
+        float(std), float(range_max), out.reshape(-1),
+    )  # fmt: skip
+    return out
+
+
 class Lidar:
     """A planar lidar at the robot centre (see `LidarParams`)."""
 
@@ -55,10 +116,8 @@ class Lidar:
         """One noisy scan. Draws: B normals (noise), then B uniforms (dropouts)."""
         p = self.params
         r = self.true_ranges(world, pose)
-        hit = r < p.range_max_m
-        noisy = r + p.noise_std_m * rng.standard_normal(r.shape)
-        dropped = rng.random(r.shape) < p.dropout_prob
-        noisy = np.where(hit & ~dropped, noisy.clip(0.0, p.range_max_m), p.range_max_m)
+        noise = rng.standard_normal(r.shape)
+        noisy = noisy_ranges(r, noise, p.noise_std_m, p.range_max_m, rng.random(r.shape), p.dropout_prob)
         return LaserScan.from_simulator(noisy, self.angles, p.range_max_m)  # noisy: fresh, finite, in [0, max]
 
     def read_many(self, world: World, poses: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -70,10 +129,8 @@ class Lidar:
         p = self.params
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         r, _ = world.scene.cast_many(poses[:, :2], poses[:, 2:3] + self.angles, p.range_max_m)
-        hit = r < p.range_max_m
-        noisy = r + p.noise_std_m * rng.standard_normal(r.shape)
-        dropped = rng.random(r.shape) < p.dropout_prob
-        return np.where(hit & ~dropped, np.clip(noisy, 0.0, p.range_max_m), p.range_max_m)
+        noise = rng.standard_normal(r.shape)
+        return noisy_ranges(r, noise, p.noise_std_m, p.range_max_m, rng.random(r.shape), p.dropout_prob)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -104,9 +161,7 @@ class SemanticCamera:
         """Noise-free ranges ``(S,)`` and the object index hit per beam (``-1``: wall / nothing / out of range)."""
         p = self.params
         ranges, seg = world.scene.cast(pose[:2], pose[2] + self.angles, p.range_max_m)
-        in_range = (ranges >= p.range_min_m) & (ranges < p.range_max_m)
-        obj = np.where((seg >= 0) & in_range, world.scene.owner[np.maximum(seg, 0)], -1)
-        return np.where(in_range, ranges, p.range_max_m), obj
+        return camera_hits(ranges, seg, world.scene.owner, p.range_min_m, p.range_max_m)
 
     def read(self, world: World, pose: np.ndarray, rng: np.random.Generator) -> SemanticScan:
         """One labelled scan. Draws, in order: S normals (noise); per visible object
@@ -115,10 +170,7 @@ class SemanticCamera:
         three integers if one occurs)."""
         p = self.params
         ranges, obj = self.true_hits(world, pose)
-        hit = ranges < p.range_max_m
-        noisy = np.where(
-            hit, np.clip(ranges + p.noise_std_m * rng.standard_normal(ranges.shape), 0, p.range_max_m), p.range_max_m
-        )
+        noisy = noisy_ranges(ranges, rng.standard_normal(ranges.shape), p.noise_std_m, p.range_max_m)
         labels = np.full(ranges.shape, NO_CLASS, dtype=np.int64)
         n_classes = len(CLASS_NAMES)
         obj_l = obj.tolist()  # a few dozen beams: plain Python beats array calls here
@@ -141,7 +193,7 @@ class SemanticCamera:
             a, b = min(runs_of[k], key=lambda run: min(r_l[run[0] : run[1]]))
             labels[a:b] = label
         if rng.random() < p.false_positive_rate:
-            wall_runs = _runs(hit & (obj < 0))
+            wall_runs = _runs((ranges < p.range_max_m) & (obj < 0))
             start_run = int(rng.integers(0, max(len(wall_runs), 1)))
             length = int(rng.integers(1, 5))
             cls = int(rng.integers(1, n_classes + 1))
@@ -162,12 +214,9 @@ class SemanticCamera:
         p = self.params
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         r, seg = world.scene.cast_many(poses[:, :2], poses[:, 2:3] + self.angles, p.range_max_m)
-        in_range = (r >= p.range_min_m) & (r < p.range_max_m)
-        obj = np.where((seg >= 0) & in_range, world.scene.owner[np.maximum(seg, 0)], -1)
-        ranges = np.where(in_range, r, p.range_max_m)
+        ranges, obj = camera_hits(r, seg, world.scene.owner, p.range_min_m, p.range_max_m)
         hit = ranges < p.range_max_m
-        noise = rng.standard_normal(ranges.shape)
-        noisy = np.where(hit, np.clip(ranges + p.noise_std_m * noise, 0, p.range_max_m), p.range_max_m)
+        noisy = noisy_ranges(ranges, rng.standard_normal(ranges.shape), p.noise_std_m, p.range_max_m)
         n_classes = len(CLASS_NAMES)
         u_obj = rng.random(ranges.shape + (2,))
         shift = rng.integers(1, n_classes, size=ranges.shape) if n_classes > 1 else np.ones(ranges.shape, np.int64)

@@ -369,3 +369,63 @@ def test_a_push_out_of_one_wall_never_leaves_the_robot_inside_another_it_did_not
     assert np.array_equal(world.pose, ref.pose)
     assert world.clearance(world.pose[:2]) >= 0.3 - 1e-9
     world.set_pose(world.pose)  # a pose of a running episode is a legal start
+
+
+def _noisy_ranges_numpy(r, noise, std, range_max, u=None, dropout_prob=0.0):
+    """The NumPy code `semreloc_env.sensors.noisy_ranges` replaced (the lidar's and the camera's)."""
+    keep = r < range_max
+    if u is not None:
+        keep = keep & ~(u < dropout_prob)
+    return np.where(keep, np.clip(r + std * noise, 0.0, range_max), range_max)
+
+
+def test_noisy_ranges_are_numpys_bits_on_adversarial_values():
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+    from hypothesis.extra.numpy import arrays
+
+    from semreloc_env.sensors import noisy_ranges
+
+    special = st.sampled_from([0.0, -0.0, 1e-320, -1e-320, 8.0, np.nextafter(8.0, 0), np.nan, np.inf, -np.inf, 1e308])
+    values = st.one_of(special, st.floats(allow_nan=True, allow_infinity=True))
+
+    @settings(max_examples=300, deadline=None)
+    @given(
+        r=arrays(np.float64, 12, elements=values),
+        noise=arrays(np.float64, 12, elements=values),
+        u=arrays(np.float64, 12, elements=st.floats(0.0, 1.0)),
+        std=st.sampled_from([0.0, 0.02, 1.0, 1e300]),
+        dropout=st.sampled_from([0.0, 0.05, 1.0]),
+    )
+    def check(r, noise, u, std, dropout):
+        with np.errstate(all="ignore"):
+            for args in ((), (u, dropout)):
+                got = noisy_ranges(r, noise, std, 8.0, *args)
+                # + 0.0 turns -0.0 into 0.0: NumPy's clip gives either for a -0.0 (0.0 where its SIMD loop ran, -0.0
+                # in the loop's scalar tail), the kernel always 0.0; every other value bit for bit
+                want = _noisy_ranges_numpy(r, noise, std, 8.0, *args) + 0.0
+                assert got.tobytes() == want.tobytes()
+
+    check()
+    # (P, B) arrays, as read_many passes them
+    rng = np.random.default_rng(3)
+    r = rng.uniform(-1.0, 9.0, (4, 7))
+    noise, u = rng.standard_normal((4, 7)), rng.random((4, 7))
+    got = noisy_ranges(r, noise, 0.3, 8.0, u, 0.2)
+    assert got.shape == (4, 7) and got.tobytes() == _noisy_ranges_numpy(r, noise, 0.3, 8.0, u, 0.2).tobytes()
+
+
+def test_camera_hits_are_the_numpy_selection():
+    from semreloc_env.sensors import camera_hits
+
+    rng = np.random.default_rng(5)
+    owner = np.array([-1, 0, 0, 1, -1, 2], dtype=np.int64)
+    for shape in ((40,), (3, 13)):
+        r = rng.choice([0.0, -0.0, 0.1, 0.2, 0.5, 4.9, 5.0, np.nan, np.inf, 7.0], size=shape)
+        seg = rng.integers(-1, owner.size, size=shape)
+        got_r, got_obj = camera_hits(r, seg, owner, 0.1, 5.0)
+        in_range = (r >= 0.1) & (r < 5.0)  # the NumPy code camera_hits replaced
+        want_obj = np.where((seg >= 0) & in_range, owner[np.maximum(seg, 0)], -1)
+        want_r = np.where(in_range, r, 5.0)
+        assert got_r.tobytes() == want_r.tobytes() and got_r.shape == shape
+        assert got_obj.dtype == want_obj.dtype and np.array_equal(got_obj, want_obj)
