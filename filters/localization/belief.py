@@ -490,6 +490,14 @@ def carried(belief: Belief, delta, config: BeliefConfig | None = None) -> Belief
     for h in belief.hypotheses:
         m, c = _carried_pose(h.mean, h.cov, dx, dy, dt)
         hyps.append(Hypothesis(weight=h.weight, mean=m, cov=c, n_particles=h.n_particles))
+    return _judged(mean, cov, hyps, cfg, belief.ess, belief.n_particles, belief.entropy_nats)
+
+
+def _judged(
+    mean: np.ndarray, cov: np.ndarray, hyps: list[Hypothesis], cfg: BeliefConfig, ess: float, n: int, entropy: float
+) -> Belief:
+    """The `Belief` of a set's read-only ``mean`` and ``cov`` and its hypotheses (heaviest first), with its spread,
+    estimate and "converged" judged by ``cfg``'s rule (the module docstring)."""
     best = hyps[0] if hyps else None
     pos_std = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
     th_std = math.sqrt(max(cov[2, 2], 0.0))
@@ -500,10 +508,10 @@ def carried(belief: Belief, delta, config: BeliefConfig | None = None) -> Belief
     return Belief(
         mean=mean,
         cov=cov,
-        ess=belief.ess,
-        n_particles=belief.n_particles,
-        entropy_nats=belief.entropy_nats,
-        n_clusters=belief.n_clusters,
+        ess=ess,
+        n_particles=n,
+        entropy_nats=entropy,
+        n_clusters=len(hyps),
         pos_std_m=pos_std,
         theta_std_rad=th_std,
         converged=converged,
@@ -580,27 +588,7 @@ def summarize(
     ccov.setflags(write=False)
     weights, counts = cw.tolist(), ccount.tolist()
     hyps = [Hypothesis(weight=weights[k], mean=cmean[k], cov=ccov[k], n_particles=counts[k]) for k in keep]
-    best = hyps[0] if hyps else None
-    pos_std = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
-    th_std = math.sqrt(max(cov[2, 2], 0.0))
-    if cfg.converged_rule == "spread":
-        converged = bool(pos_std < cfg.converged_pos_std_m and th_std < cfg.converged_theta_std_rad)
-    else:
-        converged = best is not None and holds_as_converged(best, cfg, cfg.converged_min_weight)
-
     mean = np.array([mx, my, mth])
     mean.setflags(write=False)
     cov.setflags(write=False)
-    return Belief(
-        mean=mean,
-        cov=cov,
-        ess=ess,
-        n_particles=n,
-        entropy_nats=entropy,
-        n_clusters=len(hyps),
-        pos_std_m=pos_std,
-        theta_std_rad=th_std,
-        converged=converged,
-        hypotheses=tuple(hyps),
-        estimate=mean if best is None or cfg.converged_rule == "spread" else best.mean,
-    )
+    return _judged(mean, cov, hyps, cfg, ess, n, entropy)
