@@ -358,8 +358,8 @@ def wheel_increment(delta: tuple[float, float, float], substeps: int | None = No
 
 def _relative(pose_from: np.ndarray, pose_to: np.ndarray) -> tuple[float, float, float]:
     """`filters.pose.relative` of two ``(3,)`` poses in scalar arithmetic (the same numbers)."""
-    ax, ay, ath = (float(v) for v in pose_from)
-    bx, by, bth = (float(v) for v in pose_to)
+    ax, ay, ath = np.asarray(pose_from, dtype=np.float64).tolist()
+    bx, by, bth = np.asarray(pose_to, dtype=np.float64).tolist()
     dx, dy = bx - ax, by - ay
     c, s = math.cos(ath), math.sin(ath)
     return (c * dx + s * dy, -s * dx + c * dy, wrap_float(bth - ath))

@@ -181,8 +181,6 @@ class OdometryMotionModel:
         n0, n1, n2 = rng.standard_normal(3).tolist()
         heading = th + (rot1 - s_r1 * n0)
         t = trans - s_t * n1
-        out = np.empty(3)
-        out[0] = x + t * math.cos(heading)
-        out[1] = y + t * math.sin(heading)
-        out[2] = wrap_float(heading + (rot2 - s_r2 * n2))
-        return out
+        return np.array(
+            [x + t * math.cos(heading), y + t * math.sin(heading), wrap_float(heading + (rot2 - s_r2 * n2))]
+        )
