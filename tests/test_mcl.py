@@ -782,3 +782,72 @@ def test_belief_between_updates_odometry_carries_the_last_updates_summary():
 
 def assert_beliefs_equal(a, b):
     assert a.as_dict() == b.as_dict() and a.converged == b.converged
+
+
+class _RecoveringModel(LikelihoodFieldModel):
+    """A likelihood field whose next call (``fail_next``) rules every pose out, so that the update recovers."""
+
+    fail_next = False
+
+    def log_likelihood_terms(self, poses, lidar, semantic=None):
+        ll_l, ll_s, beams = super().log_likelihood_terms(poses, lidar, semantic)
+        if self.fail_next:
+            self.fail_next = False
+            ll_l = np.full(len(poses), -np.inf)
+        return ll_l, ll_s, beams
+
+
+@pytest.mark.parametrize("relocalizer", ["v19", "legacy"])
+def test_belief_between_updates_odometry_against_an_independent_anchor(relocalizer):
+    """The envs' relocalizer (audits, injections, clustered resampling) with a forced recovery, updates without
+    scans, two predicts between updates, a kidnap and an init mid-run: the carried summary is that of the set each
+    update left, moved by the odometry since, tracked here on our own; the particles are those of "exact"."""
+
+    from filters.localization.belief import carried, summarize
+    from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER, LEGACY_RELOCALIZER
+
+    grid = symmetric_room()
+    base = {"v19": DEFAULT_RELOCALIZER, "legacy": LEGACY_RELOCALIZER}[relocalizer]
+    runs, counts = {}, {}
+    for mode in ("exact", "odometry"):
+        cfg = MCLConfig(**{**base.as_dict(), "belief_between_updates": mode, "max_particles": 1500})
+        model = _RecoveringModel(grid, cfg.lidar_field, cfg.semantic_field, cfg.backend, cfg.negative_evidence)
+        mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(1), measurement_model=model)
+        rng = np.random.default_rng(101)
+        pose = np.array([4.0, 1.5, 0.0])
+        mcl.init_global()
+        anchor, moved = (mcl.poses.copy(), mcl.log_weights.copy()), np.zeros(3)
+        steps, seen = [], {"recovered": 0, "audit": 0, "skipped": 0}
+        for t in range(140):
+            r, _, _ = cast_rays(grid, pose, np.array([0.0]), 8.0)
+            new = compose(pose, [0.04, 0.0, 0.03] if r[0] > 0.6 else [0.0, 0.0, 0.4])
+            odom = relative(pose, new) + rng.normal(0.0, 0.005, 3)
+            pose = np.array([8.5, 1.0, 1.0]) if t == 90 else new  # a kidnapping at step 90
+            for d in [odom, [0.0, 0.0, 0.01]] if t % 7 == 3 else [odom]:  # sometimes two predicts
+                mcl.predict(d)
+                moved = compose(moved, d)
+            lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
+            sem = simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0)
+            model.fail_next = t == 40
+            diag = mcl.update(None if t % 23 == 9 else lidar, sem, force=t in (40, 60))
+            if t == 120:
+                mcl.init_around(pose, 0.1)
+            if diag.updated or t == 120:
+                anchor, moved = (mcl.poses.copy(), mcl.log_weights.copy()), np.zeros(3)
+            seen["recovered"] += diag.recovered
+            seen["audit"] += diag.n_audit_injected > 0
+            if not diag.updated and t != 120:
+                seen["skipped"] += 1
+                if mode == "odometry":
+                    want = carried(summarize(anchor[0], np.exp(anchor[1]), cfg.belief), moved, cfg.belief)
+                    assert mcl._reported_summary().as_dict() == want.as_dict(), t
+            steps.append((diag.updated, mcl.poses.copy(), mcl.log_weights.copy(), mcl.belief().as_dict()))
+        runs[mode], counts[mode] = steps, seen
+    assert counts["exact"] == counts["odometry"]
+    assert counts["odometry"]["recovered"] and counts["odometry"]["skipped"] > 20
+    if relocalizer == "v19":
+        assert counts["odometry"]["audit"]  # an audit added particles
+    for (u, p, lw, b), (u2, p2, lw2, b2) in zip(runs["exact"], runs["odometry"]):
+        assert u == u2 and np.array_equal(p, p2) and np.array_equal(lw, lw2)
+        if u:
+            assert b == b2
