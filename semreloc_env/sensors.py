@@ -312,7 +312,7 @@ class Odometry:
 
     ``reads_slides``: whether the reading includes a sideways slide (a push along a wall). A differential
     drive's wheels cannot roll sideways, so their encoders never see one: with ``reads_slides=False``
-    (`SemReloc-v19`) the increment is the true one projected on the direction a step without slip moves along
+    (`SemReloc-v19` and later) the increment is the true one projected on the direction a step without slip moves along
     (`wheel_increment`), the turn as it is: a step without slip reads as it is, a slide across that direction reads
     as nothing. (Wheels that spin against a wall and read motion the robot did not make are not modelled.) With
     ``True`` (`SemReloc-v18` and older, and `SemSlam`) the reading is the true increment, slides included; the

@@ -1,4 +1,5 @@
-"""The registered ids behave as their Version History says: SemReloc-v19 (v18 whose wheel odometry reads no slide
+"""The registered ids behave as their Version History says: SemReloc-v20 (v19 whose belief between updates is the
+last update's carried by the odometry), SemReloc-v19 (v18 whose wheel odometry reads no slide
 along a wall, whose KLD sampling allows three times the error and whose remembered places follow the odometry),
 SemReloc-v18 (v17 whose audit after a lost hold judges
 only the scans since it faded), SemReloc-v17 (v16 whose tracking start holds its pose),
@@ -76,6 +77,7 @@ def assert_same_episode(new: str, old: str, options: dict = START) -> list:
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v20",
         "SemReloc-v19",
         "SemReloc-v18",
         "SemReloc-v17",
@@ -104,6 +106,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v20", typed),
         ("SemReloc-v19", typed),
         ("SemReloc-v18", typed),
         ("SemReloc-v17", typed),
@@ -712,12 +715,38 @@ def test_v19_is_v18_with_wheel_odometry_a_looser_kld_bound_and_places_that_follo
     assert a.mapping_run_version == b.mapping_run_version == "6"
     assert a.observation_space == b.observation_space and a.odometry.params == b.odometry.params
     assert make("SemSlam-v1", **SLAM_FAST).unwrapped.odometry.reads_slides  # SemSlam keeps its episodes
-    from semreloc_env.envs.batched import SINGLE_ENV_ID
-
-    assert SINGLE_ENV_ID == "SemReloc-v19"
     venv = gym.make_vec("SemRelocVec-v19", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
     assert not venv.envs[0].unwrapped.odometry.reads_slides and venv.envs[0].unwrapped.mcl_config.kld_epsilon == 0.15
     venv.close()
+
+
+def test_v20_is_v19_whose_belief_between_updates_is_carried_by_the_odometry():
+    """v20's relocalizer is v19's with ``belief_between_updates="odometry"``: the same observations, particles and
+    updates bit for bit; the belief (info, reward) differs on the steps without an update only; its Vec id runs it."""
+    from semreloc_env.envs.batched import SINGLE_ENV_ID
+
+    assert_one_option_apart("SemReloc-v20", "SemReloc-v19", belief_between_updates="odometry")
+    assert SINGLE_ENV_ID == "SemReloc-v20"
+    actions = ACTIONS + [1] * 20 + [0] * 10
+    a = rollout(make("SemReloc-v20", **FAST), options=START, actions=actions)
+    b = rollout(make("SemReloc-v19", **FAST), options=START, actions=actions)
+    skipped, entropy = 0, [0.0, 0.0]
+    for (obs, _, term, trunc, info), (obs2, _, term2, trunc2, info2) in zip(a[1:], b[1:]):
+        np.testing.assert_equal(obs, obs2)
+        np.testing.assert_equal(info["mcl"], info2["mcl"])
+        assert (term, trunc) == (term2, trunc2)
+        terms, terms2 = dict(info["rewards"]), dict(info2["rewards"])
+        entropy[0] += terms.pop("entropy")
+        entropy[1] += terms2.pop("entropy")
+        assert terms == terms2  # time, collision, success, wrong convergence
+        if info["mcl"]["updated"]:
+            np.testing.assert_equal(info["belief"], info2["belief"])
+            # the entropy terms telescope: summed up to an update, both are that update's drop from the start
+            assert entropy[0] == pytest.approx(entropy[1], abs=1e-9)
+        else:
+            skipped += 1
+            assert info["rewards"]["entropy"] == 0.0  # the carried belief keeps the update's entropy
+    assert skipped >= 5 and len(a) == len(b)
 
 
 def test_wheel_odometry_reads_an_arc_as_it_is_and_no_sideways_slide():

@@ -120,10 +120,11 @@ class Args:
     particles: int = 2000
     """relocalizer particles (``n_particles``: drawn at the reset and at most per KLD resampling; clustered
     resampling's floors and the audit can add to a set)"""
-    env_id: EvaluatedEnvId = "SemReloc-v19"
-    """the env the episodes run in: SemReloc-v19 (the newest), SemReloc-v18, SemReloc-v17, SemReloc-v16,
+    env_id: EvaluatedEnvId = "SemReloc-v20"
+    """the env the episodes run in: SemReloc-v20 (the newest), SemReloc-v19, SemReloc-v18, SemReloc-v17, SemReloc-v16,
     SemReloc-v15, SemReloc-v14, SemReloc-v13, SemReloc-v12, SemReloc-v11, SemReloc-v10, SemReloc-v9, SemReloc-v8,
-    SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; v18
+    SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them; v19
+    differs from v20 only in the belief it reports between updates, its moved set summarised again; v18
     differs from v19 in its odometry, which reads a slide along a wall, its KLD sampling, which allows a third of
     v19's error (more particles), and its remembered places, which stay put between updates; v17 differs from v18
     only in its audit after a hold lost without a surprise, v16 from v17 only in its tracking start, v15 from v16
@@ -262,7 +263,7 @@ class Args:
                     raise ValueError(f"policies: {spec}: {e}") from None
 
 
-ENV_ID = "SemReloc-v19"
+ENV_ID = "SemReloc-v20"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
 generator, as v3's to v15's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3

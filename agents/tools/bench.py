@@ -59,7 +59,7 @@ class Args:
     """benchmark names, space-separated (e.g. likelihood env); empty = all."""
     env_id: str = ""
     """the SemReloc id the env, batched, stages, scaling, reset and PPO benchmarks run (empty = the newest,
-    SemReloc-v19; e.g. SemReloc-v18 to compare a version in the next run)"""
+    SemReloc-v20; e.g. SemReloc-v19 to compare a version in the next run)"""
 
     def __post_init__(self) -> None:
         if self.env_id:
@@ -261,7 +261,7 @@ def bench_likelihood(args: Args) -> list[Row]:
     ]
 
 
-ENV_ID = "SemReloc-v19"
+ENV_ID = "SemReloc-v20"
 
 
 def _env(args: Args, **kwargs):
@@ -306,7 +306,7 @@ class RandomPolicy:
 
 
 def bench_env(args: Args) -> list[Row]:
-    """Single ``SemReloc-v19`` (or ``--env-id``) at its defaults (lab, mapped map, map-sized particle set with KLD,
+    """Single ``SemReloc-v20`` (or ``--env-id``) at its defaults (lab, mapped map, map-sized particle set with KLD,
     60 + 32 beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
     code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
     explorer and under random actions (which stay near the start, so their belief is often tight: a mean of
@@ -363,9 +363,10 @@ def bench_batched(args: Args) -> list[Row]:
     each robot stepped the same number of times from its reset (so every R sees the same episode phases);
     then R = 64 again with a 1000-particle filter (what `agents.train_active` trains with), and with a
     100-particle filter (100 proposal and audit candidates): what a robot-step costs besides the particle
-    work (world, sensors, the filter's per-call code, info, the loop); and R = 64 with the belief carried by the
-    odometry between updates (``MCLConfig.belief_between_updates="odometry"``: the same particles, no summary on the
-    steps the motion gate skips), measured right after the default R = 64, with their ratio."""
+    work (world, sensors, the filter's per-call code, info, the loop); and R = 64 with the moved set summarised on
+    every step (``MCLConfig.belief_between_updates="exact"``, v19's; v20 carries the last update's belief by the
+    odometry on the steps the motion gate skips, the same particles), right after the default R = 64, with their
+    ratio."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
@@ -375,7 +376,7 @@ def bench_batched(args: Args) -> list[Row]:
         (1, None, "", ""),
         (16, None, "", ""),
         (64, None, "", "target 5000 at R=64"),
-        (64, {"belief_between_updates": "odometry"}, ", belief carried between updates", "the same particles"),
+        (64, {"belief_between_updates": "exact"}, ", belief summarised every step", "v19's belief"),
         (64, {"n_particles": 1000}, ", 1000-particle filter", "agents.train_active's particle count"),
         (64, small, ", 100-particle filter", "the cost that is not particle work"),
     ]
@@ -390,9 +391,9 @@ def bench_batched(args: Args) -> list[Row]:
         venv.close()
         note = f"random actions, {n} steps per robot" + (f"; {why}" if why else "")
         rows.append(Row(f"batched env R={r}{what}", n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
-        if relocalizer == {"belief_between_updates": "odometry"}:
-            exact = rows[-2]
-            rows.append(Row("  carried / exact belief", rows[-1].cpu / exact.cpu, rows[-1].wall / exact.wall, "x", ""))
+        if relocalizer == {"belief_between_updates": "exact"}:
+            d, e = rows[-2], rows[-1]
+            rows.append(Row("  default / summarised every step", d.cpu / e.cpu, d.wall / e.wall, "x", ""))
     return rows
 
 
@@ -493,13 +494,13 @@ from semreloc_env.layouts import get_layout
 from semreloc_env.layouts.tiling import tiled_layout
 from semreloc_env.mapping_run import build_maps, mapping_drive
 build_maps(get_layout("twin_rooms"))  # warm numba caches (not counted)
-gym.make("SemReloc-v19", layout="twin_rooms").reset(seed=0)
+gym.make("SemReloc-v20", layout="twin_rooms").reset(seed=0)
 base_rss = peak_rss_mb()
 nx, ny = int(sys.argv[1]), int(sys.argv[2])
 layout = tiled_layout(get_layout("lab"), nx, ny)
-n_poses = len(mapping_drive(layout, narrow=True)[0])  # the drive of SemReloc-v12 to v19 (mapping run version 6)
+n_poses = len(mapping_drive(layout, narrow=True)[0])  # the drive of SemReloc-v12 to v20 (mapping run version 6)
 c0, w0 = time.process_time(), time.perf_counter()
-env = gym.make("SemReloc-v19", layout=layout)
+env = gym.make("SemReloc-v20", layout=layout)
 env.reset(seed=0)
 c1, w1 = time.process_time(), time.perf_counter()
 x0, x1, y0, y1 = layout.bounds()

@@ -1,4 +1,4 @@
-"""Where the time of a default ``SemReloc-v19`` step goes: CPU time per stage (cProfile).
+"""Where the time of a default ``SemReloc-v20`` step goes: CPU time per stage (cProfile).
 
 Usage::
 
@@ -47,7 +47,7 @@ class Args:
     steps: int = 1000
     """profiled env steps"""
     particles: int = 0
-    """relocalizer particles (0 = SemReloc-v19's default: sized by the map, KLD)"""
+    """relocalizer particles (0 = SemReloc-v20's default: sized by the map, KLD)"""
     policy: Literal["explorer", "random"] = "explorer"
     """explorer (wall following) or random (seeded uniform actions, a spread belief)"""
     reference: bool = False
@@ -143,7 +143,7 @@ def run(args: Args) -> dict[str, float]:
     reloc: dict = {"fast_path": not args.reference}
     if args.particles:
         reloc["n_particles"] = args.particles
-    env = gym.make("SemReloc-v19", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc).unwrapped
+    env = gym.make("SemReloc-v20", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc).unwrapped
     if args.policy == "random":
         rng = np.random.default_rng(args.seed)
 

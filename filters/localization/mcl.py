@@ -344,7 +344,7 @@ class MCLConfig:
         places_follow_odometry: the places the filter remembers between updates, a held convergence's
             (``belief.converged_hold_weight``) and the last one an audit cleared (``audit_window``), move with the
             odometry at each ``predict``, as the screen's pause does (``audit_screen_pause_place``), so they stay
-            on the robot's track. True in ``SemReloc-v19``; False in ``SemReloc-v1`` to ``-v18`` (which keep their
+            on the robot's track. True from ``SemReloc-v19`` on; False in ``SemReloc-v1`` to ``-v18`` (which keep their
             episodes): there they stay where the last update left them, so a hold lapses, and a cleared place is audited
             again, once the robot has moved 1 m or turned 45 deg between the updates that compare them (at the
             envs' speeds a hold never moves that far between two updates; a robot whose scans come that far

@@ -32,6 +32,12 @@ def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
     return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
 
 
+def semreloc_vec_v20(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v20``: ``num_envs`` ``SemReloc-v20`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v20"``)."""
+    return _loop("SemReloc-v20", num_envs, kwargs)
+
+
 def semreloc_vec_v19(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
     """``SemRelocVec-v19``: ``num_envs`` ``SemReloc-v19`` robots in one process
     (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v19"``)."""
