@@ -166,7 +166,7 @@ def test_training_envs_draw_layout_files(tmp_path):
     env = make_active_env(config, seed=0)
     env.reset(seed=0)
     assert env.unwrapped.layout.name == "mine"
-    assert env.unwrapped.spec.id == "SemReloc-v19"  # the newest unless told
+    assert env.unwrapped.spec.id == "SemReloc-v20"  # the newest unless told
     older = make_active_env(dataclasses.replace(config, env_id="SemReloc-v10"), seed=0)
     assert older.unwrapped.spec.id == "SemReloc-v10" and older.unwrapped.mapping_run_version == "4"
 

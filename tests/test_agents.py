@@ -440,20 +440,20 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
     # an outside tester's trial: --load on another layout appended "same env options" to results.md
     reeval = [*small, "--load", str(run / "model.zip"), "--layout", "twin_rooms"]
     mod.run(parse(mod.Args, reeval), reeval)
-    assert "note: evaluating with env options env_id 'SemReloc-v19', layout 'twin_rooms'" in capsys.readouterr().err
+    assert "note: evaluating with env options env_id 'SemReloc-v20', layout 'twin_rooms'" in capsys.readouterr().err
     assert "**other than its training run's**: layout 'lab'" in (run / "results.md").read_text()
     same = [*small, "--load", str(run / "model.zip")]
     mod.run(parse(mod.Args, same), same)
     table = mod.results_table(json.loads((run / "results_reeval.json").read_text())["results"])
     expected = (
-        "the env options of its training run (env_id 'SemReloc-v19', layout 'lab', lidar_only False, map_source "
+        "the env options of its training run (env_id 'SemReloc-v20', layout 'lab', lidar_only False, map_source "
         f"'perfect', n_particles 200, max_episode_steps 10).\n\n{table}"
     )
     assert (run / "results.md").read_text().endswith(expected)
     # a review's: a model trained on another env id was re-evaluated on the newest and the report said "the same"
     older = [*same, "--config.env-id", "SemReloc-v17"]
     mod.run(parse(mod.Args, older), older)
-    assert "**other than its training run's**: env_id 'SemReloc-v19'" in (run / "results.md").read_text()
+    assert "**other than its training run's**: env_id 'SemReloc-v20'" in (run / "results.md").read_text()
     assert (run / "model.zip").read_bytes() == before
 
 

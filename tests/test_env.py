@@ -14,6 +14,7 @@ from semreloc_env.layouts import get_layout
 FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
 SLAM_FAST = {"slam": {"n_particles": 20}}
 FAST_BY_ID = {
+    "SemReloc-v20": FAST,
     "SemReloc-v19": FAST,
     "SemReloc-v15": FAST,
     "SemReloc-v3": FAST,
@@ -25,14 +26,14 @@ FAST_BY_ID = {
 
 
 def make(**kw):
-    return gym.make("SemReloc-v19", **{**FAST, **kw})
+    return gym.make("SemReloc-v20", **{**FAST, **kw})
 
 
 @pytest.mark.parametrize("env_id", semreloc_env.ENV_IDS)
 def test_check_env_gymnasium_and_sb3_without_warnings(env_id):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        if env_id not in ("SemReloc-v19", "SemSlam-v1"):  # Gymnasium rightly says that a newer version exists
+        if env_id not in ("SemReloc-v20", "SemSlam-v1"):  # Gymnasium rightly says that a newer version exists
             warnings.filterwarnings("ignore", message=".*out of date.*", category=DeprecationWarning)
         env = gym.make(env_id, **FAST_BY_ID.get(env_id, {}))
         gym_check_env(env.unwrapped, skip_render_check=True)

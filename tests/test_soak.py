@@ -88,7 +88,7 @@ def test_a_short_soak_of_the_newest_ids_passes_and_leaves_the_cache_untouched(tm
 
 
 def test_the_default_ids_are_the_newest():
-    assert soak.Args().env_ids == ("SemReloc-v19", "SemSlam-v1")
+    assert soak.Args().env_ids == ("SemReloc-v20", "SemSlam-v1")
     assert all(i in semreloc_env.ENV_IDS for i in soak.Args().env_ids)
     assert math.isfinite(soak.Args().memory_growth_mb)
 
