@@ -43,15 +43,15 @@ def beam_angles(n_beams: int, fov_rad: float) -> np.ndarray:
 def _noisy_ranges(r, noise, u, dropout_prob, std, range_max, out):  # pragma: no cover - compiled
     """``out[i] = clip(r[i] + std * noise[i], 0, range_max)`` where ``r[i] < range_max`` and not ``u[i] <
     dropout_prob`` (``u`` empty: no dropouts), else ``range_max``: NumPy's ``np.where(hit & ~dropped,
-    np.clip(r + std * noise, 0.0, range_max), range_max)`` in one pass, the same bits but for a noisy range of
-    ``-0.0``, which comes out ``0.0`` (NumPy's clip gives ``0.0`` or ``-0.0`` by the element's place in its SIMD
-    loop; a cast's range plus noise is ``-0.0`` only if both are zeros). NaN stays NaN, as in ``np.clip``."""
+    np.clip(r + std * noise, 0.0, range_max), range_max)`` in one pass, the same bits (``np.clip`` keeps NaN and
+    ``-0.0``; the tests hold the two equal on adversarial values). Flat float64 arrays of one length (``u``: that
+    length or empty); `noisy_ranges` checks them."""
     for i in range(r.shape[0]):
         if r[i] < range_max and not (u.shape[0] and u[i] < dropout_prob):
             v = r[i] + std * noise[i]
-            if not (v > 0.0 or v != v):
+            if v < 0.0:  # np.clip's order: NaN and -0.0 stay as they are
                 v = 0.0
-            if not (v < range_max or v != v):
+            if v > range_max:
                 v = range_max
             out[i] = v
         else:
@@ -78,7 +78,11 @@ def camera_hits(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(ranges, objects)`` of cast ranges ``r`` and hit segments ``seg`` (any shape; ``-1``: none): the range where
     it lies in ``[range_min, range_max)``, else ``range_max``, and the object owning the segment hit in range
-    (``owner[seg]``), else ``-1``."""
+    (``owner[seg]``), else ``-1``. ValueError for a ``seg`` of another shape or outside ``[-1, len(owner))``."""
+    r = np.asarray(r, dtype=np.float64)
+    seg = np.asarray(seg, dtype=np.int64)
+    if seg.shape != r.shape or (seg.size and not -1 <= seg.min() <= seg.max() < owner.shape[0]):
+        raise ValueError(f"seg must hold segment indices in [-1, {owner.shape[0]}) in the ranges' shape {r.shape}")
     out_r = np.empty(r.shape)
     out_obj = np.empty(r.shape, np.int64)
     _camera_hits(
@@ -91,11 +95,16 @@ def camera_hits(
 def noisy_ranges(r: np.ndarray, noise: np.ndarray, std: float, range_max: float, u=None, dropout_prob=0.0):
     """Noisy ranges of the true ranges ``r`` (any shape, float64): ``r + std * noise`` clipped to ``[0, range_max]``
     where ``r < range_max`` and the beam is not dropped (``u < dropout_prob``; ``u`` None: none is), else
-    ``range_max``. ``noise`` and ``u`` are the caller's draws, shaped as ``r``."""
+    ``range_max``. ``noise`` and ``u`` are the caller's draws, shaped as ``r`` (ValueError otherwise)."""
+    r = np.asarray(r, dtype=np.float64)
+    noise = np.asarray(noise, dtype=np.float64)
+    u = _NO_DROPOUTS if u is None else np.asarray(u, dtype=np.float64)
+    if noise.shape != r.shape or (u.size and u.shape != r.shape):
+        raise ValueError(f"noise and u must have the ranges' shape {r.shape}, got {noise.shape} and {u.shape}")
     out = np.empty(r.shape)
     _noisy_ranges(
-        r.reshape(-1), noise.reshape(-1), _NO_DROPOUTS if u is None else u.reshape(-1), float(dropout_prob),
-        float(std), float(range_max), out.reshape(-1),
+        r.reshape(-1), noise.reshape(-1), u.reshape(-1), float(dropout_prob), float(std), float(range_max),
+        out.reshape(-1),
     )  # fmt: skip
     return out
 

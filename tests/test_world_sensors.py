@@ -401,10 +401,8 @@ def test_noisy_ranges_are_numpys_bits_on_adversarial_values():
         with np.errstate(all="ignore"):
             for args in ((), (u, dropout)):
                 got = noisy_ranges(r, noise, std, 8.0, *args)
-                # + 0.0 turns -0.0 into 0.0: NumPy's clip gives either for a -0.0 (0.0 where its SIMD loop ran, -0.0
-                # in the loop's scalar tail), the kernel always 0.0; every other value bit for bit
-                want = _noisy_ranges_numpy(r, noise, std, 8.0, *args) + 0.0
-                assert got.tobytes() == want.tobytes()
+                want = _noisy_ranges_numpy(r, noise, std, 8.0, *args)
+                assert got.tobytes() == want.tobytes()  # -0.0 and NaN included
 
     check()
     # (P, B) arrays, as read_many passes them
@@ -413,6 +411,10 @@ def test_noisy_ranges_are_numpys_bits_on_adversarial_values():
     noise, u = rng.standard_normal((4, 7)), rng.random((4, 7))
     got = noisy_ranges(r, noise, 0.3, 8.0, u, 0.2)
     assert got.shape == (4, 7) and got.tobytes() == _noisy_ranges_numpy(r, noise, 0.3, 8.0, u, 0.2).tobytes()
+    with pytest.raises(ValueError, match="shape"):
+        noisy_ranges(r, noise[:, :3], 0.3, 8.0)  # the kernel reads as many draws as ranges
+    with pytest.raises(ValueError, match="shape"):
+        noisy_ranges(r, noise, 0.3, 8.0, u[:2], 0.2)
 
 
 def test_camera_hits_are_the_numpy_selection():
@@ -429,3 +431,6 @@ def test_camera_hits_are_the_numpy_selection():
         want_r = np.where(in_range, r, 5.0)
         assert got_r.tobytes() == want_r.tobytes() and got_r.shape == shape
         assert got_obj.dtype == want_obj.dtype and np.array_equal(got_obj, want_obj)
+    for bad in (np.array([0, 6]), np.array([-2, 0]), np.array([0])):
+        with pytest.raises(ValueError, match="segment indices"):
+            camera_hits(np.array([1.0, 2.0]), bad, owner, 0.1, 5.0)  # the kernel does not check bounds
