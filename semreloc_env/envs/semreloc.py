@@ -172,9 +172,10 @@ seeds and the 930 held-out active pairs (docs/relocalizer.md, "SemReloc-v19").""
 DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V19, belief_between_updates="odometry")
 """The relocalizer of SemReloc-v20: `RELOCALIZER_V19` whose belief, on the steps the motion gate skips the measurement
 update (most of them), is the last update's carried by the odometry since (``belief_between_updates="odometry"``, as
-AMCL reports between updates) instead of the moved set summarised again. The particles, weights and updates are
-v19's bit for bit; a step without an update costs about a third less. On the relocalizer evaluation's 4,460 reported
-episodes no outcome or time to success changed (docs/performance.md, "The belief carried between updates")."""
+AMCL reports between updates) instead of the moved set summarised again. For the same actions the particles, weights
+and updates are v19's bit for bit; a step without an update costs about a third less. On the relocalizer evaluation's
+4,460 reported episodes (belief-blind policies) no outcome or time to success changed (docs/performance.md, "The
+belief carried between updates")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -327,10 +328,12 @@ class SemRelocEnv(SemRelocBase):
       (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V19` with ``belief_between_updates="odometry"``; as AMCL reports its pose
       between updates), not the moved particle set summarised again: its entropy and hypotheses stay the update's,
       its means and covariances move with the odometry, and "converged" no longer flickers off for a step as the
-      moved set spreads (after a kidnapping it holds the old place until the next update). The particles, weights,
-      updates and random draws are v19's bit for bit; a step without an update costs about a third less (1.05-1.27x
-      the batched robot-steps per CPU-second under random actions, 6 % under the evaluation's policies). On 4,460
-      reported evaluation episodes every outcome and time to success is v19's (docs/performance.md). Maps, worlds,
+      moved set spreads (after a kidnapping it holds the old place until the next update). For the same actions the
+      particles, weights, updates, observations and random draws are v19's bit for bit (a policy that reads the
+      belief can act otherwise, and then the episode differs: the viewpoint planner on a lab seed succeeded in 23
+      steps instead of 25); a step without an update costs about a third less (1.05-1.27x the batched robot-steps per
+      CPU-second under random actions, 6 % under the evaluation's policies). On 4,460 reported evaluation episodes
+      with policies that do not read the belief every outcome and time to success is v19's (docs/performance.md). Maps, worlds,
       observation spaces, rewards and info keys are v19's (`SemRelocEnvV19` is v19).
     * v19: the simulated wheel odometry no longer reads a slide along a wall (`semreloc_env.sensors.Odometry`,
       ``reads_slides=False``: the increment projected on the direction of an arc without slip). v18's odometry read
@@ -338,7 +341,7 @@ class SemRelocEnv(SemRelocBase):
       a step and a quarter turn back, with about 1 m of translation noise: an outside reviewer's tracking robot
       pushing into a wall at 72 deg ended 5.8 m off. The relocalizer's KLD sampling allows three times the error
       (``kld_epsilon`` 0.15), so a spread belief holds fewer particles, and its remembered places move
-      with the odometry (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V18` with both). Every episode changes; outcomes
+      with the odometry (`RELOCALIZER_V19`: `RELOCALIZER_V18` with both). Every episode changes; outcomes
       on held-out seeds in docs/relocalizer.md, "SemReloc-v19". Maps, worlds, observations, rewards and info keys
       are v18's (`SemRelocEnvV18` is v18).
     * v18: when a held convergence fades without a surprise in a tracking episode, the audit it turns on judges only
