@@ -23,7 +23,7 @@ from semreloc_env.wrappers import ActionRepeat
 
 def _env(**kw):
     kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 50, **kw}
-    return gym.make("SemReloc-v19", **kw)
+    return gym.make("SemReloc-v20", **kw)
 
 
 def test_action_repeat_sums_rewards_and_terms_and_stops_at_the_episode_end():
@@ -312,11 +312,11 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     assert "kinds ['procedural'] -> ['procedural_sym']" in capsys.readouterr().out
     # another env is said too, also for a run whose config.json predates the field (its policy.zip names the env)
     assert config.env_id == "SemReloc-v10"
-    check_resume(ckpt, dataclasses.replace(config, env_id="SemReloc-v19"))
-    assert "env_id 'SemReloc-v10' -> 'SemReloc-v19'" in capsys.readouterr().out
+    check_resume(ckpt, dataclasses.replace(config, env_id="SemReloc-v20"))
+    assert "env_id 'SemReloc-v10' -> 'SemReloc-v20'" in capsys.readouterr().out
     (old / "policy.zip").write_bytes(policy.read_bytes())
-    check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, env_id="SemReloc-v19"))
-    assert "env_id 'SemReloc-v10' -> 'SemReloc-v19'" in capsys.readouterr().out
+    check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, env_id="SemReloc-v20"))
+    assert "env_id 'SemReloc-v10' -> 'SemReloc-v20'" in capsys.readouterr().out
     check_resume(old / "checkpoints" / ckpt.name, config)
     assert "env_id" not in capsys.readouterr().out
     (old / "policy.zip").unlink()  # an interrupted run of those days: nothing records its env
@@ -419,12 +419,12 @@ def test_load_policy_errors(smoke_run, tmp_path):
         load_policy(bare)
     # an outside tester's trial: wrapping twice said the action space was wrong
     policy = load_policy(path)
-    once = policy.wrap(gym.make("SemReloc-v19", layout="twin_rooms", map_source="perfect"))
+    once = policy.wrap(gym.make("SemReloc-v20", layout="twin_rooms", map_source="perfect"))
     with pytest.raises(ValueError, match="own observations.*wrapped by ActiveObservation already"):
         policy.wrap(once)
     # an eleventh tester's: an env that repeats actions already made each decision last repeat x repeat steps
     with pytest.raises(ValueError, match=r"ActionRepeat\(repeat=4\).*each would last"):
-        policy.wrap(ActionRepeat(gym.make("SemReloc-v19", layout="twin_rooms", map_source="perfect"), 4))
+        policy.wrap(ActionRepeat(gym.make("SemReloc-v20", layout="twin_rooms", map_source="perfect"), 4))
     for name, meta, keep_model, match in [
         ("badjson.zip", "{nope", True, "not valid JSON"),
         ("list.zip", "[1]", True, "JSON object"),

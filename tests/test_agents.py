@@ -173,7 +173,7 @@ def _preprocessed(space, raw: dict) -> dict:
     return preprocess_obs({k: torch.as_tensor(v) for k, v in raw.items()}, space, normalize_images=False)
 
 
-@pytest.mark.parametrize("env_id", ["SemReloc-v19", "SemReloc-v1"])
+@pytest.mark.parametrize("env_id", ["SemReloc-v20", "SemReloc-v1"])
 def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
     space = make_env(FAST, env_id=env_id).observation_space
     torch.manual_seed(0)
@@ -229,7 +229,7 @@ def test_preprocess_observation_gives_sb3s_tensors():
     from agents.features import preprocess_observation
     from semreloc_env.observations import ActiveObservation
 
-    spaces = [make_env(FAST).observation_space, ActiveObservation(gym.make("SemReloc-v19", **FAST)).observation_space]
+    spaces = [make_env(FAST).observation_space, ActiveObservation(gym.make("SemReloc-v20", **FAST)).observation_space]
     spaces.append(gym.spaces.Dict({"mixed": gym.spaces.MultiDiscrete([3, 5, 2]), "one": gym.spaces.Discrete(4)}))
     for space in spaces:
         space.seed(0)

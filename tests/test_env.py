@@ -15,7 +15,7 @@ FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
 SLAM_FAST = {"slam": {"n_particles": 20}}
 FAST_BY_ID = {
     "SemReloc-v20": FAST,
-    "SemReloc-v19": FAST,
+    "SemReloc-v20": FAST,
     "SemReloc-v15": FAST,
     "SemReloc-v3": FAST,
     "SemReloc-v1": FAST,
@@ -68,7 +68,7 @@ def test_each_builtin_layout_runs(layout):
 def test_layout_from_file_and_default_mapping_maps(tmp_path):
     path = tmp_path / "twin.json"
     path.write_text(json.dumps(get_layout("twin_rooms").to_dict()))
-    env = gym.make("SemReloc-v19", layout=str(path), relocalizer={"n_particles": 200})
+    env = gym.make("SemReloc-v20", layout=str(path), relocalizer={"n_particles": 200})
     obs, info = env.reset(seed=1)
     assert env.unwrapped.layout.name == "twin_rooms"
     # default maps come from a mapping run: they differ from the rasterised layout
@@ -180,7 +180,7 @@ def test_kidnap_pose_is_taken_as_checked_at_reset():
 
 def test_unknown_constructor_arguments_are_errors():
     with pytest.raises(TypeError):
-        gym.make("SemReloc-v19", map_source="perfect", lidar_beams=30)
+        gym.make("SemReloc-v20", map_source="perfect", lidar_beams=30)
     with pytest.raises(ValueError, match="unknown keys"):
         make(lidar={"beams": 30})
     with pytest.raises(ValueError, match="unknown keys"):
