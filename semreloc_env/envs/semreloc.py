@@ -271,7 +271,9 @@ class SemRelocEnv(SemRelocBase):
     ``pose`` true pose (m, m, rad); ``belief`` the filter's summary
     (`filters.localization.belief.Belief.as_dict`: ``converged`` — one tight hypothesis
     holds >= 95 % of the mass, or, since v6, still >= 85 % at the place an update last called
-    converged —, ``hypotheses`` by weight, ``estimate``, spread, entropy, ESS);
+    converged —, ``hypotheses`` by weight, ``estimate``, spread, entropy, ESS; since v20, on a step whose
+    measurement update the motion gate skipped, the last update's summary carried by the odometry since:
+    ``MCLConfig.belief_between_updates``);
     ``pose_error`` ``{"position": m, "heading": rad}`` of the belief's estimate (its heaviest
     hypothesis); ``is_success`` (the success test below has been met in this episode); ``mcl`` the last update's diagnostics (`filters.localization.mcl.UpdateDiagnostics`;
     a value not computed in this step, such as ``ess`` when the motion gate skipped the update, is left
