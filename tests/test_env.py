@@ -15,7 +15,7 @@ FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
 SLAM_FAST = {"slam": {"n_particles": 20}}
 FAST_BY_ID = {
     "SemReloc-v20": FAST,
-    "SemReloc-v20": FAST,
+    "SemReloc-v19": FAST,
     "SemReloc-v15": FAST,
     "SemReloc-v3": FAST,
     "SemReloc-v1": FAST,
