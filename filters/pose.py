@@ -50,6 +50,25 @@ def wrap_float(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def finite_increment(delta, what: str = "delta") -> tuple[float, float, float]:
+    """``(dx, dy, dtheta)`` of a robot-frame increment (m, m, rad) as Python floats.
+
+    Raises:
+        ValueError: ``delta`` is not 3 finite numbers (the message names it as ``what``)."""
+    d = np.asarray(delta, dtype=np.float64).reshape(-1)
+    dx, dy, dt = d.tolist() if d.shape == (3,) else (math.nan,) * 3
+    if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dt)):
+        raise ValueError(f"{what} must be 3 finite numbers (dx m, dy m, dtheta rad), got {delta!r:.80}")
+    return dx, dy, dt
+
+
+def compose_floats(x: float, y: float, theta: float, dx: float, dy: float, dtheta: float) -> tuple[float, float, float]:
+    """`compose` of one pose with one increment in Python floats, the same bits as its array path for finite results
+    (``cos`` and ``sin`` the C library's, as NumPy's float64 ones: see `cos_sin`); a result may overflow to inf."""
+    c, s = math.cos(theta), math.sin(theta)
+    return x + c * dx - s * dy, y + s * dx + c * dy, wrap_float(theta + dtheta)
+
+
 def compose(pose: np.ndarray, delta: np.ndarray, trig: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Apply the robot-frame increment ``delta = (dx, dy, dtheta)`` to ``pose``.
 
@@ -62,8 +81,7 @@ def compose(pose: np.ndarray, delta: np.ndarray, trig: tuple[np.ndarray, np.ndar
         x0, y0, t0 = pose.tolist()
         dx, dy, dt = delta.tolist()
         if math.isfinite(x0 + y0 + t0 + dx + dy + dt):  # one pose, finite: the same arithmetic in Python floats
-            c, s = math.cos(t0), math.sin(t0)  # the C library's, as NumPy's float64 cos and sin (see cos_sin)
-            x, y, th = x0 + c * dx - s * dy, y0 + s * dx + c * dy, wrap_float(t0 + dt)
+            x, y, th = compose_floats(x0, y0, t0, dx, dy, dt)
             if math.isfinite(x + y + th):  # else an overflow: the array path below, with NumPy's warnings
                 return np.array([x, y, th])
     c, s = trig if trig is not None else (np.cos(pose[..., 2]), np.sin(pose[..., 2]))

@@ -851,3 +851,23 @@ def test_belief_between_updates_odometry_against_an_independent_anchor(relocaliz
         assert u == u2 and np.array_equal(p, p2) and np.array_equal(lw, lw2)
         if u:
             assert b == b2
+
+
+def test_an_increment_is_checked_in_one_place_and_composed_alike_in_floats():
+    from filters.pose import compose_floats, finite_increment
+
+    mcl = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=10), np.random.default_rng(0))
+    mcl.init_around([4.0, 1.5, 0.0], 0.1)
+    before = mcl.poses.copy()
+    for bad in ([np.nan, 0.0, 0.0], [0.1, 0.0]):
+        with pytest.raises(ValueError, match="odometry delta must be 3 finite numbers"):
+            mcl.predict(bad)
+    with pytest.raises(ValueError, match="odometry delta must be 3 finite numbers"):
+        decompose([0.1, np.inf, 0.0])
+    np.testing.assert_array_equal(mcl.poses, before)
+    assert finite_increment(np.array([1.0, -2.0, 0.5])) == (1.0, -2.0, 0.5)
+    rng = np.random.default_rng(2)
+    for pose, d in zip(rng.normal(0, 5, (200, 3)), rng.normal(0, 1, (200, 3))):
+        pose[2] = wrap_angle(pose[2])
+        got = np.array(compose_floats(*pose.tolist(), *d.tolist()))
+        assert got.tobytes() == compose(pose[None], d[None])[0].tobytes()  # the array path's bits

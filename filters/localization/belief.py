@@ -67,7 +67,7 @@ from scipy.sparse.csgraph import connected_components
 from filters import _blas
 from filters.localization import belief_kernels as _k
 from filters.numbers import is_int, is_real
-from filters.pose import cos_sin, wrap_angle, wrap_float
+from filters.pose import compose_floats, cos_sin, finite_increment, wrap_angle, wrap_float
 from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
@@ -447,8 +447,8 @@ def _carried_pose(mean: np.ndarray, cov: np.ndarray, dx: float, dy: float, dt: f
     """``(mean, cov)`` carried by the robot-frame increment ``(dx, dy, dt)`` (`carried`), read-only, in Python floats:
     a handful of poses per step, where NumPy's per-call cost would outweigh the arithmetic."""
     x, y, t = mean.tolist()
+    pose = compose_floats(x, y, t, dx, dy, dt)
     c, s = math.cos(t), math.sin(t)  # the C library's, as NumPy's float64 cos and sin (filters.pose.cos_sin)
-    pose = (x + c * dx - s * dy, y + s * dx + c * dy, wrap_float(t + dt))
     (sxx, sxy, sxt), (_, syy, syt), (_, _, stt) = cov.tolist()
     a, b = -s * dx - c * dy, c * dx - s * dy  # d(x, y)/d(theta): J = [[1, 0, a], [0, 1, b], [0, 0, 1]]
     xt, yt = sxt + a * stt, syt + b * stt
@@ -479,10 +479,7 @@ def carried(belief: Belief, delta, config: BeliefConfig | None = None) -> Belief
         ValueError: ``delta`` is not 3 finite numbers, or carries a mean or covariance to non-finite values.
     """
     cfg = config if config is not None else BeliefConfig()
-    d = np.asarray(delta, dtype=np.float64).reshape(-1)
-    dx, dy, dt = d.tolist() if d.shape == (3,) else (math.nan,) * 3
-    if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dt)):
-        raise ValueError(f"delta must be 3 finite numbers (dx m, dy m, dtheta rad), got {delta!r:.80}")
+    dx, dy, dt = finite_increment(delta)
     if dx == 0.0 and dy == 0.0 and dt == 0.0:
         return belief
     mean, cov = _carried_pose(belief.mean, belief.cov, dx, dy, dt)

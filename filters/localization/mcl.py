@@ -132,7 +132,7 @@ from filters.localization.proposals import ScanProposal, prior_mass_near
 from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.numbers import is_int, is_real
-from filters.pose import compose, wrap_angle
+from filters.pose import compose, finite_increment, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.smc.logsumexp import logsumexp as fast_logsumexp
 from filters.smc.resampling import RESAMPLERS, closed_cdf, get_resampler, inverse_cdf
@@ -970,9 +970,7 @@ class MonteCarloLocalizer:
         """Move every particle by a noisy copy of the odometry increment ``delta = (dx, dy, dtheta)``
         (metres / radians, previous robot frame, as `filters.pose.relative` gives)."""
         self._require_particles()
-        d = np.asarray(delta, dtype=np.float64).reshape(-1)
-        if d.shape != (3,) or not all(map(math.isfinite, d.tolist())):
-            raise ValueError(f"odometry delta must be 3 finite numbers, got {delta!r}")
+        d = np.array(finite_increment(delta, "odometry delta"))
         rng_state = self.rng.bit_generator.state
         poses = self.motion_model.sample(self._poses, d, self.rng)
         if not np.isfinite(poses).all():  # e.g. a delta of 1e300 m: keep the filter as it was

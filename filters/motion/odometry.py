@@ -38,7 +38,7 @@ import numba
 import numpy as np
 
 from filters.numbers import is_real
-from filters.pose import wrap_angle, wrap_float
+from filters.pose import finite_increment, wrap_angle, wrap_float
 
 
 @dataclass(frozen=True)
@@ -71,10 +71,7 @@ class OdometryMotionConfig:
 
 def decompose(delta: np.ndarray, min_trans_m: float = 0.01) -> tuple[float, float, float]:
     """Split a robot-frame increment ``(dx, dy, dtheta)`` into ``(rot1, trans, rot2)`` (rad, m, rad)."""
-    d = np.asarray(delta, dtype=np.float64).reshape(-1)
-    dx, dy, dth = d.tolist() if d.shape == (3,) else (math.nan,) * 3
-    if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dth)):
-        raise ValueError(f"odometry delta must be 3 finite numbers (dx, dy, dtheta), got {delta!r}")
+    dx, dy, dth = finite_increment(delta, "odometry delta")
     trans = float(np.hypot(dx, dy))  # NumPy's hypot and arctan2: Python's math rounds differently
     rot1 = float(np.arctan2(dy, dx)) if trans >= min_trans_m else 0.0
     return rot1, trans, wrap_float(dth - rot1)
