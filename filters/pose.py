@@ -91,6 +91,15 @@ def compose(pose: np.ndarray, delta: np.ndarray, trig: tuple[np.ndarray, np.ndar
     return np.stack([x, y, th], axis=-1)
 
 
+def relative_floats(pose_from, pose_to) -> tuple[float, float, float]:
+    """`relative` of two ``(3,)`` poses as three Python floats, without NumPy's per-call cost: the same numbers."""
+    ax, ay, ath = np.asarray(pose_from, dtype=np.float64).tolist()
+    bx, by, bth = np.asarray(pose_to, dtype=np.float64).tolist()
+    dx, dy = bx - ax, by - ay
+    c, s = math.cos(ath), math.sin(ath)  # the C library's, as NumPy's float64 cos and sin (see cos_sin)
+    return c * dx + s * dy, -s * dx + c * dy, wrap_float(bth - ath)
+
+
 def relative(pose_from: np.ndarray, pose_to: np.ndarray) -> np.ndarray:
     """The robot-frame increment that takes ``pose_from`` to ``pose_to`` (inverse of compose)."""
     a = np.asarray(pose_from, dtype=np.float64)

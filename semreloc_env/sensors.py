@@ -19,7 +19,7 @@ import numpy as np
 from filters.arrays import frozen_array
 from filters.mapping.grid import NO_CLASS
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
-from filters.pose import wrap_float
+from filters.pose import relative_floats
 from filters.robot_data.scans import LaserScan, SemanticScan
 
 from .config import CameraParams, LidarParams
@@ -345,7 +345,7 @@ class Odometry:
 
         Draws 3 normals (`sample_pose`).
         """
-        delta = _relative(prev_pose, pose)
+        delta = relative_floats(prev_pose, pose)
         if not self.reads_slides:
             delta = wheel_increment(delta, self.substeps)
         return self._model.sample_pose(self._origin, delta, rng)
@@ -363,12 +363,3 @@ def wheel_increment(delta: tuple[float, float, float], substeps: int | None = No
     c, s = math.cos(half), math.sin(half)
     along = dx * c + dy * s
     return along * c, along * s, dth
-
-
-def _relative(pose_from: np.ndarray, pose_to: np.ndarray) -> tuple[float, float, float]:
-    """`filters.pose.relative` of two ``(3,)`` poses in scalar arithmetic (the same numbers)."""
-    ax, ay, ath = np.asarray(pose_from, dtype=np.float64).tolist()
-    bx, by, bth = np.asarray(pose_to, dtype=np.float64).tolist()
-    dx, dy = bx - ax, by - ay
-    c, s = math.cos(ath), math.sin(ath)
-    return (c * dx + s * dy, -s * dx + c * dy, wrap_float(bth - ath))

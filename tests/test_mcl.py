@@ -854,7 +854,7 @@ def test_belief_between_updates_odometry_against_an_independent_anchor(relocaliz
 
 
 def test_an_increment_is_checked_in_one_place_and_composed_alike_in_floats():
-    from filters.pose import compose_floats, finite_increment
+    from filters.pose import compose_floats, finite_increment, relative_floats
 
     mcl = MonteCarloLocalizer(symmetric_room(), MCLConfig(n_particles=10), np.random.default_rng(0))
     mcl.init_around([4.0, 1.5, 0.0], 0.1)
@@ -871,3 +871,5 @@ def test_an_increment_is_checked_in_one_place_and_composed_alike_in_floats():
         pose[2] = wrap_angle(pose[2])
         got = np.array(compose_floats(*pose.tolist(), *d.tolist()))
         assert got.tobytes() == compose(pose[None], d[None])[0].tobytes()  # the array path's bits
+        back = np.array(relative_floats(pose, compose(pose, d)))
+        assert back.tobytes() == relative(pose, compose(pose, d)).tobytes()

@@ -182,7 +182,8 @@ def test_wheel_odometry_reads_the_simulators_free_arcs_as_they_are():
     points at dtheta (n - 1) / (2 n), not dtheta / 2; read along dtheta / 2 a 30-step arc dead-reckoned 1 cm off."""
     import gymnasium as gym
 
-    from semreloc_env.sensors import _relative, wheel_increment
+    from filters.pose import relative_floats
+    from semreloc_env.sensors import wheel_increment
 
     for substeps in (5, 2, 1):
         env = gym.make("SemReloc-v20", layout="open_hall", map_source="perfect", physics={"substeps": substeps})
@@ -194,7 +195,7 @@ def test_wheel_odometry_reads_the_simulators_free_arcs_as_they_are():
             for _ in range(30):
                 prev = world.pose.copy()
                 assert not world.drive(v, w)  # free: no wall within reach
-                est = compose(est, np.array(wheel_increment(_relative(prev, world.pose), substeps)))
+                est = compose(est, np.array(wheel_increment(relative_floats(prev, world.pose), substeps)))
             np.testing.assert_allclose(est, world.pose, atol=1e-9)
 
 
