@@ -397,6 +397,35 @@ def bench_batched(args: Args) -> list[Row]:
     return rows
 
 
+def bench_batched_split(args: Args) -> list[Row]:
+    """Where a batched robot-step's CPU goes (`agents.tools.profile_step.batched_split`: R = 64, random actions): steps
+    with a measurement update (and the convergence audits within them), steps without, autoresets, the vector env's
+    own work; and the time in compiled kernels (a second run of the same steps under cProfile), with the robot-steps
+    per CPU-second that would be left if nothing but those kernels ran."""
+    from agents.tools.profile_step import batched_split
+
+    s = batched_split(64, max(20, args.steps // 15), args.seed, args.env_id or ENV_ID)
+    n, us = s.robot_steps, 1e6 / s.robot_steps
+    per_audit = 1e3 * s.audit_s / max(s.audits, 1)
+
+    def part(name: str, seconds: float, note: str) -> Row:
+        return Row(name, seconds * us, 100 * seconds / s.total_s, "us CPU | %", note)
+
+    def each(seconds: float, count: int, what: str) -> str:
+        return f"{count} of {n} robot-steps ({100 * count / n:.0f} %), {1e3 * seconds / max(count, 1):.2f} ms {what}"
+
+    return [
+        Row("batched R=64: one robot-step", s.total_s * us, float("nan"), "us CPU", f"{n} robot-steps, random actions"),
+        part("  steps with a measurement update", s.update_s, each(s.update_s, s.update_steps, "each")),
+        part("    of which convergence audits", s.audit_s, f"{s.audits} audits, {per_audit:.1f} ms each"),
+        part("  steps without an update", s.plain_s, each(s.plain_s, s.plain_steps, "each")),
+        part("  autoresets", s.reset_s, each(s.reset_s, s.resets, "each")),
+        part("  the vector env's own", s.loop_s, "actions checked, observations and infos batched"),
+        part("compiled kernels (cProfile, same steps)", s.kernel_s, "numba calls; NumPy's random draws not counted"),
+        Row("  robot-steps per CPU-s, kernels alone", n / s.kernel_s, float("nan"), "robot-steps/s", "no Python"),
+    ]
+
+
 def bench_stages(args: Args) -> list[Row]:
     """Per-stage CPU time of a default step (cProfile, process clock; inflates short calls)."""
     from agents.baselines import WallFollowExplorer
@@ -723,6 +752,7 @@ BENCHMARKS: list[Callable[[Args], list[Row]]] = [
     bench_env,
     bench_belief,
     bench_batched,
+    bench_batched_split,
     bench_stages,
     bench_scaling,
     bench_reset,

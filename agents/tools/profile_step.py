@@ -6,6 +6,7 @@ Usage::
     python scripts/profile_step.py --steps 300 --top 30
     python scripts/profile_step.py --policy random --particles 2000
     python scripts/profile_step.py --reference     # the NumPy reference path
+    python scripts/profile_step.py --robots 64 --steps 40   # a batched env's robot-steps, split (batched_split)
 
 (``semreloc-profile-step`` is the same command; ``--help`` lists every option.)
 
@@ -60,12 +61,14 @@ class Args:
     """episode seed"""
     top: int = 0
     """also print the top functions by cumulative time (0 = none)"""
+    robots: int = 0
+    """R > 0: split the CPU time of a batched env of R robots instead (batched_split; random actions)"""
 
     def __post_init__(self) -> None:
-        if self.steps < 1 or self.beams < 1 or self.particles < 0 or self.top < 0:
+        if self.steps < 1 or self.beams < 1 or self.particles < 0 or self.top < 0 or self.robots < 0:
             raise ValueError(
-                f"steps and beams must be >= 1, particles and top >= 0; got steps={self.steps}, "
-                f"beams={self.beams}, particles={self.particles}, top={self.top}"
+                f"steps and beams must be >= 1, particles, top and robots >= 0; got steps={self.steps}, "
+                f"beams={self.beams}, particles={self.particles}, top={self.top}, robots={self.robots}"
             )
         from semreloc_env.layouts import check_layout_option
 
@@ -133,6 +136,181 @@ def stage_breakdown(env, policy, steps: int, seed: int = 0) -> tuple[dict[str, f
     return out, total, stats
 
 
+def compiled_functions() -> set[tuple[str, int, str]]:
+    """cProfile keys ``(file, first line, name)`` of every numba-compiled function of this package's modules
+    (``filters``, ``semreloc_env``, ``agents``) loaded so far: what cProfile records a call of one under (numba's
+    dispatcher reports the Python function's code)."""
+    import sys
+
+    from numba.core.dispatcher import Dispatcher
+
+    keys = set()
+    for name, module in list(sys.modules.items()):
+        if module is None or name.partition(".")[0] not in ("filters", "semreloc_env", "agents"):
+            continue
+        for value in list(vars(module).values()):
+            if isinstance(value, Dispatcher):
+                code = value.py_func.__code__
+                keys.add((code.co_filename, code.co_firstlineno, code.co_name))
+    return keys
+
+
+@dataclass(frozen=True)
+class BatchedSplit:
+    """Where the CPU time of a batched env's robot-steps goes (`batched_split`). Times are CPU seconds of this
+    process, summed over the robot-steps.
+
+    Attributes:
+        robot_steps: robot-steps run (``steps * num_envs``); ``update_steps + plain_steps + resets`` of them.
+        total_s: the vector env's ``step`` calls, all of it.
+        update_steps, update_s: robot-steps whose measurement update ran, and their time (the robot's ``step``).
+        audits, audit_s: convergence audits that searched for another place (calls of
+            `filters.localization.audit.best_alternative`), and the time of every update's audit step
+            (`MonteCarloLocalizer._audit`, mostly those searches), part of ``update_s`` and ``reset_s``.
+        plain_steps, plain_s: robot-steps the motion gate let pass without an update.
+        resets, reset_s: robot-steps that were autoresets (an episode had ended) and their time.
+        loop_s: the rest: the vector env's own work (checking the actions, batching observations and infos).
+        kernel_s: time inside numba-compiled functions (`compiled_functions`) in a second run of the same
+            robot-steps under cProfile (the same seeds and actions, so the same episodes), numba's call dispatch
+            included; NumPy's own compiled code (random draws, array operations) is not counted.
+    """
+
+    robot_steps: int
+    total_s: float
+    update_steps: int
+    update_s: float
+    audits: int
+    audit_s: float
+    plain_steps: int
+    plain_s: float
+    resets: int
+    reset_s: float
+    loop_s: float
+    kernel_s: float
+
+
+class _TimedRobot:
+    """One robot's env in a `SemRelocLoopVectorEnv` with its ``step`` and ``reset`` timed into ``tally``; any other
+    attribute is the env's."""
+
+    def __init__(self, env, tally: dict[str, float]) -> None:
+        self._env = env
+        self._tally = tally
+
+    def __getattr__(self, name: str):
+        return getattr(self._env, name)
+
+    def step(self, action):
+        t0 = time.process_time()
+        out = self._env.step(action)
+        dt = time.process_time() - t0
+        kind = "update" if self._env.unwrapped.mcl.last_diagnostics.updated else "plain"
+        self._tally[f"{kind}_s"] += dt
+        self._tally[f"{kind}_steps"] += 1
+        return out
+
+    def reset(self, **kwargs):
+        t0 = time.process_time()
+        out = self._env.reset(**kwargs)
+        self._tally["reset_s"] += time.process_time() - t0
+        self._tally["resets"] += 1
+        return out
+
+
+def _run_batched(num_envs: int, steps: int, seed: int, env_id: str, kwargs: dict, tally, prof) -> float:
+    """Reset a fresh batched env with ``seed``, step it 5 times (not counted) and then ``steps`` times with seeded
+    random actions, its robots timed into ``tally`` (None: not) and the counted steps under ``prof`` (None: none);
+    returns the counted steps' CPU seconds."""
+    import numpy as np
+
+    from filters.localization import audit as audit_module
+    from filters.localization.mcl import MonteCarloLocalizer
+    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+    venv = SemRelocLoopVectorEnv(num_envs=num_envs, env_id=env_id, **kwargs)
+    rng = np.random.default_rng(seed)
+    audit, search = MonteCarloLocalizer._audit, audit_module.best_alternative
+    try:
+        venv.reset(seed=seed)
+        for _ in range(5):  # warm-up: numba, caches
+            venv.step(rng.integers(0, 4, num_envs))
+        if tally is not None:
+            venv.envs = [_TimedRobot(env, tally) for env in venv.envs]
+
+            def timed_audit(mcl, *a):
+                t0 = time.process_time()
+                try:
+                    return audit(mcl, *a)
+                finally:
+                    tally["audit_s"] += time.process_time() - t0
+
+            def counted_search(*a, **k):
+                tally["audits"] += 1
+                return search(*a, **k)
+
+            MonteCarloLocalizer._audit = timed_audit
+            audit_module.best_alternative = counted_search
+        t0 = time.process_time()
+        if prof is not None:
+            prof.enable()
+        for _ in range(steps):
+            venv.step(rng.integers(0, 4, num_envs))
+        if prof is not None:
+            prof.disable()
+        return time.process_time() - t0
+    finally:
+        MonteCarloLocalizer._audit, audit_module.best_alternative = audit, search
+        venv.close()
+
+
+def batched_split(
+    num_envs: int = 64, steps: int = 40, seed: int = 0, env_id: str = "SemReloc-v20", **kwargs
+) -> BatchedSplit:
+    """Run ``steps`` steps of a `semreloc_env.envs.batched.SemRelocLoopVectorEnv` of ``num_envs`` robots
+    (``env_id``, ``gym.make`` keyword arguments ``kwargs``) with seeded random actions, after 5 not counted, and
+    split their CPU time (`BatchedSplit`); then run the same steps again under cProfile for the time in compiled
+    kernels."""
+    keys = ("update_s", "update_steps", "plain_s", "plain_steps", "reset_s", "resets", "audit_s", "audits")
+    tally = dict.fromkeys(keys, 0.0)
+    total = _run_batched(num_envs, steps, seed, env_id, kwargs, tally, None)
+    prof = cProfile.Profile(time.process_time)
+    _run_batched(num_envs, steps, seed, env_id, kwargs, None, prof)
+    compiled = compiled_functions()
+    kernel = sum(tt for key, (_, _, tt, _, _) in pstats.Stats(prof).stats.items() if key in compiled)
+    robots = tally["update_s"] + tally["plain_s"] + tally["reset_s"]
+    return BatchedSplit(
+        robot_steps=steps * num_envs,
+        total_s=total,
+        update_steps=int(tally["update_steps"]),
+        update_s=tally["update_s"],
+        audits=int(tally["audits"]),
+        audit_s=tally["audit_s"],
+        plain_steps=int(tally["plain_steps"]),
+        plain_s=tally["plain_s"],
+        resets=int(tally["resets"]),
+        reset_s=tally["reset_s"],
+        loop_s=max(0.0, total - robots),
+        kernel_s=kernel,
+    )
+
+
+def print_batched_split(s: BatchedSplit) -> dict[str, float]:
+    """Print `batched_split`'s figures per robot-step; returns ``{part: CPU s per robot-step}``."""
+    n = s.robot_steps
+    parts = {
+        "steps with a measurement update": (s.update_s, f"{s.update_steps} robot-steps"),
+        "  of which convergence audits": (s.audit_s, f"{s.audits} audits"),
+        "steps without an update": (s.plain_s, f"{s.plain_steps} robot-steps"),
+        "autoresets": (s.reset_s, f"{s.resets} robot-steps"),
+        "the vector env's own": (s.loop_s, ""),
+        "compiled kernels (cProfile, same steps)": (s.kernel_s, f"alone: {n / s.kernel_s:.0f} robot-steps per CPU-s"),
+    }
+    print(f"robot-step: {1e6 * s.total_s / n:.0f} us CPU ({n / s.total_s:.0f} robot-steps per CPU-second, {n} run)")
+    for k, (v, note) in parts.items():
+        print(f"{k:<40} {1e6 * v / n:8.0f} us  {100 * v / s.total_s:5.1f} %  {note}")
+    return {k: v / n for k, (v, _) in parts.items()}
+
+
 def run(args: Args) -> dict[str, float]:
     """Profile as ``args`` says and print the stages; returns ``{stage: CPU s per step}``."""
     import gymnasium as gym
@@ -143,6 +321,12 @@ def run(args: Args) -> dict[str, float]:
     reloc: dict = {"fast_path": not args.reference}
     if args.particles:
         reloc["n_particles"] = args.particles
+    if args.robots:
+        return print_batched_split(
+            batched_split(
+                args.robots, args.steps, args.seed, layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc
+            )
+        )
     env = gym.make("SemReloc-v20", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc).unwrapped
     if args.policy == "random":
         rng = np.random.default_rng(args.seed)

@@ -1,0 +1,35 @@
+"""`agents.tools.profile_step`: the batched env's CPU split (`batched_split`) and what it counts as compiled."""
+
+import pytest
+
+from agents.tools import profile_step
+from filters.localization import audit
+from filters.localization.likelihood_field import log_likelihood_kernel
+from filters.localization.mcl import MonteCarloLocalizer
+
+
+def test_compiled_functions_are_the_numba_kernels():
+    keys = profile_step.compiled_functions()
+    code = log_likelihood_kernel.py_func.__code__
+    assert (code.co_filename, code.co_firstlineno, code.co_name) in keys
+    python_code = MonteCarloLocalizer.update.__code__
+    assert (python_code.co_filename, python_code.co_firstlineno, python_code.co_name) not in keys
+
+
+def test_batched_split_accounts_for_every_robot_step_and_restores_the_filter():
+    before = (MonteCarloLocalizer._audit, audit.best_alternative)
+    s = profile_step.batched_split(3, 12, seed=4, env_id="SemReloc-v20", max_episode_steps=5)
+    assert (MonteCarloLocalizer._audit, audit.best_alternative) == before
+    assert s.robot_steps == 36
+    assert s.update_steps + s.plain_steps + s.resets == s.robot_steps
+    assert s.resets >= 6  # 5-step episodes: each robot restarts at least twice in steps 6-17
+    assert s.update_steps > 0 and s.plain_steps > 0
+    assert s.update_s + s.plain_s + s.reset_s <= s.total_s
+    assert 0.0 <= s.audit_s <= s.update_s + s.reset_s
+    assert 0.0 < s.kernel_s < s.total_s * 5  # the profiled run is slower, but its kernels not by much
+    assert s.loop_s >= 0.0
+
+
+def test_profile_step_refuses_a_negative_robot_count():
+    with pytest.raises(ValueError, match="robots"):
+        profile_step.Args(robots=-1)
