@@ -427,10 +427,10 @@ class _Unfused:
 def test_window_shortcuts_give_the_bits_of_the_plain_computation(negative):
     """`window_log_likelihood` shares each entry's cos/sin between scoring and composing, takes the steps
     back (`back_steps`) once per audit, the model keeps each BeamSet's kernel inputs, and with the numba
-    backend each entry is one compiled call (`LikelihoodFieldModel.add_window_entry`): the numbers are
+    backend the whole window is one compiled call (`LikelihoodFieldModel.score_window`): the numbers are
     those of scoring every entry with `beam_log_likelihoods` alone and composing with `compose`, bit for
-    bit; with negative evidence, an entry without lidar (a turn-in-place update), the audit's blurred
-    screen model, and for the returned poses of one entry too."""
+    bit; with negative evidence, an entry without lidar (a turn-in-place update) and the audit's blurred
+    screen model."""
     grid = symmetric_room()
     model = LikelihoodFieldModel(grid, negative=negative)
     path = [np.array([1.2, 1.5, 0.2])]
@@ -465,20 +465,73 @@ def test_window_shortcuts_give_the_bits_of_the_plain_computation(negative):
         model.beam_log_likelihoods(poses, window[0][3], (c, s)), model.beam_log_likelihoods(poses, window[0][3])
     ):
         assert a.tobytes() == b.tobytes()
-    beams = max((e[3] for e in window), key=lambda b: b.n_negative)
-    total = np.zeros(40)
-    moved = model.add_window_entry(poses, (c, s), beams, 0.06, total, steps[0])
-    ll_l, ll_s = model.beam_log_likelihoods(poses, beams)
-    assert total.tobytes() == (0.06 * (ll_l + ll_s)).tobytes()
-    assert moved.tobytes() == compose(poses, steps[0]).tobytes()
-    assert model.add_window_entry(poses, (c, s), window[-1][3], 0.06, total, None) is None
 
 
-def test_the_compiled_window_entry_needs_the_numba_backend():
-    model = LikelihoodFieldModel(symmetric_room(), backend="numpy")
-    p = np.zeros((1, 3))
-    with pytest.raises(ValueError, match="numba backend"):
-        model.add_window_entry(p, (np.ones(1), np.zeros(1)), model.beams(None, None), 1.0, np.zeros(1), None)
+def _window_of(model, path, lidar_at, camera_at, lidar_range=8.0):
+    """A window along ``path``: lidar scans (range ``lidar_range``) at the indices ``lidar_at``, camera scans at
+    ``camera_at``, each entry with the beams ``model`` selects."""
+    grid = model.grid
+    window = []
+    for i, pose in enumerate(path):
+        lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, lidar_range) if i in lidar_at else None
+        semantic = simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0) if i in camera_at else None
+        _, _, beams = model.log_likelihood_terms(pose[None], lidar, semantic)
+        window.append((lidar, semantic, np.zeros(3) if i == 0 else relative(path[i - 1], pose), beams))
+    return window
+
+
+@pytest.mark.parametrize("negative", [None, NegativeEvidenceConfig(p_detect=0.8)])
+def test_one_compiled_call_per_window_gives_the_bits_of_one_per_entry(negative):
+    """`window_scorer` scores a whole window in one compiled call (`LikelihoodFieldModel.score_window`), entries
+    without lidar or camera beams (turn-in-place updates, scans without a camera) reading the tables of the others'
+    range limits: the bits of scoring entry by entry (`beam_log_likelihoods`, `compose`), for 3000 poses whose
+    headings cover the circle (the kernel takes its own cos and sin), the screen's blurred model too, and a window
+    of one entry. Entries whose lidars' range limits differ cannot share tables: scored entry by entry."""
+    grid = symmetric_room()
+    model = LikelihoodFieldModel(grid, negative=negative)
+    path = [np.array([1.2, 1.5, 0.2])]
+    for step in ([0.3, 0.05, 0.1], [0.0, 0.0, 0.4], [0.25, -0.02, -0.2], [0.4, 0.0, 3.1], [0.0, 0.0, -0.5]):
+        path.append(compose(path[-1], np.array(step)))
+    rng = np.random.default_rng(3)
+    poses = path[-1] + rng.normal(0.0, 0.3, (3000, 3))
+    poses[:, 2] = rng.uniform(-4.0, 4.0, 3000)
+    poses[:4, 2] = [np.pi, -np.pi, 0.0, -0.0]
+    windows = {
+        "mixed": _window_of(model, path, lidar_at={0, 1, 3, 4}, camera_at={0, 2, 3, 5}),
+        "one entry": _window_of(model, path[:1], lidar_at={0}, camera_at={0}),
+        "ends without scans": _window_of(model, path[:4], lidar_at={1, 2}, camera_at={1, 2}),
+        "two lidar ranges": _window_of(model, path[:3], lidar_at={0}, camera_at={1, 2})
+        + _window_of(model, path[3:], lidar_at={0}, camera_at={0}, lidar_range=6.0)[0:1],
+    }
+    fused = {}
+    for name, window in windows.items():
+        for m in (model, audit_module.screen_model(model)):
+            steps = audit_module.back_steps(window)
+            packed = m.packed_window([e[3] for e in reversed(window)], steps)
+            fused[name] = packed is not None
+            got = audit_module.window_scorer(m, window, 0.06)(poses)
+            expected = audit_module._window_log_likelihood(m, poses, window, 0.06, steps)
+            assert got.tobytes() == expected.tobytes(), name
+            assert np.isfinite(got).all()
+    assert fused == {"mixed": True, "one entry": True, "ends without scans": True, "two lidar ranges": False}
+    assert window_log_likelihood(model, poses[:0], windows["mixed"], 0.06).shape == (0,)
+
+
+def test_the_numpy_backend_scores_a_window_entry_by_entry():
+    """A numpy-backend model has no compiled window (`LikelihoodFieldModel.packed_window` is None); its window
+    log-likelihood is the numba model's, entry by entry, to the reference's rounding."""
+    grid = symmetric_room()
+    reference, fast = LikelihoodFieldModel(grid, backend="numpy"), LikelihoodFieldModel(grid)
+    path = [np.array([1.2, 1.5, 0.2]), np.array([1.5, 1.55, 0.3])]
+    window = _window_of(reference, path, lidar_at={0, 1}, camera_at={0, 1})
+    assert reference.packed_window([e[3] for e in reversed(window)], audit_module.back_steps(window)) is None
+    assert reference.packed_window([reference.beams(None, None)], []) is None
+    poses = path[-1] + np.random.default_rng(0).normal(0.0, 0.1, (50, 3))
+    np.testing.assert_allclose(
+        window_log_likelihood(reference, poses, window, 0.06),
+        window_log_likelihood(fast, poses, _window_of(fast, path, lidar_at={0, 1}, camera_at={0, 1}), 0.06),
+        rtol=1e-12,
+    )
 
 
 def test_doubt_the_audit_adds_ends_a_held_convergence(monkeypatch):
@@ -557,11 +610,12 @@ def test_local_search_refines_each_place_on_its_own():
     window = [(None, None, np.zeros(3), None)]
     start = np.array([[1.02, 1.0, 0.0], [1.05, 1.01, 0.0], [6.3, 2.2, 1.1]])  # two near misses and a rough guess
     ll = window_log_likelihood(Peaks(), start, window, 1.0)
-    got, got_ll = audit_module._local_search(Peaks(), window, 1.0, start, ll, rng, lambda p: p[:, 0] < 100, [], 16)
+    score = audit_module.window_scorer(Peaks(), window, 1.0)
+    got, got_ll = audit_module._local_search(score, start, ll, rng, lambda p: p[:, 0] < 100, 16)
     assert got.shape == (2, 3)  # the two near misses are one place
     assert np.hypot(*(got[1, :2] - peaks[1, :2])) < np.hypot(*(start[2, :2] - peaks[1, :2]))
     assert got_ll[1] > ll[2] and got_ll[0] >= ll[0]
-    nothing, _ = audit_module._local_search(Peaks(), window, 1.0, start, ll, rng, lambda p: p[:, 0] < 3, [], 16)
+    nothing, _ = audit_module._local_search(score, start, ll, rng, lambda p: p[:, 0] < 3, 16)
     assert nothing[1].tolist() == start[2].tolist()  # no perturbation allowed there: the guess stays
 
 

@@ -16,7 +16,7 @@ from filters.localization.likelihood_field import (
     negative_beams,
     negative_evidence_kernel,
     table_codes,
-    window_entry_kernel,
+    window_kernel,
 )
 from filters.localization.likelihood_reference import log_likelihood_terms_reference
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
@@ -235,16 +235,16 @@ def _negative_case(draw):
     sin_t = np.round(np.sin(theta)) if exact else np.sin(theta)
     out = np.array(draw(st.lists(st.sampled_from([0.0, -0.0, -1.5, 2.0, math.nan]), min_size=n, max_size=n)))
     ox, oy, inv_res = draw(st.sampled_from([(0.0, 0.0, 1.0), (-0.5, 0.25, 2.0), (0.1, -0.3, 20.0)]))
-    return x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out
+    return x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out, theta
 
 
 @given(_negative_case())
 @settings(max_examples=300, deadline=None)
 def test_negative_kernels_give_the_bits_of_the_plain_running_minimum(case):
     """The coded table and the two running minima of `negative_evidence_kernel` (and of the negative part
-    of `window_entry_kernel`) give the bytes of one running minimum over the plain table, for any table
+    of `window_kernel`) give the bytes of one running minimum over the plain table, for any table
     (-0.0 and 0.0, NaN, infinities), points on cell faces or off the map, ``out`` starting at -0.0."""
-    x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out = case
+    x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, out, theta = case
     codes, values = table_codes(table)
     assert values[codes].tobytes() == table.tobytes()
     want = out.copy()
@@ -252,16 +252,19 @@ def test_negative_kernels_give_the_bits_of_the_plain_running_minimum(case):
     got = out.copy()
     negative_evidence_kernel(x, y, cos_t, sin_t, nu, nv, starts, codes, values, ox, oy, inv_res, w, h, got)
     assert got.tobytes() == want.tobytes()
-    # window_entry_kernel without lidar/semantic beams: total += 1.0 * (0.0 + (0.0 + negative))
+    # window_kernel, one entry of negative-evidence points only: total += 1.0 * (0.0 + (0.0 + negative)); its own
+    # cos and sin (NumPy's here, the C library's), nothing added without a negative beam
     neg = np.zeros(x.size)
-    _negative_evidence_before(x, y, cos_t, sin_t, nu, nv, starts, table, ox, oy, inv_res, w, h, neg)
-    want_total = out + 1.0 * (0.0 + (0.0 + neg))
-    p = np.ascontiguousarray(np.stack([x, y, np.zeros(x.size)], axis=1))
+    c, s = np.cos(theta), np.sin(theta)
+    _negative_evidence_before(x, y, c, s, nu, nv, starts, table, ox, oy, inv_res, w, h, neg)
+    want_total = out + 1.0 * (0.0 + (0.0 + neg)) if starts.size > 1 else out
+    p = np.ascontiguousarray(np.stack([x, y, theta], axis=1))
     total = out.copy()
-    none_f, none_i = np.zeros(0), np.zeros(0, np.int64)
-    window_entry_kernel(
-        p, cos_t, sin_t, none_f, none_f, none_i, none_i, 0, np.zeros(1), nu, nv, starts, codes, values,
-        ox, oy, inv_res, w, h, 1.0, total, np.zeros(3), False, p,
+    none_f, two_zeros = np.zeros(0), np.zeros(2, np.int64)
+    window_kernel(
+        p, np.zeros(1), none_f, none_f, np.zeros(0, np.int64), np.zeros(0, np.int64), two_zeros,
+        np.zeros(1, np.int64), nu, nv, np.array([0, nu.size]), starts, np.array([0, starts.size]), codes, values,
+        np.zeros((0, 3)), ox, oy, inv_res, w, h, 1.0, total,
     )  # fmt: skip
     assert total.tobytes() == want_total.tobytes()
 

@@ -42,7 +42,7 @@ import numpy as np
 
 from filters.localization.likelihood_field import BeamSet, LikelihoodFieldModel, _checked_poses
 from filters.mapping.grid import GridMap
-from filters.pose import compose, cos_sin, relative, wrap_angle
+from filters.pose import compose, relative, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.smc.resampling import inverse_cdf
 
@@ -111,6 +111,27 @@ def back_steps(window: Window) -> list[np.ndarray]:
     return [relative(into, origin) for _, _, into, _ in reversed(window[1:])]
 
 
+def window_scorer(model, window: Window, scale: float, steps: list[np.ndarray] | None = None):
+    """``score(poses (M, 3)) -> (M,)``: `window_log_likelihood` of ``window`` with ``model`` and ``scale`` for
+    any poses, its preparation done once (the steps back, and with a numba `LikelihoodFieldModel` and every
+    entry's beams at hand the whole window's kernel inputs: each call is then one compiled call,
+    `LikelihoodFieldModel.score_window`)."""
+    steps = back_steps(window) if steps is None else steps
+    packed = None
+    if isinstance(model, LikelihoodFieldModel) and model.backend == "numba" and all(e[3] is not None for e in window):
+        packed = model.packed_window([e[3] for e in reversed(window)], steps)
+    if packed is not None:
+
+        def score(poses: np.ndarray) -> np.ndarray:
+            p = _checked_poses(poses)
+            total = np.zeros(p.shape[0])
+            model.score_window(packed, p, scale, total)
+            return np.where(np.isfinite(total), total, -np.inf)
+
+        return score
+    return lambda poses: _window_log_likelihood(model, poses, window, scale, steps)
+
+
 def window_log_likelihood(
     model, poses: np.ndarray, window: Window, scale: float, steps: list[np.ndarray] | None = None
 ) -> np.ndarray:
@@ -120,17 +141,17 @@ def window_log_likelihood(
     ``model``: ``log_likelihood_terms(poses, lidar, semantic) -> (lidar_ll, semantic_ll, beams)``
     (and, if it has one, ``beam_log_likelihoods(poses, beams, trig)``, used for entries that carry
     their beams); ``scale``: the filter's ``likelihood_scale``; ``steps``: `back_steps` of ``window``
-    if the caller scores it more than once (None: computed here).
+    if the caller has them (None: computed here). To score one window more than once, `window_scorer`
+    prepares it once.
     """
+    return window_scorer(model, window, scale, steps)(poses)
+
+
+def _window_log_likelihood(model, poses: np.ndarray, window: Window, scale: float, steps: list[np.ndarray]):
+    """`window_log_likelihood` entry by entry, with the model's own calls (``beam_log_likelihoods`` for entries that
+    carry their beams)."""
     p = np.ascontiguousarray(poses, dtype=np.float64)
     total = np.zeros(p.shape[0])
-    steps = back_steps(window) if steps is None else steps
-    if isinstance(model, LikelihoodFieldModel) and model.backend == "numba" and all(e[3] is not None for e in window):
-        p = _checked_poses(p)  # one compiled call per entry, the same numbers as the loop below
-        for i, (_, _, _, beams) in enumerate(reversed(window)):
-            trig = cos_sin(p[:, 2])
-            p = model.add_window_entry(p, trig, beams, scale, total, steps[i] if i < len(steps) else None)
-        return np.where(np.isfinite(total), total, -np.inf)
     by_beams = getattr(model, "beam_log_likelihoods", None)
     for i, (lidar, semantic, _, beams) in enumerate(reversed(window)):
         c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
@@ -201,33 +222,25 @@ def best_alternative(
     def is_out(p: np.ndarray) -> np.ndarray:
         return outside(p, mean, min_dist_m, min_heading_rad)
 
-    steps = back_steps(window)
-    _, l_ref = _refined_best(model, window, scale, ref, rng, lambda p: ~is_out(p), steps, places)
-    pose, l_alt = _refined_best(model, window, scale, alts, rng, is_out, steps, places)
+    score = window_scorer(model, window, scale)
+    _, l_ref = _refined_best(score, ref, rng, lambda p: ~is_out(p), places)
+    pose, l_alt = _refined_best(score, alts, rng, is_out, places)
     if not (np.isfinite(l_ref) and np.isfinite(l_alt)):
         return None
     return Alternative(pose=pose, log_ratio=float(l_alt - l_ref))
 
 
-def _refined_best(
-    model,
-    window: Window,
-    scale: float,
-    poses: np.ndarray,
-    rng: np.random.Generator,
-    keep,
-    steps: list[np.ndarray],
-    places: int = 0,
-):
-    """``(pose, window log-likelihood)`` of the best pose found from ``poses`` by a coarse-to-fine random
+def _refined_best(score, poses: np.ndarray, rng: np.random.Generator, keep, places: int = 0):
+    """``(pose, window log-likelihood)`` (``score``: a `window_scorer`) of the best pose found from ``poses`` by a
+    coarse-to-fine random
     search: in each round of `REFINE_STEPS`, `REFINE_DRAWS` perturbations of each of the `REFINE_BEST`
     best poses so far, limited to those where ``keep`` is True. The hypothesis and its alternatives
     are searched alike, so neither wins by the search alone. With ``places`` the best poses of that many
     places are first refined each on its own (`_local_search`) and join the poses searched."""
     best_poses = np.asarray(poses, dtype=np.float64)
-    best_ll = window_log_likelihood(model, best_poses, window, scale, steps)
+    best_ll = score(best_poses)
     if places:
-        local, local_ll = _local_search(model, window, scale, best_poses, best_ll, rng, keep, steps, places)
+        local, local_ll = _local_search(score, best_poses, best_ll, rng, keep, places)
         best_poses, best_ll = np.vstack([best_poses, local]), np.concatenate([best_ll, local_ll])
     for std in REFINE_STEPS:
         top = best_poses[np.argsort(-best_ll, kind="stable")[:REFINE_BEST]]
@@ -235,7 +248,7 @@ def _refined_best(
         tried[:, 2] = wrap_angle(tried[:, 2])
         tried = tried[keep(tried)]
         best_poses = np.vstack([best_poses, tried])
-        best_ll = np.concatenate([best_ll, window_log_likelihood(model, tried, window, scale, steps)])
+        best_ll = np.concatenate([best_ll, score(tried)])
     i = int(np.argmax(best_ll))
     return best_poses[i].copy(), float(best_ll[i])
 
@@ -303,18 +316,16 @@ def _distinct_kernel(poses, ll, places, place_m, place_rad):  # pragma: no cover
     return picked[:k]
 
 
-def _local_search(
-    model, window: Window, scale: float, poses: np.ndarray, ll: np.ndarray, rng, keep, steps, places: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(poses (P, 3), window log-likelihoods (P,))``: the best-fitting pose of each of up to ``places``
-    different places among ``poses`` (``ll`` their window log-likelihoods; places at least `PLACE_M` or
-    `PLACE_RAD` apart, best first), each refined on its own by `LOCAL_STEPS` rounds of `LOCAL_DRAWS`
-    perturbations (where ``keep`` is True), so that a place whose first pose was a rough guess is not
-    dropped for the near misses of a better-guessed one."""
+def _local_search(score, poses: np.ndarray, ll: np.ndarray, rng, keep, places: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(poses (P, 3), window log-likelihoods (P,))`` (``score``: a `window_scorer`): the best-fitting pose of each
+    of up to ``places`` different places among ``poses`` (``ll`` their window log-likelihoods; places at least
+    `PLACE_M` or `PLACE_RAD` apart, best first), each refined on its own by `LOCAL_STEPS` rounds of `LOCAL_DRAWS`
+    perturbations (where ``keep`` is True), so that a place whose first pose was a rough guess is not dropped for
+    the near misses of a better-guessed one."""
     picked = _distinct_places(poses, ll, places)
     if not picked:
         return poses[picked].copy(), ll[picked].copy()
-    return _hill_climb(model, window, scale, poses[picked], rng, keep, steps, LOCAL_STEPS, ll[picked])
+    return _hill_climb(score, poses[picked], rng, keep, LOCAL_STEPS, ll[picked])
 
 
 def screened_places(
@@ -345,16 +356,17 @@ def screened_places(
         return np.zeros((0, 3))
     blurred = screen_model(model)
     short = [(lid, sem, d, _positive(b, SCREEN_LIDAR_STRIDE)) for lid, sem, d, b in _thinned(window, SCREEN_ENTRIES)]
-    picked = _distinct_places(grid_poses, window_log_likelihood(blurred, grid_poses, short, scale), SCREEN_PLACES)
+    coarse = window_scorer(blurred, short, scale)
+    picked = _distinct_places(grid_poses, coarse(grid_poses), SCREEN_PLACES)
     if not picked:
         return np.zeros((0, 3))
 
     def keep(p: np.ndarray) -> np.ndarray:
         return outside(p, mean, min_dist_m, min_heading_rad)
 
-    best, ll = _hill_climb(blurred, short, scale, grid_poses[picked], rng, keep, back_steps(short), SCREEN_COARSE_STEPS)
+    best, ll = _hill_climb(coarse, grid_poses[picked], rng, keep, SCREEN_COARSE_STEPS)
     best = best[np.argsort(-ll, kind="stable")[:SCREEN_REFINED]]
-    best, _ = _hill_climb(model, window, scale, best, rng, keep, back_steps(window), SCREEN_FINE_STEPS)
+    best, _ = _hill_climb(window_scorer(model, window, scale), best, rng, keep, SCREEN_FINE_STEPS)
     return best
 
 
@@ -370,19 +382,19 @@ def _positive(beams: BeamSet | None, lidar_stride: int = 1) -> BeamSet | None:
     )  # fmt: skip
 
 
-def _hill_climb(model, window: Window, scale: float, poses: np.ndarray, rng, keep, steps, rounds, ll=None):
-    """``(poses (P, 3), window log-likelihoods (P,))``: each of ``poses`` moved, round by round of ``rounds``
-    (standard deviations), to the best of `LOCAL_DRAWS` perturbations of it where ``keep`` is True, if better
-    (``ll``: the poses' window log-likelihoods if known)."""
+def _hill_climb(score, poses: np.ndarray, rng, keep, rounds, ll=None):
+    """``(poses (P, 3), window log-likelihoods (P,))`` (``score``: a `window_scorer`): each of ``poses`` moved,
+    round by round of ``rounds`` (standard deviations), to the best of `LOCAL_DRAWS` perturbations of it where
+    ``keep`` is True, if better (``ll``: the poses' window log-likelihoods if known)."""
     best = np.array(poses, dtype=np.float64)
-    best_ll = window_log_likelihood(model, best, window, scale, steps) if ll is None else np.array(ll, dtype=np.float64)
+    best_ll = score(best) if ll is None else np.array(ll, dtype=np.float64)
     k = best.shape[0]
     rows = np.arange(k)
     for std in rounds:
         tried = best[:, None, :] + rng.normal(0.0, std, (k, LOCAL_DRAWS, 3))
         tried[..., 2] = wrap_angle(tried[..., 2])
         flat = tried.reshape(-1, 3)
-        t_ll = np.where(keep(flat), window_log_likelihood(model, flat, window, scale, steps), -np.inf)
+        t_ll = np.where(keep(flat), score(flat), -np.inf)
         t_ll = t_ll.reshape(k, LOCAL_DRAWS)
         j = np.argmax(t_ll, axis=1)
         better = t_ll[rows, j] > best_ll

@@ -262,11 +262,10 @@ _EMPTY_F = np.zeros(0)
 _EMPTY_F.setflags(write=False)
 _ZERO_START = np.zeros(1, np.int64)
 _ZERO_START.setflags(write=False)
-_NO_CODES = np.zeros(1, np.uint16)  # read-only, as `negative_codes`': one compiled signature of `window_entry_kernel`
+_NO_CODES = np.zeros(1, np.uint16)  # read-only, as `negative_codes`': one compiled signature of `window_kernel`
 _NO_CODES.setflags(write=False)
 _NO_VALUES = np.zeros(1)
 _NO_VALUES.setflags(write=False)
-_NO_STEP = np.zeros(3)  # writable, as `audit.back_steps`' steps: likewise
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_I.setflags(write=False)
 _ZERO_POSE = np.zeros(3)  # read-only, as the scans' sensor poses: one compiled signature of `beam_parts`
@@ -469,21 +468,23 @@ def negative_evidence_kernel(
 
 
 @numba.njit(cache=True, nogil=True)
-def window_entry_kernel(
+def window_kernel(
     p,
-    cos_t,
-    sin_t,
+    flat,
     lu,
     lv,
     offset,
     outside,
+    b_starts,
     n_lidar,
-    flat,
     nu,
     nv,
-    starts,
+    p_starts,
+    neg_starts,
+    s_starts,
     codes,
     values,
+    steps,
     ox,
     oy,
     inv_res,
@@ -491,42 +492,85 @@ def window_entry_kernel(
     h,
     scale,
     total,
-    step,
-    back,
-    out,
 ):  # pragma: no cover - compiled
-    """One entry of a window log-likelihood (`filters.localization.audit.window_log_likelihood`) for the
-    poses ``p`` ``(M, 3)``, in one call: ``total[i] += scale * (lidar_ll + semantic_ll)`` of pose ``i`` as
-    `log_likelihood_kernel` then `negative_evidence_kernel` compute them (``lu.size == 0`` or
-    ``starts.size == 1``: that part is 0), then, if ``back``, ``out[i]`` = ``p[i]`` composed with the
-    robot-frame ``step`` (`filters.pose.compose`: the same operations, so the same bits).
+    """A whole window log-likelihood (`filters.localization.audit.window_log_likelihood`) of the poses ``p``
+    ``(M, 3)`` in one call, added to ``total`` ``(M,)``: entry after entry, newest first, ``scale * (lidar_ll +
+    semantic_ll)`` as `log_likelihood_kernel` then `negative_evidence_kernel` compute them for the entry's beams
+    (an entry with neither beams nor negative-evidence points adds nothing), each pose carried back along
+    ``steps[e]`` ``(E - 1, 3)`` between entries as `filters.pose.compose` does; its cos and sin are taken here (the
+    C library's, as `filters.pose.cos_sin`'s). The same bits as scoring entry by entry with
+    `LikelihoodFieldModel.beam_log_likelihoods` and composing with `compose`.
 
-    ``cos_t``/``sin_t`` are NumPy's ``cos``/``sin`` of ``p[:, 2]``, passed in for the same bits as the
-    unfused calls."""
-    nb = lu.shape[0]
-    ns = nu.shape[0]
-    nneg = starts.shape[0] - 1
-    idx = np.empty(nb, np.int64)
+    Entry ``e``'s beams are ``[b_starts[e], b_starts[e + 1])`` of ``lu, lv, offset, outside`` (its first
+    ``n_lidar[e]`` lidar); its negative-evidence points ``[p_starts[e], p_starts[e + 1])`` of ``nu, nv``, beam by
+    beam as ``neg_starts[s_starts[e]:s_starts[e + 1]]`` says (starts counted from the entry's first point; a
+    single start: none)."""
+    n_e = n_lidar.shape[0]
+    most_b = 1
+    most_p = 1
+    for e in range(n_e):
+        most_b = max(most_b, b_starts[e + 1] - b_starts[e])
+        most_p = max(most_p, p_starts[e + 1] - p_starts[e])
+    idx = np.empty(most_b, np.int64)
     acc = np.empty(16)
-    n_idx = np.empty(ns, np.uint64)
+    n_idx = np.empty(most_p, np.uint64)
     two_pi = 2.0 * np.pi
     for i in range(p.shape[0]):
-        pu, pv = (p[i, 0] - ox) * inv_res, (p[i, 1] - oy) * inv_res
-        ll_l = 0.0
-        ll_s = 0.0
-        if nb:
-            _beam_cells(pu, pv, cos_t[i], sin_t[i], lu, lv, offset, outside, w, h, idx)
-            ll_l = _gather_sum(flat, idx, 0, n_lidar, acc)
-            ll_s = _gather_sum(flat, idx, n_lidar, nb, acc)
-        if nneg:
-            _negative_cells(pu, pv, cos_t[i], sin_t[i], nu, nv, w, h, n_idx)
-            ll_s += _negative_sum(codes, values, n_idx, starts)
-        total[i] += scale * (ll_l + ll_s)
-        if back:
-            out[i, 0] = p[i, 0] + cos_t[i] * step[0] - sin_t[i] * step[1]
-            out[i, 1] = p[i, 1] + sin_t[i] * step[0] + cos_t[i] * step[1]
-            y = (p[i, 2] + step[2]) + np.pi  # wrapped as wrap_angle, the modulo skipped where it is y itself
-            out[i, 2] = y - np.pi if 0.0 < y < two_pi else y % two_pi - np.pi
+        x = p[i, 0]
+        y = p[i, 1]
+        th = p[i, 2]
+        t = total[i]
+        for e in range(n_e):
+            c = math.cos(th)
+            s = math.sin(th)
+            b0 = b_starts[e]
+            nb = b_starts[e + 1] - b0
+            q0 = s_starts[e]
+            q1 = s_starts[e + 1]
+            if nb or q1 - q0 > 1:
+                pu, pv = (x - ox) * inv_res, (y - oy) * inv_res
+                ll_l = 0.0
+                ll_s = 0.0
+                if nb:
+                    b1 = b0 + nb
+                    _beam_cells(pu, pv, c, s, lu[b0:b1], lv[b0:b1], offset[b0:b1], outside[b0:b1], w, h, idx)
+                    ll_l = _gather_sum(flat, idx, 0, n_lidar[e], acc)
+                    ll_s = _gather_sum(flat, idx, n_lidar[e], nb, acc)
+                if q1 - q0 > 1:
+                    k0 = p_starts[e]
+                    k1 = p_starts[e + 1]
+                    _negative_cells(pu, pv, c, s, nu[k0:k1], nv[k0:k1], w, h, n_idx)
+                    ll_s += _negative_sum(codes, values, n_idx, neg_starts[q0:q1])
+                t += scale * (ll_l + ll_s)
+            if e + 1 < n_e:
+                dx = steps[e, 0]
+                dy = steps[e, 1]
+                x, y = x + c * dx - s * dy, y + s * dx + c * dy
+                yy = (th + steps[e, 2]) + np.pi  # wrapped as wrap_angle, the modulo skipped where it is yy itself
+                th = yy - np.pi if 0.0 < yy < two_pi else yy % two_pi - np.pi
+        total[i] = t
+
+
+@dataclass(frozen=True, eq=False)
+class PackedWindow:
+    """A window's entries (newest first) as `window_kernel` reads them (`LikelihoodFieldModel.packed_window`): the
+    model's beams of every entry in one array each, and the steps back between entries. Read-only."""
+
+    flat: np.ndarray
+    lu: np.ndarray
+    lv: np.ndarray
+    offset: np.ndarray
+    outside: np.ndarray
+    b_starts: np.ndarray
+    n_lidar: np.ndarray
+    nu: np.ndarray
+    nv: np.ndarray
+    p_starts: np.ndarray
+    neg_starts: np.ndarray
+    s_starts: np.ndarray
+    codes: np.ndarray
+    values: np.ndarray
+    steps: np.ndarray
 
 
 def _checked_poses(poses: np.ndarray) -> np.ndarray:
@@ -837,42 +881,83 @@ class LikelihoodFieldModel:
                     raise ValueError(f"trig must be (cos, sin) of the poses' headings: two float64 arrays of shape {n}")
         return self._scored(p, beams, trig)
 
-    def add_window_entry(
-        self,
-        p: np.ndarray,
-        trig: tuple[np.ndarray, np.ndarray],
-        beams: BeamSet,
-        scale: float,
-        total: np.ndarray,
-        step: np.ndarray | None,
-    ) -> np.ndarray | None:
-        """One entry of `filters.localization.audit.window_log_likelihood` in one compiled call (numba
-        backend only): adds ``scale * (lidar_ll + semantic_ll)`` of `beams` for the checked poses ``p``
-        ``(M, 3)`` to ``total`` ``(M,)`` (the numbers `beam_log_likelihoods` gives, the same bits) and
-        returns ``p`` composed with the robot-frame ``step`` ``(3,)`` (`filters.pose.compose`, the same
-        bits), or None if ``step`` is None. ``trig``: NumPy's ``(cos, sin)`` of ``p[:, 2]``.
+    def packed_window(self, beams: list[BeamSet], steps: list[np.ndarray]) -> PackedWindow | None:
+        """The kernel inputs of a window whose entries, newest first, have the `BeamSet` s ``beams`` (this model's)
+        and the steps back ``steps`` (`filters.localization.audit.back_steps`: ``len(beams) - 1`` robot-frame
+        ``(3,)`` steps, the first taking a pose at the newest entry to the one before), for `score_window`; None
+        if `window_kernel` cannot score it in one call (the numpy backend, no entry, fewer steps than that, or
+        entries whose scans' range limits differ and so read different tables)."""
+        n = len(beams)
+        if self.backend != "numba" or n == 0 or len(steps) < n - 1:
+            return None
+        flat = self._shared_tables(beams)
+        if flat is None:
+            return None
+        prepared = [self._prepared(b) for b in beams]
+        negative = [self._weighs_negative(b) for b in beams]
+        b_starts = np.cumsum([0] + [b.lx.size for b in beams])
+        p_starts = np.cumsum([0] + [b.nx.size if neg else 0 for b, neg in zip(beams, negative)])
+        starts = [b.n_starts if neg else _ZERO_START for b, neg in zip(beams, negative)]
+        codes, values = self.negative_codes() if any(negative) else (_NO_CODES, _NO_VALUES)
+        packed = PackedWindow(
+            flat=flat,
+            lu=np.concatenate([prep[1] for prep in prepared]),
+            lv=np.concatenate([prep[2] for prep in prepared]),
+            offset=np.concatenate([prep[3] for prep in prepared]),
+            outside=np.concatenate([prep[4] for prep in prepared]),
+            b_starts=b_starts,
+            n_lidar=np.array([b.n_lidar for b in beams], dtype=np.int64),
+            nu=np.concatenate([prep[5] for prep, neg in zip(prepared, negative) if neg] or [_EMPTY_F]),
+            nv=np.concatenate([prep[6] for prep, neg in zip(prepared, negative) if neg] or [_EMPTY_F]),
+            p_starts=p_starts,
+            neg_starts=np.concatenate(starts),
+            s_starts=np.cumsum([0] + [a.size for a in starts]),
+            codes=codes,
+            values=values,
+            steps=np.array([np.asarray(d, dtype=np.float64).reshape(3) for d in steps[: n - 1]]).reshape(n - 1, 3),
+        )
+        for name in ("lu", "lv", "offset", "outside", "b_starts", "n_lidar", "nu", "nv", "p_starts"):
+            getattr(packed, name).setflags(write=False)
+        for name in ("neg_starts", "s_starts", "steps"):
+            getattr(packed, name).setflags(write=False)
+        return packed
 
-        Raises:
-            ValueError: the model's backend is not ``"numba"``.
-        """
-        if self.backend != "numba":
-            raise ValueError(f"add_window_entry needs the numba backend, this model's is {self.backend!r}")
-        back = step is not None
-        out = np.empty_like(p) if back else p
-        negative = self._weighs_negative(beams)
-        if p.shape[0] and (beams.lx.size or negative or back):
-            flat, lu, lv, offset, outside, nu, nv = self._prepared(beams)
+    def _shared_tables(self, beams: list[BeamSet]) -> np.ndarray | None:
+        """The kernels' ``flat`` tables every one of ``beams`` reads its values from, or None if there are none.
+
+        A `BeamSet`'s tables are those of its scans' range limits (`_log_tables`); the lidar table depends on the
+        lidar's, the class tables on the camera's only. An entry without lidar beams (a turn-in-place update) has
+        the lidar limit of no scan, an entry without labelled beams that of no camera: they read the same values
+        from the tables of the other entries' limits. None where two entries with lidar (or labelled) beams
+        differ in their limit, or the tables of the limits found are not built yet (`_prepared` built each
+        entry's own)."""
+        lidar = {b.lidar_range_max_m for b in beams if b.n_lidar}
+        semantic = {b.semantic_range_max_m for b in beams if b.lx.size > b.n_lidar}
+        if len(lidar) > 1 or len(semantic) > 1:
+            return None
+        first = beams[0]
+        key = (
+            float(lidar.pop() if lidar else first.lidar_range_max_m),
+            float(semantic.pop() if semantic else first.semantic_range_max_m),
+        )
+        for b in beams:  # the entries' own tables, built (and kept) by _prepared
+            self._prepared(b)
+        hit = self._tables.get(key)
+        return None if hit is None else hit[2]
+
+    def score_window(self, packed: PackedWindow, p: np.ndarray, scale: float, total: np.ndarray) -> None:
+        """Add ``scale`` times the window log-likelihood of ``packed`` (`packed_window`, of this model) for the
+        checked poses ``p`` ``(M, 3)`` (contiguous float64, finite) to ``total`` ``(M,)``, in one compiled call
+        (`window_kernel`)."""
+        if p.shape[0]:
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
-            starts, (codes, values) = (
-                (beams.n_starts, self.negative_codes()) if negative else (_ZERO_START, (_NO_CODES, _NO_VALUES))
-            )
-            window_entry_kernel(
-                p, trig[0], trig[1], lu, lv, offset, outside, beams.n_lidar, flat, nu, nv, starts, codes, values,
-                float(ox), float(oy), 1.0 / self.grid.resolution_m, w, h, float(scale), total,
-                step if back else _NO_STEP, back, out,
+            window_kernel(
+                p, packed.flat, packed.lu, packed.lv, packed.offset, packed.outside, packed.b_starts,
+                packed.n_lidar, packed.nu, packed.nv, packed.p_starts, packed.neg_starts, packed.s_starts,
+                packed.codes, packed.values, packed.steps, float(ox), float(oy), 1.0 / self.grid.resolution_m, w, h,
+                float(scale), total,
             )  # fmt: skip
-        return out if back else None
 
     def _weighs_negative(self, beams: BeamSet) -> bool:
         """Whether `beams` has negative-evidence points this model weighs. A model without negative evidence
