@@ -7,10 +7,15 @@ import pytest
 
 import filters.localization.audit as audit_module
 from filters.localization.audit import Alternative, best_alternative, outside, shaped_like, window_log_likelihood
-from filters.localization.likelihood_field import LikelihoodFieldModel, NegativeEvidenceConfig, cached_model
+from filters.localization.likelihood_field import (
+    LikelihoodFieldModel,
+    NegativeEvidenceConfig,
+    cached_model,
+    step_back,
+)
 from filters.localization.mcl import MCLConfig, MonteCarloLocalizer
 from filters.mapping.grid import GridMap
-from filters.pose import compose, relative
+from filters.pose import compose, cos_sin, relative
 from filters.simulators.grid_raycast import simulate_lidar, simulate_semantic
 from tests.test_mcl import CAMERA_ANGLES, LIDAR_ANGLES, mirror, symmetric_room
 
@@ -467,14 +472,14 @@ def test_window_shortcuts_give_the_bits_of_the_plain_computation(negative):
         assert a.tobytes() == b.tobytes()
 
 
-def _window_of(model, path, lidar_at, camera_at, lidar_range=8.0):
-    """A window along ``path``: lidar scans (range ``lidar_range``) at the indices ``lidar_at``, camera scans at
-    ``camera_at``, each entry with the beams ``model`` selects."""
+def _window_of(model, path, lidar_at, camera_at, lidar_range=8.0, camera_range=5.0):
+    """A window along ``path``: lidar scans (range ``lidar_range``) at the indices ``lidar_at``, camera scans (range
+    ``camera_range``) at ``camera_at``, each entry with the beams ``model`` selects."""
     grid = model.grid
     window = []
     for i, pose in enumerate(path):
         lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, lidar_range) if i in lidar_at else None
-        semantic = simulate_semantic(grid, pose, CAMERA_ANGLES, 5.0) if i in camera_at else None
+        semantic = simulate_semantic(grid, pose, CAMERA_ANGLES, camera_range) if i in camera_at else None
         _, _, beams = model.log_likelihood_terms(pose[None], lidar, semantic)
         window.append((lidar, semantic, np.zeros(3) if i == 0 else relative(path[i - 1], pose), beams))
     return window
@@ -496,12 +501,27 @@ def test_one_compiled_call_per_window_gives_the_bits_of_one_per_entry(negative):
     poses = path[-1] + rng.normal(0.0, 0.3, (3000, 3))
     poses[:, 2] = rng.uniform(-4.0, 4.0, 3000)
     poses[:4, 2] = [np.pi, -np.pi, 0.0, -0.0]
+
+    def joined(*parts):  # windows of the path's pieces, each piece's first step the one from the piece before
+        out = []
+        for part in parts:
+            if out:
+                part = [(part[0][0], part[0][1], relative(path[len(out) - 1], path[len(out)]), part[0][3]), *part[1:]]
+            out += part
+        return out
+
     windows = {
         "mixed": _window_of(model, path, lidar_at={0, 1, 3, 4}, camera_at={0, 2, 3, 5}),
         "one entry": _window_of(model, path[:1], lidar_at={0}, camera_at={0}),
         "ends without scans": _window_of(model, path[:4], lidar_at={1, 2}, camera_at={1, 2}),
-        "two lidar ranges": _window_of(model, path[:3], lidar_at={0}, camera_at={1, 2})
-        + _window_of(model, path[3:], lidar_at={0}, camera_at={0}, lidar_range=6.0)[0:1],
+        "two lidar ranges": joined(
+            _window_of(model, path[:3], lidar_at={0, 1, 2}, camera_at={0, 1, 2}),
+            _window_of(model, path[3:], lidar_at={0, 1, 2}, camera_at={0, 1, 2}, lidar_range=6.0),
+        ),
+        "two camera ranges": joined(
+            _window_of(model, path[:3], lidar_at={0, 1, 2}, camera_at={0, 1, 2}),
+            _window_of(model, path[3:], lidar_at={0, 1, 2}, camera_at={0, 1, 2}, camera_range=4.0),
+        ),
     }
     fused = {}
     for name, window in windows.items():
@@ -513,8 +533,49 @@ def test_one_compiled_call_per_window_gives_the_bits_of_one_per_entry(negative):
             expected = audit_module._window_log_likelihood(m, poses, window, 0.06, steps)
             assert got.tobytes() == expected.tobytes(), name
             assert np.isfinite(got).all()
-    assert fused == {"mixed": True, "one entry": True, "ends without scans": True, "two lidar ranges": False}
+    assert fused == {
+        "mixed": True, "one entry": True, "ends without scans": True, "two lidar ranges": False,
+        "two camera ranges": False,
+    }  # fmt: skip
+    with pytest.raises(ValueError, match="need 5 steps back for a window of 6, got 4"):
+        audit_module.window_scorer(model, windows["mixed"], 0.06, audit_module.back_steps(windows["mixed"])[1:])
     assert window_log_likelihood(model, poses[:0], windows["mixed"], 0.06).shape == (0,)
+
+
+def test_the_kernels_step_back_is_compose():
+    """`likelihood_field.step_back`, which carries a pose back between a window's entries in `window_kernel`, gives
+    the bits of `compose` (headings on and just past the wrap, steps that cross it)."""
+    rng = np.random.default_rng(5)
+    poses = np.column_stack([rng.uniform(-50, 50, 4000), rng.uniform(-50, 50, 4000), rng.uniform(-np.pi, np.pi, 4000)])
+    poses[:6, 2] = [np.pi, -np.pi, np.nextafter(np.pi, 0.0), np.nextafter(-np.pi, 0.0), 0.0, -0.0]
+    steps = rng.normal(0.0, [0.3, 0.1, 2.0], (4000, 3))
+    steps[:6, 2] = [np.pi, -np.pi, 1e-17, -1e-17, 2 * np.pi, -2 * np.pi]
+    c, s = cos_sin(poses[:, 2])
+    want = compose(poses, steps, (c, s))
+    got = np.array([step_back(*p, ci, si, *d) for p, ci, si, d in zip(poses, c, s, steps)])
+    assert got.tobytes() == want.tobytes()
+
+
+def test_score_window_refuses_what_its_kernel_cannot_take():
+    grid = symmetric_room()
+    model, other = LikelihoodFieldModel(grid), LikelihoodFieldModel(grid)
+    window = _window_of(model, [np.array([1.2, 1.5, 0.2])], lidar_at={0}, camera_at={0})
+    packed = model.packed_window([window[0][3]], [])
+    p, total = np.zeros((4, 3)), np.zeros(4)
+    model.score_window(packed, p, 1.0, total)
+    for bad_p, bad_total, match in (
+        (np.zeros((4, 2)), total, "float64 \\(M, 3\\)"),
+        (np.zeros((3, 4)).T, total, "C-contiguous"),
+        (np.zeros((4, 3), np.float32), total, "float64 \\(M, 3\\)"),
+        (np.zeros((3, 6))[:, ::2], np.zeros(3), "C-contiguous"),
+        (p, np.zeros(3), "writable float64 \\(4,\\)"),
+        (p, np.zeros(4, np.float32), "writable float64"),
+        (p, np.broadcast_to(np.zeros(1), (4,)), "writable float64"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            model.score_window(packed, bad_p, 1.0, bad_total)
+    with pytest.raises(ValueError, match="another LikelihoodFieldModel"):
+        other.score_window(packed, p, 1.0, total)
 
 
 def test_the_numpy_backend_scores_a_window_entry_by_entry():

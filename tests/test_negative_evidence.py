@@ -253,7 +253,9 @@ def test_negative_kernels_give_the_bits_of_the_plain_running_minimum(case):
     negative_evidence_kernel(x, y, cos_t, sin_t, nu, nv, starts, codes, values, ox, oy, inv_res, w, h, got)
     assert got.tobytes() == want.tobytes()
     # window_kernel, one entry of negative-evidence points only: total += 1.0 * (0.0 + (0.0 + negative)); its own
-    # cos and sin (NumPy's here, the C library's), nothing added without a negative beam
+    # cos and sin (NumPy's here, the C library's), nothing added without a negative beam. Its points land on cell
+    # faces where cos and sin are exact (theta 0); at other headings the face cases are the kernel's above, whose
+    # cell arithmetic (`_negative_cells`) window_kernel shares
     neg = np.zeros(x.size)
     c, s = np.cos(theta), np.sin(theta)
     _negative_evidence_before(x, y, c, s, nu, nv, starts, table, ox, oy, inv_res, w, h, neg)

@@ -62,7 +62,7 @@ class Args:
     top: int = 0
     """also print the top functions by cumulative time (0 = none)"""
     robots: int = 0
-    """R > 0: split the CPU time of a batched env of R robots instead (batched_split; random actions)"""
+    """R > 0: split a batched env of R robots' CPU time instead (batched_split: random actions; no policy, top)"""
 
     def __post_init__(self) -> None:
         if self.steps < 1 or self.beams < 1 or self.particles < 0 or self.top < 0 or self.robots < 0:
@@ -253,10 +253,12 @@ def _run_batched(num_envs: int, steps: int, seed: int, env_id: str, kwargs: dict
         t0 = time.process_time()
         if prof is not None:
             prof.enable()
-        for _ in range(steps):
-            venv.step(rng.integers(0, 4, num_envs))
-        if prof is not None:
-            prof.disable()
+        try:
+            for _ in range(steps):
+                venv.step(rng.integers(0, 4, num_envs))
+        finally:
+            if prof is not None:
+                prof.disable()
         return time.process_time() - t0
     finally:
         MonteCarloLocalizer._audit, audit_module.best_alternative = audit, search
@@ -299,13 +301,16 @@ def print_batched_split(s: BatchedSplit) -> dict[str, float]:
     n = s.robot_steps
     parts = {
         "steps with a measurement update": (s.update_s, f"{s.update_steps} robot-steps"),
-        "  of which convergence audits": (s.audit_s, f"{s.audits} audits"),
+        "  of which convergence audits": (s.audit_s, f"{s.audits} searches for another place"),
         "steps without an update": (s.plain_s, f"{s.plain_steps} robot-steps"),
         "autoresets": (s.reset_s, f"{s.resets} robot-steps"),
         "the vector env's own": (s.loop_s, ""),
         "compiled kernels (cProfile, same steps)": (s.kernel_s, f"alone: {n / s.kernel_s:.0f} robot-steps per CPU-s"),
     }
-    print(f"robot-step: {1e6 * s.total_s / n:.0f} us CPU ({n / s.total_s:.0f} robot-steps per CPU-second, {n} run)")
+    print(
+        f"robot-step: {1e6 * s.total_s / n:.0f} us CPU ({n / s.total_s:.0f} robot-steps per CPU-second, {n} run, "
+        "random actions)"
+    )
     for k, (v, note) in parts.items():
         print(f"{k:<40} {1e6 * v / n:8.0f} us  {100 * v / s.total_s:5.1f} %  {note}")
     return {k: v / n for k, (v, _) in parts.items()}

@@ -115,8 +115,13 @@ def window_scorer(model, window: Window, scale: float, steps: list[np.ndarray] |
     """``score(poses (M, 3)) -> (M,)``: `window_log_likelihood` of ``window`` with ``model`` and ``scale`` for
     any poses, its preparation done once (the steps back, and with a numba `LikelihoodFieldModel` and every
     entry's beams at hand the whole window's kernel inputs: each call is then one compiled call,
-    `LikelihoodFieldModel.score_window`)."""
+    `LikelihoodFieldModel.score_window`).
+
+    Raises:
+        ValueError: ``steps`` given, but not one step fewer than ``window`` has entries."""
     steps = back_steps(window) if steps is None else steps
+    if window and len(steps) != len(window) - 1:
+        raise ValueError(f"steps: need {len(window) - 1} steps back for a window of {len(window)}, got {len(steps)}")
     packed = None
     if isinstance(model, LikelihoodFieldModel) and model.backend == "numba" and all(e[3] is not None for e in window):
         packed = model.packed_window([e[3] for e in reversed(window)], steps)
@@ -141,8 +146,8 @@ def window_log_likelihood(
     ``model``: ``log_likelihood_terms(poses, lidar, semantic) -> (lidar_ll, semantic_ll, beams)``
     (and, if it has one, ``beam_log_likelihoods(poses, beams, trig)``, used for entries that carry
     their beams); ``scale``: the filter's ``likelihood_scale``; ``steps``: `back_steps` of ``window``
-    if the caller has them (None: computed here). To score one window more than once, `window_scorer`
-    prepares it once.
+    if the caller has them (None: computed here; ValueError if not one fewer than the entries). To score one
+    window more than once, `window_scorer` prepares it once.
     """
     return window_scorer(model, window, scale, steps)(poses)
 

@@ -467,6 +467,19 @@ def negative_evidence_kernel(
         out[i] += _negative_sum(codes, values, idx, starts)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def step_back(x, y, th, c, s, dx, dy, dth):  # pragma: no cover - compiled
+    """The pose ``(x, y, th)`` (``c``, ``s``: cos and sin of ``th``) moved by the robot-frame step ``(dx, dy, dth)``:
+    `filters.pose.compose` of one pose, with the same operations (so the same bits); the heading wrapped as
+    `filters.pose.wrap_angle`, the modulo skipped where it would return its argument."""
+    yy = (th + dth) + np.pi
+    return (
+        x + c * dx - s * dy,
+        y + s * dx + c * dy,
+        yy - np.pi if 0.0 < yy < 2.0 * np.pi else yy % (2.0 * np.pi) - np.pi,
+    )
+
+
 @numba.njit(cache=True, nogil=True)
 def window_kernel(
     p,
@@ -497,8 +510,8 @@ def window_kernel(
     ``(M, 3)`` in one call, added to ``total`` ``(M,)``: entry after entry, newest first, ``scale * (lidar_ll +
     semantic_ll)`` as `log_likelihood_kernel` then `negative_evidence_kernel` compute them for the entry's beams
     (an entry with neither beams nor negative-evidence points adds nothing), each pose carried back along
-    ``steps[e]`` ``(E - 1, 3)`` between entries as `filters.pose.compose` does; its cos and sin are taken here (the
-    C library's, as `filters.pose.cos_sin`'s). The same bits as scoring entry by entry with
+    ``steps[e]`` ``(E - 1, 3)`` between entries (`step_back`); its cos and sin are taken here (the C library's, as
+    `filters.pose.cos_sin`'s). The same bits as scoring entry by entry with
     `LikelihoodFieldModel.beam_log_likelihoods` and composing with `compose`.
 
     Entry ``e``'s beams are ``[b_starts[e], b_starts[e + 1])`` of ``lu, lv, offset, outside`` (its first
@@ -514,7 +527,6 @@ def window_kernel(
     idx = np.empty(most_b, np.int64)
     acc = np.empty(16)
     n_idx = np.empty(most_p, np.uint64)
-    two_pi = 2.0 * np.pi
     for i in range(p.shape[0]):
         x = p[i, 0]
         y = p[i, 1]
@@ -543,19 +555,17 @@ def window_kernel(
                     ll_s += _negative_sum(codes, values, n_idx, neg_starts[q0:q1])
                 t += scale * (ll_l + ll_s)
             if e + 1 < n_e:
-                dx = steps[e, 0]
-                dy = steps[e, 1]
-                x, y = x + c * dx - s * dy, y + s * dx + c * dy
-                yy = (th + steps[e, 2]) + np.pi  # wrapped as wrap_angle, the modulo skipped where it is yy itself
-                th = yy - np.pi if 0.0 < yy < two_pi else yy % two_pi - np.pi
+                x, y, th = step_back(x, y, th, c, s, steps[e, 0], steps[e, 1], steps[e, 2])
         total[i] = t
 
 
 @dataclass(frozen=True, eq=False)
 class PackedWindow:
     """A window's entries (newest first) as `window_kernel` reads them (`LikelihoodFieldModel.packed_window`): the
-    model's beams of every entry in one array each, and the steps back between entries. Read-only."""
+    model's beams of every entry in one array each, and the steps back between entries. Read-only; ``model`` is the
+    model that made it, the only one that may score it."""
 
+    model: object
     flat: np.ndarray
     lu: np.ndarray
     lv: np.ndarray
@@ -890,16 +900,17 @@ class LikelihoodFieldModel:
         n = len(beams)
         if self.backend != "numba" or n == 0 or len(steps) < n - 1:
             return None
-        flat = self._shared_tables(beams)
+        prepared = [self._prepared(b) for b in beams]
+        flat = self._shared_tables(beams, prepared)
         if flat is None:
             return None
-        prepared = [self._prepared(b) for b in beams]
         negative = [self._weighs_negative(b) for b in beams]
         b_starts = np.cumsum([0] + [b.lx.size for b in beams])
         p_starts = np.cumsum([0] + [b.nx.size if neg else 0 for b, neg in zip(beams, negative)])
         starts = [b.n_starts if neg else _ZERO_START for b, neg in zip(beams, negative)]
         codes, values = self.negative_codes() if any(negative) else (_NO_CODES, _NO_VALUES)
         packed = PackedWindow(
+            model=self,
             flat=flat,
             lu=np.concatenate([prep[1] for prep in prepared]),
             lv=np.concatenate([prep[2] for prep in prepared]),
@@ -922,33 +933,42 @@ class LikelihoodFieldModel:
             getattr(packed, name).setflags(write=False)
         return packed
 
-    def _shared_tables(self, beams: list[BeamSet]) -> np.ndarray | None:
-        """The kernels' ``flat`` tables every one of ``beams`` reads its values from, or None if there are none.
+    def _shared_tables(self, beams: list[BeamSet], prepared: list[tuple]) -> np.ndarray | None:
+        """The kernels' ``flat`` tables every one of ``beams`` (``prepared``: their `_prepared` inputs) reads its
+        values from, or None if there are none.
 
         A `BeamSet`'s tables are those of its scans' range limits (`_log_tables`); the lidar table depends on the
-        lidar's, the class tables on the camera's only. An entry without lidar beams (a turn-in-place update) has
-        the lidar limit of no scan, an entry without labelled beams that of no camera: they read the same values
-        from the tables of the other entries' limits. None where two entries with lidar (or labelled) beams
-        differ in their limit, or the tables of the limits found are not built yet (`_prepared` built each
-        entry's own)."""
+        lidar's limit only, the class tables on the camera's. An entry without lidar beams (a turn-in-place update)
+        carries the lidar limit of no scan, an entry without labelled beams that of no camera: for the beams they
+        have they read the same values from the tables of the other entries' limits. Those tables are taken from an
+        entry whose own limits they are (never built here). None where two entries with lidar (or labelled) beams
+        differ in their limit, or no entry has the limits the others need."""
         lidar = {b.lidar_range_max_m for b in beams if b.n_lidar}
         semantic = {b.semantic_range_max_m for b in beams if b.lx.size > b.n_lidar}
         if len(lidar) > 1 or len(semantic) > 1:
             return None
-        first = beams[0]
-        key = (
-            float(lidar.pop() if lidar else first.lidar_range_max_m),
-            float(semantic.pop() if semantic else first.semantic_range_max_m),
-        )
-        for b in beams:  # the entries' own tables, built (and kept) by _prepared
-            self._prepared(b)
-        hit = self._tables.get(key)
-        return None if hit is None else hit[2]
+        for b, prep in zip(beams, prepared):
+            if (not lidar or b.lidar_range_max_m in lidar) and (not semantic or b.semantic_range_max_m in semantic):
+                return prep[0]
+        return None
 
     def score_window(self, packed: PackedWindow, p: np.ndarray, scale: float, total: np.ndarray) -> None:
         """Add ``scale`` times the window log-likelihood of ``packed`` (`packed_window`, of this model) for the
         checked poses ``p`` ``(M, 3)`` (contiguous float64, finite) to ``total`` ``(M,)``, in one compiled call
-        (`window_kernel`)."""
+        (`window_kernel`).
+
+        Raises:
+            ValueError: ``packed`` is another model's, ``p`` is not a C-contiguous float64 ``(M, 3)`` array, or
+                ``total`` not a writable float64 ``(M,)`` one."""
+        if packed.model is not self:
+            raise ValueError("packed was made by another LikelihoodFieldModel: score it with that model")
+        if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 2 and p.shape[1] == 3):
+            raise ValueError(f"p must be a float64 (M, 3) array, got {getattr(p, 'shape', p)!r:.60}")
+        if not p.flags.c_contiguous:
+            raise ValueError("p must be C-contiguous")
+        ok = isinstance(total, np.ndarray) and total.dtype == np.float64 and total.shape == (p.shape[0],)
+        if not (ok and total.flags.writeable):
+            raise ValueError(f"total must be a writable float64 ({p.shape[0]},) array, got {total!r:.60}")
         if p.shape[0]:
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
