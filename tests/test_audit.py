@@ -537,9 +537,29 @@ def test_one_compiled_call_per_window_gives_the_bits_of_one_per_entry(negative):
         "mixed": True, "one entry": True, "ends without scans": True, "two lidar ranges": False,
         "two camera ranges": False,
     }  # fmt: skip
-    with pytest.raises(ValueError, match="need 5 steps back for a window of 6, got 4"):
-        audit_module.window_scorer(model, windows["mixed"], 0.06, audit_module.back_steps(windows["mixed"])[1:])
+    steps = audit_module.back_steps(windows["mixed"])
+    for wrong in (steps[1:], [*steps, steps[0]]):
+        with pytest.raises(ValueError, match=f"need 5 steps back for a window of 6, got {len(wrong)}"):
+            audit_module.window_scorer(model, windows["mixed"], 0.06, wrong)
     assert window_log_likelihood(model, poses[:0], windows["mixed"], 0.06).shape == (0,)
+
+
+def test_a_window_shares_tables_the_model_no_longer_caches():
+    """The model keeps the tables of four pairs of range limits (`LikelihoodFieldModel._log_tables`); a window scored
+    after scans of five other pairs still shares its entries' tables (they come with the entries' kernel inputs),
+    one compiled call with the bits of scoring entry by entry."""
+    grid = symmetric_room()
+    model = LikelihoodFieldModel(grid)
+    path = [np.array([1.2, 1.5, 0.2]), np.array([1.5, 1.55, 0.3]), np.array([1.5, 1.55, 0.9])]
+    window = _window_of(model, path, lidar_at={0, 1}, camera_at={0, 1, 2})  # the newest entry: a turn in place
+    for r in (4.0, 6.0, 7.0, 9.0, 9.5):
+        model.log_likelihood_terms(path[0][None], simulate_lidar(grid, path[0], LIDAR_ANGLES, r), None)
+    assert (8.0, 5.0) not in model._tables
+    steps = audit_module.back_steps(window)
+    assert model.packed_window([e[3] for e in reversed(window)], steps) is not None
+    poses = path[-1] + np.random.default_rng(1).normal(0.0, 0.2, (200, 3))
+    got = audit_module.window_scorer(model, window, 0.06)(poses)
+    assert got.tobytes() == audit_module._window_log_likelihood(model, poses, window, 0.06, steps).tobytes()
 
 
 def test_the_kernels_step_back_is_compose():
@@ -570,12 +590,18 @@ def test_score_window_refuses_what_its_kernel_cannot_take():
         (np.zeros((3, 6))[:, ::2], np.zeros(3), "C-contiguous"),
         (p, np.zeros(3), "writable float64 \\(4,\\)"),
         (p, np.zeros(4, np.float32), "writable float64"),
-        (p, np.broadcast_to(np.zeros(1), (4,)), "writable float64"),
+        (
+            p,
+            np.broadcast_to(np.zeros(1), (4,)),
+            "writable float64 \\(4,\\) array, got shape \\(4,\\), float64, read-only",
+        ),
+        (np.zeros((4, 3), np.float32), total, "got shape \\(4, 3\\), float32, writable"),
     ):
         with pytest.raises(ValueError, match=match):
             model.score_window(packed, bad_p, 1.0, bad_total)
-    with pytest.raises(ValueError, match="another LikelihoodFieldModel"):
-        other.score_window(packed, p, 1.0, total)
+    for bad in (other, None):
+        with pytest.raises(ValueError, match="a PackedWindow this model made"):
+            (other if bad is other else model).score_window(packed if bad is other else None, p, 1.0, total)
 
 
 def test_the_numpy_backend_scores_a_window_entry_by_entry():

@@ -30,6 +30,13 @@ def test_batched_split_accounts_for_every_robot_step_and_restores_the_filter():
     assert s.loop_s >= 0.0
 
 
+def test_batched_split_counts_the_audits_searches():
+    """Robot 0 of seed 0 converges twice in its first 45 steps: two audits search for another place, counted as the
+    calls of `audit.best_alternative` (the same episodes every run)."""
+    s = profile_step.batched_split(2, 40, seed=0, env_id="SemReloc-v20")
+    assert s.audits == 2 and s.audit_s > 0.0
+
+
 def test_a_timed_robot_sorts_its_steps_by_the_filter_s_updates():
     """`_TimedRobot` counts a step as an update step exactly when the filter's update count rose in it (random
     actions: the motion gate lets some pass), and leaves the episode as it is (the same observations as the env

@@ -406,7 +406,11 @@ def bench_batched_split(args: Args) -> list[Row]:
 
     s = batched_split(64, max(1, args.steps // 15), args.seed, args.env_id or ENV_ID)
     n, us = s.robot_steps, 1e6 / s.robot_steps
-    per_audit = 1e3 * s.audit_s / max(s.audits, 1)
+    audits = (
+        f"{s.audits} searches for another place, {1e3 * s.audit_s / s.audits:.1f} ms of audit time per search"
+        if s.audits
+        else "no search for another place"
+    )
 
     def part(name: str, seconds: float, note: str) -> Row:
         return Row(name, seconds * us, 100 * seconds / s.total_s, "us CPU | %", note)
@@ -417,7 +421,7 @@ def bench_batched_split(args: Args) -> list[Row]:
     return [
         Row("batched R=64: one robot-step", s.total_s * us, float("nan"), "us CPU", f"{n} robot-steps, random actions"),
         part("  steps with a measurement update", s.update_s, each(s.update_s, s.update_steps, "each")),
-        part("    of which convergence audits", s.audit_s, f"{s.audits} searches, {per_audit:.1f} ms per search"),
+        part("    of which convergence audits", s.audit_s, audits),
         part("  steps without an update", s.plain_s, each(s.plain_s, s.plain_steps, "each")),
         part("  autoresets", s.reset_s, each(s.reset_s, s.resets, "each")),
         part("  the vector env's own", s.loop_s, "actions checked, observations and infos batched"),

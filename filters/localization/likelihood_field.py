@@ -583,6 +583,13 @@ class PackedWindow:
     steps: np.ndarray
 
 
+def _described(a) -> str:
+    """``a``'s type, or for an array its shape, dtype and whether it is writable (for error messages)."""
+    if isinstance(a, np.ndarray):
+        return f"shape {a.shape}, {a.dtype}, {'writable' if a.flags.writeable else 'read-only'}"
+    return type(a).__name__
+
+
 def _checked_poses(poses: np.ndarray) -> np.ndarray:
     """``poses`` as a contiguous float64 ``(N, 3)`` array; ValueError if the shape is wrong or a value is
     not finite."""
@@ -960,15 +967,15 @@ class LikelihoodFieldModel:
         Raises:
             ValueError: ``packed`` is another model's, ``p`` is not a C-contiguous float64 ``(M, 3)`` array, or
                 ``total`` not a writable float64 ``(M,)`` one."""
-        if packed.model is not self:
-            raise ValueError("packed was made by another LikelihoodFieldModel: score it with that model")
+        if not isinstance(packed, PackedWindow) or packed.model is not self:
+            raise ValueError("packed must be a PackedWindow this model made (packed_window), got another's or none")
         if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 2 and p.shape[1] == 3):
-            raise ValueError(f"p must be a float64 (M, 3) array, got {getattr(p, 'shape', p)!r:.60}")
+            raise ValueError(f"p must be a float64 (M, 3) array, got {_described(p)}")
         if not p.flags.c_contiguous:
             raise ValueError("p must be C-contiguous")
         ok = isinstance(total, np.ndarray) and total.dtype == np.float64 and total.shape == (p.shape[0],)
         if not (ok and total.flags.writeable):
-            raise ValueError(f"total must be a writable float64 ({p.shape[0]},) array, got {total!r:.60}")
+            raise ValueError(f"total must be a writable float64 ({p.shape[0]},) array, got {_described(total)}")
         if p.shape[0]:
             ox, oy = self.grid.origin_xy_m
             h, w = self.grid.shape
