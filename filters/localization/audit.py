@@ -123,7 +123,7 @@ def window_scorer(model, window: Window, scale: float, steps: list[np.ndarray] |
     if window and len(steps) != len(window) - 1:
         raise ValueError(f"steps: need {len(window) - 1} steps back for a window of {len(window)}, got {len(steps)}")
     packed = None
-    if isinstance(model, LikelihoodFieldModel) and model.backend == "numba" and all(e[3] is not None for e in window):
+    if isinstance(model, LikelihoodFieldModel) and all(e[3] is not None for e in window):  # None: numpy backend
         packed = model.packed_window([e[3] for e in reversed(window)], steps)
     if packed is not None:
 

@@ -934,9 +934,8 @@ class LikelihoodFieldModel:
             values=values,
             steps=np.array([np.asarray(d, dtype=np.float64).reshape(3) for d in steps[: n - 1]]).reshape(n - 1, 3),
         )
-        for name in ("lu", "lv", "offset", "outside", "b_starts", "n_lidar", "nu", "nv", "p_starts"):
-            getattr(packed, name).setflags(write=False)
-        for name in ("neg_starts", "s_starts", "steps"):
+        built = ("lu", "lv", "offset", "outside", "b_starts", "n_lidar", "nu", "nv", "p_starts", "neg_starts")
+        for name in (*built, "s_starts", "steps"):
             getattr(packed, name).setflags(write=False)
         return packed
 
@@ -945,9 +944,10 @@ class LikelihoodFieldModel:
         values from, or None if there are none.
 
         A `BeamSet`'s tables are those of its scans' range limits (`_log_tables`); the lidar table depends on the
-        lidar's limit only, the class tables on the camera's. An entry without lidar beams (a turn-in-place update)
-        carries the lidar limit of no scan, an entry without labelled beams that of no camera: for the beams they
-        have they read the same values from the tables of the other entries' limits. Those tables are taken from an
+        lidar's limit only, the class tables on the camera's. An entry without a lidar scan (a turn-in-place update)
+        or without a camera scan carries a placeholder limit for it, and an entry without lidar (or labelled) beams
+        reads no lidar (or class) table: for the beams they have they read the same values from the tables of the
+        other entries' limits. Those tables are taken from an
         entry whose own limits they are (never built here). None where two entries with lidar (or labelled) beams
         differ in their limit, or no entry has the limits the others need."""
         lidar = {b.lidar_range_max_m for b in beams if b.n_lidar}
