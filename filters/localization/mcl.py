@@ -242,6 +242,10 @@ class MCLConfig:
             0 keeps a tracked belief and converges sooner, but rescues a wrong convergence less
             often (docs/relocalizer.md, "Proposals weighed by the prior"). Recovery injections
             are never scaled.
+        proposal_candidates_per_particle: ``r``: a routine injection of ``m`` particles weighs
+            ``min(proposal_candidates, max(10 r, r m))`` scan-proposal candidates and draws its particles among them
+            by their likelihood (20: ``max(200, 20 m)``, every registered env before ``SemReloc-v21``; weighing the
+            candidates is most of an injection's cost).
         audit_window: ``K`` (0 = off): the *convergence audit* (`filters.localization.audit`). At
             an update after which the set meets the "converged" criterion and did not before, it
             looks for the pose outside the converged hypothesis that best explains the scans of the
@@ -399,6 +403,10 @@ class MCLConfig:
             motion noise added), as AMCL reports its pose between updates. The particles, weights, updates and
             random draws are the same either way (only the reported belief differs between updates); ``"odometry"``
             skips the summary, about a third of such a step's cost (docs/performance.md).
+        predict_when_still: False: a ``predict`` whose increment is exactly zero (the robot stood still; the motion
+            model's noise, proportional to the motion, is zero too) leaves the particles as they are and draws
+            nothing from the generator. True (default): it draws the motion noise all the same, scaled by zero,
+            and copies the set, as every registered env before ``SemReloc-v21`` did.
     """
 
     n_particles: int | None = 2000
@@ -434,6 +442,7 @@ class MCLConfig:
     proposal_frac: float = 0.0
     proposal_weight: float = 1.0
     proposal_prior_weight: float = 0.0
+    proposal_candidates_per_particle: float = 20.0
     audit_window: int = 0
     audit_margin: float = 1.0
     audit_candidates: int = 2000
@@ -460,6 +469,7 @@ class MCLConfig:
     backend: str = "numba"
     fast_path: bool = True
     belief_between_updates: str = "exact"
+    predict_when_still: bool = True
 
     def __post_init__(self) -> None:
         for name, cls in _SUBCONFIGS.items():
@@ -531,6 +541,7 @@ class MCLConfig:
                 for n in ("cluster_keep_weight", "proposal_semantic_frac", "proposal_frac", "proposal_prior_weight")
             },
             "proposal_weight": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+            "proposal_candidates_per_particle": (lambda v: 1.0 <= v <= MAX_PARTICLES, f"in [1, {MAX_PARTICLES:,}]"),
             "global_particles_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "audit_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "audit_blur_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0 (0 = off)"),
@@ -556,7 +567,7 @@ class MCLConfig:
         for name in (
             "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
             "audit_screen_pause_place", "audit_after_surprise", "audit_after_surprise_once", "audit_after_lost_hold",
-            "hold_init_pose", "surprise_own_average", "places_follow_odometry",
+            "hold_init_pose", "surprise_own_average", "places_follow_odometry", "predict_when_still",
         ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
@@ -971,12 +982,13 @@ class MonteCarloLocalizer:
         (metres / radians, previous robot frame, as `filters.pose.relative` gives)."""
         self._require_particles()
         d = np.array(finite_increment(delta, "odometry delta"))
-        rng_state = self.rng.bit_generator.state
-        poses = self.motion_model.sample(self._poses, d, self.rng)
-        if not np.isfinite(poses).all():  # e.g. a delta of 1e300 m: keep the filter as it was
-            self.rng.bit_generator.state = rng_state
-            raise ValueError(f"odometry delta {delta!r} moves particles to non-finite poses")
-        self._poses = poses
+        if self.config.predict_when_still or d.any():
+            rng_state = self.rng.bit_generator.state
+            poses = self.motion_model.sample(self._poses, d, self.rng)
+            if not np.isfinite(poses).all():  # e.g. a delta of 1e300 m: keep the filter as it was
+                self.rng.bit_generator.state = rng_state
+                raise ValueError(f"odometry delta {delta!r} moves particles to non-finite poses")
+            self._poses = poses
         self._since_update = compose(self._since_update, d)
         if self._screen_cleared is not None:
             self._screen_cleared = (self._screen_cleared[0], compose(self._screen_cleared[1], d))
@@ -1310,7 +1322,8 @@ class MonteCarloLocalizer:
         current set).
 
         A recovery (augmented MCL) draws from ``proposal_candidates`` candidates; the routine
-        Mixture-MCL injection from ``min(proposal_candidates, max(200, 20 m))`` for ``m`` particles.
+        Mixture-MCL injection from ``min(proposal_candidates, max(10 r, r m))`` for ``m`` particles, ``r`` =
+        ``proposal_candidates_per_particle`` (20: ``max(200, 20 m)``).
         """
         c = self.config
         mask = self.rng.random(self.n_particles) < p_inj
@@ -1320,7 +1333,8 @@ class MonteCarloLocalizer:
         if c.injection == "scan":
             if self._proposal is None:
                 self._proposal = ScanProposal(self.grid, self.sample_free)
-            k = c.proposal_candidates if recovery else min(c.proposal_candidates, max(200, 20 * m))
+            r = c.proposal_candidates_per_particle
+            k = c.proposal_candidates if recovery else min(c.proposal_candidates, max(int(10 * r), int(r * m)))
             cand = self._proposal.candidates(k, semantic, c.proposal_semantic_frac, self.rng)
             ll_l, ll_s, _ = self.measurement_model.log_likelihood_terms(cand, lidar, semantic)
             new = self._proposal.draw(m, cand, c.likelihood_scale * (np.asarray(ll_l) + np.asarray(ll_s)), self.rng)
