@@ -1,7 +1,7 @@
 """PPO for active relocalization: a new procedural layout every episode, spatial belief observations.
 
 `make_active_env` builds one training env:
-``SemReloc-v20`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
+``SemReloc-v21`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
 `RandomLayout` (a new layout per reset, never a held-out
 seed) -> `BeliefMassReward` (``mode="gain"``) -> `MotionOptions` (if ``options``) ->
 `ActionRepeat` -> `ActiveObservation`
@@ -49,7 +49,7 @@ from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings, ppo_hyperparameters
 from .vec_env import close_after_interrupt, closing_venv
 
-ENV_ID = "SemReloc-v20"
+ENV_ID = "SemReloc-v21"
 TRAINABLE_ENV_IDS = semreloc_ids_since(2)
 """The envs `ActiveTrainConfig.env_id` may name: ``SemReloc-v2`` and newer (the typed observation
 `ActiveObservation` reads), newest first."""

@@ -873,3 +873,77 @@ def test_an_increment_is_checked_in_one_place_and_composed_alike_in_floats():
         assert got.tobytes() == compose(pose[None], d[None])[0].tobytes()  # the array path's bits
         back = np.array(relative_floats(pose, compose(pose, d)))
         assert back.tobytes() == relative(pose, compose(pose, d)).tobytes()
+
+
+# --------------------------------------------------------------------------- SemReloc-v21's work savers
+@pytest.mark.parametrize("still", [True, False])
+def test_a_still_predict_moves_nothing_and_draws_only_when_asked_to(still):
+    grid = symmetric_room()
+    mcl = MonteCarloLocalizer(grid, MCLConfig(n_particles=300, predict_when_still=still), np.random.default_rng(3))
+    mcl.init_global()
+    before, state = mcl.poses.copy(), mcl.rng.bit_generator.state
+    mcl.predict([0.0, 0.0, 0.0])
+    assert np.array_equal(mcl.poses, before)  # zero motion, zero noise: both ways
+    assert (mcl.rng.bit_generator.state != state) == still  # the noise draws are skipped only when not asked for
+    for delta in ([0.0, 0.0, 1e-9], [0.05, 0.0, 0.0], [0.0, -0.02, 0.0]):  # any motion at all: the same draws
+        twin = MonteCarloLocalizer(grid, MCLConfig(n_particles=300), np.random.default_rng(4))
+        twin.init_global()
+        mine = MonteCarloLocalizer(grid, MCLConfig(n_particles=300, predict_when_still=still), np.random.default_rng(4))
+        mine.init_global()
+        twin.predict(delta)
+        mine.predict(delta)
+        assert np.array_equal(mine.poses, twin.poses) and not np.array_equal(mine.poses, before)
+        assert mine.rng.bit_generator.state == twin.rng.bit_generator.state
+
+
+def test_a_still_predict_without_draws_still_refuses_bad_increments():
+    grid = symmetric_room()
+    mcl = MonteCarloLocalizer(grid, MCLConfig(n_particles=100, predict_when_still=False), np.random.default_rng(0))
+    mcl.init_global()
+    before = mcl.poses.copy()
+    for bad in ([0.0, 0.0, float("nan")], [0.0, 0.0], "still"):
+        with pytest.raises((ValueError, TypeError)):
+            mcl.predict(bad)
+    assert np.array_equal(mcl.poses, before)
+
+
+@pytest.mark.parametrize(
+    ("per_particle", "expected"),
+    [(20.0, lambda m: max(200, 20 * m)), (10.0, lambda m: max(100, 10 * m)), (2.5, lambda m: max(25, int(2.5 * m)))],
+)
+def test_a_routine_injection_weighs_its_candidates_per_injected_particle(per_particle, expected):
+    grid = symmetric_room()
+    cfg = MCLConfig(
+        n_particles=600, injection="scan", proposal_frac=0.05, proposal_candidates_per_particle=per_particle
+    )
+    mcl = MonteCarloLocalizer(grid, cfg, np.random.default_rng(1))
+    mcl.init_global()
+    asked, injected = [], []
+    from filters.localization.proposals import ScanProposal
+
+    real = ScanProposal.candidates
+
+    def counting(self, k, *args):
+        asked.append(k)
+        return real(self, k, *args)
+
+    ScanProposal.candidates = counting
+    try:
+        pose = np.array([4.0, 1.5, np.pi])
+        rng = np.random.default_rng(2)
+        for _ in range(4):
+            mcl.predict([0.2, 0.0, 0.0])
+            pose = compose(pose, [0.2, 0.0, 0.0])
+            injected.append(mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)).n_injected)
+    finally:
+        ScanProposal.candidates = real
+    assert len(asked) == 4 and all(m > 0 for m in injected)
+    assert asked == [min(2000, expected(m)) for m in injected]
+
+
+@pytest.mark.parametrize("bad", [0.5, 0.0, -1.0, float("nan"), float("inf"), True, "20"])
+def test_bad_proposal_candidates_per_particle_is_refused(bad):
+    with pytest.raises(ValueError, match="proposal_candidates_per_particle"):
+        MCLConfig(proposal_candidates_per_particle=bad)
+    with pytest.raises(ValueError, match="predict_when_still must be a bool"):
+        MCLConfig(predict_when_still="no")

@@ -12,7 +12,7 @@ KW = {"layout": "twin_rooms", "map_source": "perfect", "relocalizer": {"n_partic
 
 def _episode(name, seed=1, **kw):
     pol = POLICIES[name](seed)
-    env = pol.wrap(gym.make("SemReloc-v20", **{**KW, **kw}))
+    env = pol.wrap(gym.make("SemReloc-v21", **{**KW, **kw}))
     pol.reset()
     obs, _ = env.reset(seed=seed)
     actions = []
@@ -27,8 +27,9 @@ def _episode(name, seed=1, **kw):
 
 @pytest.mark.parametrize("name", sorted(POLICIES))
 def test_every_baseline_runs_an_episode_deterministically(name):
-    a1, info = _episode(name)
-    a2, _ = _episode(name)
+    # seed 6: episodes long enough to show each policy's behaviour (on seed 1 v21's filter converges after 6 steps)
+    a1, info = _episode(name, seed=6)
+    a2, _ = _episode(name, seed=6)
     assert a1 == a2 and len(a1) >= 1
     # what each does, so that a stub returning one constant action fails
     expect = {
@@ -65,7 +66,7 @@ def test_baselines_drive_continuous_envs(name):
 
 def test_spin_then_back_up_spins_a_full_turn_then_reverses():
     pol = SpinThenBackUp()
-    env = pol.wrap(gym.make("SemReloc-v20", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
+    env = pol.wrap(gym.make("SemReloc-v21", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
     pol.reset()
     obs, _ = env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0)})  # room to back up
     acts = [pol.act(obs) for _ in range(73)]
@@ -80,7 +81,7 @@ class _NoTruth:
 
 def test_info_gain_planner_reads_the_belief_not_the_truth():
     pol = InfoGainPlanner(seed=0, n_particles=16)
-    env = pol.wrap(gym.make("SemReloc-v20", **KW))
+    env = pol.wrap(gym.make("SemReloc-v21", **KW))
     pol.reset()
     env.reset(seed=2)
     base = env.unwrapped
@@ -99,7 +100,7 @@ def test_info_gain_planner_expects_nothing_from_a_tight_belief():
     # a belief on one pose (tracking start) is one hypothesis: no primitive can gain
     pol = InfoGainPlanner(seed=0, n_particles=24)
     no_injection = {**KW.get("relocalizer", {}), "proposal_frac": 0.0, "augmented": False}
-    env = pol.wrap(gym.make("SemReloc-v20", **{**KW, "relocalizer": no_injection}))
+    env = pol.wrap(gym.make("SemReloc-v21", **{**KW, "relocalizer": no_injection}))
     pol.reset()
     env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0), "tracking": True})
     tight = pol.plan()
@@ -114,7 +115,7 @@ def test_baselines_reject_bad_seeds_other_envs_and_act_before_wrap(name):
         with pytest.raises(ValueError, match="seed"):
             POLICIES[name](seed)
     pol = POLICIES[name](0)
-    obs, _ = gym.make("SemReloc-v20", **KW).reset(seed=0)
+    obs, _ = gym.make("SemReloc-v21", **KW).reset(seed=0)
     with pytest.raises(RuntimeError, match="wrap"):
         pol.act(obs)
     with pytest.raises(TypeError, match="action space"):
@@ -132,8 +133,8 @@ def test_policies_refuse_vector_envs_by_name():
 
     import agents
 
-    vec = gym.make_vec("SemRelocVec-v20", num_envs=2, vectorization_mode="vector_entry_point", layout="twin_rooms")
-    sb3 = DummyVecEnv([lambda: gym.make("SemReloc-v20", layout="twin_rooms")])
+    vec = gym.make_vec("SemRelocVec-v21", num_envs=2, vectorization_mode="vector_entry_point", layout="twin_rooms")
+    sb3 = DummyVecEnv([lambda: gym.make("SemReloc-v21", layout="twin_rooms")])
     for policy in (POLICIES["wall_follow"](), POLICIES["viewpoint"](), agents.load_policy(agents.SHIPPED_POLICY)):
         for env in (vec, sb3):
             with pytest.raises(TypeError, match="one env at a time"):
@@ -146,7 +147,7 @@ def test_policies_read_the_env_lidar_beams_and_refuse_one_blind_where_they_look(
     They now read the env's beam angles, and `wrap` refuses a lidar with no beam where they look."""
     from agents.options import MotionOptions
 
-    blind = gym.make("SemReloc-v20", map_source="perfect", lidar={"n_beams": 1}, relocalizer={"n_particles": 50})
+    blind = gym.make("SemReloc-v21", map_source="perfect", lidar={"n_beams": 1}, relocalizer={"n_particles": 50})
     for name in ("wall_follow", "spin_backup", "viewpoint", "info_gain"):
         with pytest.raises(ValueError, match=r"needs a lidar beam within 0.5 rad of 0 rad .* n_beams=1\) has none"):
             POLICIES[name](0).wrap(blind)
@@ -158,7 +159,7 @@ def test_policies_read_the_env_lidar_beams_and_refuse_one_blind_where_they_look(
         obs, _ = wrapped.reset(seed=0)
         wrapped.step(policy.act(obs))
 
-    ahead = gym.make("SemReloc-v20", map_source="perfect", lidar={"fov_rad": 1.5708, "n_beams": 30},
+    ahead = gym.make("SemReloc-v21", map_source="perfect", lidar={"fov_rad": 1.5708, "n_beams": 30},
                      relocalizer={"n_particles": 50})  # fmt: skip
     with pytest.raises(ValueError, match=r"SpinThenBackUp needs a lidar beam within 0.5 rad of 3.14 rad"):
         POLICIES["spin_backup"](0).wrap(ahead)  # it backs up: it must see behind
@@ -169,7 +170,7 @@ def test_policies_read_the_env_lidar_beams_and_refuse_one_blind_where_they_look(
     for _ in range(30):
         obs, *_ = env.step(policy.act(obs))
     assert MotionOptions(ahead, ("explore",)).explorer.beam_angles is not None
-    default = gym.make("SemReloc-v20", map_source="perfect", relocalizer={"n_particles": 50})
+    default = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 50})
     policy = POLICIES["wall_follow"](0)
     policy.wrap(default)  # the default lidar's angles are the all-round ones, bit for bit: episodes unchanged
     np.testing.assert_array_equal(policy.explorer.beam_angles, all_round_angles(60))

@@ -18,7 +18,7 @@ def test_compiled_functions_are_the_numba_kernels():
 
 def test_batched_split_accounts_for_every_robot_step_and_restores_the_filter():
     before = (MonteCarloLocalizer._audit, audit.best_alternative)
-    s = profile_step.batched_split(3, 12, seed=4, env_id="SemReloc-v20", max_episode_steps=5)
+    s = profile_step.batched_split(3, 12, seed=4, env_id="SemReloc-v21", max_episode_steps=5)
     assert (MonteCarloLocalizer._audit, audit.best_alternative) == before
     assert s.robot_steps == 36
     assert s.update_steps + s.plain_steps + s.resets == s.robot_steps
@@ -33,7 +33,7 @@ def test_batched_split_accounts_for_every_robot_step_and_restores_the_filter():
 def test_batched_split_counts_the_audits_searches():
     """Robot 0 of seed 0 converges twice in its first 45 steps: two audits search for another place, counted as the
     calls of `audit.best_alternative` (the same episodes every run)."""
-    s = profile_step.batched_split(2, 40, seed=0, env_id="SemReloc-v20")
+    s = profile_step.batched_split(2, 40, seed=0, env_id="SemReloc-v21")
     assert s.audits == 2 and s.audit_s > 0.0
 
 
@@ -46,7 +46,7 @@ def test_a_timed_robot_sorts_its_steps_by_the_filter_s_updates():
 
     keys = ("update_s", "update_steps", "plain_s", "plain_steps", "reset_s", "resets", "audit_s", "audits")
     tally = dict.fromkeys(keys, 0.0)
-    timed, bare = profile_step._TimedRobot(gym.make("SemReloc-v20"), tally), gym.make("SemReloc-v20")
+    timed, bare = profile_step._TimedRobot(gym.make("SemReloc-v21"), tally), gym.make("SemReloc-v21")
     timed.reset(seed=3)
     bare.reset(seed=3)
     rng = np.random.default_rng(3)

@@ -1,5 +1,7 @@
-"""The registered ids behave as their Version History says: SemReloc-v20 (v19 whose belief between updates is the
-last update's carried by the odometry), SemReloc-v19 (v18 whose wheel odometry reads no slide
+"""The registered ids behave as their Version History says: SemReloc-v21 (v20 whose relocalizer does less work: half
+the particles at a global start, no noise drawn for a still step),
+SemReloc-v20 (v19 whose belief between updates is the last update's carried by the odometry), SemReloc-v19 (v18
+whose wheel odometry reads no slide
 along a wall, whose KLD sampling allows three times the error and whose remembered places follow the odometry),
 SemReloc-v18 (v17 whose audit after a lost hold judges
 only the scans since it faded), SemReloc-v17 (v16 whose tracking start holds its pose),
@@ -77,6 +79,7 @@ def assert_same_episode(new: str, old: str, options: dict = START) -> list:
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v21",
         "SemReloc-v20",
         "SemReloc-v19",
         "SemReloc-v18",
@@ -106,6 +109,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v21", typed),
         ("SemReloc-v20", typed),
         ("SemReloc-v19", typed),
         ("SemReloc-v18", typed),
@@ -722,11 +726,12 @@ def test_v19_is_v18_with_wheel_odometry_a_looser_kld_bound_and_places_that_follo
 
 def test_v20_is_v19_whose_belief_between_updates_is_carried_by_the_odometry():
     """v20's relocalizer is v19's with ``belief_between_updates="odometry"``: the same observations, particles and
-    updates bit for bit; the belief (info, reward) differs on the steps without an update only; its Vec id runs it."""
+    updates bit for bit; the belief (info, reward) differs on the steps without an update only; its Vec id runs it.
+    (The batched env's default is the newest, v21.)"""
     from semreloc_env.envs.batched import SINGLE_ENV_ID
 
     assert_one_option_apart("SemReloc-v20", "SemReloc-v19", belief_between_updates="odometry")
-    assert SINGLE_ENV_ID == "SemReloc-v20"
+    assert SINGLE_ENV_ID == "SemReloc-v21"
     actions = ACTIONS + [1] * 20 + [0] * 10
     a = rollout(make("SemReloc-v20", **FAST), options=START, actions=actions)
     b = rollout(make("SemReloc-v19", **FAST), options=START, actions=actions)
@@ -747,6 +752,31 @@ def test_v20_is_v19_whose_belief_between_updates_is_carried_by_the_odometry():
             skipped += 1
             assert info["rewards"]["entropy"] == 0.0  # the carried belief keeps the update's entropy
     assert skipped >= 5 and len(a) == len(b)
+
+
+def test_v21_is_v20_whose_relocalizer_does_less_work():
+    """v21's relocalizer is v20's with half the particles per m^2 at a global start and no noise drawn for a still
+    step; the world, sensors and observations are v20's for the same actions (their draws come from other
+    generators), the filter's draws differ from the first still step on; its Vec id runs it."""
+    assert_one_option_apart("SemReloc-v21", "SemReloc-v20", global_particles_per_m2=25.0, predict_when_still=False)
+    new = make("SemReloc-v21", map_source="perfect").unwrapped
+    old = make("SemReloc-v20", map_source="perfect").unwrapped
+    new.reset(seed=3)
+    old.reset(seed=3)
+    n_new, n_old = new.mcl.global_particle_count(), old.mcl.global_particle_count()
+    assert abs(n_new - n_old / 2) <= 1 and n_new >= new.mcl_config.min_particles
+    assert ACTIONS[0] == 3  # a stop: a zero odometry increment
+    for env in (new, old):
+        state = env.mcl.rng.bit_generator.state
+        poses = env.mcl.poses.copy()
+        env.mcl.predict([0.0, 0.0, 0.0])
+        assert np.array_equal(env.mcl.poses, poses)
+        assert (env.mcl.rng.bit_generator.state == state) == (env is new)
+    a = rollout(make("SemReloc-v21", **FAST), options=START)
+    b = rollout(make("SemReloc-v20", **FAST), options=START)
+    for (obs, *_), (obs2, *_) in zip(a, b):
+        np.testing.assert_equal(obs, obs2)
+    assert any(not np.array_equal(x[-1]["belief"]["estimate"], y[-1]["belief"]["estimate"]) for x, y in zip(a, b))
 
 
 def test_wheel_odometry_reads_an_arc_as_it_is_and_no_sideways_slide():

@@ -59,7 +59,7 @@ class Args:
     """benchmark names, space-separated (e.g. likelihood env); empty = all."""
     env_id: str = ""
     """the SemReloc id the env, batched, stages, scaling, reset and PPO benchmarks run (empty = the newest,
-    SemReloc-v20; e.g. SemReloc-v19 to compare a version in the next run)"""
+    SemReloc-v21; e.g. SemReloc-v20 to compare a version in the next run)"""
 
     def __post_init__(self) -> None:
         if self.env_id:
@@ -261,15 +261,18 @@ def bench_likelihood(args: Args) -> list[Row]:
     ]
 
 
-ENV_ID = "SemReloc-v20"
+ENV_ID = "SemReloc-v21"
+PREVIOUS_ENV_ID = "SemReloc-v20"
+"""The version before `ENV_ID`, measured beside it (batched env, reset) for the ratio of one run."""
 
 
-def _env(args: Args, **kwargs):
+def _env(args: Args, env_id: str = "", **kwargs):
+    """``gym.make(env_id or --env-id or the newest, **kwargs)``, unwrapped."""
     import gymnasium as gym
 
     import semreloc_env  # noqa: F401
 
-    return gym.make(args.env_id or ENV_ID, **kwargs).unwrapped
+    return gym.make(env_id or args.env_id or ENV_ID, **kwargs).unwrapped
 
 
 def _steps_per_s(env, steps: int, seed: int, policy=None) -> tuple[float, float]:
@@ -306,7 +309,7 @@ class RandomPolicy:
 
 
 def bench_env(args: Args) -> list[Row]:
-    """Single ``SemReloc-v20`` (or ``--env-id``) at its defaults (lab, mapped map, map-sized particle set with KLD,
+    """Single ``SemReloc-v21`` (or ``--env-id``) at its defaults (lab, mapped map, map-sized particle set with KLD,
     60 + 32 beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
     code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
     explorer and under random actions (which stay near the start, so their belief is often tight: a mean of
@@ -363,26 +366,26 @@ def bench_batched(args: Args) -> list[Row]:
     each robot stepped the same number of times from its reset (so every R sees the same episode phases);
     then R = 64 again with a 1000-particle filter (what `agents.train_active` trains with), and with a
     100-particle filter (100 proposal and audit candidates): what a robot-step costs besides the particle
-    work (world, sensors, the filter's per-call code, info, the loop); and R = 64 with the moved set summarised on
-    every step (``MCLConfig.belief_between_updates="exact"``, v19's; v20 carries the last update's belief by the
-    odometry on the steps the motion gate skips, the same particles), right after the default R = 64, with their
-    ratio."""
+    work (world, sensors, the filter's per-call code, info, the loop); and R = 64 of the version before the newest
+    (`PREVIOUS_ENV_ID`, whose relocalizer does more work: twice the particles at a global start, a still step's zero
+    motion noise drawn), right after the default R = 64, with their ratio (the episodes differ)."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
     n = max(20, args.steps // 4)
     small = {"n_particles": 100, "proposal_candidates": 100, "audit_candidates": 100, "audit_candidates_per_m2": 0.0}
+    env_id = args.env_id or ENV_ID
     cases = [
-        (1, None, "", ""),
-        (16, None, "", ""),
-        (64, None, "", "target 5000 at R=64"),
-        (64, {"belief_between_updates": "exact"}, ", belief summarised every step", "v19's belief"),
-        (64, {"n_particles": 1000}, ", 1000-particle filter", "agents.train_active's particle count"),
-        (64, small, ", 100-particle filter", "the cost that is not particle work"),
+        (1, env_id, None, "", ""),
+        (16, env_id, None, "", ""),
+        (64, env_id, None, "", "target 5000 at R=64"),
+        (64, PREVIOUS_ENV_ID, None, f", {PREVIOUS_ENV_ID}", "the version before, more relocalizer work"),
+        (64, env_id, {"n_particles": 1000}, ", 1000-particle filter", "agents.train_active's particle count"),
+        (64, env_id, small, ", 100-particle filter", "the cost that is not particle work"),
     ]
-    for r, relocalizer, what, why in cases:
+    for r, case_id, relocalizer, what, why in cases:
         kwargs = {} if relocalizer is None else {"relocalizer": relocalizer}
-        venv = SemRelocLoopVectorEnv(num_envs=r, env_id=args.env_id or ENV_ID, **kwargs)
+        venv = SemRelocLoopVectorEnv(num_envs=r, env_id=case_id, **kwargs)
         venv.reset(seed=args.seed)
         rng = np.random.default_rng(args.seed)
         with Clock() as c:
@@ -391,9 +394,9 @@ def bench_batched(args: Args) -> list[Row]:
         venv.close()
         note = f"random actions, {n} steps per robot" + (f"; {why}" if why else "")
         rows.append(Row(f"batched env R={r}{what}", n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
-        if relocalizer == {"belief_between_updates": "exact"}:
+        if case_id == PREVIOUS_ENV_ID and relocalizer is None:
             d, e = rows[-2], rows[-1]
-            rows.append(Row("  default / summarised every step", d.cpu / e.cpu, d.wall / e.wall, "x", ""))
+            rows.append(Row(f"  {env_id} / {PREVIOUS_ENV_ID}", d.cpu / e.cpu, d.wall / e.wall, "x", ""))
     return rows
 
 
@@ -467,6 +470,10 @@ def bench_reset(args: Args) -> list[Row]:
     small = _env(args, relocalizer={"n_particles": 2000})
     small.reset(seed=0)
     s_cpu, s_wall = _median_time(lambda: small.reset(seed=next(seeds)), max(20, args.repeats))
+    before = _env(args, env_id=PREVIOUS_ENV_ID)
+    before.reset(seed=0)
+    b_cpu, b_wall = _median_time(lambda: before.reset(seed=next(seeds)), max(20, args.repeats))
+    n_before = before.mcl.global_particle_count()
     m_cpu, m_wall = _median_time(lambda: _env(args), 5)
     old = os.environ.get("SEMRELOC_CACHE_DIR")
     os.environ["SEMRELOC_CACHE_DIR"] = ""
@@ -493,6 +500,7 @@ def bench_reset(args: Args) -> list[Row]:
         Row("reset() (cached map)", r_cpu * 1e3, r_wall * 1e3, "ms", f"global, {n_spread} particles; target <= 2 ms"),
         Row("reset() (cached map), tracking", t_cpu * 1e3, t_wall * 1e3, "ms", "500 particles around the pose"),
         Row("reset() (cached map), n_particles=2000", s_cpu * 1e3, s_wall * 1e3, "ms", "global, 2000 particles"),
+        Row(f"reset() (cached map), {PREVIOUS_ENV_ID}", b_cpu * 1e3, b_wall * 1e3, "ms", f"global, {n_before}"),
         Row("gym.make (cached map)", m_cpu * 1e3, m_wall * 1e3, "ms", ""),
         Row(
             "new layout: gym.make + reset",
@@ -527,13 +535,13 @@ from semreloc_env.layouts import get_layout
 from semreloc_env.layouts.tiling import tiled_layout
 from semreloc_env.mapping_run import build_maps, mapping_drive
 build_maps(get_layout("twin_rooms"))  # warm numba caches (not counted)
-gym.make("SemReloc-v20", layout="twin_rooms").reset(seed=0)
+gym.make("SemReloc-v21", layout="twin_rooms").reset(seed=0)
 base_rss = peak_rss_mb()
 nx, ny = int(sys.argv[1]), int(sys.argv[2])
 layout = tiled_layout(get_layout("lab"), nx, ny)
-n_poses = len(mapping_drive(layout, narrow=True)[0])  # the drive of SemReloc-v12 to v20 (mapping run version 6)
+n_poses = len(mapping_drive(layout, narrow=True)[0])  # the drive of SemReloc-v12 to v21 (mapping run version 6)
 c0, w0 = time.process_time(), time.perf_counter()
-env = gym.make("SemReloc-v20", layout=layout)
+env = gym.make("SemReloc-v21", layout=layout)
 env.reset(seed=0)
 c1, w1 = time.process_time(), time.perf_counter()
 x0, x1, y0, y1 = layout.bounds()

@@ -1,4 +1,4 @@
-"""``SemReloc-v20`` (and ``-v19`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
+"""``SemReloc-v21`` (and ``-v20`` ... ``-v0``): active global relocalization with a semantic particle filter inside."""
 
 from __future__ import annotations
 
@@ -169,13 +169,20 @@ the relocalizer evaluation's tuning episodes; right after a global reset in the 
 updates (``places_follow_odometry``). Chosen on the relocalizer evaluation's tuning seeds; evaluated on its reported
 seeds and the 930 held-out active pairs (docs/relocalizer.md, "SemReloc-v19")."""
 
-DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V19, belief_between_updates="odometry")
+RELOCALIZER_V20 = dataclasses.replace(RELOCALIZER_V19, belief_between_updates="odometry")
 """The relocalizer of SemReloc-v20: `RELOCALIZER_V19` whose belief, on the steps the motion gate skips the measurement
 update (most of them), is the last update's carried by the odometry since (``belief_between_updates="odometry"``, as
 AMCL reports between updates) instead of the moved set summarised again. For the same actions the particles, weights
 and updates are v19's bit for bit; a step without an update costs about a third less. On the relocalizer evaluation's
 4,460 reported episodes (belief-blind policies) no outcome or time to success changed (docs/performance.md, "The
 belief carried between updates")."""
+
+DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V20, global_particles_per_m2=25.0, predict_when_still=False)
+"""The relocalizer of SemReloc-v21: `RELOCALIZER_V20` with less work where it bought nothing measurable: a global start
+draws 25 particles per m^2 of free space instead of 50 (``global_particles_per_m2``; KLD shrinks the set at the first
+update either way), and a step without motion (a zero odometry increment) leaves the particles as they are without
+drawing their zero motion noise (``predict_when_still=False``). Chosen on the relocalizer evaluation's tuning seeds;
+evaluated on its reported seeds (docs/performance.md, "SemReloc-v21")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -811,10 +818,18 @@ def _belief_title(belief) -> str:
     return f"  best hypothesis {100 * best.weight:.0f} % (std {best.pos_std_m:.1f} m)"
 
 
-class SemRelocEnvV19(SemRelocEnv):
+class SemRelocEnvV20(SemRelocEnv):
+    """``SemReloc-v20``: `SemRelocEnv` with the relocalizer of v20 (`RELOCALIZER_V20`: a global start draws 50
+    particles per m^2, a still step draws its zero motion noise). Otherwise identical to ``SemReloc-v21``. Kept so that results made with v20 can be reproduced; new
+    work should use ``SemReloc-v21``."""
+
+    default_relocalizer = RELOCALIZER_V20
+
+
+class SemRelocEnvV19(SemRelocEnvV20):
     """``SemReloc-v19``: `SemRelocEnv` with the relocalizer of v19 (`RELOCALIZER_V19`: between updates the belief is
     the moved particle set summarised again). Otherwise identical to ``SemReloc-v20``. Kept so that results made with
-    v19 can be reproduced; new work should use ``SemReloc-v20``."""
+    v19 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V19
 
@@ -823,7 +838,7 @@ class SemRelocEnvV18(SemRelocEnvV19):
     """``SemReloc-v18``: `SemRelocEnv` with the relocalizer of v18 (`RELOCALIZER_V18`: KLD's ``kld_epsilon`` 0.05, the
     remembered places stay where the last update left them) and odometry that reads the true increment, a slide
     along a wall included. Otherwise identical to ``SemReloc-v19``. Kept so that results made with v18 can be
-    reproduced; new work should use ``SemReloc-v20``."""
+    reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V18
     odometry_reads_slides = True
@@ -832,7 +847,7 @@ class SemRelocEnvV18(SemRelocEnvV19):
 class SemRelocEnvV17(SemRelocEnvV18):
     """``SemReloc-v17``: `SemRelocEnv` with the relocalizer of v17 (`RELOCALIZER_V17`: the audit a hold lost without a
     surprise turns on judges the last 20 updates' scans at once). Otherwise identical to ``SemReloc-v18``. Kept so
-    that results made with v17 can be reproduced; new work should use ``SemReloc-v20``."""
+    that results made with v17 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V17
 
@@ -840,7 +855,7 @@ class SemRelocEnvV17(SemRelocEnvV18):
 class SemRelocEnvV16(SemRelocEnvV17):
     """``SemReloc-v16``: `SemRelocEnv` with the relocalizer of v16 (`RELOCALIZER_V16`: a tracking start holds no
     pose, and its surprise tests are armed only once the belief has met the 95 % rule). Otherwise identical to
-    ``SemReloc-v17``. Kept so that results made with v16 can be reproduced; new work should use ``SemReloc-v20``."""
+    ``SemReloc-v17``. Kept so that results made with v16 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V16
 
@@ -848,7 +863,7 @@ class SemRelocEnvV16(SemRelocEnvV17):
 class SemRelocEnvV15(SemRelocEnvV16):
     """``SemReloc-v15``: `SemRelocEnv` with the relocalizer of v15 (`RELOCALIZER_V15`: a held convergence that ends
     without a surprise leaves the audit off in a tracking episode). Otherwise identical to ``SemReloc-v16``. Kept so
-    that results made with v15 can be reproduced; new work should use ``SemReloc-v20``."""
+    that results made with v15 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V15
 
@@ -856,7 +871,7 @@ class SemRelocEnvV15(SemRelocEnvV16):
 class SemRelocEnvV14(SemRelocEnvV15):
     """``SemReloc-v14``: `SemRelocEnv` with the relocalizer of v14 (`RELOCALIZER_V14`: the audit a surprise turns on
     in a tracking episode stays on until the next reset). Otherwise identical to ``SemReloc-v15``. Kept so that
-    results made with v14 can be reproduced; new work should use ``SemReloc-v20``."""
+    results made with v14 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V14
 
@@ -864,7 +879,7 @@ class SemRelocEnvV14(SemRelocEnvV15):
 class SemRelocEnvV13(SemRelocEnvV14):
     """``SemReloc-v13``: `SemRelocEnv` with the relocalizer of v13 (`RELOCALIZER_V13`: no surprise test of the
     camera's own). Otherwise identical to ``SemReloc-v14``. Kept so that results made with v13 can be reproduced;
-    new work should use ``SemReloc-v20``."""
+    new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V13
 
@@ -872,7 +887,7 @@ class SemRelocEnvV13(SemRelocEnvV14):
 class SemRelocEnvV12(SemRelocEnvV13):
     """``SemReloc-v12``: `SemRelocEnv` with the relocalizer of v12 (`RELOCALIZER_V12`: its surprise test compares
     with augmented MCL's fast average, which injections restart). Otherwise identical to ``SemReloc-v13``. Kept
-    so that results made with v12 can be reproduced; new work should use ``SemReloc-v20``."""
+    so that results made with v12 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V12
 
@@ -881,7 +896,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
     """``SemReloc-v11``: `SemRelocEnvV12` with the maps of the mapping run's version 5 (a drive that skips passages
     between its lattice's rows and columns) and the relocalizer of v10 and v11 (`RELOCALIZER_V10`: no audit in
     a tracking episode, also after a surprise). Otherwise identical to ``SemReloc-v12``. Kept so that results
-    made with v11 can be reproduced; new work should use ``SemReloc-v20``."""
+    made with v11 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V10
     mapping_run_version = "5"
@@ -890,7 +905,7 @@ class SemRelocEnvV11(SemRelocEnvV12):
 class SemRelocEnvV10(SemRelocEnvV11):
     """``SemReloc-v10``: `SemRelocEnvV11` with the maps of the mapping run's version 4 (space the lidar's returns
     did not reach left unknown). Otherwise identical to ``SemReloc-v11``. Kept so that results made with v10
-    can be reproduced; new work should use ``SemReloc-v20``."""
+    can be reproduced; new work should use ``SemReloc-v21``."""
 
     mapping_run_version = "4"
 
@@ -899,7 +914,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
     """``SemReloc-v9``: `SemRelocEnvV10` with the maps of the mapping run's version 3 (stray class cells kept)
     and the relocalizer of v9 (`RELOCALIZER_V9`: the screen's pause ignores where the belief is). Otherwise
     identical to ``SemReloc-v10``. Kept so that results made with v9 can be reproduced; new work should use
-    ``SemReloc-v20``."""
+    ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V9
     mapping_run_version = "3"
@@ -908,7 +923,7 @@ class SemRelocEnvV9(SemRelocEnvV10):
 class SemRelocEnvV8(SemRelocEnvV9):
     """``SemReloc-v8``: `SemRelocEnvV9` with the relocalizer of v7 and v8 (`RELOCALIZER_V7`: the convergence
     audit searches near its candidates and the particles only). Otherwise identical to ``SemReloc-v9``.
-    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v20``."""
+    Kept so that results made with v8 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V7
 
@@ -917,7 +932,7 @@ class SemRelocEnvV7(SemRelocEnvV8):
     """``SemReloc-v7``: `SemRelocEnvV8` with the maps of the mapping run's version 2, whose camera beams
     without a return (objects nearer than the camera's minimum range among them) cleared the classes along
     the camera's range. Otherwise identical to ``SemReloc-v8``. Kept so that results made with v7 can be
-    reproduced; new work should use ``SemReloc-v20``."""
+    reproduced; new work should use ``SemReloc-v21``."""
 
     mapping_run_version = "2"
 
@@ -926,7 +941,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
     """``SemReloc-v6``: `SemRelocEnvV7` with the relocalizer of v6 (`RELOCALIZER_V6`: the convergence audit's
     coarse-to-fine search only, and a convergence reached between updates called at once). Otherwise
     identical to ``SemReloc-v7``. Kept so that results made with v6 can be reproduced; new work should use
-    ``SemReloc-v20``."""
+    ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V6
 
@@ -934,7 +949,7 @@ class SemRelocEnvV6(SemRelocEnvV7):
 class SemRelocEnvV5(SemRelocEnvV6):
     """``SemReloc-v5``: `SemRelocEnvV6` with the relocalizer of v5 (`RELOCALIZER_V5`: a convergence is
     judged afresh at every step, no hold and no surprise test). Otherwise identical to ``SemReloc-v6``. Kept so that
-    results made with v5 can be reproduced; new work should use ``SemReloc-v20``."""
+    results made with v5 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V5
 
@@ -942,7 +957,7 @@ class SemRelocEnvV5(SemRelocEnvV6):
 class SemRelocEnvV4(SemRelocEnvV5):
     """``SemReloc-v4``: `SemRelocEnvV5` with the relocalizer of v4 (`RELOCALIZER_V4`: no convergence
     audit). Otherwise identical to ``SemReloc-v5``. Kept so that results made with v4 can be
-    reproduced; new work should use ``SemReloc-v20``."""
+    reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V4
 
@@ -950,7 +965,7 @@ class SemRelocEnvV4(SemRelocEnvV5):
 class SemRelocEnvV3(SemRelocEnvV4):
     """``SemReloc-v3``: `SemRelocEnvV4` with the relocalizer of v1-v3 (`RELOCALIZER_V1`: no evidence
     from objects not seen). Otherwise identical to ``SemReloc-v4``. Kept so that results made with
-    v3 can be reproduced; new work should use ``SemReloc-v20``."""
+    v3 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V1
 
@@ -958,7 +973,7 @@ class SemRelocEnvV3(SemRelocEnvV4):
 class SemRelocEnvV2(SemRelocEnvV3):
     """``SemReloc-v2``: `SemRelocEnvV3` with lookalike layouts from the procedural generator's version 1
     (no check that their corridor objects break the half turn). Otherwise identical to ``SemReloc-v3``.
-    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v20``."""
+    Kept so that results made with v2 can be reproduced; new work should use ``SemReloc-v21``."""
 
     procedural_version = 1
 
@@ -967,7 +982,7 @@ class SemRelocEnvV1(SemRelocEnvV2):
     """``SemReloc-v1``: `SemRelocEnvV2` with the flat observation (one float32 ``semantic`` Box:
     ranges, then the labels as floats) and None in ``info["mcl"]`` for values not computed in a step.
     Otherwise identical to ``SemReloc-v2`` (same seed, same episode). Kept so that policies trained on
-    v1 keep working; new work should use ``SemReloc-v20``."""
+    v1 keep working; new work should use ``SemReloc-v21``."""
 
     observation_layout = "flat"
     info_missing = "none"
@@ -975,6 +990,6 @@ class SemRelocEnvV1(SemRelocEnvV2):
 
 class SemRelocEnvV0(SemRelocEnvV1):
     """``SemReloc-v0``: `SemRelocEnvV1` with the first release's relocalizer
-    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v20``."""
+    (`LEGACY_RELOCALIZER`). Kept so that results made with v0 can be reproduced; use ``SemReloc-v21``."""
 
     default_relocalizer = LEGACY_RELOCALIZER
