@@ -831,8 +831,8 @@ def _belief_title(belief) -> str:
 
 class SemRelocEnvV20(SemRelocEnv):
     """``SemReloc-v20``: `SemRelocEnv` with the relocalizer of v20 (`RELOCALIZER_V20`: a global start draws 50
-    particles per m^2, a still step draws its zero motion noise). Otherwise identical to ``SemReloc-v21``. Kept so that results made with v20 can be reproduced; new
-    work should use ``SemReloc-v21``."""
+    particles per m^2, a still step draws its zero motion noise). Otherwise identical to ``SemReloc-v21``. Kept so
+    that results made with v20 can be reproduced; new work should use ``SemReloc-v21``."""
 
     default_relocalizer = RELOCALIZER_V20
 
