@@ -60,7 +60,7 @@ def test_every_entry_point_has_its_script_and_each_script_calls_it():
         assert "sys.path" not in text
 
 
-@pytest.mark.parametrize("name", ["stages", "belief", "batched", "batched_split"])
+@pytest.mark.parametrize("name", ["stages", "belief", "batched_split"])  # batched: the test below
 def test_cheap_benchmarks_run_and_print_finite_figures(name):
     """The benchmarks import what they need and measure something (tiny sizes; no timing asserted)."""
     import math
@@ -71,6 +71,23 @@ def test_cheap_benchmarks_run_and_print_finite_figures(name):
     rows = fn(bench.Args(steps=20, repeats=2, only=(name,)))
     assert rows
     assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows
+
+
+@pytest.mark.filterwarnings("ignore:.*out of date.*:DeprecationWarning")
+def test_the_batched_bench_puts_the_version_before_beside_the_newest_only():
+    """The newest id's batched rows include the previous version's R = 64 and their ratio; an older ``--env-id``
+    runs its own rows without them (a reviewer found an IndexError there)."""
+    import math
+
+    from agents.tools import bench
+
+    rows = bench.bench_batched(bench.Args(steps=20, repeats=2, only=("batched",)))
+    assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows
+    newest = [r.name for r in rows]
+    assert f"batched env R=64, {bench.PREVIOUS_ENV_ID}" in newest
+    assert f"  {bench.ENV_ID} / {bench.PREVIOUS_ENV_ID}" in newest
+    older = bench.bench_batched(bench.Args(steps=20, repeats=2, only=("batched",), env_id=bench.PREVIOUS_ENV_ID))
+    assert not any(bench.PREVIOUS_ENV_ID in r.name for r in older) and len(older) == len(newest) - 2
 
 
 def test_the_bench_runs_the_version_it_is_told():

@@ -797,17 +797,18 @@ class _RecoveringModel(LikelihoodFieldModel):
         return ll_l, ll_s, beams
 
 
-@pytest.mark.parametrize("relocalizer", ["v19", "legacy"])
+@pytest.mark.parametrize("relocalizer", ["newest", "legacy"])
 def test_belief_between_updates_odometry_against_an_independent_anchor(relocalizer):
-    """The envs' relocalizer (audits, injections, clustered resampling) with a forced recovery, updates without
-    scans, two predicts between updates, a kidnap and an init mid-run: the carried summary is that of the set each
-    update left, moved by the odometry since, tracked here on our own; the particles are those of "exact"."""
+    """The envs' relocalizer (audits, injections, clustered resampling; the newest skips a still step's draws) with a
+    forced recovery, updates without scans, two predicts between updates, still predicts, a kidnap and an init mid-run:
+    the carried summary is that of the set each update left, moved by the odometry since, tracked here on our own; the
+    particles are those of "exact"."""
 
     from filters.localization.belief import carried, summarize
     from semreloc_env.envs.semreloc import DEFAULT_RELOCALIZER, LEGACY_RELOCALIZER
 
     grid = symmetric_room()
-    base = {"v19": DEFAULT_RELOCALIZER, "legacy": LEGACY_RELOCALIZER}[relocalizer]
+    base = {"newest": DEFAULT_RELOCALIZER, "legacy": LEGACY_RELOCALIZER}[relocalizer]
     runs, counts = {}, {}
     for mode in ("exact", "odometry"):
         cfg = MCLConfig(**{**base.as_dict(), "belief_between_updates": mode, "max_particles": 1500})
@@ -823,7 +824,9 @@ def test_belief_between_updates_odometry_against_an_independent_anchor(relocaliz
             new = compose(pose, [0.04, 0.0, 0.03] if r[0] > 0.6 else [0.0, 0.0, 0.4])
             odom = relative(pose, new) + rng.normal(0.0, 0.005, 3)
             pose = np.array([8.5, 1.0, 1.0]) if t == 90 else new  # a kidnapping at step 90
-            for d in [odom, [0.0, 0.0, 0.01]] if t % 7 == 3 else [odom]:  # sometimes two predicts
+            still = [0.0, 0.0, 0.0]
+            predicts = [odom, [0.0, 0.0, 0.01]] if t % 7 == 3 else [still] if t % 11 == 5 else [odom, still]
+            for d in predicts:  # sometimes two predicts, sometimes a still one alone or after a move
                 mcl.predict(d)
                 moved = compose(moved, d)
             lidar = simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)
@@ -845,7 +848,7 @@ def test_belief_between_updates_odometry_against_an_independent_anchor(relocaliz
         runs[mode], counts[mode] = steps, seen
     assert counts["exact"] == counts["odometry"]
     assert counts["odometry"]["recovered"] and counts["odometry"]["skipped"] > 20
-    if relocalizer == "v19":
+    if relocalizer == "newest":
         assert counts["odometry"]["audit"]  # an audit added particles
     for (u, p, lw, b), (u2, p2, lw2, b2) in zip(runs["exact"], runs["odometry"]):
         assert u == u2 and np.array_equal(p, p2) and np.array_equal(lw, lw2)
@@ -945,5 +948,16 @@ def test_a_routine_injection_weighs_its_candidates_per_injected_particle(per_par
 def test_bad_proposal_candidates_per_particle_is_refused(bad):
     with pytest.raises(ValueError, match="proposal_candidates_per_particle"):
         MCLConfig(proposal_candidates_per_particle=bad)
+
+
+@pytest.mark.parametrize("bad", ["no", 0, 1, None])
+def test_predict_when_still_takes_only_a_bool(bad):
     with pytest.raises(ValueError, match="predict_when_still must be a bool"):
-        MCLConfig(predict_when_still="no")
+        MCLConfig(predict_when_still=bad)
+
+
+def test_new_fields_take_numpy_numbers_as_plain_python_ones():
+    c = MCLConfig(proposal_candidates_per_particle=np.float32(12.5), predict_when_still=np.bool_(False))
+    assert type(c.proposal_candidates_per_particle) is float and c.proposal_candidates_per_particle == 12.5
+    assert not c.predict_when_still
+    assert MCLConfig(proposal_candidates_per_particle=np.int64(7)).proposal_candidates_per_particle == 7

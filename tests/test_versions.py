@@ -726,12 +726,8 @@ def test_v19_is_v18_with_wheel_odometry_a_looser_kld_bound_and_places_that_follo
 
 def test_v20_is_v19_whose_belief_between_updates_is_carried_by_the_odometry():
     """v20's relocalizer is v19's with ``belief_between_updates="odometry"``: the same observations, particles and
-    updates bit for bit; the belief (info, reward) differs on the steps without an update only; its Vec id runs it.
-    (The batched env's default is the newest, v21.)"""
-    from semreloc_env.envs.batched import SINGLE_ENV_ID
-
+    updates bit for bit; the belief (info, reward) differs on the steps without an update only; its Vec id runs it."""
     assert_one_option_apart("SemReloc-v20", "SemReloc-v19", belief_between_updates="odometry")
-    assert SINGLE_ENV_ID == "SemReloc-v21"
     actions = ACTIONS + [1] * 20 + [0] * 10
     a = rollout(make("SemReloc-v20", **FAST), options=START, actions=actions)
     b = rollout(make("SemReloc-v19", **FAST), options=START, actions=actions)
@@ -757,7 +753,11 @@ def test_v20_is_v19_whose_belief_between_updates_is_carried_by_the_odometry():
 def test_v21_is_v20_whose_relocalizer_does_less_work():
     """v21's relocalizer is v20's with half the particles per m^2 at a global start and no noise drawn for a still
     step; the world, sensors and observations are v20's for the same actions (their draws come from other
-    generators), the filter's draws differ from the first still step on; its Vec id runs it."""
+    generators), the filter's differ from the reset on (its own still predict, the smaller draw); its Vec id runs it,
+    and it is the batched env's default."""
+    from semreloc_env.envs.batched import SINGLE_ENV_ID
+
+    assert SINGLE_ENV_ID == "SemReloc-v21"
     assert_one_option_apart("SemReloc-v21", "SemReloc-v20", global_particles_per_m2=25.0, predict_when_still=False)
     new = make("SemReloc-v21", map_source="perfect").unwrapped
     old = make("SemReloc-v20", map_source="perfect").unwrapped
@@ -772,6 +772,9 @@ def test_v21_is_v20_whose_relocalizer_does_less_work():
         env.mcl.predict([0.0, 0.0, 0.0])
         assert np.array_equal(env.mcl.poses, poses)
         assert (env.mcl.rng.bit_generator.state == state) == (env is new)
+        env.step(0)  # forward: the particles move, with noise drawn
+        assert env.mcl.poses.shape != poses.shape or not np.array_equal(env.mcl.poses, poses)
+        assert env.mcl.rng.bit_generator.state != state
     a = rollout(make("SemReloc-v21", **FAST), options=START)
     b = rollout(make("SemReloc-v20", **FAST), options=START)
     for (obs, *_), (obs2, *_) in zip(a, b):

@@ -379,22 +379,26 @@ def bench_batched(args: Args) -> list[Row]:
     100-particle filter (100 proposal and audit candidates): what a robot-step costs besides the particle
     work (world, sensors, the filter's per-call code, info, the loop); and R = 64 of the version before the newest
     (`PREVIOUS_ENV_ID`, whose relocalizer does more work: twice the particles at a global start, a still step's zero
-    motion noise drawn), right after the default R = 64, with their ratio (the episodes differ)."""
+    motion noise drawn), right after the default R = 64, with their ratio (the episodes differ); not when ``--env-id``
+    names an older version."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
     n = max(20, args.steps // 4)
     small = {"n_particles": 100, "proposal_candidates": 100, "audit_candidates": 100, "audit_candidates_per_m2": 0.0}
     env_id = args.env_id or ENV_ID
+    previous = (
+        [(64, PREVIOUS_ENV_ID, None, f", {PREVIOUS_ENV_ID}", "more relocalizer work")] if env_id == ENV_ID else []
+    )
     cases = [
         (1, env_id, None, "", ""),
         (16, env_id, None, "", ""),
         (64, env_id, None, "", "target 5000 at R=64"),
-        (64, PREVIOUS_ENV_ID, None, f", {PREVIOUS_ENV_ID}", "the version before, more relocalizer work"),
+        *previous,
         (64, env_id, {"n_particles": 1000}, ", 1000-particle filter", "agents.train_active's particle count"),
         (64, env_id, small, ", 100-particle filter", "the cost that is not particle work"),
     ]
-    for r, case_id, relocalizer, what, why in cases:
+    for i, (r, case_id, relocalizer, what, why) in enumerate(cases):
         kwargs = {} if relocalizer is None else {"relocalizer": relocalizer}
         with _older_ids_quiet():
             venv = SemRelocLoopVectorEnv(num_envs=r, env_id=case_id, **kwargs)
@@ -406,7 +410,7 @@ def bench_batched(args: Args) -> list[Row]:
         venv.close()
         note = f"random actions, {n} steps per robot" + (f"; {why}" if why else "")
         rows.append(Row(f"batched env R={r}{what}", n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
-        if case_id == PREVIOUS_ENV_ID and relocalizer is None:
+        if previous and i == 3:  # the previous version, right after the newest at R = 64
             d, e = rows[-2], rows[-1]
             rows.append(Row(f"  {env_id} / {PREVIOUS_ENV_ID}", d.cpu / e.cpu, d.wall / e.wall, "x", ""))
     return rows
@@ -482,10 +486,16 @@ def bench_reset(args: Args) -> list[Row]:
     small = _env(args, relocalizer={"n_particles": 2000})
     small.reset(seed=0)
     s_cpu, s_wall = _median_time(lambda: small.reset(seed=next(seeds)), max(20, args.repeats))
-    before = _env(args, env_id=PREVIOUS_ENV_ID)
-    before.reset(seed=0)
-    b_cpu, b_wall = _median_time(lambda: before.reset(seed=next(seeds)), max(20, args.repeats))
-    n_before = before.mcl.global_particle_count()
+    if (args.env_id or ENV_ID) == ENV_ID:  # the version before, beside the newest
+        before = _env(args, env_id=PREVIOUS_ENV_ID)
+        before.reset(seed=0)
+        b_cpu, b_wall = _median_time(lambda: before.reset(seed=next(seeds)), max(20, args.repeats))
+        n_before = before.mcl.global_particle_count()
+        previous = [
+            Row(f"reset() (cached map), {PREVIOUS_ENV_ID}", b_cpu * 1e3, b_wall * 1e3, "ms", f"global, {n_before}")
+        ]
+    else:
+        previous = []
     m_cpu, m_wall = _median_time(lambda: _env(args), 5)
     old = os.environ.get("SEMRELOC_CACHE_DIR")
     os.environ["SEMRELOC_CACHE_DIR"] = ""
@@ -512,7 +522,7 @@ def bench_reset(args: Args) -> list[Row]:
         Row("reset() (cached map)", r_cpu * 1e3, r_wall * 1e3, "ms", f"global, {n_spread} particles; target <= 2 ms"),
         Row("reset() (cached map), tracking", t_cpu * 1e3, t_wall * 1e3, "ms", "500 particles around the pose"),
         Row("reset() (cached map), n_particles=2000", s_cpu * 1e3, s_wall * 1e3, "ms", "global, 2000 particles"),
-        Row(f"reset() (cached map), {PREVIOUS_ENV_ID}", b_cpu * 1e3, b_wall * 1e3, "ms", f"global, {n_before}"),
+        *previous,
         Row("gym.make (cached map)", m_cpu * 1e3, m_wall * 1e3, "ms", ""),
         Row(
             "new layout: gym.make + reset",

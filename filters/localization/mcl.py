@@ -244,8 +244,8 @@ class MCLConfig:
             are never scaled.
         proposal_candidates_per_particle: ``r``: a routine injection of ``m`` particles weighs
             ``min(proposal_candidates, max(10 r, r m))`` scan-proposal candidates and draws its particles among them
-            by their likelihood (20: ``max(200, 20 m)``, every registered env before ``SemReloc-v21``; weighing the
-            candidates is most of an injection's cost).
+            by their likelihood (20: ``max(200, 20 m)``, every registered env, ``SemReloc-v21`` included; each term
+            rounded down; weighing the candidates is most of an injection's cost).
         audit_window: ``K`` (0 = off): the *convergence audit* (`filters.localization.audit`). At
             an update after which the set meets the "converged" criterion and did not before, it
             looks for the pose outside the converged hypothesis that best explains the scans of the

@@ -154,7 +154,7 @@ def _common_settings(rng: np.random.Generator) -> dict:
 def _relocalizer_settings(rng: np.random.Generator) -> dict:
     """Random (valid) overrides of a ``SemReloc-v2``-or-newer relocalizer, small enough for a soak:
     adaptive (KLD) or fixed particle counts, proposal and audit candidates, resampling, injection,
-    backend."""
+    backend, whether a still step draws its motion noise."""
     low = int(rng.integers(20, 300))
     kw = {
         "min_particles": low,
@@ -168,6 +168,8 @@ def _relocalizer_settings(rng: np.random.Generator) -> dict:
         "backend": ["numba", "numpy"][int(rng.integers(2))],
         "kld": bool(rng.random() < 0.8),
         "lidar_on_rotation": bool(rng.random() < 0.2),
+        "predict_when_still": bool(rng.random() < 0.5),
+        "proposal_candidates_per_particle": float(rng.uniform(1.0, 30.0)),
     }
     if rng.random() < 0.3:
         kw["n_particles"] = int(rng.integers(20, 400))
