@@ -167,6 +167,21 @@ def _median_time(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
     return statistics.median(cpus), statistics.median(walls)
 
 
+def _interleaved_median_times(fns: list[Callable[[], object]], repeats: int) -> list[tuple[float, float]]:
+    """`_median_time` of each of ``fns``, called in turn round by round (after one warm-up round), so that a change in
+    the machine's load moves them alike."""
+    for fn in fns:
+        fn()
+    times: list[tuple[list[float], list[float]]] = [([], []) for _ in fns]
+    for _ in range(repeats):
+        for fn, (cpus, walls) in zip(fns, times):
+            with Clock() as c:
+                fn()
+            cpus.append(c.cpu)
+            walls.append(c.wall)
+    return [(statistics.median(cpus), statistics.median(walls)) for cpus, walls in times]
+
+
 @numba.njit(cache=True, nogil=True, fastmath=True)
 def fused_probe(x, y, c_, s_, lx, ly, offset, flat, floors_b, ox, oy, inv_res, w, h, out):  # pragma: no cover
     """The reference probe: the same look-up-and-sum as the likelihood kernel, fused into one loop
@@ -477,25 +492,30 @@ def bench_reset(args: Args) -> list[Row]:
     """reset() with a cached map, gym.make with a cached map, and a new layout (no disk cache)."""
     import os
 
+    repeats = max(20, args.repeats)
     env = _env(args)
     env.reset(seed=0)
-    seeds = iter(range(1, 10**6))
-    r_cpu, r_wall = _median_time(lambda: env.reset(seed=next(seeds)), max(20, args.repeats))
+    envs = [env]
+    if (args.env_id or ENV_ID) == ENV_ID:  # the version before, beside the newest: the same seeds, in turn
+        envs.append(_env(args, env_id=PREVIOUS_ENV_ID))
+        envs[1].reset(seed=0)
+    streams = [iter(range(1, 10**6)) for _ in envs]
+    timed = _interleaved_median_times([lambda e=e, s=s: e.reset(seed=next(s)) for e, s in zip(envs, streams)], repeats)
+    r_cpu, r_wall = timed[0]
     n_spread = env.mcl.global_particle_count()
-    t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), max(20, args.repeats))
+    previous = []
+    if len(envs) > 1:
+        (b_cpu, b_wall), n_before = timed[1], envs[1].mcl.global_particle_count()
+        what = f"reset() (cached map), {PREVIOUS_ENV_ID}"
+        previous = [
+            Row(what, b_cpu * 1e3, b_wall * 1e3, "ms", f"global, {n_before} particles; the same seeds, in turn"),
+            Row(f"  {ENV_ID} / {PREVIOUS_ENV_ID} reset time", r_cpu / b_cpu, r_wall / b_wall, "x", ""),
+        ]
+    seeds = streams[0]
+    t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), repeats)
     small = _env(args, relocalizer={"n_particles": 2000})
     small.reset(seed=0)
-    s_cpu, s_wall = _median_time(lambda: small.reset(seed=next(seeds)), max(20, args.repeats))
-    if (args.env_id or ENV_ID) == ENV_ID:  # the version before, beside the newest
-        before = _env(args, env_id=PREVIOUS_ENV_ID)
-        before.reset(seed=0)
-        b_cpu, b_wall = _median_time(lambda: before.reset(seed=next(seeds)), max(20, args.repeats))
-        n_before = before.mcl.global_particle_count()
-        previous = [
-            Row(f"reset() (cached map), {PREVIOUS_ENV_ID}", b_cpu * 1e3, b_wall * 1e3, "ms", f"global, {n_before}")
-        ]
-    else:
-        previous = []
+    s_cpu, s_wall = _median_time(lambda: small.reset(seed=next(seeds)), repeats)
     m_cpu, m_wall = _median_time(lambda: _env(args), 5)
     old = os.environ.get("SEMRELOC_CACHE_DIR")
     os.environ["SEMRELOC_CACHE_DIR"] = ""
