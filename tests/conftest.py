@@ -13,7 +13,7 @@ def _environ(name: str, value: str):
         yield
     finally:
         if old is None:
-            del os.environ[name]
+            os.environ.pop(name, None)
         else:
             os.environ[name] = old
 

@@ -124,8 +124,8 @@ class Args:
     """the env the episodes run in: SemReloc-v21 (the newest), SemReloc-v20, SemReloc-v19, SemReloc-v18, SemReloc-v17,
     SemReloc-v16, SemReloc-v15, SemReloc-v14, SemReloc-v13, SemReloc-v12, SemReloc-v11, SemReloc-v10, SemReloc-v9,
     SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them;
-    v20 differs from v21 only in its relocalizer's work: twice the particles at a global start and a still step's motion
-    noise drawn; v19 differs from v20 only in the belief it reports between
+    v20 differs from v21 only in drawing a still step's motion noise (and in a map-sized draw at a global start, twice
+    v21's, which ``--particles`` replaces here); v19 differs from v20 only in the belief it reports between
     updates, its moved set summarised again; v18 differs from v19 in its odometry, which reads a slide along a wall, its
     KLD sampling, which allows a third of v19's error (more particles), and its remembered places, which stay put
     between updates; v17 differs from v18 only in its audit after a hold lost without a surprise, v16 from v17 only in

@@ -180,10 +180,11 @@ belief carried between updates")."""
 DEFAULT_RELOCALIZER = dataclasses.replace(RELOCALIZER_V20, global_particles_per_m2=25.0, predict_when_still=False)
 """The relocalizer of SemReloc-v21: `RELOCALIZER_V20` with less work at a global start and on still steps: a global
 start draws 25 particles per m^2 of free space instead of 50 (``global_particles_per_m2``; the sparser draw occupies
-fewer of KLD's bins, so its first resampling keeps about half as many too: 553-2,638 in the lab instead of
-1,554-3,982), and a step without motion (a zero odometry increment) leaves the particles as they are without drawing
-their zero motion noise (``predict_when_still=False``). Chosen on the relocalizer evaluation's tuning seeds; evaluated
-on its reported seeds (docs/performance.md, "SemReloc-v21")."""
+fewer of KLD's bins, so its first resampling keeps fewer too: 553-2,638 in the lab instead of 1,554-3,982; with
+``n_particles`` given nothing changes there), and a step without motion (a zero odometry increment) leaves the
+particles as they are without drawing their zero motion noise (``predict_when_still=False``). Chosen on the
+relocalizer evaluation's tuning seeds; evaluated on its reported seeds and more: the same outcomes, with a possible
+small cost after a kidnapping that follows a global start (docs/performance.md, "SemReloc-v21")."""
 
 LEGACY_RELOCALIZER = MCLConfig(likelihood_scale=0.03, belief={"converged_rule": "spread"})
 """SemReloc-v0's relocalizer: the plain `MCLConfig` (2000 particles, global systematic
@@ -339,13 +340,13 @@ class SemRelocEnv(SemRelocBase):
       1,554-3,982, ten seeds), and a step with a zero odometry increment (a stop, or a robot pinned against a wall)
       leaves the particles as they are without drawing their motion noise, which is zero. Every episode's filter draws
       differ from v20's from the reset on (the world, sensors and observations for the same actions are v20's). A global
-      `reset()` costs about a third less (3.5 against 5.6 ms in the lab), a batched random walk 1.00-1.15x the
-      robot-steps per CPU-second; long episodes gain nothing measurable. On the relocalizer evaluation's 2,230 reported
-      episodes the outcomes and steps to success are v20's within chance (1,945 successes against 1,947, no wrong final
-      convergence in either). After a global start and a kidnapping the belief briefly converged at a wrong place and
-      recovered in 14 of 2,400 held-out episodes against v20's 4: a possible small cost, not established
-      (docs/performance.md, "SemReloc-v21"). Maps, worlds, observation spaces, rewards and info keys are v20's
-      (`SemRelocEnvV20` is v20).
+      `reset()` costs about a third less (3.5 against 5.6 ms in the lab; 0.65-0.67x timed in turn on the same seeds), a
+      batched random walk 1.00-1.15x the robot-steps per CPU-second; long episodes gain nothing measurable. On the
+      relocalizer evaluation's 2,230 reported episodes the outcomes and steps to success are v20's within chance (1,945
+      successes against 1,947, no wrong final convergence in either). After a global start and a kidnapping the belief
+      briefly converged at a wrong place and recovered in 14 of 2,400 held-out episodes against v20's 4: a possible
+      small cost, not established (docs/performance.md, "SemReloc-v21"). Maps, worlds, observation spaces, rewards and
+      info keys are v20's (`SemRelocEnvV20` is v20).
     * v20: on the steps the motion gate skips the measurement update (83 % of a random walk's in the lab), the belief
       in ``info``, the observation wrappers and the reward is the last update's carried by the odometry since
       (`RELOCALIZER_V20`: `RELOCALIZER_V19` with ``belief_between_updates="odometry"``; as AMCL reports its pose
