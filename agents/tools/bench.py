@@ -438,7 +438,8 @@ def bench_batched_split(args: Args) -> list[Row]:
     per CPU-second that would be left if nothing but those kernels ran."""
     from agents.tools.profile_step import batched_split
 
-    s = batched_split(64, max(1, args.steps // 15), args.seed, args.env_id or ENV_ID)
+    with _older_ids_quiet():
+        s = batched_split(64, max(1, args.steps // 15), args.seed, args.env_id or ENV_ID)
     n, us = s.robot_steps, 1e6 / s.robot_steps
     audits = (
         f"{s.audits} searches for another place, {1e3 * s.audit_s / s.audits:.1f} ms of audit time per search"
@@ -735,14 +736,17 @@ def bench_ppo(args: Args) -> list[Row]:
             total_timesteps=args.ppo_steps, seed=args.seed, **({"env_id": args.env_id} if args.env_id else {}),
         )  # fmt: skip
         name = f"{vec_env} x{n_envs}" + (f" in {workers} workers" if workers > 1 else "")
-        venv = make_venv(cfg)
+        with _older_ids_quiet():
+            venv = make_venv(cfg)
         try:
             venv.reset()
             rng = np.random.default_rng(args.seed)
             for _ in range(cfg.n_steps):  # warm-up, as PPO's first rollout
                 venv.step(rng.integers(0, 4, n_envs))
             clock = _env_clock(raw=(venv, rng))
-            train(cfg, callbacks=[clock]).get_env().close()
+            with _older_ids_quiet():
+                model = train(cfg, callbacks=[clock])
+            model.get_env().close()
         finally:
             venv.close()
         ppo = clock.steady()
