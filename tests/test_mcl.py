@@ -914,7 +914,7 @@ def test_a_still_predict_without_draws_still_refuses_bad_increments():
     ("per_particle", "expected"),
     [(20.0, lambda m: max(200, 20 * m)), (10.0, lambda m: max(100, 10 * m)), (2.5, lambda m: max(25, int(2.5 * m)))],
 )
-def test_a_routine_injection_weighs_its_candidates_per_injected_particle(per_particle, expected):
+def test_a_routine_injection_weighs_its_candidates_per_injected_particle(per_particle, expected, monkeypatch):
     grid = symmetric_room()
     cfg = MCLConfig(
         n_particles=600, injection="scan", proposal_frac=0.05, proposal_candidates_per_particle=per_particle
@@ -930,16 +930,13 @@ def test_a_routine_injection_weighs_its_candidates_per_injected_particle(per_par
         asked.append(k)
         return real(self, k, *args)
 
-    ScanProposal.candidates = counting
-    try:
-        pose = np.array([4.0, 1.5, np.pi])
-        rng = np.random.default_rng(2)
-        for _ in range(4):
-            mcl.predict([0.2, 0.0, 0.0])
-            pose = compose(pose, [0.2, 0.0, 0.0])
-            injected.append(mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)).n_injected)
-    finally:
-        ScanProposal.candidates = real
+    monkeypatch.setattr(ScanProposal, "candidates", counting)
+    pose = np.array([4.0, 1.5, np.pi])
+    rng = np.random.default_rng(2)
+    for _ in range(4):
+        mcl.predict([0.2, 0.0, 0.0])
+        pose = compose(pose, [0.2, 0.0, 0.0])
+        injected.append(mcl.update(simulate_lidar(grid, pose, LIDAR_ANGLES, 8.0, 0.02, rng)).n_injected)
     assert len(asked) == 4 and all(m > 0 for m in injected)
     assert asked == [min(2000, expected(m)) for m in injected]
 

@@ -157,14 +157,7 @@ class Clock:
 
 def _median_time(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
     """Median (CPU s, wall s) of ``fn()`` over ``repeats`` calls after one warm-up call."""
-    fn()
-    cpus, walls = [], []
-    for _ in range(repeats):
-        with Clock() as c:
-            fn()
-        cpus.append(c.cpu)
-        walls.append(c.wall)
-    return statistics.median(cpus), statistics.median(walls)
+    return _interleaved_median_times([fn], repeats)[0]
 
 
 def _interleaved_median_times(fns: list[Callable[[], object]], repeats: int) -> list[tuple[float, float]]:
@@ -413,7 +406,7 @@ def bench_batched(args: Args) -> list[Row]:
         (64, env_id, {"n_particles": 1000}, ", 1000-particle filter", "agents.train_active's particle count"),
         (64, env_id, small, ", 100-particle filter", "the cost that is not particle work"),
     ]
-    for i, (r, case_id, relocalizer, what, why) in enumerate(cases):
+    for r, case_id, relocalizer, what, why in cases:
         kwargs = {} if relocalizer is None else {"relocalizer": relocalizer}
         with _older_ids_quiet():
             venv = SemRelocLoopVectorEnv(num_envs=r, env_id=case_id, **kwargs)
@@ -425,7 +418,7 @@ def bench_batched(args: Args) -> list[Row]:
         venv.close()
         note = f"random actions, {n} steps per robot" + (f"; {why}" if why else "")
         rows.append(Row(f"batched env R={r}{what}", n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
-        if previous and i == 3:  # the previous version, right after the newest at R = 64
+        if case_id != env_id:  # the previous version, right after the newest at R = 64
             d, e = rows[-2], rows[-1]
             rows.append(Row(f"  {env_id} / {PREVIOUS_ENV_ID}", d.cpu / e.cpu, d.wall / e.wall, "x", ""))
     return rows

@@ -340,7 +340,7 @@ class SemRelocEnv(SemRelocBase):
       1,554-3,982, ten seeds), and a step with a zero odometry increment (a stop, or a robot pinned against a wall)
       leaves the particles as they are without drawing their motion noise, which is zero. Every episode's filter draws
       differ from v20's from the reset on (the world, sensors and observations for the same actions are v20's). A global
-      `reset()` costs about a third less (3.5 against 5.6 ms in the lab; 0.65-0.67x timed in turn on the same seeds), a
+      `reset()` costs about a third less (3.5 against 5.6 ms in the lab; 0.65-0.68x timed in turn on the same seeds), a
       batched random walk 1.00-1.15x the robot-steps per CPU-second; long episodes gain nothing measurable. On the
       relocalizer evaluation's 2,230 reported episodes the outcomes and steps to success are v20's within chance (1,945
       successes against 1,947, no wrong final convergence in either). After a global start and a kidnapping the belief
