@@ -325,3 +325,28 @@ def test_values_a_command_failed_on_late_exit_2(name, argv, capsys):
     assert (
         e.value.code == 2 and "Unrecognized" not in err and argv[0].lstrip("-").split("-")[0] in err.replace("_", "-")
     )
+
+
+@pytest.mark.filterwarnings("ignore:.*out of date.*:DeprecationWarning")
+def test_the_env_and_reset_benchmarks_say_what_their_kernels_take():
+    """The single env's and the global reset's rows of compiled kernels: a share of the measured time, and the bound
+    on fast / reference they give (tiny sizes; no timing asserted beyond what the arithmetic must give)."""
+    import math
+
+    from agents.tools import bench
+
+    args = bench.Args(steps=40, repeats=2)
+    env_rows = bench.bench_env(args)
+    names = [r.name for r in env_rows]
+    for policy in ("explorer", "random"):  # each policy's rows: fast, reference, their ratio, kernels, the bound
+        at = names.index(f"{bench.ENV_ID} step, {policy}, fast path")
+        fast, ref, _, kernels, bound = env_rows[at : at + 5]
+        assert kernels.name == "  a fast-path step's compiled kernels" and bound.name == "  reference / kernels alone"
+        assert math.isclose(kernels.wall, 100 * kernels.cpu / 1e3 * fast.cpu)  # a share of the fast step
+        assert math.isclose(bound.cpu, 1e3 / (kernels.cpu * ref.cpu))
+    reset_rows = bench.bench_reset(args)
+    names = [r.name for r in reset_rows]
+    at = names.index("  of which compiled kernels")
+    assert names[at - 1] == "reset() (cached map)"
+    row, reset = reset_rows[at], reset_rows[at - 1]
+    assert 0.0 < row.cpu and math.isclose(row.wall, 100 * row.cpu / reset.cpu)

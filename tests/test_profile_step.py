@@ -67,3 +67,63 @@ def test_a_timed_robot_sorts_its_steps_by_the_filter_s_updates():
 def test_profile_step_refuses_a_negative_robot_count():
     with pytest.raises(ValueError, match="robots"):
         profile_step.Args(robots=-1)
+
+
+def test_compiled_time_counts_the_kernels_calls_and_only_theirs():
+    import cProfile
+    import pstats
+    import time
+
+    import numpy as np
+
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    args = (f, f, f, f, f, f, i, i, 0, np.zeros(1), 0.0, 0.0, 1.0, 1, 1, np.zeros(0), np.zeros(0))
+    log_likelihood_kernel(*args)
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
+    for _ in range(3):
+        log_likelihood_kernel(*args)
+    np.cos(np.zeros(3))  # NumPy's compiled code is not this package's
+    prof.disable()
+    seconds, calls = profile_step.compiled_time(pstats.Stats(prof))
+    assert calls == 3 and 0.0 < seconds < 0.1
+
+
+def test_a_compiled_call_s_dispatch_is_measured_in_microseconds():
+    assert 1e-8 < profile_step.dispatch_seconds(200) < 1e-4
+
+
+def test_batched_split_counts_the_particles_the_updates_weigh():
+    """One robot: padded to the largest set of one is the set itself, and what it weighed is the particle count before
+    each of its update steps (an env of the same seed stepped with the same actions, no episode ending in them);
+    three robots: padding never weighs fewer."""
+    import gymnasium as gym
+    import numpy as np
+
+    one = profile_step.batched_split(1, 30, seed=2, env_id="SemReloc-v21")
+    assert one.resets == 0 and one.update_steps > 0
+    assert one.weighed == one.weighed_stacked > 0
+    env = gym.make("SemReloc-v21")
+    env.reset(seed=2)
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        env.step(int(rng.integers(0, 4, 1)[0]))
+    mcl, weighed = env.unwrapped.mcl, 0
+    for _ in range(30):
+        n = mcl.n_particles
+        env.step(int(rng.integers(0, 4, 1)[0]))
+        weighed += n if mcl.last_diagnostics.updated else 0
+    assert weighed == one.weighed
+    three = profile_step.batched_split(3, 12, seed=4, env_id="SemReloc-v21")
+    assert three.weighed_stacked >= three.weighed > 0 and three.kernel_calls > three.robot_steps
+
+
+def test_the_robots_fused_text_says_what_fusing_and_stacking_would_do():
+    s = profile_step.BatchedSplit(
+        robot_steps=100, total_s=0.1, update_steps=20, update_s=0.05, audits=1, audit_s=0.01, plain_steps=80,
+        plain_s=0.04, resets=0, reset_s=0.0, loop_s=0.01, kernel_s=0.04, kernel_calls=1500, weighed=1000,
+        weighed_stacked=2500,
+    )  # fmt: skip
+    text = profile_step.robots_fused_text(s, 2e-6)
+    assert "15.0, 2.00 us of dispatch each" in text
+    assert "save at most 30 us (3.0 %)" in text and "2.50x the particles" in text

@@ -333,6 +333,8 @@ def bench_env(args: Args) -> list[Row]:
     code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
     explorer and under random actions (which stay near the start, so their belief is often tight: a mean of
     about 1,900 particles in an outside tester's count, and the cheaper row)."""
+    from agents.baselines import WallFollowExplorer
+    from agents.tools.profile_step import compiled_time, stage_breakdown
     from filters import _blas
 
     rows = []
@@ -344,11 +346,22 @@ def bench_env(args: Args) -> list[Row]:
             r = _steps_per_s(_env(args, relocalizer={"fast_path": False}), args.steps // 2, args.seed, make_policy())
             fast = max(fast, f)
             ref = max(ref, r)
+        steps = max(1, args.steps // 2)  # the same steps again under cProfile: their compiled kernels' time
+        _, _, stats = stage_breakdown(_env(args), make_policy() or WallFollowExplorer(), steps, args.seed)
+        kernels = compiled_time(stats)[0] / steps
         rows += [
             Row(f"{env_id} step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
             Row(f"{env_id} step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
             Row("  fast / reference", fast[0] / ref[0], fast[1] / ref[1], "x", "target >= 3"),
-        ]
+            Row(
+                "  a fast-path step's compiled kernels", kernels * 1e3, 100 * kernels * fast[0], "ms CPU | %",
+                "the same steps under cProfile; the rest of the step is Python and NumPy",
+            ),
+            Row(
+                "  reference / kernels alone", 1.0 / (kernels * ref[0]), float("nan"), "x",
+                "what fast / reference would be with no Python left in the fast path",
+            ),
+        ]  # fmt: skip
     rows.append(
         Row("NumPy's OpenBLAS threads", float(_blas.openblas_threads() or 0), float("nan"), "", "0 = not OpenBLAS")
     )
@@ -429,11 +442,13 @@ def bench_batched_split(args: Args) -> list[Row]:
     with a measurement update (and the convergence audits within them), steps without, autoresets, the vector env's
     own work; and the time in compiled kernels (a second run of the same steps under cProfile), with the robot-steps
     per CPU-second that would be left if nothing but those kernels ran."""
-    from agents.tools.profile_step import batched_split
+    from agents.tools.profile_step import batched_split, dispatch_seconds
 
     with _older_ids_quiet():
         s = batched_split(64, max(1, args.steps // 15), args.seed, args.env_id or ENV_ID)
     n, us = s.robot_steps, 1e6 / s.robot_steps
+    dispatch = dispatch_seconds()
+    fused = s.kernel_calls * dispatch  # the most one call for all robots could save
     audits = (
         f"{s.audits} searches for another place, {1e3 * s.audit_s / s.audits:.1f} ms of audit time per search"
         if s.audits
@@ -455,6 +470,16 @@ def bench_batched_split(args: Args) -> list[Row]:
         part("  the vector env's own", s.loop_s, "actions checked, observations and infos batched"),
         part("compiled kernels (cProfile, same steps)", s.kernel_s, "numba calls; NumPy's random draws not counted"),
         Row("  robot-steps per CPU-s, kernels alone", n / s.kernel_s, float("nan"), "robot-steps/s", "no Python"),
+        Row("  compiled calls per robot-step", s.kernel_calls / n, float("nan"), "calls", ""),
+        Row("  one compiled call's dispatch", dispatch * 1e6, float("nan"), "us CPU", "an empty log_likelihood_kernel"),
+        part("  most a call for all robots saves", fused, "each kernel fused over the robots: their dispatch only"),
+        Row(
+            "  stacked (R, N_max, 3) / held particles",
+            s.weighed_stacked / s.weighed if s.weighed else float("nan"),
+            float("nan"),
+            "x",
+            "particles the updates would weigh padded to the largest set",
+        ),
     ]
 
 
@@ -482,6 +507,23 @@ def bench_scaling(args: Args) -> list[Row]:
     return [Row("time(10000, 180) / time(2000, 60)", r_cpu, r_wall, "x", note + "; target <= 12")]
 
 
+def _compiled_per_call(fn: Callable[[], object], calls: int) -> float:
+    """CPU seconds per call of ``fn`` inside this package's compiled kernels (``calls`` calls under cProfile)."""
+    import cProfile
+    import pstats
+
+    from agents.tools.profile_step import compiled_time
+
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
+    try:
+        for _ in range(calls):
+            fn()
+    finally:
+        prof.disable()
+    return compiled_time(pstats.Stats(prof))[0] / calls
+
+
 def bench_reset(args: Args) -> list[Row]:
     """reset() with a cached map, gym.make with a cached map, and a new layout (no disk cache)."""
     import os
@@ -497,6 +539,7 @@ def bench_reset(args: Args) -> list[Row]:
     timed = _interleaved_median_times([lambda e=e, s=s: e.reset(seed=next(s)) for e, s in zip(envs, streams)], repeats)
     r_cpu, r_wall = timed[0]
     n_spread = env.mcl.global_particle_count()
+    kernels = _compiled_per_call(lambda: env.reset(seed=next(streams[0])), repeats)
     previous = []
     if len(envs) > 1:
         (b_cpu, b_wall), n_before = timed[1], envs[1].mcl.global_particle_count()
@@ -534,6 +577,13 @@ def bench_reset(args: Args) -> list[Row]:
     x0, x1, y0, y1 = rows[0][2]
     return [
         Row("reset() (cached map)", r_cpu * 1e3, r_wall * 1e3, "ms", f"global, {n_spread} particles; target <= 2 ms"),
+        Row(
+            "  of which compiled kernels",
+            kernels * 1e3,
+            100 * kernels / r_cpu,
+            "ms CPU | %",
+            "cProfile, other seeds: the first update weighs the draw and its injection's candidates",
+        ),  # fmt: skip
         Row("reset() (cached map), tracking", t_cpu * 1e3, t_wall * 1e3, "ms", "500 particles around the pose"),
         Row("reset() (cached map), n_particles=2000", s_cpu * 1e3, s_wall * 1e3, "ms", "global, 2000 particles"),
         *previous,
@@ -751,15 +801,20 @@ def bench_ppo(args: Args) -> list[Row]:
             Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
         ]
         if workers == 1:  # the workers' env time is wall time this process waits, not CPU it spends
-            rows.append(
+            own, env_us = (ppo["cpu"] - ppo["env_cpu"]) / ppo["steps"], 1e6 * ppo["env_cpu"] / ppo["steps"]
+            rows += [
                 Row(
                     "  env's share of the PPO run",
                     ppo["env_cpu"] / ppo["cpu"],
                     ppo["env_wall"] / ppo["wall"],
                     "x",
                     "PPO / env-only steps/s of the same episodes",
-                )
-            )
+                ),
+                Row(
+                    "  PPO's own work per env step", own * 1e6, float("nan"), "us CPU",
+                    f"the env's {env_us:.0f} us; a share of 0.8 needs at most a quarter of the env's",
+                ),
+            ]  # fmt: skip
         if vec_env == "batched" and workers == 1:
             one_process_wall = ppo_wall
         elif one_process_wall is not None:

@@ -155,6 +155,41 @@ def compiled_functions() -> set[tuple[str, int, str]]:
     return keys
 
 
+def compiled_time(stats: pstats.Stats) -> tuple[float, int]:
+    """``(CPU seconds, calls)`` inside this package's numba-compiled functions (`compiled_functions`) in ``stats``
+    (numba's call dispatch included)."""
+    compiled = compiled_functions()
+    seconds, calls = 0.0, 0
+    for key, (_, n, tt, _, _) in stats.stats.items():
+        if key in compiled:
+            seconds += tt
+            calls += n
+    return seconds, calls
+
+
+def dispatch_seconds(calls: int = 20_000) -> float:
+    """CPU seconds of one compiled call that does no work: the median over five rounds of ``calls`` calls of
+    `filters.localization.likelihood_field.log_likelihood_kernel` with no particle and no beam (numba's dispatch and
+    the unboxing of its 17 arguments, as the filter's heaviest calls pay it)."""
+    import statistics
+
+    import numpy as np
+
+    from filters.localization.likelihood_field import log_likelihood_kernel
+
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    table, out_l, out_s = np.zeros(1), np.zeros(0), np.zeros(0)
+    args = (f, f, f, f, f, f, i, i, 0, table, 0.0, 0.0, 1.0, 1, 1, out_l, out_s)
+    log_likelihood_kernel(*args)  # compiled or loaded outside the clock
+    rounds = []
+    for _ in range(5):
+        t0 = time.process_time()
+        for _ in range(calls):
+            log_likelihood_kernel(*args)
+        rounds.append((time.process_time() - t0) / calls)
+    return statistics.median(rounds)
+
+
 @dataclass(frozen=True)
 class BatchedSplit:
     """Where the CPU time of a batched env's robot-steps goes (`batched_split`). Times are CPU seconds of this
@@ -173,6 +208,11 @@ class BatchedSplit:
         kernel_s: time inside numba-compiled functions (`compiled_functions`) in a second run of the same
             robot-steps under cProfile (the same seeds and actions, so the same episodes), numba's call dispatch
             included; NumPy's own compiled code (random draws, array operations) is not counted.
+        kernel_calls: the calls of those functions in that run.
+        weighed: particles the robots' measurement updates weighed, summed over the update steps (a robot's
+            particle count before its step: the set its update weighs first).
+        weighed_stacked: what the same updates would weigh with the filters' arrays stacked ``(R, N, 3)``: at each
+            step, the robots that update times the largest count among them (every robot padded to it).
     """
 
     robot_steps: int
@@ -187,6 +227,9 @@ class BatchedSplit:
     reset_s: float
     loop_s: float
     kernel_s: float
+    kernel_calls: int
+    weighed: int
+    weighed_stacked: int
 
 
 class _TimedRobot:
@@ -201,12 +244,16 @@ class _TimedRobot:
         return getattr(self._env, name)
 
     def step(self, action):
+        mcl = self._env.unwrapped.mcl
+        n = mcl.n_particles
         t0 = time.process_time()
         out = self._env.step(action)
         dt = time.process_time() - t0
-        kind = "update" if self._env.unwrapped.mcl.last_diagnostics.updated else "plain"
+        kind = "update" if mcl.last_diagnostics.updated else "plain"
         self._tally[f"{kind}_s"] += dt
         self._tally[f"{kind}_steps"] += 1
+        if kind == "update":
+            self._tally.setdefault("weighing", []).append(n)
         return out
 
     def reset(self, **kwargs):
@@ -256,6 +303,10 @@ def _run_batched(num_envs: int, steps: int, seed: int, env_id: str, kwargs: dict
         try:
             for _ in range(steps):
                 venv.step(rng.integers(0, 4, num_envs))
+                if tally is not None:  # this step's updates, weighed as held and as one padded array
+                    counts = tally.pop("weighing", [])
+                    tally["weighed"] += sum(counts)
+                    tally["weighed_stacked"] += len(counts) * max(counts, default=0)
         finally:
             if prof is not None:
                 prof.disable()
@@ -273,12 +324,11 @@ def batched_split(
     split their CPU time (`BatchedSplit`); then run the same steps again under cProfile for the time in compiled
     kernels."""
     keys = ("update_s", "update_steps", "plain_s", "plain_steps", "reset_s", "resets", "audit_s", "audits")
-    tally = dict.fromkeys(keys, 0.0)
+    tally = dict.fromkeys(keys + ("weighed", "weighed_stacked"), 0.0)
     total = _run_batched(num_envs, steps, seed, env_id, kwargs, tally, None)
     prof = cProfile.Profile(time.process_time)
     _run_batched(num_envs, steps, seed, env_id, kwargs, None, prof)
-    compiled = compiled_functions()
-    kernel = sum(tt for key, (_, _, tt, _, _) in pstats.Stats(prof).stats.items() if key in compiled)
+    kernel, calls = compiled_time(pstats.Stats(prof))
     robots = tally["update_s"] + tally["plain_s"] + tally["reset_s"]
     return BatchedSplit(
         robot_steps=steps * num_envs,
@@ -293,6 +343,9 @@ def batched_split(
         reset_s=tally["reset_s"],
         loop_s=max(0.0, total - robots),
         kernel_s=kernel,
+        kernel_calls=calls,
+        weighed=int(tally["weighed"]),
+        weighed_stacked=int(tally["weighed_stacked"]),
     )
 
 
@@ -313,7 +366,22 @@ def print_batched_split(s: BatchedSplit) -> dict[str, float]:
     )
     for k, (v, note) in parts.items():
         print(f"{k:<40} {1e6 * v / n:8.0f} us  {100 * v / s.total_s:5.1f} %  {note}")
+    print(robots_fused_text(s, dispatch_seconds()))
     return {k: v / n for k, (v, _) in parts.items()}
+
+
+def robots_fused_text(s: BatchedSplit, dispatch_s: float) -> str:
+    """What fusing the compiled calls over robots could save at most, and what stacking the filters' arrays would
+    weigh, in words (`batched_split`'s ``s``; ``dispatch_s``: `dispatch_seconds`)."""
+    n = s.robot_steps
+    saved = s.kernel_calls / n * dispatch_s
+    stacked = s.weighed_stacked / s.weighed if s.weighed else float("nan")
+    share = 100 * saved * n / s.total_s
+    return (
+        f"compiled calls per robot-step: {s.kernel_calls / n:.1f}, {1e6 * dispatch_s:.2f} us of dispatch each: "
+        f"one call for all robots would save at most {1e6 * saved:.0f} us ({share:.1f} %) of a robot-step; "
+        f"the filters' arrays stacked (R, N_max, 3) would weigh {stacked:.2f}x the particles the updates weighed"
+    )
 
 
 def run(args: Args) -> dict[str, float]:
