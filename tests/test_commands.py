@@ -60,7 +60,7 @@ def test_every_entry_point_has_its_script_and_each_script_calls_it():
         assert "sys.path" not in text
 
 
-@pytest.mark.parametrize("name", ["stages", "belief", "batched_split"])  # batched: the test below
+@pytest.mark.parametrize("name", ["stages", "belief"])  # batched and batched_split: the tests below
 def test_cheap_benchmarks_run_and_print_finite_figures(name):
     """The benchmarks import what they need and measure something (tiny sizes; no timing asserted)."""
     import math
@@ -340,13 +340,51 @@ def test_the_env_and_reset_benchmarks_say_what_their_kernels_take():
     names = [r.name for r in env_rows]
     for policy in ("explorer", "random"):  # each policy's rows: fast, reference, their ratio, kernels, the bound
         at = names.index(f"{bench.ENV_ID} step, {policy}, fast path")
-        fast, ref, _, kernels, bound = env_rows[at : at + 5]
+        fast, ref, _, kernels, ref_kernels, bound = env_rows[at : at + 6]
         assert kernels.name == "  a fast-path step's compiled kernels" and bound.name == "  reference / kernels alone"
+        assert ref_kernels.name == "  a reference-path step's compiled kernels"
         assert math.isclose(kernels.wall, 100 * kernels.cpu / 1e3 * fast.cpu)  # a share of the fast step
+        assert math.isclose(ref_kernels.wall, 100 * ref_kernels.cpu / 1e3 * ref.cpu)
         assert math.isclose(bound.cpu, 1e3 / (kernels.cpu * ref.cpu))
+        assert 0.0 < kernels.wall < 100.0 and 0.0 < ref_kernels.wall < 100.0
     reset_rows = bench.bench_reset(args)
     names = [r.name for r in reset_rows]
     at = names.index("  of which compiled kernels")
     assert names[at - 1] == "reset() (cached map)"
     row, reset = reset_rows[at], reset_rows[at - 1]
-    assert 0.0 < row.cpu and math.isclose(row.wall, 100 * row.cpu / reset.cpu)
+    assert 0.0 < row.cpu and math.isclose(row.wall, 100 * row.cpu / reset.cpu) and row.wall < 100.0
+
+
+def test_the_batched_split_rows_say_what_fusing_and_stacking_would_do():
+    import math
+
+    from agents.tools import bench
+
+    rows = bench.bench_batched_split(bench.Args(steps=60, repeats=2, only=("batched_split",)))
+    assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows
+    by = {r.name: r for r in rows}
+    calls, dispatch = by["  compiled calls per robot-step"].cpu, by["  one compiled call's dispatch"].cpu
+    saved = by["  dispatch one call for all robots saves"]
+    assert math.isclose(saved.cpu, calls * dispatch)  # us per robot-step
+    assert math.isclose(saved.wall, 100 * saved.cpu / by["batched R=64: one robot-step"].cpu)
+    assert calls > 5 and 0.0 < dispatch < 100.0 and by["  stacked (R, N_max, 3) / held particles"].cpu > 1.0
+
+
+def test_compiled_median_is_the_median_call_s_time_in_the_kernels():
+    import numpy as np
+
+    from agents.tools import bench
+    from filters.localization.likelihood_field import log_likelihood_kernel
+
+    assert bench._compiled_median([lambda: None, lambda: np.cos(np.zeros(4))]) == 0.0
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    args = (f, f, f, f, f, f, i, i, 0, np.zeros(1), 0.0, 0.0, 1.0, 1, 1, np.zeros(0), np.zeros(0))
+    assert bench._compiled_median([lambda: None, lambda: log_likelihood_kernel(*args)] * 2) > 0.0  # two of four
+    assert bench._compiled_median([lambda: None] * 3 + [lambda: log_likelihood_kernel(*args)]) == 0.0
+
+
+def test_ppo_s_own_work_is_what_the_run_spent_outside_the_env():
+    from agents.tools import bench
+
+    own, env = bench.ppo_own_work({"steps": 1000, "cpu": 1.0, "env_cpu": 0.7, "wall": 2.0, "env_wall": 1.2})
+    assert abs(own - 3e-4) < 1e-15 and abs(env - 7e-4) < 1e-15

@@ -96,7 +96,7 @@ def test_a_compiled_call_s_dispatch_is_measured_in_microseconds():
 def test_batched_split_counts_the_particles_the_updates_weigh():
     """One robot: padded to the largest set of one is the set itself, and what it weighed is the particle count before
     each of its update steps (an env of the same seed stepped with the same actions, no episode ending in them);
-    three robots: padding never weighs fewer."""
+    four robots whose updates meet in a step with sets of different sizes: padding weighs more."""
     import gymnasium as gym
     import numpy as np
 
@@ -114,8 +114,14 @@ def test_batched_split_counts_the_particles_the_updates_weigh():
         env.step(int(rng.integers(0, 4, 1)[0]))
         weighed += n if mcl.last_diagnostics.updated else 0
     assert weighed == one.weighed
-    three = profile_step.batched_split(3, 12, seed=4, env_id="SemReloc-v21")
-    assert three.weighed_stacked >= three.weighed > 0 and three.kernel_calls > three.robot_steps
+    four = profile_step.batched_split(4, 12, seed=4, env_id="SemReloc-v21")  # robots of unequal sets update together
+    assert four.weighed_stacked > four.weighed > 0 and four.kernel_calls > four.robot_steps
+
+
+def test_stacked_counts_pad_every_updating_robot_to_the_largest_set():
+    assert profile_step.stacked_counts([]) == (0, 0)
+    assert profile_step.stacked_counts([500]) == (500, 500)
+    assert profile_step.stacked_counts([500, 3484, 700]) == (4684, 3 * 3484)
 
 
 def test_the_robots_fused_text_says_what_fusing_and_stacking_would_do():

@@ -347,8 +347,10 @@ def bench_env(args: Args) -> list[Row]:
             fast = max(fast, f)
             ref = max(ref, r)
         steps = max(1, args.steps // 2)  # the same steps again under cProfile: their compiled kernels' time
-        _, _, stats = stage_breakdown(_env(args), make_policy() or WallFollowExplorer(), steps, args.seed)
-        kernels = compiled_time(stats)[0] / steps
+        kernels, ref_kernels = (
+            compiled_time(stage_breakdown(env, make_policy() or WallFollowExplorer(), steps, args.seed)[2])[0] / steps
+            for env in (_env(args), _env(args, relocalizer={"fast_path": False}))
+        )
         rows += [
             Row(f"{env_id} step, {label}, fast path", fast[0], fast[1], "steps/s", f"{1e3 / fast[0]:.3f} ms CPU"),
             Row(f"{env_id} step, {label}, reference path", ref[0], ref[1], "steps/s", f"{1e3 / ref[0]:.3f} ms CPU"),
@@ -356,6 +358,10 @@ def bench_env(args: Args) -> list[Row]:
             Row(
                 "  a fast-path step's compiled kernels", kernels * 1e3, 100 * kernels * fast[0], "ms CPU | %",
                 "the same steps under cProfile; the rest of the step is Python and NumPy",
+            ),
+            Row(
+                "  a reference-path step's compiled kernels", ref_kernels * 1e3, 100 * ref_kernels * ref[0], "ms | %",
+                "the same kernels where both paths run them (the audit's window scoring, sensors, motion)",
             ),
             Row(
                 "  reference / kernels alone", 1.0 / (kernels * ref[0]), float("nan"), "x",
@@ -472,13 +478,13 @@ def bench_batched_split(args: Args) -> list[Row]:
         Row("  robot-steps per CPU-s, kernels alone", n / s.kernel_s, float("nan"), "robot-steps/s", "no Python"),
         Row("  compiled calls per robot-step", s.kernel_calls / n, float("nan"), "calls", ""),
         Row("  one compiled call's dispatch", dispatch * 1e6, float("nan"), "us CPU", "an empty log_likelihood_kernel"),
-        part("  most a call for all robots saves", fused, "each kernel fused over the robots: their dispatch only"),
+        part("  dispatch one call for all robots saves", fused, "each kernel's calls fused over the robots"),
         Row(
             "  stacked (R, N_max, 3) / held particles",
             s.weighed_stacked / s.weighed if s.weighed else float("nan"),
             float("nan"),
             "x",
-            "particles the updates would weigh padded to the largest set",
+            "the sets the updates weigh first, padded to the largest (candidates, audits, resets not counted)",
         ),
     ]
 
@@ -507,21 +513,24 @@ def bench_scaling(args: Args) -> list[Row]:
     return [Row("time(10000, 180) / time(2000, 60)", r_cpu, r_wall, "x", note + "; target <= 12")]
 
 
-def _compiled_per_call(fn: Callable[[], object], calls: int) -> float:
-    """CPU seconds per call of ``fn`` inside this package's compiled kernels (``calls`` calls under cProfile)."""
+def _compiled_median(fns: list[Callable[[], object]]) -> float:
+    """The median over ``fns`` of the CPU seconds each call spends inside this package's compiled kernels (each call
+    under a cProfile of its own, which adds about 0.6 us to each kernel call)."""
     import cProfile
     import pstats
 
     from agents.tools.profile_step import compiled_time
 
-    prof = cProfile.Profile(time.process_time)
-    prof.enable()
-    try:
-        for _ in range(calls):
+    seconds = []
+    for fn in fns:
+        prof = cProfile.Profile(time.process_time)
+        prof.enable()
+        try:
             fn()
-    finally:
-        prof.disable()
-    return compiled_time(pstats.Stats(prof))[0] / calls
+        finally:
+            prof.disable()
+        seconds.append(compiled_time(pstats.Stats(prof))[0])
+    return statistics.median(seconds)
 
 
 def bench_reset(args: Args) -> list[Row]:
@@ -539,7 +548,8 @@ def bench_reset(args: Args) -> list[Row]:
     timed = _interleaved_median_times([lambda e=e, s=s: e.reset(seed=next(s)) for e, s in zip(envs, streams)], repeats)
     r_cpu, r_wall = timed[0]
     n_spread = env.mcl.global_particle_count()
-    kernels = _compiled_per_call(lambda: env.reset(seed=next(streams[0])), repeats)
+    # the timed resets' own seeds again (after the warm-up's seed 1), so the kernels' median is of the same resets
+    kernels = _compiled_median([lambda s=s: env.reset(seed=s) for s in range(2, repeats + 2)])
     previous = []
     if len(envs) > 1:
         (b_cpu, b_wall), n_before = timed[1], envs[1].mcl.global_particle_count()
@@ -582,7 +592,7 @@ def bench_reset(args: Args) -> list[Row]:
             kernels * 1e3,
             100 * kernels / r_cpu,
             "ms CPU | %",
-            "cProfile, other seeds: the first update weighs the draw and its injection's candidates",
+            "median, the same seeds under cProfile: the first update weighs the draw and its injection's candidates",
         ),  # fmt: skip
         Row("reset() (cached map), tracking", t_cpu * 1e3, t_wall * 1e3, "ms", "500 particles around the pose"),
         Row("reset() (cached map), n_particles=2000", s_cpu * 1e3, s_wall * 1e3, "ms", "global, 2000 particles"),
@@ -756,6 +766,12 @@ def _env_clock(raw=None):
     return EnvClock()
 
 
+def ppo_own_work(clock: dict[str, float]) -> tuple[float, float]:
+    """``(PPO's own CPU seconds per env step, the env's)`` from `_env_clock`'s ``steady()``: what the run spent outside
+    the vec env's ``step_wait`` (the policy's forward passes, the gradient steps, the callbacks), and inside it."""
+    return (clock["cpu"] - clock["env_cpu"]) / clock["steps"], clock["env_cpu"] / clock["steps"]
+
+
 def bench_ppo(args: Args) -> list[Row]:
     """PPO training steps/s vs raw steps/s of the same vec env (``agents.train``: BeliefObservation,
     metrics callback, rollout 1024 steps): DummyVecEnv x4, the batched env (SB3 adapter) x16, and the same 16
@@ -801,7 +817,8 @@ def bench_ppo(args: Args) -> list[Row]:
             Row("  PPO / raw", ppo_cpu / raw_cpu, ppo_wall / raw_wall, "x", "target >= 0.8"),
         ]
         if workers == 1:  # the workers' env time is wall time this process waits, not CPU it spends
-            own, env_us = (ppo["cpu"] - ppo["env_cpu"]) / ppo["steps"], 1e6 * ppo["env_cpu"] / ppo["steps"]
+            own, env_s = ppo_own_work(ppo)
+            env_us = 1e6 * env_s
             rows += [
                 Row(
                     "  env's share of the PPO run",
@@ -812,7 +829,7 @@ def bench_ppo(args: Args) -> list[Row]:
                 ),
                 Row(
                     "  PPO's own work per env step", own * 1e6, float("nan"), "us CPU",
-                    f"the env's {env_us:.0f} us; a share of 0.8 needs at most a quarter of the env's",
+                    f"forwards, gradient steps, callbacks; the env's {env_us:.0f} us: a share of 0.8 needs a quarter",
                 ),
             ]  # fmt: skip
         if vec_env == "batched" and workers == 1:

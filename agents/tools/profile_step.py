@@ -209,8 +209,9 @@ class BatchedSplit:
             robot-steps under cProfile (the same seeds and actions, so the same episodes), numba's call dispatch
             included; NumPy's own compiled code (random draws, array operations) is not counted.
         kernel_calls: the calls of those functions in that run.
-        weighed: particles the robots' measurement updates weighed, summed over the update steps (a robot's
-            particle count before its step: the set its update weighs first).
+        weighed: particles the robots' measurement updates weighed first, summed over the update steps (a robot's
+            particle count before its step: its held set; the scan-proposal candidates and audit poses an update also
+            weighs, and the resets' first updates, are not counted).
         weighed_stacked: what the same updates would weigh with the filters' arrays stacked ``(R, N, 3)``: at each
             step, the robots that update times the largest count among them (every robot padded to it).
     """
@@ -264,6 +265,12 @@ class _TimedRobot:
         return out
 
 
+def stacked_counts(counts: list[int]) -> tuple[int, int]:
+    """``(held, stacked)`` for the particle counts of the robots that update in one step: the particles their sets
+    hold, and what one ``(R, N_max, 3)`` array of them would hold (each set padded to the largest)."""
+    return sum(counts), len(counts) * max(counts, default=0)
+
+
 def _run_batched(num_envs: int, steps: int, seed: int, env_id: str, kwargs: dict, tally, prof) -> float:
     """Reset a fresh batched env with ``seed``, step it 5 times (not counted) and then ``steps`` times with seeded
     random actions, its robots timed into ``tally`` (None: not) and the counted steps under ``prof`` (None: none);
@@ -304,9 +311,9 @@ def _run_batched(num_envs: int, steps: int, seed: int, env_id: str, kwargs: dict
             for _ in range(steps):
                 venv.step(rng.integers(0, 4, num_envs))
                 if tally is not None:  # this step's updates, weighed as held and as one padded array
-                    counts = tally.pop("weighing", [])
-                    tally["weighed"] += sum(counts)
-                    tally["weighed_stacked"] += len(counts) * max(counts, default=0)
+                    held, stacked = stacked_counts(tally.pop("weighing", []))
+                    tally["weighed"] += held
+                    tally["weighed_stacked"] += stacked
         finally:
             if prof is not None:
                 prof.disable()
