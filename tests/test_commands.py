@@ -388,3 +388,32 @@ def test_ppo_s_own_work_is_what_the_run_spent_outside_the_env():
 
     own, env = bench.ppo_own_work({"steps": 1000, "cpu": 1.0, "env_cpu": 0.7, "wall": 2.0, "env_wall": 1.2})
     assert abs(own - 3e-4) < 1e-15 and abs(env - 7e-4) < 1e-15
+
+
+def test_the_filing_benchmark_times_v0_under_the_code_the_issue_measured():
+    """`bench_filing` runs ``SemReloc-v0`` on the code at `FILING_COMMIT` (extracted from git) and on this code, each
+    in processes of their own (tiny sizes; no timing asserted)."""
+    import math
+    import subprocess
+
+    from agents.tools import bench
+
+    root = Path(__file__).resolve().parents[1]
+    has = subprocess.run(["git", "-C", str(root), "cat-file", "-e", f"{bench.FILING_COMMIT}^{{commit}}"], check=False)
+    if has.returncode:
+        pytest.skip(f"{bench.FILING_COMMIT} is not in this checkout's history")
+    rows = bench.bench_filing(bench.Args(steps=40, repeats=1))
+    assert [r.name for r in rows[:3]] == [
+        f"SemReloc-v0 step, explorer, code at {bench.FILING_COMMIT}",
+        "SemReloc-v0 step, explorer, this code",
+        "  this code / code at filing, speed",
+    ]
+    for old, new, ratio in (rows[0:3], rows[3:6]):
+        assert old.cpu > 0 and new.cpu > 0 and math.isclose(ratio.cpu, old.cpu / new.cpu)
+        assert "episodes ended" in new.note
+
+
+def test_the_filing_code_is_extracted_or_refused():
+    from agents.tools import bench
+
+    assert not bench._code_at("0" * 40, Path("/nonexistent-dir-for-a-refused-extraction"))

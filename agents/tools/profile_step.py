@@ -156,8 +156,8 @@ def compiled_functions() -> set[tuple[str, int, str]]:
 
 
 def compiled_time(stats: pstats.Stats) -> tuple[float, int]:
-    """``(CPU seconds, calls)`` inside this package's numba-compiled functions (`compiled_functions`) in ``stats``
-    (numba's call dispatch included)."""
+    """``(seconds, calls)`` inside this package's numba-compiled functions (`compiled_functions`) in ``stats``
+    (numba's call dispatch included; seconds of the profiler's clock: CPU seconds under ``time.process_time``)."""
     compiled = compiled_functions()
     seconds, calls = 0.0, 0
     for key, (_, n, tt, _, _) in stats.stats.items():
@@ -378,7 +378,7 @@ def print_batched_split(s: BatchedSplit) -> dict[str, float]:
 
 
 def robots_fused_text(s: BatchedSplit, dispatch_s: float) -> str:
-    """What fusing the compiled calls over robots could save at most, and what stacking the filters' arrays would
+    """What fusing the compiled calls over robots would save in dispatch, and what stacking the filters' arrays would
     weigh, in words (`batched_split`'s ``s``; ``dispatch_s``: `dispatch_seconds`)."""
     n = s.robot_steps
     saved = s.kernel_calls / n * dispatch_s
@@ -386,7 +386,7 @@ def robots_fused_text(s: BatchedSplit, dispatch_s: float) -> str:
     share = 100 * saved * n / s.total_s
     return (
         f"compiled calls per robot-step: {s.kernel_calls / n:.1f}, {1e6 * dispatch_s:.2f} us of dispatch each: "
-        f"one call for all robots would save at most {1e6 * saved:.0f} us ({share:.1f} %) of a robot-step; "
+        f"one call for all robots would save about {1e6 * saved:.0f} us ({share:.1f} %) of a robot-step in dispatch; "
         f"the filters' arrays stacked (R, N_max, 3) would weigh {stacked:.2f}x the particles the updates weighed"
     )
 
