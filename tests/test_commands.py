@@ -400,26 +400,36 @@ def test_the_filing_benchmark_times_v0_under_the_code_the_issue_measured():
     from agents.tools import bench
 
     root = Path(__file__).resolve().parents[1]
-    commit = f"{bench.FILING_COMMIT}^{{commit}}"
-    if shutil.which("git") is None or subprocess.run(["git", "-C", str(root), "cat-file", "-e", commit]).returncode:
+    blob = f"{bench.FILING_COMMIT}:semreloc_env/__init__.py"  # the commit and its files, here
+    if shutil.which("git") is None or subprocess.run(["git", "-C", str(root), "cat-file", "-e", blob]).returncode:
         pytest.skip(f"no git checkout with {bench.FILING_COMMIT[:7]} in its history")
     rows = bench.bench_filing(bench.Args(steps=40, repeats=1))
-    if rows[0].note.startswith("skipped"):  # a partial clone whose blobs cannot be fetched here
-        pytest.skip(rows[0].note)
-    assert [r.name for r in rows[:3]] == [
+    assert [r.name for r in rows[:4]] == [
         f"SemReloc-v0 step, explorer, code at {bench.FILING_COMMIT[:7]}",
         "SemReloc-v0 step, explorer, this code",
         "  this code / code at filing, speed",
+        "  this code's v0 step, compiled kernels",
     ]
-    for old, new, ratio in (rows[0:3], rows[3:6]):
+    for old, new, ratio, kernels in (rows[0:4], rows[4:8]):
         assert old.cpu > 0 and new.cpu > 0 and math.isclose(ratio.cpu, old.cpu / new.cpu)
-        assert "episodes ended" in new.note
+        assert "episodes ended" in new.note and 0.0 < kernels.cpu
+        assert math.isclose(kernels.wall, 100 * kernels.cpu / new.cpu)
 
 
-def test_the_filing_code_is_extracted_or_refused():
+def test_the_filing_code_is_extracted_or_refused(tmp_path):
+    import shutil
+    import subprocess
+
     from agents.tools import bench
 
     assert not bench._code_at("0" * 40, Path("/nonexistent-dir-for-a-refused-extraction"))
+    root = Path(__file__).resolve().parents[1]
+    blob = f"{bench.FILING_COMMIT}:semreloc_env/__init__.py"
+    if shutil.which("git") is None or subprocess.run(["git", "-C", str(root), "cat-file", "-e", blob]).returncode:
+        pytest.skip(f"no git checkout with {bench.FILING_COMMIT[:7]} in its history")
+    assert bench._code_at(bench.FILING_COMMIT, tmp_path)
+    assert "SemReloc-v0" in (tmp_path / "semreloc_env" / "__init__.py").read_text()
+    assert not (tmp_path / "semreloc_env" / "envs" / "batched.py").exists()  # the issue's first round came after
 
 
 def test_a_failed_timing_process_says_why(tmp_path):
