@@ -374,11 +374,11 @@ def test_compiled_median_is_the_median_call_s_time_in_the_kernels():
     import numpy as np
 
     from agents.tools import bench
+    from agents.tools.profile_step import empty_kernel_args
     from filters.localization.likelihood_field import log_likelihood_kernel
 
     assert bench._compiled_median([lambda: None, lambda: np.cos(np.zeros(4))]) == 0.0
-    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    args = (f, f, f, f, f, f, i, i, 0, np.zeros(1), 0.0, 0.0, 1.0, 1, 1, np.zeros(0), np.zeros(0))
+    args = empty_kernel_args()
     assert bench._compiled_median([lambda: None, lambda: log_likelihood_kernel(*args)] * 2) > 0.0  # two of four
     assert bench._compiled_median([lambda: None] * 3 + [lambda: log_likelihood_kernel(*args)]) == 0.0
 

@@ -76,8 +76,7 @@ def test_compiled_time_counts_the_kernels_calls_and_only_theirs():
 
     import numpy as np
 
-    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    args = (f, f, f, f, f, f, i, i, 0, np.zeros(1), 0.0, 0.0, 1.0, 1, 1, np.zeros(0), np.zeros(0))
+    args = profile_step.empty_kernel_args()
     log_likelihood_kernel(*args)
     prof = cProfile.Profile(time.process_time)
     prof.enable()
@@ -94,10 +93,8 @@ def test_a_compiled_call_s_dispatch_is_measured_in_microseconds():
     (a measurement off by its call count or its units would not)."""
     import time
 
-    import numpy as np
 
-    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    args = (f, f, f, f, f, f, i, i, 0, np.zeros(1), 0.0, 0.0, 1.0, 1, 1, np.zeros(0), np.zeros(0))
+    args = profile_step.empty_kernel_args()
     measured, direct = [], []
     for _ in range(3):
         measured.append(profile_step.dispatch_seconds(2000))

@@ -167,19 +167,24 @@ def compiled_time(stats: pstats.Stats) -> tuple[float, int]:
     return seconds, calls
 
 
+def empty_kernel_args() -> tuple:
+    """Arguments of `filters.localization.likelihood_field.log_likelihood_kernel` with no particle and no beam: a call
+    with them does no work, so it costs numba's dispatch and the unboxing of its 17 arguments only."""
+    import numpy as np
+
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    return (f, f, f, f, f, f, i, i, 0, np.zeros(1), 0.0, 0.0, 1.0, 1, 1, np.zeros(0), np.zeros(0))
+
+
 def dispatch_seconds(calls: int = 20_000) -> float:
     """CPU seconds of one compiled call that does no work: the median over five rounds of ``calls`` calls of
-    `filters.localization.likelihood_field.log_likelihood_kernel` with no particle and no beam (numba's dispatch and
-    the unboxing of its 17 arguments, as the filter's heaviest calls pay it)."""
+    `filters.localization.likelihood_field.log_likelihood_kernel` with `empty_kernel_args` (numba's dispatch and the
+    unboxing of its 17 arguments, as the filter's heaviest calls pay it)."""
     import statistics
-
-    import numpy as np
 
     from filters.localization.likelihood_field import log_likelihood_kernel
 
-    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    table, out_l, out_s = np.zeros(1), np.zeros(0), np.zeros(0)
-    args = (f, f, f, f, f, f, i, i, 0, table, 0.0, 0.0, 1.0, 1, 1, out_l, out_s)
+    args = empty_kernel_args()
     log_likelihood_kernel(*args)  # compiled or loaded outside the clock
     rounds = []
     for _ in range(5):
