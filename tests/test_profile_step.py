@@ -93,7 +93,6 @@ def test_a_compiled_call_s_dispatch_is_measured_in_microseconds():
     (a measurement off by its call count or its units would not)."""
     import time
 
-
     args = profile_step.empty_kernel_args()
     measured, direct = [], []
     for _ in range(3):
