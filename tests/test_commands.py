@@ -85,9 +85,13 @@ def test_the_batched_bench_puts_the_version_before_beside_the_newest_only():
     assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows
     newest = [r.name for r in rows]
     assert f"batched env R=64, {bench.PREVIOUS_ENV_ID}" in newest
-    assert f"  {bench.ENV_ID} / {bench.PREVIOUS_ENV_ID}" in newest
+    at = newest.index(f"  {bench.ENV_ID} / {bench.PREVIOUS_ENV_ID}")
+    assert newest[at - 2 : at] == ["batched env R=64", f"batched env R=64, {bench.PREVIOUS_ENV_ID}"]
+    assert math.isclose(rows[at].cpu, rows[at - 2].cpu / rows[at - 1].cpu)
+    assert newest[at + 1] == f"batched env R=64, {bench.ISSUE_ENV_ID}"  # the env the issue set its target on
     older = bench.bench_batched(bench.Args(steps=20, repeats=2, only=("batched",), env_id=bench.PREVIOUS_ENV_ID))
-    assert not any(bench.PREVIOUS_ENV_ID in r.name for r in older) and len(older) == len(newest) - 2
+    assert not any(bench.PREVIOUS_ENV_ID in r.name or bench.ISSUE_ENV_ID in r.name for r in older)
+    assert len(older) == len(newest) - 3
 
 
 def test_the_bench_runs_the_version_it_is_told():
@@ -353,8 +357,11 @@ def test_the_env_and_reset_benchmarks_say_what_their_kernels_take():
     assert names[at - 1] == "reset() (cached map)"
     row, reset = reset_rows[at], reset_rows[at - 1]
     assert 0.0 < row.cpu and math.isclose(row.wall, 100 * row.cpu / reset.cpu) and row.wall < 100.0
+    issue = reset_rows[names.index(f"reset() (cached map), {bench.ISSUE_ENV_ID}")]  # the env the issue measured
+    assert 0.0 < issue.cpu < 50.0 and "2000 particles" in issue.note
 
 
+@pytest.mark.filterwarnings("ignore:.*out of date.*:DeprecationWarning")
 def test_the_batched_split_rows_say_what_fusing_and_stacking_would_do():
     import math
 
@@ -368,6 +375,17 @@ def test_the_batched_split_rows_say_what_fusing_and_stacking_would_do():
     assert math.isclose(saved.cpu, calls * dispatch)  # us per robot-step
     assert math.isclose(saved.wall, 100 * saved.cpu / by["batched R=64: one robot-step"].cpu)
     assert calls > 5 and 0.0 < dispatch < 100.0 and by["  stacked (R, N_max, 3) / held particles"].cpu > 1.0
+    names = [r.name for r in rows]  # the env the issue measured: its robot-step, and what its kernels alone allow
+    at = names.index(f"batched R=64, {bench.ISSUE_ENV_ID}: one robot-step")
+    step, alone = rows[at], rows[at + 1]
+    assert alone.name == "  robot-steps per CPU-s, kernels alone" and alone.cpu > 1e6 / step.cpu
+    from agents.tools.profile_step import compiled_functions
+
+    top = [part.rsplit(" ", 2) for part in alone.note.split("heaviest: ")[1].split(", ")]
+    kernels = {name for _, _, name in compiled_functions()}
+    assert len(top) == 3 and all(name in kernels and unit == "%" for name, _, unit in top)
+    shares = [float(share) for _, share, _ in top]
+    assert shares == sorted(shares, reverse=True) and sum(shares) <= 100.5
 
 
 def test_compiled_median_is_the_median_call_s_time_in_the_kernels():

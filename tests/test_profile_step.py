@@ -88,6 +88,36 @@ def test_compiled_time_counts_the_kernels_calls_and_only_theirs():
     assert calls == 3 and 0.0 < seconds < 0.1
 
 
+def test_compiled_by_function_splits_the_kernels_time_heaviest_first():
+    """Two kernels, one called with work and one without: each its own calls, the heavier first, and the two sum to
+    `compiled_time`."""
+    import cProfile
+    import pstats
+    import time
+
+    import numpy as np
+
+    from filters.pose import _cos_sin
+
+    theta, c, s = np.linspace(-3.0, 3.0, 200_000), np.empty(200_000), np.empty(200_000)
+    args = profile_step.empty_kernel_args()
+    log_likelihood_kernel(*args)
+    _cos_sin(theta[:2], c[:2], s[:2])
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
+    for _ in range(4):
+        log_likelihood_kernel(*args)
+    for _ in range(2):
+        _cos_sin(theta, c, s)
+    prof.disable()
+    stats = pstats.Stats(prof)
+    split = profile_step.compiled_by_function(stats)
+    assert list(split) == ["_cos_sin", "log_likelihood_kernel"]
+    assert split["_cos_sin"][1] == 2 and split["log_likelihood_kernel"][1] == 4
+    total = profile_step.compiled_time(stats)
+    assert sum(t for t, _ in split.values()) == pytest.approx(total[0]) and total[1] == 6
+
+
 def test_a_compiled_call_s_dispatch_is_measured_in_microseconds():
     """The same calls timed here, in turn with it: the two agree within a factor the load cannot explain away
     (a measurement off by its call count or its units would not)."""

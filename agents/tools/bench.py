@@ -274,6 +274,10 @@ def bench_likelihood(args: Args) -> list[Row]:
 ENV_ID = "SemReloc-v21"
 PREVIOUS_ENV_ID = "SemReloc-v20"
 """The version before `ENV_ID`, measured beside it (batched env, reset) for the ratio of one run."""
+ISSUE_ENV_ID = "SemReloc-v0"
+"""The env issue 8 measured and set its targets on (the default then: 2000 particles, 60 lidar + 32 camera beams, a
+belief summary at every step). Its reset and batched targets are measured on it too, beside `ENV_ID`, whose
+relocalizer does more work per update and reset (issue 7)."""
 
 
 def _env(args: Args, env_id: str = "", **kwargs):
@@ -536,8 +540,8 @@ def bench_batched(args: Args) -> list[Row]:
     100-particle filter (100 proposal and audit candidates): what a robot-step costs besides the particle
     work (world, sensors, the filter's per-call code, info, the loop); and R = 64 of the version before the newest
     (`PREVIOUS_ENV_ID`, whose relocalizer does more work: twice the particles at a global start, a still step's zero
-    motion noise drawn), right after the default R = 64, with their ratio (the episodes differ); not when ``--env-id``
-    names an older version."""
+    motion noise drawn), right after the default R = 64, with their ratio (the episodes differ), and R = 64 of the env
+    the issue set its target on (`ISSUE_ENV_ID`); those two not when ``--env-id`` names an older version."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
@@ -545,7 +549,12 @@ def bench_batched(args: Args) -> list[Row]:
     small = {"n_particles": 100, "proposal_candidates": 100, "audit_candidates": 100, "audit_candidates_per_m2": 0.0}
     env_id = args.env_id or ENV_ID
     previous = (
-        [(64, PREVIOUS_ENV_ID, None, f", {PREVIOUS_ENV_ID}", "more relocalizer work")] if env_id == ENV_ID else []
+        [
+            (64, PREVIOUS_ENV_ID, None, f", {PREVIOUS_ENV_ID}", "more relocalizer work"),
+            (64, ISSUE_ENV_ID, None, f", {ISSUE_ENV_ID}", "the env the issue measured; target 5000"),
+        ]
+        if env_id == ENV_ID
+        else []
     )
     cases = [
         (1, env_id, None, "", ""),
@@ -567,7 +576,7 @@ def bench_batched(args: Args) -> list[Row]:
         venv.close()
         note = f"random actions, {n} steps per robot" + (f"; {why}" if why else "")
         rows.append(Row(f"batched env R={r}{what}", n * r / c.cpu, n * r / c.wall, "robot-steps/s", note))
-        if case_id != env_id:  # the previous version, right after the newest at R = 64
+        if case_id == PREVIOUS_ENV_ID != env_id:  # the previous version, right after the newest at R = 64
             d, e = rows[-2], rows[-1]
             rows.append(Row(f"  {env_id} / {PREVIOUS_ENV_ID}", d.cpu / e.cpu, d.wall / e.wall, "x", ""))
     return rows
@@ -577,11 +586,14 @@ def bench_batched_split(args: Args) -> list[Row]:
     """Where a batched robot-step's CPU goes (`agents.tools.profile_step.batched_split`: R = 64, random actions): steps
     with a measurement update (and the convergence audits within them), steps without, autoresets, the vector env's
     own work; and the time in compiled kernels (a second run of the same steps under cProfile), with the robot-steps
-    per CPU-second that would be left if nothing but those kernels ran."""
+    per CPU-second that would be left if nothing but those kernels ran; the last two for the env the issue measured
+    (`ISSUE_ENV_ID`) too, with its heaviest kernels, unless ``--env-id`` names an older version."""
     from agents.tools.profile_step import batched_split, dispatch_seconds
 
+    env_id = args.env_id or ENV_ID
     with _older_ids_quiet():
-        s = batched_split(64, max(1, args.steps // 15), args.seed, args.env_id or ENV_ID)
+        s = batched_split(64, max(1, args.steps // 15), args.seed, env_id)
+        issue = batched_split(64, max(1, args.steps // 15), args.seed, ISSUE_ENV_ID) if env_id == ENV_ID else None
     n, us = s.robot_steps, 1e6 / s.robot_steps
     dispatch = dispatch_seconds()
     fused = s.kernel_calls * dispatch  # what one call for all robots saves in dispatch (timed in a tight loop)
@@ -616,7 +628,21 @@ def bench_batched_split(args: Args) -> list[Row]:
             "x",
             "the sets the updates weigh first, padded to the largest (candidates, audits, resets not counted)",
         ),
+        *([] if issue is None else _kernels_alone_rows(issue, ISSUE_ENV_ID, "the env the issue measured")),
     ]
+
+
+def _kernels_alone_rows(s, env_id: str, what: str) -> list[Row]:
+    """A batched split's robot-step, the robot-steps per CPU-second its compiled kernels alone would allow, and its
+    three heaviest kernels (``s``: a `agents.tools.profile_step.BatchedSplit`)."""
+    n = s.robot_steps
+    top = ", ".join(f"{name} {100 * t / s.kernel_s:.0f} %" for name, t in s.kernels[:3])
+    return [
+        Row(f"batched R=64, {env_id}: one robot-step", s.total_s * 1e6 / n, float("nan"), "us CPU", f"{what}; {n} "
+            "robot-steps, random actions"),
+        Row("  robot-steps per CPU-s, kernels alone", n / s.kernel_s, float("nan"), "robot-steps/s",
+            f"{s.kernel_s * 1e6 / n:.0f} us per robot-step; heaviest: {top}"),
+    ]  # fmt: skip
 
 
 def bench_stages(args: Args) -> list[Row]:
@@ -664,16 +690,18 @@ def _compiled_median(fns: list[Callable[[], object]]) -> float:
 
 
 def bench_reset(args: Args) -> list[Row]:
-    """reset() with a cached map, gym.make with a cached map, and a new layout (no disk cache)."""
+    """reset() with a cached map (the newest version's, beside the version before and the env the issue measured,
+    `ISSUE_ENV_ID`, on the same seeds in turn), gym.make with a cached map, and a new layout (no disk cache)."""
     import os
 
     repeats = max(20, args.repeats)
     env = _env(args)
     env.reset(seed=0)
     envs = [env]
-    if (args.env_id or ENV_ID) == ENV_ID:  # the version before, beside the newest: the same seeds, in turn
-        envs.append(_env(args, env_id=PREVIOUS_ENV_ID))
-        envs[1].reset(seed=0)
+    if (args.env_id or ENV_ID) == ENV_ID:  # the version before and the issue's env, beside the newest: the same seeds
+        envs += [_env(args, env_id=PREVIOUS_ENV_ID), _env(args, env_id=ISSUE_ENV_ID)]
+        for e in envs[1:]:
+            e.reset(seed=0)
     streams = [iter(range(1, 10**6)) for _ in envs]
     timed = _interleaved_median_times([lambda e=e, s=s: e.reset(seed=next(s)) for e, s in zip(envs, streams)], repeats)
     r_cpu, r_wall = timed[0]
@@ -688,6 +716,10 @@ def bench_reset(args: Args) -> list[Row]:
             Row(what, b_cpu * 1e3, b_wall * 1e3, "ms", f"global, {n_before} particles; the same seeds, in turn"),
             Row(f"  {ENV_ID} / {PREVIOUS_ENV_ID} reset time", r_cpu / b_cpu, r_wall / b_wall, "x", ""),
         ]
+    if len(envs) > 2:
+        (v0_cpu, v0_wall), n_v0 = timed[2], envs[2].mcl.n_particles
+        note = f"the env the issue measured (14-24 ms then): global, {n_v0} particles, the same seeds; target <= 2 ms"
+        previous.append(Row(f"reset() (cached map), {ISSUE_ENV_ID}", v0_cpu * 1e3, v0_wall * 1e3, "ms", note))
     seeds = streams[0]
     t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), repeats)
     small = _env(args, relocalizer={"n_particles": 2000})

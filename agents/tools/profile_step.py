@@ -22,6 +22,7 @@ import cProfile
 import pstats
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 
 import semreloc_env  # noqa: F401  (registers the envs)
@@ -158,13 +159,22 @@ def compiled_functions() -> set[tuple[str, int, str]]:
 def compiled_time(stats: pstats.Stats) -> tuple[float, int]:
     """``(seconds, calls)`` inside this package's numba-compiled functions (`compiled_functions`) in ``stats``
     (numba's call dispatch included; seconds of the profiler's clock: CPU seconds under ``time.process_time``)."""
+    by_kernel = compiled_by_function(stats)
+    return sum(s for s, _ in by_kernel.values()), sum(n for _, n in by_kernel.values())
+
+
+def compiled_by_function(stats: pstats.Stats) -> dict[str, tuple[float, int]]:
+    """``{name: (seconds, calls)}`` of each of this package's numba-compiled functions (`compiled_functions`) called in
+    ``stats``, heaviest first (``name``: the function's, with its module's file where two share a name)."""
     compiled = compiled_functions()
-    seconds, calls = 0.0, 0
+    names = [key[2] for key in compiled]
+    out: dict[str, tuple[float, int]] = {}
     for key, (_, n, tt, _, _) in stats.stats.items():
         if key in compiled:
-            seconds += tt
-            calls += n
-    return seconds, calls
+            name = key[2] if names.count(key[2]) == 1 else f"{Path(key[0]).stem}.{key[2]}"
+            seconds, calls = out.get(name, (0.0, 0))
+            out[name] = (seconds + tt, calls + n)
+    return dict(sorted(out.items(), key=lambda kv: -kv[1][0]))
 
 
 def empty_kernel_args() -> tuple:
@@ -219,6 +229,8 @@ class BatchedSplit:
             weighs, and the resets' first updates, are not counted).
         weighed_stacked: what the same updates would weigh with the filters' arrays stacked ``(R, N, 3)``: at each
             step, the robots that update times the largest count among them (every robot padded to it).
+        kernels: ``(name, seconds)`` of each compiled function in ``kernel_s``, heaviest first
+            (`compiled_by_function`).
     """
 
     robot_steps: int
@@ -236,6 +248,7 @@ class BatchedSplit:
     kernel_calls: int
     weighed: int
     weighed_stacked: int
+    kernels: tuple[tuple[str, float], ...] = ()
 
 
 class _TimedRobot:
@@ -340,7 +353,8 @@ def batched_split(
     total = _run_batched(num_envs, steps, seed, env_id, kwargs, tally, None)
     prof = cProfile.Profile(time.process_time)
     _run_batched(num_envs, steps, seed, env_id, kwargs, None, prof)
-    kernel, calls = compiled_time(pstats.Stats(prof))
+    stats = pstats.Stats(prof)
+    kernel, calls = compiled_time(stats)
     robots = tally["update_s"] + tally["plain_s"] + tally["reset_s"]
     return BatchedSplit(
         robot_steps=steps * num_envs,
@@ -358,6 +372,7 @@ def batched_split(
         kernel_calls=calls,
         weighed=int(tally["weighed"]),
         weighed_stacked=int(tally["weighed_stacked"]),
+        kernels=tuple((name, seconds) for name, (seconds, _) in compiled_by_function(stats).items()),
     )
 
 
