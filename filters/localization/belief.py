@@ -67,11 +67,12 @@ from scipy.sparse.csgraph import connected_components
 from filters import _blas
 from filters.localization import belief_kernels as _k
 from filters.numbers import is_int, is_real
-from filters.pose import compose_floats, cos_sin, finite_increment, wrap_angle, wrap_float
+from filters.pose import compose_floats, finite_increment, wrap_angle, wrap_float
 from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
 _SAFE_SUM = 1e300
+_NO_WEIGHTS = np.zeros(0)
 """`_normalised` sums weights whose largest is at most this over their count directly: their sum cannot overflow."""
 BACKENDS = ("numba", "numpy")
 
@@ -246,11 +247,22 @@ def _floats(values) -> list:
 def _normalised(weights: np.ndarray, n: int) -> np.ndarray:
     """`normalise_weights` of ``weights`` ``(n,)``, the same bits: one compiled pass checks them and finds the
     largest, and `normalise_weights` itself runs only for weights it must refuse or whose sum could overflow."""
+    w = _shaped_weights(weights, n)
+    return _normalised_checked(w, *_k.finite_non_negative_max(np.ascontiguousarray(w)))
+
+
+def _shaped_weights(weights, n: int) -> np.ndarray:
+    """``weights`` as a float64 ``(n,)`` array (ValueError for another shape)."""
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
     if w.shape != (n,):
         raise ValueError(f"weights must have shape ({n},), got {w.shape}")
-    ok, largest = _k.finite_non_negative_max(np.ascontiguousarray(w))
-    if not (ok and 0.0 < largest <= _SAFE_SUM / n):
+    return w
+
+
+def _normalised_checked(w: np.ndarray, ok: bool, largest: float) -> np.ndarray:
+    """`_normalised` of ``(n,)`` weights ``w`` whose `filters.localization.belief_kernels.finite_non_negative_max`
+    is ``(ok, largest)``."""
+    if not (ok and 0.0 < largest <= _SAFE_SUM / w.shape[0]):
         return normalise_weights(w)
     return w / w.sum()
 
@@ -286,7 +298,7 @@ def histogram_entropy(
         ww = np.ascontiguousarray(w, dtype=np.float64)
         mass, fits = _k.entropy_masses(p, ww, float(bin_xy_m), nt, scale, _MAX_RASTER_CELLS)
         if fits:
-            return max(float(-(mass * np.log(mass)).sum()), 0.0)
+            return _entropy_of(mass)
         return histogram_entropy(poses, w, bin_xy_m, bin_theta_rad, "numpy")
     ix = _bin_keys(poses[:, 0], bin_xy_m)
     iy = _bin_keys(poses[:, 1], bin_xy_m)
@@ -299,7 +311,11 @@ def histogram_entropy(
     else:  # absurdly spread cloud: sort instead of a dense raster
         _, inv = np.unique(linear_bin_keys(ix, iy, it), return_inverse=True)
         mass = np.bincount(inv.reshape(-1), weights=w)
-    mass = mass[mass > 0]
+    return _entropy_of(mass[mass > 0])
+
+
+def _entropy_of(mass: np.ndarray) -> float:
+    """Shannon entropy (nats) of the positive bin masses ``mass`` (normalised weights summed per bin)."""
     return max(float(-(mass * np.log(mass)).sum()), 0.0)
 
 
@@ -372,13 +388,15 @@ def _cluster_labels_numba(poses, bin_m, bin_theta_rad, weights, min_bin_frac) ->
     cell, mass, count, nx, ny, held, fits = _k.cluster_raster(p, w, float(bin_m), nt, scale, _MAX_RASTER_CELLS)
     if not fits:  # absurdly spread cloud: coarser raster, as the reference
         return _cluster_labels_numba(p, bin_m * 4.0, bin_theta_rad, weights, min_bin_frac)
-    if by_mass:
-        # the reference's threshold, with the same NumPy reduction (pairwise sum over the raster)
-        threshold = float(min_bin_frac * mass.sum() / held)
-    else:
-        threshold = -math.inf
-    labels, n = _k.cell_labels(mass, count, threshold, ny, nx, nt, cell)
+    labels, n = _k.cell_labels(mass, count, _threshold(mass, held, min_bin_frac, by_mass), ny, nx, nt, cell)
     return labels, int(n)
+
+
+def _threshold(mass: np.ndarray, held: int, min_bin_frac: float, by_mass: bool) -> float:
+    """The mass a raster cell needs to be occupied (`cluster_labels`): ``min_bin_frac`` times the mean mass of the
+    ``held`` cells with particles, with the reference's NumPy reduction (a pairwise sum over the raster), or -inf
+    (any cell with particles) when not ``by_mass``."""
+    return float(min_bin_frac * mass.sum() / held) if by_mass else -math.inf
 
 
 def cluster_stats(
@@ -426,13 +444,20 @@ def cluster_stats(
 
 
 def _cluster_stats_numba(p, w, labels, n, sin_th, cos_th):
-    count, weight, wsum, sums = _k.cluster_sums(labels, n, p, sin_th, cos_th, w)
-    mean = np.empty((n, 3))
+    count, weight, wsum, sums, order, starts = _k.cluster_sums(labels, n, p, sin_th, cos_th, w)
+    mean = _cluster_means(sums, wsum)
+    cov = _k.cluster_covariances(order, starts, p, w, count, weight, wsum, mean)
+    return weight, mean, cov, count
+
+
+def _cluster_means(sums: np.ndarray, wsum: np.ndarray) -> np.ndarray:
+    """``(n, 3)`` cluster means from `filters.localization.belief_kernels.cluster_sums`' ``sums`` and ``wsum`` (the
+    reference's divisions, and its ``arctan2`` in NumPy)."""
+    mean = np.empty((sums.shape[0], 3))
     mean[:, 0] = sums[:, 0] / wsum
     mean[:, 1] = sums[:, 1] / wsum
     mean[:, 2] = wrap_angle(np.arctan2(sums[:, 2], sums[:, 3]))
-    cov = _k.cluster_covariances(labels, n, p, w, count, weight, wsum, mean)
-    return weight, mean, cov, count
+    return mean
 
 
 def holds_as_converged(h: Hypothesis, cfg: BeliefConfig, min_weight: float) -> bool:
@@ -536,56 +561,92 @@ def summarize(
     n = p.shape[0]
     if n == 0:
         raise ValueError("no particles to summarise")
-    if backend == "numba":
-        xyt = np.empty((3, n))
-        in_limit = _k.transposed_in_limit(p, MAX_POSE_M, xyt)
-    else:
-        in_limit = (np.abs(p) < _POSE_LIMIT).all()
-        xyt = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
-    if not in_limit:
-        if not np.isfinite(p).all():
-            raise ValueError("poses contain NaN or inf")
-        raise ValueError(
-            f"poses lie {np.abs(p[:, :2]).max():.3g} m from the origin, beyond the {MAX_POSE_M:g} m the pose rasters "
-            "take (not metres?)"
-        )
-    w = _normalised(weights, n)
-    x, y, th = xyt
-
-    dot = _blas.dot  # both backends: one order whatever the BLAS thread count
-    mx, my = float(dot(w, x)), float(dot(w, y))
-    if backend == "numba":
-        cos_th, sin_th = cos_sin(th)
-    else:
-        sin_th, cos_th = np.sin(th), np.cos(th)
-    mth = wrap_float(float(np.arctan2(dot(w, sin_th), dot(w, cos_th))))
-    if backend == "numba":
-        res = np.empty((3, n))
-        _k.residuals(p, mx, my, mth, res)
-    else:
-        res = np.stack([x - mx, y - my, wrap_angle(th - mth)])
-    cov = (res * w) @ res.T
-    cov = 0.5 * (cov + cov.T)
-    ess = float(1.0 / np.sum(w * w))
-    entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad, backend)
-
-    labels, n_lab = cluster_labels(
-        p, cfg.cluster_bin_m, cfg.cluster_bin_theta_rad, w, cfg.cluster_min_bin_frac, backend
-    )
-    if backend == "numba":  # np.sin / np.cos are elementwise: the same values as on the cluster members
-        cw, cmean, ccov, ccount = _cluster_stats_numba(np.ascontiguousarray(p), w, labels, n_lab, sin_th, cos_th)
-    else:
-        cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n_lab, "numpy")
-    if backend == "numba":
-        keep = _k.hypothesis_order(cw, cfg.cluster_min_weight).tolist()
-    else:
-        keep = np.flatnonzero((cw >= cfg.cluster_min_weight - 1e-12) & (cw > 0))  # a hypothesis has weight (0, 1]
-        keep = keep[np.argsort(-cw[keep], kind="stable")].tolist()
+    summary = _summary_numba if backend == "numba" else _summary_numpy
+    mean, cov, ess, entropy, cw, cmean, ccov, ccount, keep = summary(p, weights, cfg)
     cmean.setflags(write=False)  # the hypotheses' means and covariances are read-only views of these
     ccov.setflags(write=False)
     weights, counts = cw.tolist(), ccount.tolist()
     hyps = [Hypothesis(weight=weights[k], mean=cmean[k], cov=ccov[k], n_particles=counts[k]) for k in keep]
-    mean = np.array([mx, my, mth])
     mean.setflags(write=False)
     cov.setflags(write=False)
     return _judged(mean, cov, hyps, cfg, ess, n, entropy)
+
+
+def _refuse_poses(p: np.ndarray) -> None:
+    """Raise for poses that are not all finite and within `MAX_POSE_M` of the origin (`summarize`)."""
+    if not np.isfinite(p).all():
+        raise ValueError("poses contain NaN or inf")
+    raise ValueError(
+        f"poses lie {np.abs(p[:, :2]).max():.3g} m from the origin, beyond the {MAX_POSE_M:g} m the pose rasters "
+        "take (not metres?)"
+    )
+
+
+def _summary_numpy(p: np.ndarray, weights, cfg: BeliefConfig) -> tuple:
+    """`summarize`'s figures by the NumPy reference: ``(mean, cov, ess, entropy, cluster weights, means,
+    covariances, counts, the hypotheses' clusters heaviest first)``."""
+    if not (np.abs(p) < _POSE_LIMIT).all():
+        _refuse_poses(p)
+    w = _normalised(weights, p.shape[0])
+    x, y, th = np.ascontiguousarray(p.T)  # contiguous rows: strided dot products are far slower
+    dot = _blas.dot  # both backends: one order whatever the BLAS thread count
+    mx, my = float(dot(w, x)), float(dot(w, y))
+    mth = wrap_float(float(np.arctan2(dot(w, np.sin(th)), dot(w, np.cos(th)))))
+    res = np.stack([x - mx, y - my, wrap_angle(th - mth)])
+    cov = (res * w) @ res.T
+    entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad, "numpy")
+    labels, n = cluster_labels(p, cfg.cluster_bin_m, cfg.cluster_bin_theta_rad, w, cfg.cluster_min_bin_frac, "numpy")
+    cw, cmean, ccov, ccount = cluster_stats(p, w, labels, n, "numpy")
+    keep = np.flatnonzero((cw >= cfg.cluster_min_weight - 1e-12) & (cw > 0))  # a hypothesis has weight (0, 1]
+    keep = keep[np.argsort(-cw[keep], kind="stable")].tolist()
+    mean, ess = np.array([mx, my, mth]), float(1.0 / np.sum(w * w))
+    return mean, 0.5 * (cov + cov.T), ess, entropy, cw, cmean, ccov, ccount, keep
+
+
+def _summary_numba(p: np.ndarray, weights, cfg: BeliefConfig) -> tuple:
+    """`_summary_numpy`'s figures, the same bits, from four compiled calls (`belief_kernels.summary_inputs`,
+    `summary_rasters`, `summary_clusters`, `summary_covariances`) with NumPy between them for what must stay NumPy's:
+    the weights' sum, the BLAS dot products and covariance, logs, pairwise sums and arctan2."""
+    n = p.shape[0]
+    pc = np.ascontiguousarray(p)
+    try:  # the weights are refused after the poses (below), as the reference refuses them
+        w = _shaped_weights(weights, n)
+    except Exception:
+        w = None
+    xyt, cos_th, sin_th = np.empty((3, n)), np.empty(n), np.empty(n)
+    raw = _NO_WEIGHTS if w is None else np.ascontiguousarray(w)
+    in_limit, ok, largest = _k.summary_inputs(pc, raw, MAX_POSE_M, xyt, cos_th, sin_th)
+    if not in_limit:
+        _refuse_poses(p)
+    if w is None:
+        w = _shaped_weights(weights, n)  # raises again, now
+    w = _normalised_checked(w, ok, largest)
+    x, y, _ = xyt
+    dot = _blas.dot
+    mx, my = float(dot(w, x)), float(dot(w, y))
+    mth = wrap_float(float(np.arctan2(dot(w, sin_th), dot(w, cos_th))))
+    res = np.empty((3, n))
+    wc = np.ascontiguousarray(w)
+    e_nt, e_scale = _k.heading_scale(cfg.entropy_bin_theta_rad)
+    c_nt, c_scale = _k.heading_scale(cfg.cluster_bin_theta_rad)
+    masses, e_fits, cell, mass, count, nx, ny, held, c_fits = _k.summary_rasters(
+        pc, wc, mx, my, mth, res, float(cfg.entropy_bin_xy_m), e_nt, e_scale, float(cfg.cluster_bin_m), c_nt, c_scale,
+        _MAX_RASTER_CELLS,
+    )  # fmt: skip
+    cov = (res * w) @ res.T
+    if e_fits:
+        entropy = _entropy_of(masses)
+    else:  # absurdly spread cloud
+        entropy = histogram_entropy(p, w, cfg.entropy_bin_xy_m, cfg.entropy_bin_theta_rad, "numpy")
+    if c_fits:
+        threshold = _threshold(mass, held, cfg.cluster_min_bin_frac, cfg.cluster_min_bin_frac > 0)
+        sums = _k.summary_clusters(mass, count, threshold, ny, nx, c_nt, cell, pc, sin_th, cos_th, wc)
+    else:  # absurdly spread cloud: the coarser raster, as the reference
+        labels, n_lab = _cluster_labels_numba(pc, cfg.cluster_bin_m * 4.0, cfg.cluster_bin_theta_rad, w,
+                                              cfg.cluster_min_bin_frac)  # fmt: skip
+        sums = _k.cluster_sums(labels, n_lab, pc, sin_th, cos_th, wc)
+    ccount, cw, wsum, csums, order, starts = sums
+    cmean = _cluster_means(csums, wsum)
+    ccov, keep = _k.summary_covariances(order, starts, pc, wc, ccount, cw, wsum, cmean, float(cfg.cluster_min_weight))
+    mean, ess = np.array([mx, my, mth]), float(1.0 / np.sum(w * w))
+    return mean, 0.5 * (cov + cov.T), ess, entropy, cw, cmean, ccov, ccount, keep.tolist()

@@ -29,6 +29,8 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
+from filters.pose import _cos_sin
+
 _TWO_PI = 2.0 * np.pi
 
 
@@ -65,6 +67,13 @@ def raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it):  # pragma: no cover - c
     ``min(floor((wrap(theta) + pi) * scale), nt - 1)`` with ``scale = nt / (2 pi)`` computed by
     the caller. Returns ``(nx, ny)``.
     """
+    return _bins(poses, bin_xy_m, nt, scale, ix, iy, it, 0, 0.0, it)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _bins(poses, bin_xy_m, nt, scale, ix, iy, it, nt2, scale2, it2):  # pragma: no cover - compiled
+    """`raster_bins`, and with ``nt2 > 0`` the headings' bins of a second raster of the same cells into ``it2``
+    (``nt2`` headings, ``scale2``) in the same pass."""
     n = poses.shape[0]
     mx = np.int64(0)
     my = np.int64(0)
@@ -77,8 +86,10 @@ def raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it):  # pragma: no cover - c
             mx = a
         if i == 0 or b < my:
             my = b
-        k = np.int64(np.floor((_wrap(poses[i, 2]) + np.pi) * scale))
-        it[i] = min(k, nt - 1)
+        t = _wrap(poses[i, 2]) + np.pi
+        it[i] = min(np.int64(np.floor(t * scale)), nt - 1)
+        if nt2 > 0:
+            it2[i] = min(np.int64(np.floor(t * scale2)), nt2 - 1)
     nx = np.int64(0)
     ny = np.int64(0)
     for i in range(n):
@@ -313,60 +324,111 @@ def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - c
 
 
 @numba.njit(cache=True, nogil=True)
-def cluster_sums(labels, n, poses, sin_th, cos_th, w):  # pragma: no cover - compiled
-    """First pass of ``cluster_stats``: per cluster the count, weight, ``ww``-weighted sums of
-    ``x``, ``y``, ``sin``, ``cos`` (``ww`` = the weight, or ``1 / count`` in a zero-weight
-    cluster), in particle order. Returns ``(count, weight, wsum, sums (n, 4))``."""
-    count = np.zeros(n, dtype=np.int64)
-    weight = np.zeros(n)
+def cluster_members(labels, n):  # pragma: no cover - compiled
+    """``(order, starts)``: the particles of each cluster ``0 .. n - 1`` in index order, cluster ``k``'s being
+    ``order[starts[k]:starts[k + 1]]`` (a counting sort; label -1, no cluster, is left out)."""
+    starts = np.zeros(n + 1, dtype=np.int64)
+    for i in range(labels.shape[0]):
+        if labels[i] >= 0:
+            starts[labels[i] + 1] += 1
+    for k in range(n):
+        starts[k + 1] += starts[k]
+    fill = starts[:-1].copy()
+    order = np.empty(starts[n], dtype=np.int64)
     for i in range(labels.shape[0]):
         k = labels[i]
         if k >= 0:
-            count[k] += 1
-            weight[k] += w[i]
-    sums = np.zeros((n, 4))
-    for i in range(labels.shape[0]):
-        k = labels[i]
-        if k < 0:
-            continue
-        ww = w[i] if weight[k] > 0 else 1.0 / max(count[k], 1)
-        sums[k, 0] += ww * poses[i, 0]
-        sums[k, 1] += ww * poses[i, 1]
-        sums[k, 2] += ww * sin_th[i]
-        sums[k, 3] += ww * cos_th[i]
-    wsum = np.empty(n)
-    for k in range(n):
-        wsum[k] = weight[k] if weight[k] > 0 else 1.0
-    return count, weight, wsum, sums
+            order[fill[k]] = i
+            fill[k] += 1
+    return order, starts
 
 
 @numba.njit(cache=True, nogil=True)
-def cluster_covariances(labels, n, poses, w, count, weight, wsum, mean):  # pragma: no cover - compiled
-    """Second pass of ``cluster_stats``: ``cov (n, 3, 3)`` about ``mean`` (wrapped heading residuals)."""
-    acc = np.zeros((n, 6))
-    r = np.empty(3)
-    for i in range(labels.shape[0]):
-        k = labels[i]
-        if k < 0:
-            continue
-        ww = w[i] if weight[k] > 0 else 1.0 / max(count[k], 1)
-        r[0] = poses[i, 0] - mean[k, 0]
-        r[1] = poses[i, 1] - mean[k, 1]
-        r[2] = _wrap(poses[i, 2] - mean[k, 2])
-        j = 0
-        for a in range(3):
-            for b in range(a, 3):
-                acc[k, j] += ww * r[a] * r[b]
-                j += 1
+def cluster_sums(labels, n, poses, sin_th, cos_th, w):  # pragma: no cover - compiled
+    """First pass of ``cluster_stats``: per cluster the count, weight, ``ww``-weighted sums of
+    ``x``, ``y``, ``sin``, ``cos`` (``ww`` = the weight, or ``1 / count`` in a zero-weight
+    cluster), each summed in particle order. Returns ``(count, weight, wsum, sums (n, 4), order, starts)``, the last
+    two `cluster_members`' (for `cluster_covariances`).
+
+    A cluster at a time, its sums in registers: the same additions in the same order as adding each particle into
+    its cluster's slot, without a load and a store per addition."""
+    order, starts = cluster_members(labels, n)
+    count = np.empty(n, dtype=np.int64)
+    weight = np.empty(n)
+    wsum = np.empty(n)
+    sums = np.empty((n, 4))
+    for k in range(n):
+        lo = starts[k]
+        hi = starts[k + 1]
+        wk = 0.0
+        for j in range(lo, hi):
+            wk += w[order[j]]
+        count[k] = hi - lo
+        weight[k] = wk
+        positive = wk > 0
+        each = 1.0 / max(hi - lo, 1)
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        s3 = 0.0
+        for j in range(lo, hi):
+            i = order[j]
+            ww = w[i] if positive else each
+            s0 += ww * poses[i, 0]
+            s1 += ww * poses[i, 1]
+            s2 += ww * sin_th[i]
+            s3 += ww * cos_th[i]
+        sums[k, 0] = s0
+        sums[k, 1] = s1
+        sums[k, 2] = s2
+        sums[k, 3] = s3
+        wsum[k] = wk if positive else 1.0
+    return count, weight, wsum, sums, order, starts
+
+
+@numba.njit(cache=True, nogil=True)
+def cluster_covariances(order, starts, poses, w, count, weight, wsum, mean):  # pragma: no cover - compiled
+    """Second pass of ``cluster_stats``: ``cov (n, 3, 3)`` about ``mean`` (wrapped heading residuals), each cluster's
+    members ``order[starts[k]:starts[k + 1]]`` (`cluster_sums`) summed in particle order, in registers."""
+    n = starts.shape[0] - 1
     cov = np.empty((n, 3, 3))
     for k in range(n):
-        j = 0
-        for a in range(3):
-            for b in range(a, 3):
-                v = acc[k, j] / wsum[k]
-                cov[k, a, b] = v
-                cov[k, b, a] = v
-                j += 1
+        positive = weight[k] > 0
+        each = 1.0 / max(count[k], 1)
+        mx = mean[k, 0]
+        my = mean[k, 1]
+        mt = mean[k, 2]
+        a00 = 0.0
+        a01 = 0.0
+        a02 = 0.0
+        a11 = 0.0
+        a12 = 0.0
+        a22 = 0.0
+        for j in range(starts[k], starts[k + 1]):
+            i = order[j]
+            ww = w[i] if positive else each
+            r0 = poses[i, 0] - mx
+            r1 = poses[i, 1] - my
+            r2 = _wrap(poses[i, 2] - mt)
+            a00 += ww * r0 * r0
+            a01 += ww * r0 * r1
+            a02 += ww * r0 * r2
+            a11 += ww * r1 * r1
+            a12 += ww * r1 * r2
+            a22 += ww * r2 * r2
+        d = wsum[k]
+        cov[k, 0, 0] = a00 / d
+        cov[k, 1, 1] = a11 / d
+        cov[k, 2, 2] = a22 / d
+        v = a01 / d
+        cov[k, 0, 1] = v
+        cov[k, 1, 0] = v
+        v = a02 / d
+        cov[k, 0, 2] = v
+        cov[k, 2, 0] = v
+        v = a12 / d
+        cov[k, 1, 2] = v
+        cov[k, 2, 1] = v
     return cov
 
 
@@ -420,18 +482,26 @@ def _fits(nx, ny, nt, max_cells):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _raster_mass(poses, w, bin_xy_m, nt, scale, max_cells):  # pragma: no cover - compiled
-    """``(cell (N,), mass, count, nx, ny, fits)``: `raster_bins`, then the flat cell ``(iy nx + ix) nt + it`` of
-    each particle, and per cell the weights ``w`` summed in particle order (``np.bincount``'s order) and the
-    particles counted; empty ``mass`` and ``count`` and ``fits = False`` when the raster would exceed
-    ``max_cells``."""
+    """``(cell (N,), mass, count, nx, ny, fits)``: `raster_bins`, then `_cell_masses`."""
     n = poses.shape[0]
     ix = np.empty(n, dtype=np.int64)
     iy = np.empty(n, dtype=np.int64)
     it = np.empty(n, dtype=np.int64)
     nx, ny = raster_bins(poses, bin_xy_m, nt, scale, ix, iy, it)
+    cell, mass, count, fits = _cell_masses(ix, iy, it, nx, ny, nt, w, max_cells)
+    return cell, mass, count, nx, ny, fits
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _cell_masses(ix, iy, it, nx, ny, nt, w, max_cells):  # pragma: no cover - compiled
+    """``(cell (N,), mass, count, fits)``: the flat cell ``(iy nx + ix) nt + it`` of each particle (`raster_bins`'
+    ``ix, iy, it`` and ``nx, ny``), and per cell the weights ``w`` summed in particle order (``np.bincount``'s order)
+    and the particles counted; empty ``mass`` and ``count`` and ``fits = False`` when the raster would exceed
+    ``max_cells``."""
+    n = ix.shape[0]
     cell = np.empty(n, dtype=np.int64)
     if not _fits(nx, ny, nt, max_cells):
-        return cell, np.empty(0), np.empty(0, dtype=np.int64), nx, ny, False
+        return cell, np.empty(0), np.empty(0, dtype=np.int64), False
     mass = np.zeros(nx * ny * nt)
     count = np.zeros(nx * ny * nt, dtype=np.int64)
     for i in range(n):
@@ -439,7 +509,17 @@ def _raster_mass(poses, w, bin_xy_m, nt, scale, max_cells):  # pragma: no cover 
         cell[i] = c
         mass[c] += w[i]
         count[c] += 1
-    return cell, mass, count, nx, ny, True
+    return cell, mass, count, True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _held(count):  # pragma: no cover - compiled
+    """Cells with particles."""
+    held = 0
+    for c in range(count.shape[0]):
+        if count[c] > 0:
+            held += 1
+    return held
 
 
 @numba.njit(cache=True, nogil=True)
@@ -459,11 +539,7 @@ def cluster_raster(poses, w, bin_m, nt, scale, max_cells):  # pragma: no cover -
     ``count`` (`_raster_mass`), the number ``held`` of cells with particles, and ``fits = False`` (and
     empty arrays) when the raster would exceed ``max_cells``."""
     cell, mass, count, nx, ny, fits = _raster_mass(poses, w, bin_m, nt, scale, max_cells)
-    held = 0
-    for c in range(count.shape[0]):
-        if count[c] > 0:
-            held += 1
-    return cell, mass, count, nx, ny, held, fits
+    return cell, mass, count, nx, ny, _held(count), fits
 
 
 @numba.njit(cache=True, nogil=True)
@@ -529,3 +605,58 @@ def hypothesis_order(cw, min_weight):  # pragma: no cover - compiled
             j -= 1
         kept[j] = k
     return kept
+
+
+# ------------------------------------------------------------------ the summary in four calls
+# `filters.localization.belief.summarize` (numba backend) runs these four, with NumPy between them for what must stay
+# NumPy's (module docstring): the weights' normalisation, the BLAS dot products and covariance, the entropy's logs and
+# sum, the cluster threshold's sum, the means' arctan2. Each is the kernels above, one call for several.
+
+
+@numba.njit(cache=True, nogil=True)
+def summary_inputs(poses, w, limit, xyt, cos_th, sin_th):  # pragma: no cover - compiled
+    """Before the weights are normalised: `transposed_in_limit` of ``poses`` into ``xyt`` ``(3, N)``, the headings'
+    cos and sin into ``cos_th`` and ``sin_th`` (`filters.pose.cos_sin`'s, the C library's), and
+    `finite_non_negative_max` of the raw weights ``w``. Returns ``(in_limit, weights_ok, largest)``."""
+    in_limit = transposed_in_limit(poses, limit, xyt)
+    _cos_sin(xyt[2], cos_th, sin_th)
+    ok, largest = finite_non_negative_max(w)
+    return in_limit, ok, largest
+
+
+@numba.njit(cache=True, nogil=True)
+def summary_rasters(
+    poses, w, mx, my, mth, res, e_bin, e_nt, e_scale, c_bin, c_nt, c_scale, max_cells
+):  # pragma: no cover - compiled
+    """After the mean: `residuals` into ``res`` ``(3, N)``, `entropy_masses` (cells ``e_bin`` m, ``e_nt`` headings)
+    and `cluster_raster` (``c_bin``, ``c_nt``) of the normalised weights ``w``, the positions binned once when the two
+    rasters' cells are the same size. Returns ``(masses, e_fits, cell, mass, count, nx, ny, held, c_fits)``: the
+    entropy raster's nonzero masses and whether it fit, then `cluster_raster`'s output."""
+    residuals(poses, mx, my, mth, res)
+    n = poses.shape[0]
+    ix = np.empty(n, dtype=np.int64)
+    iy = np.empty(n, dtype=np.int64)
+    it = np.empty(n, dtype=np.int64)
+    c_it = np.empty(n, dtype=np.int64)
+    shared = c_bin == e_bin  # the same x and y bins: only the headings' differ
+    nx, ny = _bins(poses, e_bin, e_nt, e_scale, ix, iy, it, c_nt if shared else 0, c_scale, c_it)
+    _, e_mass, _, e_fits = _cell_masses(ix, iy, it, nx, ny, e_nt, w, max_cells)
+    masses = nonzero_mass(e_mass) if e_fits else e_mass
+    if not shared:
+        nx, ny = raster_bins(poses, c_bin, c_nt, c_scale, ix, iy, c_it)
+    cell, mass, count, c_fits = _cell_masses(ix, iy, c_it, nx, ny, c_nt, w, max_cells)
+    return masses, e_fits, cell, mass, count, nx, ny, _held(count), c_fits
+
+
+@numba.njit(cache=True, nogil=True)
+def summary_clusters(mass, count, threshold, ny, nx, nt, cell, poses, sin_th, cos_th, w):  # pragma: no cover - compiled
+    """`cell_labels` of `summary_rasters`' cluster raster, then `cluster_sums` of the clusters:
+    ``(count, weight, wsum, sums, order, starts)``."""
+    labels, n = cell_labels(mass, count, threshold, ny, nx, nt, cell)
+    return cluster_sums(labels, n, poses, sin_th, cos_th, w)
+
+
+@numba.njit(cache=True, nogil=True)
+def summary_covariances(order, starts, poses, w, count, weight, wsum, mean, min_weight):  # pragma: no cover - compiled
+    """`cluster_covariances` and `hypothesis_order` of the clusters: ``(cov (n, 3, 3), kept)``."""
+    return cluster_covariances(order, starts, poses, w, count, weight, wsum, mean), hypothesis_order(weight, min_weight)
