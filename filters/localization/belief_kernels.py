@@ -29,8 +29,6 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
-from filters.pose import _cos_sin
-
 _TWO_PI = 2.0 * np.pi
 
 
@@ -619,7 +617,10 @@ def summary_inputs(poses, w, limit, xyt, cos_th, sin_th):  # pragma: no cover - 
     cos and sin into ``cos_th`` and ``sin_th`` (`filters.pose.cos_sin`'s, the C library's), and
     `finite_non_negative_max` of the raw weights ``w``. Returns ``(in_limit, weights_ok, largest)``."""
     in_limit = transposed_in_limit(poses, limit, xyt)
-    _cos_sin(xyt[2], cos_th, sin_th)
+    for i in range(poses.shape[0]):  # `filters.pose.cos_sin`'s loop: a cached kernel calls only its own file's
+        t = xyt[2, i]
+        cos_th[i] = math.cos(t)  # LLVM makes the pair one sincos call
+        sin_th[i] = math.sin(t)
     ok, largest = finite_non_negative_max(w)
     return in_limit, ok, largest
 
