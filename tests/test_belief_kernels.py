@@ -40,7 +40,8 @@ def clouds(seed: int):
     q = np.empty((m, 3))
     q[:, 0] = rng.integers(-4, 4, m) * 0.5
     q[:, 1] = rng.integers(-4, 4, m) * 0.25
-    q[:, 2] = rng.choice([-np.pi, np.pi - 1e-16, -np.pi / 4, np.pi / 8, 0.0, 3 * np.pi / 4], m)
+    edges = [-np.pi, np.nextafter(np.pi, 0.0), np.nextafter(-np.pi, -4.0), -np.pi / 4, np.pi / 8, 0.0, 3 * np.pi / 4]
+    q[:, 2] = rng.choice(edges, m)  # nextafter(-pi, -inf) wraps to +pi itself: the last heading bin's clamp
     out.append((q, rng.random(m)))
     # uniform over a map, some weights exactly 0 (zero-weight clusters)
     u = rng.uniform([0, 0, -np.pi], [14, 9, np.pi], (3000, 3))
@@ -75,6 +76,59 @@ def test_summary_matches_reference(seed):
             same_bits(a.cov, b.cov)
             for ha, hb in zip(a.hypotheses, b.hypotheses, strict=True):
                 same_bits(ha.cov, hb.cov)
+
+
+def same_summary(p, w, cfg=None) -> None:
+    """`summarize`'s two backends give the same Belief, bit for bit."""
+    a, b = summarize(p, w, cfg, "numba"), summarize(p, w, cfg, "numpy")
+    assert repr(a.as_dict(10**6)) == repr(b.as_dict(10**6))
+    same_bits(a.cov, b.cov)
+    for ha, hb in zip(a.hypotheses, b.hypotheses, strict=True):
+        same_bits(ha.cov, hb.cov)
+
+
+@pytest.mark.parametrize("e_bin, c_bin", [(0.3, 0.7), (1.0, 0.25), (0.25, 0.5)])
+def test_summary_with_entropy_and_cluster_cells_of_different_sizes(e_bin, c_bin):
+    """The fused raster kernel bins the positions once only when the two rasters' cells are the same size; here each
+    raster is binned on its own (a wrong raster size there would write out of bounds)."""
+    rng = np.random.default_rng(0)
+    centres = rng.uniform([-5, -5, -np.pi], [15, 10, np.pi], (4, 3))
+    p = centres[rng.integers(0, 4, 2000)] + rng.normal(0, 1, (2000, 3)) * [0.5, 0.5, 0.7]
+    same_summary(p, rng.random(2000) ** 5, BeliefConfig(entropy_bin_xy_m=e_bin, cluster_bin_m=c_bin))
+
+
+def test_a_heading_just_below_minus_pi_lands_in_the_last_heading_bin():
+    """``nextafter(-pi, -inf)`` wraps to +pi itself, whose bin index is one past the last: both rasters clamp it."""
+    p = np.array([[5.0, 0.0, np.nextafter(-np.pi, -4.0)], [0.0, 0.0, -3.0], [0.0, 1.0, -3.0]])
+    same_summary(p, np.ones(3))
+    assert summarize(p, np.ones(3)).n_clusters == 3
+
+
+@pytest.mark.parametrize("e_bin, c_bin", [(0.5, 0.5), (0.25, 1.0), (1.0, 0.25), (0.5, 0.25), (0.25, 0.5)])
+def test_a_cloud_too_wide_for_the_rasters_summarises_alike(e_bin, c_bin):
+    """Half the particles in one place, half over 1500 m x 900 m: the entropy and cluster rasters do not fit, and
+    `summarize` takes the reference's fallbacks (a sort for the entropy, 4x coarser cluster cells)."""
+    rng = np.random.default_rng(5)
+    p = rng.uniform([0, 0, -np.pi], [1500, 900, np.pi], (3000, 3))
+    p[:1500] = [700.0, 400.0, 0.5] + rng.normal(0, 0.3, (1500, 3))
+    same_summary(p, rng.random(3000) ** 8, BeliefConfig(entropy_bin_xy_m=e_bin, cluster_bin_m=c_bin))
+    cfg = BeliefConfig(entropy_bin_xy_m=e_bin, cluster_bin_m=c_bin, cluster_min_weight=0.0)
+    same_summary(p, np.ones(3000), cfg)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_bad_poses_are_refused_before_bad_weights(backend):
+    nan = np.zeros((3, 3))
+    nan[1, 0] = np.nan
+    for weights in (np.ones(4), ["a", "b", "c"], np.ones(3) * (1 + 1j), np.array([1.0, -1.0, 1.0])):
+        with pytest.raises(ValueError, match="NaN or inf"):
+            summarize(nan, weights, backend=backend)
+    far = np.zeros((3, 3))
+    far[0, 0] = 2e15
+    with pytest.raises(ValueError, match="from the origin"):
+        summarize(far, np.ones(2), backend=backend)
+    with pytest.raises(ValueError, match=r"weights must have shape \(3,\)"):
+        summarize(np.zeros((3, 3)), np.ones(4), backend=backend)
 
 
 def test_seam_joins_components_like_the_reference():
@@ -341,14 +395,21 @@ def test_cos_sin_is_numpys_cos_and_sin():
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_group_order_is_a_stable_argsort_and_its_starts(seed):
+def test_cluster_members_is_a_stable_argsort_and_its_starts(seed):
+    """Every label a cluster: the stable argsort; with label -1 (no cluster) too: the same without those particles."""
     rng = np.random.default_rng(seed)
     for n, k in ((0, 1), (1, 1), (7, 3), (5000, 1), (5000, 40), (300, 301)):
         labels = rng.integers(0, k, n)
-        order, starts = K.group_order(labels, k)
+        order, starts = K.cluster_members(labels, k)
         want = np.argsort(labels, kind="stable")
         assert np.array_equal(order, want)
         assert np.array_equal(starts, np.searchsorted(labels[want], np.arange(k + 1)))
+        some = np.where(rng.random(n) < 0.3, -1, labels)
+        order, starts = K.cluster_members(some, k)
+        inside = np.flatnonzero(some >= 0)
+        want = inside[np.argsort(some[inside], kind="stable")]
+        assert np.array_equal(order, want)
+        assert np.array_equal(starts, np.searchsorted(some[want], np.arange(k + 1)))
 
 
 @pytest.mark.parametrize("spread_m", [(2**30 - 1) * 0.5, (2**31 - 1) * 0.5, 1e9, 1e12, 9e14])

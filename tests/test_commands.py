@@ -74,24 +74,35 @@ def test_cheap_benchmarks_run_and_print_finite_figures(name):
 
 
 @pytest.mark.filterwarnings("ignore:.*out of date.*:DeprecationWarning")
-def test_the_batched_bench_puts_the_version_before_beside_the_newest_only():
-    """The newest id's batched rows include the previous version's R = 64 and their ratio; an older ``--env-id``
-    runs its own rows without them (a reviewer found an IndexError there)."""
+def test_the_batched_bench_puts_the_version_before_beside_the_newest_only(monkeypatch):
+    """The newest id's batched rows include the previous version's R = 64 and their ratio, and the issue's env's R = 64,
+    each row run on its own env (the vector envs made are recorded); an older ``--env-id`` runs its own rows without
+    them (a reviewer found an IndexError there)."""
     import math
 
     from agents.tools import bench
+    from semreloc_env.envs import batched
 
+    made = []
+    vector_env = batched.SemRelocLoopVectorEnv
+
+    def recording(num_envs, env_id, **kwargs):
+        made.append((num_envs, env_id))
+        return vector_env(num_envs=num_envs, env_id=env_id, **kwargs)
+
+    monkeypatch.setattr(batched, "SemRelocLoopVectorEnv", recording)
     rows = bench.bench_batched(bench.Args(steps=20, repeats=2, only=("batched",)))
     assert all(math.isfinite(r.cpu) and r.cpu > 0 for r in rows), rows
+    new, before, issue = bench.ENV_ID, bench.PREVIOUS_ENV_ID, bench.ISSUE_ENV_ID
+    assert made == [(1, new), (16, new), (64, new), (64, before), (64, issue), (64, new), (64, new)]  # the rows' order
     newest = [r.name for r in rows]
-    assert f"batched env R=64, {bench.PREVIOUS_ENV_ID}" in newest
-    at = newest.index(f"  {bench.ENV_ID} / {bench.PREVIOUS_ENV_ID}")
-    assert newest[at - 2 : at] == ["batched env R=64", f"batched env R=64, {bench.PREVIOUS_ENV_ID}"]
-    assert math.isclose(rows[at].cpu, rows[at - 2].cpu / rows[at - 1].cpu)
-    assert newest[at + 1] == f"batched env R=64, {bench.ISSUE_ENV_ID}"  # the env the issue set its target on
-    older = bench.bench_batched(bench.Args(steps=20, repeats=2, only=("batched",), env_id=bench.PREVIOUS_ENV_ID))
-    assert not any(bench.PREVIOUS_ENV_ID in r.name or bench.ISSUE_ENV_ID in r.name for r in older)
-    assert len(older) == len(newest) - 3
+    assert newest[2:7] == ["batched env R=64", f"batched env R=64, {before}", f"  {new} / {before}",
+                           f"batched env R=64, {issue}", "batched env R=64, 1000-particle filter"]  # fmt: skip
+    assert math.isclose(rows[4].cpu, rows[2].cpu / rows[3].cpu)
+    made.clear()
+    older = bench.bench_batched(bench.Args(steps=20, repeats=2, only=("batched",), env_id=before))
+    assert {e for _, e in made} == {before}
+    assert not any(before in r.name or issue in r.name for r in older) and len(older) == len(newest) - 3
 
 
 def test_the_bench_runs_the_version_it_is_told():
@@ -362,6 +373,31 @@ def test_the_env_and_reset_benchmarks_say_what_their_kernels_take():
 
 
 @pytest.mark.filterwarnings("ignore:.*out of date.*:DeprecationWarning")
+def test_the_reset_rows_time_each_version_s_own_resets(monkeypatch):
+    """The newest version's resets, the version before's and the issue's env's are timed in turn; each row shows its
+    own env's time (a fake timer gives each env's resets a time of their own)."""
+    from agents.tools import bench
+
+    made = []
+    env_of = bench._env
+
+    def recording_env(args, env_id="", **kwargs):
+        made.append(env_id or bench.ENV_ID)
+        return env_of(args, env_id, **kwargs)
+
+    monkeypatch.setattr(bench, "_env", recording_env)
+
+    def fake_times(fns, repeats):  # the i-th function's calls take (i + 1) ms
+        return [(1e-3 * (i + 1), 1e-3 * (i + 1)) for i in range(len(fns))]
+
+    monkeypatch.setattr(bench, "_interleaved_median_times", fake_times)
+    rows = {r.name: r for r in bench.bench_reset(bench.Args(steps=20, repeats=2, only=("reset",)))}
+    assert made[:3] == [bench.ENV_ID, bench.PREVIOUS_ENV_ID, bench.ISSUE_ENV_ID]
+    assert rows["reset() (cached map)"].cpu == 1.0 and rows[f"reset() (cached map), {bench.PREVIOUS_ENV_ID}"].cpu == 2.0
+    assert rows[f"reset() (cached map), {bench.ISSUE_ENV_ID}"].cpu == 3.0
+
+
+@pytest.mark.filterwarnings("ignore:.*out of date.*:DeprecationWarning")
 def test_the_batched_split_rows_say_what_fusing_and_stacking_would_do():
     import math
 
@@ -378,14 +414,57 @@ def test_the_batched_split_rows_say_what_fusing_and_stacking_would_do():
     names = [r.name for r in rows]  # the env the issue measured: its robot-step, and what its kernels alone allow
     at = names.index(f"batched R=64, {bench.ISSUE_ENV_ID}: one robot-step")
     step, alone = rows[at], rows[at + 1]
-    assert alone.name == "  robot-steps per CPU-s, kernels alone" and alone.cpu > 1e6 / step.cpu
+    assert alone.name == f"  {bench.ISSUE_ENV_ID}: robot-steps per CPU-s, kernels alone" and alone.cpu > 1e6 / step.cpu
     from agents.tools.profile_step import compiled_functions
 
     top = [part.rsplit(" ", 2) for part in alone.note.split("heaviest: ")[1].split(", ")]
     kernels = {name for _, _, name in compiled_functions()}
-    assert len(top) == 3 and all(name in kernels and unit == "%" for name, _, unit in top)
-    shares = [float(share) for _, share, _ in top]
-    assert shares == sorted(shares, reverse=True) and sum(shares) <= 100.5
+    assert len(top) == 3 and all(name.rpartition(".")[2] in kernels and unit == "%" for name, _, unit in top)
+
+
+def test_the_kernels_alone_rows_of_a_batched_split():
+    """A hand-made split: its robot-step, what its kernels alone allow, and the three heaviest kernels' shares of the
+    kernels' time."""
+    from agents.tools import bench
+    from agents.tools.profile_step import BatchedSplit
+
+    s = BatchedSplit(
+        robot_steps=100, total_s=0.1, update_steps=20, update_s=0.05, audits=1, audit_s=0.01, plain_steps=80,
+        plain_s=0.04, resets=0, reset_s=0.0, loop_s=0.01, kernel_s=0.04, kernel_calls=1500, weighed=1000,
+        weighed_stacked=2500, kernels=(("a", 0.02), ("b", 0.01), ("c", 0.006), ("d", 0.004)),
+    )  # fmt: skip
+    step, alone = bench._kernels_alone_rows(s, "SemReloc-v0", "the env")
+    assert step.name == "batched R=64, SemReloc-v0: one robot-step" and step.cpu == pytest.approx(1000.0)
+    assert alone.cpu == pytest.approx(2500.0)
+    assert alone.note == "400 us per robot-step; heaviest: a 50 %, b 25 %, c 15 %"
+
+
+def test_the_batched_split_rows_run_the_newest_version_then_the_issue_s_env(monkeypatch):
+    """Each env's rows come from its own split (fake splits, one per env, with robot-steps of their own cost)."""
+    import dataclasses
+
+    from agents.tools import bench, profile_step
+
+    runs = []
+    fake = profile_step.BatchedSplit(
+        robot_steps=100, total_s=0.1, update_steps=20, update_s=0.05, audits=1, audit_s=0.01, plain_steps=80,
+        plain_s=0.04, resets=0, reset_s=0.0, loop_s=0.01, kernel_s=0.04, kernel_calls=1500, weighed=1000,
+        weighed_stacked=2500, kernels=(("a", 0.02), ("b", 0.01), ("c", 0.006), ("d", 0.004)),
+    )  # fmt: skip
+
+    def recording(num_envs, steps, seed, env_id, **kwargs):
+        runs.append(env_id)
+        return dataclasses.replace(fake, total_s=0.1 * len(runs))  # the first env's robot-step 1 ms, the second's 2
+
+    monkeypatch.setattr(profile_step, "batched_split", recording)
+    monkeypatch.setattr(profile_step, "dispatch_seconds", lambda calls=0: 1e-6)
+    rows = {r.name: r for r in bench.bench_batched_split(bench.Args(steps=15, repeats=2, only=("batched_split",)))}
+    assert runs == [bench.ENV_ID, bench.ISSUE_ENV_ID]
+    assert rows["batched R=64: one robot-step"].cpu == pytest.approx(1000.0)
+    assert rows[f"batched R=64, {bench.ISSUE_ENV_ID}: one robot-step"].cpu == pytest.approx(2000.0)
+    runs.clear()
+    older = bench.bench_batched_split(bench.Args(steps=15, repeats=2, only=("batched_split",), env_id="SemReloc-v20"))
+    assert runs == ["SemReloc-v20"] and not any(bench.ISSUE_ENV_ID in r.name for r in older)
 
 
 def test_compiled_median_is_the_median_call_s_time_in_the_kernels():

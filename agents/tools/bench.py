@@ -640,7 +640,7 @@ def _kernels_alone_rows(s, env_id: str, what: str) -> list[Row]:
     return [
         Row(f"batched R=64, {env_id}: one robot-step", s.total_s * 1e6 / n, float("nan"), "us CPU", f"{what}; {n} "
             "robot-steps, random actions"),
-        Row("  robot-steps per CPU-s, kernels alone", n / s.kernel_s, float("nan"), "robot-steps/s",
+        Row(f"  {env_id}: robot-steps per CPU-s, kernels alone", n / s.kernel_s, float("nan"), "robot-steps/s",
             f"{s.kernel_s * 1e6 / n:.0f} us per robot-step; heaviest: {top}"),
     ]  # fmt: skip
 
@@ -717,8 +717,8 @@ def bench_reset(args: Args) -> list[Row]:
             Row(f"  {ENV_ID} / {PREVIOUS_ENV_ID} reset time", r_cpu / b_cpu, r_wall / b_wall, "x", ""),
         ]
     if len(envs) > 2:
-        (v0_cpu, v0_wall), n_v0 = timed[2], envs[2].mcl.n_particles
-        note = f"the env the issue measured (14-24 ms then): global, {n_v0} particles, the same seeds; target <= 2 ms"
+        (v0_cpu, v0_wall), n_v0 = timed[2], envs[2].mcl.global_particle_count()
+        note = f"the env the issue measured (14-24 ms in it): global, {n_v0} particles, the same seeds; target <= 2 ms"
         previous.append(Row(f"reset() (cached map), {ISSUE_ENV_ID}", v0_cpu * 1e3, v0_wall * 1e3, "ms", note))
     seeds = streams[0]
     t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), repeats)

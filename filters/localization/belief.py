@@ -72,8 +72,8 @@ from filters.smc.resampling import normalise_weights
 
 _MAX_RASTER_CELLS = 4_000_000
 _SAFE_SUM = 1e300
-_NO_WEIGHTS = np.zeros(0)
 """`_normalised` sums weights whose largest is at most this over their count directly: their sum cannot overflow."""
+_NO_WEIGHTS = np.zeros(0)
 BACKENDS = ("numba", "numpy")
 
 
@@ -609,17 +609,18 @@ def _summary_numba(p: np.ndarray, weights, cfg: BeliefConfig) -> tuple:
     the weights' sum, the BLAS dot products and covariance, logs, pairwise sums and arctan2."""
     n = p.shape[0]
     pc = np.ascontiguousarray(p)
-    try:  # the weights are refused after the poses (below), as the reference refuses them
-        w = _shaped_weights(weights, n)
-    except Exception:
-        w = None
+    # float64 weights of the right shape are checked in the first call; any others after the poses, as the
+    # reference converts and refuses them (a conversion may warn or raise)
+    early = isinstance(weights, np.ndarray) and weights.dtype == np.float64 and weights.size == n
+    w = weights.reshape(-1) if early else None
     xyt, cos_th, sin_th = np.empty((3, n)), np.empty(n), np.empty(n)
-    raw = _NO_WEIGHTS if w is None else np.ascontiguousarray(w)
+    raw = np.ascontiguousarray(w) if early else _NO_WEIGHTS
     in_limit, ok, largest = _k.summary_inputs(pc, raw, MAX_POSE_M, xyt, cos_th, sin_th)
     if not in_limit:
         _refuse_poses(p)
-    if w is None:
-        w = _shaped_weights(weights, n)  # raises again, now
+    if not early:
+        w = _shaped_weights(weights, n)
+        ok, largest = _k.finite_non_negative_max(np.ascontiguousarray(w))
     w = _normalised_checked(w, ok, largest)
     x, y, _ = xyt
     dot = _blas.dot

@@ -324,7 +324,9 @@ def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - c
 @numba.njit(cache=True, nogil=True)
 def cluster_members(labels, n):  # pragma: no cover - compiled
     """``(order, starts)``: the particles of each cluster ``0 .. n - 1`` in index order, cluster ``k``'s being
-    ``order[starts[k]:starts[k + 1]]`` (a counting sort; label -1, no cluster, is left out)."""
+    ``order[starts[k]:starts[k + 1]]`` (a counting sort; label -1, no cluster, is left out). With every label in
+    ``0 .. n - 1``, ``order`` is ``np.argsort(labels, kind="stable")`` and ``starts`` is
+    ``np.searchsorted(labels[order], np.arange(n + 1))``."""
     starts = np.zeros(n + 1, dtype=np.int64)
     for i in range(labels.shape[0]):
         if labels[i] >= 0:
@@ -556,25 +558,6 @@ def cell_labels(mass, count, threshold, ny, nx, nt, cell):  # pragma: no cover -
     for i in range(cell.shape[0]):
         out[i] = lab[cell[i]] - 1
     return out, n
-
-
-@numba.njit(cache=True, nogil=True)
-def group_order(labels, n_groups):  # pragma: no cover - compiled
-    """``(order, starts)`` of labels in ``0 .. n_groups - 1``: ``order`` = ``np.argsort(labels, kind="stable")``
-    (a counting sort: by label, then by index) and ``starts`` = ``np.searchsorted(labels[order],
-    np.arange(n_groups + 1))``, so group ``k``'s members are ``order[starts[k]:starts[k + 1]]``."""
-    starts = np.zeros(n_groups + 1, dtype=np.int64)
-    for i in range(labels.shape[0]):
-        starts[labels[i] + 1] += 1
-    for k in range(n_groups):
-        starts[k + 1] += starts[k]
-    fill = starts[:-1].copy()
-    order = np.empty(labels.shape[0], dtype=np.int64)
-    for i in range(labels.shape[0]):
-        k = labels[i]
-        order[fill[k]] = i
-        fill[k] += 1
-    return order, starts
 
 
 @numba.njit(cache=True, nogil=True)

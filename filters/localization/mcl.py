@@ -1287,7 +1287,7 @@ class MonteCarloLocalizer:
         keep = np.flatnonzero((cw >= c.cluster_keep_weight) & (cw > 0))  # an empty group has nothing to draw
         if keep.size == 0:
             keep = np.array([int(np.argmax(cw))])
-        order, starts = belief_kernels.group_order(labels, n_lab)
+        order, starts = belief_kernels.cluster_members(labels, n_lab)
         total = cw[keep].sum()
         floor = min(c.cluster_min_particles, max(1, n_new // keep.size))  # floors never exceed the budget
         poses, logw = [], []
