@@ -718,7 +718,7 @@ def bench_reset(args: Args) -> list[Row]:
         ]
     if len(envs) > 2:
         (v0_cpu, v0_wall), n_v0 = timed[2], envs[2].mcl.global_particle_count()
-        note = f"the env the issue measured (14-24 ms in it): global, {n_v0} particles, the same seeds; target <= 2 ms"
+        note = f"the env the issue measured (14-24 ms then): global, {n_v0} particles, the same seeds; target <= 2 ms"
         previous.append(Row(f"reset() (cached map), {ISSUE_ENV_ID}", v0_cpu * 1e3, v0_wall * 1e3, "ms", note))
     seeds = streams[0]
     t_cpu, t_wall = _median_time(lambda: env.reset(seed=next(seeds), options={"tracking": True}), repeats)

@@ -324,7 +324,8 @@ def label_components(occupied, ny, nx, nt, wrap_t, lab):  # pragma: no cover - c
 @numba.njit(cache=True, nogil=True)
 def cluster_members(labels, n):  # pragma: no cover - compiled
     """``(order, starts)``: the particles of each cluster ``0 .. n - 1`` in index order, cluster ``k``'s being
-    ``order[starts[k]:starts[k + 1]]`` (a counting sort; label -1, no cluster, is left out). With every label in
+    ``order[starts[k]:starts[k + 1]]`` (a counting sort; label -1, no cluster, is left out). ``labels`` must lie in
+    ``-1 .. n - 1`` (not checked: a larger label writes out of bounds). With every label in
     ``0 .. n - 1``, ``order`` is ``np.argsort(labels, kind="stable")`` and ``starts`` is
     ``np.searchsorted(labels[order], np.arange(n + 1))``."""
     starts = np.zeros(n + 1, dtype=np.int64)
@@ -388,8 +389,9 @@ def cluster_sums(labels, n, poses, sin_th, cos_th, w):  # pragma: no cover - com
 
 @numba.njit(cache=True, nogil=True)
 def cluster_covariances(order, starts, poses, w, count, weight, wsum, mean):  # pragma: no cover - compiled
-    """Second pass of ``cluster_stats``: ``cov (n, 3, 3)`` about ``mean`` (wrapped heading residuals), each cluster's
-    members ``order[starts[k]:starts[k + 1]]`` (`cluster_sums`) summed in particle order, in registers."""
+    """Second pass of ``cluster_stats``: ``cov (n, 3, 3)`` about ``mean`` (wrapped heading residuals): each cluster's
+    ``ww``-weighted residual products (`cluster_sums`' ``ww``), its members ``order[starts[k]:starts[k + 1]]``
+    summed in particle order in registers, divided by its ``wsum``."""
     n = starts.shape[0] - 1
     cov = np.empty((n, 3, 3))
     for k in range(n):
@@ -440,7 +442,8 @@ def heading_scale(bin_theta_rad: float) -> tuple[int, float]:
 
 # ------------------------------------------------------------------ fused stages of the summary
 # Each replaces a chain of the kernels above and the NumPy glue between them with one call, with the same
-# operations in the same order (so the same bits); `filters.localization.belief.summarize` uses them.
+# operations in the same order (so the same bits). `filters.localization.belief.summarize` calls them through the four
+# `summary_*` kernels at the end of this module, and its fallbacks for clouds too wide for the rasters directly.
 
 
 @numba.njit(cache=True, nogil=True)
