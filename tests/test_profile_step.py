@@ -168,6 +168,16 @@ def test_stacked_counts_pad_every_updating_robot_to_the_largest_set():
     assert profile_step.stacked_counts([500, 3484, 700]) == (4684, 3 * 3484)
 
 
+def test_the_heaviest_text_names_the_kernels_with_their_shares_of_the_compiled_time():
+    s = profile_step.BatchedSplit(
+        robot_steps=100, total_s=0.1, update_steps=20, update_s=0.05, audits=1, audit_s=0.01, plain_steps=80,
+        plain_s=0.04, resets=0, reset_s=0.0, loop_s=0.01, kernel_s=0.04, kernel_calls=1500, weighed=1000,
+        weighed_stacked=2500, kernels=(("a", 0.02), ("b", 0.01), ("c", 0.006), ("d", 0.004)),
+    )  # fmt: skip
+    assert profile_step.heaviest_text(s) == "a 50 %, b 25 %, c 15 %"
+    assert profile_step.heaviest_text(s, 1) == "a 50 %"
+
+
 def test_the_robots_fused_text_says_what_fusing_and_stacking_would_do():
     s = profile_step.BatchedSplit(
         robot_steps=100, total_s=0.1, update_steps=20, update_s=0.05, audits=1, audit_s=0.01, plain_steps=80,

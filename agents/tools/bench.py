@@ -635,8 +635,9 @@ def bench_batched_split(args: Args) -> list[Row]:
 def _kernels_alone_rows(s, env_id: str, what: str) -> list[Row]:
     """A batched split's robot-step, the robot-steps per CPU-second its compiled kernels alone would allow, and its
     three heaviest kernels (``s``: a `agents.tools.profile_step.BatchedSplit`)."""
-    n = s.robot_steps
-    top = ", ".join(f"{name} {100 * t / s.kernel_s:.0f} %" for name, t in s.kernels[:3])
+    from agents.tools.profile_step import heaviest_text
+
+    n, top = s.robot_steps, heaviest_text(s)
     return [
         Row(f"batched R=64, {env_id}: one robot-step", s.total_s * 1e6 / n, float("nan"), "us CPU", f"{what}; {n} "
             "robot-steps, random actions"),

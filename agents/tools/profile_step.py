@@ -393,8 +393,15 @@ def print_batched_split(s: BatchedSplit) -> dict[str, float]:
     )
     for k, (v, note) in parts.items():
         print(f"{k:<40} {1e6 * v / n:8.0f} us  {100 * v / s.total_s:5.1f} %  {note}")
+    print(f"heaviest compiled kernels: {heaviest_text(s)}")
     print(robots_fused_text(s, dispatch_seconds()))
     return {k: v / n for k, (v, _) in parts.items()}
+
+
+def heaviest_text(s: BatchedSplit, k: int = 3) -> str:
+    """The ``k`` heaviest compiled kernels of ``s`` (`batched_split`) with their shares of its compiled time, such as
+    ``"log_likelihood_kernel 19 %, summary_rasters 19 %, summary_clusters 16 %"``."""
+    return ", ".join(f"{name} {100 * t / s.kernel_s:.0f} %" for name, t in s.kernels[:k])
 
 
 def robots_fused_text(s: BatchedSplit, dispatch_s: float) -> str:
