@@ -247,16 +247,10 @@ def _floats(values) -> list:
 def _normalised(weights: np.ndarray, n: int) -> np.ndarray:
     """`normalise_weights` of ``weights`` ``(n,)``, the same bits: one compiled pass checks them and finds the
     largest, and `normalise_weights` itself runs only for weights it must refuse or whose sum could overflow."""
-    w = _shaped_weights(weights, n)
-    return _normalised_checked(w, *_k.finite_non_negative_max(np.ascontiguousarray(w)))
-
-
-def _shaped_weights(weights, n: int) -> np.ndarray:
-    """``weights`` as a float64 ``(n,)`` array (ValueError for another shape)."""
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
     if w.shape != (n,):
         raise ValueError(f"weights must have shape ({n},), got {w.shape}")
-    return w
+    return _normalised_checked(w, *_k.finite_non_negative_max(np.ascontiguousarray(w)))
 
 
 def _normalised_checked(w: np.ndarray, ok: bool, largest: float) -> np.ndarray:
@@ -618,10 +612,7 @@ def _summary_numba(p: np.ndarray, weights, cfg: BeliefConfig) -> tuple:
     in_limit, ok, largest = _k.summary_inputs(pc, raw, MAX_POSE_M, xyt, cos_th, sin_th)
     if not in_limit:
         _refuse_poses(p)
-    if not early:
-        w = _shaped_weights(weights, n)
-        ok, largest = _k.finite_non_negative_max(np.ascontiguousarray(w))
-    w = _normalised_checked(w, ok, largest)
+    w = _normalised_checked(w, ok, largest) if early else _normalised(weights, n)
     x, y, _ = xyt
     dot = _blas.dot
     mx, my = float(dot(w, x)), float(dot(w, y))
