@@ -224,6 +224,8 @@ def test_flaser_angles():
         ("PARAM robot_frontlaser_offset nan\n", "bad.log:1: .*robot_frontlaser_offset"),
         ("PARAM robot_frontlaser_offset 1e308\n", "robot_frontlaser_offset must be a number within"),
         ("PARAM robot_front_laser_max inf\n", "bad.log:1: .*robot_front_laser_max"),
+        ("PARAM robot_front_laser_max -5\n", "bad.log:1: PARAM robot_front_laser_max must be a finite number > 0"),
+        ("PARAM laser_front_laser_max 0\n", "bad.log:1: PARAM laser_front_laser_max must be a finite number > 0"),
         ("FLASER 0  0 0 0 0 0 0 1.0 host 1.0\nFLASER 0  0 0 0 0 0 0 1.0 host 1.0\n", "no range readings"),
         (
             "ROBOTLASER1 0 -1.57 3.14 1e308 8.0 0.01 0 3 1 1 1 0 0 0 0 0 0 0 0 0 0 0 0 1.0 host 1.0\n",
@@ -280,3 +282,16 @@ def test_long_real_readings_in_many_scans_are_not_taken_for_corrupt_ones(tmp_pat
     f.write_text("\n".join(lines) + "\n")
     log = read_carmen(f)
     assert log.range_max_m == pytest.approx(log.ranges.max())
+
+
+def test_poses_too_large_for_the_frame_changes_are_refused_on_their_line(tmp_path):
+    # finite logged poses whose increments overflow gave NaN odometry, found only later in predict
+    f = tmp_path / "huge.log"
+    f.write_text(
+        _flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 0.0) + "\n" + _flaser([1.0, 2.0], (0, 0, 0), (1e308, -1e308, 0), 1.0)
+    )
+    with pytest.raises(CarmenLogError, match=r"huge.log:2: FLASER odometry: coordinates .* beyond \+-1e\+09 m"):
+        read_carmen(f)
+    f.write_text("ODOM 0 2e9 0 0 0 0 0 host 0\n" + _flaser([1.0, 2.0], (0, 0, 0), (0, 0, 0), 0.0))
+    with pytest.raises(CarmenLogError, match=r"huge.log:1: ODOM pose: coordinates \[0.0, 2000000000.0\]"):
+        read_carmen(f)

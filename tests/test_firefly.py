@@ -57,6 +57,9 @@ def test_ewa_specific_cases():
     assert sorted(idx.tolist()) == list(range(10)) and not mask.any()
     idx, mask = ewa_resample(np.r_[np.ones(9), 10.0])
     assert np.array_equal(idx, np.full(10, 9)) and mask.sum() == 1 and mask[-1]
+    # finite weights whose sum overflows resample as the same weights scaled down (an audit found a cryptic error)
+    for got, want in zip(ewa_resample(np.array([1e308, 1e308, 1.0])), ewa_resample(np.array([1.0, 1.0, 1e-308]))):
+        np.testing.assert_array_equal(got, want)
 
 
 def test_apply_mutation_perturbs_only_masked_rows_relative_to_value():
@@ -103,6 +106,14 @@ def test_adaptive_step_shrinks_for_relatively_bright_fireflies():
     assert f[0] == pytest.approx(1.0, abs=1e-5) and f[3] == pytest.approx(np.exp(-1.0))
     assert np.all(adaptive_step(np.full(3, -1e5), np.full(3, 0.0)) > 0.999)
     np.testing.assert_array_equal(fixed_step(log_i, log_j), 1.0)
+    # both brightnesses underflowed: equally bright, not NaN (an audit found NaN particles)
+    np.testing.assert_array_equal(adaptive_step(np.full(2, -np.inf), np.full(2, -np.inf)), np.exp(-1.0))
+    assert adaptive_step(np.array([-np.inf]), np.array([0.0]))[0] == 1.0
+    assert adaptive_step(np.array([0.0]), np.array([-np.inf]))[0] == 0.0
+    moved = firefly_move(
+        np.arange(4.0)[:, None], np.full(4, -np.inf), 1.0, np.random.default_rng(0), step_factor=adaptive_step
+    )
+    assert np.all(np.isfinite(moved))
 
 
 # ---- firefly move -------------------------------------------------------------------------

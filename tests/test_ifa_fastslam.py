@@ -54,6 +54,24 @@ def test_no_move_without_matched_landmarks_then_brightness_orders_by_pose_error(
     assert np.argmax(log_i) == 0
 
 
+def test_a_particle_that_matches_nothing_is_not_the_brightest():
+    # an audit found a particle 0.85 m off, matching no landmark, brightest (d_z = 0) and pulling a good one to it
+    lms = np.array([[5.0, 0.0], [5.0, 5.0], [0.0, 5.0]])
+    z = predict_observation(np.zeros((1, 3)), lms)
+    ml = FastSLAMConfig(n_particles=2, version=1)  # ML association
+    f = FAFastSLAM(MOTION, NOISE, ml, np.random.default_rng(0), firefly=FireflySLAMConfig(alpha0=0.0))
+    f.update(z)  # both particles map the landmarks from the true pose
+    f.poses = np.array([[0.05, 0.0, 0.0], [0.6, 0.6, 0.3]])
+    assoc = f._associate(z, None)
+    assert assoc.matched.sum(axis=1).tolist() == [3, 0]
+    obs_dist = f._distances(z, assoc)[0]
+    assert obs_dist[1] ** 2 == pytest.approx(3 * ml.association.gate_associate)  # three missed, the gate each
+    assert obs_dist[0] < obs_dist[1]
+    f._move_particles(z, assoc)
+    assert np.array_equal(f.poses[0], [0.05, 0.0, 0.0])  # the brighter does not move (no random step)
+    assert np.linalg.norm(f.poses[1, :2] - [0.05, 0.0]) < np.linalg.norm([0.55, 0.6])  # the dimmer moves toward it
+
+
 def test_reference_pose_is_the_filters_own_propagated_estimate():
     f = IFAFastSLAM(MOTION, NOISE, CFG, np.random.default_rng(0), initial_pose=(1.0, 2.0, 0.3))
     ref0 = f._ref_pose.copy()

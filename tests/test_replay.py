@@ -108,6 +108,8 @@ def test_trials_bad_arguments(aces, aces_map):
         global_localization_trials(aces, aces_map, None, [440], 5)
     with pytest.raises(ValueError, match="starts is empty"):
         global_localization_trials(aces, aces_map, None, [], 5)
+    with pytest.raises(ValueError, match=r"integer scan indices, got \[0.9, 5.99\]"):
+        global_localization_trials(aces, aces_map, None, [0.9, 5.99], 5)  # not truncated to scans 0 and 5
     with pytest.raises(ValueError, match="n_steps"):
         global_localization_trials(aces, aces_map, None, [0], 0)
     with pytest.raises(TypeError, match="mcl_config"):

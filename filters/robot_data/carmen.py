@@ -209,6 +209,20 @@ def _floats(tokens: list[str], what: str, path: str, lineno: int) -> list[float]
     return vals
 
 
+MAX_LOG_POSE_M = 1e9
+"""Largest logged coordinate taken (metres): beyond, the frame changes would overflow or lose every centimetre."""
+
+
+def _pose(tokens: list[str], what: str, path: str, lineno: int) -> list[float]:
+    """`_floats` of a logged pose ``x y theta``, its coordinates within `MAX_LOG_POSE_M`."""
+    vals = _floats(tokens, what, path, lineno)
+    if any(abs(v) > MAX_LOG_POSE_M for v in vals[:2]):
+        raise CarmenLogError(
+            path, lineno, f"{what}: coordinates {vals[:2]} beyond +-{MAX_LOG_POSE_M:g} m (not metres?)"
+        )
+    return vals
+
+
 def _count(tok: list[str], i: int, what: str, path: str, lineno: int) -> int:
     if i >= len(tok):
         raise CarmenLogError(path, lineno, f"{what}: line ends before the reading count")
@@ -236,8 +250,8 @@ def _parse_flaser(tok, path, lineno):
     n = _count(tok, 1, "FLASER", path, lineno)
     _check_length(tok, 2 + n + 7, "FLASER", f"{n} readings", path, lineno)
     ranges = _floats(tok[2 : 2 + n], "FLASER ranges", path, lineno)
-    pose = _floats(tok[2 + n : 5 + n], "FLASER pose", path, lineno)
-    odom = _floats(tok[5 + n : 8 + n], "FLASER odometry", path, lineno)
+    pose = _pose(tok[2 + n : 5 + n], "FLASER pose", path, lineno)
+    odom = _pose(tok[5 + n : 8 + n], "FLASER odometry", path, lineno)
     ts = _floats(tok[8 + n : 9 + n], "FLASER timestamp", path, lineno)[0]
     return {"ranges": ranges, "laser_pose": pose, "robot_odom": odom, "timestamp": ts}
 
@@ -255,8 +269,8 @@ def _parse_robotlaser(tok, path, lineno):
     i += 1 + m
     _check_length(tok, i + 12, "ROBOTLASER1", f"{n} readings and {m} remissions", path, lineno)
     ranges = _floats(tok[9 : 9 + n], "ROBOTLASER1 ranges", path, lineno)
-    laser_pose = _floats(tok[i : i + 3], "ROBOTLASER1 laser pose", path, lineno)
-    robot_pose = _floats(tok[i + 3 : i + 6], "ROBOTLASER1 robot pose", path, lineno)
+    laser_pose = _pose(tok[i : i + 3], "ROBOTLASER1 laser pose", path, lineno)
+    robot_pose = _pose(tok[i + 3 : i + 6], "ROBOTLASER1 robot pose", path, lineno)
     ts = _floats(tok[i + 11 : i + 12], "ROBOTLASER1 timestamp", path, lineno)[0]
     return {
         "ranges": ranges,
@@ -359,7 +373,7 @@ def read_carmen(
                         params[tok[1]], param_lines[tok[1]] = tok[2], lineno
                     elif kind == "ODOM":
                         _check_length(tok, 8, "ODOM", "x y theta tv rv accel", spath, lineno)
-                        odom.append(_floats(tok[1:4], "ODOM pose", spath, lineno))
+                        odom.append(_pose(tok[1:4], "ODOM pose", spath, lineno))
                     elif kind in _LASERS and (chosen is None or kind == chosen):
                         chosen = kind
                         rec = (_parse_flaser if kind == "FLASER" else _parse_robotlaser)(tok, spath, lineno)
@@ -423,8 +437,8 @@ def read_carmen(
                     geom_max = float(raw)
                 except ValueError:
                     geom_max = math.nan
-                if not math.isfinite(geom_max):
-                    raise CarmenLogError(spath, line, f"PARAM {key} is not a finite number, got {raw}")
+                if not (math.isfinite(geom_max) and geom_max > 0):
+                    raise CarmenLogError(spath, line, f"PARAM {key} must be a finite number > 0 (metres), got {raw}")
     else:
         start, _fov, res, geom_max = scans[0]["geometry"]
         sensor_pose = relative(robot_odom[0], laser_poses[0])

@@ -234,9 +234,13 @@ def global_localization_trials(
     """
     n = _check_log(log)
     cfg = _config(mcl_config)
-    starts = [int(s) for s in np.asarray(starts).reshape(-1)]
-    if not starts:
+    raw = np.asarray(starts).reshape(-1).tolist()
+    if not raw:
         raise ValueError("starts is empty")
+    not_int = [s for s in raw if not is_int(s)]
+    if not_int:
+        raise ValueError(f"starts must be integer scan indices, got {not_int[:5]}")
+    starts = [int(s) for s in raw]
     bad = [s for s in starts if not 0 <= s < n]
     if bad:
         raise ValueError(f"starts must be scan indices in [0, {n}), got {bad[:5]}")

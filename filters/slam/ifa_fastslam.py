@@ -16,8 +16,13 @@ predicted pose vs newest pose"):
 
 * observation distance ``d_z``: Euclidean norm of the stacked innovations ``z_k - h(pose_i, m_ik)`` of
   the observations the particle *associates* with a landmark already in its map, each component
-  divided by its noise standard deviation (range / ``sigma_r``, bearing / ``sigma_b``), so ``R = 1``;
-  unmatched observations (new landmarks) do not count. With no matched observation there is no move.
+  divided by its noise standard deviation (range / ``sigma_r``, bearing / ``sigma_b``), so ``R = 1``.
+  An observation the particle does not match but another particle does adds the association gate
+  ``gate_associate`` to ``d_z^2``, the least it could add: its normalised innovation squared against the
+  particle's nearest landmark is at least the gate, and the ``R``-normalised square is at least that (the
+  innovation covariance exceeds ``R``). Without this, a particle that matches nothing would be the brightest of
+  all. An observation no particle matches (a new landmark for all, as every one under known association) does
+  not count. With no matched observation there is no move.
 * state distance ``d_x`` (IFA only): distance of the predicted pose to the filter's *own* previous
   estimate (weighted-mean pose after the last update) pushed through the noise-free motion model with
   the controls since, each component divided by the predicted cloud's standard deviation, so ``Q = 1``.
@@ -131,7 +136,9 @@ class FireflyFastSLAM(FastSLAM):
         n = self.n_particles
         rows = np.arange(n)
         sig = np.array([self.obs_noise.sigma_r_m, self.obs_noise.sigma_b_rad])
-        d2 = np.zeros(n)
+        matched = assoc.matched
+        missed = ~matched & matched.any(axis=0)[None, :]  # matched by other particles, not by this one
+        d2 = self.config.association.gate_associate * np.count_nonzero(missed, axis=1)
         for j in range(z.shape[0]):
             sel = rows[assoc.matched[:, j]]
             if sel.size == 0:

@@ -98,9 +98,12 @@ def adaptive_step(log_i: np.ndarray, log_j: np.ndarray) -> np.ndarray:
 
     A firefly much dimmer than its partner (``I_i / I_j -> 0``) takes the full step ``alpha0``
     (global search); one as bright or brighter takes at most ``alpha0 / e`` (local refinement).
+    Two fireflies whose brightnesses both underflowed (``log I = -inf``) count as equally bright (ratio 1).
     """
-    ratio = np.exp(np.minimum(np.asarray(log_i, dtype=np.float64) - np.asarray(log_j, dtype=np.float64), 50.0))
-    return np.exp(-ratio)
+    li, lj = np.asarray(log_i, dtype=np.float64), np.asarray(log_j, dtype=np.float64)
+    with np.errstate(invalid="ignore"):  # -inf - -inf is NaN: replaced by 0
+        diff = np.where(li == lj, 0.0, li - lj)
+    return np.exp(-np.exp(np.minimum(diff, 50.0)))
 
 
 # ---- the firefly move -------------------------------------------------------------------------
@@ -200,10 +203,14 @@ def ewa_resample(weights: np.ndarray, beta: float = 0.8, tol: float = 1e-9) -> t
     w = np.asarray(weights, dtype=np.float64)
     if w.ndim != 1 or w.size == 0:
         raise ValueError(f"weights must be a non-empty 1D array, got shape {w.shape}")
-    if not np.all(np.isfinite(w)) or np.any(w < 0) or not w.sum() > 0:
+    with np.errstate(over="ignore"):
+        total = w.sum()
+    if not np.all(np.isfinite(w)) or np.any(w < 0) or not total > 0:
         raise ValueError("weights must be finite, non-negative and not all zero")
     if not 0.0 <= beta < 1.0:
         raise ValueError(f"EWA beta must be in [0, 1), got {beta}")
+    if not np.isfinite(total):  # finite weights whose sum does not fit in a float
+        w = w / w.max()
     w = w / w.sum()
     n = w.size
     order = np.argsort(w, kind="stable")
