@@ -24,7 +24,13 @@ def changed_obstacles(layout: Layout, seed: int = 0, n: int = 6, size_m: tuple[f
     for _ in range(2000):
         if len(boxes) == n:
             break
-        c = world.sample_free_pose(rng, margin_m=0.5)[:2]
+        try:
+            c = world.sample_free_pose(rng, margin_m=0.5)[:2]
+        except ValueError:
+            raise ValueError(
+                f'scenario "changed": layout {layout.name!r} has no place for its unmapped obstacles (a free place '
+                f'with 0.5 m to spare around the robot\'s disc); use the scenario "nominal" or a roomier layout'
+            ) from None
         if any(np.linalg.norm(c - o) < 1.5 for o in centres):
             continue
         w, h = rng.uniform(*size_m, size=2)

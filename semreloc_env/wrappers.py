@@ -217,7 +217,10 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
     own stacks with it outermost if they hold counters that ``reset`` clears first.
     A rejected reset raises ``ValueError`` and changes nothing in any wrapper. Besides the env's
     own checks it refuses a ``kidnap_at_step`` beyond the time limit of a ``TimeLimit`` inside
-    it (the kidnap would never happen).
+    it (the kidnap would never happen). A reset that the checks let pass but that fails inside the env
+    (a layout with no free place for a random start, say) leaves the wrappers inside as they were too: their
+    attributes are put back (a shallow copy each; the env puts back its own), so the running episode keeps its
+    time limit and Gymnasium's checker does not count the failed reset as the first.
     """
 
     def __init__(self, env: gym.Env):
@@ -226,7 +229,18 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def reset(self, *, seed=None, options=None):
         check_reset(self.env, seed=seed, options=options)
-        return self.env.reset(seed=seed, options=options)
+        saved = []
+        inner = self.env
+        while isinstance(inner, gym.Wrapper):
+            saved.append((inner, dict(inner.__dict__)))
+            inner = inner.env
+        try:
+            return self.env.reset(seed=seed, options=options)
+        except BaseException:
+            for wrapper, state in saved:
+                wrapper.__dict__.clear()
+                wrapper.__dict__.update(state)
+            raise
 
 
 class ResetOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):

@@ -633,3 +633,76 @@ def test_reset_options_wrapper_says_what_the_env_says_of_options_that_are_not_a_
         with pytest.raises(ValueError, match=r"reset options must be a dict or None"):
             env.reset(seed=0, options=bad)
     assert env.reset(seed=0)[1]["belief"]["converged"]  # tracking, as the wrapper asks
+
+
+# ---------------------------------------------------------------- an outside audit (a later session)
+CRAMPED = {"layout": {"outer": [[0, 0], [0.55, 0], [0.55, 0.55], [0, 0.55]]}, "map_source": "perfect"}
+"""A room the robot (radius 0.2 m) fits in only at a given pose: a random start wants 0.1 m to spare."""
+CRAMPED_POSE = {"pose": (0.275, 0.275, 0.0)}
+
+
+def test_a_reset_that_fails_inside_the_env_leaves_the_wrappers_as_they_were():
+    env = gym.make("SemReloc-v21", max_episode_steps=5, relocalizer={"n_particles": 50}, **CRAMPED)
+    twin = gym.make("SemReloc-v21", max_episode_steps=5, relocalizer={"n_particles": 50}, **CRAMPED)
+    for e in (env, twin):
+        e.reset(seed=0, options=CRAMPED_POSE)
+        for _ in range(3):
+            e.step(3)
+    with pytest.raises(ValueError, match="no free space"):  # passes check_reset, fails in the env's reset
+        env.reset(seed=1)
+    assert_identical([env.step(3) for _ in range(2)], [twin.step(3) for _ in range(2)])  # truncated at step 5 too
+    # the first reset failing: Gymnasium's checker must not count it (the next step crashed inside Gymnasium)
+    fresh = gym.make("SemReloc-v21", relocalizer={"n_particles": 50}, **CRAMPED)
+    with pytest.raises(ValueError, match="no free space"):
+        fresh.reset(seed=0)
+    fresh.reset(seed=0, options=CRAMPED_POSE)
+    assert fresh.step(0)[1] == pytest.approx(-0.01)
+
+
+@pytest.mark.parametrize("kidnap_pose, error", [(None, "a random kidnap"), ("lookalike", "kidnap_pose='lookalike'")])
+def test_a_kidnap_with_nowhere_to_go_says_so_and_changes_nothing(kidnap_pose, error):
+    env = gym.make("SemReloc-v21", relocalizer={"n_particles": 50}, **CRAMPED)
+    opts = {**CRAMPED_POSE, "tracking": True, "kidnap_at_step": 2}
+    if kidnap_pose is not None:
+        opts["kidnap_pose"] = kidnap_pose
+    env.reset(seed=0, options=opts)
+    env.step(3)
+    for _ in range(2):  # "give a start pose" was the advice: no use for a kidnap
+        with pytest.raises(ValueError, match=f"{error}.*every step raises so until a reset"):
+            env.step(3)
+    assert env.unwrapped._steps == 1
+    env.reset(seed=0, options=CRAMPED_POSE)
+    env.step(3)
+    env.step(3)
+
+
+def test_integers_too_large_for_a_float_are_layout_errors_naming_the_entry(tmp_path):
+    big = 10**400  # an OverflowError before, where 1e400 and 10**20 were layout errors
+    base = {"outer": SQUARE}
+    for extra, where in (
+        ({"outer": [[0, 0], [6, 0], [6, 4], [0, big]]}, r"outer\[3\]"),
+        ({"objects": [_chair(1, 1) | {"center": [1, big]}]}, r"objects\[0\]\.center"),
+        ({"objects": [_chair(1, 1) | {"size": [big, 1]}]}, r"objects\[0\]\.size"),
+        ({"objects": [_chair(1, 1, angle_rad=big)]}, r"objects\[0\]\.angle_rad"),
+        ({"walls": [[[0, 1], [big, 1]]]}, r"walls\[0\]\[1\]"),
+    ):
+        with pytest.raises(LayoutError, match=where):
+            layout_from_dict({**base, **extra})
+    f = tmp_path / "big.json"
+    f.write_text('{"outer": [[0, 0], [6, 0], [6, 4], [0, 1' + "0" * 400 + "]]}")
+    with pytest.raises(LayoutError, match=r"big.json: outer\[3\]: coordinates must be finite numbers"):
+        load_layout(f)
+
+
+def test_the_changed_scenario_in_a_narrow_layout_names_its_obstacles():
+    corridor = {"outer": [[0, 0], [30, 0], [30, 0.8], [0, 0.8]]}
+    with pytest.raises(ValueError, match=r'scenario "changed": .* no place for its unmapped obstacles'):
+        gym.make("SemReloc-v21", layout=corridor, map_source="perfect", scenario="changed")
+    gym.make("SemReloc-v21", layout=corridor, map_source="perfect").reset(seed=0)  # nominal: fine
+
+
+@pytest.mark.parametrize("kw", [{"odometry": {"alpha3": 1e60}}, {"relocalizer": {"motion": {"alpha1": 101.0}}}])
+def test_odometry_noise_beyond_its_limit_is_refused_at_make(kw):
+    # 1e60 passed gym.make and failed at the first step, half done, naming the pose rasters
+    with pytest.raises(ValueError, match=r"alpha[13] must be at most MAX_ALPHA = 100"):
+        gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect", **kw)

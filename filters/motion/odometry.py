@@ -40,12 +40,17 @@ import numpy as np
 from filters.numbers import is_real
 from filters.pose import finite_increment, wrap_angle, wrap_float
 
+MAX_ALPHA = 100.0
+"""Largest odometry noise coefficient taken: its noise's standard deviation is then ten times the motion (a step of
+0.05 m moves a particle by 0.5 m, one sigma), past any odometry worth a filter; 1e60 sent particles beyond the pose
+rasters' 1e15 m at the first step."""
+
 
 @dataclass(frozen=True)
 class OdometryMotionConfig:
     """Noise parameters of the odometry motion model (dimensionless, as in AMCL).
 
-    Attributes:
+    Attributes (each alpha in ``[0, MAX_ALPHA]``):
         alpha1: rotation noise from rotation (rad^2 / rad^2).
         alpha2: rotation noise from translation (rad^2 / m^2).
         alpha3: translation noise from translation (m^2 / m^2).
@@ -66,6 +71,8 @@ class OdometryMotionConfig:
             v = getattr(self, name)
             if not (is_real(v) and np.isfinite(v) and v >= 0):
                 raise ValueError(f"OdometryMotionConfig.{name} must be a finite number >= 0, got {v!r}")
+            if name != "min_trans_m" and v > MAX_ALPHA:
+                raise ValueError(f"OdometryMotionConfig.{name} must be at most MAX_ALPHA = {MAX_ALPHA:g}, got {v!r}")
             object.__setattr__(self, name, float(v))
 
 

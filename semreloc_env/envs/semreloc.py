@@ -329,9 +329,13 @@ class SemRelocEnv(SemRelocBase):
     unnoticed (docs/relocalizer.md, "What the surprise test cannot see", "A surprise test of the camera's own").
     When the held convergence of a kidnap it did not notice fades, the next convergence is audited all the same
     (v16; "A hold lost without a surprise"). One kidnap per episode; ``info["kidnapped"]`` says from which step.
+    In a layout too cramped for it, the kidnap step finds no place to take the robot to: that step raises
+    (``ValueError``, `semreloc_env.lookalike.NoPlaceError` for ``"lookalike"``) and changes nothing, as does every
+    later one, until a reset.
     A bad option or seed raises ``ValueError`` and leaves the episode as it was; ``gym.make``
     checks them in its outermost wrapper (`semreloc_env.wrappers.CheckedReset`), so the
-    time limit keeps counting the old episode.
+    time limit keeps counting the old episode; so does a reset that fails inside the env (no free place for a
+    random start).
 
     ## Version History
     * v21: the relocalizer does less work at a global start and on still steps (`DEFAULT_RELOCALIZER`: `RELOCALIZER_V20`
@@ -722,7 +726,13 @@ class SemRelocEnv(SemRelocBase):
         if self._kidnap_at is not None and self._steps + 1 == self._kidnap_at:
             target = self._kidnap_pose
             if target is None:
-                target = self.world.sample_free_pose(self._start_rng)
+                try:
+                    target = self.world.sample_free_pose(self._start_rng)
+                except ValueError:
+                    raise ValueError(
+                        f"reset option kidnap_at_step={self._kidnap_at} (a random kidnap): layout "
+                        f"{self.world.layout.name!r} has no free place to take the robot to; {_KIDNAP_FAILED}"
+                    ) from None
             elif isinstance(target, str):  # KIDNAP_TO_LOOKALIKE: the place that looks most like where it is now
                 try:
                     target = lookalike_kidnap(
@@ -731,7 +741,8 @@ class SemRelocEnv(SemRelocBase):
                     ).pose  # fmt: skip
                 except NoPlaceError as e:
                     raise NoPlaceError(
-                        f"reset option kidnap_pose={KIDNAP_TO_LOOKALIKE!r} at step {self._kidnap_at}: {e}"
+                        f"reset option kidnap_pose={KIDNAP_TO_LOOKALIKE!r} at step {self._kidnap_at}: {e}; "
+                        f"{_KIDNAP_FAILED}"
                     ) from None
             self.world.set_pose(target)
             self._kidnapped = True
@@ -815,6 +826,10 @@ class SemRelocEnv(SemRelocBase):
         )
         return state
 
+
+_KIDNAP_FAILED = (
+    "the step changed nothing, and every step raises so until a reset (with another kidnap option, or none)"
+)
 
 SPREAD_TITLE_STD_M = 1.0
 """A heaviest hypothesis at least this wide (position std, m) is titled as a spread belief, not a hypothesis."""

@@ -246,6 +246,19 @@ def _check_numbers(pt, what: str) -> None:
             raise LayoutError(
                 f"{what}: coordinates must be numbers, got {type(v).__name__} {v!r:.40}{yaml_number_hint(v)}"
             )
+        if not _fits_float(v):
+            raise LayoutError(
+                f"{what}: coordinates must be finite numbers, got an integer of {len(str(abs(v)))} digits"
+            )
+
+
+def _fits_float(v) -> bool:
+    """A real number converts to a float (a Python int beyond 1.8e308 does not: OverflowError)."""
+    try:
+        float(v)
+    except OverflowError:
+        return False
+    return True
 
 
 def _ring(raw, what: str) -> np.ndarray:
@@ -278,7 +291,7 @@ def _ring(raw, what: str) -> np.ndarray:
 
 def _real(entry: Mapping, key: str, what: str, default: float | None = None) -> float:
     v = entry.get(key, default)
-    if not _is_number(v) or not math.isfinite(v):
+    if not _is_number(v) or not _fits_float(v) or not math.isfinite(v):
         raise LayoutError(f"{what}.{key} must be a finite number, got {v!r:.80}{yaml_number_hint(v)}")
     return float(v)
 
