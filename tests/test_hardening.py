@@ -706,3 +706,11 @@ def test_odometry_noise_beyond_its_limit_is_refused_at_make(kw):
     # 1e60 passed gym.make and failed at the first step, half done, naming the pose rasters
     with pytest.raises(ValueError, match=r"alpha[13] must be at most MAX_ALPHA = 100"):
         gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect", **kw)
+
+
+@pytest.mark.parametrize("suffix", [".json", ".yaml"])
+def test_a_layout_file_nested_too_deeply_says_so(tmp_path, suffix):
+    f = tmp_path / f"deep{suffix}"
+    f.write_text("[" * 100_000 + "]" * 100_000)  # a .json file said "not valid YAML: maximum recursion depth"
+    with pytest.raises(LayoutError, match=f"deep{suffix}: nested too deeply to read"):
+        load_layout(f)

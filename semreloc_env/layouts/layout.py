@@ -528,6 +528,8 @@ def load_layout(path: str | Path) -> Layout:
         raise LayoutError(f"{path}: {e}") from None
     except json.JSONDecodeError as e:
         raise LayoutError(f"{path}: not valid JSON: {e}") from None
+    except RecursionError:
+        raise LayoutError(f"{path}: nested too deeply to read (lists or mappings within each other)") from None
     except Exception as e:  # yaml.YAMLError without importing yaml at module level
         raise LayoutError(f"{path}: not valid YAML: {e}") from None
     try:
