@@ -102,6 +102,21 @@ def test_as_dict_is_plain_python_and_bad_input_raises():
         BeliefConfig(bin_m=0.5)
 
 
+@pytest.mark.parametrize("name", ["cluster_bin_theta_rad", "entropy_bin_theta_rad"])
+def test_heading_bins_narrower_than_a_tenth_of_a_degree_are_refused(name):
+    # 1e-7 rad made 63 million heading bins: the NumPy clustering recursed without end, the compiled one raised
+    # a SystemError
+    from filters.localization.belief import MIN_BIN_THETA_RAD
+
+    with pytest.raises(ValueError, match=f"{name} must be at least MIN_BIN_THETA_RAD"):
+        BeliefConfig(**{name: 1e-7})
+    cfg = BeliefConfig(**{name: MIN_BIN_THETA_RAD})
+    rng = np.random.default_rng(0)
+    p = np.concatenate([rng.normal([0.0, 0.0, 0.0], 1e-4, (150, 3)), rng.normal([2.0, 2.0, 1.0], 1e-4, (150, 3))])
+    a, b = summarize(p, np.ones(300), cfg, backend="numba"), summarize(p, np.ones(300), cfg, backend="numpy")
+    assert a.n_clusters > 1 and repr(a.as_dict(10**6)) == repr(b.as_dict(10**6))
+
+
 def test_no_hypothesis_of_weight_zero_and_numpy_numbers_in_configs():
     # a twenty-third tester's: with both thresholds 0 a zero-weight cluster became a hypothesis (documented
     # weight: (0, 1]); BeliefConfig and OdometryMotionConfig refused NumPy numbers and took True
@@ -171,3 +186,13 @@ def test_carried_belief_judges_convergence_again():
     bs = summarize(cloud, np.ones(800), spread)
     assert bs.converged and not carried(bs, [2.0, 0.0, 0.0], spread).converged
     np.testing.assert_array_equal(carried(bs, [2.0, 0.0, 0.0], spread).estimate, carried(bs, [2.0, 0, 0], spread).mean)
+
+
+def test_cluster_stats_of_clusters_without_particles_are_floats_on_both_backends():
+    from filters.localization.belief import cluster_stats
+
+    p, w = np.zeros((3, 3)), np.full(3, 1.0 / 3.0)
+    for n in (0, 2):  # every particle unlabelled: NumPy's bincount gave int64 weights
+        a, b = cluster_stats(p, w, np.full(3, -1), n, "numba"), cluster_stats(p, w, np.full(3, -1), n, "numpy")
+        assert [(x.dtype, x.shape) for x in a] == [(x.dtype, x.shape) for x in b]
+        assert a[0].dtype == np.float64

@@ -82,6 +82,11 @@ def _check_backend(backend: str) -> None:
         raise ValueError(f"belief backend must be one of {BACKENDS}, got {backend!r}")
 
 
+MIN_BIN_THETA_RAD = 2.0 * math.pi / 3600
+"""Narrowest heading bin of the pose rasters (0.1 deg, 3600 a turn): 1e-7 rad made 63 million heading bins, which
+no coarsening of the position bins could fit (the clustering recursed without end)."""
+
+
 @dataclass(frozen=True)
 class BeliefConfig:
     """Bin sizes and thresholds of `summarize` (see the module docstring)."""
@@ -118,6 +123,10 @@ class BeliefConfig:
             v = getattr(self, name)
             if not (is_real(v) and math.isfinite(v) and v > 0):
                 raise ValueError(f"BeliefConfig.{name} must be a positive number, got {v!r}")
+            if name.endswith("bin_theta_rad") and v < MIN_BIN_THETA_RAD:
+                raise ValueError(
+                    f"BeliefConfig.{name} must be at least MIN_BIN_THETA_RAD = 2 pi / 3600 (0.1 deg), got {v!r}"
+                )
             object.__setattr__(self, name, float(v))
         for name in ("cluster_min_weight", "cluster_min_bin_frac", "converged_min_weight"):
             v = getattr(self, name)
@@ -418,7 +427,7 @@ def cluster_stats(
         poses, w, labels = poses[inside], w[inside], labels[inside]
     x, y, th = np.ascontiguousarray(poses.T)
     count = np.bincount(labels, minlength=n)
-    weight = np.bincount(labels, weights=w, minlength=n)
+    weight = np.bincount(labels, weights=w, minlength=n).astype(np.float64, copy=False)  # int64 with no particle
     ww = np.where((weight > 0)[labels], w, 1.0 / np.maximum(count[labels], 1))
     wsum = np.where(weight > 0, weight, 1.0)
     mean = np.empty((n, 3))
