@@ -57,7 +57,8 @@ VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv, "batched": None}
 def check_ppo_settings(config) -> None:
     """ValueError naming the field unless ``config``'s PPO numbers are usable: ``learning_rate`` and
     ``clip_range`` finite and > 0, ``gamma`` in (0, 1], ``gae_lambda`` in [0, 1], ``ent_coef`` and
-    ``vf_coef`` (where present) finite and >= 0, ``device`` ``"auto"`` or a torch device."""
+    ``vf_coef`` (where present) finite and >= 0, the layer sizes ``features_dim``, ``net_arch`` and
+    ``cnn_channels`` (where present) ints >= 1, ``device`` ``"auto"`` or a torch device."""
     checks = {
         "learning_rate": (lambda v: v > 0, "> 0"),
         "clip_range": (lambda v: v > 0, "> 0"),
@@ -72,6 +73,13 @@ def check_ppo_settings(config) -> None:
         v = getattr(config, name)
         if not (is_real(v) and math.isfinite(v) and ok(v)):
             raise ValueError(f"{name} must be a finite number {what}, got {v!r}")
+    for name in ("features_dim", "net_arch", "cnn_channels"):  # layer sizes: SB3 and torch fail without naming them
+        if not hasattr(config, name):
+            continue
+        v = getattr(config, name)
+        sizes = [v] if name == "features_dim" else list(v) if isinstance(v, (list, tuple)) else [None]
+        if not all(is_int(k) and k >= 1 for k in sizes):
+            raise ValueError(f"{name} must be {'an int' if name == 'features_dim' else 'ints'} >= 1, got {v!r}")
     if hasattr(config, "n_steps") and hasattr(config, "n_envs") and int(config.n_steps) * int(config.n_envs) < 2:
         raise ValueError(
             f"n_steps * n_envs (the rollout) must be at least 2 for PPO, got {config.n_steps} * {config.n_envs}"
@@ -197,7 +205,7 @@ class TrainConfig:
         if self.env_id not in trainable:
             raise ValueError(f"env_id must be one of {list(trainable)}, got {self.env_id!r}")
         positive = ("n_envs", "workers", "total_timesteps", "n_steps", "batch_size", "n_epochs", "torch_threads")
-        positive += ("eval_episodes",)
+        positive += ("eval_episodes", "metrics_window")
         for name in positive:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")

@@ -347,6 +347,18 @@ def test_train_config_rejects_bad_values():
     for bad in ("SemReloc-v99", "SemSlam-v1"):
         with pytest.raises(ValueError, match="env_id must be one of"):
             TrainConfig(env_id=bad)
+    # an outside audit's: these passed, then failed in SB3 or torch as a bare AssertionError or RuntimeError
+    from agents.train_active import ActiveTrainConfig
+
+    for cls, kw, match in (
+        (TrainConfig, {"features_dim": 0}, "features_dim must be an int >= 1"),
+        (TrainConfig, {"net_arch": (64, 0)}, "net_arch must be ints >= 1"),
+        (TrainConfig, {"metrics_window": 0}, "metrics_window must be >= 1"),
+        (ActiveTrainConfig, {"features_dim": -5}, "features_dim must be an int >= 1"),
+        (ActiveTrainConfig, {"cnn_channels": (0, 32, 32)}, "cnn_channels must be ints >= 1"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            cls(**kw)
     assert gym.spaces.Discrete(4).contains(int(WallFollowExplorer()({"lidar": np.full(60, 8.0)})))
 
 

@@ -436,6 +436,21 @@ def test_a_variant_with_an_env_id_runs_that_version_and_its_relocalizer():
         er.Args(variants=("x",), extra='{"x": {"env_id": "SemReloc-v15", "lost_hold_window": 5}}')
 
 
+def test_a_policy_file_without_saved_settings_is_refused_before_any_episode(tmp_path):
+    # an outside audit's: a train_ppo model.zip failed inside the first episode, as a traceback, leaving --out
+    import zipfile
+
+    from agents.experiments import evaluate_relocalizer as er
+
+    bare = tmp_path / "model.zip"
+    with zipfile.ZipFile(bare, "w") as z:
+        z.writestr("data", "{}")
+    out = tmp_path / "er"
+    with pytest.raises(ValueError, match=r"policies: x=.*model.zip: .*has no semreloc_policy.json"):
+        er.Args(rows=("twin_rooms",), episodes=1, log_starts=0, policies=(f"x={bare}",), out=str(out))
+    assert not out.exists()
+
+
 def test_a_run_with_nothing_to_do_or_a_row_twice_is_refused_before_anything_changes(tmp_path):
     # a twenty-fourth tester's: nothing to run exited 0 and emptied an earlier run's files; a row given twice
     # counted the same seeded episodes twice; an unknown row failed inside its first episode

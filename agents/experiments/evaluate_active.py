@@ -254,14 +254,6 @@ class Args:
                 "--corridor-layouts"
             )
         self._check_map_source()
-        for spec in self.policies:
-            if is_learned(spec):
-                from agents.learned import saved_settings
-
-                try:  # learned policies load as agents.load_policy(path) does, with no settings given
-                    saved_settings(spec.split("=", 1)[1])
-                except ValueError as e:
-                    raise ValueError(f"policies: {spec}: {e}") from None
 
 
 ENV_ID = "SemReloc-v21"
@@ -623,8 +615,9 @@ def user_factory(spec: str):
 
 def check_policy_specs(policies: Sequence[str], known: Sequence[str] | None = None) -> None:
     """ValueError unless every one of ``policies`` is a name of ``known`` (default: `agents.policies.POLICIES`),
-    ``NAME=PATH`` of an existing policy file or a ``NAME=MODULE:CLASS`` that builds (`check_user_policy`), with
-    unique, non-empty names; at least one."""
+    ``NAME=PATH`` of an existing policy file that `agents.load_policy` loads with no settings given (its saved
+    settings read, `agents.learned.saved_settings`) or a ``NAME=MODULE:CLASS`` that builds (`check_user_policy`),
+    with unique, non-empty names; at least one."""
     from agents.policies import POLICIES
 
     known = sorted(POLICIES) if known is None else list(known)
@@ -649,7 +642,14 @@ def check_policy_specs(policies: Sequence[str], known: Sequence[str] | None = No
             "NAME=path/to/file.py:CLASS)"
         )
     for x in policies:
-        if "=" in x and not is_learned(x):
+        if is_learned(x):
+            from agents.learned import saved_settings
+
+            try:  # learned policies load as agents.load_policy(path) does, with no settings given
+                saved_settings(x.split("=", 1)[1])
+            except ValueError as e:
+                raise ValueError(f"policies: {x}: {e}") from None
+        elif "=" in x:
             check_user_policy(x)
     names = [x.partition("=")[0] for x in policies]
     if len(set(names)) < len(names) or not all(names):
