@@ -118,8 +118,10 @@ def _check_value(cls: type, name: str, v, ann, what: str):
             return v
         raise ValueError(f"{where} must be a dict, got {_type_name(v)}")
     if origin is tuple:
+        if isinstance(v, np.ndarray) and v.ndim == 1:
+            v = v.tolist()  # a 1-D array is a sequence of numbers, as a list is
         if not isinstance(v, (tuple, list)):
-            raise ValueError(f"{where} must be a tuple, got {_type_name(v)}")
+            raise ValueError(f"{where} must be a tuple or list, got {_type_name(v)}")
         args = typing.get_args(ann)
         if len(args) == 2 and args[1] is Ellipsis:
             return tuple(_check_value(cls, f"{name}[{i}]", x, args[0], what) for i, x in enumerate(v))

@@ -258,11 +258,21 @@ def is_ros_map_file(path) -> bool:
     return isinstance(doc, dict) and "outer" not in doc and bool(_ROS_MAP_KEYS & set(doc))
 
 
+def searched_ros_map(source) -> Path | None:
+    """The ROS map file that a plain name (not a built-in layout nor one of `MAP_SOURCES`) finds on
+    ``$SEMRELOC_LAYOUT_PATH`` (`find_layout_file`), or None: not such a name, nothing found, or a layout found."""
+    if not isinstance(source, str) or source in MAP_SOURCES or source in LAYOUT_NAMES:
+        return None
+    found = find_layout_file(source)
+    return found if found is not None and is_ros_map_file(found) else None
+
+
 def names_a_layout(source) -> bool:
-    """True if ``source`` names a layout: a built-in / procedural name, a name on ``$SEMRELOC_LAYOUT_PATH``,
-    a ``.json`` file, or an existing YAML file that is not a ROS map."""
+    """True if ``source`` names a layout: a built-in / procedural name, a name on ``$SEMRELOC_LAYOUT_PATH``
+    (of a layout file, not a ROS map: `searched_ros_map`), a ``.json`` file, or an existing YAML file that is not a
+    ROS map."""
     if isinstance(source, str) and (source in LAYOUT_NAMES or find_layout_file(source) is not None):
-        return True
+        return searched_ros_map(source) is None
     if isinstance(source, (str, Path)):
         p = Path(source).expanduser()
         if p.suffix.lower() == ".json":
@@ -273,8 +283,9 @@ def names_a_layout(source) -> bool:
 
 def check_map_source_name(source: str) -> None:
     """ValueError unless ``source`` is a map source a command line can name: one of `MAP_SOURCES`, a layout
-    (`names_a_layout`) or a ROS map file (`is_ros_map_file`)."""
-    if not (source in MAP_SOURCES or names_a_layout(source) or is_ros_map_file(source)):
+    (`names_a_layout`) or a ROS map file (`is_ros_map_file`), by path or by its name on the search path
+    (`searched_ros_map`)."""
+    if not (source in MAP_SOURCES or names_a_layout(source) or is_ros_map_file(source) or searched_ros_map(source)):
         raise ValueError(
             f"map_source must be mapping, perfect, a layout (a built-in name or a layout file) or a ROS map "
             f"(.yaml), got {source!r}"

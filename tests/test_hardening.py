@@ -475,8 +475,10 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
     [
         ("SemReloc-v21", {"relocalizer": {"lidar_field": {"sigma_hit_m": 1e300}}}, r"lidar_field.*sigma_hit_m"),
         ("SemReloc-v21", {"relocalizer": {"semantic_field": {"max_dist_m": 1e200}}}, r"semantic_field.*max_dist_m"),
-        ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e200}}, r"obs_noise.*sigma_r_m at most"),
-        ("SemSlam-v1", {"obs_noise": {"sigma_b_rad": 1e200}}, r"obs_noise.*sigma_b_rad at most"),
+        ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e200}}, r"obs_noise.*sigma_r_m must be in \[1e-09, 1e\+06\] m"),
+        ("SemSlam-v1", {"obs_noise": {"sigma_b_rad": 1e200}}, r"obs_noise.*sigma_b_rad in \[1e-09, 2 pi\]"),
+        # an outside audit's: both at 1e-100 passed and gave NaN landmarks (det(R) underflowed)
+        ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e-100, "sigma_b_rad": 1e-100}}, r"obs_noise.*\[1e-09"),
         ("SemSlam-v1", {"landmark_sensor": {"class_depth_m": (2e6, 0.25, 0.2, 0.3)}}, r"class_depth_m"),
         ("SemSlam-v1", {"reward_weights": {"time": -1e308}}, r"reward weight time"),
     ],
@@ -714,3 +716,11 @@ def test_a_layout_file_nested_too_deeply_says_so(tmp_path, suffix):
     f.write_text("[" * 100_000 + "]" * 100_000)  # a .json file said "not valid YAML: maximum recursion depth"
     with pytest.raises(LayoutError, match=f"deep{suffix}: nested too deeply to read"):
         load_layout(f)
+
+
+def test_a_1d_array_is_taken_where_a_config_takes_a_tuple():
+    # an outside audit's: class_depth_m=np.zeros(4) said "must be a tuple, got ndarray" though a list was taken
+    env = gym.make("SemSlam-v1", landmark_sensor={"class_depth_m": np.array([1.0, 0.25, 0.2, 0.3])}, **SLAM_FAST)
+    assert env.unwrapped.landmark_sensor.params.class_depth_m == (1.0, 0.25, 0.2, 0.3)
+    with pytest.raises(ValueError, match="class_depth_m must be a tuple or list, got float"):
+        gym.make("SemSlam-v1", landmark_sensor={"class_depth_m": 3.0}, **SLAM_FAST)

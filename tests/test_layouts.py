@@ -278,3 +278,12 @@ def test_every_layout_file_the_docs_ship_loads():
     assert len(files) >= 20
     for f in files:
         assert get_layout(str(f)).objects, f
+
+
+@pytest.mark.parametrize("seed", [-1, 1.0, True, "3"])
+def test_get_layout_checks_a_procedural_seed_as_the_env_does(seed):
+    # an outside audit's: numpy's errors ("expected non-negative integer"), and True taken as seed 1
+    from semreloc_env.layouts import get_layout
+
+    with pytest.raises(ValueError, match="layout_seed must be an integer >= 0"):
+        get_layout("procedural", seed=seed)

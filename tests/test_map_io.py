@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -367,3 +368,14 @@ def test_save_refuses_thresholds_that_cannot_keep_the_unknown_cells(tmp_path):
         assert not list(tmp_path.iterdir())  # nothing written
     known = GridMap(np.array([[0.0, 1.0]], np.float32), 0.1, occupied_thresh=0.5, free_thresh=0.5)
     np.testing.assert_array_equal(load_map(save_map(known, tmp_path / "k.yaml")).occupancy, known.occupancy)
+
+
+@pytest.mark.parametrize("name", ["../escaped", "", "sub/dir"])
+def test_build_maps_refuses_a_layout_name_that_is_not_a_plain_file_name(tmp_path, name):
+    # an outside audit's: '../escaped' wrote the maps beside --out, '' failed after the whole mapping run
+    from semreloc_env.tools.build_maps import Args
+
+    f = tmp_path / "lay.json"
+    f.write_text(json.dumps({"name": name, "outer": [[0, 0], [3, 0], [3, 3], [0, 3]]}))
+    with pytest.raises(ValueError, match="cannot name the map files in --out"):
+        Args(layout=str(f), out=str(tmp_path / "out"))

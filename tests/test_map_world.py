@@ -267,3 +267,24 @@ def test_interior_walls_that_lie_elsewhere_fail_the_check_however_long_the_outer
     moved = dict(plan, objects=[], walls=[[[8.5, 0.0], [8.5, 2.5]], [[8.5, 3.5], [8.5, 6.0]]])  # 2.5 m east
     with pytest.raises(ValueError, match=r"only 14 % of the interior walls of the world"):
         check_map_matches_world(grid, layout_from_dict(moved))
+
+
+def test_a_ros_map_found_by_name_on_the_search_path_is_read_as_a_map(tmp_path, monkeypatch):
+    # an outside audit's: layout="my_floor" and map_source="my_floor" read the map's YAML as a layout
+    from filters.mapping.ros_map import save_map
+    from semreloc_env.maps import check_map_source_name
+    from semreloc_env.rasterize import rasterize
+
+    save_map(rasterize(get_layout("twin_rooms")), tmp_path / "my_floor.yaml")
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path))
+    assert get_layout("my_floor").name == "my_floor"
+    check_map_source_name("my_floor")
+    by_name = gym.make("SemReloc-v21", layout="twin_rooms", map_source="my_floor", relocalizer={"n_particles": 100})
+    by_path = gym.make(
+        "SemReloc-v21",
+        layout="twin_rooms",
+        map_source=str(tmp_path / "my_floor.yaml"),
+        relocalizer={"n_particles": 100},
+    )
+    np.testing.assert_equal(by_name.reset(seed=0), by_path.reset(seed=0))
+    assert gym.make("SemSlam-v1", layout="my_floor").unwrapped.layout.name == "my_floor"

@@ -20,6 +20,10 @@ import numpy as np
 from filters.numbers import MAX_LENGTH_M, is_int_dtype, is_real
 from filters.pose import wrap_angle
 
+MIN_NOISE_SIGMA = 1e-9
+"""Smallest observation noise standard deviation taken (m or rad): the filters divide by ``det(R)``, which
+underflowed to 0 with both at 1e-100 and gave NaN landmarks."""
+
 
 @dataclass(frozen=True)
 class RangeBearingNoise:
@@ -29,10 +33,11 @@ class RangeBearingNoise:
     sigma_b_rad: float
 
     def __post_init__(self) -> None:
-        if not (0 < self.sigma_r_m <= MAX_LENGTH_M and 0 < self.sigma_b_rad <= 2 * math.pi):
+        lo = MIN_NOISE_SIGMA
+        if not (lo <= self.sigma_r_m <= MAX_LENGTH_M and lo <= self.sigma_b_rad <= 2 * math.pi):
             raise ValueError(
-                f"observation noise must be positive, sigma_r_m at most {MAX_LENGTH_M:g} m and sigma_b_rad at most "
-                f"2 pi rad, got {self}"
+                f"observation noise: sigma_r_m must be in [{lo:g}, {MAX_LENGTH_M:g}] m and sigma_b_rad in [{lo:g}, 2 pi] "
+                f"rad, got {self}"
             )
 
     @property

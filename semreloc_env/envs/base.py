@@ -18,17 +18,10 @@ from filters.motion.odometry import OdometryMotionConfig
 from filters.numbers import is_int
 
 from ..config import CameraParams, LidarParams, PhysicsParams, RobotParams, coerce_config, default_odometry_noise
-from ..layouts import PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, get_layout
+from ..layouts import PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, check_layout_seed, get_layout
 from ..sensors import Lidar, Odometry, SemanticCamera
 from ..world import World, build_world, check_substep
 from .spaces import decode_action, make_action_space, make_observation, make_observation_space
-
-
-def check_layout_seed(value) -> int:
-    """``layout_seed`` as an int; ValueError unless it is an integer >= 0 (not a bool, float or string)."""
-    if is_int(value) and value >= 0:
-        return int(value)
-    raise ValueError(f"layout_seed must be an integer >= 0, got {type(value).__name__} {value!r:.60}")
 
 
 def check_seed_use(layout, layout_seed, scenario: str) -> None:

@@ -19,7 +19,7 @@ from ..config import check_reward_weights
 from ..layouts import LAYOUT_NAMES, get_layout
 from ..lookalike import NoPlaceError, lookalike_kidnap
 from ..map_world import check_map_matches_world
-from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout
+from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout, searched_ros_map
 from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
 from .base import SemRelocBase, check_layout_seed, check_seed_use
@@ -580,6 +580,8 @@ class SemRelocEnv(SemRelocBase):
         if scenario not in SCENARIOS:
             raise ValueError(f"unknown scenario {scenario!r}; choose one of {list(SCENARIOS)}")
         check_seed_use(layout, layout_seed, scenario)
+        if searched_ros_map(map_source) is not None:  # a ROS map named on the search path: as its path
+            map_source = str(searched_ros_map(map_source))
         named = isinstance(map_source, str) and (map_source in MAP_SOURCES or names_a_layout(map_source))
         if (
             not named

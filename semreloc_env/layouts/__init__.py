@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from filters.numbers import is_int
+
 from .builtin import BUILTIN_LAYOUTS
 from .layout import CLASS_NAMES, Layout, LayoutError, SemanticObject, layout_from_dict, load_layout, point_in_polygon
 from .procedural import (
@@ -38,6 +40,7 @@ __all__ = [
     "RingParams",
     "SemanticObject",
     "check_layout_option",
+    "check_layout_seed",
     "corridor_layout",
     "get_layout",
     "half_turn_asymmetry",
@@ -105,6 +108,13 @@ def check_layout_option(spec, option: str = "layout", seed: int = 0) -> None:
         raise ValueError(f"{option}: {e}") from None
 
 
+def check_layout_seed(value) -> int:
+    """``layout_seed`` as an int; ValueError unless it is an integer >= 0 (not a bool, float or string)."""
+    if is_int(value) and value >= 0:
+        return int(value)
+    raise ValueError(f"layout_seed must be an integer >= 0, got {type(value).__name__} {value!r:.60}")
+
+
 def get_layout(
     spec: str | Path | Mapping | Layout, seed: int = 0, procedural_version: int = PROCEDURAL_VERSION
 ) -> Layout:
@@ -120,13 +130,15 @@ def get_layout(
             map: a ROS map ``.yaml`` / ``.yml`` (a YAML with an ``image`` key) or a
             `GridMap`, whose world is traced from its occupied
             cells (`semreloc_env.map_world.layout_from_map`).
-        seed: seed of the procedural generator (ignored otherwise).
+        seed: seed of the procedural generator, an integer >= 0 (`check_layout_seed`; ignored otherwise).
         procedural_version: the procedural generator's version (`PROCEDURAL_VERSION`, the newest,
             or 1: lookalike layouts as ``SemReloc-v2`` and older draw them, without the check
             that their corridor objects break the half turn; ignored for other specs).
     """
     if procedural_version not in (1, 2) or isinstance(procedural_version, bool):
         raise ValueError(f"procedural_version must be 1 or 2, got {procedural_version!r:.60}")
+    if isinstance(spec, str) and spec in PROCEDURAL_LAYOUTS:
+        seed = check_layout_seed(seed)
     if isinstance(spec, str) and not spec.strip():
         raise LayoutError(f"the layout name is empty: give one of {list(LAYOUT_NAMES)}, a file path or a dict")
     if isinstance(spec, (str, Path)) and str(spec).startswith("~"):
@@ -171,8 +183,8 @@ def get_layout(
         if path.suffix.lower() in (".json", ".yaml", ".yml") or path.is_file():
             return load_layout(path)
         found = find_layout_file(str(spec))
-        if found is not None:  # also when a folder of that name lies in the working folder
-            return load_layout(found)
+        if found is not None:  # also when a folder of that name lies in the working folder; a ROS map is one too
+            return get_layout(found, seed, procedural_version)
         if path.exists():
             return load_layout(path)  # a folder, say: its error names it
         raise LayoutError(
