@@ -36,8 +36,8 @@ class RangeBearingNoise:
         lo = MIN_NOISE_SIGMA
         if not (lo <= self.sigma_r_m <= MAX_LENGTH_M and lo <= self.sigma_b_rad <= 2 * math.pi):
             raise ValueError(
-                f"observation noise: sigma_r_m must be in [{lo:g}, {MAX_LENGTH_M:g}] m and sigma_b_rad in [{lo:g}, 2 pi] "
-                f"rad, got {self}"
+                f"observation noise: sigma_r_m must be in [{lo:g}, {MAX_LENGTH_M:g}] m and sigma_b_rad in "
+                f"[{lo:g}, 2 pi] rad, got {self}"
             )
 
     @property
