@@ -238,7 +238,7 @@ class InfoGainPlanner(Policy):
         return best
 
     def act(self, obs: dict):
-        self.require_wrapped()
+        self.require_wrapped(obs)
         if not self._queue:
             self._queue = list(self.plan().actions[: self.replan_every])
         a = self._queue.pop(0)

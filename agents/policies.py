@@ -30,6 +30,7 @@ from gymnasium import spaces
 
 from filters.numbers import is_int, is_real
 from semreloc_env.envs.spaces import require_raw_observation, require_single_env
+from semreloc_env.wrappers import ActionRepeat, find_wrapper
 
 from .baselines import (
     AS_BOX,
@@ -63,15 +64,37 @@ class Policy:
     one (`agents.baselines.lidar_beam_angles`) and keeps the beams' angles in ``beam_angles``"""
 
     def wrap(self, env: gym.Env) -> gym.Env:
-        require_single_env(env, type(self).__name__)
-        require_raw_observation(env, type(self).__name__)
-        self.beam_angles = lidar_beam_angles(env, type(self).__name__, self.lidar_sectors)
+        """Check ``env`` and keep it for `act`; returns it unchanged.
+
+        Raises:
+            TypeError: a vector env, an env whose observation is wrapped already, or another action space than
+                SemReloc's: ``Discrete(>= 4)`` (forward, left, right, stop, ...) or ``Box(-1, 1, (2,))`` of (v, omega).
+            ValueError: a lidar with no beam in a sector the policy reads, or an env that repeats actions
+                (`semreloc_env.wrappers.ActionRepeat`): these policies decide every env step, and those that follow
+                their own motion would miss the repeated steps' odometry.
+        """
+        name = type(self).__name__
+        require_single_env(env, name)
+        require_raw_observation(env, name)
+        repeating = find_wrapper(env, ActionRepeat)
+        if repeating is not None:
+            raise ValueError(
+                f"{name} decides every env step, and the env is wrapped by ActionRepeat(repeat={repeating.repeat}): "
+                "pass the env without ActionRepeat"
+            )
+        self.beam_angles = lidar_beam_angles(env, name, self.lidar_sectors)
         space = env.action_space
         discrete_ok = isinstance(space, spaces.Discrete) and space.n >= 4 and space.start == 0
-        if not (discrete_ok or (isinstance(space, spaces.Box) and space.shape == (2,))):
+        box_ok = (
+            isinstance(space, spaces.Box)
+            and space.shape == (2,)
+            and bool(np.all(space.low == -1.0))
+            and bool(np.all(space.high == 1.0))
+        )
+        if not (discrete_ok or box_ok):
             raise TypeError(
-                f"{type(self).__name__} needs a SemReloc action space: Discrete(>= 4) (forward, left, right, "
-                f"stop, ...) or a Box of (v, omega); got {space}"
+                f"{name} needs a SemReloc action space: Discrete(>= 4) (forward, left, right, stop, ...) or "
+                f"Box(-1, 1, (2,)) of (v, omega) (a rescaled one would misread its actions); got {space}"
             )
         self.env = env
         self.continuous = isinstance(space, spaces.Box)
@@ -85,10 +108,21 @@ class Policy:
     def reset(self) -> None:
         self.rng = np.random.default_rng(self.seed)
 
-    def require_wrapped(self) -> None:
-        """RuntimeError unless `wrap` has been called (``act`` needs the env's action type)."""
+    def require_wrapped(self, obs: dict | None = None) -> None:
+        """RuntimeError unless `wrap` has been called (``act`` needs the env's action type) and the env reset (the
+        planners read its belief); with ``obs``, ValueError unless its lidar has the env's beam count."""
+        name = type(self).__name__
         if self.env is None:
-            raise RuntimeError(f"{type(self).__name__}: call wrap(env) before act(obs)")
+            raise RuntimeError(f"{name}: call wrap(env) before act(obs)")
+        if getattr(self.env.unwrapped, "world", True) is None:
+            raise RuntimeError(f"{name}: reset the env before act(obs)")
+        if obs is not None and self.beam_angles is not None:
+            n = np.shape(obs["lidar"]) if isinstance(obs, dict) and "lidar" in obs else None
+            if n != self.beam_angles.shape:
+                raise ValueError(
+                    f"{name}: obs['lidar'] has shape {n}, the env's lidar {self.beam_angles.shape} (an observation of "
+                    "another env, or of a wrapper?)"
+                )
 
     def encode(self, a: int):
         """The env action for a discrete action (or `BACKWARD`)."""
@@ -159,7 +193,7 @@ class SpinThenBackUp(Policy):
         return spin + [TURN_LEFT] * math.ceil(math.pi / self.step_rad) + [FORWARD] * drive
 
     def act(self, obs: dict):
-        self.require_wrapped()
+        self.require_wrapped(obs)
         if not self._plan:
             self._plan = self._cycle()
         a = self._plan.pop(0)
@@ -188,6 +222,7 @@ class WallFollowPolicy(Policy):
         self.explorer.reset()
 
     def act(self, obs: dict):
+        self.require_wrapped(obs)
         return self.encode(self.explorer(obs))
 
 

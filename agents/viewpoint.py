@@ -892,7 +892,7 @@ class ViewpointPlanner(Policy):
         return bool(np.any((x > 0) & (x < self.clearance_stop_m) & (y < self._radius_m + 0.05)))
 
     def act(self, obs: dict):
-        self.require_wrapped()
+        self.require_wrapped(obs)
         self.observe(obs)
         if self.continuous:
             return self.decide_continuous(obs)

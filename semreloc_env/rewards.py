@@ -17,7 +17,10 @@ import math
 import gymnasium as gym
 import numpy as np
 
+from filters.numbers import is_real
 from filters.pose import wrap_angle
+
+from .wrappers import find_wrapper
 
 BELIEF_MASS_RADIUS_M = 0.5
 """Default radius of `belief_mass_near`: the env's success radius."""
@@ -86,16 +89,21 @@ class BeliefMassReward(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.Wrapper.__init__(self, env)
         if mode not in ("level", "gain"):
             raise ValueError(f"mode must be 'level' or 'gain', got {mode!r}")
-        if not math.isfinite(weight):
-            raise ValueError(f"weight must be finite, got {weight!r}")
-        if not (math.isfinite(radius_m) and radius_m > 0):
-            raise ValueError(f"radius_m must be positive, got {radius_m!r}")
-        self.weight, self.radius_m, self.heading_tol_rad, self.mode = (
-            float(weight),
-            float(radius_m),
-            heading_tol_rad,
-            mode,
-        )
+        if not (is_real(weight) and math.isfinite(weight)):
+            raise ValueError(f"weight must be a finite number, got {weight!r:.60}")
+        if not (is_real(radius_m) and math.isfinite(radius_m) and radius_m > 0):
+            raise ValueError(f"radius_m must be a positive number, got {radius_m!r:.60}")
+        if heading_tol_rad is not None and not (is_real(heading_tol_rad) and 0 < heading_tol_rad <= math.pi):
+            raise ValueError(f"heading_tol_rad must be None or a number in (0, pi], got {heading_tol_rad!r:.60}")
+        if not (hasattr(env.unwrapped, "mcl") and hasattr(env.unwrapped, "world")):
+            raise TypeError(f"BeliefMassReward needs a SemReloc env (its filter and world), got {env.unwrapped}")
+        if find_wrapper(env, BeliefMassReward) is not None:
+            raise ValueError(
+                "the env has a BeliefMassReward already: a second would overwrite its info['rewards']['belief_mass'] "
+                "and the terms would no longer sum to the reward"
+            )
+        self.weight, self.radius_m, self.mode = float(weight), float(radius_m), mode
+        self.heading_tol_rad = None if heading_tol_rad is None else float(heading_tol_rad)
         self._prev: float | None = None
 
     def mass(self) -> float:

@@ -171,6 +171,8 @@ class FlatObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         space = env.observation_space
         if not isinstance(space, spaces.Dict):
             raise TypeError(f"FlatObservation needs a Dict observation space, got {space}")
+        if isinstance(keys, (str, bytes)):
+            raise ValueError(f"keys must be a list of observation keys, got {keys!r:.80} (one key: [{keys!r:.40}])")
         self.keys = tuple(space.spaces) if keys is None else tuple(keys)
         unknown = [k for k in self.keys if k not in space.spaces]
         if unknown:

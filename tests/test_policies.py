@@ -122,6 +122,28 @@ def test_baselines_reject_bad_seeds_other_envs_and_act_before_wrap(name):
         pol.wrap(gym.make("CartPole-v1"))  # Discrete(2): the baselines' actions would not fit
 
 
+@pytest.mark.parametrize("name", sorted(POLICIES))
+def test_baselines_refuse_repeated_or_rescaled_actions_and_say_what_act_lacks(name):
+    # an outside audit's: under ActionRepeat the viewpoint planner lost track of its motion and spin_backup turned
+    # three or four times; a rescaled Box made "forward" an arc; act before reset failed deep in the planners
+    from semreloc_env.wrappers import ActionRepeat
+
+    with pytest.raises(ValueError, match=r"decides every env step.*ActionRepeat\(repeat=4\)"):
+        POLICIES[name](0).wrap(ActionRepeat(gym.make("SemReloc-v21", **KW), 4))
+    rescaled = gym.wrappers.RescaleAction(gym.make("SemReloc-v21", action_type="continuous", **KW), 0.0, 1.0)
+    with pytest.raises(TypeError, match=r"Box\(-1, 1, \(2,\)\)"):
+        POLICIES[name](0).wrap(rescaled)
+    pol = POLICIES[name](0)
+    env = pol.wrap(gym.make("SemReloc-v21", **KW))
+    obs, _ = gym.make("SemReloc-v21", **KW).reset(seed=0)
+    if name not in ("random", "spin"):  # the two that read nothing
+        with pytest.raises(RuntimeError, match="reset the env before act"):
+            pol.act(obs)
+        env.reset(seed=0)
+        with pytest.raises(ValueError, match=r"obs\['lidar'\] has shape \(10,\), the env's lidar \(60,\)"):
+            pol.act({**obs, "lidar": obs["lidar"][:10]})
+
+
 def test_spin_then_back_up_checks_its_distances():
     for bad in ({"backup_m": float("nan")}, {"backup_m": 0.0}, {"clearance_m": -1.0}):
         with pytest.raises(ValueError):

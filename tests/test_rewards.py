@@ -38,3 +38,17 @@ def test_belief_mass_reward_adds_a_named_term(mode):
         assert {k: v for k, v in i1["rewards"].items() if k != "belief_mass"} == i0["rewards"]
     with pytest.raises(ValueError, match="mode"):
         BeliefMassReward(plain, mode="sum")
+    # an outside audit's: these were accepted, and failed at reset or gave a mass of 0 every step; two stacked
+    # made the terms not sum to the reward
+    for kw, match in (
+        ({"heading_tol_rad": -1.0}, "heading_tol_rad"),
+        ({"heading_tol_rad": "x"}, "heading_tol_rad"),
+        ({"weight": "a"}, "weight must be a finite number"),
+        ({"weight": True}, "weight must be a finite number"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            BeliefMassReward(plain, **kw)
+    with pytest.raises(ValueError, match="has a BeliefMassReward already"):
+        BeliefMassReward(BeliefMassReward(plain, weight=0.05), weight=0.5, mode="gain")
+    with pytest.raises(TypeError, match="needs a SemReloc env"):
+        BeliefMassReward(gym.make("SemSlam-v1"))

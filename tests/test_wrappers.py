@@ -172,6 +172,10 @@ def test_flat_observation_key_subset_and_errors():
         FlatObservation(gym.make("SemReloc-v21", **FAST), keys=["belief"])
     with pytest.raises(ValueError, match="at least one"):
         FlatObservation(gym.make("SemReloc-v21", **FAST), keys=())
+    with pytest.raises(
+        ValueError, match=r"keys must be a list of observation keys, got 'lidar' \(one key: \['lidar'\]\)"
+    ):
+        FlatObservation(gym.make("SemReloc-v21", **FAST), keys="lidar")  # said keys ['l', 'i', 'd', 'a', 'r']
     with pytest.raises(TypeError):
         FlatObservation(gym.make("CartPole-v1"))
 

@@ -130,7 +130,8 @@ class ActiveObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Args:
         env: a ``SemReloc`` env, any version (either raw observation layout; anything with
             ``unwrapped.mcl``, ``unwrapped.grid``, ``unwrapped.lidar``, ``unwrapped.camera`` and ``info["belief"]``).
-        keys: which keys to keep, in order (default `OBSERVATION_KEYS`, all of them).
+        keys: which keys to keep (default `OBSERVATION_KEYS`, all of them); the observation holds them in
+            alphabetical order whatever the order given (Gymnasium's ``Dict`` space sorts its keys).
         ego_size: side of the ego crop in cells, 1-512 (default 32: with ``ego_cell_m`` 8 m, the
             lidar's reach).
         ego_cell_m: cell size of the ego crop (m), 0.01-10.
