@@ -105,6 +105,37 @@ def test_the_batched_bench_puts_the_version_before_beside_the_newest_only(monkey
     assert not any(before in r.name or issue in r.name for r in older) and len(older) == len(newest) - 3
 
 
+@pytest.mark.filterwarnings("ignore:.*out of date.*:DeprecationWarning")
+def test_the_scaling_bench_holds_the_particle_counts_it_names(monkeypatch):
+    """A reviewer found the 10,000-particle set held about 730 particles under KLD: the ratio measured the beams
+    alone. The rows run the issue's env (a fixed set) and the newest with KLD off, and their notes give the counts
+    held (two tiny timing runs; no timing asserted)."""
+    from agents.tools import bench
+
+    def reset_only(env, steps, seed, policy=None):
+        env.reset(seed=seed)
+        return 100.0, 90.0
+
+    monkeypatch.setattr(bench, "_steps_per_s", reset_only)
+    rows = bench.bench_scaling(bench.Args(steps=3, only=("scaling",)))
+    assert [r.name for r in rows] == [
+        f"time(10000, 180) / time(2000, 60), {bench.ISSUE_ENV_ID}",
+        f"time(10000, 180) / time(2000, 60), {bench.ENV_ID}, KLD off",
+    ]
+    assert "the sets held 10,000 and 2,000 particles" in rows[0].note
+
+
+def test_the_bench_refuses_a_run_of_nothing_and_prints_an_empty_table(capsys):
+    from agents.tools import bench
+
+    with pytest.raises(ValueError, match="--only ppo with --quick runs nothing"):
+        bench.Args(only=("ppo",), quick=True)
+    with pytest.raises(ValueError, match="got map_size_m=0"):
+        bench.Args(map_size_m=0)
+    bench.print_table([])  # a ValueError of max() before
+    assert "no rows" in capsys.readouterr().out
+
+
 def test_the_bench_runs_the_version_it_is_told():
     """``--env-id`` names the version the env benchmarks run (the docs compare v19 with v18 that way)."""
     from agents.tools import bench

@@ -1,5 +1,7 @@
 """`agents.tools.profile_step`: the batched env's CPU split (`batched_split`) and what it counts as compiled."""
 
+import dataclasses
+
 import pytest
 
 from agents.tools import profile_step
@@ -187,3 +189,5 @@ def test_the_robots_fused_text_says_what_fusing_and_stacking_would_do():
     text = profile_step.robots_fused_text(s, 2e-6)
     assert "15.0, 2.00 us of dispatch each" in text
     assert "save about 30 us (3.0 %) of a robot-step in dispatch" in text and "2.50x the particles" in text
+    none = profile_step.robots_fused_text(dataclasses.replace(s, weighed=0, weighed_stacked=0), 2e-6)
+    assert "no measurement update ran" in none and "nan" not in none  # printed "nanx the particles"

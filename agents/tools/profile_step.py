@@ -409,12 +409,17 @@ def robots_fused_text(s: BatchedSplit, dispatch_s: float) -> str:
     weigh, in words (`batched_split`'s ``s``; ``dispatch_s``: `dispatch_seconds`)."""
     n = s.robot_steps
     saved = s.kernel_calls / n * dispatch_s
-    stacked = s.weighed_stacked / s.weighed if s.weighed else float("nan")
     share = 100 * saved * n / s.total_s
+    stacked = (
+        f"the filters' arrays stacked (R, N_max, 3) would weigh {s.weighed_stacked / s.weighed:.2f}x the particles "
+        "the updates weighed"
+        if s.weighed
+        else "no measurement update ran, so nothing tells what stacking the filters' arrays would weigh"
+    )
     return (
         f"compiled calls per robot-step: {s.kernel_calls / n:.1f}, {1e6 * dispatch_s:.2f} us of dispatch each: "
         f"one call for all robots would save about {1e6 * saved:.0f} us ({share:.1f} %) of a robot-step in dispatch; "
-        f"the filters' arrays stacked (R, N_max, 3) would weigh {stacked:.2f}x the particles the updates weighed"
+        + stacked
     )
 
 
