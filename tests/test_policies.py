@@ -130,7 +130,9 @@ def test_baselines_refuse_repeated_or_rescaled_actions_and_say_what_act_lacks(na
 
     with pytest.raises(ValueError, match=r"decides every env step.*ActionRepeat\(repeat=4\)"):
         POLICIES[name](0).wrap(ActionRepeat(gym.make("SemReloc-v21", **KW), 4))
-    rescaled = gym.wrappers.RescaleAction(gym.make("SemReloc-v21", action_type="continuous", **KW), 0.0, 1.0)
+    rescaled = gym.wrappers.RescaleAction(
+        gym.make("SemReloc-v21", action_type="continuous", **KW), np.zeros(2, np.float32), np.ones(2, np.float32)
+    )
     with pytest.raises(TypeError, match=r"Box\(-1, 1, \(2,\)\)"):
         POLICIES[name](0).wrap(rescaled)
     pol = POLICIES[name](0)
