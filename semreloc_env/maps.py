@@ -305,7 +305,8 @@ def maps_for(
     Args:
         source: ``"mapping"`` (a mapping run with these sensors, seed 0; cached in memory
             and on disk, see the module docstring), ``"perfect"`` (the
-            rasterised layout), a ROS map ``.yaml`` / ``.yml`` path (`filters.mapping.ros_map.load_map`),
+            rasterised layout), a ROS map ``.yaml`` / ``.yml`` path (`filters.mapping.ros_map.load_map`) or its name
+            on ``$SEMRELOC_LAYOUT_PATH`` (`searched_ros_map`),
             a GridMap, or a *layout* (a name such as ``"lab"``, or a layout file): the mapping run
             of that layout, so the world can differ from the map ("the map is the lab, the world
             is the lab with furniture moved"). A map's classes are the env's, in any order
@@ -329,8 +330,9 @@ def maps_for(
         grid, derived = mapped(layout, lidar, camera, mapping_version), True
     elif names_a_layout(source):
         grid = mapped(get_layout(source), lidar, camera, mapping_version)
-    else:
-        grid = load_map(Path(source), alpha_in_trinary=False)  # as the registered envs have always read maps
+    else:  # a ROS map: its path, or its name on the search path
+        path = searched_ros_map(source) or Path(source)
+        grid = load_map(path, alpha_in_trinary=False)  # as the registered envs have always read maps
     grid = env_classes(grid, source, semantic)  # the env's classes, in its order (empty layers if lidar-only)
     if not derived and not (isinstance(layout, MapLayout) and _same_map(layout.grid, grid)):
         check_map_matches_world(grid, layout)

@@ -220,9 +220,11 @@ class CheckedReset(gym.Wrapper, gym.utils.RecordConstructorArgs):
     A rejected reset raises ``ValueError`` and changes nothing in any wrapper. Besides the env's
     own checks it refuses a ``kidnap_at_step`` beyond the time limit of a ``TimeLimit`` inside
     it (the kidnap would never happen). A reset that the checks let pass but that fails inside the env
-    (a layout with no free place for a random start, say) leaves the wrappers inside as they were too: their
-    attributes are put back (a shallow copy each; the env puts back its own), so the running episode keeps its
-    time limit and Gymnasium's checker does not count the failed reset as the first.
+    (a layout with no free place for a random start, say) puts the wrappers' attributes back as they were (the env
+    puts back its own), so the running episode keeps its time limit and Gymnasium's checker does not count the
+    failed reset as the first. The attributes are put back, not the objects they hold: a wrapper that empties a
+    container of its own in place before it calls the env's reset (Gymnasium's ``DelayObservation`` its queue)
+    keeps it emptied.
     """
 
     def __init__(self, env: gym.Env):

@@ -112,12 +112,17 @@ def test_the_scaling_bench_holds_the_particle_counts_it_names(monkeypatch):
     held (two tiny timing runs; no timing asserted)."""
     from agents.tools import bench
 
+    made = []
+
     def reset_only(env, steps, seed, policy=None):
+        made.append((env.spec.id, env.mcl_config.kld, env.mcl_config.n_particles))
         env.reset(seed=seed)
         return 100.0, 90.0
 
     monkeypatch.setattr(bench, "_steps_per_s", reset_only)
     rows = bench.bench_scaling(bench.Args(steps=3, only=("scaling",)))
+    v0, new = bench.ISSUE_ENV_ID, bench.ENV_ID
+    assert made == [(v0, False, 2000), (v0, False, 10000), (new, False, 2000), (new, False, 10000)]  # KLD off
     assert [r.name for r in rows] == [
         f"time(10000, 180) / time(2000, 60), {bench.ISSUE_ENV_ID}",
         f"time(10000, 180) / time(2000, 60), {bench.ENV_ID}, KLD off",

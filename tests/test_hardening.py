@@ -678,6 +678,19 @@ def test_a_kidnap_with_nowhere_to_go_says_so_and_changes_nothing(kidnap_pose, er
     env.step(3)
 
 
+def test_a_failed_random_kidnap_leaves_its_draws_as_they_were():
+    # a review's: where free space is scarce but not nil, the rejection sampling failed at random, and a repeated
+    # step could succeed, its target depending on how many tries had failed before
+    w = 0.6012  # an L of 60 m arms barely wider than the robot: the 10,000 tries of a random place mostly miss
+    corridor = {"outer": [[0, 0], [60, 0], [60, w], [w, w], [w, 60], [0, 60]]}
+    env = gym.make("SemReloc-v21", layout=corridor, map_source="perfect", relocalizer={"n_particles": 50})
+    env.reset(seed=0, options={"pose": (5.0, w / 2, 0.0), "tracking": True, "kidnap_at_step": 2})
+    env.step(3)
+    for _ in range(4):  # the second of these succeeded before
+        with pytest.raises(ValueError, match="a random kidnap"):
+            env.step(3)
+
+
 def test_integers_too_large_for_a_float_are_layout_errors_naming_the_entry(tmp_path):
     big = 10**400  # an OverflowError before, where 1e400 and 10**20 were layout errors
     base = {"outer": SQUARE}

@@ -272,13 +272,19 @@ def test_interior_walls_that_lie_elsewhere_fail_the_check_however_long_the_outer
 def test_a_ros_map_found_by_name_on_the_search_path_is_read_as_a_map(tmp_path, monkeypatch):
     # an outside audit's: layout="my_floor" and map_source="my_floor" read the map's YAML as a layout
     from filters.mapping.ros_map import save_map
-    from semreloc_env.maps import check_map_source_name
+    from semreloc_env.config import CameraParams, LidarParams
+    from semreloc_env.maps import check_map_source_name, maps_for, names_a_layout
     from semreloc_env.rasterize import rasterize
 
     save_map(rasterize(get_layout("twin_rooms")), tmp_path / "my_floor.yaml")
     monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path))
     assert get_layout("my_floor").name == "my_floor"
     check_map_source_name("my_floor")
+    assert not names_a_layout("my_floor")  # it named a layout, whose mapping run then read the map's YAML
+    twin = get_layout("twin_rooms")  # maps_for takes the name itself (evaluate_active passes it on as given)
+    by_name = maps_for(twin, "my_floor", LidarParams(), CameraParams())
+    by_path = maps_for(twin, str(tmp_path / "my_floor.yaml"), LidarParams(), CameraParams())
+    np.testing.assert_array_equal(by_name.free_mask(), by_path.free_mask())
     by_name = gym.make("SemReloc-v21", layout="twin_rooms", map_source="my_floor", relocalizer={"n_particles": 100})
     by_path = gym.make(
         "SemReloc-v21",

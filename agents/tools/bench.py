@@ -666,8 +666,9 @@ def bench_stages(args: Args) -> list[Row]:
 def bench_scaling(args: Args) -> list[Row]:
     """time(10000 particles, 180 beams) / time(2000, 60) per env step (all lidar beams used), on particle sets that
     hold those counts: `ISSUE_ENV_ID`'s (a set of fixed size, the filter the issue measured) and the version run's
-    (``--env-id``, else the newest) with KLD sampling off (KLD shrinks a tight belief's set: a 10,000 budget held about 730 particles, and
-    the ratio measured the beams alone). Each row's note gives the counts the sets held after their last step."""
+    (``--env-id``, else the newest) with KLD sampling off (KLD shrinks a tight belief's set: a 10,000 budget held
+    about 730 particles, and the ratio measured the beams alone). Each row's note gives the counts the sets held after
+    their last step."""
     newest = args.env_id or ENV_ID
     runs = [(ISSUE_ENV_ID, {}, ISSUE_ENV_ID), (newest, {"kld": False}, f"{newest}, KLD off")]
     rows = []

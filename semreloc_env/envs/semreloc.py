@@ -727,10 +727,12 @@ class SemRelocEnv(SemRelocBase):
     def _move(self, v, w):
         if self._kidnap_at is not None and self._steps + 1 == self._kidnap_at:
             target = self._kidnap_pose
+            drawn = self._start_rng.bit_generator.state  # a failed search leaves the draws as they were
             if target is None:
                 try:
                     target = self.world.sample_free_pose(self._start_rng)
                 except ValueError:
+                    self._start_rng.bit_generator.state = drawn
                     raise ValueError(
                         f"reset option kidnap_at_step={self._kidnap_at} (a random kidnap): layout "
                         f"{self.world.layout.name!r} has no free place to take the robot to; {_KIDNAP_FAILED}"
@@ -742,6 +744,7 @@ class SemRelocEnv(SemRelocBase):
                         max_range_m=self.lidar.params.range_max_m, camera_range_m=self.camera.params.range_max_m,
                     ).pose  # fmt: skip
                 except NoPlaceError as e:
+                    self._start_rng.bit_generator.state = drawn
                     raise NoPlaceError(
                         f"reset option kidnap_pose={KIDNAP_TO_LOOKALIKE!r} at step {self._kidnap_at}: {e}; "
                         f"{_KIDNAP_FAILED}"
