@@ -92,6 +92,7 @@ class SB3VecEnvAdapter(VecEnv):
                 )
             obs.append(o)
         self.venv.all_reset()
+        self._actions = None
         self._reset_seeds()
         self._reset_options()
         return self._stack(obs)
@@ -104,6 +105,11 @@ class SB3VecEnvAdapter(VecEnv):
         self._actions = self.venv.check_actions(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
+        """Step every robot with the actions `step_async` took. RuntimeError, nothing stepped, after `close` or
+        without a `step_async` since the last reset."""
+        self._check_open()
+        if getattr(self, "_actions", None) is None:
+            raise RuntimeError("step_wait() without step_async(actions) first: nothing to step with")
         obs, infos = [], []
         rewards = np.zeros(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
@@ -129,6 +135,7 @@ class SB3VecEnvAdapter(VecEnv):
             raise RuntimeError("this SB3VecEnvAdapter is closed")
 
     def _targets(self, indices) -> list:
+        self._check_open()
         return [self.envs[i] for i in self._get_indices(indices)]
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:

@@ -195,6 +195,8 @@ class WorkersVecEnv(VecEnv):
         self._gone: str | None = None  # why the workers cannot be used any more (one died)
         self._failed: int | None = None  # the worker whose error the last call raised
         self._failed_why: str | None = None  # why its robots are out of step, as its block says
+        self._also_failed: list[int] = []  # the other workers that raised in the last call
+        self._acted = False  # actions taken by step_async since the last reset
         self._waiting = [False] * len(sizes)
         self.closed = False
         payload = cloudpickle.dumps(make_block)
@@ -270,11 +272,13 @@ class WorkersVecEnv(VecEnv):
     def _gather(self, ws: Sequence[int]) -> list:
         """Every worker's answer, in order; the first worker's error is raised once all have answered."""
         outs, error = [], None
-        self._failed = None
+        self._failed, self._also_failed = None, []
         for w in ws:
             status, out = self._recv(w)
             if status == "error" and error is None:
                 error = self._noted(w, *out)
+            elif status == "error":
+                self._also_failed.append(w)
             outs.append(out)
         if error is not None:
             raise error
@@ -314,11 +318,13 @@ class WorkersVecEnv(VecEnv):
         if w is None:
             self._out_of_step = f"the last {call}() raised {type(e).__name__} ({e!s:.200}): call reset()"
             return
-        others = [self._block_text(v) for v in range(self.workers) if v != w]
+        others = [self._block_text(v) for v in range(self.workers) if v != w and v not in self._also_failed]
         why = self._failed_why or f"{self._block_text(w)} raised {type(e).__name__} in the last {call}() ({e!s:.200})"
         why = why.removesuffix(": the robots are out of step, call reset()")
         ran = f"; the other workers' {', '.join(others)} had run it" if others and call == "step" else ""
-        self._out_of_step = f"{why} (worker {w}){ran}: the robots are out of step, call reset()"
+        also = [f"worker {v} ({self._block_text(v)})" for v in self._also_failed]
+        raised = f"; {', '.join(also)} raised too" if also else ""
+        self._out_of_step = f"{why} (worker {w}){ran}{raised}: the robots are out of step, call reset()"
 
     # ------------------------------------------------------------------ VecEnv
     def seed(self, seed: int | None = None):
@@ -341,6 +347,7 @@ class WorkersVecEnv(VecEnv):
             self._stopped("reset", e)
             raise
         self._out_of_step = None
+        self._acted = False
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [info for _, infos in outs for info in infos]
@@ -354,8 +361,14 @@ class WorkersVecEnv(VecEnv):
             raise RuntimeError(self._out_of_step)
         action_list(actions, self.num_envs, self.action_space)  # the batch's checks, with the whole set's numbers
         self._all("step_async", [actions[self._block(w)] for w in range(self.workers)])
+        self._acted = True
 
     def step_wait(self) -> VecEnvStepReturn:
+        """Step every robot with the actions `step_async` took. RuntimeError, nothing stepped, when unusable or
+        without a `step_async` since the last reset."""
+        self._usable()
+        if not self._acted:
+            raise RuntimeError("step_wait() without step_async(actions) first: nothing to step with")
         try:
             outs = self._all("step_wait")
         except BaseException as e:
@@ -380,6 +393,7 @@ class WorkersVecEnv(VecEnv):
         def left() -> float:
             return max(0.0, deadline - time.monotonic())
 
+        interrupted = False
         try:
             for w, conn in enumerate(self._conns):
                 try:
@@ -398,9 +412,13 @@ class WorkersVecEnv(VecEnv):
                         conn.recv_bytes()
                 except (EOFError, OSError):
                     pass
+        except KeyboardInterrupt:
+            interrupted = True  # end the workers now, not at the deadline
+            raise
         finally:
             for proc in self.processes:
-                proc.join(timeout=left())
+                if not interrupted:
+                    proc.join(timeout=left())
                 if proc.is_alive():
                     proc.terminate()
                     proc.join(timeout=2.0)

@@ -314,3 +314,79 @@ def test_a_training_run_that_fails_stops_its_workers():
     with pytest.raises(RuntimeError, match="a callback's own failure"):
         train(cfg, callbacks=[Fails()])
     assert not set(multiprocessing.active_children()) - before
+
+
+def _block_where_robots_1_and_3_fail_at_step_2(n: int, first: int):
+    block = batched_block("SemReloc-v21", **{**KW, "max_episode_steps": 50})(n, first)
+    for robot in (1, 3):
+        if first <= robot < first + n:
+            block.envs[robot - first] = RaisesAtStep(block.envs[robot - first], 2)
+    return block
+
+
+def test_a_failing_robot_is_named_at_once_and_every_worker_that_failed_is_named_as_failed():
+    # an outside audit's: the first error did not name the robot (SB3's learn() never makes the call that did), and
+    # with two workers failing the message said the second worker's robots "had run it"
+    workers = WorkersVecEnv(_block_where_robots_1_and_3_fail_at_step_2, num_envs=4, workers=2)
+    one = SB3VecEnvAdapter(SemRelocLoopVectorEnv(4, **{**KW, "max_episode_steps": 50}))
+    one.envs[1], one.envs[3] = RaisesAtStep(one.envs[1], 2), RaisesAtStep(one.envs[3], 2)
+    try:
+        for v in (workers, one):
+            v.reset()
+            v.step(np.zeros(4, dtype=np.int64))
+            with pytest.raises(KeyError, match="a robot's own failure") as err:
+                v.step(np.zeros(4, dtype=np.int64))
+            assert any("robot 1 raised this in step()" in note for note in err.value.__notes__)
+        with pytest.raises(RuntimeError, match=r"\(worker 0\); worker 1 \(robots 2 to 3\) raised too: the robots"):
+            workers.step(np.zeros(4, dtype=np.int64))
+        with pytest.raises(RuntimeError, match="robot 1 raised KeyError.*robot 0 had run it and robots 2 to 3 had not"):
+            one.step(np.zeros(4, dtype=np.int64))
+    finally:
+        workers.close()
+        one.close()
+
+
+def test_step_wait_without_step_async_is_refused_and_leaves_the_robots_usable():
+    # an outside audit's: a TypeError from inside the robot loop, which put the robots out of step
+    workers = WorkersVecEnv(batched_block("SemReloc-v21", **KW), num_envs=2, workers=2)
+    one = SB3VecEnvAdapter(SemRelocLoopVectorEnv(2, **KW))
+    try:
+        for v in (workers, one):
+            v.reset()
+            with pytest.raises(RuntimeError, match=r"step_wait\(\) without step_async"):
+                v.step_wait()
+            assert v.step(np.zeros(2, dtype=np.int64))[0]["lidar"].shape[0] == 2
+    finally:
+        workers.close()
+        one.close()
+    with pytest.raises(RuntimeError, match="is closed"):  # the adapter stepped, read and called its closed robots
+        one.get_attr("render_mode")
+    with pytest.raises(RuntimeError, match="is closed"):
+        one.step_wait()
+
+
+def test_a_ctrl_c_in_close_ends_the_workers_at_once(monkeypatch):
+    # an outside audit's: close() waited out its 10 s deadline after a Ctrl-C before it terminated the workers
+    workers = WorkersVecEnv(batched_block("SemReloc-v21", **KW), num_envs=2, workers=2)
+    workers.reset()
+    joins = []
+    for proc in workers.processes:
+        join = proc.join
+        monkeypatch.setattr(proc, "join", lambda timeout=None, join=join: joins.append(timeout) or join(timeout))
+
+    class Interrupted:
+        def __init__(self, conn):
+            self.conn = conn
+
+        def poll(self, timeout=None):
+            raise KeyboardInterrupt
+
+        def __getattr__(self, name):
+            return getattr(self.conn, name)
+
+    workers._waiting[0] = True
+    workers._conns[0] = Interrupted(workers._conns[0])
+    with pytest.raises(KeyboardInterrupt):
+        workers.close()
+    assert workers.closed and not any(p.is_alive() for p in workers.processes)
+    assert joins == [2.0, 2.0]  # terminated at once, each joined after its end; no wait for the deadline

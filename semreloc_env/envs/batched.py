@@ -314,9 +314,11 @@ class SemRelocLoopVectorEnv(VectorEnv):
             left = ("it was the last", f"robot {f + i + 1} had not", f"robots {f + i + 1} to {last} had not")
             left = left[min(self.num_envs - 1 - i, 2)]
             self._out_of_step = (
-                f"robot {f + i} raised {type(e).__name__} in the last {call}(){detail} ({e!s:.200}); {ran} and {left}: "
-                "the robots are out of step, call reset()"
+                f"robot {f + i} raised {type(e).__name__} in the last {call}(){detail} ({_shortened(e)}); {ran} and "
+                f"{left}: the robots are out of step, call reset()"
             )
+            if hasattr(e, "add_note") and not isinstance(e, KeyboardInterrupt):  # Python 3.11+: the error itself says
+                e.add_note(f"(robot {f + i} raised this in {call}(){detail}; {ran} and {left})")
             raise
 
     def _add_info(self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int) -> dict[str, Any]:
@@ -362,6 +364,14 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 v = value[i]
                 out[key] = v.item() if isinstance(v, np.generic) else v
         return out
+
+
+def _shortened(e: BaseException, limit: int = 300) -> str:
+    """``str(e)``, cut at a word boundary after at most ``limit`` characters (with "...")."""
+    text = str(e)
+    if len(text) <= limit:
+        return text
+    return text[:limit].rsplit(" ", 1)[0] + " ..."
 
 
 def batch_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
