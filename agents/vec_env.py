@@ -102,12 +102,14 @@ class SB3VecEnvAdapter(VecEnv):
         naming the robot if an action is invalid (all are checked before any robot moves)."""
         self._check_open()
         self.venv.check_in_step()
+        self._actions = None  # refused actions leave none to step with
         self._actions = self.venv.check_actions(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
-        """Step every robot with the actions `step_async` took. RuntimeError, nothing stepped, after `close` or
-        without a `step_async` since the last reset."""
+        """Step every robot with the actions `step_async` took. RuntimeError, nothing stepped, after `close`, when
+        out of step (a robot raised: until `reset`) or without a `step_async` since the last reset."""
         self._check_open()
+        self.venv.check_in_step()
         if getattr(self, "_actions", None) is None:
             raise RuntimeError("step_wait() without step_async(actions) first: nothing to step with")
         obs, infos = [], []

@@ -64,8 +64,11 @@ def _picklable(e: BaseException) -> BaseException:
     try:
         pickle.loads(pickle.dumps(e))
         return e
-    except Exception:  # an exception class or argument that does not pickle: its type and message
-        return RuntimeError(f"{type(e).__name__}: {e}")
+    except Exception:  # an exception class or argument that does not pickle: its type, message and notes
+        plain = RuntimeError(f"{type(e).__name__}: {e}")
+        for note in getattr(e, "__notes__", ()):
+            plain.add_note(note)
+        return plain
 
 
 def _serve(venv: VecEnv, cmd: str, data: Any) -> Any:
@@ -359,14 +362,17 @@ class WorkersVecEnv(VecEnv):
         self._usable()
         if self._out_of_step is not None:
             raise RuntimeError(self._out_of_step)
+        self._acted = False  # refused actions leave none to step with
         action_list(actions, self.num_envs, self.action_space)  # the batch's checks, with the whole set's numbers
         self._all("step_async", [actions[self._block(w)] for w in range(self.workers)])
         self._acted = True
 
     def step_wait(self) -> VecEnvStepReturn:
-        """Step every robot with the actions `step_async` took. RuntimeError, nothing stepped, when unusable or
-        without a `step_async` since the last reset."""
+        """Step every robot with the actions `step_async` took. RuntimeError, nothing stepped, when unusable, out of
+        step (a robot raised: until `reset`) or without a `step_async` since the last reset."""
         self._usable()
+        if self._out_of_step is not None:
+            raise RuntimeError(self._out_of_step)
         if not self._acted:
             raise RuntimeError("step_wait() without step_async(actions) first: nothing to step with")
         try:
@@ -416,16 +422,23 @@ class WorkersVecEnv(VecEnv):
             interrupted = True  # end the workers now, not at the deadline
             raise
         finally:
-            for proc in self.processes:
-                if not interrupted:
-                    proc.join(timeout=left())
-                if proc.is_alive():
-                    proc.terminate()
-                    proc.join(timeout=2.0)
-            for conn in self._conns:
-                conn.close()
-            self._waiting = [False] * self.workers
-            self.closed = True
+            try:
+                for proc in self.processes:
+                    if not interrupted:
+                        proc.join(timeout=left())
+                    if proc.is_alive():
+                        proc.terminate()
+                        proc.join(timeout=2.0)
+            except KeyboardInterrupt:  # a Ctrl-C while waiting for them: end the rest at once
+                for proc in self.processes:
+                    if proc.is_alive():
+                        proc.terminate()
+                raise
+            finally:
+                for conn in self._conns:
+                    conn.close()
+                self._waiting = [False] * self.workers
+                self.closed = True
 
     def worker_cpu_seconds(self) -> list[float]:
         """Each worker's CPU time so far (``time.process_time`` in that process, s): what a CPU-time benchmark adds

@@ -337,6 +337,8 @@ def test_a_failing_robot_is_named_at_once_and_every_worker_that_failed_is_named_
             with pytest.raises(KeyError, match="a robot's own failure") as err:
                 v.step(np.zeros(4, dtype=np.int64))
             assert any("robot 1 raised this in step()" in note for note in err.value.__notes__)
+            with pytest.raises(RuntimeError, match="out of step"):  # a review's: step_wait stepped them again
+                v.step_wait()
         with pytest.raises(RuntimeError, match=r"\(worker 0\); worker 1 \(robots 2 to 3\) raised too: the robots"):
             workers.step(np.zeros(4, dtype=np.int64))
         with pytest.raises(RuntimeError, match="robot 1 raised KeyError.*robot 0 had run it and robots 2 to 3 had not"):
@@ -390,3 +392,32 @@ def test_a_ctrl_c_in_close_ends_the_workers_at_once(monkeypatch):
         workers.close()
     assert workers.closed and not any(p.is_alive() for p in workers.processes)
     assert joins == [2.0, 2.0]  # terminated at once, each joined after its end; no wait for the deadline
+
+
+def test_a_ctrl_c_while_close_waits_for_the_workers_still_ends_them_and_closes(monkeypatch):
+    # a review's: a Ctrl-C in close()'s joins left it half closed, workers alive and pipes open
+    workers = WorkersVecEnv(batched_block("SemReloc-v21", **KW), num_envs=2, workers=2)
+    workers.reset()
+    first = workers.processes[0]
+    join = first.join
+
+    def interrupted_once(timeout=None):
+        monkeypatch.setattr(first, "join", join)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(first, "join", interrupted_once)
+    with pytest.raises(KeyboardInterrupt):
+        workers.close()
+    for proc in workers.processes:
+        proc.join(timeout=5.0)
+    assert workers.closed and not any(p.is_alive() for p in workers.processes)
+    assert all(conn.closed for conn in workers._conns)
+
+
+def test_an_error_that_does_not_unpickle_keeps_its_notes():
+    from agents.worker_vec_env import _picklable
+
+    e = TwoArgs("a", "b")
+    e.add_note("(robot 1 raised this in step())")
+    plain = _picklable(e)
+    assert isinstance(plain, RuntimeError) and plain.__notes__ == ["(robot 1 raised this in step())"]

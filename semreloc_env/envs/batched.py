@@ -318,7 +318,9 @@ class SemRelocLoopVectorEnv(VectorEnv):
                 f"{left}: the robots are out of step, call reset()"
             )
             if hasattr(e, "add_note") and not isinstance(e, KeyboardInterrupt):  # Python 3.11+: the error itself says
-                e.add_note(f"(robot {f + i} raised this in {call}(){detail}; {ran} and {left})")
+                e.add_note(
+                    f"(robot {f + i} raised this in {call}(){detail}; of robots {f} to {last}, {ran} and {left})"
+                )
             raise
 
     def _add_info(self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int) -> dict[str, Any]:

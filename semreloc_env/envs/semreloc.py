@@ -731,8 +731,10 @@ class SemRelocEnv(SemRelocBase):
             if target is None:
                 try:
                     target = self.world.sample_free_pose(self._start_rng)
-                except ValueError:
+                except BaseException as e:
                     self._start_rng.bit_generator.state = drawn
+                    if not isinstance(e, ValueError):  # a Ctrl-C, say: as it came
+                        raise
                     raise ValueError(
                         f"reset option kidnap_at_step={self._kidnap_at} (a random kidnap): layout "
                         f"{self.world.layout.name!r} has no free place to take the robot to; {_KIDNAP_FAILED}"
@@ -743,8 +745,10 @@ class SemRelocEnv(SemRelocBase):
                         self.world, self.world.pose, self._start_rng,
                         max_range_m=self.lidar.params.range_max_m, camera_range_m=self.camera.params.range_max_m,
                     ).pose  # fmt: skip
-                except NoPlaceError as e:
+                except BaseException as e:
                     self._start_rng.bit_generator.state = drawn
+                    if not isinstance(e, NoPlaceError):
+                        raise
                     raise NoPlaceError(
                         f"reset option kidnap_pose={KIDNAP_TO_LOOKALIKE!r} at step {self._kidnap_at}: {e}; "
                         f"{_KIDNAP_FAILED}"
