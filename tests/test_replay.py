@@ -64,6 +64,10 @@ def test_map_from_scans_saves_a_ros_map(tmp_path):
     assert grid.occupied_mask()[grid.world_to_cell(np.array([2.05, 0.0]))].item()  # the 2 m return is a wall
     with pytest.raises(ValueError, match="save_to"):
         map_from_scans(np.zeros((1, 3)), scans, save_to=tmp_path / "m.png")
+    for save_to in (tmp_path / "raw.yaml", None):  # an outside audit's: refused after the whole map, or ignored
+        with pytest.raises(ValueError, match=r"mode must be one of \('trinary', 'scale'\)"):
+            map_from_scans(np.zeros((1, 3)), scans, save_to=save_to, mode="raw")
+    assert not (tmp_path / "raw.yaml").exists()
     with pytest.raises(ValueError, match="resolution_m"):
         raster_for(np.zeros((1, 3)), scans, 0.0)
     with pytest.raises(ValueError, match="one pose per scan"):

@@ -19,7 +19,7 @@ import numpy as np
 
 from filters.mapping.grid import GridMap
 from filters.mapping.occupancy import OccupancyMapper, OccupancyParams
-from filters.mapping.ros_map import save_map
+from filters.mapping.ros_map import SAVE_MODES, save_map
 from filters.pose import compose
 from filters.robot_data.scans import LaserScan
 
@@ -117,6 +117,8 @@ def map_from_scans(
     """
     if save_to is not None and Path(save_to).suffix not in (".yaml", ".yml"):
         raise ValueError(f"save_to must be a .yaml or .yml path, got {str(save_to)!r}")
+    if mode not in SAVE_MODES:  # checked before the map is built, whether or not it is saved
+        raise ValueError(f"mode must be one of {SAVE_MODES} (save_map's), got {mode!r}")
     shape, origin = raster_for(poses, scans, resolution_m, margin_m)
     mapper = OccupancyMapper(shape, resolution_m, origin, params if params is not None else LOG_OCCUPANCY_PARAMS)
     poses = np.asarray(poses, dtype=np.float64)

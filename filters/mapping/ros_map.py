@@ -349,6 +349,10 @@ def _semantic_pixels(prob: np.ndarray, thresh: float) -> np.ndarray:
     return np.clip(v, 0, 255).astype(np.uint8)
 
 
+SAVE_MODES = ("trinary", "scale")
+"""The ``mode`` values `save_map` writes."""
+
+
 def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary") -> Path:
     """Write ``grid`` as a map_server map (+ semantic sidecar when the grid has classes).
 
@@ -372,7 +376,7 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
     Returns:
         The path of the occupancy YAML.
     """
-    if mode not in ("trinary", "scale"):
+    if mode not in SAVE_MODES:
         raise ValueError(f"save_map: mode must be 'trinary' or 'scale', got {mode!r}")
     path_yaml = Path(path_yaml)
     if path_yaml.suffix not in (".yaml", ".yml"):
