@@ -35,7 +35,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
 from filters.numbers import is_int
-from semreloc_env.envs.batched import SemRelocLoopVectorEnv, action_list
+from semreloc_env.envs.batched import SemRelocLoopVectorEnv, action_list, shortened_message
 
 from .vec_env import SB3VecEnvAdapter, check_seed
 
@@ -319,10 +319,13 @@ class WorkersVecEnv(VecEnv):
             return
         w = self._failed
         if w is None:
-            self._out_of_step = f"the last {call}() raised {type(e).__name__} ({e!s:.200}): call reset()"
+            self._out_of_step = f"the last {call}() raised {type(e).__name__} ({shortened_message(e)}): call reset()"
             return
         others = [self._block_text(v) for v in range(self.workers) if v != w and v not in self._also_failed]
-        why = self._failed_why or f"{self._block_text(w)} raised {type(e).__name__} in the last {call}() ({e!s:.200})"
+        why = (
+            self._failed_why
+            or f"{self._block_text(w)} raised {type(e).__name__} in the last {call}() ({shortened_message(e)})"
+        )
         why = why.removesuffix(": the robots are out of step, call reset()")
         ran = f"; the other workers' {', '.join(others)} had run it" if others and call == "step" else ""
         also = [f"worker {v} ({self._block_text(v)})" for v in self._also_failed]

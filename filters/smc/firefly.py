@@ -58,6 +58,7 @@ from scipy.signal import lfilter
 from filters.numbers import is_int, is_real
 from filters.smc.models.base import StateSpaceModel
 from filters.smc.pf import BootstrapPF, PFConfig, normalise_log_weights
+from filters.smc.resampling import normalise_weights
 
 LogBrightnessFn = Callable[[np.ndarray, np.ndarray, float, float], np.ndarray]
 """``(obs_dist (N,), state_dist (N,), r_var, q_var) -> log I (N,)``; must decrease in both distances."""
@@ -200,18 +201,9 @@ def ewa_resample(weights: np.ndarray, beta: float = 0.8, tol: float = 1e-9) -> t
     Use it on any state type: FastSLAM applies the indices to whole particles and the
     mutation to poses only.
     """
-    w = np.asarray(weights, dtype=np.float64)
-    if w.ndim != 1 or w.size == 0:
-        raise ValueError(f"weights must be a non-empty 1D array, got shape {w.shape}")
-    with np.errstate(over="ignore"):
-        total = w.sum()
-    if not np.all(np.isfinite(w)) or np.any(w < 0) or not total > 0:
-        raise ValueError("weights must be finite, non-negative and not all zero")
+    w = normalise_weights(weights)  # a sum that overflows included
     if not 0.0 <= beta < 1.0:
         raise ValueError(f"EWA beta must be in [0, 1), got {beta}")
-    if not np.isfinite(total):  # finite weights whose sum does not fit in a float
-        w = w / w.max()
-    w = w / w.sum()
     n = w.size
     order = np.argsort(w, kind="stable")
     dbar = ewa_threshold(w[order], beta)

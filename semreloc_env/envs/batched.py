@@ -314,7 +314,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
             left = ("it was the last", f"robot {f + i + 1} had not", f"robots {f + i + 1} to {last} had not")
             left = left[min(self.num_envs - 1 - i, 2)]
             self._out_of_step = (
-                f"robot {f + i} raised {type(e).__name__} in the last {call}(){detail} ({_shortened(e)}); {ran} and "
+                f"robot {f + i} raised {type(e).__name__} in the last {call}(){detail} ({shortened_message(e)}); {ran} and "
                 f"{left}: the robots are out of step, call reset()"
             )
             if hasattr(e, "add_note") and not isinstance(e, KeyboardInterrupt):  # Python 3.11+: the error itself says
@@ -368,7 +368,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         return out
 
 
-def _shortened(e: BaseException, limit: int = 300) -> str:
+def shortened_message(e: BaseException, limit: int = 300) -> str:
     """``str(e)``, cut at a word boundary after at most ``limit`` characters (with "...")."""
     text = str(e)
     if len(text) <= limit:

@@ -16,13 +16,13 @@ from filters.numbers import is_int
 from filters.pose import wrap_float
 
 from ..config import check_reward_weights
-from ..layouts import LAYOUT_NAMES, get_layout
+from ..layouts import LAYOUT_NAMES, check_layout_seed, get_layout
 from ..lookalike import NoPlaceError, lookalike_kidnap
 from ..map_world import check_map_matches_world
 from ..maps import MAP_SOURCES, env_classes, is_ros_map_file, maps_for, names_a_layout, searched_ros_map
 from ..scenarios import SCENARIOS, changed_obstacles
 from ..world import as_pose
-from .base import SemRelocBase, check_layout_seed, check_seed_use
+from .base import SemRelocBase, check_seed_use
 
 RELOCALIZER_V1 = MCLConfig(
     n_particles=None,
@@ -580,8 +580,9 @@ class SemRelocEnv(SemRelocBase):
         if scenario not in SCENARIOS:
             raise ValueError(f"unknown scenario {scenario!r}; choose one of {list(SCENARIOS)}")
         check_seed_use(layout, layout_seed, scenario)
-        if searched_ros_map(map_source) is not None:  # a ROS map named on the search path: as its path
-            map_source = str(searched_ros_map(map_source))
+        searched = searched_ros_map(map_source)
+        if searched is not None:  # a ROS map named on the search path: as its path
+            map_source = str(searched)
         named = isinstance(map_source, str) and (map_source in MAP_SOURCES or names_a_layout(map_source))
         if (
             not named
@@ -726,37 +727,40 @@ class SemRelocEnv(SemRelocBase):
 
     def _move(self, v, w):
         if self._kidnap_at is not None and self._steps + 1 == self._kidnap_at:
-            target = self._kidnap_pose
-            drawn = self._start_rng.bit_generator.state  # a failed search leaves the draws as they were
-            if target is None:
-                try:
-                    target = self.world.sample_free_pose(self._start_rng)
-                except BaseException as e:
-                    self._start_rng.bit_generator.state = drawn
-                    if not isinstance(e, ValueError):  # a Ctrl-C, say: as it came
-                        raise
-                    raise ValueError(
-                        f"reset option kidnap_at_step={self._kidnap_at} (a random kidnap): layout "
-                        f"{self.world.layout.name!r} has no free place to take the robot to; {_KIDNAP_FAILED}"
-                    ) from None
-            elif isinstance(target, str):  # KIDNAP_TO_LOOKALIKE: the place that looks most like where it is now
-                try:
-                    target = lookalike_kidnap(
-                        self.world, self.world.pose, self._start_rng,
-                        max_range_m=self.lidar.params.range_max_m, camera_range_m=self.camera.params.range_max_m,
-                    ).pose  # fmt: skip
-                except BaseException as e:
-                    self._start_rng.bit_generator.state = drawn
-                    if not isinstance(e, NoPlaceError):
-                        raise
-                    raise NoPlaceError(
-                        f"reset option kidnap_pose={KIDNAP_TO_LOOKALIKE!r} at step {self._kidnap_at}: {e}; "
-                        f"{_KIDNAP_FAILED}"
-                    ) from None
+            drawn = self._start_rng.bit_generator.state
+            try:
+                target = self._kidnap_target()
+            except BaseException:  # a failed search (or a Ctrl-C in it) leaves the draws as they were
+                self._start_rng.bit_generator.state = drawn
+                raise
             self.world.set_pose(target)
             self._kidnapped = True
             # the odometry must not see the jump: drive from the new pose, report that motion only
         return super()._move(v, w)
+
+    def _kidnap_target(self) -> np.ndarray:
+        """Where the kidnap step takes the robot: the reset's ``kidnap_pose``, a random free pose, or for
+        ``"lookalike"`` the place that looks most like where it stands now (draws from the start generator)."""
+        target = self._kidnap_pose
+        if target is None:
+            try:
+                return self.world.sample_free_pose(self._start_rng)
+            except ValueError:
+                raise ValueError(
+                    f"reset option kidnap_at_step={self._kidnap_at} (a random kidnap): layout "
+                    f"{self.world.layout.name!r} has no free place to take the robot to; {_KIDNAP_FAILED}"
+                ) from None
+        if isinstance(target, str):  # KIDNAP_TO_LOOKALIKE
+            try:
+                return lookalike_kidnap(
+                    self.world, self.world.pose, self._start_rng,
+                    max_range_m=self.lidar.params.range_max_m, camera_range_m=self.camera.params.range_max_m,
+                ).pose  # fmt: skip
+            except NoPlaceError as e:
+                raise NoPlaceError(
+                    f"reset option kidnap_pose={KIDNAP_TO_LOOKALIKE!r} at step {self._kidnap_at}: {e}; {_KIDNAP_FAILED}"
+                ) from None
+        return target
 
     def _step_estimator(self, odom, lidar_scan, semantic_scan) -> None:
         self.mcl.predict(odom)

@@ -99,11 +99,11 @@ def _is_ros_map(spec) -> bool:
     return is_ros_map_file(spec)
 
 
-def check_layout_option(spec, option: str = "layout", seed: int = 0) -> None:
-    """ValueError ``"<option>: <the LayoutError>"`` unless `get_layout` resolves ``spec``: a command's
+def check_layout_option(spec, option: str = "layout", seed: int = 0) -> Layout:
+    """`get_layout` of ``spec``; ValueError ``"<option>: <the LayoutError>"`` if it does not resolve: a command's
     argument check, which its parser turns into a usage error before any work."""
     try:
-        get_layout(spec, seed=seed)
+        return get_layout(spec, seed=seed)
     except LayoutError as e:
         raise ValueError(f"{option}: {e}") from None
 

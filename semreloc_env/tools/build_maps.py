@@ -52,8 +52,7 @@ class Args:
         if not 0 < self.resolution < float("inf"):
             raise ValueError(f"resolution must be a finite number > 0 m, got {self.resolution}")
         # an unknown name or a bad file: refused here, not after the imports of a mapping run
-        check_layout_option(self.layout, seed=self.layout_seed)
-        name = get_layout(self.layout, seed=self.layout_seed).name
+        name = check_layout_option(self.layout, seed=self.layout_seed).name
         if name in ("", ".", "..") or Path(name).name != name or "\\" in name:
             raise ValueError(
                 f"layout: its name {name!r} cannot name the map files in --out (it is empty or a path); "
