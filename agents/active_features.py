@@ -23,6 +23,9 @@ from torch import nn
 
 from .features import _Scale
 
+MIN_IMAGE_CELLS = 8
+"""Smallest side (cells) of an image entry (``ego``, ``global``) `ActiveExtractor`'s convolutions take."""
+
 
 class ActiveExtractor(BaseFeaturesExtractor):
     """Per-image CNNs and one MLP over the vector entries, concatenated (see the module docstring).
@@ -76,8 +79,8 @@ class ActiveExtractor(BaseFeaturesExtractor):
     @staticmethod
     def _cnn(shape: tuple[int, ...], channels: tuple[int, int, int], out_dim: int) -> nn.Sequential:
         c, h, w = shape
-        if h < 8 or w < 8:
-            raise ValueError(f"image entries need H, W >= 8, got {shape}")
+        if h < MIN_IMAGE_CELLS or w < MIN_IMAGE_CELLS:
+            raise ValueError(f"image entries need H, W >= {MIN_IMAGE_CELLS}, got {shape}")
         layers: list[nn.Module] = []
         for ch in channels:
             layers += [nn.Conv2d(c, ch, kernel_size=3, stride=2, padding=1), nn.ReLU()]

@@ -83,6 +83,11 @@ class ImitationConfig:
                 "imitation trains the four primitive actions one step at a time: train.options must be empty "
                 f"and train.repeat 1, got options={self.train.options!r}, repeat={self.train.repeat!r}"
             )
+        if self.train.time_budget_s is not None:  # an audit: it was taken and ignored
+            raise ValueError(
+                "imitation runs its rounds to the end: train.time_budget_s applies to train_active only, got "
+                f"{self.train.time_budget_s!r}; choose fewer rounds or episodes_per_round instead"
+            )
         for name in ("rounds", "episodes_per_round", "epochs", "batch_size", "max_samples"):
             v = getattr(self, name)
             if not (is_int(v) and v >= 1):
@@ -103,7 +108,8 @@ class ImitationConfig:
             raise ValueError(f"planner: {e}") from None
 
     def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The fields, ``train`` as `ActiveTrainConfig.as_dict` records it (``kind_weights`` resolved)."""
+        return {**dataclasses.asdict(self), "train": self.train.as_dict()}
 
 
 class _Dataset:
@@ -236,11 +242,12 @@ def imitate(config: ImitationConfig, out: str | Path) -> Path:
     torch.set_num_threads(int(t.torch_threads))
     torch.manual_seed(t.seed)
     rng = np.random.default_rng(t.seed)
-    (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
     venv = make_active_venv(t, teacher=config.planner)
     t0, c0 = time.time(), time.process_time()
     rows: list[dict[str, Any]] = []
     with closing_venv(venv):
+        # after the envs are built: a run that fails to build them leaves no config.json to block its folder
+        (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
         model = build_model(t, venv)
         optimizer = torch.optim.Adam(model.policy.parameters(), lr=config.learning_rate)
         data = _Dataset(config.max_samples)

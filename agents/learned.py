@@ -16,7 +16,9 @@ at the decision steps as training did.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import pickle
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -63,6 +65,7 @@ def save_policy(
     Returns:
         The path written.
     """
+    check_no_vec_normalize(model)
     path = Path(path)
     if path.suffix != ".zip":
         path = path.with_suffix(".zip")
@@ -81,6 +84,19 @@ def save_policy(
     with zipfile.ZipFile(path, "a") as z:
         z.writestr(META_NAME, json.dumps(meta, indent=1, default=str))
     return path
+
+
+def check_no_vec_normalize(model) -> None:
+    """ValueError if ``model`` trains through SB3's ``VecNormalize``: a saved policy and `LearnedPolicy` act on the
+    env's raw observations, and the normalisation's statistics are not part of the model, so such a policy would
+    act on inputs it never saw. (`agents.train.evaluate` handles ``VecNormalize`` for `agents.train`'s models.)"""
+    get = getattr(model, "get_vec_normalize_env", None)
+    if get is not None and get() is not None:
+        raise ValueError(
+            "the model trains through VecNormalize, whose statistics a saved policy would not keep (it acts on raw "
+            "observations): train without VecNormalize (ActiveObservation's entries are scaled already), or act "
+            "with model.predict(vec_normalize.normalize_obs(obs)) yourself"
+        )
 
 
 class MissingMetadataError(ValueError):
@@ -202,6 +218,7 @@ class LearnedPolicy:
     ):
         if not is_int(repeat) or repeat < 1:
             raise ValueError(f"repeat must be an integer >= 1, got {repeat!r}")
+        check_no_vec_normalize(model)
         self.model = model
         self.observation = dict(observation)
         self.repeat = int(repeat)
@@ -372,6 +389,23 @@ ALGORITHMS = ("PPO", "A2C", "DQN", "SAC", "TD3", "DDPG")
 """The stable-baselines3 algorithms `load_model` (and so `load_policy`) loads, by class name."""
 
 
+@contextlib.contextmanager
+def kept_global_rngs():
+    """Restore the states of Python's ``random``, NumPy's global generator and torch's CPU generator on leaving: what
+    runs inside may reseed them (SB3's ``load`` does), the caller's draws go on as if it had not run."""
+    import random
+
+    import torch
+
+    py, np_state = random.getstate(), np.random.get_state()
+    with torch.random.fork_rng(devices=[]):
+        try:
+            yield
+        finally:
+            random.setstate(py)
+            np.random.set_state(np_state)
+
+
 def load_model(path: str | Path, algorithm: str = "PPO", device: str = "cpu", env=None):
     """The stable-baselines3 ``algorithm`` model (a name of `ALGORITHMS`) saved in ``path``, on ``device``,
     with ``env`` attached if given.
@@ -388,9 +422,10 @@ def load_model(path: str | Path, algorithm: str = "PPO", device: str = "cpu", en
     import stable_baselines3
 
     try:
-        return getattr(stable_baselines3, algorithm).load(path, env=env, device=device)
+        with kept_global_rngs():  # SB3's load reseeds Python's, NumPy's and torch's global generators
+            return getattr(stable_baselines3, algorithm).load(path, env=env, device=device)
     except (AssertionError, AttributeError, EOFError, KeyError, TypeError, ValueError, RuntimeError,
-            zipfile.BadZipFile) as e:  # fmt: skip
+            zipfile.BadZipFile, pickle.UnpicklingError) as e:  # fmt: skip
         raise ValueError(f"{path}: not a loadable stable-baselines3 {algorithm} model ({type(e).__name__}: {e})") from e
 
 

@@ -397,6 +397,40 @@ def _as_action_fn(
     return model_or_policy, (reset if callable(reset) else lambda: None)
 
 
+def env_for(model_or_policy: Any, env_kwargs: dict[str, Any] | None = None, env_id: str = ENV_ID) -> gym.Env:
+    """`make_env` for ``model_or_policy``: an SB3 model's env observes the belief with the bounds the model was
+    trained with (`belief_bounds_of`, e.g. another particle count).
+
+    Raises:
+        ValueError: the model's observation or action space differs from the env's (the entries that differ are
+            named); the env is closed then.
+    """
+    env = make_env(env_kwargs, env_id=env_id)
+    if not isinstance(model_or_policy, BaseAlgorithm):
+        return env
+    model_space = model_or_policy.observation_space
+    if model_space != env.observation_space:
+        bounds = belief_bounds_of(model_space)
+        if bounds is not None:
+            env.close()
+            env = make_env(env_kwargs, env_id=env_id, belief_bounds=bounds)
+    if model_space != env.observation_space or model_or_policy.action_space != env.action_space:
+        env.close()
+        ours, theirs = env.observation_space, model_space
+        keys = sorted(
+            k for k in set(getattr(ours, "spaces", {})) | set(getattr(theirs, "spaces", {}))
+            if getattr(ours, "spaces", {}).get(k) != getattr(theirs, "spaces", {}).get(k)
+        )  # fmt: skip
+        if model_or_policy.action_space != env.action_space:
+            keys.append(f"actions (model {model_or_policy.action_space}, env {env.action_space})")
+        raise ValueError(
+            f"the model's observation or actions differ from the env's in {keys or ['its observation type']}: "
+            f"evaluate it with the env id and env_kwargs it was trained with (this is {env_id}, env_kwargs "
+            f"{dict(env_kwargs or {})}; a policy of scripts/train_active.py runs with scripts/evaluate_active.py)"
+        )
+    return env
+
+
 def evaluate(
     model_or_policy: Any,
     env_kwargs: dict[str, Any] | None = None,
@@ -432,24 +466,7 @@ def evaluate(
     """
     if n_episodes < 1:
         raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
-    env = make_env(env_kwargs, env_id=env_id)
-    model_space = model_or_policy.observation_space if isinstance(model_or_policy, BaseAlgorithm) else None
-    if model_space is not None and model_space != env.observation_space:
-        bounds = belief_bounds_of(model_space)  # e.g. trained with another particle count
-        if bounds is not None:
-            env.close()
-            env = make_env(env_kwargs, env_id=env_id, belief_bounds=bounds)
-    if model_space is not None and model_space != env.observation_space:
-        env.close()
-        ours, theirs = env.observation_space, model_space
-        keys = sorted(
-            k for k in set(getattr(ours, "spaces", {})) | set(getattr(theirs, "spaces", {}))
-            if getattr(ours, "spaces", {}).get(k) != getattr(theirs, "spaces", {}).get(k)
-        )  # fmt: skip
-        raise ValueError(
-            f"the model's observation differs from the env's in {keys or 'its type'} (model: {theirs}, env: {ours}): "
-            f"evaluate it with the env id and env_kwargs it was trained with (this is {env_id})"
-        )
+    env = env_for(model_or_policy, env_kwargs, env_id)
     act, reset_policy = _as_action_fn(model_or_policy, deterministic, seed)
     discrete = isinstance(env.action_space, gym.spaces.Discrete)
     results = []

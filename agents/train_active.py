@@ -17,6 +17,7 @@ import dataclasses
 import functools
 import inspect
 import json
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -33,7 +34,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from filters.experiments.cli import JsonDict
-from filters.numbers import is_int
+from filters.numbers import is_int, is_real
 from semreloc_env import semreloc_ids_since  # (importing semreloc_env registers the env ids)
 from semreloc_env.layout_sampling import LayoutSampler, RandomLayout
 from semreloc_env.observations import ActiveObservation
@@ -41,7 +42,7 @@ from semreloc_env.observations.active import check_arguments as check_active_arg
 from semreloc_env.rewards import BeliefMassReward
 from semreloc_env.wrappers import ActionRepeat, ResetOptions
 
-from .active_features import ActiveExtractor
+from .active_features import MIN_IMAGE_CELLS, ActiveExtractor
 from .callbacks import RelocalizationMetricsCallback
 from .features import SemRelocPolicy
 from .learned import load_model, option_names, read_metadata, run_folder_of, save_policy, saved_run_config
@@ -189,6 +190,9 @@ class ActiveTrainConfig:
             raise ValueError(f"time_budget_s must be None or > 0, got {self.time_budget_s!r}")
         if self.checkpoint_every is not None and self.checkpoint_every < 1:
             raise ValueError("checkpoint_every must be None or >= 1")
+        w = self.belief_mass_weight
+        if not (is_real(w) and math.isfinite(w)):  # else every worker fails at its env's construction
+            raise ValueError(f"belief_mass_weight must be a finite number, got {w!r:.60}")
         check_options(self.options)
         check_ppo_settings(self)
         self._check_reset_options()
@@ -198,9 +202,13 @@ class ActiveTrainConfig:
         if unknown:
             raise ValueError(f"observation: unknown ActiveObservation arguments {unknown}; known {sorted(allowed)}")
         try:  # bad values fail here, not in every worker process
-            check_active_arguments(**self.observation)
+            keys = check_active_arguments(**self.observation)
         except (ValueError, TypeError) as e:
             raise ValueError(f"observation: {e}") from None
+        obs = {**observation_defaults(), **self.observation}
+        for key, size in (("ego", obs["ego_size"]), ("global", obs["global_size"])):
+            if key in keys and size < MIN_IMAGE_CELLS:  # ActiveExtractor's convolutions would refuse it
+                raise ValueError(f"observation: {key}_size must be at least {MIN_IMAGE_CELLS} cells, got {size!r}")
         from semreloc_env.config import coerce_config
         from semreloc_env.envs.semreloc import RewardWeights
 
@@ -435,8 +443,11 @@ def _comparable(config: dict[str, Any]) -> dict[str, Any]:
     """``config`` with ``observation`` completed by `ActiveObservation`'s defaults (so ``{}`` equals the
     defaults given explicitly), an older run's ``explorer_option`` as ``options``, layout ``files`` as
     absolute paths (so ``./a.json`` equals ``a.json``; relative ones are taken from the current
-    directory), and tuples as lists, as ``config.json`` holds them."""
+    directory), ``kind_weights`` "auto" resolved, and tuples as lists, as ``config.json`` holds them."""
     out = json.loads(json.dumps(config))
+    if out.get("kind_weights") == "auto":  # resolved as ActiveTrainConfig.weights does (older DAgger runs kept it)
+        auto = tuple(out.get("kinds") or ()) == tuple(TRAIN_KINDS)
+        out["kind_weights"] = list(DEFAULT_KIND_WEIGHTS) if auto else None
     if isinstance(out.get("files"), list):
         out["files"] = [os.path.abspath(f) if isinstance(f, str) else f for f in out["files"]]
     if "options" not in out and "explorer_option" in out:  # runs saved before options existed
@@ -458,13 +469,26 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
     if not path.is_file():
         raise RunFolderError(f"--resume {resume}: no such checkpoint")
     try:  # a file of something else fails here, before a run folder or an env is made
-        load_model(path, "PPO")
+        model = load_model(path, "PPO")
     except ValueError as e:
         raise RunFolderError(f"--resume {resume}: not a checkpoint of a training run: {e}") from None
     if out is not None and Path(out).resolve() != run_folder_of(path).resolve():
         check_fresh_out(Path(out))
     saved = run_config_of(path)
-    if saved is None:
+    if saved is None:  # a checkpoint kept outside its run: its spaces are all there is to compare
+        env = make_active_env(config)
+        try:
+            spaces = {"observation": env.observation_space, "action": env.action_space}
+        finally:
+            env.close()
+        differ = [k for k, space in spaces.items() if getattr(model, f"{k}_space") != space]
+        if differ:
+            raise RunFolderError(
+                f"--resume {resume}: its {' and '.join(differ)} space{'s differ' if len(differ) > 1 else ' differs'} "
+                "from this run's (action space: "
+                f"checkpoint {model.action_space}, run {spaces['action']}; the options and observation settings "
+                "shape them): pass the --config.options and --config.observation it was trained with"
+            )
         return path
     if "env_id" not in saved:  # runs made before env_id was a field: their saved policy names the env
         try:
@@ -571,7 +595,9 @@ def train_active(
     venv = make_active_venv(config)
     try:  # the envs (subprocesses, workers) are closed if the model cannot be set up
         if resume is not None:
-            model = PPO.load(resume, env=venv, device=config.device)
+            # seed: SB3's load reseeds everything with the checkpoint's own seed unless given one (an audit: a
+            # resumed run ignored --config.seed, and config.json recorded a seed that never ran)
+            model = PPO.load(resume, env=venv, device=config.device, seed=config.seed)
             # the checkpoint's episode statistics would fill the resumed run's rollout/* rows and its curve
             model.ep_info_buffer = model.ep_success_buffer = None
             config = resumed_config(model, config)  # its n_steps also bounds the checkpoints it will write

@@ -28,7 +28,7 @@ import numpy as np
 
 from filters.numbers import is_int
 
-from .layouts import BUILTIN_LAYOUTS_NAMES, PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, get_layout
+from .layouts import BUILTIN_LAYOUTS_NAMES, PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, find_layout_file, get_layout
 from .maps import maps_for
 
 HELD_OUT_LAYOUT_SEEDS: range = range(1_000_000, 1_000_500)
@@ -65,6 +65,17 @@ def _layout(kind: str, seed: int, procedural_version: int = PROCEDURAL_VERSION) 
 def is_held_out(seed: int) -> bool:
     """Whether a procedural seed is one of `HELD_OUT_LAYOUT_SEEDS`."""
     return int(seed) in HELD_OUT_LAYOUT_SEEDS
+
+
+def portable_layout_file(entry) -> str:
+    """A layout file entry as an absolute path that names the same file from any folder: a path (with a layout
+    file's extension, or an existing file) resolved, a name found on ``$SEMRELOC_LAYOUT_PATH`` as the path of the
+    file it finds (`get_layout`'s order); anything else as given (its own error comes when it is loaded)."""
+    path = Path(entry).expanduser()
+    if path.suffix.lower() in (".json", ".yaml", ".yml") or path.is_file():
+        return str(path.resolve())
+    found = find_layout_file(str(entry))
+    return str(found.resolve()) if found is not None else str(entry)
 
 
 class LayoutSampler:
@@ -138,7 +149,7 @@ class LayoutSampler:
         seeds = self._seeds
         return {
             "kinds": list(self.kinds),
-            "files": [str(Path(f).expanduser().resolve()) for f in self.files],  # usable from any folder
+            "files": [portable_layout_file(f) for f in self.files],  # usable from any folder
             "seeds": {"start": seeds.start, "stop": seeds.stop} if isinstance(seeds, range) else seeds.tolist(),
             "weights": self._weights_given,
         }

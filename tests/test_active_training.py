@@ -94,6 +94,11 @@ def test_config_rejects_bad_values():
         ({"env_id": "SemReloc-v1"}, "env_id"),  # the flat observation: ActiveObservation needs v2 or newer
         ({"env_id": "SemSlam-v1"}, "env_id"),
         ({"n_steps": 1, "n_envs": 1, "batch_size": 1}, r"n_steps \* n_envs"),  # SB3's AssertionError before
+        # an audit's: these failed in every env worker, or in the extractor, after the run folder was made
+        ({"belief_mass_weight": float("nan")}, "belief_mass_weight"),
+        ({"belief_mass_weight": float("inf")}, "belief_mass_weight"),
+        ({"observation": {"ego_size": 4}}, "ego_size must be at least 8"),
+        ({"observation": {"global_size": 7}}, "global_size must be at least 8"),
     ]:
         with pytest.raises((ValueError, OSError), match=match):
             ActiveTrainConfig(**bad)
@@ -342,6 +347,14 @@ def test_resume_compares_layout_files_by_path_not_spelling(monkeypatch, tmp_path
     spellings = ["a.json", "./a.json", str(tmp_path / "a.json"), "sub/../a.json"]
     assert len({json.dumps(_comparable({"files": [f]})) for f in spellings}) == 1
     assert _comparable({"files": ["a.json"]}) != _comparable({"files": ["b.json"]})
+    # an audit's: a DAgger run's config kept kind_weights "auto", and resuming printed "auto -> [1.0, 1.0, 2.0]"
+    default = ActiveTrainConfig()
+    assert _comparable({**default.as_dict(), "kind_weights": "auto"}) == _comparable(default.as_dict())
+    from semreloc_env.layouts import get_layout
+
+    (tmp_path / "x.json").write_text(json.dumps(get_layout("twin_rooms").to_dict()))
+    files_only = ActiveTrainConfig(kinds=(), files=(str(tmp_path / "x.json"),), kind_weights="auto")
+    assert _comparable({**files_only.as_dict(), "kind_weights": "auto"})["kind_weights"] is None
 
 
 def test_kind_weights_per_kind_give_files_weight_one(tmp_path):
@@ -430,12 +443,15 @@ def test_load_policy_errors(smoke_run, tmp_path):
         ("list.zip", "[1]", True, "JSON object"),
         ("fmtonly.zip", '{"format": 1}', True, "lacks"),
         ("nomodel.zip", None, False, "not a loadable"),
+        ("badweights.zip", None, "policy.pth", "not a loadable.*UnpicklingError"),  # an audit: came out raw
     ]:
         broken = tmp_path / name
         with zipfile.ZipFile(path) as src, zipfile.ZipFile(broken, "w") as dst:
             for member in src.namelist():
                 if member == META_NAME:
                     dst.writestr(member, src.read(member) if meta is None else meta)
+                elif keep_model == member:
+                    dst.writestr(member, b"garbage, not torch's pickle")
                 elif keep_model:
                     dst.writestr(member, src.read(member))
         with pytest.raises(ValueError, match=match):
@@ -704,6 +720,27 @@ def test_a_policy_of_continuous_actions_wraps_a_continuous_env(tmp_path):
     env.step(a)
 
 
+def test_a_model_trained_through_vec_normalize_is_refused(tmp_path):
+    """An outside audit: such a model saved silently and then acted on raw observations, its normalisation's
+    statistics gone."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from agents.learned import LearnedPolicy, save_policy
+
+    venv = VecNormalize(DummyVecEnv([lambda: ActiveObservation(_env())]), norm_obs_keys=["lidar"])
+    model = PPO("MultiInputPolicy", venv, n_steps=16, batch_size=16, seed=0,
+                policy_kwargs={"features_extractor_class": ActiveExtractor,
+                               "features_extractor_kwargs": {"features_dim": 16, "cnn_channels": (4, 4, 4)},
+                               "net_arch": [8]})  # fmt: skip
+    with pytest.raises(ValueError, match="VecNormalize"):
+        save_policy(model, tmp_path / "norm.zip", observation={}, repeat=1)
+    assert not (tmp_path / "norm.zip").exists()
+    with pytest.raises(ValueError, match="VecNormalize"):
+        LearnedPolicy(model, {}, 1)
+    venv.close()
+
+
 def test_a_policy_of_another_algorithm_loads_with_its_own_class(tmp_path):
     # an outside tester's trial: a DQN saved with save_policy failed in PPO.load with a traceback
     from stable_baselines3 import DQN
@@ -761,6 +798,55 @@ def test_resume_never_overwrites_an_earlier_run_and_keeps_the_checkpoints_settin
     with pytest.raises(RunFolderError, match=r"would overwrite progress_before_64.csv"):
         train_active(given, run, resume=ckpt)  # again from the same checkpoint
     train_active(given, tmp_path / "branch", resume=ckpt)  # into a new folder: fine
+
+
+def test_a_bare_checkpoint_kept_outside_its_run_is_checked_against_the_runs_spaces(smoke_run, tmp_path):
+    """An outside audit: such a checkpoint resumed with other options failed in SB3 with a traceback (and a dump of
+    both spaces) after the new run's folder was made."""
+    import dataclasses
+    import shutil
+
+    from agents.train_active import RunFolderError, check_resume
+
+    out, _ = smoke_run
+    alone = tmp_path / "ppo_64_steps.zip"
+    shutil.copy(out / "checkpoints" / "ppo_64_steps.zip", alone)
+    config = ActiveTrainConfig(**json.loads((out / "config.json").read_text()))
+    assert check_resume(alone, config, tmp_path / "new") == alone  # the same options: fine
+    other = dataclasses.replace(config, options=("explore", "viewpoint"))
+    with pytest.raises(RunFolderError, match=r"space.* differ.*checkpoint Discrete\(5\), run Discrete\(6\)"):
+        check_resume(alone, other, tmp_path / "new")
+    assert not (tmp_path / "new").exists()
+
+
+def test_loading_a_policy_leaves_the_global_generators_as_they_were(smoke_run):
+    """An outside audit: load_policy reset Python's, NumPy's and torch's global streams to the model's training seed
+    (SB3's load), against the docstring's word."""
+    import random
+
+    _, path = smoke_run
+    random.seed(999), np.random.seed(999), torch.manual_seed(999)
+    expected = (random.random(), np.random.random(), torch.rand(1).item())
+    random.seed(999), np.random.seed(999), torch.manual_seed(999)
+    load_policy(path)
+    assert (random.random(), np.random.random(), torch.rand(1).item()) == expected
+
+
+def test_a_resumed_run_is_seeded_by_its_config(smoke_run, tmp_path):
+    """An outside audit: SB3's load reseeded the envs and torch with the checkpoint's seed, so --config.seed was
+    ignored on --resume while config.json recorded it."""
+    import dataclasses
+
+    out, _ = smoke_run
+    ckpt = out / "checkpoints" / "ppo_64_steps.zip"
+    config = ActiveTrainConfig(**json.loads((out / "config.json").read_text()))
+    weights = []
+    for seed in (0, 7):
+        run = dataclasses.replace(config, total_timesteps=32, checkpoint_every=None, seed=seed)
+        path = train_active(run, tmp_path / f"s{seed}", resume=ckpt)
+        assert json.loads((tmp_path / f"s{seed}" / "config.json").read_text())["seed"] == seed
+        weights.append([p.detach().clone() for p in load_policy(path).model.policy.parameters()])
+    assert any(not torch.equal(a, b) for a, b in zip(*weights))
 
 
 def test_a_sampling_policy_draws_from_its_own_generator():

@@ -1,6 +1,7 @@
 import csv
 import json
 import math
+import re
 import tempfile
 
 import gymnasium as gym
@@ -160,8 +161,10 @@ def test_evaluate_model_is_deterministic_and_checks_spaces(smoke):
     model, _, _ = smoke
     a = evaluate(model, FAST, n_episodes=2, seed=5)
     assert a == evaluate(model, FAST, n_episodes=2, seed=5)
-    with pytest.raises(ValueError, match=r"observation differs from the env.s in \[.lidar.\]"):
+    with pytest.raises(ValueError, match=r"observation or actions differ from the env.s in \[.lidar.\]"):
         evaluate(model, {**FAST, "lidar": {"n_beams": 30}}, n_episodes=1)
+    with pytest.raises(ValueError, match=r"in \['actions \(model Discrete\(4\), env Box"):
+        evaluate(model, {**FAST, "action_type": "continuous"}, n_episodes=1)
     with pytest.raises(TypeError):
         evaluate(object(), FAST, n_episodes=1)
 
@@ -383,7 +386,9 @@ def test_train_ppo_cli_takes_the_train_config_and_formats_missing_values():
         "mean_return": -0.5,
     }
     line = mod.results_table({"p": row}).splitlines()[-1]
-    assert line == "| p | 25 % | 50 % | 25 % | - | 1.23 | -0.50 |"
+    assert line == "| p | 25 % | 50 % | 25 % | - | 1.23 | -0.50 |"  # a results.json without its episode count
+    line = mod.results_table({"p": {**row, "episodes": 20}}).splitlines()[-1]  # an audit: point estimates only
+    assert line == "| p | 25 % [11, 47] | 50 % [30, 70] | 25 % [11, 47] | - | 1.23 | -0.50 |"
 
 
 def test_train_ppo_takes_every_map_source_the_env_does(tmp_path):
@@ -466,6 +471,17 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
     older = [*same, "--config.env-id", "SemReloc-v17"]
     mod.run(parse(mod.Args, older), older)
     assert "**other than its training run's**: env_id 'SemReloc-v21'" in (run / "results.md").read_text()
+    # an outside audit's: a damaged model, or one of other spaces, gave a traceback after the log folder was made
+    (tmp_path / "junk.zip").write_bytes(b"not a zip")
+    other = [*small[:-1], "fresh", "--load"]
+    for model, args, match in [
+        ("junk.zip", [], "not a loadable stable-baselines3 PPO model"),
+        (str(run / "model.zip"), ["--config.env-id", "SemReloc-v1"], r"differ from the env's in \['semantic'"),
+    ]:
+        with pytest.raises(SystemExit) as e:
+            mod.main([*other, model, *args])
+        assert e.value.code == 2 and re.search(match, capsys.readouterr().err)
+    assert not (tmp_path / "fresh").exists()
     assert (run / "model.zip").read_bytes() == before
 
 
@@ -481,14 +497,20 @@ def test_train_ppo_evaluates_on_its_env_id_and_refuses_a_missing_model(tmp_path,
         mod.Args(load=str(tmp_path / "none.zip"))
     (tmp_path / "model.zip").write_bytes(b"")
     seen = []
-    monkeypatch.setattr(stable_baselines3.PPO, "load", staticmethod(lambda path, device="auto": "model"))
+
+    class Closable:
+        def close(self):
+            pass
+
+    monkeypatch.setattr(stable_baselines3.PPO, "load", staticmethod(lambda path, env=None, device="auto": "model"))
+    monkeypatch.setattr(agents.train, "env_for", lambda model, kwargs, env_id: seen.append(env_id) or Closable())
     monkeypatch.setattr(agents.train, "evaluate", lambda policy, kwargs, **kw: seen.append(kw["env_id"]) or {
         "success_rate": 0.0, "wrong_convergence_rate": 0.0, "unconverged_rate": 1.0,
         "median_steps_to_converge": None, "median_final_position_error_m": 1.0, "mean_return": 0.0,
     })  # fmt: skip
     argv = ["--load", str(tmp_path / "model.zip"), "--config.env-id", "SemReloc-v1", "--eval-episodes", "1"]
     mod.run(parse(mod.Args, [*argv, "--config.log-dir", str(tmp_path / "run")]), argv)
-    assert seen == ["SemReloc-v1"] * 3
+    assert seen == ["SemReloc-v1"] * 4  # the model's spaces checked on it, then three policies evaluated on it
 
 
 def test_a_model_trained_at_one_particle_count_is_evaluated_at_another():
@@ -506,7 +528,7 @@ def test_a_model_trained_at_one_particle_count_is_evaluated_at_another():
     out = evaluate(model, {**kw, "relocalizer": {"n_particles": 600}}, n_episodes=1)
     assert 0.0 <= out["success_rate"] <= 1.0
     with pytest.raises(
-        ValueError, match=r"differs from the env's in \['semantic', 'semantic_class', 'semantic_range'\]"
+        ValueError, match=r"differ from the env's in \['semantic', 'semantic_class', 'semantic_range'\]"
     ):
         evaluate(model, {**kw, "relocalizer": {"n_particles": 300}}, n_episodes=1, env_id="SemReloc-v1")
     small.close()

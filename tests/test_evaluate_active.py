@@ -234,11 +234,12 @@ def test_bad_arguments_are_caught_before_any_episode(tmp_path, capsys):
         assert e.value.code == 2 and not out.exists()
 
 
-def _row(case, policy, outcome, steps=None, uninformative=False, kind="procedural", first_wrong=False):
+def _row(case, policy, outcome, steps=None, uninformative=False, kind="procedural", first_wrong=False, seed=None):
     return {
         "case": case, "policy": policy, "outcome": outcome, "steps_to_success": steps, "collisions": case % 2,
         "seconds": 1.0, "length": 10, "kind": kind, "uninformative": uninformative,
-        "first_convergence_wrong": first_wrong,
+        "first_convergence_wrong": first_wrong, "layout": kind, "layout_seed": case if seed is None else seed,
+        "scenario": "nominal",
     }  # fmt: skip
 
 
@@ -278,6 +279,32 @@ def test_summarise_counts_each_outcome_with_its_wilson_interval():
         assert s[outcome]["count"] == k and s[outcome]["rate"] == k / 5
         assert s[outcome]["ci95"] == pytest.approx(ev.wilson(k, 5))
     assert s["median_steps"] == 11.0 and s["collisions_per_episode"] == pytest.approx(2 / 5)
+
+
+def test_intervals_count_each_layouts_starts_as_one_cluster():
+    """Starts of one layout succeed or fail together (an outside audit: 10 starts per layout, the Wilson interval
+    over episodes too narrow). The rate's interval over layouts is wider than Wilson's when whole layouts succeed or
+    fail, and it is None with one layout; the paired difference gets a layouts-resampled bootstrap interval, and
+    the tables print both."""
+    # 6 layouts x 5 starts: layouts 0-2 always succeed, 3-5 never (with policy "a"); "b" fails everywhere
+    rows = [_row(5 * lay + k, "a", "success" if lay < 3 else "unconverged", steps=9, seed=lay)
+            for lay in range(6) for k in range(5)]  # fmt: skip
+    rows += [_row(5 * lay + k, "b", "unconverged", seed=lay) for lay in range(6) for k in range(5)]
+    s = ev.summarise([r for r in rows if r["policy"] == "a"])
+    assert s["layouts"] == 6 and s["success"]["rate"] == 0.5
+    w_lo, w_hi = s["success"]["ci95"]
+    lo, hi = s["success"]["ci95_layouts"]
+    assert lo <= 0.5 <= hi and lo < w_lo and hi > w_hi  # wider: 6 layouts, not 30 independent episodes
+    assert s["success"]["design_effect"] == pytest.approx(5 * 6 / 5)  # all-or-nothing clusters of 5, C/(C-1)
+    assert ev.summarise(rows[:5])["success"]["ci95_layouts"] is None  # one layout: no clusters to count
+    (cmp,) = ev.paired(rows, ["a"], ["a", "b"])
+    p_lo, p_hi = cmp["ci95"]
+    l_lo, l_hi = cmp["ci95_layouts"]
+    assert l_lo <= cmp["difference"] == 0.5 <= l_hi and l_lo < p_lo and l_hi >= p_hi
+    assert "over layouts" in ev.table({"all": {"a": s}}, ["a"]) and "[layouts resampled]" in ev.paired_table([cmp])
+    # each start its own layout: the interval over layouts is Wilson's
+    own = [_row(i, "a", "success" if i % 3 else "unconverged") for i in range(200)]
+    assert ev.summarise(own)["success"]["ci95_layouts"] == pytest.approx(ev.summarise(own)["success"]["ci95"], abs=2e-3)
 
 
 def test_continuous_actions_run_and_are_counted_by_kind(tmp_path, capsys):

@@ -134,6 +134,23 @@ def test_imitation_config_errors():
             ImitationConfig(train=_tiny_train(), **bad)
     with pytest.raises(ValueError, match="planner: .*horizon"):  # ViewpointPlanner has no such argument
         ImitationConfig(train=_tiny_train(), planner={"horizon": 3})
+    with pytest.raises(ValueError, match="time_budget_s applies to train_active only"):  # was taken and ignored
+        ImitationConfig(train=_tiny_train(time_budget_s=60.0))
+
+
+def test_a_run_whose_envs_fail_to_build_leaves_its_folder_usable(monkeypatch, tmp_path):
+    """An outside audit: config.json was written before the envs were built, so a run that failed there blocked its
+    own folder ("holds a training run already")."""
+    import agents.imitation as imitation
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no envs today")
+
+    monkeypatch.setattr(imitation, "make_active_venv", broken)
+    with pytest.raises(RuntimeError, match="no envs today"):
+        imitate(ImitationConfig(train=_tiny_train(), rounds=1, episodes_per_round=1), tmp_path / "run")
+    assert not (tmp_path / "run" / "config.json").exists()
+    imitation.check_fresh_out(tmp_path / "run", resumable=False)  # the folder takes a new run
 
 
 def test_collected_pairs_hold_the_teachers_label_of_each_state():

@@ -118,6 +118,24 @@ def test_sampler_config_names_layout_files_from_anywhere(tmp_path, monkeypatch):
     assert draw.layout.to_dict() == get_layout("twin_rooms").to_dict()
 
 
+def test_sampler_config_names_a_search_path_layout_by_its_file(tmp_path, monkeypatch):
+    """An outside audit: a name found on $SEMRELOC_LAYOUT_PATH became <cwd>/name in the config, so the env's spec no
+    longer made the same env."""
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "hall.json").write_text(json.dumps(get_layout("twin_rooms").to_dict()))
+    monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path / "lib"))
+    monkeypatch.chdir(tmp_path)
+    config = LayoutSampler(kinds=(), files=["hall"]).config()
+    assert config["files"] == [str((tmp_path / "lib" / "hall.json").resolve())]
+    base = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200})
+    env = RandomLayout(base, LayoutSampler(kinds=(), files=["hall"]), seed=4)
+    again = gym.make(gym.envs.registration.EnvSpec.from_json(env.spec.to_json()))
+    (oa, ia), (ob, ib) = env.reset(seed=1), again.reset(seed=1)
+    assert ia["layout"]["name"] == ib["layout"]["name"] and ia["layout"]["seed"] == ib["layout"]["seed"]
+    for k in oa:
+        np.testing.assert_array_equal(oa[k], ob[k])
+
+
 def test_sampler_config_rejects_bad_input():
     with pytest.raises(ValueError, match="unknown keys"):
         LayoutSampler.from_config({"kinds": ["lab"], "seed": 3})

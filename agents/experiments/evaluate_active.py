@@ -946,18 +946,52 @@ def record_gif(case: dict, spec: str, args: Args, path: Path, every: int = 2) ->
 wilson = wilson_interval  # Wilson 95 % interval (filters.experiments.stats)
 
 
+def layout_of(row: dict) -> tuple:
+    """The layout a row's episode ran on: the cluster its outcome shares with the other starts of that layout."""
+    return (row["layout"], row["layout_seed"], row["scenario"], row.get("layout_digest"))
+
+
+def layouts_interval(values, rows: list[dict]) -> list[float] | None:
+    """95 % bootstrap interval of the mean of ``values`` (one per row, e.g. paired differences) with each layout's
+    rows resampled together (`filters.experiments.stats.cluster_bootstrap_interval`, seeded), or None with fewer
+    than two layouts."""
+    from filters.experiments.stats import cluster_bootstrap_interval
+
+    clusters = [layout_of(r) for r in rows]
+    if len(set(clusters)) < 2:
+        return None
+    _, lo, hi = cluster_bootstrap_interval(values, clusters, np.random.default_rng(0))
+    return [lo, hi]
+
+
+def layouts_rate_interval(hits: list[bool], rows: list[dict]) -> tuple[list[float] | None, float | None]:
+    """``(interval, design effect)`` of the rate of ``hits`` (one per row) with the rows of a layout counted as one
+    cluster: Wilson's 95 % interval at the effective sample size
+    (`filters.experiments.stats.clustered_wilson_interval`); ``(None, None)`` with fewer than two layouts."""
+    from filters.experiments.stats import clustered_wilson_interval
+
+    clusters = [layout_of(r) for r in rows]
+    if len(set(clusters)) < 2:
+        return None, None
+    effect, lo, hi = clustered_wilson_interval(np.asarray(hits, dtype=np.float64), clusters)
+    return [lo, hi], effect
+
+
 def summarise(rows: list[dict]) -> dict:
-    """One policy's rows: ``episodes``; per outcome (``success``, ``wrong``, ``unconverged``) and for
-    ``first_wrong`` (episodes whose belief first reported "converged" at a wrong pose, whatever came
-    after) ``{"rate", "ci95" (Wilson), "count"}``; ``median_steps`` of the successes (None if none),
-    ``collisions_per_episode``, ``seconds_per_step``."""
+    """One policy's rows: ``episodes``, ``layouts``; per outcome (``success``, ``wrong``, ``unconverged``) and for
+    ``first_wrong`` (episodes whose belief first reported "converged" at a wrong pose, whatever came after)
+    ``{"rate", "ci95" (Wilson: the episodes taken as independent), "ci95_layouts" (Wilson at the effective sample
+    size of the layouts' clusters, `layouts_rate_interval`; None with one layout), "design_effect", "count"}``;
+    ``median_steps`` of the successes (None if none), ``collisions_per_episode``, ``seconds_per_step``."""
     n = len(rows)
-    out = {"episodes": n}
-    for outcome in ("success", "wrong", "unconverged"):
-        k = sum(r["outcome"] == outcome for r in rows)
-        out[outcome] = {"rate": k / n, "ci95": wilson(k, n), "count": k}
-    k = sum(r["first_convergence_wrong"] for r in rows)
-    out["first_wrong"] = {"rate": k / n, "ci95": wilson(k, n), "count": k}
+    out = {"episodes": n, "layouts": len({layout_of(r) for r in rows})}
+    hits = {outcome: [r["outcome"] == outcome for r in rows] for outcome in ("success", "wrong", "unconverged")}
+    hits["first_wrong"] = [bool(r["first_convergence_wrong"]) for r in rows]
+    for name, h in hits.items():
+        k = sum(h)
+        by_layout, effect = layouts_rate_interval(h, rows)
+        out[name] = {"rate": k / n, "ci95": wilson(k, n), "ci95_layouts": by_layout, "design_effect": effect}
+        out[name]["count"] = k
     steps = [r["steps_to_success"] for r in rows if r["steps_to_success"] is not None]
     out["median_steps"] = float(np.median(steps)) if steps else None
     out["collisions_per_episode"] = float(np.mean([r["collisions"] for r in rows]))
@@ -980,23 +1014,41 @@ def _pct(x: dict) -> str:
     return f"{100 * x['rate']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}]"
 
 
+def _layouts_ci(x: dict) -> str:
+    ci = x.get("ci95_layouts")
+    if ci is None:
+        return "n/a: one layout"
+    return "[{:.0f}, {:.0f}] (design effect {:.1f})".format(*(100 * v for v in ci), x["design_effect"])
+
+
+TABLE_NOTE = (
+    "Intervals: the first, in each column, is Wilson's 95 % interval, which takes the episodes as independent; "
+    "the starts of one layout succeed or fail together, so it is too narrow for what a result says of other "
+    "layouts. `success, over layouts` is Wilson's interval at the effective sample size the layouts leave "
+    "(the design effect: how much the starts of one layout agree), the one to read for layouts."
+)
+
+
 def table(summary: dict, policies: list[str]) -> str:
-    lines = []
+    lines = [TABLE_NOTE, ""]
     for group, per_policy in summary.items():
-        n = per_policy[policies[0]]["episodes"]
+        first = per_policy[policies[0]]
+        n = first["episodes"]
+        n_layouts = first.get("layouts")
+        of = "" if n_layouts is None else f" on {n_layouts} layout{'' if n_layouts == 1 else 's'}"
         lines += [
-            f"### {group} ({n} episode{'' if n == 1 else 's'} per policy)",
+            f"### {group} ({n} episode{'' if n == 1 else 's'} per policy{of})",
             "",
-            "| policy | success | wrong | unconverged | first convergence wrong | median steps "
-            "| steps in collision / episode |",
-            "|---|---|---|---|---|---|---|",
+            "| policy | success | success, over layouts | wrong | unconverged | first convergence wrong "
+            "| median steps | steps in collision / episode |",
+            "|---|---|---|---|---|---|---|---|",
         ]
         for p in policies:
             s = per_policy[p]
             med = "-" if s["median_steps"] is None else f"{s['median_steps']:.0f}"
             lines.append(
-                f"| {p} | {_pct(s['success'])} | {_pct(s['wrong'])} | {_pct(s['unconverged'])} | "
-                f"{_pct(s['first_wrong'])} | {med} | {s['collisions_per_episode']:.1f} |"
+                f"| {p} | {_pct(s['success'])} | {_layouts_ci(s['success'])} | {_pct(s['wrong'])} | "
+                f"{_pct(s['unconverged'])} | {_pct(s['first_wrong'])} | {med} | {s['collisions_per_episode']:.1f} |"
             )
         lines.append("")
     return "\n".join(lines)
@@ -1009,12 +1061,15 @@ def _mean_difference(base: np.ndarray, new: np.ndarray, axis: int = -1) -> np.nd
 def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[dict]:
     """Success of each learned policy against each other policy on the same cases: the difference
     of the success rates with a paired bootstrap 95 % interval (``filters.experiments.stats``,
-    seeded; None with a single case, which has no spread to resample) and McNemar's exact p-value (a
-    binomial test on the discordant pairs)."""
+    seeded; None with a single case, which has no spread to resample), the same with each layout's cases resampled
+    together (``ci95_layouts``, `layouts_interval`; None with one layout), and McNemar's exact p-value (a
+    binomial test on the discordant pairs, which takes the cases as independent)."""
     from filters.experiments.stats import mcnemar_exact_p, paired_bootstrap_interval
 
     by = {(r["case"], r["policy"]): r["outcome"] == "success" for r in rows}
     cases = sorted({r["case"] for r in rows})
+    case_rows = list({r["case"]: r for r in rows}.values())
+    case_rows.sort(key=lambda r: r["case"])
     out = []
     for a in learned:
         for b in policies:
@@ -1027,6 +1082,7 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
                 ci95 = [lo, hi]
             else:
                 point, ci95 = float(np.mean(x - y)), None
+            ci95_layouts = layouts_interval(x - y, case_rows)
             wins, losses = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
             p = mcnemar_exact_p(wins, losses)
             out.append(
@@ -1035,6 +1091,7 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
                     "against": b,
                     "difference": point,
                     "ci95": ci95,
+                    "ci95_layouts": ci95_layouts,
                     "wins": wins,
                     "losses": losses,
                     "mcnemar_p": p,
@@ -1047,13 +1104,20 @@ def paired_table(comparisons: list[dict]) -> str:
     lines = [
         "### paired: success of the learned (or your own) policy minus the other's, same cases",
         "",
-        "| policy | against | difference [paired bootstrap 95 %] | only it solved | only other solved | McNemar p |",
-        "|---|---|---|---|---|---|",
+        "",
+        "The first interval and McNemar's p take the cases as independent; the layouts-resampled interval resamples "
+        "each layout's cases together, the one to read for what the difference says of other layouts.",
+        "",
+        "| policy | against | difference [paired bootstrap 95 %] | [layouts resampled] | only it solved "
+        "| only other solved | McNemar p |",
+        "|---|---|---|---|---|---|---|",
     ]
     for c in comparisons:
         ci = "n/a: one case" if c["ci95"] is None else "{:+.1f}, {:+.1f}".format(*(100 * v for v in c["ci95"]))
+        by_layout = c.get("ci95_layouts")
+        lay = "n/a: one layout" if by_layout is None else "[{:+.1f}, {:+.1f}]".format(*(100 * v for v in by_layout))
         lines.append(
-            f"| {c['policy']} | {c['against']} | {100 * c['difference']:+.1f} pp [{ci}] | "
+            f"| {c['policy']} | {c['against']} | {100 * c['difference']:+.1f} pp [{ci}] | {lay} | "
             f"{c['wins']} | {c['losses']} | {c['mcnemar_p']:.3g} |"
         )
     return "\n".join([*lines, ""])

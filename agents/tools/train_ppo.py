@@ -35,6 +35,7 @@ import numpy as np
 
 from agents.train import TrainConfig
 from filters.experiments.cli import command, command_line, parse, usage_error
+from filters.experiments.stats import wilson_interval
 
 DEFAULT_CONFIG = TrainConfig(
     total_timesteps=200_000,
@@ -169,15 +170,27 @@ def _fmt(v, pct: bool = False, digits: int = 2) -> str:
     return f"{100 * v:.0f} %" if pct else f"{v:.{digits}f}"
 
 
+def _rate(r: dict, key: str) -> str:
+    """A rate of an `agents.train.evaluate` summary in %, with its Wilson 95 % interval when the summary says over
+    how many episodes (older results.json files do not)."""
+    text = _fmt(r[key], True)
+    n = r.get("episodes")
+    if text == "-" or not n:
+        return text
+    lo, hi = wilson_interval(round(r[key] * n), n)
+    return f"{text} [{100 * lo:.0f}, {100 * hi:.0f}]"
+
+
 def results_table(rows: dict[str, dict]) -> str:
-    """Markdown table of `agents.train.evaluate` summaries, one row per policy."""
+    """Markdown table of `agents.train.evaluate` summaries, one row per policy; the rates with their Wilson 95 %
+    intervals over the episodes."""
     head = (
-        "| policy | success | wrong convergence | unconverged | median steps to converge "
+        "| policy | success [95 %] | wrong convergence | unconverged | median steps to converge "
         "| median final error (m) | mean return |\n|---|---|---|---|---|---|---|\n"
     )
     body = "".join(
-        f"| {name} | {_fmt(r['success_rate'], True)} | {_fmt(r['wrong_convergence_rate'], True)} "
-        f"| {_fmt(r['unconverged_rate'], True)} | {_fmt(r['median_steps_to_converge'], digits=0)} "
+        f"| {name} | {_rate(r, 'success_rate')} | {_rate(r, 'wrong_convergence_rate')} "
+        f"| {_rate(r, 'unconverged_rate')} | {_fmt(r['median_steps_to_converge'], digits=0)} "
         f"| {_fmt(r['median_final_position_error_m'])} | {_fmt(r['mean_return'])} |\n"
         for name, r in rows.items()
     )
@@ -195,7 +208,7 @@ def run(args: Args, argv: list[str] | None = None) -> dict:
     """Train (or load), evaluate the three policies, write results.json/.md (and ``args.doc``); returns
     the record written to results.json. ``argv`` is the command line recorded in the report."""
     from agents.baselines import RandomWalk, WallFollowExplorer
-    from agents.train import evaluate, train
+    from agents.train import env_for, evaluate, train
 
     out = args.out
     doc = Path(args.doc) if args.doc else None
@@ -212,13 +225,18 @@ def run(args: Args, argv: list[str] | None = None) -> dict:
                 f"or evaluate that run's model again with --load {out}/model.zip",
             )
         )
-    out.mkdir(parents=True, exist_ok=True)
     env_kwargs = env_kwargs_of(args)
     config = replace(args.config, env_kwargs=env_kwargs)
-    if args.load:
-        from stable_baselines3 import PPO
+    if args.load:  # checked before the folder is made: a model that cannot run here leaves nothing behind
+        from agents.learned import load_model
 
-        model, train_s = PPO.load(args.load, device=config.device), 0.0
+        try:
+            model, train_s = load_model(args.load, "PPO", device=config.device), 0.0
+            env_for(model, env_kwargs, config.env_id).close()
+        except (OSError, ValueError) as e:
+            raise SystemExit(usage_error("train_ppo", f"--load {args.load}: {e}")) from None
+    out.mkdir(parents=True, exist_ok=True)
+    if args.load:
         print(f"[train_ppo] loaded {args.load}", file=sys.stderr, flush=True)
         note = env_options_note(args)
         if "other than" in note:

@@ -4,6 +4,10 @@
 * `t_mean_interval` -- mean and Student-t half-width of a sample mean.
 * `normal_mean_interval` -- mean and normal-approximation half-width (``z * s / sqrt(n)``).
 * `paired_bootstrap_interval` -- percentile bootstrap interval of a statistic of paired samples.
+* `cluster_bootstrap_interval` -- percentile bootstrap interval of a mean whose values come in clusters (the
+  episodes of one layout), the clusters resampled whole.
+* `clustered_wilson_interval` -- Wilson interval of a rate whose outcomes come in clusters, at the effective
+  sample size the clusters leave (Kish's design effect).
 * `holm_adjusted` -- Holm's step-down adjustment of p-values for a family of tests.
 * `mcnemar_exact_p` -- McNemar's exact test of paired successes, from the discordant pairs.
 
@@ -24,6 +28,8 @@ __all__ = [
     "t_mean_interval",
     "normal_mean_interval",
     "paired_bootstrap_interval",
+    "cluster_bootstrap_interval",
+    "clustered_wilson_interval",
     "relative_reduction_pct",
     "holm_adjusted",
     "mcnemar_exact_p",
@@ -123,6 +129,87 @@ def paired_bootstrap_interval(
     )
     ci = res.confidence_interval
     return (float(statistic(base, new)), float(ci.low), float(ci.high))
+
+
+def _ratio_of_sums(sums: np.ndarray, counts: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.sum(sums, axis=axis) / np.sum(counts, axis=axis)
+
+
+def cluster_bootstrap_interval(
+    values, clusters, rng: np.random.Generator, n_resamples: int = 4000, level: float = 0.95
+) -> tuple[float, float, float]:
+    """``(point, low, high)``: the mean of ``values`` and its percentile bootstrap interval with whole clusters
+    resampled.
+
+    ``clusters[i]`` names the cluster of ``values[i]`` (any hashable labels, e.g. the layout an episode ran on).
+    Where outcomes cluster (the starts of one layout succeed or fail together), resampling single values treats
+    them as independent and gives too narrow an interval; this resamples the clusters, each with all its values,
+    and takes the mean over the values drawn (a ratio of the drawn clusters' sums to their sizes;
+    ``scipy.stats.bootstrap`` over the clusters' ``(sum, size)`` pairs). For a paired comparison pass the
+    per-case differences. The draws come from ``rng``.
+
+    Raises:
+        ValueError: ``values`` and ``clusters`` of different lengths, fewer than two clusters (no spread to
+            resample), ``n_resamples < 1``, or a ``level`` outside (0, 1).
+    """
+    _check_level(level)
+    if n_resamples < 1:
+        raise ValueError(f"n_resamples must be >= 1, got {n_resamples}")
+    x, sums, counts = _cluster_sums(values, clusters)
+    res = stats.bootstrap(
+        (sums, counts),
+        _ratio_of_sums,
+        paired=True,
+        vectorized=True,
+        n_resamples=n_resamples,
+        confidence_level=level,
+        method="percentile",
+        rng=rng,
+    )
+    ci = res.confidence_interval
+    return (float(x.mean()), float(ci.low), float(ci.high))
+
+
+def _cluster_sums(values, clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(values, per-cluster sums, per-cluster sizes)``; ValueError unless there are values from two clusters."""
+    x = _sample(values)
+    labels = list(clusters)
+    if len(labels) != x.size:
+        raise ValueError(f"values and clusters must have the same length, got {x.size} and {len(labels)}")
+    index: dict = {}
+    ids = np.array([index.setdefault(c, len(index)) for c in labels], dtype=np.int64)
+    if len(index) < 2:
+        raise ValueError(f"need values from at least two clusters to resample, got {len(index)}")
+    sums = np.bincount(ids, weights=x, minlength=len(index))
+    return x, sums, np.bincount(ids, minlength=len(index)).astype(np.float64)
+
+
+def clustered_wilson_interval(outcomes, clusters, level: float = 0.95) -> tuple[float, float, float]:
+    """``(design_effect, low, high)``: the Wilson ``level`` interval of the rate of 0/1 ``outcomes`` whose
+    ``clusters[i]`` (e.g. the layout of an episode) share their outcomes, at the effective sample size
+    ``n / design_effect``.
+
+    The design effect is the variance of the rate as a ratio of cluster sums (the linearised between-cluster
+    variance, ``C / (C - 1) * sum_c (y_c - p m_c)^2 / n^2``) over the binomial ``p (1 - p) / n``, at least 1; 1 when
+    every outcome is the same (no spread to measure). Unlike a percentile bootstrap it keeps Wilson's behaviour
+    near 0 and 1, where a bootstrap interval collapses onto the observed rate.
+
+    Raises:
+        ValueError: outcomes other than 0 and 1, lengths that differ, fewer than two clusters, or a bad ``level``.
+    """
+    _check_level(level)
+    x, sums, sizes = _cluster_sums(outcomes, clusters)
+    if np.any((x != 0.0) & (x != 1.0)):
+        raise ValueError("outcomes must be 0 or 1")
+    n, p, c = x.size, float(x.mean()), sums.size
+    binomial = p * (1.0 - p) / n
+    between = c / (c - 1) * float(np.sum((sums - p * sizes) ** 2)) / n**2
+    effect = max(1.0, between / binomial) if binomial > 0 else 1.0
+    m = n / effect
+    z = float(stats.norm.ppf(0.5 + level / 2))
+    centre = (p + z * z / (2 * m)) / (1 + z * z / m)
+    half = z / (1 + z * z / m) * math.sqrt(p * (1 - p) / m + z * z / (4 * m * m))
+    return (effect, max(0.0, centre - half), min(1.0, centre + half))
 
 
 def mcnemar_exact_p(only_a: int, only_b: int) -> float:
