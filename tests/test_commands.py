@@ -334,6 +334,16 @@ def test_an_output_path_under_a_file_exits_2_and_ctrl_c_exits_130(tmp_path, caps
     with pytest.raises(SystemExit) as e:  # an existing file where a folder is wanted
         _main(ENTRY_POINTS["semreloc-repro-paper004"])(["--out", str(tmp_path / "bfile")])
     assert e.value.code == 2 and "is a file, not a folder" in capsys.readouterr().err
+    # an outside audit: a report's path that is a folder failed only after every run, leaving figures and no report
+    (tmp_path / "adir").mkdir()
+    for name, flag in (("semreloc-repro-paper000", "--out"), ("semreloc-repro-paper001", "--doc")):
+        with pytest.raises(SystemExit) as e:
+            _main(ENTRY_POINTS[name])([flag, str(tmp_path / "adir")])
+        assert e.value.code == 2 and "is a folder: give the path of the file" in capsys.readouterr().err
+    assert list((tmp_path / "adir").iterdir()) == []
+    with pytest.raises(SystemExit) as e:  # paper 000's --out is a file, even without a suffix: no "not a folder"
+        _main(ENTRY_POINTS["semreloc-repro-paper000"])(["--out", str(tmp_path / "bfile"), "--runs", "0"])
+    assert "not a folder" not in capsys.readouterr().err
 
     @command
     def interrupted(argv=None):
@@ -365,6 +375,9 @@ def test_an_output_path_under_a_file_exits_2_and_ctrl_c_exits_130(tmp_path, caps
         ("semreloc-repro-paper001", ["--alpha0", "nan"]),
         ("semreloc-semslam-eval", ["--woc-k", "0.5"]),
         ("semreloc-semslam-eval", ["--odometry-alpha", "nan"]),
+        ("semreloc-semslam-eval", ["--layout", "nosuch"]),  # an outside audit's two
+        ("semreloc-semslam-eval", ["--figure", "frame.jpgx"]),
+        ("semreloc-repro-paper001", ["--slam-runs", "1"]),
         ("semreloc-repro-paper004", ["--cases", "lab", "lab"]),
     ],
 )

@@ -112,3 +112,74 @@ def test_mcnemar_exact_p_is_the_two_sided_binomial_tail_of_the_discordant_pairs(
     assert mcnemar_exact_p(0, 0) == 1.0  # no discordant pair: no evidence either way
     with pytest.raises(ValueError, match="counts must be >= 0"):
         mcnemar_exact_p(-1, 3)
+
+
+def test_cluster_bootstrap_resamples_whole_clusters():
+    from filters.experiments.stats import cluster_bootstrap_interval, wilson_interval
+
+    rng = np.random.default_rng(3)
+    # 20 clusters of 10 values each, all-or-nothing per cluster: the effective sample is 20, not 200
+    per = (rng.random(20) < 0.5).astype(float)
+    x, clusters = np.repeat(per, 10), np.repeat(np.arange(20), 10)
+    point, lo, hi = cluster_bootstrap_interval(x, clusters, np.random.default_rng(0))
+    w_lo, w_hi = wilson_interval(int(x.sum()), x.size)
+    assert point == pytest.approx(x.mean()) and lo <= point <= hi
+    assert hi - lo > 1.8 * (w_hi - w_lo)
+    # labels may be any hashables; the same seed gives the same interval
+    names = [("lab", int(c)) for c in clusters]
+    assert cluster_bootstrap_interval(x, names, np.random.default_rng(0)) == (point, lo, hi)
+    # unequal cluster sizes: the mean is over values, not over cluster means
+    y, c2 = np.array([1.0, 1.0, 1.0, 0.0]), np.array([0, 0, 0, 1])
+    assert cluster_bootstrap_interval(y, c2, np.random.default_rng(0))[0] == 0.75
+
+
+@pytest.mark.parametrize(
+    "values, clusters, kwargs, match",
+    [
+        ([1.0, 0.0], [0], {}, "same length"),
+        ([1.0, 0.0], [0, 0], {}, "at least two clusters"),
+        ([1.0, 0.0], [0, 1], {"n_resamples": 0}, "n_resamples"),
+        ([1.0, 0.0], [0, 1], {"level": 1.0}, "level"),
+        ([[1.0], [0.0]], [0, 1], {}, "one-dimensional"),
+    ],
+)
+def test_cluster_bootstrap_refuses_bad_input(values, clusters, kwargs, match):
+    from filters.experiments.stats import cluster_bootstrap_interval
+
+    with pytest.raises(ValueError, match=match):
+        cluster_bootstrap_interval(values, clusters, np.random.default_rng(0), **kwargs)
+
+
+def test_paper000_claim_verdicts_tell_a_contradiction_from_no_evidence():
+    """An outside audit: "does not reproduce" was printed whenever a test was not significant, even for a two-run
+    smoke run where no test could be."""
+    from filters.experiments.paper000 import MIN_VERDICT_RUNS, claim_verdict
+
+    n = MIN_VERDICT_RUNS
+    assert claim_verdict([-1, -1], n, "FastSLAM") == "reproduces in our setup"
+    assert claim_verdict([-1, 1], n, "EKF-SLAM").startswith(
+        "does not reproduce in our setup: WOCPF's pose error is significantly"
+    )
+    assert claim_verdict([0, -1], n, "FastSLAM").startswith("inconclusive")
+    assert claim_verdict([0, 0], n - 1, "FastSLAM").startswith("no verdict")
+
+
+def test_clustered_wilson_widens_by_the_design_effect_and_keeps_wilson_at_the_edges():
+    from filters.experiments.stats import clustered_wilson_interval, wilson_interval
+
+    per = np.array([1.0, 0.0] * 10)  # 20 all-or-nothing clusters of 10
+    effect, lo, hi = clustered_wilson_interval(np.repeat(per, 10), np.repeat(np.arange(20), 10))
+    assert effect == pytest.approx(10 * 20 / 19)  # each cluster counts as about one outcome
+    w_lo, w_hi = wilson_interval(100, 200)
+    assert lo < w_lo and hi > w_hi and lo == pytest.approx(1 - hi)
+    # independent outcomes (each its own cluster): about Wilson's; every outcome alike: exactly Wilson's, not a point
+    x = (np.random.default_rng(0).random(300) < 0.4).astype(float)
+    effect, lo, hi = clustered_wilson_interval(x, np.arange(300))
+    assert effect == pytest.approx(1.0, abs=0.01) and (lo, hi) == pytest.approx(
+        wilson_interval(int(x.sum()), 300), abs=1e-3
+    )
+    assert clustered_wilson_interval(np.ones(50), np.arange(50) // 5) == pytest.approx((1.0, *wilson_interval(50, 50)))
+    with pytest.raises(ValueError, match="0 or 1"):
+        clustered_wilson_interval([0.5, 1.0], [0, 1])
+    with pytest.raises(ValueError, match="at least two clusters"):
+        clustered_wilson_interval([0.0, 1.0], [0, 0])

@@ -30,6 +30,7 @@ from filters.experiments.report import fmt_ci, markdown_table
 from filters.experiments.runner import RunnerConfig, run_jobs
 from filters.experiments.stats import normal_mean_interval
 from filters.pose import compose, wrap_angle
+from semreloc_env.layouts import check_layout_option
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,9 @@ class Args:
             raise ValueError(
                 f"odometry_alpha must be a finite number (< 0: the env's default), got {self.odometry_alpha}"
             )
+        check_layout_option(self.layout)  # a usage error before any episode, not a traceback
+        if self.figure and Path(self.figure).suffix.lower() != ".png":  # else Pillow fails after seed 0's episode
+            raise ValueError(f"figure must be a .png path, got {self.figure!r}")
 
 
 class LookAround:

@@ -70,7 +70,8 @@ OUTPUT_FIELDS = ("out", "doc", "figure", "fig_dir", "figures", "log_dir")
 """Option names that hold a path a command writes: checked before any work (`check_common_options`)."""
 
 FOLDER_FIELDS = ("out", "fig_dir", "figures", "log_dir")
-"""Those of `OUTPUT_FIELDS` that name a folder (``out`` with a suffix, as paper 000's report, names a file)."""
+"""Those of `OUTPUT_FIELDS` that name a folder, unless the command's ``Args`` lists the field in its class attribute
+``file_outputs`` (paper 000's ``out`` is its report's file); the others name a file."""
 
 
 def parse(cls: type[T], argv: Sequence[str] | None = None, description: str | None = None) -> T:
@@ -91,7 +92,8 @@ def _prog() -> str:
 def check_common_options(args: Any, prefix: str = "") -> None:
     """ValueError for what every command's options share, in ``args`` and the dataclasses it holds: a seed
     (an int, or ints, in a field whose name holds ``seed``) below 0, which NumPy's generators refuse; an
-    output path (`OUTPUT_FIELDS`) under an existing file, which no command could write."""
+    output path (`OUTPUT_FIELDS`) under an existing file, which no command could write; a folder's path that is a
+    file, and a file's path that is a folder (`FOLDER_FIELDS`)."""
     if not dataclasses.is_dataclass(args):
         return
     for f in dataclasses.fields(args):
@@ -105,8 +107,11 @@ def check_common_options(args: Any, prefix: str = "") -> None:
                 raise ValueError(f"{name} must be an integer >= 0, got {v!r}")
         elif f.name in OUTPUT_FIELDS and isinstance(v, (str, Path)) and str(v):
             path = Path(v).expanduser().absolute()
-            if f.name in FOLDER_FIELDS and not path.suffix and path.exists() and not path.is_dir():
+            folder = f.name in FOLDER_FIELDS and f.name not in getattr(args, "file_outputs", ())
+            if folder and path.exists() and not path.is_dir():
                 raise ValueError(f"{name} {str(v)!r} is a file, not a folder")
+            if not folder and path.is_dir():  # found out only when the report is written, after all the work
+                raise ValueError(f"{name} {str(v)!r} is a folder: give the path of the file to write")
             for parent in path.parents:
                 if parent.exists():
                     if not parent.is_dir():
