@@ -20,7 +20,9 @@ the learned part is *when to do what*, the motions are among its actions. `Explo
 ``MotionOptions(env, ("explore",))``, the five actions of the first trained policy.
 
 The options read only the robot's observations and the filter's belief (never the true pose);
-their state is reset with the env, and the planner's subsampling is seeded by the reset seed.
+their state is reset with the env, and the planner's subsampling is seeded by the reset seed (a reset without a
+seed, as a vector env's autoreset, starts it again from the last seed given, so its draws repeat: deterministic,
+and they only choose which particles the planner weighs).
 """
 
 from __future__ import annotations
@@ -168,7 +170,8 @@ class TeacherLabels(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     The planner sees every observation, whatever action was taken, so its odometry and path stay
     anchored to the robot (as in `MotionOptions`); it reads only the robot's observations and the
-    filter's belief. Its particle subsampling is seeded by the reset seed.
+    filter's belief. Its particle subsampling is seeded by the reset seed (by the last one given, at a reset
+    without one).
 
     Args:
         env: a ``SemReloc`` env with ``Discrete(4)`` actions (raw observations: put this wrapper
