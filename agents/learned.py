@@ -397,13 +397,13 @@ def kept_global_rngs():
 
     import torch
 
-    py, np_state = random.getstate(), np.random.get_state()
+    py, np_state = random.getstate(), np.random.get_state()  # noqa: NPY002 - the global state is what is kept
     with torch.random.fork_rng(devices=[]):
         try:
             yield
         finally:
             random.setstate(py)
-            np.random.set_state(np_state)
+            np.random.set_state(np_state)  # noqa: NPY002
 
 
 def load_model(path: str | Path, algorithm: str = "PPO", device: str = "cpu", env=None):

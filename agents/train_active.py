@@ -461,8 +461,9 @@ def check_resume(resume: str | Path, config: ActiveTrainConfig, out: str | Path 
     """The checkpoint's path; RunFolderError if it is missing or not a PPO model, if ``out`` holds another run than the
     checkpoint's (`check_fresh_out`), or if ``config`` changes a field that shapes the policy's spaces
     (`SPACE_FIELDS`) from what the checkpoint was trained with (`run_config_of`); a changed field of
-    `DISTRIBUTION_FIELDS` is printed (continuing on other layouts can be meant). Checked before any
-    env is built."""
+    `DISTRIBUTION_FIELDS` is printed (continuing on other layouts can be meant); for a bare checkpoint without its
+    run's config, if its action or observation space differs from ``config``'s (one env is built to compare).
+    Checked before the run's folder is made."""
     path = Path(resume)
     if not path.is_file() and path.with_suffix(".zip").is_file():
         path = path.with_suffix(".zip")

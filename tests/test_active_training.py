@@ -825,11 +825,11 @@ def test_loading_a_policy_leaves_the_global_generators_as_they_were(smoke_run):
     import random
 
     _, path = smoke_run
-    random.seed(999), np.random.seed(999), torch.manual_seed(999)
-    expected = (random.random(), np.random.random(), torch.rand(1).item())
-    random.seed(999), np.random.seed(999), torch.manual_seed(999)
+    random.seed(999), np.random.seed(999), torch.manual_seed(999)  # noqa: NPY002 - the global streams, on purpose
+    expected = (random.random(), np.random.random(), torch.rand(1).item())  # noqa: NPY002
+    random.seed(999), np.random.seed(999), torch.manual_seed(999)  # noqa: NPY002
     load_policy(path)
-    assert (random.random(), np.random.random(), torch.rand(1).item()) == expected
+    assert (random.random(), np.random.random(), torch.rand(1).item()) == expected  # noqa: NPY002
 
 
 def test_a_resumed_run_is_seeded_by_its_config(smoke_run, tmp_path):

@@ -1025,7 +1025,8 @@ TABLE_NOTE = (
     "Intervals: the first, in each column, is Wilson's 95 % interval, which takes the episodes as independent; "
     "the starts of one layout succeed or fail together, so it is too narrow for what a result says of other "
     "layouts. `success, over layouts` is Wilson's interval at the effective sample size the layouts leave "
-    "(the design effect: how much the starts of one layout agree), the one to read for layouts."
+    "(the design effect: how much the starts of one layout agree; where all or none succeeded, the worst case, each "
+    "layout one outcome), the one to read for layouts."
 )
 
 
@@ -1103,7 +1104,6 @@ def paired(rows: list[dict], learned: list[str], policies: list[str]) -> list[di
 def paired_table(comparisons: list[dict]) -> str:
     lines = [
         "### paired: success of the learned (or your own) policy minus the other's, same cases",
-        "",
         "",
         "The first interval and McNemar's p take the cases as independent; the layouts-resampled interval resamples "
         "each layout's cases together, the one to read for what the difference says of other layouts.",

@@ -562,6 +562,12 @@ def claim_verdict(signs: list[int], runs: int, other: str, where: str = "in our 
         return f"reproduces {where}"
     if any(v > 0 for v in signs):
         return f"does not reproduce {where}: WOCPF's pose error is significantly higher than {other}'s in a setting"
+    lower = sum(v < 0 for v in signs)
+    if lower:
+        return (
+            f"inconclusive {where}: significantly lower in {lower} of {len(signs)} settings, not in every one "
+            f"(over {runs} runs)"
+        )
     return f"inconclusive {where}: no setting with a significant difference over {runs} runs (not shown, not ruled out)"
 
 

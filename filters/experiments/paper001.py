@@ -70,7 +70,8 @@ class Args:
     particles: tuple[int, ...] = (50, 100, 150)
     """particle counts for Table 1"""
     alpha0: float = 1.0
-    """firefly random-step scale alpha0 (state units)"""
+    """firefly random-step scale alpha0: in state units in Table 1, in units of the observation noise (sigma_r,
+    sigma_r, sigma_b) in Table 3"""
     ablations: bool = True
     """also run ablations of the IFA-PF pieces"""
     reference_particles: int = 20000

@@ -190,9 +190,10 @@ def clustered_wilson_interval(outcomes, clusters, level: float = 0.95) -> tuple[
     ``n / design_effect``.
 
     The design effect is the variance of the rate as a ratio of cluster sums (the linearised between-cluster
-    variance, ``C / (C - 1) * sum_c (y_c - p m_c)^2 / n^2``) over the binomial ``p (1 - p) / n``, at least 1; 1 when
-    every outcome is the same (no spread to measure). Unlike a percentile bootstrap it keeps Wilson's behaviour
-    near 0 and 1, where a bootstrap interval collapses onto the observed rate.
+    variance, ``C / (C - 1) * sum_c (y_c - p m_c)^2 / n^2``) over the binomial ``p (1 - p) / n``, at least 1. When
+    every outcome is the same there is no spread to measure how much a cluster's outcomes agree, and it takes the
+    worst case, ``n / C``: each cluster counts as one outcome. Unlike a percentile bootstrap it keeps Wilson's
+    behaviour near 0 and 1, where a bootstrap interval collapses onto the observed rate.
 
     Raises:
         ValueError: outcomes other than 0 and 1, lengths that differ, fewer than two clusters, or a bad ``level``.
@@ -204,7 +205,7 @@ def clustered_wilson_interval(outcomes, clusters, level: float = 0.95) -> tuple[
     n, p, c = x.size, float(x.mean()), sums.size
     binomial = p * (1.0 - p) / n
     between = c / (c - 1) * float(np.sum((sums - p * sizes) ** 2)) / n**2
-    effect = max(1.0, between / binomial) if binomial > 0 else 1.0
+    effect = max(1.0, between / binomial) if binomial > 0 else n / c
     m = n / effect
     z = float(stats.norm.ppf(0.5 + level / 2))
     centre = (p + z * z / (2 * m)) / (1 + z * z / m)
