@@ -153,21 +153,9 @@ def cluster_bootstrap_interval(
             resample), ``n_resamples < 1``, or a ``level`` outside (0, 1).
     """
     _check_level(level)
-    if n_resamples < 1:
-        raise ValueError(f"n_resamples must be >= 1, got {n_resamples}")
     x, sums, counts = _cluster_sums(values, clusters)
-    res = stats.bootstrap(
-        (sums, counts),
-        _ratio_of_sums,
-        paired=True,
-        vectorized=True,
-        n_resamples=n_resamples,
-        confidence_level=level,
-        method="percentile",
-        rng=rng,
-    )
-    ci = res.confidence_interval
-    return (float(x.mean()), float(ci.low), float(ci.high))
+    _, low, high = paired_bootstrap_interval(sums, counts, rng, _ratio_of_sums, n_resamples, level)
+    return (float(x.mean()), low, high)
 
 
 def _cluster_sums(values, clusters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
