@@ -260,30 +260,49 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._maps.move_to_end(key)
         return grid
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Draw the next layout, then reset on it. A rejected reset (bad seed or options, raised
-        by the env) changes nothing: the layout stream, the env's layout and map stay as they were."""
+    def _next_stream(self, seed: int | None) -> np.random.Generator:
+        """The layout stream a reset with ``seed`` draws from (a copy: drawing advances a generator in place)."""
+        return np.random.default_rng([int(seed), _SALT]) if seed is not None else copy.deepcopy(self._rng)
+
+    def _on_drawn_layout(self, seed: int | None, options, run, keep: bool):
+        """``run()`` with the env set to the layout a reset with ``seed`` draws; with ``keep``, the stream and the layout
+        stay drawn if ``run`` returns, else (and whenever it raises) everything is put back as it was. A ValueError
+        of ``run`` given ``options`` names the layout drawn, whose place an option may not fit."""
         base = self.env.unwrapped
         base.check_reset(seed=seed)  # the seed before it re-seeds the layout stream
         saved = (self._rng, self.current, base.layout, base.layout_seed, base.grid)
         draw = None
+        done = False
         try:
-            if seed is not None:
-                self._rng = np.random.default_rng([int(seed), _SALT])
-            else:
-                self._rng = copy.deepcopy(self._rng)  # drawing advances it in place
+            self._rng = self._next_stream(seed)
             draw = self.sampler.draw(self._rng, getattr(base, "procedural_version", PROCEDURAL_VERSION))
             base.set_layout(draw.layout, draw.seed, grid=self._grid(draw), check_map=False)  # maps_for's
             self.current = draw
-            obs, info = self.env.reset(seed=seed, options=options)
-        except Exception as e:
-            self._rng, self.current, layout, layout_seed, grid = saved
-            base.set_layout(layout, layout_seed, grid=grid, check_map=False)  # the map it had
-            if draw is not None and isinstance(e, ValueError) and options:  # an option that fits another layout
+            out = run()
+            done = keep
+        except ValueError as e:
+            if draw is not None and options:  # an option that fits another layout
                 raise ValueError(f"{e} (in the layout drawn for this reset: {draw.kind}, seed {draw.seed})") from None
             raise
+        finally:
+            if not done:
+                self._rng, self.current, layout, layout_seed, grid = saved
+                base.set_layout(layout, layout_seed, grid=grid, check_map=False)  # the map it had
+        return out, draw
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Draw the next layout, then reset on it. A rejected reset (bad seed or options, raised
+        by the env) changes nothing: the layout stream, the env's layout and map stay as they were."""
+        (obs, info), draw = self._on_drawn_layout(
+            seed, options, lambda: self.env.reset(seed=seed, options=options), keep=True
+        )
         info["layout"] = draw.as_dict()
         return obs, info
+
+    def check_reset_through(self, seed, options, inner) -> None:
+        """`semreloc_env.wrappers.check_reset`'s hook: the inner envs check ``options`` on the layout this reset would
+        draw (a start pose must be free there, not in the layout of the episode before); changes nothing."""
+        self._on_drawn_layout(seed, options, lambda: inner(seed, options), keep=False)
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)

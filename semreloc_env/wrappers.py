@@ -260,20 +260,41 @@ class ResetOptions(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.Wrapper.__init__(self, env)
         self.options = dict(options)
 
-    def reset(self, *, seed=None, options=None):
+    def _merged(self, options) -> dict:
         if options is not None and not isinstance(options, Mapping):  # as the env itself says it
             raise ValueError(f"reset options must be a dict or None, got {type(options).__name__} {options!r:.60}")
-        return self.env.reset(seed=seed, options={**self.options, **(options or {})})
+        return {**self.options, **(options or {})}
+
+    def reset(self, *, seed=None, options=None):
+        return self.env.reset(seed=seed, options=self._merged(options))
+
+    def check_reset_through(self, seed, options, inner) -> None:
+        """`check_reset`'s hook: the inner envs check the merged options."""
+        inner(seed, self._merged(options))
 
 
 def check_reset(env: gym.Env, seed=None, options=None) -> None:
     """ValueError unless ``env.reset(seed=seed, options=options)`` would be taken; changes nothing.
 
     The env's own ``check_reset`` and, for a ``kidnap_at_step``, the time limit of a ``TimeLimit`` in
-    ``env``'s wrapper chain (a kidnap after it would never happen)."""
-    env.unwrapped.check_reset(seed=seed, options=options)
+    ``env``'s wrapper chain (a kidnap after it would never happen). A wrapper in the chain that changes what the env
+    is reset with (the options, as `ResetOptions`; the layout, as `semreloc_env.layout_sampling.RandomLayout`) takes
+    part through its method ``check_reset_through(seed, options, inner)``: it calls ``inner(seed, options)`` with
+    what its own reset would pass inward, in the state that reset would leave the env in, and puts that state
+    back (so a batched env checks every robot's reset as the robot's wrappers will make it)."""
+    _check_reset(env, seed, options, _time_limit(env))
+
+
+def _check_reset(env: gym.Env, seed, options, limit: int | None) -> None:
+    """`check_reset` from ``env`` inward, with the chain's time limit ``limit``."""
+    while isinstance(env, gym.Wrapper):
+        if hasattr(type(env), "check_reset_through"):
+            inner = env.env
+            env.check_reset_through(seed, options, lambda s, o: _check_reset(inner, s, o, limit))
+            return
+        env = env.env
+    env.check_reset(seed=seed, options=options)
     k = (options or {}).get("kidnap_at_step")
-    limit = _time_limit(env)
     if k is not None and limit is not None and k > limit:
         raise ValueError(
             f"kidnap_at_step {k} is beyond the episode's time limit of {limit} steps: the kidnap would never happen"

@@ -153,6 +153,35 @@ def test_a_kidnap_beyond_one_robots_time_limit_resets_no_robot():
         np.testing.assert_array_equal(env.unwrapped.world.pose, pose)
 
 
+def test_the_reset_check_sees_what_the_robots_wrappers_reset_with():
+    """An outside audit: the batched env checked each robot's reset on the bare env, so options a robot's
+    ResetOptions merges in, and a start pose in the layout RandomLayout is about to draw, were judged wrongly: a
+    valid reset was refused, a bad one got past the check and left robots reset before another failed."""
+    from semreloc_env.layout_sampling import RandomLayout
+    from semreloc_env.wrappers import ResetOptions
+
+    kw = dict(KW, max_episode_steps=50)
+    lookalike = {"kidnap_pose": "lookalike", "tracking": True}  # needs the kidnap_at_step ResetOptions gives
+    venv = SemRelocLoopVectorEnv(num_envs=2, wrapper=lambda e: ResetOptions(e, {"kidnap_at_step": 10}), **kw)
+    venv.reset(seed=0, options=lookalike)
+    assert all(e.unwrapped._kidnap_at == 10 for e in venv.envs)
+    late = SemRelocLoopVectorEnv(num_envs=2, wrapper=lambda e: ResetOptions(e, {"kidnap_at_step": 60}), **kw)
+    with pytest.raises(ValueError, match="robot 0: kidnap_at_step 60 is beyond the episode's time limit of 50"):
+        late.reset(seed=0)
+    assert late.out_of_step is None  # refused by the check, before any robot reset
+    drawn = SemRelocLoopVectorEnv(num_envs=2, wrapper=RandomLayout, layout="lab", relocalizer={"n_particles": 200},
+                                  map_source="perfect")  # fmt: skip
+    drawn.reset(seed=0)
+    layouts = [e.unwrapped.layout for e in drawn.envs]
+    with pytest.raises(ValueError, match=r"robot 1: pose .* is not free.*in the layout drawn for this reset"):
+        drawn.reset(seed=10, options={"pose": (1.0, 4.25, 0.0)})  # free in robot 0's next layout, not robot 1's
+    assert drawn.out_of_step is None and [e.unwrapped.layout for e in drawn.envs] == layouts
+    first = drawn.envs[0].unwrapped.layout
+    drawn.reset(seed=10, options=[{"pose": (1.0, 4.25, 0.0)}, None])  # robot 0 alone: taken, in its new layout
+    assert drawn.envs[0].unwrapped.layout is not first
+    np.testing.assert_array_equal(drawn.envs[0].unwrapped.world.pose, [1.0, 4.25, 0.0])
+
+
 def test_a_float_array_of_discrete_actions_says_which_robots_hold_nan():
     # a new user's trial: [0, 1, nan] is a float array, so robot 0's 0.0 was blamed alone; a later trial: naming robot
     # 0 first still misled, since every robot's action is a float
