@@ -265,9 +265,9 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return np.random.default_rng([int(seed), _SALT]) if seed is not None else copy.deepcopy(self._rng)
 
     def _on_drawn_layout(self, seed: int | None, options, run, keep: bool):
-        """``run()`` with the env set to the layout a reset with ``seed`` draws; with ``keep``, the stream and the layout
-        stay drawn if ``run`` returns, else (and whenever it raises) everything is put back as it was. A ValueError
-        of ``run`` given ``options`` names the layout drawn, whose place an option may not fit."""
+        """``run()`` with the env set to the layout a reset with ``seed`` draws; with ``keep``, the stream and the
+        layout stay drawn if ``run`` returns, else (and whenever it raises) everything is put back as it was. A
+        ValueError of ``run`` given ``options`` names the layout drawn, whose place an option may not fit."""
         base = self.env.unwrapped
         base.check_reset(seed=seed)  # the seed before it re-seeds the layout stream
         saved = (self._rng, self.current, base.layout, base.layout_seed, base.grid)

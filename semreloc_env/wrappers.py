@@ -22,6 +22,7 @@ Typical use::
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 
@@ -289,8 +290,7 @@ def _check_reset(env: gym.Env, seed, options, limit: int | None) -> None:
     """`check_reset` from ``env`` inward, with the chain's time limit ``limit``."""
     while isinstance(env, gym.Wrapper):
         if hasattr(type(env), "check_reset_through"):
-            inner = env.env
-            env.check_reset_through(seed, options, lambda s, o: _check_reset(inner, s, o, limit))
+            env.check_reset_through(seed, options, functools.partial(_check_reset, env.env, limit=limit))
             return
         env = env.env
     env.check_reset(seed=seed, options=options)
