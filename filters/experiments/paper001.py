@@ -429,7 +429,7 @@ def speed_reading(gain_pct: float) -> str:
     if gain_pct >= 5.0:
         return (
             "faster in this run, though both run one firefly generation per step; wall time on a shared "
-            "machine moves by tens of percent between runs (see above)"
+            "machine moves between runs, by several times with the load (see above)"
         )
     if gain_pct > -5.0:
         return "about as fast: the adaptive step does not reduce work here, as both run one firefly generation per step"
@@ -546,7 +546,8 @@ def write_report(args: Args, argv: list[str], t1: dict, t3: dict | None, figs: l
         )
     L.append(
         "\nOurs: numpy on one CPU core, vectorised over particles, wall-clock time measured while other jobs "
-        "may share the machine (absolute times vary by tens of percent between our runs); the paper: Matlab "
+        "may share the machine (absolute times vary between our runs by up to several times with the load: one "
+        "run of the whole command took 34 min, another 6 min, on the same machine); the paper: Matlab "
         "2016a. Compare the ratios, not the absolute times. (The paper does not say whether its times are per "
         "run or for its 30 runs together.)\n"
     )
