@@ -481,6 +481,17 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
         ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e-100, "sigma_b_rad": 1e-100}}, r"obs_noise.*\[1e-09"),
         ("SemSlam-v1", {"landmark_sensor": {"class_depth_m": (2e6, 0.25, 0.2, 0.3)}}, r"class_depth_m"),
         ("SemSlam-v1", {"reward_weights": {"time": -1e308}}, r"reward weight time"),
+        # an outside audit's: each passed gym.make and overflowed at the reset or the first step or audit
+        ("SemReloc-v21", {"relocalizer": {"global_particles_per_m2": 1e307}}, r"global_particles_per_m2 must be in"),
+        ("SemReloc-v21", {"relocalizer": {"audit_candidates_per_m2": 1e307}}, r"audit_candidates_per_m2 must be in"),
+        ("SemReloc-v21", {"relocalizer": {"negative_evidence": {"sigma_m": 1e155}}}, r"negative_evidence.*sigma_m"),
+        ("SemReloc-v21", {"relocalizer": {"lidar_field": {"max_beams": 10**20}}}, r"lidar_field.*max_beams"),
+        ("SemReloc-v21", {"relocalizer": {"semantic_field": {"beam_stride": 10**20}}}, r"semantic_field.*beam_stride"),
+        (
+            "SemReloc-v21",
+            {"relocalizer": {"negative_evidence": {"max_beams": 10**20}}},
+            r"negative_evidence.*max_beams",
+        ),
     ],
 )
 def test_huge_finite_settings_are_refused_at_make(env_id, kw, match):
@@ -589,12 +600,29 @@ def test_init_around_with_a_huge_std_is_refused_and_keeps_the_filter():
     mcl = _lab_filter(n_particles=100)
     mcl.init_global()
     twin = copy.deepcopy(mcl)
-    with pytest.raises(ValueError, match=r"std 1e\+308 spreads the particles to non-finite poses"):
-        mcl.init_around([5.0, 2.5, 0.0], 1e308)
+    for std in (1e308, 1e16, True):  # an outside audit: 1e16 passed and failed one step later; a bool is no number
+        with pytest.raises(ValueError, match=r"std must be a number or 3 numbers in \[0, 1e\+06\]"):
+            mcl.init_around([5.0, 2.5, 0.0], std)
+    with pytest.raises(ValueError, match=r"pose must be 3 finite numbers"):
+        mcl.init_around([True, 2.5, 0.0], 0.1)
     assert_identical(mcl.poses, twin.poses)
     mcl.init_around([5.0, 2.5, 0.0], 0.1)  # the generator is where it was, too
     twin.init_around([5.0, 2.5, 0.0], 0.1)
     assert_identical(mcl.poses, twin.poses)
+
+
+def test_a_config_number_of_another_type_is_kept_as_a_float():
+    """An outside audit: a Fraction was kept, so the weights became an object array and the first update failed."""
+    from fractions import Fraction
+
+    from filters.localization.mcl import MCLConfig
+
+    cfg = MCLConfig(likelihood_scale=Fraction(1, 10))
+    assert type(cfg.likelihood_scale) is float and cfg.likelihood_scale == 0.1
+    mcl = _lab_filter(n_particles=100, likelihood_scale=Fraction(1, 10))
+    mcl.init_global()
+    mcl.update(None, None, force=True)
+    assert np.isfinite(mcl.log_weights).all()
 
 
 def test_the_update_cap_does_not_give_weight_back_to_what_the_model_rules_out():

@@ -60,6 +60,9 @@ from filters.numbers import MAX_LENGTH_M, is_int, is_real
 from filters.pose import cos_sin
 from filters.robot_data.scans import LaserScan, SemanticScan, beam_endpoints
 
+MAX_BEAMS = 1_000_000
+"""Largest beam count or stride a field config takes (no scan has more; 10**20 overflowed the compiled kernels)."""
+
 
 @dataclass(frozen=True)
 class LikelihoodFieldConfig:
@@ -104,10 +107,14 @@ class LikelihoodFieldConfig:
             object.__setattr__(self, name, float(v))
         if not self.z_hit + self.z_rand > 0:
             raise ValueError("LikelihoodFieldConfig: z_hit + z_rand must be > 0")
-        if not (is_int(self.beam_stride) and self.beam_stride >= 1):
-            raise ValueError(f"LikelihoodFieldConfig.beam_stride must be an int >= 1, got {self.beam_stride!r}")
-        if not (is_int(self.max_beams) and self.max_beams >= 0):
-            raise ValueError(f"LikelihoodFieldConfig.max_beams must be an int >= 0, got {self.max_beams!r}")
+        if not (is_int(self.beam_stride) and 1 <= self.beam_stride <= MAX_BEAMS):
+            raise ValueError(
+                f"LikelihoodFieldConfig.beam_stride must be an int in [1, {MAX_BEAMS:,}], got {self.beam_stride!r}"
+            )
+        if not (is_int(self.max_beams) and 0 <= self.max_beams <= MAX_BEAMS):
+            raise ValueError(
+                f"LikelihoodFieldConfig.max_beams must be an int in [0, {MAX_BEAMS:,}], got {self.max_beams!r}"
+            )
         object.__setattr__(self, "beam_stride", int(self.beam_stride))
         object.__setattr__(self, "max_beams", int(self.max_beams))
 
@@ -165,11 +172,15 @@ class NegativeEvidenceConfig:
         object.__setattr__(self, "p_detect", float(p))
         for name, low in (("radius_m", 0.0), ("sigma_m", 1e-3), ("step_m", 0.01), ("margin_m", 0.0)):
             v = getattr(self, name)
-            if not (is_real(v) and math.isfinite(v) and v >= low):
-                raise ValueError(f"NegativeEvidenceConfig.{name} must be a finite number >= {low}, got {v!r}")
+            if not (is_real(v) and low <= v <= MAX_LENGTH_M):
+                raise ValueError(
+                    f"NegativeEvidenceConfig.{name} must be a number in [{low}, {MAX_LENGTH_M:g}] m, got {v!r}"
+                )
             object.__setattr__(self, name, float(v))
-        if not (is_int(self.max_beams) and self.max_beams >= 1):
-            raise ValueError(f"NegativeEvidenceConfig.max_beams must be an int >= 1, got {self.max_beams!r}")
+        if not (is_int(self.max_beams) and 1 <= self.max_beams <= MAX_BEAMS):
+            raise ValueError(
+                f"NegativeEvidenceConfig.max_beams must be an int in [1, {MAX_BEAMS:,}], got {self.max_beams!r}"
+            )
         object.__setattr__(self, "max_beams", int(self.max_beams))
 
     @property

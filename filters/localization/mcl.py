@@ -131,7 +131,7 @@ from filters.localization.likelihood_field import (
 from filters.localization.proposals import ScanProposal, prior_mass_near
 from filters.mapping.grid import GridMap
 from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
-from filters.numbers import is_int, is_real
+from filters.numbers import MAX_LENGTH_M, is_int, is_real
 from filters.pose import compose, finite_increment, wrap_angle
 from filters.robot_data.scans import LaserScan, SemanticScan
 from filters.smc.logsumexp import logsumexp as fast_logsumexp
@@ -542,10 +542,10 @@ class MCLConfig:
             },
             "proposal_weight": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
             "proposal_candidates_per_particle": (lambda v: 1.0 <= v <= MAX_PARTICLES, f"in [1, {MAX_PARTICLES:,}]"),
-            "global_particles_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            "global_particles_per_m2": (lambda v: 0 <= v <= MAX_PARTICLES, f"in [0, {MAX_PARTICLES:,}]"),
             "audit_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             "audit_blur_margin": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0 (0 = off)"),
-            "audit_candidates_per_m2": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+            "audit_candidates_per_m2": (lambda v: 0 <= v <= MAX_PARTICLES, f"in [0, {MAX_PARTICLES:,}]"),
             "surprise_ratio": (lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = off)"),
             "semantic_surprise_ratio": (lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = off)"),
             "max_update_log_ratio": (lambda v: v > 0 and not math.isnan(v), "> 0 (inf = no cap)"),
@@ -556,6 +556,8 @@ class MCLConfig:
                 raise ValueError(f"MCLConfig.{name} must be {what}, got {v!r}")
             if isinstance(v, np.generic):  # plain Python numbers: JSON-able, hash as the same value
                 object.__setattr__(self, name, v.item())
+            elif not isinstance(v, (int, float)):  # a Fraction or Decimal: the arrays it meets would hold objects
+                object.__setattr__(self, name, float(v))
         if not isinstance(self.resampler, str):
             raise ValueError(f"MCLConfig.resampler must be a name (str), got {self.resampler!r:.60}")
         if self.resampler not in RESAMPLERS:
@@ -746,6 +748,11 @@ def _beam_average(prior: np.ndarray, ll: np.ndarray, n_beams: int) -> float:
     finite), summed in one order whatever the BLAS thread count."""
     fin = np.isfinite(ll)
     return float(_blas.dot(prior, np.where(fin, np.exp(np.where(fin, ll, 0.0) / n_beams), 0.0)))
+
+
+def _holds_bool(value) -> bool:
+    """Whether ``value`` is or holds a bool (a bool is never a number here: `filters.numbers`)."""
+    return any(isinstance(v, (bool, np.bool_)) for v in np.asarray(value, dtype=object).reshape(-1))
 
 
 class MonteCarloLocalizer:
@@ -945,7 +952,7 @@ class MonteCarloLocalizer:
             p = np.asarray(pose, dtype=np.float64).reshape(-1)
         except (TypeError, ValueError):
             p = None
-        if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
+        if p is None or p.shape != (3,) or not np.all(np.isfinite(p)) or _holds_bool(pose):
             raise ValueError(f"pose must be 3 finite numbers, got {pose!r:.80}")
         x0, x1, y0, y1 = self.grid.extent_m
         if not (x0 <= p[0] <= x1 and y0 <= p[1] <= y1):
@@ -957,8 +964,8 @@ class MonteCarloLocalizer:
             s = np.broadcast_to(np.asarray(std, dtype=np.float64), (3,))
         except (TypeError, ValueError):
             s = None
-        if s is None or not np.all(np.isfinite(s)) or np.any(s < 0):
-            raise ValueError(f"std must be a number or 3 numbers, finite and >= 0, got {std!r:.80}")
+        if s is None or not np.all(np.isfinite(s)) or np.any(s < 0) or np.any(s > MAX_LENGTH_M) or _holds_bool(std):
+            raise ValueError(f"std must be a number or 3 numbers in [0, {MAX_LENGTH_M:g}], got {std!r:.80}")
         rng_state = self.rng.bit_generator.state
         with np.errstate(over="ignore", invalid="ignore"):
             poses = p + self.rng.standard_normal((n, 3)) * s
