@@ -21,6 +21,7 @@ from ``seed + k`` (SB3 ``make_vec_env``), evaluation episodes from their own see
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
 import sys
 import warnings
@@ -98,6 +99,26 @@ PPO_HYPERPARAMETERS = (
     "clip_range",
 )
 """The PPO arguments a training config (`TrainConfig`, `agents.train_active.ActiveTrainConfig`) holds as fields."""
+
+
+def log_formats(verbose: int) -> list[str]:
+    """SB3 logger formats of a training run: stdout with ``verbose``, the CSV, and TensorBoard's events where the
+    ``tensorboard`` package is installed (the ``rl`` extra; without it a run logs the CSV alone, and says so)."""
+    if importlib.util.find_spec("tensorboard") is None:
+        print(
+            "note: tensorboard is not installed (the 'rl' extra): no TensorBoard events, progress.csv only", flush=True
+        )
+        return (["stdout"] if verbose else []) + ["csv"]
+    return (["stdout"] if verbose else []) + ["csv", "tensorboard"]
+
+
+def progress_bar_wanted(wanted: bool) -> bool:
+    """``wanted``, unless SB3's progress bar cannot run here (it needs ``tqdm`` and ``rich``, the ``rl`` extra): then
+    False, with a note, rather than a failed run."""
+    if wanted and importlib.util.find_spec("rich") is None:
+        print("note: rich is not installed (the 'rl' extra): training without SB3's progress bar", flush=True)
+        return False
+    return bool(wanted)
 
 
 def ppo_hyperparameters(config) -> dict[str, Any]:
@@ -314,7 +335,7 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
             verbose=config.verbose,
         )
         if config.log_dir is not None:
-            logger = configure(config.log_dir, (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
+            logger = configure(config.log_dir, log_formats(config.verbose))
         else:
             # configure(None, ...) would make an empty folder under the temp dir for every run.
             logger = Logger(None, [HumanOutputFormat(sys.stdout)] if config.verbose else [])
@@ -349,7 +370,8 @@ def train(config: TrainConfig, callbacks: Sequence[BaseCallback] = ()) -> PPO:
             with warnings.catch_warnings():
                 # the evaluation env is one robot in this process by design (make_venv), also for "subproc" and workers
                 warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
-                model.learn(total_timesteps=config.total_timesteps, callback=cbs, progress_bar=config.progress_bar)
+                bar = progress_bar_wanted(config.progress_bar)
+                model.learn(total_timesteps=config.total_timesteps, callback=cbs, progress_bar=bar)
         finally:
             logger.close()
             if eval_venv is not None:

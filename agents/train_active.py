@@ -47,7 +47,7 @@ from .callbacks import RelocalizationMetricsCallback
 from .features import SemRelocPolicy
 from .learned import load_model, option_names, read_metadata, run_folder_of, save_policy, saved_run_config
 from .options import MotionOptions, TeacherLabels, check_options
-from .train import check_ppo_settings, ppo_hyperparameters
+from .train import check_ppo_settings, log_formats, ppo_hyperparameters, progress_bar_wanted
 from .vec_env import close_after_interrupt, closing_venv
 
 ENV_ID = "SemReloc-v21"
@@ -617,7 +617,7 @@ def train_active(
         else:
             model = build_model(config, venv)
         (out / "config.json").write_text(json.dumps(config.as_dict(), indent=1))
-        logger = configure(str(out), (["stdout"] if config.verbose else []) + ["csv", "tensorboard"])
+        logger = configure(str(out), log_formats(config.verbose))
         model.set_logger(logger)
         cbs: list[BaseCallback] = [RelocalizationMetricsCallback(window=100)]
         if config.checkpoint_every is not None:
@@ -641,7 +641,7 @@ def train_active(
             model.learn(
                 total_timesteps=config.total_timesteps,
                 callback=cbs,
-                progress_bar=config.progress_bar,
+                progress_bar=progress_bar_wanted(config.progress_bar),
                 reset_num_timesteps=resume is None,
             )
         finally:

@@ -641,3 +641,22 @@ def test_evaluate_points_a_policy_of_its_own_env_to_evaluate_active():
 
     with pytest.raises(TypeError, match=r"got SpinPolicy \(a policy of agents.policies.*evaluate_active"):
         evaluate(POLICIES["spin"](0), {"layout": "twin_rooms"}, n_episodes=1)
+
+
+def test_training_runs_without_the_rl_extra(tmp_path, monkeypatch, capsys):
+    """An outside audit: without tensorboard (the `rl` extra) train_ppo and train_active failed after building their
+    envs, and train_active's default progress bar failed without rich. Now they log the CSV alone and say so."""
+    import importlib.util
+
+    from agents.train import train
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name in ("tensorboard", "rich") else real(name, *a)
+    )
+    config = TrainConfig(env_kwargs=FAST, n_envs=1, total_timesteps=64, n_steps=64, batch_size=64, n_epochs=1,
+                         log_dir=str(tmp_path / "run"), progress_bar=True)  # fmt: skip
+    train(config).get_env().close()
+    out = capsys.readouterr().out
+    assert "tensorboard is not installed" in out and "without SB3's progress bar" in out
+    assert (tmp_path / "run" / "progress.csv").exists() and not list((tmp_path / "run").glob("events.out.tfevents.*"))
