@@ -9,8 +9,17 @@ in YAML, its lines).
 from __future__ import annotations
 
 
-class DuplicateKeyError(ValueError):
+class FileTextError(ValueError):
+    """A JSON or YAML text these readers refuse: a key given twice, or a YAML number read otherwise than written."""
+
+
+class DuplicateKeyError(FileTextError):
     """A key given twice in one mapping of a JSON or YAML text."""
+
+
+class YAMLNumberError(FileTextError):
+    """A YAML 1.1 integer in octal (``010``), sexagesimal (``1:30``), hexadecimal or binary form: PyYAML reads ``010``
+    as 8 and ``1:30`` as 90, without a word."""
 
 
 def json_object_pairs(pairs: list) -> dict:
@@ -27,8 +36,10 @@ def json_object_pairs(pairs: list) -> dict:
 
 def load_yaml(text: str):
     """``yaml.safe_load(text)``, but a key given twice in one mapping raises `DuplicateKeyError` naming
-    both lines. Merge keys (``<<: *anchor``) may still be overridden, as YAML intends. Other errors are
-    ``yaml.YAMLError`` (an unhashable key, a list used as a key, is the loader's own error)."""
+    both lines, and an integer YAML 1.1 reads in another base (``010`` is 8, ``1:30`` is 90, ``0x10`` is 16)
+    raises `YAMLNumberError` naming its line. Merge keys (``<<: *anchor``) may still be overridden, as YAML
+    intends. Other errors are ``yaml.YAMLError`` (an unhashable key, a list used as a key, is the loader's own
+    error)."""
     import yaml
 
     merge_tag = "tag:yaml.org,2002:merge"
@@ -57,4 +68,27 @@ def load_yaml(text: str):
                     seen[key] = key_node.start_mark.line
             super().flatten_mapping(node)
 
+        def construct_yaml_int(self, node):
+            text = str(self.construct_scalar(node))
+            body = text.replace("_", "").lstrip("+-").lower()
+            if ":" in body or body.startswith(("0x", "0b", "0o")) or (len(body) > 1 and body.startswith("0")):
+                value = super().construct_yaml_int(node)
+                raise YAMLNumberError(
+                    f"line {node.start_mark.line + 1}: {text!r} is read by YAML as {value} (an octal, base-60, "
+                    "hexadecimal or binary number): write the number in decimal without leading zeros, or quote it"
+                )
+            return super().construct_yaml_int(node)
+
+        def construct_yaml_float(self, node):
+            text = str(self.construct_scalar(node))
+            if ":" in text:  # 1:30.5 is 90.5 to YAML 1.1
+                value = super().construct_yaml_float(node)
+                raise YAMLNumberError(
+                    f"line {node.start_mark.line + 1}: {text!r} is read by YAML as {value} (a base-60 number): "
+                    "write the number in decimal, or quote it"
+                )
+            return super().construct_yaml_float(node)
+
+    Loader.add_constructor("tag:yaml.org,2002:int", Loader.construct_yaml_int)
+    Loader.add_constructor("tag:yaml.org,2002:float", Loader.construct_yaml_float)
     return yaml.load(text, Loader=Loader)  # noqa: S506 - a SafeLoader subclass

@@ -248,7 +248,9 @@ def _lattice(layout: Layout, spacing_m: float, narrow: bool = False):
         hint = "" if narrow else " (the mapping run's version 6 also looks between the lattice's points)"
         raise LayoutError(
             f"layout {layout.name!r} has no free space for a mapping run: no point of its {step:g} m waypoint "
-            f"lattice has the robot's disc 0.1 m clear of every wall and object{hint}"
+            f"lattice has the robot's disc 0.1 m clear of every wall and object{hint}; the mapping run drives a "
+            f"robot of the default radius, {world.robot_params.radius_m:g} m, whatever robot the env is given (a "
+            "smaller robot: map_source='perfect')"
         )
     index = np.full(free.shape, -1, np.int64)
     index[jj, ii] = np.arange(ii.size)

@@ -333,6 +333,26 @@ def test_build_maps_command_names_both_maps_after_the_layout(tmp_path, capsys):
     assert not any(n.startswith(("door", "chair", "trash_bin", "cabinet")) for n in names), names
 
 
+def test_build_maps_refuses_a_seed_a_file_ignores_and_names_files_by_their_own_name(tmp_path, capsys):
+    """An outside audit: `--layout my.yaml --layout-seed 3` was taken and the seed ignored (gym.make refuses it),
+    and a file named `procedural_office` wrote `procedural_office_0.*`, a file named `procedural` the real procedural
+    seed 0's names."""
+    import json
+
+    from semreloc_env.layouts import get_layout
+    from semreloc_env.tools.build_maps import main
+
+    office = tmp_path / "procedural_office.json"
+    office.write_text(json.dumps(get_layout("twin_rooms").to_dict() | {"name": "procedural_office"}))
+    with pytest.raises(SystemExit) as e:
+        main(["--layout", str(office), "--layout-seed", "3", "--out", str(tmp_path / "m")])
+    assert e.value.code == 2 and "layout_seed=3 seeds only the procedural layouts" in capsys.readouterr().err
+    assert main(["--layout", str(office), "--out", str(tmp_path / "m")]) == 0
+    assert sorted(p.name for p in (tmp_path / "m").glob("*.yaml")) == [
+        "procedural_office.semantic.yaml", "procedural_office.yaml",
+    ]  # fmt: skip
+
+
 def test_a_yml_map_finds_its_sidecar_under_either_spelling(tmp_path):
     # a new user's trial: name.semantic.yml beside name.yml was silently ignored
     grid = _example_grid(np.random.default_rng(1))

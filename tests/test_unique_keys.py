@@ -1,6 +1,7 @@
 """`filters.unique_keys`: JSON and YAML that refuse a key given twice, and accept everything else as the parsers do."""
 
 import json
+import re
 
 import pytest
 import yaml
@@ -43,3 +44,25 @@ def test_json_objects():
     }
     with pytest.raises(DuplicateKeyError, match="key 'b' given twice in one object"):
         json.loads('{"a": {"b": 1, "b": 2}}', object_pairs_hook=json_object_pairs)
+
+
+@pytest.mark.parametrize(
+    "text, read_as",
+    [("010", "8"), ("1:30", "90"), ("0x10", "16"), ("0b11", "3"), ("-012", "-10"), ("1:30.5", "90.5")],
+)
+def test_yaml_numbers_in_another_base_are_refused_not_misread(text, read_as):
+    """An outside audit: `outer: [[0,0],[010,0],...]` put a corner at x = 8 without a word (YAML 1.1 octal), as
+    `1:30` is 90 (base 60)."""
+    from filters.unique_keys import YAMLNumberError
+
+    with pytest.raises(YAMLNumberError, match=rf"line 2: '{re.escape(text)}' is read by YAML as {read_as}"):
+        load_yaml(f"a: 1\nb: [0, {text}]\n")
+    assert load_yaml("a: [0, 10, -0, 1_000, 0.5, '010', 010.5]") == {"a": [0, 10, 0, 1000, 0.5, "010", 10.5]}
+
+
+def test_a_layout_file_with_an_octal_coordinate_is_a_layout_error(tmp_path):
+    from semreloc_env.layouts import LayoutError, load_layout
+
+    (tmp_path / "q.yaml").write_text("outer: [[0, 0], [010, 0], [010, 4], [0, 4]]\n")
+    with pytest.raises(LayoutError, match=r"q.yaml: line 1: '010' is read by YAML as 8"):
+        load_layout(tmp_path / "q.yaml")

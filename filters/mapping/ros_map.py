@@ -48,7 +48,7 @@ import yaml
 
 from filters.mapping.grid import GridMap
 from filters.numbers import is_exponent_form, yaml_number_hint
-from filters.unique_keys import DuplicateKeyError, load_yaml
+from filters.unique_keys import FileTextError, load_yaml
 
 __all__ = [
     "MapFormatError",
@@ -258,7 +258,7 @@ def _read_yaml(path: Path) -> dict:
         raise MapFormatError(path, "not a UTF-8 text file") from None
     try:
         doc = load_yaml(text)
-    except DuplicateKeyError as e:
+    except FileTextError as e:
         raise MapFormatError(path, str(e)) from None
     except yaml.YAMLError as e:
         raise MapFormatError(path, f"not valid YAML ({e})") from None

@@ -42,7 +42,7 @@ import shapely
 
 from filters.mapping.grid import DEFAULT_CLASS_NAMES
 from filters.numbers import is_real, yaml_number_hint
-from filters.unique_keys import DuplicateKeyError, json_object_pairs, load_yaml
+from filters.unique_keys import FileTextError, json_object_pairs, load_yaml
 
 CLASS_NAMES: tuple[str, ...] = DEFAULT_CLASS_NAMES
 """Object classes a layout may use; scan label ``k + 1`` is ``CLASS_NAMES[k]``."""
@@ -524,7 +524,7 @@ def load_layout(path: str | Path) -> Layout:
             data = load_yaml(text)
         else:
             data = json.loads(text, object_pairs_hook=json_object_pairs)
-    except DuplicateKeyError as e:
+    except FileTextError as e:
         raise LayoutError(f"{path}: {e}") from None
     except json.JSONDecodeError as e:
         raise LayoutError(f"{path}: not valid JSON: {e}") from None

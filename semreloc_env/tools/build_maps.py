@@ -23,7 +23,8 @@ import numpy as np
 from filters.experiments.cli import command, parse
 from filters.mapping.metrics import semantic_surface_quality
 from filters.mapping.ros_map import save_map
-from semreloc_env.layouts import check_layout_option, get_layout
+from semreloc_env.envs.base import check_seed_use
+from semreloc_env.layouts import PROCEDURAL_LAYOUTS, check_layout_option, get_layout
 from semreloc_env.mapping_run import build_maps, mapping_path, narrow_drive
 from semreloc_env.rasterize import rasterize
 
@@ -53,6 +54,7 @@ class Args:
             raise ValueError(f"resolution must be a finite number > 0 m, got {self.resolution}")
         # an unknown name or a bad file: refused here, not after the imports of a mapping run
         name = check_layout_option(self.layout, seed=self.layout_seed).name
+        check_seed_use(self.layout, self.layout_seed, "nominal")  # as gym.make: a seed a file would ignore
         if name in ("", ".", "..") or Path(name).name != name or "\\" in name:
             raise ValueError(
                 f"layout: its name {name!r} cannot name the map files in --out (it is empty or a path); "
@@ -71,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     grid = build_maps(
         layout, rng=np.random.default_rng(args.seed), resolution_m=args.resolution, version=args.mapping_version
     )
-    name = layout.name if not layout.name.startswith("procedural") else f"{layout.name}_{args.layout_seed}"
+    # the seed names a procedural layout's maps; a file's own name (even one starting "procedural") names its maps
+    name = f"{layout.name}_{args.layout_seed}" if args.layout in PROCEDURAL_LAYOUTS else layout.name
     seconds = time.perf_counter() - t0
     path = save_map(grid, out / f"{name}.yaml")
     truth = rasterize(layout, args.resolution)
