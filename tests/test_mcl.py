@@ -1,4 +1,5 @@
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -146,6 +147,34 @@ def test_motion_model_backward_moves_back_with_forward_noise():
     assert back[:, 0].std() == pytest.approx(fwd[:, 0].std(), rel=0.05)
     # heading noise stays small: backward motion is not a half turn
     assert np.abs(back[:, 2]).max() < 1.0
+
+
+@pytest.mark.parametrize("delta", [(-0.005, 0.0, 0.0), (0.0, 0.005, 0.0), (-0.003, -0.004, 0.3)])
+def test_a_step_under_min_trans_moves_in_its_own_direction_with_exact_small_moves(delta):
+    """An outside audit: a step under min_trans_m went along the particle's heading (rot1 = 0), so 5 mm backwards
+    was 5 mm forwards. The default keeps that (every env's episodes); exact_small_moves moves the step as it was,
+    in the particle sets, the single-pose path and the NumPy reference alike, and keeps the noise of a turn."""
+    quiet = dict(alpha1=0.0, alpha2=0.0, alpha3=0.0, alpha4=0.0)
+    exact = OdometryMotionModel(OdometryMotionConfig(**quiet, exact_small_moves=True))
+    legacy = OdometryMotionModel(OdometryMotionConfig(**quiet))
+    start = np.array([[1.0, 2.0, 0.4]])
+    want = compose(start[0], np.array(delta))
+    for moved in (
+        exact.sample(start, delta, np.random.default_rng(0))[0],
+        exact.sample_reference(start, delta, np.random.default_rng(0))[0],
+        exact.sample_pose(start[0], delta, np.random.default_rng(0)),
+    ):
+        np.testing.assert_allclose(moved, want, atol=1e-12)
+    forward = legacy.sample(start, delta, np.random.default_rng(0))[0]  # the legacy model: along the heading
+    np.testing.assert_allclose(
+        forward[:2], start[0, :2] + math.hypot(*delta[:2]) * np.array([np.cos(0.4), np.sin(0.4)])
+    )
+    noisy = OdometryMotionConfig(alpha1=0.1, alpha2=0.1, alpha3=0.1, alpha4=0.1)
+    assert OdometryMotionModel(replace(noisy, exact_small_moves=True)).stds(delta) == OdometryMotionModel(noisy).stds(
+        delta
+    )
+    with pytest.raises(ValueError, match="exact_small_moves must be a bool"):
+        OdometryMotionConfig(exact_small_moves=1)
 
 
 # --------------------------------------------------------------------------- tracking and relocalization

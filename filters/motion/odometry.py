@@ -58,6 +58,13 @@ class OdometryMotionConfig:
         min_trans_m: below this translation, ``rot1`` is taken as 0 (the heading of
             a tiny displacement is meaningless) and the whole heading change goes
             into ``rot2``.
+        exact_small_moves: False (as AMCL, and every env up to ``SemReloc-v21``): that ``rot1 = 0`` moves the
+            particle too, so a step shorter than ``min_trans_m`` goes along the particle's heading whatever its
+            direction: a 5 mm step backwards or sideways is taken 5 mm forwards (an outside audit: 200 such steps
+            backwards end 1 m ahead). True: the step moves in its own direction (``rot1 = atan2(dy, dx)``), and only
+            the noise takes it as a turn on the spot (its stds those of ``rot1 = 0``). Opt in with
+            ``odometry={"exact_small_moves": True}`` (the simulated odometry) and ``relocalizer={"motion":
+            {"exact_small_moves": True}}`` (the filter's model).
     """
 
     alpha1: float = 0.2
@@ -65,8 +72,12 @@ class OdometryMotionConfig:
     alpha3: float = 0.2
     alpha4: float = 0.2
     min_trans_m: float = 0.01
+    exact_small_moves: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.exact_small_moves, (bool, np.bool_)):
+            raise ValueError(f"OdometryMotionConfig.exact_small_moves must be a bool, got {self.exact_small_moves!r}")
+        object.__setattr__(self, "exact_small_moves", bool(self.exact_small_moves))
         for name in ("alpha1", "alpha2", "alpha3", "alpha4", "min_trans_m"):
             v = getattr(self, name)
             if not (is_real(v) and np.isfinite(v) and v >= 0):
@@ -115,7 +126,19 @@ class OdometryMotionModel:
 
     def stds(self, delta: np.ndarray) -> tuple[float, float, float]:
         """Standard deviations ``(rot1 rad, trans m, rot2 rad)`` of the noise for ``delta``."""
-        return self._stds(*decompose(delta, self.config.min_trans_m))
+        return self._parts(delta)[3:]
+
+    def _parts(self, delta) -> tuple[float, float, float, float, float, float]:
+        """``(rot1, trans, rot2, std rot1, std trans, std rot2)`` of the increment ``delta``: the motion and its
+        noise (they differ for a step under ``min_trans_m`` with ``exact_small_moves``)."""
+        c = self.config
+        rot1, trans, rot2 = decompose(delta, c.min_trans_m)
+        stds = self._stds(rot1, trans, rot2)
+        if c.exact_small_moves and 0.0 < trans < c.min_trans_m:
+            dx, dy, _ = finite_increment(delta, "odometry delta")
+            exact = float(np.arctan2(dy, dx))
+            return exact, trans, wrap_float(rot1 + rot2 - exact), *stds
+        return rot1, trans, rot2, *stds
 
     def _stds(self, rot1: float, trans: float, rot2: float) -> tuple[float, float, float]:
         """`stds` of the decomposed increment ``(rot1, trans, rot2)``."""
@@ -143,8 +166,7 @@ class OdometryMotionModel:
         p = np.asarray(poses, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
-        rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
-        s_r1, s_t, s_r2 = self._stds(rot1, trans, rot2)
+        rot1, trans, rot2, s_r1, s_t, s_r2 = self._parts(delta)
         noise = rng.standard_normal((3, p.shape[0]))
         out = np.empty_like(p)
         _sample_kernel(np.ascontiguousarray(p), rot1, trans, rot2, s_r1, s_t, s_r2, noise, out)
@@ -153,8 +175,7 @@ class OdometryMotionModel:
     def sample_reference(self, poses: np.ndarray, delta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """`sample` as plain NumPy array code (the reference the compiled kernel is tested against)."""
         p = np.asarray(poses, dtype=np.float64)
-        rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
-        s_r1, s_t, s_r2 = self.stds(delta)
+        rot1, trans, rot2, s_r1, s_t, s_r2 = self._parts(delta)
         n = p.shape[0]
         noise = rng.standard_normal((3, n))
         r1 = rot1 - s_r1 * noise[0]
@@ -180,8 +201,7 @@ class OdometryMotionModel:
         if p.shape != (3,):
             raise ValueError(f"pose must have shape (3,), got {np.shape(pose)}")
         x, y, th = p.tolist()
-        rot1, trans, rot2 = decompose(delta, self.config.min_trans_m)
-        s_r1, s_t, s_r2 = self._stds(rot1, trans, rot2)
+        rot1, trans, rot2, s_r1, s_t, s_r2 = self._parts(delta)
         n0, n1, n2 = rng.standard_normal(3).tolist()
         heading = th + (rot1 - s_r1 * n0)
         t = trans - s_t * n1
