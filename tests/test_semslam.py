@@ -349,3 +349,23 @@ def test_semslam_eval_gives_the_same_table_on_both_ids(capsys):
     assert tables["SemSlam-v0"] == tables["SemSlam-v1"]
     assert "WOCPF (K=2), ML association" in tables["SemSlam-v1"]
     assert "undefined in 1 episode(s)" in tables["SemSlam-v1"]  # v1's info has no landmark error there
+
+
+def test_the_slam_odometry_model_takes_exact_small_moves_too():
+    """An outside SLAM audit: the SLAM motion model also took a step under min_trans_m along the heading (SemSlam-v1
+    with continuous actions at -0.15 moved its estimate forwards while the robot backed). exact_small_moves, off by
+    default so that every env's episodes stay as they were, moves it in its own direction, its Jacobian too."""
+    from filters.motion.odometry import OdometryMotionConfig
+    from filters.motion.odometry_slam import OdometryIncrementModel
+
+    exact = OdometryIncrementModel(OdometryMotionConfig(exact_small_moves=True))
+    start = np.array([[1.0, 2.0, 0.4]])
+    for delta in ([-0.005, 0.0, 0.0], [0.0, 0.008, 0.1]):
+        np.testing.assert_allclose(exact.mean(start, delta)[0], compose(start[0], np.array(delta)), atol=1e-12)
+        fx, _ = exact.jacobians(start, delta)
+        eps = 1e-7
+        bumped = start + np.array([[0.0, 0.0, eps]])
+        numeric = (exact.mean(bumped, delta)[0] - exact.mean(start, delta)[0]) / eps
+        np.testing.assert_allclose(fx[0][:, 2], numeric, atol=1e-6)
+    legacy = OdometryIncrementModel()
+    assert legacy.mean(start, [-0.005, 0.0, 0.0])[0][0] > start[0, 0]  # the default: forwards, as before

@@ -184,3 +184,17 @@ def test_initial_pose_cov_is_checked():
     assert ekf.ids.tolist() == [123_456]
     with pytest.raises(ValueError, match="must be symmetric"):
         EKFSLAM(UnicycleModel(), RangeBearingNoise(0.1, 0.01), initial_pose_cov=[[1, 0.5, 0], [0, 1, 0], [0, 0, 1]])
+
+
+@pytest.mark.parametrize("gate_first, expected", [(False, (None, False)), (True, (1, False))])
+def test_ml_association_can_choose_among_the_landmarks_inside_the_gate(gate_first, expected):
+    """An outside SLAM audit: the candidate of least NIS + log det S was chosen over all landmarks and then gated, so
+    a tight landmark outside the gate (A) beat one inside it (B) and the observation was ignored. The default keeps
+    that, so that every run stays as it was; gate_first chooses among the landmarks inside the gate."""
+    f = EKFSLAM(BicycleModel(4.0, 1e-6, 1e-7), RangeBearingNoise(0.01, 0.001),
+                EKFSLAMConfig(AssociationConfig("ml", gate_first=gate_first)))  # fmt: skip
+    f.x = np.array([0.0, 0.0, 0.0, 10.0, 0.0, 10.0, 0.6])
+    f.P = np.diag([0.0, 0.0, 0.0, 1e-6, 1e-6, 0.09, 0.09])
+    assert f._associate_ml(np.array([10.04, 0.0])) == expected
+    with pytest.raises(ValueError, match="gate_first must be a bool"):
+        AssociationConfig(gate_first=1)

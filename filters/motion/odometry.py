@@ -126,9 +126,9 @@ class OdometryMotionModel:
 
     def stds(self, delta: np.ndarray) -> tuple[float, float, float]:
         """Standard deviations ``(rot1 rad, trans m, rot2 rad)`` of the noise for ``delta``."""
-        return self._parts(delta)[3:]
+        return self.parts(delta)[3:]
 
-    def _parts(self, delta) -> tuple[float, float, float, float, float, float]:
+    def parts(self, delta) -> tuple[float, float, float, float, float, float]:
         """``(rot1, trans, rot2, std rot1, std trans, std rot2)`` of the increment ``delta``: the motion and its
         noise (they differ for a step under ``min_trans_m`` with ``exact_small_moves``)."""
         c = self.config
@@ -166,7 +166,7 @@ class OdometryMotionModel:
         p = np.asarray(poses, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"poses must have shape (N, 3), got {p.shape}")
-        rot1, trans, rot2, s_r1, s_t, s_r2 = self._parts(delta)
+        rot1, trans, rot2, s_r1, s_t, s_r2 = self.parts(delta)
         noise = rng.standard_normal((3, p.shape[0]))
         out = np.empty_like(p)
         _sample_kernel(np.ascontiguousarray(p), rot1, trans, rot2, s_r1, s_t, s_r2, noise, out)
@@ -175,7 +175,7 @@ class OdometryMotionModel:
     def sample_reference(self, poses: np.ndarray, delta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """`sample` as plain NumPy array code (the reference the compiled kernel is tested against)."""
         p = np.asarray(poses, dtype=np.float64)
-        rot1, trans, rot2, s_r1, s_t, s_r2 = self._parts(delta)
+        rot1, trans, rot2, s_r1, s_t, s_r2 = self.parts(delta)
         n = p.shape[0]
         noise = rng.standard_normal((3, n))
         r1 = rot1 - s_r1 * noise[0]
@@ -201,7 +201,7 @@ class OdometryMotionModel:
         if p.shape != (3,):
             raise ValueError(f"pose must have shape (3,), got {np.shape(pose)}")
         x, y, th = p.tolist()
-        rot1, trans, rot2, s_r1, s_t, s_r2 = self._parts(delta)
+        rot1, trans, rot2, s_r1, s_t, s_r2 = self.parts(delta)
         n0, n1, n2 = rng.standard_normal(3).tolist()
         heading = th + (rot1 - s_r1 * n0)
         t = trans - s_t * n1

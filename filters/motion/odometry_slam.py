@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel, decompose
+from filters.motion.odometry import OdometryMotionConfig, OdometryMotionModel
 from filters.pose import wrap_angle
 
 
@@ -57,7 +57,8 @@ class OdometryIncrementModel:
 
     Args:
         config: noise alphas of the rot1-trans-rot2 model (`filters.motion.odometry.OdometryMotionConfig`);
-            default the model's defaults. ``min_trans_m`` decides when ``rot1`` is taken as 0.
+            default the model's defaults. ``min_trans_m`` decides when ``rot1`` is taken as 0, and
+            ``exact_small_moves`` whether a shorter step still moves in its own direction (`OdometryMotionConfig`).
 
     Stateless apart from the config; randomness only in `sample`, from the ``rng`` passed in.
     """
@@ -74,7 +75,7 @@ class OdometryIncrementModel:
     def mean(self, poses, u, dt: float = 0.0) -> np.ndarray:
         """Noise-free next poses ``(N, 3)``, headings wrapped to ``[-pi, pi)``. ``dt`` is ignored."""
         p = _poses(poses)
-        rot1, trans, rot2 = decompose(_increment(u), self.config.min_trans_m)
+        rot1, trans, rot2 = self._model.parts(_increment(u))[:3]
         heading = p[:, 2] + rot1
         out = np.empty_like(p)
         out[:, 0] = p[:, 0] + trans * np.cos(heading)
@@ -86,8 +87,7 @@ class OdometryIncrementModel:
         """``(F_x (N, 3, 3), F_u (N, 3, 3))``: of `mean` wrt the pose and the standardised noise."""
         p = _poses(poses)
         delta = _increment(u)
-        rot1, trans, _ = decompose(delta, self.config.min_trans_m)
-        s_r1, s_t, s_r2 = self._model.stds(delta)
+        rot1, trans, _, s_r1, s_t, s_r2 = self._model.parts(delta)
         n = p.shape[0]
         heading = p[:, 2] + rot1
         c, s = np.cos(heading), np.sin(heading)

@@ -28,13 +28,20 @@ class AssociationConfig:
     mode: ``"ml"`` (maximum likelihood with gates) or ``"known"`` (ids given with each scan).
     gate_associate: NIS below which the ML candidate is accepted (default: chi^2_2 99 %, 9.21).
     gate_new: NIS above which (for every landmark) a new landmark is made (default 25, Bailey's GATE_AUGMENT).
+    gate_first: False (every registered env and reproduction, so that their runs stay as they were): the candidate
+        of least ``NIS + log det S`` over all landmarks is chosen, then gated, so a tight landmark outside the gate
+        can win and the observation is ignored though another landmark lies inside it (an outside audit). True: the
+        choice is among the landmarks inside the gate only, as Bailey's ``data_associate.m``.
     """
 
     mode: str = "ml"
     gate_associate: float = 9.21
     gate_new: float = 25.0
+    gate_first: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.gate_first, bool):
+            raise ValueError(f"AssociationConfig.gate_first must be a bool, got {self.gate_first!r}")
         if self.mode not in ASSOCIATIONS:
             raise ValueError(f"association mode must be one of {ASSOCIATIONS}, got {self.mode!r}")
         if not (0 < self.gate_associate <= self.gate_new < math.inf):

@@ -154,7 +154,10 @@ class EKFSLAM:
         gate = self.config.association
         z_hat, _, _, s = self._innovation_covs()
         nis, logdet = nis_and_logdet(innovation(z[None, :], z_hat), s)
-        best = int(np.argmin(nis + logdet))
+        score = nis + logdet
+        if gate.gate_first:
+            score = np.where(nis < gate.gate_associate, score, np.inf)
+        best = int(np.argmin(score))
         if nis[best] < gate.gate_associate:
             return best, False
         return None, bool(nis.min() > gate.gate_new)

@@ -319,6 +319,8 @@ class FastSLAM:
             nis, logdet = nis_and_logdet(v, s[:, :, None])
             nis = np.where(exists[:, :, None], nis, np.inf)
             score = nis + logdet
+            if gate.gate_first:
+                score = np.where(nis < gate.gate_associate, score, np.inf)
             best = np.argmin(score, axis=1)  # (N, K)
             best_nis = np.take_along_axis(nis, best[:, None, :], axis=1)[:, 0, :]
             min_nis = nis.min(axis=1)

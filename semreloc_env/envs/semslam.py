@@ -43,6 +43,8 @@ class SlamParams:
             detections on no object, i.e. false positives, are then dropped). False (default): maximum
             likelihood association with the NIS gates below.
         gate_associate, gate_new: NIS gates of `filters.slam.association.AssociationConfig`.
+        gate_first: choose the ML match among the landmarks inside the gate (`AssociationConfig.gate_first`;
+            False, the default, keeps the episodes of this env's release).
         resampler: resampling scheme name (`filters.smc.resampling.get_resampler`).
         resample_ess_fraction: resample when the ESS of the WOC weights falls below this fraction of N
             (1.0: after every update with observations, as the paper does).
@@ -56,6 +58,7 @@ class SlamParams:
     known_association: bool = False
     gate_associate: float = 9.21
     gate_new: float = 25.0
+    gate_first: bool = False
     resampler: str = "systematic"
     resample_ess_fraction: float = 1.0
     motion_noise: dict | OdometryMotionConfig | None = None
@@ -77,6 +80,7 @@ class SlamParams:
             mode="known" if self.known_association else "ml",
             gate_associate=float(self.gate_associate),
             gate_new=float(self.gate_new),
+            gate_first=bool(self.gate_first) if isinstance(self.gate_first, (bool, np.bool_)) else self.gate_first,
         )
         return FastSLAMConfig(
             n_particles=self.n_particles,
