@@ -34,14 +34,18 @@ def json_object_pairs(pairs: list) -> dict:
     return dict(pairs)
 
 
-def load_yaml(text: str):
+def load_yaml(text: str, numbers: str = "refuse"):
     """``yaml.safe_load(text)``, but a key given twice in one mapping raises `DuplicateKeyError` naming
     both lines, and an integer YAML 1.1 reads in another base (``010`` is 8, ``1:30`` is 90, ``0x10`` is 16)
-    raises `YAMLNumberError` naming its line. Merge keys (``<<: *anchor``) may still be overridden, as YAML
+    raises `YAMLNumberError` naming its line (``numbers="refuse"``, the layout files'); with ``numbers="yaml1.2"``
+    such scalars are read as a YAML 1.2 reader reads them (ROS's yaml-cpp, for map files): ``010`` as 10, ``1:30``
+    as the string it is, ``0x10`` as 16. Merge keys (``<<: *anchor``) may still be overridden, as YAML
     intends. Other errors are ``yaml.YAMLError`` (an unhashable key, a list used as a key, is the loader's own
     error)."""
     import yaml
 
+    if numbers not in ("refuse", "yaml1.2"):
+        raise ValueError(f"numbers must be 'refuse' or 'yaml1.2', got {numbers!r}")
     merge_tag = "tag:yaml.org,2002:merge"
 
     class Loader(yaml.SafeLoader):
@@ -71,6 +75,12 @@ def load_yaml(text: str):
         def construct_yaml_int(self, node):
             text = str(self.construct_scalar(node))
             body = text.replace("_", "").lstrip("+-").lower()
+            if numbers == "yaml1.2":
+                if ":" in body:
+                    return text
+                if len(body) > 1 and body.startswith("0") and body.isdigit():
+                    return int(text.replace("_", ""), 10)
+                return super().construct_yaml_int(node)
             if ":" in body or body.startswith(("0x", "0b", "0o")) or (len(body) > 1 and body.startswith("0")):
                 value = super().construct_yaml_int(node)
                 raise YAMLNumberError(
@@ -81,6 +91,8 @@ def load_yaml(text: str):
 
         def construct_yaml_float(self, node):
             text = str(self.construct_scalar(node))
+            if ":" in text and numbers == "yaml1.2":
+                return text
             if ":" in text:  # 1:30.5 is 90.5 to YAML 1.1
                 value = super().construct_yaml_float(node)
                 raise YAMLNumberError(

@@ -30,6 +30,7 @@ from filters.numbers import is_int
 
 from .layouts import BUILTIN_LAYOUTS_NAMES, PROCEDURAL_LAYOUTS, PROCEDURAL_VERSION, Layout, find_layout_file, get_layout
 from .maps import maps_for
+from .wrappers import KidnapBeyondLimitError
 
 HELD_OUT_LAYOUT_SEEDS: range = range(1_000_000, 1_000_500)
 """Procedural layout seeds for evaluation only (500 per procedural kind): never drawn for training."""
@@ -281,7 +282,7 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
             out = run()
             done = keep
         except ValueError as e:
-            if draw is not None and options:  # an option that fits another layout
+            if draw is not None and options and not isinstance(e, KidnapBeyondLimitError):  # a place in this layout
                 raise ValueError(f"{e} (in the layout drawn for this reset: {draw.kind}, seed {draw.seed})") from None
             raise
         finally:
@@ -301,7 +302,9 @@ class RandomLayout(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def check_reset_through(self, seed, options, inner) -> None:
         """`semreloc_env.wrappers.check_reset`'s hook: the inner envs check ``options`` on the layout this reset would
-        draw (a start pose must be free there, not in the layout of the episode before); changes nothing."""
+        draw (a start pose must be free there, not in the layout of the episode before). No episode changes: the layout
+        stream and the env's layout are put back; the drawn layout's map stays in this wrapper's map cache (where the
+        reset would put it), and `set_layout` closes a renderer, which reopens at the next frame."""
         self._on_drawn_layout(seed, options, lambda: inner(seed, options), keep=False)
 
     def step(self, action):

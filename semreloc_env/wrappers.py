@@ -296,7 +296,7 @@ def _check_reset(env: gym.Env, seed, options, limit: int | None) -> None:
     env.check_reset(seed=seed, options=options)
     k = (options or {}).get("kidnap_at_step")
     if k is not None and limit is not None and k > limit:
-        raise ValueError(
+        raise KidnapBeyondLimitError(
             f"kidnap_at_step {k} is beyond the episode's time limit of {limit} steps: the kidnap would never happen"
         )
 
@@ -311,9 +311,18 @@ def find_wrapper(env: gym.Env, wrapper_class: type[gym.Wrapper]) -> gym.Wrapper 
 
 
 def _time_limit(env: gym.Env) -> int | None:
-    """``max_episode_steps`` of the first ``TimeLimit`` in ``env``'s wrapper chain, or None."""
-    limit = find_wrapper(env, gym.wrappers.TimeLimit)
-    return None if limit is None else limit._max_episode_steps
+    """The smallest ``max_episode_steps`` of the ``TimeLimit`` wrappers in ``env``'s chain (the one that ends the
+    episode first), or None."""
+    limits = []
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, gym.wrappers.TimeLimit):
+            limits.append(env._max_episode_steps)
+        env = env.env
+    return min(limits, default=None)
+
+
+class KidnapBeyondLimitError(ValueError):
+    """A reset's ``kidnap_at_step`` beyond the episode's time limit (`check_reset`): the kidnap would never happen."""
 
 
 from .observations import ActiveObservation  # noqa: E402  (the spatial observation for active relocalization)

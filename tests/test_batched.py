@@ -182,6 +182,32 @@ def test_the_reset_check_sees_what_the_robots_wrappers_reset_with():
     np.testing.assert_array_equal(drawn.envs[0].unwrapped.world.pose, [1.0, 4.25, 0.0])
 
 
+def test_the_reset_check_takes_the_tightest_time_limit_and_a_ctrl_c_in_a_reset_loses_nothing(monkeypatch):
+    """A review's: the outermost TimeLimit was taken (an outer 50 over an inner 10 let a kidnap at step 20 pass),
+    the limit's error named a drawn layout it has nothing to do with, and a Ctrl-C inside a reset left RandomLayout's
+    layout put back but the env's world rebuilt from the new draw."""
+    from semreloc_env.layout_sampling import RandomLayout
+    from semreloc_env.wrappers import check_reset
+
+    inner = gym.make("SemReloc-v21", layout="lab", relocalizer={"n_particles": 200}, map_source="perfect",
+                     max_episode_steps=10)  # fmt: skip
+    env = gym.wrappers.TimeLimit(RandomLayout(inner), 50)
+    with pytest.raises(ValueError, match=r"limit of 10 steps: the kidnap would never happen$"):
+        check_reset(env, seed=0, options={"tracking": True, "kidnap_at_step": 20})
+    env.reset(seed=0)
+    base = env.unwrapped
+    before = (base.layout, base.world, base.world.pose.copy(), base._steps)
+
+    def interrupted(options):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(base, "_reset_estimator", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        env.reset(seed=5)
+    assert (base.layout, base.world, base._steps) == before[:1] + before[1:2] + before[3:]
+    np.testing.assert_array_equal(base.world.pose, before[2])
+
+
 def test_a_float_array_of_discrete_actions_says_which_robots_hold_nan():
     # a new user's trial: [0, 1, nan] is a float array, so robot 0's 0.0 was blamed alone; a later trial: naming robot
     # 0 first still misled, since every robot's action is a float

@@ -66,3 +66,12 @@ def test_a_layout_file_with_an_octal_coordinate_is_a_layout_error(tmp_path):
     (tmp_path / "q.yaml").write_text("outer: [[0, 0], [010, 0], [010, 4], [0, 4]]\n")
     with pytest.raises(LayoutError, match=r"q.yaml: line 1: '010' is read by YAML as 8"):
         load_layout(tmp_path / "q.yaml")
+
+
+def test_ros_map_files_read_numbers_as_ros_does(tmp_path):
+    """A review: the layout files' refusal also refused a ROS map for a key the reader never uses (`saved: 12:30`);
+    map files are read as ROS's YAML 1.2 reader reads them."""
+    doc = load_yaml("a: 010\nsaved: 12:30\nc: 0x10\nd: 1:30.5\ne: 0.65\nf: 0\n", numbers="yaml1.2")
+    assert doc == {"a": 10, "saved": "12:30", "c": 16, "d": "1:30.5", "e": 0.65, "f": 0}
+    with pytest.raises(ValueError, match="numbers must be"):
+        load_yaml("a: 1", numbers="yaml1.1")

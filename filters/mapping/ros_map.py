@@ -257,7 +257,7 @@ def _read_yaml(path: Path) -> dict:
     except UnicodeDecodeError:
         raise MapFormatError(path, "not a UTF-8 text file") from None
     try:
-        doc = load_yaml(text)
+        doc = load_yaml(text, numbers="yaml1.2")  # as ROS's own reader: 010 is 10, 12:30 a string
     except FileTextError as e:
         raise MapFormatError(path, str(e)) from None
     except yaml.YAMLError as e:

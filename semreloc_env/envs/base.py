@@ -172,7 +172,7 @@ class SemRelocBase(gym.Env):
             lidar_scan, semantic_scan = self._sense()
             self._reset_estimator(options)
             self._step_estimator(odom, lidar_scan, semantic_scan)
-        except Exception:
+        except BaseException:  # a Ctrl-C too: the wrappers (RandomLayout) put theirs back on any exit
             self.__dict__.clear()
             self.__dict__.update(saved)
             raise
