@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator, Sequence
+from copy import deepcopy
 from typing import Any
 
 import gymnasium as gym
@@ -47,10 +48,26 @@ def closing_venv(venv) -> Iterator:
 
 
 def check_seed(seed):
-    """``seed`` as an int or None; ValueError for anything else (SB3's ``VecEnv.seed`` would add an index to it)."""
-    if seed is not None and not is_int(seed):
-        raise ValueError(f"seed must be None or an int, got {seed!r:.80}")
+    """``seed`` as an int or None; ValueError for anything else, negatives included (SB3's ``VecEnv.seed`` would add an
+    index to it, and a negative seed failed only at every later reset)."""
+    if seed is not None and not (is_int(seed) and seed >= 0):
+        raise ValueError(f"seed must be None or an int >= 0, got {seed!r:.80}")
     return None if seed is None else int(seed)
+
+
+def options_per_robot(options, num_envs: int) -> list[dict]:
+    """SB3's ``set_options`` argument as one options dict per robot (``{}``: none): None, one dict for every robot, or a
+    list of ``num_envs`` dicts or Nones; ValueError for anything else (a non-dict stored by SB3 failed at every later
+    reset, an int with a TypeError naming nothing)."""
+    if options is None:
+        return [{} for _ in range(num_envs)]
+    if isinstance(options, dict):
+        return [deepcopy(options) for _ in range(num_envs)]
+    if not isinstance(options, (list, tuple)) or not all(o is None or isinstance(o, dict) for o in options):
+        raise ValueError(f"options must be None, a dict or a list of {num_envs} dicts (or None), got {options!r:.80}")
+    if len(options) != num_envs:
+        raise ValueError(f"got {len(options)} options dicts for {num_envs} robots (one dict, or one per robot)")
+    return [deepcopy(o) if o else {} for o in options]
 
 
 class SB3VecEnvAdapter(VecEnv):
@@ -71,6 +88,13 @@ class SB3VecEnvAdapter(VecEnv):
         """SB3's seeding (robot ``i`` gets ``seed + i`` at the next reset); ValueError unless ``seed`` is None
         or an int."""
         return super().seed(check_seed(seed))
+
+    def set_options(self, options: list[dict] | dict | None = None) -> None:
+        """SB3's ``set_options``, checked now: the shape (`options_per_robot`) and every robot's reset with its seed and
+        options (ValueError naming the robot); refused options leave the ones set before."""
+        per_robot = options_per_robot(options, self.num_envs)
+        self.venv.check_seeds(list(self._seeds), [o or None for o in per_robot])
+        self._options = per_robot
 
     def _stack(self, obs_list: list) -> VecEnvObs:
         if self._keys is None:  # a Box observation (FlattenObservation, FlatObservation): one array

@@ -37,7 +37,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepR
 from filters.numbers import is_int
 from semreloc_env.envs.batched import SemRelocLoopVectorEnv, action_list, shortened_message
 
-from .vec_env import SB3VecEnvAdapter, check_seed
+from .vec_env import SB3VecEnvAdapter, check_seed, options_per_robot
 
 
 class RemoteTraceback(Exception):
@@ -337,6 +337,11 @@ class WorkersVecEnv(VecEnv):
         """SB3's seeding (robot ``i`` gets ``seed + i`` at the next reset); ValueError unless ``seed`` is None
         or an int."""
         return super().seed(check_seed(seed))
+
+    def set_options(self, options: list[dict] | dict | None = None) -> None:
+        """SB3's ``set_options``, its shape checked now (`agents.vec_env.options_per_robot`; each robot's options are
+        checked at the next `reset`, before any robot resets)."""
+        self._options = options_per_robot(options, self.num_envs)
 
     def reset(self) -> VecEnvObs:
         """Reset every robot; every robot's seed and options are checked first (ValueError, nothing reset)."""

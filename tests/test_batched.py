@@ -86,8 +86,19 @@ def test_bad_arguments():
         cont.step(np.array([0.5, 0.5], np.float32))
     from agents.vec_env import SB3VecEnvAdapter
 
-    with pytest.raises(ValueError, match="seed must be None or an int, got 'a'"):
+    with pytest.raises(ValueError, match="seed must be None or an int >= 0, got 'a'"):
         SB3VecEnvAdapter(venv).seed("a")
+    # a fuzzing audit's: a negative seed was taken here and failed at every later reset; options of the wrong kind too
+    adapter = SB3VecEnvAdapter(venv)
+    with pytest.raises(ValueError, match="seed must be None or an int >= 0, got -1"):
+        adapter.seed(-1)
+    adapter.set_options({"tracking": True, "kidnap_at_step": 5})
+    for bad, match in ((5, "options must be None, a dict or a list"), ([{}], "got 1 options dicts for 2 robots"),
+                       ({"bogus": 1}, "robot 0: .*bogus")):  # fmt: skip
+        with pytest.raises(ValueError, match=match):
+            adapter.set_options(bad)
+    assert adapter._options == [{"tracking": True, "kidnap_at_step": 5}] * 2  # the options set before are kept
+    adapter.reset()
     # an outside tester's trial: an array of seeds was refused deep in Gymnasium, a set (no order) accepted,
     # max_episode_steps=2.5 ran 2-step episodes (gym.make refuses it), a wrapper returning None failed later
     obs_array, _ = venv.reset(seed=np.array([4, 9]))
@@ -126,7 +137,10 @@ def test_rejected_steps_and_resets_move_no_robot():
     with pytest.raises(ValueError, match="robot 2"):
         adapter.step(np.array([0, 0, 9]))
     steps = [e.unwrapped._steps for e in venv.envs]
-    adapter.set_options([{}, {}, {"bogus": 1}])
+    with pytest.raises(ValueError, match="robot 2"):  # refused when set (it was at the reset), before any robot resets
+        adapter.set_options([{}, {}, {"bogus": 1}])
+    adapter.seed(-0)
+    adapter._seeds[2] = -5  # a bad seed that slipped past seed(): the reset's own check still refuses it
     with pytest.raises(ValueError, match="robot 2"):
         adapter.reset()
     assert [e.unwrapped._steps for e in venv.envs] == steps  # no robot was reset

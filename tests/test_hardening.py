@@ -182,6 +182,8 @@ def test_6_slam_particle_count_must_be_an_int(value):
         [0.5 + 1j, 0.0],
         np.array([0.5 + 1j, 0.0]),
         [True, 0],
+        [np.array(True), 0.5],  # a fuzzing audit's: a bool in a 0-d array drove at v = 1
+        [0.5, np.array(False)],
         np.ma.masked_array([0.5, 0.2], mask=[False, True]),
     ],
 )

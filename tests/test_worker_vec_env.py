@@ -205,9 +205,10 @@ def _ctrl_c_a_dead_worker_and_odd_calls():
         with pytest.raises(ValueError, match=r"robots \[4\] hold NaN or inf"):
             workers.step(np.array([0, 1, 0, 0, np.nan, 0.0]))
         # options must be one per robot, as in one process
-        workers.set_options([{}] * 7)
-        with pytest.raises(ValueError, match="got 7 options dicts for 6 robots"):
-            workers.reset()
+        with pytest.raises(ValueError, match="got 7 options dicts for 6 robots"):  # refused when set, as in one process
+            workers.set_options([{}] * 7)
+        with pytest.raises(ValueError, match="options must be None, a dict or a list"):
+            workers.set_options(5)
         workers.set_options(None)
         # keyword arguments of any name, and negative indices as in DummyVecEnv
         workers.set_attr("tag", "t5", indices=-1)

@@ -57,8 +57,10 @@ def decode_action(action, action_type: str, space: spaces.Space, robot: RobotPar
         a = np.asarray(action)
     except (TypeError, ValueError):
         a = None
-    if isinstance(action, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in action):
-        a = None  # [True, 0] would become the ints [1, 0]
+    if isinstance(action, (list, tuple)) and any(
+        isinstance(v, (bool, np.bool_)) or (isinstance(v, np.ndarray) and v.dtype.kind == "b") for v in action
+    ):
+        a = None  # [True, 0] (or [np.array(True), 0]) would become the numbers [1, 0]
     if a is None or a.shape != (2,) or a.dtype.kind not in "iuf":  # no strings, bools, complex or objects
         raise ValueError(f"invalid action {action!r:.80}: expected two real numbers (v, omega) in [-1, 1]")
     a = a.astype(np.float64)
