@@ -346,11 +346,7 @@ class WorkersVecEnv(VecEnv):
     def reset(self) -> VecEnvObs:
         """Reset every robot; every robot's seed and options are checked first (ValueError, nothing reset)."""
         self._usable()
-        seeds, options = list(self._seeds), list(self._options)
-        if len(options) != self.num_envs:  # set_options takes a list of any length
-            raise ValueError(
-                f"got {len(options)} options dicts for {self.num_envs} robots (one dict, or one per robot)"
-            )
+        seeds, options = list(self._seeds), list(self._options)  # one dict per robot: set_options checks it
         self._all("check_reset", [(seeds[self._block(w)], options[self._block(w)]) for w in range(self.workers)])
         try:
             outs = self._all("reset")

@@ -951,14 +951,20 @@ def layout_of(row: dict) -> tuple:
     return (row["layout"], row["layout_seed"], row["scenario"], row.get("layout_digest"))
 
 
+def _layout_clusters(rows: list[dict]) -> list[tuple] | None:
+    """Each row's layout (`layout_of`), or None with fewer than two layouts (no clusters to count)."""
+    clusters = [layout_of(r) for r in rows]
+    return clusters if len(set(clusters)) >= 2 else None
+
+
 def layouts_interval(values, rows: list[dict]) -> list[float] | None:
     """95 % bootstrap interval of the mean of ``values`` (one per row, e.g. paired differences) with each layout's
     rows resampled together (`filters.experiments.stats.cluster_bootstrap_interval`, seeded), or None with fewer
     than two layouts."""
     from filters.experiments.stats import cluster_bootstrap_interval
 
-    clusters = [layout_of(r) for r in rows]
-    if len(set(clusters)) < 2:
+    clusters = _layout_clusters(rows)
+    if clusters is None:
         return None
     _, lo, hi = cluster_bootstrap_interval(values, clusters, np.random.default_rng(0))
     return [lo, hi]
@@ -970,8 +976,8 @@ def layouts_rate_interval(hits: list[bool], rows: list[dict]) -> tuple[list[floa
     (`filters.experiments.stats.clustered_wilson_interval`); ``(None, None)`` with fewer than two layouts."""
     from filters.experiments.stats import clustered_wilson_interval
 
-    clusters = [layout_of(r) for r in rows]
-    if len(set(clusters)) < 2:
+    clusters = _layout_clusters(rows)
+    if clusters is None:
         return None, None
     effect, lo, hi = clustered_wilson_interval(np.asarray(hits, dtype=np.float64), clusters)
     return [lo, hi], effect
@@ -990,8 +996,13 @@ def summarise(rows: list[dict]) -> dict:
     for name, h in hits.items():
         k = sum(h)
         by_layout, effect = layouts_rate_interval(h, rows)
-        out[name] = {"rate": k / n, "ci95": wilson(k, n), "ci95_layouts": by_layout, "design_effect": effect}
-        out[name]["count"] = k
+        out[name] = {
+            "rate": k / n,
+            "ci95": wilson(k, n),
+            "ci95_layouts": by_layout,
+            "design_effect": effect,
+            "count": k,
+        }
     steps = [r["steps_to_success"] for r in rows if r["steps_to_success"] is not None]
     out["median_steps"] = float(np.median(steps)) if steps else None
     out["collisions_per_episode"] = float(np.mean([r["collisions"] for r in rows]))

@@ -40,8 +40,9 @@ class AssociationConfig:
     gate_first: bool = False
 
     def __post_init__(self) -> None:
-        if not isinstance(self.gate_first, bool):
+        if not isinstance(self.gate_first, (bool, np.bool_)):
             raise ValueError(f"AssociationConfig.gate_first must be a bool, got {self.gate_first!r}")
+        object.__setattr__(self, "gate_first", bool(self.gate_first))
         if self.mode not in ASSOCIATIONS:
             raise ValueError(f"association mode must be one of {ASSOCIATIONS}, got {self.mode!r}")
         if not (0 < self.gate_associate <= self.gate_new < math.inf):
@@ -49,6 +50,13 @@ class AssociationConfig:
                 f"need 0 < gate_associate <= gate_new < inf, got {self.gate_associate}, {self.gate_new} "
                 "(an infinite gate_new would never make a landmark once one exists)"
             )
+
+
+def ml_scores(nis: np.ndarray, logdet: np.ndarray, config: AssociationConfig) -> np.ndarray:
+    """The score whose least value picks the maximum-likelihood candidate: ``NIS + log det S``, and with
+    ``config.gate_first`` inf outside the association gate (so the choice is among the gated candidates)."""
+    score = nis + logdet
+    return np.where(nis < config.gate_associate, score, np.inf) if config.gate_first else score
 
 
 def inv2(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

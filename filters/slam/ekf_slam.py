@@ -15,7 +15,7 @@ import numpy as np
 
 from filters.motion.velocity import MotionModel
 from filters.pose import wrap_angle
-from filters.slam.association import AssociationConfig, innovation, inv2, nis_and_logdet
+from filters.slam.association import AssociationConfig, innovation, inv2, ml_scores, nis_and_logdet
 from filters.slam.fastslam import SLAMEstimate
 from filters.slam.landmarks import (
     RangeBearingNoise,
@@ -154,10 +154,7 @@ class EKFSLAM:
         gate = self.config.association
         z_hat, _, _, s = self._innovation_covs()
         nis, logdet = nis_and_logdet(innovation(z[None, :], z_hat), s)
-        score = nis + logdet
-        if gate.gate_first:
-            score = np.where(nis < gate.gate_associate, score, np.inf)
-        best = int(np.argmin(score))
+        best = int(np.argmin(ml_scores(nis, logdet, gate)))
         if nis[best] < gate.gate_associate:
             return best, False
         return None, bool(nis.min() > gate.gate_new)

@@ -33,7 +33,7 @@ from scipy.special import logsumexp
 from filters.motion.velocity import MotionModel
 from filters.numbers import is_int
 from filters.pose import wrap_angle
-from filters.slam.association import AssociationConfig, gauss_logpdf, innovation, inv2, nis_and_logdet
+from filters.slam.association import AssociationConfig, gauss_logpdf, innovation, inv2, ml_scores, nis_and_logdet
 from filters.slam.landmarks import (
     RangeBearingNoise,
     check_finite_motion,
@@ -318,10 +318,7 @@ class FastSLAM:
             v = innovation(z[None, None, :, :], z_hat[:, :, None, :])  # (N, C, K, 2)
             nis, logdet = nis_and_logdet(v, s[:, :, None])
             nis = np.where(exists[:, :, None], nis, np.inf)
-            score = nis + logdet
-            if gate.gate_first:
-                score = np.where(nis < gate.gate_associate, score, np.inf)
-            best = np.argmin(score, axis=1)  # (N, K)
+            best = np.argmin(ml_scores(nis, logdet, gate), axis=1)  # (N, K)
             best_nis = np.take_along_axis(nis, best[:, None, :], axis=1)[:, 0, :]
             min_nis = nis.min(axis=1)
             slots = best

@@ -80,7 +80,7 @@ class SlamParams:
             mode="known" if self.known_association else "ml",
             gate_associate=float(self.gate_associate),
             gate_new=float(self.gate_new),
-            gate_first=bool(self.gate_first) if isinstance(self.gate_first, (bool, np.bool_)) else self.gate_first,
+            gate_first=self.gate_first,
         )
         return FastSLAMConfig(
             n_particles=self.n_particles,
