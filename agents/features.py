@@ -8,7 +8,7 @@ feature vector:
 * ``lidar``: a 1D convolution with *circular* padding over the beams (a 360 deg scan has no
   edges), then a linear layer;
 * the semantic camera, in either observation layout: ``semantic_range`` (Box) with ``semantic_class``
-  (``MultiDiscrete``, which SB3 hands over one-hot; ``SemReloc-v21``, ``ActiveObservation``), or the flat
+  (``MultiDiscrete``, which SB3 hands over one-hot; ``SemReloc-v22``, ``ActiveObservation``), or the flat
   ``semantic`` Box of ``SemReloc-v1``/``-v0`` (ranges, then labels as floats, one-hot encoded here): per
   beam, the scaled range and the one-hot class stacked as channels, through a 1D convolution (zero
   padding: the camera's field of view has edges), then a linear layer;

@@ -5,7 +5,7 @@ both count the same way. Definitions, per episode, from the ``info`` of its last
 
 * **success**: the belief is converged (``info["belief"]["converged"]``) and its mean is
   within ``SUCCESS_POSITION_M`` (0.5 m) and ``SUCCESS_HEADING_RAD`` (15 deg) of the truth
-  (``info["pose_error"]``) -- exactly the termination condition of ``SemReloc-v21`` (and v20 ... v0).
+  (``info["pose_error"]``) -- exactly the termination condition of ``SemReloc-v22`` (and v21 ... v0).
 * **wrong convergence**: the episode ended with a converged belief that is *not* within
   those bounds: the filter is confidently wrong.
 * **unconverged**: neither (the belief is still spread out at the end).

@@ -1,8 +1,8 @@
-"""Train PPO on ``SemReloc-v21`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
+"""Train PPO on ``SemReloc-v22`` and evaluate any policy (SB3 model or callable baseline) on fixed seeds.
 
 * `TrainConfig` — every knob of a training run (env keyword arguments, vectorisation,
   PPO hyper-parameters, network sizes, seed).
-* `make_env` — ``gym.make("SemReloc-v21", **env_kwargs)`` wrapped in
+* `make_env` — ``gym.make("SemReloc-v22", **env_kwargs)`` wrapped in
   `BeliefObservation` (the policy sees the belief summary, not the pose).
 * `train` — builds the vectorised envs and PPO (`SemRelocPolicy`: SB3's ``MultiInputPolicy``, with
   `SemRelocExtractor`), learns, returns the model. With a ``log_dir`` it
@@ -49,7 +49,7 @@ from .features import SemRelocExtractor, SemRelocPolicy
 from .metrics import EpisodeTracker, summarize_episodes
 from .vec_env import close_after_interrupt
 
-ENV_ID = "SemReloc-v21"
+ENV_ID = "SemReloc-v22"
 """The env id training and evaluation use unless told otherwise (``TrainConfig.env_id``, ``env_id=``)."""
 VEC_ENVS = {"dummy": DummyVecEnv, "subproc": SubprocVecEnv, "batched": None}
 """``"batched"``: `agents.vec_env.SB3VecEnvAdapter` over the batched env (R robots in one process)."""
@@ -144,10 +144,10 @@ def check_device(device) -> None:
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """One PPO training run on ``SemReloc-v21`` (or ``env_id``).
+    """One PPO training run on ``SemReloc-v22`` (or ``env_id``).
 
     Attributes:
-        env_id: the registered single-robot env (``"SemReloc-v21"``; ``"SemReloc-v1"`` has the flat
+        env_id: the registered single-robot env (``"SemReloc-v22"``; ``"SemReloc-v1"`` has the flat
             observation that models trained before v2 expect).
         env_kwargs: ``gym.make`` keyword arguments (e.g. ``layout``, ``semantic``, ``relocalizer``,
             ``max_episode_steps``); unknown ones are errors, as in the env.

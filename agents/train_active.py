@@ -1,7 +1,7 @@
 """PPO for active relocalization: a new procedural layout every episode, spatial belief observations.
 
 `make_active_env` builds one training env:
-``SemReloc-v21`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
+``SemReloc-v22`` (``relocalizer={"n_particles": particles}``, ``max_episode_steps``) ->
 `RandomLayout` (a new layout per reset, never a held-out
 seed) -> `BeliefMassReward` (``mode="gain"``) -> `MotionOptions` (if ``options``) ->
 `ActionRepeat` -> `ActiveObservation`
@@ -50,7 +50,7 @@ from .options import MotionOptions, TeacherLabels, check_options
 from .train import check_ppo_settings, log_formats, ppo_hyperparameters, progress_bar_wanted
 from .vec_env import close_after_interrupt, closing_venv
 
-ENV_ID = "SemReloc-v21"
+ENV_ID = "SemReloc-v22"
 TRAINABLE_ENV_IDS = semreloc_ids_since(2)
 """The envs `ActiveTrainConfig.env_id` may name: ``SemReloc-v2`` and newer (the typed observation
 `ActiveObservation` reads), newest first."""

@@ -1,4 +1,4 @@
-"""Where the time of a default ``SemReloc-v21`` step goes: CPU time per stage (cProfile).
+"""Where the time of a default ``SemReloc-v22`` step goes: CPU time per stage (cProfile).
 
 The command lives in `agents.tools.profile_step` (also installed as ``semreloc-profile-step``);
 ``python scripts/profile_step.py --help`` lists every option.

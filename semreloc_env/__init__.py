@@ -5,7 +5,7 @@ Importing the package registers the environments::
     import gymnasium as gym
     import semreloc_env  # noqa: F401
 
-    env = gym.make("SemReloc-v21", layout="twin_rooms")
+    env = gym.make("SemReloc-v22", layout="twin_rooms")
 """
 
 from gymnasium.envs.registration import WrapperSpec, register, registry
@@ -29,6 +29,7 @@ __all__ = [
 ]
 
 ENV_IDS = (
+    "SemReloc-v22",
     "SemReloc-v21",
     "SemReloc-v20",
     "SemReloc-v19",
@@ -59,6 +60,7 @@ running old policies (each env's Version History says what changed): ``SemReloc-
 the flat observation, ``SemReloc-v0`` also the first release's relocalizer."""
 
 VECTOR_ENV_IDS = (
+    "SemRelocVec-v22",
     "SemRelocVec-v21",
     "SemRelocVec-v20",
     "SemRelocVec-v19",
@@ -81,9 +83,9 @@ VECTOR_ENV_IDS = (
     "SemRelocVec-v2",
     "SemRelocVec-v1",
 )
-"""Ids for ``gym.make_vec``: R robots of ``SemReloc-v21`` / ``-v20`` / ``-v19`` / ``-v18`` / ``-v17`` / ``-v16``
-/ ``-v15`` / ``-v14`` / ``-v13`` / ``-v12`` / ``-v11`` / ``-v10`` / ``-v9`` / ``-v8`` / ``-v7`` / ``-v6`` / ``-v5``
-/ ``-v4`` / ``-v3`` / ``-v2`` / ``-v1`` in one process."""
+"""Ids for ``gym.make_vec``: R robots of ``SemReloc-v22`` / ``-v21`` / ``-v20`` / ``-v19`` / ``-v18`` / ``-v17``
+/ ``-v16`` / ``-v15`` / ``-v14`` / ``-v13`` / ``-v12`` / ``-v11`` / ``-v10`` / ``-v9`` / ``-v8`` / ``-v7`` / ``-v6``
+/ ``-v5`` / ``-v4`` / ``-v3`` / ``-v2`` / ``-v1`` in one process."""
 
 
 def semreloc_class(env_id: str):
@@ -111,7 +113,8 @@ def semreloc_ids_since(version: int) -> tuple[str, ...]:
 _CHECKED_RESET = (WrapperSpec("CheckedReset", "semreloc_env.wrappers:CheckedReset", {}),)
 
 _SINGLE = {
-    "SemReloc-v21": "semreloc_env.envs.semreloc:SemRelocEnv",
+    "SemReloc-v22": "semreloc_env.envs.semreloc:SemRelocEnv",
+    "SemReloc-v21": "semreloc_env.envs.semreloc:SemRelocEnvV21",
     "SemReloc-v20": "semreloc_env.envs.semreloc:SemRelocEnvV20",
     "SemReloc-v19": "semreloc_env.envs.semreloc:SemRelocEnvV19",
     "SemReloc-v18": "semreloc_env.envs.semreloc:SemRelocEnvV18",
@@ -140,10 +143,11 @@ for _id, _entry in _SINGLE.items():
     if _id not in registry:
         register(id=_id, entry_point=_entry, max_episode_steps=400, additional_wrappers=_CHECKED_RESET)
 
-# R robots in one process (a loop over SemReloc envs): gym.make_vec("SemRelocVec-v21", num_envs=R).
+# R robots in one process (a loop over SemReloc envs): gym.make_vec("SemRelocVec-v22", num_envs=R).
 # Separate ids because make_vec refuses a vector entry point on a spec with additional wrappers; their
 # single-env entry point refuses (a single env from them would lack CheckedReset): use SemReloc-* for that.
 _VECTOR = {
+    "SemRelocVec-v22": "semreloc_env.envs.vector_ids:semreloc_vec_v22",
     "SemRelocVec-v21": "semreloc_env.envs.vector_ids:semreloc_vec_v21",
     "SemRelocVec-v20": "semreloc_env.envs.vector_ids:semreloc_vec_v20",
     "SemRelocVec-v19": "semreloc_env.envs.vector_ids:semreloc_vec_v19",

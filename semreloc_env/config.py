@@ -346,8 +346,9 @@ class CameraParams:
         _probability(self, "miss_rate", "wrong_class_rate", "false_positive_rate")
 
 
-def default_odometry_noise():
-    """The simulator's odometry noise: the filters' model with small alphas (a good wheel encoder)."""
+def default_odometry_noise(exact_small_moves: bool = False):
+    """The simulator's odometry noise: the filters' model with small alphas (a good wheel encoder), a step under
+    ``min_trans_m`` moved in its own direction if ``exact_small_moves`` (`SemReloc-v22` and later)."""
     from filters.motion.odometry import OdometryMotionConfig
 
-    return OdometryMotionConfig(alpha1=0.02, alpha2=0.02, alpha3=0.02, alpha4=0.01)
+    return OdometryMotionConfig(alpha1=0.02, alpha2=0.02, alpha3=0.02, alpha4=0.01, exact_small_moves=exact_small_moves)

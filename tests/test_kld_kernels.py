@@ -130,3 +130,54 @@ def test_absurd_clouds_fall_back_to_the_reference(spread):
         mcl._poses = poses
         out.append(mcl._kld_indices(w))
     assert out[0].tobytes() == out[1].tobytes()
+
+
+def _retry_case(one_sequence: bool, fast: bool, seed: int = 5) -> tuple[MonteCarloLocalizer, np.ndarray]:
+    """A localizer and weights whose first ``max(2 N, 4 min_particles)`` draws cannot meet Fox's bound: 100 particles
+    in 100 bins, each as likely (the bound for 100 bins is about 450 draws), ``max_particles`` 2000."""
+    mcl = _localizer(fast, seed, n_particles=None, min_particles=10, max_particles=2000, kld_one_sequence=one_sequence)
+    mcl._poses = np.column_stack([np.arange(100) * 1.0 + 0.25, np.full(100, 0.25), np.zeros(100)])
+    return mcl, np.full(100, 0.01)
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_kld_one_sequence_goes_on_where_the_first_draws_stopped(fast):
+    """With ``kld_one_sequence`` the set is what one sequence of uniforms gives, stopped where Fox's bound is first met
+    (Fox 2003); without it (every env before SemReloc-v22) the retry draws ``max_particles`` uniforms from scratch."""
+    for seed in range(3):
+        for one in (True, False):
+            mcl, w = _retry_case(one, fast, seed)
+            lo, hi = mcl.kld_bounds
+            m = max(2 * w.size, 4 * lo)
+            assert m < hi and mcl.kld_required(np.array([100]))[0] > m  # the first m draws cannot meet the bound
+            stream = np.random.default_rng(seed).random(m + hi)
+            u = stream[:hi] if one else stream[m : m + hi]
+            idx = mcl._kld_indices(w)
+            ref, _ = _retry_case(one, False, seed)
+            assert idx.tobytes() == ref._kld_draw(w, u, lo).tobytes()
+            assert m < idx.size < hi
+
+
+def test_kld_one_sequence_keeps_fox_s_distribution_of_the_set_size():
+    """The outside audit's case: 9 bins, one of weight 0.006, ``min_particles`` 50, so the first ``m = 200`` draws
+    meet the bound only if the rare bin was hit late or never. The retry's fresh sequence then stops at or below ``m``
+    more often than one sequence can go on to (Fox's set sizes): P(n <= 200) 0.54 against 0.32 over 400 seeds, median
+    186 against 202. With one sequence the first ``m`` draws are the set's first ``m`` particles."""
+    poses = np.column_stack([np.arange(9) * 1.0 + 0.25, np.full(9, 0.25), np.zeros(9)])
+    w = np.full(9, (1 - 0.006) / 8)
+    w[8] = 0.006
+    small = {}
+    for one in (True, False):
+        mcl = _localizer(True, 0, n_particles=None, min_particles=50, max_particles=2000, kld_one_sequence=one)
+        mcl._poses = poses
+        m = max(2 * w.size, 4 * mcl.kld_bounds[0])
+        sizes = []
+        for seed in range(400):
+            mcl.rng = np.random.default_rng(seed)
+            idx = mcl._kld_indices(w)
+            sizes.append(idx.size)
+            if one:
+                first = mcl._kld_draw(w, np.random.default_rng(seed).random(m), 50)
+                assert idx[: first.size].tobytes() == first.tobytes()
+        small[one] = np.mean(np.array(sizes) <= m)
+    assert 0.25 < small[True] < 0.40 and small[False] > 0.45

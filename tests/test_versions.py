@@ -1,5 +1,6 @@
-"""The registered ids behave as their Version History says: SemReloc-v21 (v20 whose relocalizer does less work: half
-the particles at a global start, no noise drawn for a still step),
+"""The registered ids behave as their Version History says: SemReloc-v22 (v21 whose odometry and motion model move a
+step under 1 cm in its own direction and whose KLD sampling draws one sequence), SemReloc-v21 (v20 whose relocalizer
+does less work: half the particles at a global start, no noise drawn for a still step),
 SemReloc-v20 (v19 whose belief between updates is the last update's carried by the odometry), SemReloc-v19 (v18
 whose wheel odometry reads no slide
 along a wall, whose KLD sampling allows three times the error and whose remembered places follow the odometry),
@@ -79,6 +80,7 @@ def assert_same_episode(new: str, old: str, options: dict = START) -> list:
 
 def test_registered_ids_and_versions():
     assert semreloc_env.ENV_IDS == (
+        "SemReloc-v22",
         "SemReloc-v21",
         "SemReloc-v20",
         "SemReloc-v19",
@@ -109,6 +111,7 @@ def test_registered_ids_and_versions():
     typed = {"lidar", "odometry", "semantic_class", "semantic_range"}
     flat = {"lidar", "odometry", "semantic"}
     for env_id, keys in [
+        ("SemReloc-v22", typed),
         ("SemReloc-v21", typed),
         ("SemReloc-v20", typed),
         ("SemReloc-v19", typed),
@@ -753,11 +756,7 @@ def test_v20_is_v19_whose_belief_between_updates_is_carried_by_the_odometry():
 def test_v21_is_v20_whose_relocalizer_does_less_work():
     """v21's relocalizer is v20's with half the particles per m^2 at a global start and no noise drawn for a still
     step; the world, sensors and observations are v20's for the same actions (their draws come from other
-    generators), the filter's differ from the reset on (its own still predict, the smaller draw); its Vec id runs it,
-    and it is the batched env's default."""
-    from semreloc_env.envs.batched import SINGLE_ENV_ID
-
-    assert SINGLE_ENV_ID == "SemReloc-v21"
+    generators), the filter's differ from the reset on (its own still predict, the smaller draw); its Vec id runs it."""
     assert_one_option_apart("SemReloc-v21", "SemReloc-v20", global_particles_per_m2=25.0, predict_when_still=False)
     new = make("SemReloc-v21", map_source="perfect").unwrapped
     old = make("SemReloc-v20", map_source="perfect").unwrapped
@@ -780,6 +779,44 @@ def test_v21_is_v20_whose_relocalizer_does_less_work():
     for (obs, *_), (obs2, *_) in zip(a, b):
         np.testing.assert_equal(obs, obs2)
     assert any(not np.array_equal(x[-1]["belief"]["estimate"], y[-1]["belief"]["estimate"]) for x, y in zip(a, b))
+
+
+def test_v22_is_v21_whose_small_steps_move_their_own_way_and_whose_kld_draws_one_sequence():
+    """v22's relocalizer is v21's with ``exact_small_moves`` in its motion model and ``kld_one_sequence``; its simulated
+    odometry's model moves a step under 1 cm in its own direction too; worlds, maps and spaces are v21's; its Vec id
+    runs it, and it is the batched env's default. Backing slowly (30 steps of 5 mm) from a known pose, v21's odometry
+    reads the steps forwards and its belief ends about 0.3 m off; v22's reads them backwards and stays on the truth."""
+    from semreloc_env.envs.batched import SINGLE_ENV_ID
+
+    assert SINGLE_ENV_ID == "SemReloc-v22"
+    a, b = make("SemReloc-v22", **FAST).unwrapped, make("SemReloc-v21", **FAST).unwrapped
+    motion = dataclasses.replace(b.mcl_config.motion, exact_small_moves=True)
+    assert a.mcl_config == dataclasses.replace(b.mcl_config, motion=motion, kld_one_sequence=True)
+    assert not b.mcl_config.motion.exact_small_moves and not b.mcl_config.kld_one_sequence
+    assert a.odometry.params == dataclasses.replace(b.odometry.params, exact_small_moves=True)
+    assert a.odometry.reads_slides == b.odometry.reads_slides is False
+    assert a.mapping_run_version == b.mapping_run_version == "6"
+    assert a.observation_space == b.observation_space
+    assert not make("SemSlam-v1", **SLAM_FAST).unwrapped.odometry.params.exact_small_moves  # SemSlam keeps its episodes
+    assert (
+        make("SemReloc-v22", **FAST, odometry={"exact_small_moves": False}).unwrapped.odometry.params
+        == b.odometry.params
+    )
+    venv = gym.make_vec("SemRelocVec-v22", num_envs=1, vectorization_mode="vector_entry_point", **FAST)
+    robot = venv.envs[0].unwrapped
+    assert robot.odometry.params.exact_small_moves and robot.mcl_config.kld_one_sequence
+    venv.close()
+    back = np.array([-0.1, 0.0], np.float32)  # v = -0.05 m/s: 5 mm per step
+    ends = {}
+    for env_id in ("SemReloc-v22", "SemReloc-v21"):
+        env = make(env_id, **FAST, action_type="continuous")
+        env.reset(seed=4, options={**START, "tracking": True})
+        read = sum(env.step(back)[0]["odometry"][0] for _ in range(30))
+        ends[env_id] = (read, env.unwrapped.world.pose[0], env.unwrapped.pose_error()["position"])
+    (read_new, x_new, err_new), (read_old, x_old, err_old) = ends["SemReloc-v22"], ends["SemReloc-v21"]
+    assert x_new == x_old == pytest.approx(START["pose"][0] - 0.15, abs=1e-3)  # the same world: 15 cm back
+    assert read_new == pytest.approx(-0.15, abs=0.01) and read_old == pytest.approx(0.15, abs=0.01)
+    assert err_new < 0.05 and err_old > 0.2
 
 
 def test_wheel_odometry_reads_an_arc_as_it_is_and_no_sideways_slide():

@@ -120,23 +120,26 @@ class Args:
     particles: int = 2000
     """relocalizer particles (``n_particles``: drawn at the reset and at most per KLD resampling; clustered
     resampling's floors and the audit can add to a set)"""
-    env_id: EvaluatedEnvId = "SemReloc-v21"
-    """the env the episodes run in: SemReloc-v21 (the newest), SemReloc-v20, SemReloc-v19, SemReloc-v18, SemReloc-v17,
-    SemReloc-v16, SemReloc-v15, SemReloc-v14, SemReloc-v13, SemReloc-v12, SemReloc-v11, SemReloc-v10, SemReloc-v9,
-    SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to repeat the tables made with them;
-    v20 differs from v21 only in drawing a still step's motion noise (and in a map-sized draw at a global start, twice
-    v21's, which ``--particles`` replaces here); v19 differs from v20 only in the belief it reports between
-    updates, its moved set summarised again; v18 differs from v19 in its odometry, which reads a slide along a wall, its
-    KLD sampling, which allows a third of v19's error (more particles), and its remembered places, which stay put
-    between updates; v17 differs from v18 only in its audit after a hold lost without a surprise, v16 from v17 only in
-    its tracking start, v15 from v16 only in its audit after a lost hold and v14 from v15 only in its audit after a
-    surprise, both in tracking episodes only, v13 and v12 also in their relocalizer's surprise tests, which no global
-    start meets before its first convergence; the same worlds and sensors, the maps of the mapping run's version 5,
-    whose drive skips passages between its lattice's rows and columns (v11), also with space beyond the lidar's returns
-    left unknown (v10), the maps of the mapping run's version 3, with stray class cells, and the screen's pause blind to
-    place (v9), the relocalizer's audit without its screen of the whole map (v8 and older), the maps of the mapping
-    run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search only (v6), also without the
-    hold of a convergence (v5), without the convergence audit (v4) and without negative evidence (v3))"""
+    env_id: EvaluatedEnvId = "SemReloc-v22"
+    """the env the episodes run in: SemReloc-v22 (the newest), SemReloc-v21, SemReloc-v20, SemReloc-v19,
+    SemReloc-v18, SemReloc-v17, SemReloc-v16, SemReloc-v15, SemReloc-v14, SemReloc-v13, SemReloc-v12, SemReloc-v11,
+    SemReloc-v10, SemReloc-v9, SemReloc-v8, SemReloc-v7, SemReloc-v6, SemReloc-v5, SemReloc-v4 or SemReloc-v3 (to
+    repeat the tables made with them; v21 differs from v22 only in its odometry and motion model, which take a step
+    under 1 cm along the heading whatever its direction, and in KLD sampling's retry, which draws a second sequence;
+    v20 differs from v21 only in drawing a still step's motion noise (and in a map-sized draw at a global start,
+    twice v21's, which ``--particles`` replaces here); v19 differs from v20 only in the belief it reports between
+    updates, its moved set summarised again; v18 differs from v19 in its odometry, which reads a slide along a wall,
+    its KLD sampling, which allows a third of v19's error (more particles), and its remembered places, which stay
+    put between updates; v17 differs from v18 only in its audit after a hold lost without a surprise, v16 from v17
+    only in its tracking start, v15 from v16 only in its audit after a lost hold and v14 from v15 only in its audit
+    after a surprise, both in tracking episodes only, v13 and v12 also in their relocalizer's surprise tests, which
+    no global start meets before its first convergence; the same worlds and sensors, the maps of the mapping run's
+    version 5, whose drive skips passages between its lattice's rows and columns (v11), also with space beyond the
+    lidar's returns left unknown (v10), the maps of the mapping run's version 3, with stray class cells, and the
+    screen's pause blind to place (v9), the relocalizer's audit without its screen of the whole map (v8 and older),
+    the maps of the mapping run's version 2 (v7 and older), the relocalizer with the audit's coarse-to-fine search
+    only (v6), also without the hold of a convergence (v5), without the convergence audit (v4) and without negative
+    evidence (v3))"""
     relocalizer: JsonDict = field(default_factory=dict)
     """relocalizer overrides (`MCLConfig` fields) on top of the env's defaults, one JSON object, e.g.
     '{"negative_evidence": {"p_detect": 0.5}}'; --particles sets n_particles"""
@@ -256,7 +259,7 @@ class Args:
         self._check_map_source()
 
 
-ENV_ID = "SemReloc-v21"
+ENV_ID = "SemReloc-v22"
 """The env episodes run in unless ``--env-id`` says otherwise; its cases' procedural layouts come from the newest
 generator, as v3's to v15's do.
 (The v3 tables of docs/active.md were made with ``SemReloc-v3``, the v2 tables with ``SemReloc-v2``; v3

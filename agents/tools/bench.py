@@ -61,7 +61,7 @@ class Args:
     """benchmark names, space-separated (e.g. likelihood env); empty = all."""
     env_id: str = ""
     """the SemReloc id the env, batched, stages, scaling, reset and PPO benchmarks run (empty = the newest,
-    SemReloc-v21; e.g. SemReloc-v20 to compare a version in the next run)"""
+    SemReloc-v22; e.g. SemReloc-v21 to compare a version in the next run)"""
 
     def __post_init__(self) -> None:
         if self.env_id:
@@ -275,8 +275,8 @@ def bench_likelihood(args: Args) -> list[Row]:
     ]
 
 
-ENV_ID = "SemReloc-v21"
-PREVIOUS_ENV_ID = "SemReloc-v20"
+ENV_ID = "SemReloc-v22"
+PREVIOUS_ENV_ID = "SemReloc-v21"
 """The version before `ENV_ID`, measured beside it (batched env, reset) for the ratio of one run."""
 ISSUE_ENV_ID = "SemReloc-v0"
 """The env issue 8 measured and set its targets on (the default then: 2000 particles, 60 lidar + 32 camera beams, a
@@ -336,7 +336,7 @@ class RandomPolicy:
 
 
 def bench_env(args: Args) -> list[Row]:
-    """Single ``SemReloc-v21`` (or ``--env-id``) at its defaults (lab, mapped map, map-sized particle set with KLD,
+    """Single ``SemReloc-v22`` (or ``--env-id``) at its defaults (lab, mapped map, map-sized particle set with KLD,
     60 + 32 beams): the fast path against the NumPy reference path (``relocalizer={"fast_path": False}``, the
     code before the fused kernels; the same episodes bit for bit), interleaved, under the wall-following
     explorer and under random actions (which stay near the start, so their belief is often tight: a mean of
@@ -539,14 +539,14 @@ def bench_belief(args: Args) -> list[Row]:
 
 
 def bench_batched(args: Args) -> list[Row]:
-    """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64,
-    each robot stepped the same number of times from its reset (so every R sees the same episode phases);
-    then R = 64 again with a 1000-particle filter (what `agents.train_active` trains with), and with a
-    100-particle filter (100 proposal and audit candidates): what a robot-step costs besides the particle
-    work (world, sensors, the filter's per-call code, info, the loop); and R = 64 of the version before the newest
-    (`PREVIOUS_ENV_ID`, whose relocalizer does more work: twice the particles at a global start, a still step's zero
-    motion noise drawn), right after the default R = 64, with their ratio (the episodes differ), and R = 64 of the env
-    the issue set its target on (`ISSUE_ENV_ID`); those two not when ``--env-id`` names an older version."""
+    """Robot-steps/s of the batched env (SemRelocLoopVectorEnv: a loop over R robots) at R = 1, 16, 64, each robot
+    stepped the same number of times from its reset (so every R sees the same episode phases); then R = 64 again
+    with a 1000-particle filter (what `agents.train_active` trains with), and with a 100-particle filter (100
+    proposal and audit candidates): what a robot-step costs besides the particle work (world, sensors, the filter's
+    per-call code, info, the loop); and R = 64 of the version before the newest (`PREVIOUS_ENV_ID`, whose KLD
+    sampling's retry draws a second sequence, which shrinks a set a little), right after the default R = 64, with
+    their ratio (the episodes differ), and R = 64 of the env the issue set its target on (`ISSUE_ENV_ID`); those two
+    not when ``--env-id`` names an older version."""
     from semreloc_env.envs.batched import SemRelocLoopVectorEnv
 
     rows = []
@@ -555,7 +555,7 @@ def bench_batched(args: Args) -> list[Row]:
     env_id = args.env_id or ENV_ID
     previous = (
         [
-            (64, PREVIOUS_ENV_ID, None, f", {PREVIOUS_ENV_ID}", "more relocalizer work"),
+            (64, PREVIOUS_ENV_ID, None, f", {PREVIOUS_ENV_ID}", "the version before"),
             (64, ISSUE_ENV_ID, None, f", {ISSUE_ENV_ID}", "the env the issue measured; target 5000"),
         ]
         if env_id == ENV_ID
@@ -812,13 +812,13 @@ from semreloc_env.layouts import get_layout
 from semreloc_env.layouts.tiling import tiled_layout
 from semreloc_env.mapping_run import build_maps, mapping_drive
 build_maps(get_layout("twin_rooms"))  # warm numba caches (not counted)
-gym.make("SemReloc-v21", layout="twin_rooms").reset(seed=0)
+gym.make("SemReloc-v22", layout="twin_rooms").reset(seed=0)
 base_rss = peak_rss_mb()
 nx, ny = int(sys.argv[1]), int(sys.argv[2])
 layout = tiled_layout(get_layout("lab"), nx, ny)
-n_poses = len(mapping_drive(layout, narrow=True)[0])  # the drive of SemReloc-v12 to v21 (mapping run version 6)
+n_poses = len(mapping_drive(layout, narrow=True)[0])  # the drive of SemReloc-v12 to v22 (mapping run version 6)
 c0, w0 = time.process_time(), time.perf_counter()
-env = gym.make("SemReloc-v21", layout=layout)
+env = gym.make("SemReloc-v22", layout=layout)
 env.reset(seed=0)
 c1, w1 = time.process_time(), time.perf_counter()
 x0, x1, y0, y1 = layout.bounds()

@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    env = gym.make("SemReloc-v21", layout=args.layout, semantic=not args.lidar_only, render_mode="rgb_array")
+    env = gym.make("SemReloc-v22", layout=args.layout, semantic=not args.lidar_only, render_mode="rgb_array")
     policy = WallFollowExplorer()
     obs, info = env.reset(seed=args.seed)
     from PIL import Image

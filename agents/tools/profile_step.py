@@ -1,4 +1,4 @@
-"""Where the time of a default ``SemReloc-v21`` step goes: CPU time per stage (cProfile).
+"""Where the time of a default ``SemReloc-v22`` step goes: CPU time per stage (cProfile).
 
 Usage::
 
@@ -49,7 +49,7 @@ class Args:
     steps: int = 1000
     """profiled env steps"""
     particles: int = 0
-    """relocalizer particles (0 = SemReloc-v21's default: sized by the map, KLD)"""
+    """relocalizer particles (0 = SemReloc-v22's default: sized by the map, KLD)"""
     policy: Literal["explorer", "random"] = "explorer"
     """explorer (wall following) or random (seeded uniform actions, a spread belief)"""
     reference: bool = False
@@ -342,7 +342,7 @@ def _run_batched(num_envs: int, steps: int, seed: int, env_id: str, kwargs: dict
 
 
 def batched_split(
-    num_envs: int = 64, steps: int = 40, seed: int = 0, env_id: str = "SemReloc-v21", **kwargs
+    num_envs: int = 64, steps: int = 40, seed: int = 0, env_id: str = "SemReloc-v22", **kwargs
 ) -> BatchedSplit:
     """Run ``steps`` steps of a `semreloc_env.envs.batched.SemRelocLoopVectorEnv` of ``num_envs`` robots
     (``env_id``, ``gym.make`` keyword arguments ``kwargs``) with seeded random actions, after 5 not counted, and
@@ -439,7 +439,7 @@ def run(args: Args) -> dict[str, float]:
                 args.robots, args.steps, args.seed, layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc
             )
         )
-    env = gym.make("SemReloc-v21", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc).unwrapped
+    env = gym.make("SemReloc-v22", layout=args.layout, lidar={"n_beams": args.beams}, relocalizer=reloc).unwrapped
     if args.policy == "random":
         rng = np.random.default_rng(args.seed)
 

@@ -213,6 +213,10 @@ class MCLConfig:
         kld_bin_xy_m, kld_bin_theta_rad: its histogram bins (m, rad).
         kld_epsilon, kld_z: its error bound and the upper standard normal quantile (2.326 for
             1 - delta = 0.99).
+        kld_one_sequence: True: a draw that has not met Fox's bound within its first ``max(2 N, 4 min_particles)``
+            draws goes on with the same sequence up to the upper bound (Fox 2003's algorithm: one sequence, stopped
+            where the bound is first met). False (every registered env before ``SemReloc-v22``): it draws again from
+            scratch, a second sequence that can stop sooner, which moves the set size down and loosens the bound.
         min_particles, max_particles: with ``n_particles`` None, the bounds of ``init_global``'s
             map-sized count, ``init_around`` draws ``min_particles``, and KLD draws at most
             ``max_particles`` (clustered resampling's per-cluster floors can add to a set, so
@@ -244,7 +248,7 @@ class MCLConfig:
             are never scaled.
         proposal_candidates_per_particle: ``r``: a routine injection of ``m`` particles weighs
             ``min(proposal_candidates, max(10 r, r m))`` scan-proposal candidates and draws its particles among them
-            by their likelihood (20: ``max(200, 20 m)``, every registered env, ``SemReloc-v21`` included; each term
+            by their likelihood (20: ``max(200, 20 m)``, every registered env, ``SemReloc-v22`` included; each term
             rounded down; weighing the candidates is most of an injection's cost).
         audit_window: ``K`` (0 = off): the *convergence audit* (`filters.localization.audit`). At
             an update after which the set meets the "converged" criterion and did not before, it
@@ -427,6 +431,7 @@ class MCLConfig:
     kld_bin_theta_rad: float = math.radians(10.0)
     kld_epsilon: float = 0.05
     kld_z: float = 2.326
+    kld_one_sequence: bool = False
     min_particles: int = 200
     max_particles: int = 5000
     global_particles_per_m2: float = 0.0
@@ -570,6 +575,7 @@ class MCLConfig:
             "use_semantic", "kld", "augmented", "lidar_on_rotation", "fast_path", "audited_convergence", "audit_screen",
             "audit_screen_pause_place", "audit_after_surprise", "audit_after_surprise_once", "audit_after_lost_hold",
             "hold_init_pose", "surprise_own_average", "places_follow_odometry", "predict_when_still",
+            "kld_one_sequence",
         ):  # fmt: skip
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"MCLConfig.{name} must be a bool, got {getattr(self, name)!r}")
@@ -1230,9 +1236,13 @@ class MonteCarloLocalizer:
     def _kld_indices(self, w: np.ndarray) -> np.ndarray:
         lo, hi = self.kld_bounds
         m = min(hi, max(2 * w.size, 4 * lo))  # enough draws almost always
-        idx = self._kld_draw(w, m, lo)
-        if idx.size == m and m < hi:  # the bound was not met within m draws: draw all
-            idx = self._kld_draw(w, hi, lo)
+        u = self.rng.random(m)
+        idx = self._kld_draw(w, u, lo)
+        if idx.size == m and m < hi:  # the bound was not met within m draws
+            if self.config.kld_one_sequence:  # Fox's: the same sequence goes on, up to hi
+                idx = self._kld_draw(w, np.concatenate([u, self.rng.random(hi - m)]), lo)
+            else:  # a sequence of hi draws from scratch
+                idx = self._kld_draw(w, self.rng.random(hi), lo)
         return idx
 
     def _kld_bound_table(self, k_max: int) -> np.ndarray:
@@ -1240,18 +1250,21 @@ class MonteCarloLocalizer:
         _, hi = self.kld_bounds
         return _fox_bound_table(self.config.kld_epsilon, self.config.kld_z, max(k_max, hi) + 1)
 
-    def _kld_draw(self, w: np.ndarray, m: int, lo: int) -> np.ndarray:
+    def _kld_draw(self, w: np.ndarray, u: np.ndarray, lo: int) -> np.ndarray:
+        """The indices KLD sampling draws with the uniforms ``u`` (one per draw, in order): the first ``n`` of them,
+        ``n`` the first count that meets Fox's bound and ``lo`` (all of them if none does)."""
         c = self.config
+        m = u.size
         if c.fast_path:
             extent = kld_kernels.dense_extent(self._poses, c.kld_bin_xy_m, c.kld_bin_theta_rad, _MAX_DENSE_KEYS)
             if extent is not None:
                 idx = np.empty(m, dtype=np.int64)
                 n_new = kld_kernels.kld_draw(
-                    self._poses, closed_cdf(w), self.rng.random(m), lo, self._kld_bound_table(m),
+                    self._poses, closed_cdf(w), u, lo, self._kld_bound_table(m),
                     c.kld_bin_xy_m, c.kld_bin_theta_rad, extent, idx,
                 )  # fmt: skip
                 return idx[:n_new]
-        idx = inverse_cdf(w, self.rng.random(m))
+        idx = inverse_cdf(w, u)
         p = self._poses[idx]
         keys = linear_bin_keys(
             np.floor(p[:, 0] / c.kld_bin_xy_m).astype(np.int64),

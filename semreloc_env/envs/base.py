@@ -54,6 +54,10 @@ class SemRelocBase(gym.Env):
     """Reset options whose check needs the world (`check_reset` builds one only for them)."""
     odometry_reads_slides: bool = True
     """Whether the simulated odometry reads a slide along a wall (`semreloc_env.sensors.Odometry`)."""
+    odometry_exact_small_moves: bool = False
+    """Whether the simulated odometry's default noise model (`semreloc_env.config.default_odometry_noise`) moves a step
+    under ``min_trans_m`` in its own direction (`filters.motion.odometry.OdometryMotionConfig.exact_small_moves`);
+    ``odometry=`` overrides it."""
 
     def __init__(
         self,
@@ -81,7 +85,9 @@ class SemRelocBase(gym.Env):
         self.lidar = Lidar(coerce_config(LidarParams, lidar, "lidar"))
         self.camera = SemanticCamera(coerce_config(CameraParams, camera, "camera"))
         self.odometry = Odometry(
-            coerce_config(OdometryMotionConfig, odometry, "odometry", default_odometry_noise()),
+            coerce_config(
+                OdometryMotionConfig, odometry, "odometry", default_odometry_noise(self.odometry_exact_small_moves)
+            ),
             reads_slides=self.odometry_reads_slides,
             substeps=self.physics_params.substeps,
         )

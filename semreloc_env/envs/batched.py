@@ -9,9 +9,9 @@ one env (see ``docs/performance.md``). What it gives today is the Gymnasium vect
 next-step autoreset, per-robot results equal bit for bit to R separate envs seeded
 ``seed + i``, and no subprocesses.
 
-Create it with ``gym.make_vec("SemRelocVec-v21", num_envs=R, vectorization_mode="vector_entry_point")``
+Create it with ``gym.make_vec("SemRelocVec-v22", num_envs=R, vectorization_mode="vector_entry_point")``
 (or another ``SemRelocVec-*`` id, each running its ``SemReloc-*``) or directly (``env_id`` defaults to
-the newest, ``"SemReloc-v21"``); `agents.vec_env.SB3VecEnvAdapter` turns it into a stable-baselines3
+the newest, ``"SemReloc-v22"``); `agents.vec_env.SB3VecEnvAdapter` turns it into a stable-baselines3
 ``VecEnv``.
 
 Autoreset follows Gymnasium's ``NEXT_STEP`` mode: a robot whose episode ended
@@ -38,7 +38,7 @@ from filters.numbers import is_int
 from ..wrappers import check_reset
 from .spaces import decode_action
 
-SINGLE_ENV_ID = "SemReloc-v21"
+SINGLE_ENV_ID = "SemReloc-v22"
 
 
 def float_array_hint(actions, space, first: int = 0) -> str:
@@ -102,7 +102,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
 
     Args:
         num_envs: number of robots R (>= 1).
-        env_id: the single-robot env each robot runs (default ``"SemReloc-v21"``, the newest; any
+        env_id: the single-robot env each robot runs (default ``"SemReloc-v22"``, the newest; any
             ``SemReloc-*`` id), made with ``gym.make`` so it carries the same wrappers (``CheckedReset``,
             ``TimeLimit``). (Before this default was the newest it was ``"SemReloc-v1"``.)
         max_episode_steps: time limit per robot (default: the single env's registration).

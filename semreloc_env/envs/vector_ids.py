@@ -32,6 +32,12 @@ def _loop(env_id: str, num_envs: int, kwargs: dict) -> SemRelocLoopVectorEnv:
     return SemRelocLoopVectorEnv(num_envs, env_id=env_id, **kwargs)
 
 
+def semreloc_vec_v22(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
+    """``SemRelocVec-v22``: ``num_envs`` ``SemReloc-v22`` robots in one process
+    (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v22"``)."""
+    return _loop("SemReloc-v22", num_envs, kwargs)
+
+
 def semreloc_vec_v21(num_envs: int = 1, **kwargs) -> SemRelocLoopVectorEnv:
     """``SemRelocVec-v21``: ``num_envs`` ``SemReloc-v21`` robots in one process
     (`SemRelocLoopVectorEnv` with ``env_id="SemReloc-v21"``)."""

@@ -7,8 +7,8 @@ layout) with ``--perfect``. Prints how well the mapped grids match the layout.
     python scripts/build_maps.py --layout lab --out maps/        # or: semreloc-build-maps --layout lab
     python scripts/build_maps.py --layout my_floor.yaml --seed 3 --out maps/
 
-Use the result with ``gym.make("SemReloc-v21", layout="lab", map_source="maps/lab.yaml")``
-(procedural layouts come from the newest generator, as ``SemReloc-v21``'s do).
+Use the result with ``gym.make("SemReloc-v22", layout="lab", map_source="maps/lab.yaml")``
+(procedural layouts come from the newest generator, as ``SemReloc-v22``'s do).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ class Args:
     out: str = "maps"
     """output folder"""
     mapping_version: Literal["2", "3", "4", "5", "6"] = "6"
-    """the mapping run's version (semreloc_env.mapping_run.MAPPING_RUN_VERSIONS): 6 as SemReloc-v21 to v12, 5 as v11 (a
+    """the mapping run's version (semreloc_env.mapping_run.MAPPING_RUN_VERSIONS): 6 as SemReloc-v22 to v12, 5 as v11 (a
     drive that skips passages between its lattice's rows and columns), 4 as v10 (also space beyond the lidar's range
     from every surface left unknown), 3 as v8 and v9 (stray class cells kept), 2 as v7 and older (its camera beams
     without a return cleared the classes along their range)"""
