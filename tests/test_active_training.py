@@ -23,7 +23,7 @@ from semreloc_env.wrappers import ActionRepeat
 
 def _env(**kw):
     kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 50, **kw}
-    return gym.make("SemReloc-v21", **kw)
+    return gym.make("SemReloc-v22", **kw)
 
 
 def test_action_repeat_sums_rewards_and_terms_and_stops_at_the_episode_end():
@@ -171,7 +171,7 @@ def test_training_envs_draw_layout_files(tmp_path):
     env = make_active_env(config, seed=0)
     env.reset(seed=0)
     assert env.unwrapped.layout.name == "mine"
-    assert env.unwrapped.spec.id == "SemReloc-v21"  # the newest unless told
+    assert env.unwrapped.spec.id == "SemReloc-v22"  # the newest unless told
     older = make_active_env(dataclasses.replace(config, env_id="SemReloc-v10"), seed=0)
     assert older.unwrapped.spec.id == "SemReloc-v10" and older.unwrapped.mapping_run_version == "4"
 
@@ -317,11 +317,11 @@ def test_a_run_folder_is_never_mixed_with_another_run(smoke_run, tmp_path, capsy
     assert "kinds ['procedural'] -> ['procedural_sym']" in capsys.readouterr().out
     # another env is said too, also for a run whose config.json predates the field (its policy.zip names the env)
     assert config.env_id == "SemReloc-v10"
-    check_resume(ckpt, dataclasses.replace(config, env_id="SemReloc-v21"))
-    assert "env_id 'SemReloc-v10' -> 'SemReloc-v21'" in capsys.readouterr().out
+    check_resume(ckpt, dataclasses.replace(config, env_id="SemReloc-v22"))
+    assert "env_id 'SemReloc-v10' -> 'SemReloc-v22'" in capsys.readouterr().out
     (old / "policy.zip").write_bytes(policy.read_bytes())
-    check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, env_id="SemReloc-v21"))
-    assert "env_id 'SemReloc-v10' -> 'SemReloc-v21'" in capsys.readouterr().out
+    check_resume(old / "checkpoints" / ckpt.name, dataclasses.replace(config, env_id="SemReloc-v22"))
+    assert "env_id 'SemReloc-v10' -> 'SemReloc-v22'" in capsys.readouterr().out
     check_resume(old / "checkpoints" / ckpt.name, config)
     assert "env_id" not in capsys.readouterr().out
     (old / "policy.zip").unlink()  # an interrupted run of those days: nothing records its env
@@ -432,12 +432,12 @@ def test_load_policy_errors(smoke_run, tmp_path):
         load_policy(bare)
     # an outside tester's trial: wrapping twice said the action space was wrong
     policy = load_policy(path)
-    once = policy.wrap(gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect"))
+    once = policy.wrap(gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect"))
     with pytest.raises(ValueError, match="own observations.*wrapped by ActiveObservation already"):
         policy.wrap(once)
     # an eleventh tester's: an env that repeats actions already made each decision last repeat x repeat steps
     with pytest.raises(ValueError, match=r"ActionRepeat\(repeat=4\).*each would last"):
-        policy.wrap(ActionRepeat(gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect"), 4))
+        policy.wrap(ActionRepeat(gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect"), 4))
     for name, meta, keep_model, match in [
         ("badjson.zip", "{nope", True, "not valid JSON"),
         ("list.zip", "[1]", True, "JSON object"),

@@ -176,7 +176,7 @@ def _preprocessed(space, raw: dict) -> dict:
     return preprocess_obs({k: torch.as_tensor(v) for k, v in raw.items()}, space, normalize_images=False)
 
 
-@pytest.mark.parametrize("env_id", ["SemReloc-v21", "SemReloc-v1"])
+@pytest.mark.parametrize("env_id", ["SemReloc-v22", "SemReloc-v1"])
 def test_features_extractor_shapes_scaling_and_label_sensitivity(env_id):
     space = make_env(FAST, env_id=env_id).observation_space
     torch.manual_seed(0)
@@ -232,7 +232,7 @@ def test_preprocess_observation_gives_sb3s_tensors():
     from agents.features import preprocess_observation
     from semreloc_env.observations import ActiveObservation
 
-    spaces = [make_env(FAST).observation_space, ActiveObservation(gym.make("SemReloc-v21", **FAST)).observation_space]
+    spaces = [make_env(FAST).observation_space, ActiveObservation(gym.make("SemReloc-v22", **FAST)).observation_space]
     spaces.append(gym.spaces.Dict({"mixed": gym.spaces.MultiDiscrete([3, 5, 2]), "one": gym.spaces.Discrete(4)}))
     for space in spaces:
         space.seed(0)
@@ -457,20 +457,20 @@ def test_train_ppo_writes_only_under_out_and_never_over_an_existing_doc(tmp_path
     # an outside tester's trial: --load on another layout appended "same env options" to results.md
     reeval = [*small, "--load", str(run / "model.zip"), "--layout", "twin_rooms"]
     mod.run(parse(mod.Args, reeval), reeval)
-    assert "note: evaluating with env options env_id 'SemReloc-v21', layout 'twin_rooms'" in capsys.readouterr().err
+    assert "note: evaluating with env options env_id 'SemReloc-v22', layout 'twin_rooms'" in capsys.readouterr().err
     assert "**other than its training run's**: layout 'lab'" in (run / "results.md").read_text()
     same = [*small, "--load", str(run / "model.zip")]
     mod.run(parse(mod.Args, same), same)
     table = mod.results_table(json.loads((run / "results_reeval.json").read_text())["results"])
     expected = (
-        "the env options of its training run (env_id 'SemReloc-v21', layout 'lab', lidar_only False, map_source "
+        "the env options of its training run (env_id 'SemReloc-v22', layout 'lab', lidar_only False, map_source "
         f"'perfect', n_particles 200, max_episode_steps 10).\n\n{table}"
     )
     assert (run / "results.md").read_text().endswith(expected)
     # a review's: a model trained on another env id was re-evaluated on the newest and the report said "the same"
     older = [*same, "--config.env-id", "SemReloc-v17"]
     mod.run(parse(mod.Args, older), older)
-    assert "**other than its training run's**: env_id 'SemReloc-v21'" in (run / "results.md").read_text()
+    assert "**other than its training run's**: env_id 'SemReloc-v22'" in (run / "results.md").read_text()
     # an outside audit's: a damaged model, or one of other spaces, gave a traceback after the log folder was made
     (tmp_path / "junk.zip").write_bytes(b"not a zip")
     other = [*small[:-1], "fresh", "--load"]

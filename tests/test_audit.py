@@ -1108,7 +1108,7 @@ def test_a_lost_holds_audit_judges_only_the_scans_since_the_hold_began_to_fade()
     options = {"tracking": True, "kidnap_at_step": 30, "kidnap_pose": [2.341973057562, 1.684764250658, -1.69351002247]}
     wrong, final = {}, {}
     for trim in (0, 5):
-        env = gym.make("SemReloc-v21", layout=str(hall), relocalizer={"lost_hold_window": trim})
+        env = gym.make("SemReloc-v22", layout=str(hall), relocalizer={"lost_hold_window": trim})
         policy = make_policy("wall_follow", 11)
         obs, info = env.reset(seed=11, options=options)
         wrong[trim], lost = 0, False
@@ -1129,7 +1129,7 @@ def test_a_lost_holds_audit_judges_only_the_scans_since_the_hold_began_to_fade()
         "kidnap_pose": [11.506512095311498, 5.949443969277984, -1.3702634091238575],
     }
     policy = POLICIES["wall_follow"](6)
-    env = policy.wrap(gym.make("SemReloc-v21", layout=str(lattice)))
+    env = policy.wrap(gym.make("SemReloc-v22", layout=str(lattice)))
     policy.reset()
     obs, info = env.reset(seed=6, options=options)
     waited = again = 0
@@ -1144,4 +1144,4 @@ def test_a_lost_holds_audit_judges_only_the_scans_since_the_hold_began_to_fade()
     with pytest.raises(ValueError, match=r"lost_hold_window must be an int in \[0, "):
         MCLConfig(lost_hold_window=-1)
     with pytest.raises(ValueError, match="at most audit_window scans"):  # a wait the window could never fill
-        gym.make("SemReloc-v21", relocalizer={"audit_window": 3})
+        gym.make("SemReloc-v22", relocalizer={"audit_window": 3})

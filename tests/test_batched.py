@@ -203,7 +203,7 @@ def test_the_reset_check_takes_the_tightest_time_limit_and_a_ctrl_c_in_a_reset_l
     from semreloc_env.layout_sampling import RandomLayout
     from semreloc_env.wrappers import check_reset
 
-    inner = gym.make("SemReloc-v21", layout="lab", relocalizer={"n_particles": 200}, map_source="perfect",
+    inner = gym.make("SemReloc-v22", layout="lab", relocalizer={"n_particles": 200}, map_source="perfect",
                      max_episode_steps=10)  # fmt: skip
     env = gym.wrappers.TimeLimit(RandomLayout(inner), 50)
     with pytest.raises(ValueError, match=r"limit of 10 steps: the kidnap would never happen$"):
@@ -320,8 +320,8 @@ def test_a_wrapped_robot_takes_float64_actions_as_its_own_env_does(make_wrapper)
 
     wrap = ClipAction if make_wrapper == "clip" else (lambda e: RescaleAction(e, 0.0, 1.0))
     kw = dict(KW, action_type="continuous")
-    venv = gym.make_vec("SemRelocVec-v21", num_envs=2, wrapper=wrap, **kw)
-    single = [wrap(gym.make("SemReloc-v21", **kw)) for _ in range(2)]
+    venv = gym.make_vec("SemRelocVec-v22", num_envs=2, wrapper=wrap, **kw)
+    single = [wrap(gym.make("SemReloc-v22", **kw)) for _ in range(2)]
     venv.reset(seed=[4, 5])
     for i, env in enumerate(single):
         env.reset(seed=4 + i)
@@ -349,7 +349,7 @@ def test_the_loop_env_runs_the_newest_env_unless_told_and_each_vector_id_its_own
 
     newest = max((i for i in ENV_IDS if i.startswith("SemReloc-v")), key=lambda i: int(i.rsplit("v", 1)[1]))
     assert SemRelocLoopVectorEnv(num_envs=1, **KW).envs[0].spec.id == newest
-    for vid in ("SemRelocVec-v1", "SemRelocVec-v21"):
+    for vid in ("SemRelocVec-v1", "SemRelocVec-v22"):
         venv = gym.make_vec(vid, num_envs=1, vectorization_mode="vector_entry_point", **KW)
         assert venv.unwrapped.envs[0].spec.id == vid.replace("Vec", "")
         with pytest.raises(TypeError, match="runs SemReloc"):
@@ -376,20 +376,20 @@ def test_vector_ids_refuse_to_make_single_envs(mode):
     would zero the time limit's counter: the ids refuse, naming the SemReloc id to use."""
     with pytest.raises(gym.error.Error, match=r"gym.make\('SemReloc-vN'\)"):
         if mode == "single":
-            gym.make("SemRelocVec-v21", **KW)
+            gym.make("SemRelocVec-v22", **KW)
         else:
-            gym.make_vec("SemRelocVec-v21", num_envs=1, vectorization_mode=mode, **KW)
+            gym.make_vec("SemRelocVec-v22", num_envs=1, vectorization_mode=mode, **KW)
 
 
 def test_make_vec_spec_carries_the_time_limit_the_robots_run_with():
-    venv = gym.make_vec("SemRelocVec-v21", num_envs=2, **{**KW, "max_episode_steps": 3})
+    venv = gym.make_vec("SemRelocVec-v22", num_envs=2, **{**KW, "max_episode_steps": 3})
     assert venv.spec.max_episode_steps == 3 and venv.spec.kwargs["max_episode_steps"] == 3
     venv.reset(seed=0)
     truncated = [venv.step(np.array([3, 3]))[3] for _ in range(3)]
     assert not truncated[0].any() and truncated[-1].all()
     venv.close()
     unlimited = {k: v for k, v in KW.items() if k != "max_episode_steps"}
-    assert gym.make_vec("SemRelocVec-v21", num_envs=1, **unlimited).spec.max_episode_steps == 400
+    assert gym.make_vec("SemRelocVec-v22", num_envs=1, **unlimited).spec.max_episode_steps == 400
 
 
 def test_in_wrapped_space_casts_only_into_a_float_box():

@@ -49,7 +49,7 @@ def test_blocks_are_occupied_without_a_class_and_seen_as_walls():
     r, c = grid.world_to_cell(np.array([[5.0, 5.0], [2.5, 7.5]]))
     assert grid.occupancy[r[0], c[0]] == 1.0 and grid.occupancy[r[1], c[1]] == 0.0
     assert np.all(grid.semantic[:, r[0], c[0]] == 0.0)
-    env = gym.make("SemReloc-v21", layout=HALL, map_source="perfect")
+    env = gym.make("SemReloc-v22", layout=HALL, map_source="perfect")
     obs, info = env.reset(seed=0, options={"pose": [2.0, 5.0, 0.0]})
     ahead = np.argmin(np.abs(env.unwrapped.lidar.angles))
     assert obs["lidar"][ahead] == pytest.approx(2.0, abs=0.05)  # the block's west face at x = 4

@@ -211,7 +211,7 @@ def test_a_corridor_env_runs_the_same_episode_from_the_same_seeds():
     import gymnasium as gym
 
     def episode():
-        env = gym.make("SemReloc-v21", layout="procedural_corridor", layout_seed=7, relocalizer={"n_particles": 300})
+        env = gym.make("SemReloc-v22", layout="procedural_corridor", layout_seed=7, relocalizer={"n_particles": 300})
         obs, info = env.reset(seed=3)
         out = [info["pose"].tolist(), env.unwrapped.mcl.poses.tobytes()]
         for a in [0] * 10 + [1] * 5:

@@ -14,6 +14,7 @@ from semreloc_env.layouts import get_layout
 FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
 SLAM_FAST = {"slam": {"n_particles": 20}}
 FAST_BY_ID = {
+    "SemReloc-v22": FAST,
     "SemReloc-v21": FAST,
     "SemReloc-v20": FAST,
     "SemReloc-v19": FAST,
@@ -27,14 +28,14 @@ FAST_BY_ID = {
 
 
 def make(**kw):
-    return gym.make("SemReloc-v21", **{**FAST, **kw})
+    return gym.make("SemReloc-v22", **{**FAST, **kw})
 
 
 @pytest.mark.parametrize("env_id", semreloc_env.ENV_IDS)
 def test_check_env_gymnasium_and_sb3_without_warnings(env_id):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        if env_id not in ("SemReloc-v21", "SemSlam-v1"):  # Gymnasium rightly says that a newer version exists
+        if env_id not in ("SemReloc-v22", "SemSlam-v1"):  # Gymnasium rightly says that a newer version exists
             warnings.filterwarnings("ignore", message=".*out of date.*", category=DeprecationWarning)
         env = gym.make(env_id, **FAST_BY_ID.get(env_id, {}))
         gym_check_env(env.unwrapped, skip_render_check=True)
@@ -69,7 +70,7 @@ def test_each_builtin_layout_runs(layout):
 def test_layout_from_file_and_default_mapping_maps(tmp_path):
     path = tmp_path / "twin.json"
     path.write_text(json.dumps(get_layout("twin_rooms").to_dict()))
-    env = gym.make("SemReloc-v21", layout=str(path), relocalizer={"n_particles": 200})
+    env = gym.make("SemReloc-v22", layout=str(path), relocalizer={"n_particles": 200})
     obs, info = env.reset(seed=1)
     assert env.unwrapped.layout.name == "twin_rooms"
     # default maps come from a mapping run: they differ from the rasterised layout
@@ -181,7 +182,7 @@ def test_kidnap_pose_is_taken_as_checked_at_reset():
 
 def test_unknown_constructor_arguments_are_errors():
     with pytest.raises(TypeError):
-        gym.make("SemReloc-v21", map_source="perfect", lidar_beams=30)
+        gym.make("SemReloc-v22", map_source="perfect", lidar_beams=30)
     with pytest.raises(ValueError, match="unknown keys"):
         make(lidar={"beams": 30})
     with pytest.raises(ValueError, match="unknown keys"):

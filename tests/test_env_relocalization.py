@@ -1,4 +1,4 @@
-"""SemReloc-v21 with its relocalizer: tracking, global relocalization, kidnapping, scenarios, maps, rendering."""
+"""SemReloc-v22 with its relocalizer: tracking, global relocalization, kidnapping, scenarios, maps, rendering."""
 
 import math
 
@@ -30,7 +30,7 @@ def drive(env, steps, seed, options=None):
 
 
 def test_tracking_from_the_true_pose_stays_within_20_cm_for_300_steps():
-    env = gym.make("SemReloc-v21", layout="lab", max_episode_steps=1000)
+    env = gym.make("SemReloc-v22", layout="lab", max_episode_steps=1000)
     infos = drive(env, 300, seed=4, options={"tracking": True})
     assert len(infos) == 301
     errors = np.array([i["pose_error"]["position"] for i in infos])
@@ -42,7 +42,7 @@ def test_tracking_from_the_true_pose_stays_within_20_cm_for_300_steps():
 def test_global_relocalization_on_lab_with_semantics_converges_correctly():
     # ten seeds, not one picked: every episode must end converged at the true pose (rates over
     # many more seeds and layouts are in docs/relocalizer_eval.md)
-    env = gym.make("SemReloc-v21", layout="lab")
+    env = gym.make("SemReloc-v22", layout="lab")
     for seed in range(10):
         infos = drive(env, 400, seed=seed)
         final = infos[-1]
@@ -53,9 +53,9 @@ def test_global_relocalization_on_lab_with_semantics_converges_correctly():
 
 
 def test_lidar_only_switch_changes_the_weights():
-    a = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 500})
+    a = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 500})
     b = gym.make(
-        "SemReloc-v21", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 500}, semantic=False
+        "SemReloc-v22", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 500}, semantic=False
     )
     assert a.unwrapped.mcl_config.use_semantic and not b.unwrapped.mcl_config.use_semantic
     facing_cabinet = {"pose": [3.0, 4.5, math.pi]}
@@ -68,7 +68,7 @@ def test_lidar_only_switch_changes_the_weights():
 
 
 def test_kidnap_teleports_without_telling_the_filter():
-    env = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 500})
+    env = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 500})
     target = [12.0, 8.0, 1.0]
     obs, info = env.reset(seed=0, options={"tracking": True, "kidnap_at_step": 3, "kidnap_pose": target})
     poses, flags = [], []
@@ -94,7 +94,7 @@ def test_a_lookalike_kidnap_teleports_to_the_place_that_looks_most_like_the_pose
     from semreloc_env.lookalike import lookalike_kidnap, view_mismatch
 
     def run(seed):
-        env = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
+        env = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
         _, info = env.reset(seed=seed, options={"tracking": True, "kidnap_at_step": 4, "kidnap_pose": "lookalike"})
         infos = [info]
         for _ in range(5):
@@ -122,9 +122,9 @@ def test_a_lookalike_kidnap_teleports_to_the_place_that_looks_most_like_the_pose
 
 
 def test_changed_scenario_adds_obstacles_the_map_lacks():
-    nominal = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200}).unwrapped
+    nominal = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 200}).unwrapped
     changed = gym.make(
-        "SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200}, scenario="changed"
+        "SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 200}, scenario="changed"
     ).unwrapped
     nominal.reset(seed=0)
     changed.reset(seed=0)
@@ -161,14 +161,14 @@ def test_mapping_run_covers_the_free_space_of_procedural_layouts(name, seed):
 
 
 def test_semantic_switch_and_relocalizer_setting_agree():
-    env = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"use_semantic": False, "n_particles": 100})
+    env = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"use_semantic": False, "n_particles": 100})
     assert env.unwrapped.mcl_config.use_semantic is False
     with pytest.raises(ValueError, match="contradicts"):
-        gym.make("SemReloc-v21", map_source="perfect", semantic=True, relocalizer={"use_semantic": False})
+        gym.make("SemReloc-v22", map_source="perfect", semantic=True, relocalizer={"use_semantic": False})
 
 
 def test_a_failed_reset_keeps_the_running_episode():
-    env = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200}).unwrapped
+    env = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 200}).unwrapped
     env.reset(seed=0)
     env.step(0)
     pose, particles = env.world.pose.copy(), env.mcl.poses.copy()
@@ -185,7 +185,7 @@ def test_a_failed_reset_keeps_the_running_episode():
 
 
 def test_bad_kidnap_options():
-    env = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 100})
     for options, match in [
         ({"kidnap_pose": [2.5, 5.0, 0.0]}, "needs kidnap_at_step"),
         ({"kidnap_at_step": True}, "kidnap_at_step"),
@@ -203,7 +203,7 @@ def test_bad_kidnap_options():
 
 
 def test_kidnap_beyond_the_time_limit_is_refused():
-    env = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 100}, max_episode_steps=5)
+    env = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 100}, max_episode_steps=5)
     env.reset(seed=0)
     env.step(0)
     pose = env.unwrapped.world.pose.copy()
@@ -222,13 +222,13 @@ def test_kidnap_beyond_the_time_limit_is_refused():
 def test_map_file_source_round_trips(tmp_path):
     grid = rasterize(get_layout("twin_rooms"))
     path = save_map(grid, tmp_path / "twin.yaml")
-    env = gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(path), relocalizer={"n_particles": 200})
+    env = gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(path), relocalizer={"n_particles": 200})
     env.reset(seed=0)
     np.testing.assert_array_equal(env.unwrapped.grid.occupied_mask(), grid.occupied_mask())
 
 
 def test_rendering_draws_the_belief():
-    env = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 300}, render_mode="rgb_array")
+    env = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 300}, render_mode="rgb_array")
     env.reset(seed=0)
     a = env.render()
     env.step(0)
@@ -251,20 +251,20 @@ def test_maps_without_free_space_and_zero_particles_are_errors():
         class_names=("door", "chair", "trash_bin", "cabinet"),
     )
     with pytest.raises(ValueError, match="no free cell, so the relocalizer has nowhere to put particles$"):
-        gym.make("SemReloc-v21", layout="twin_rooms", map_source=full)  # refused at once, not at the first reset
-    env = gym.make("SemReloc-v21", layout="lab", map_source="perfect").unwrapped
+        gym.make("SemReloc-v22", layout="twin_rooms", map_source=full)  # refused at once, not at the first reset
+    env = gym.make("SemReloc-v22", layout="lab", map_source="perfect").unwrapped
     with pytest.raises(ValueError, match="no free cell"):
         env.set_layout("twin_rooms", grid=full)
     assert env.layout.name == "lab"  # nothing changed
     with pytest.raises((ValueError, TypeError), match="n_particles"):
-        gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 0})
+        gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 0})
     wrong_classes = GridMap(np.zeros(shape, np.float32), 0.05, class_names=("sofa",))
     with pytest.raises(ValueError, match="classes"):
-        gym.make("SemReloc-v21", layout="twin_rooms", map_source=wrong_classes)
+        gym.make("SemReloc-v22", layout="twin_rooms", map_source=wrong_classes)
 
 
 def test_v1_info_carries_hypotheses_and_is_success_agrees_with_termination():
-    env = gym.make("SemReloc-v21", layout="lab", map_source="perfect")
+    env = gym.make("SemReloc-v22", layout="lab", map_source="perfect")
     policy = WallFollowExplorer()
     obs, info = env.reset(seed=3)
     assert info["is_success"] is False
@@ -295,7 +295,7 @@ def test_v0_keeps_the_first_release_relocalizer():
     assert max(i["pose_error"]["position"] for i in infos) < 0.2
     assert all(i["belief"]["converged"] for i in infos[-10:])
     assert sum(i["mcl"]["n_injected"] for i in infos) == 0
-    v1 = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
+    v1 = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 300})
     assert v1.unwrapped.mcl_config.n_particles == 300 and v1.unwrapped.mcl_config.kld
 
 
@@ -309,7 +309,7 @@ def test_v0_keeps_the_first_release_relocalizer():
 def test_particle_count_stays_near_the_budget_with_many_look_alike_clusters(reloc, limit):
     # Found by a new user's trial: without KLD, clustered resampling took the *current* count as
     # its budget, so the per-cluster floors compounded (500 particles grew to 5,413 in 400 steps).
-    env = gym.make("SemReloc-v21", layout="procedural_lookalike", layout_seed=3, relocalizer=reloc)
+    env = gym.make("SemReloc-v22", layout="procedural_lookalike", layout_seed=3, relocalizer=reloc)
     env.reset(seed=0)
     counts, resamplings = [], 0
     for _ in range(300):
@@ -325,7 +325,7 @@ def test_particle_count_stays_near_the_budget_with_many_look_alike_clusters(relo
 def test_belief_between_updates_odometry_keeps_the_filter_and_changes_only_the_reported_belief():
     runs = {}
     for mode in ("exact", "odometry"):
-        env = gym.make("SemReloc-v21", relocalizer={"belief_between_updates": mode})
+        env = gym.make("SemReloc-v22", relocalizer={"belief_between_updates": mode})
         rng = np.random.default_rng(5)
         steps = []
         for options in ({}, {"tracking": True}):  # a global start (ends at its success), a tracking one

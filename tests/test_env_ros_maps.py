@@ -23,7 +23,7 @@ def _plain_map(tmp_path, suffix=".yaml"):
 def test_plain_ros_map_runs_lidar_only(tmp_path, suffix):
     grid, path = _plain_map(tmp_path, suffix)
     assert not (tmp_path / "plain.semantic.yaml").exists()
-    env = gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(path), semantic=False,
+    env = gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(path), semantic=False,
                    relocalizer={"n_particles": 200})  # fmt: skip
     env.reset(seed=0)
     for _ in range(3):
@@ -38,7 +38,7 @@ def test_a_lidar_only_env_on_a_plain_map_carries_the_env_classes(tmp_path):
     from semreloc_env.observations import ActiveObservation
 
     _, path = _plain_map(tmp_path)
-    env = gym.make("SemReloc-v21", map_source=str(path), semantic=False, relocalizer={"n_particles": 200})
+    env = gym.make("SemReloc-v22", map_source=str(path), semantic=False, relocalizer={"n_particles": 200})
     assert env.unwrapped.grid.class_names == ("door", "chair", "trash_bin", "cabinet")
     assert not env.unwrapped.grid.semantic.any()
     wrapped = ActiveObservation(env)
@@ -49,16 +49,16 @@ def test_a_lidar_only_env_on_a_plain_map_carries_the_env_classes(tmp_path):
 def test_plain_ros_map_with_semantic_on_says_what_to_do(tmp_path):
     _, path = _plain_map(tmp_path)
     with pytest.raises(ValueError, match="has no semantic classes.*semantic=False"):
-        gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(path))
+        gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(path))
 
 
 def test_png_map_in_the_env(tmp_path):
     _, path = _plain_map(tmp_path)
     Image.open(tmp_path / "plain.pgm").save(tmp_path / "plain.png")
     (tmp_path / "png.yml").write_text(path.read_text().replace("plain.pgm", "plain.png").replace("negate: 0\n", ""))
-    env = gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(tmp_path / "png.yml"), semantic=False,
+    env = gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(tmp_path / "png.yml"), semantic=False,
                    relocalizer={"n_particles": 100})  # fmt: skip
-    pgm = gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(path), semantic=False,
+    pgm = gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(path), semantic=False,
                    relocalizer={"n_particles": 100})  # fmt: skip
     a, b = env.unwrapped.grid, pgm.unwrapped.grid  # the PNG holds the PGM's pixels: the same map
     np.testing.assert_array_equal(a.occupied_mask(), b.occupied_mask())
@@ -75,10 +75,10 @@ def test_a_broken_yaml_file_is_a_layout_error_unless_it_is_a_ros_map(tmp_path):
 
     (tmp_path / "office.yaml").write_text("outer: [[0, 0], [4, 0]\nwalls: []\n")
     with pytest.raises(LayoutError, match="office.yaml: not valid YAML"):
-        gym.make("SemReloc-v21", layout=str(tmp_path / "office.yaml"))
+        gym.make("SemReloc-v22", layout=str(tmp_path / "office.yaml"))
     (tmp_path / "map.yaml").write_text("image: plain.pgm\nresolution: [0.05\n")
     with pytest.raises(MapFormatError, match="map.yaml"):
-        gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(tmp_path / "map.yaml"), semantic=False)
+        gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(tmp_path / "map.yaml"), semantic=False)
 
 
 def test_a_sidecar_with_some_classes_or_another_order(tmp_path):
@@ -93,35 +93,35 @@ def test_a_sidecar_with_some_classes_or_another_order(tmp_path):
     with pytest.raises(
         ValueError, match=r"door.*has no layer for the classes \['chair', 'trash_bin', 'cabinet'\].*semantic=False"
     ):
-        gym.make("SemReloc-v21", map_source=str(save_map(door, tmp_path / "door" / "door.yaml")), **kw)
-    lidar_only = gym.make("SemReloc-v21", map_source=str(tmp_path / "door" / "door.yaml"), semantic=False, **kw)
+        gym.make("SemReloc-v22", map_source=str(save_map(door, tmp_path / "door" / "door.yaml")), **kw)
+    lidar_only = gym.make("SemReloc-v22", map_source=str(tmp_path / "door" / "door.yaml"), semantic=False, **kw)
     g = lidar_only.unwrapped.grid
     assert g.class_names == grid.class_names
     np.testing.assert_array_equal(g.class_mask(0), grid.class_mask(0))
     assert not any(g.class_mask(k).any() for k in (1, 2, 3))
     lidar_only.reset(seed=0)
     lidar_only.step(0)
-    same = gym.make("SemReloc-v21", map_source=str(save_map(turned, tmp_path / "turned" / "t.yaml")), **kw)
-    plain = gym.make("SemReloc-v21", map_source=str(save_map(grid, tmp_path / "full" / "f.yaml")), **kw)
+    same = gym.make("SemReloc-v22", map_source=str(save_map(turned, tmp_path / "turned" / "t.yaml")), **kw)
+    plain = gym.make("SemReloc-v22", map_source=str(save_map(grid, tmp_path / "full" / "f.yaml")), **kw)
     assert same.unwrapped.grid.class_names == grid.class_names
     np.testing.assert_array_equal(same.unwrapped.grid.semantic, plain.unwrapped.grid.semantic)
     unknown = dataclasses.replace(grid, class_names=("door", "chair", "sofa", "cabinet"))
     with pytest.raises(ValueError, match=r"classes \['sofa'\] are not among the env's"):
-        gym.make("SemReloc-v21", map_source=str(save_map(unknown, tmp_path / "sofa" / "s.yaml")), semantic=False, **kw)
+        gym.make("SemReloc-v22", map_source=str(save_map(unknown, tmp_path / "sofa" / "s.yaml")), semantic=False, **kw)
     with pytest.raises(ValueError, match=r"map 's': classes \['sofa'\] are not among the env's"):  # the world from it
-        gym.make("SemReloc-v21", map_source=str(tmp_path / "sofa" / "s.yaml"), semantic=False)
+        gym.make("SemReloc-v22", map_source=str(tmp_path / "sofa" / "s.yaml"), semantic=False)
 
 
 def test_a_folder_as_map_source_says_to_give_a_file_in_it(tmp_path, monkeypatch):
     _plain_map(tmp_path)
     for src in (tmp_path, str(tmp_path)):
         with pytest.raises(ValueError, match="is a folder; give one map file in it"):
-            gym.make("SemReloc-v21", map_source=src)
+            gym.make("SemReloc-v22", map_source=src)
     # a folder in the working directory that shares a map source's name does not shadow it
     monkeypatch.chdir(tmp_path)
     for name in ("mapping", "perfect", "twin_rooms"):
         (tmp_path / name).mkdir()
-        env = gym.make("SemReloc-v21", layout="twin_rooms", map_source=name, relocalizer={"n_particles": 100})
+        env = gym.make("SemReloc-v22", layout="twin_rooms", map_source=name, relocalizer={"n_particles": 100})
         assert env.unwrapped.map_source == name
 
 
@@ -134,7 +134,7 @@ def test_a_start_on_an_unknown_cell_of_a_map_world_says_so(tmp_path):
     occ[row[0] - 10 : row[0] + 10, col[0] - 10 : col[0] + 10] = 0.5  # unknown around (3, 3)
     plain = dataclasses.replace(grid, occupancy=occ, semantic=np.zeros((0, 0, 0), np.float32), class_names=())
     path = save_map(plain, tmp_path / "unknown.yaml")
-    env = gym.make("SemReloc-v21", map_source=str(path), semantic=False, relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v22", map_source=str(path), semantic=False, relocalizer={"n_particles": 100})
     with pytest.raises(ValueError, match=r"is not free: it lies on a map cell that is not known free"):
         env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0)})
     with pytest.raises(ValueError, match=r"kidnap_pose .* is not free: it lies on a map cell that is not known free"):
@@ -153,7 +153,7 @@ def test_a_ros_map_yaml_without_its_image_key_gets_the_map_loaders_error(tmp_pat
         "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
     )
     with pytest.raises(MapFormatError, match=r"typo.yaml: missing key 'image'"):
-        gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(tmp_path / "typo.yaml"), semantic=False)
+        gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(tmp_path / "typo.yaml"), semantic=False)
     (tmp_path / "broken.yaml").write_text("resolution: 0.05\norigin: [-1.0, 2.0\n")
     with pytest.raises(MapFormatError, match="broken.yaml"):
-        gym.make("SemReloc-v21", layout="twin_rooms", map_source=str(tmp_path / "broken.yaml"), semantic=False)
+        gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(tmp_path / "broken.yaml"), semantic=False)

@@ -143,17 +143,17 @@ def test_3_clear_errors_for_odd_env_input():
 @pytest.mark.parametrize("value", [None, math.nan, math.inf, "1"])
 def test_4_bad_reward_weight_is_rejected_at_construction(value):
     with pytest.raises(ValueError, match=r"reward_weights.time"):
-        gym.make("SemReloc-v21", reward_weights={"time": value}, **FAST)
+        gym.make("SemReloc-v22", reward_weights={"time": value}, **FAST)
     with pytest.raises(ValueError, match=r"reward_weights.time"):
         gym.make("SemSlam-v1", reward_weights={"time": value}, **SLAM_FAST)
 
 
 def test_4_reward_weights_and_sensor_ranges_far_beyond_any_robot_are_rejected():
     with pytest.raises(ValueError, match="reward weight time"):
-        gym.make("SemReloc-v21", reward_weights={"time": 1e308}, **FAST)
+        gym.make("SemReloc-v22", reward_weights={"time": 1e308}, **FAST)
     for sensor in ("lidar", "camera"):
         with pytest.raises(ValueError, match="range_max_m must be at most"):
-            gym.make("SemReloc-v21", **{**FAST, sensor: {"range_max_m": 1e300}})
+            gym.make("SemReloc-v22", **{**FAST, sensor: {"range_max_m": 1e300}})
 
 
 # ---------------------------------------------------------------- 5. sensor noise
@@ -201,8 +201,8 @@ def test_7_bounds_missed_by_a_rescaling_wrapper_are_clipped_to_them():
     # takes such actions as the bound itself instead of refusing what the wrapper's own space contains
     from gymnasium.wrappers import RescaleAction
 
-    env = RescaleAction(gym.make("SemReloc-v21", action_type="continuous", **FAST), np.float32(-0.3), np.float32(1.0))
-    twin = gym.make("SemReloc-v21", action_type="continuous", **FAST)
+    env = RescaleAction(gym.make("SemReloc-v22", action_type="continuous", **FAST), np.float32(-0.3), np.float32(1.0))
+    twin = gym.make("SemReloc-v22", action_type="continuous", **FAST)
     env.reset(seed=0)
     twin.reset(seed=0)
     high = env.action_space.high
@@ -212,7 +212,7 @@ def test_7_bounds_missed_by_a_rescaling_wrapper_are_clipped_to_them():
     assert not twin.action_space.contains(np.array([1 + 2e-5, 0.0], np.float32))
 
 
-@pytest.mark.parametrize("env_id, kw", [("SemReloc-v21", FAST), ("SemSlam-v1", SLAM_FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v1", SLAM_FAST)])
 def test_7_the_slack_is_1e_5_on_both_sides_and_clips_to_the_bound(env_id, kw):
     from semreloc_env.envs.spaces import ACTION_BOUND_SLACK
 
@@ -228,7 +228,7 @@ def test_7_the_slack_is_1e_5_on_both_sides_and_clips_to_the_bound(env_id, kw):
     assert_identical(env.step([0.3, 0.1]), twin.step([0.3, 0.1]))
 
 
-@pytest.mark.parametrize("env_id, kw", [("SemReloc-v21", FAST), ("SemSlam-v1", SLAM_FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v1", SLAM_FAST)])
 def test_continuous_actions_are_checked_by_value_not_dtype(env_id, kw):
     # the env docstrings say so: ints and float64 within the bounds are the same actions as float32 ones,
     # though Gymnasium's Box.contains refuses them
@@ -258,7 +258,7 @@ def test_reward_weights_take_numpy_numbers_as_floats():
 
 
 # ---------------------------------------------------------------- 8. time limit
-@pytest.mark.parametrize("env_id, kw", [("SemSlam-v1", SLAM_FAST), ("SemReloc-v21", FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemSlam-v1", SLAM_FAST), ("SemReloc-v22", FAST)])
 def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
     env = gym.make(env_id, max_episode_steps=6, **kw)
     env.reset(seed=0)
@@ -347,12 +347,12 @@ def test_11_a_4000_vertex_outer_wall_validates():
 )
 def test_12_loose_types_are_rejected(kw, match):
     with pytest.raises(ValueError, match=match):
-        gym.make("SemReloc-v21", **{**FAST, **kw})
+        gym.make("SemReloc-v22", **{**FAST, **kw})
 
 
 def test_12_semantic_must_be_a_bool():
     with pytest.raises(ValueError, match=r"semantic must be True, False or None, got str 'no'"):
-        gym.make("SemReloc-v21", semantic="no", **FAST)
+        gym.make("SemReloc-v22", semantic="no", **FAST)
 
 
 def test_12_instances_are_checked_too():
@@ -376,15 +376,15 @@ def test_nested_overrides_keep_their_own_defaults():
     )
     assert cfg.lidar_field == DEFAULT_RELOCALIZER.lidar_field
     assert cfg.likelihood_scale == DEFAULT_RELOCALIZER.likelihood_scale
-    env = gym.make("SemReloc-v21", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
+    env = gym.make("SemReloc-v22", relocalizer={"semantic_field": {"sigma_hit_m": 0.4}}, **{"map_source": "perfect"})
     assert env.unwrapped.mcl_config.semantic_field == cfg.semantic_field
 
 
 def test_9b_a_semreloc_env_pickles_mid_episode_and_its_copy_goes_on_alike():
-    """A SemReloc-v21 env (its relocalizer, its likelihood model with the per-BeamSet cache, the held
+    """A SemReloc-v22 env (its relocalizer, its likelihood model with the per-BeamSet cache, the held
     convergence and the audit's window) survives pickle and deepcopy mid-episode, and each copy then
     gives the episode the original gives."""
-    env = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 300})
+    env = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 300})
     env.reset(seed=3, options={"pose": [2.0, 5.0, 0.0]})
     for a in [0, 0, 1, 0, 2, 0, 0, 1] * 3:
         env.step(a)
@@ -401,14 +401,14 @@ def test_arguments_a_new_user_found_accepted_or_checked_late():
     import gymnasium as gym
 
     with pytest.raises(ValueError, match=r"layout_seed=7 seeds only the procedural layouts"):
-        gym.make("SemReloc-v21", layout="lab", layout_seed=7)
-    gym.make("SemReloc-v21", layout="lab", layout_seed=7, scenario="changed")  # it places the obstacles
-    env = gym.make("SemReloc-v21", layout="procedural", layout_seed=7)
+        gym.make("SemReloc-v22", layout="lab", layout_seed=7)
+    gym.make("SemReloc-v22", layout="lab", layout_seed=7, scenario="changed")  # it places the obstacles
+    env = gym.make("SemReloc-v22", layout="procedural", layout_seed=7)
     with pytest.raises(ValueError, match=r"layout_seed=3 seeds only"):
         env.unwrapped.set_layout("twin_rooms", 3)
     with pytest.raises(ValueError, match=r"would move 2.000 m per physics substep"):
-        gym.make("SemReloc-v21", robot={"max_linear_mps": 100.0})
-    env = gym.make("SemReloc-v21", layout="lab")
+        gym.make("SemReloc-v22", robot={"max_linear_mps": 100.0})
+    env = gym.make("SemReloc-v22", layout="lab")
     with pytest.raises(ValueError, match=r"kidnap_pose \[50.0, 2.0, 0.0\] is not free: .*outside the outer wall"):
         env.reset(seed=0, options={"kidnap_at_step": 5, "kidnap_pose": [50.0, 2.0, 0.0]})
 
@@ -416,7 +416,7 @@ def test_arguments_a_new_user_found_accepted_or_checked_late():
 def test_a_layout_too_tight_for_a_random_start_says_what_was_looked_for():
     """A 0.5 m room passes the layout checks, and the robot (radius 0.2 m) fits at its centre, but a random start
     needs 0.1 m to spare: the reset says so and how to start anyway (an outside tester's report)."""
-    env = gym.make("SemReloc-v21", layout={"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]},
+    env = gym.make("SemReloc-v22", layout={"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]},
                    map_source="perfect", semantic=False, relocalizer={"n_particles": 50})  # fmt: skip
     with pytest.raises(ValueError, match=r"no place found where it fits \(radius 0.2 m\) with 0.1 m to spare.*pose"):
         env.reset(seed=0)
@@ -440,7 +440,7 @@ TD = np.timedelta64(3, "s")
 def test_a_timedelta_is_not_an_integer_and_changes_nothing(call):
     # np.timedelta64 subclasses np.signedinteger: it failed in int() with a TypeError, and as a kidnap step
     # "3 seconds" was taken as step 3
-    env, twin = gym.make("SemReloc-v21", **FAST), gym.make("SemReloc-v21", **FAST)
+    env, twin = gym.make("SemReloc-v22", **FAST), gym.make("SemReloc-v22", **FAST)
     env.reset(seed=1)
     twin.reset(seed=1)
     with pytest.raises(ValueError):
@@ -450,11 +450,11 @@ def test_a_timedelta_is_not_an_integer_and_changes_nothing(call):
 
 def test_a_timedelta_is_refused_in_configs_and_estimators():
     with pytest.raises(ValueError, match=r"n_beams"):
-        gym.make("SemReloc-v21", lidar={"n_beams": np.timedelta64(30, "s")})
+        gym.make("SemReloc-v22", lidar={"n_beams": np.timedelta64(30, "s")})
     with pytest.raises(ValueError, match=r"num_envs"):
-        gym.make_vec("SemRelocVec-v21", num_envs=np.timedelta64(2, "s"), vectorization_mode="vector_entry_point")
+        gym.make_vec("SemRelocVec-v22", num_envs=np.timedelta64(2, "s"), vectorization_mode="vector_entry_point")
     with pytest.raises(ValueError, match=r"max_linear_mps"):
-        gym.make("SemReloc-v21", robot={"max_linear_mps": np.timedelta64(1)})
+        gym.make("SemReloc-v22", robot={"max_linear_mps": np.timedelta64(1)})
     with pytest.raises(LayoutError, match=r"outer"):
         layout_from_dict({"outer": [[0, 0], [np.timedelta64(8, "s"), 0], [8, 8], [0, 8]]})
     from agents.options import MotionOptions
@@ -462,7 +462,7 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
 
     with pytest.raises(ValueError, match=r"max_blocked_turns"):
         ViewpointPlanner(0, max_blocked_turns=TD)
-    env = MotionOptions(gym.make("SemReloc-v21", **FAST), ("explore",))
+    env = MotionOptions(gym.make("SemReloc-v22", **FAST), ("explore",))
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"not in Discrete"):
         env.step(TD)
@@ -475,8 +475,8 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
 @pytest.mark.parametrize(
     "env_id, kw, match",
     [
-        ("SemReloc-v21", {"relocalizer": {"lidar_field": {"sigma_hit_m": 1e300}}}, r"lidar_field.*sigma_hit_m"),
-        ("SemReloc-v21", {"relocalizer": {"semantic_field": {"max_dist_m": 1e200}}}, r"semantic_field.*max_dist_m"),
+        ("SemReloc-v22", {"relocalizer": {"lidar_field": {"sigma_hit_m": 1e300}}}, r"lidar_field.*sigma_hit_m"),
+        ("SemReloc-v22", {"relocalizer": {"semantic_field": {"max_dist_m": 1e200}}}, r"semantic_field.*max_dist_m"),
         ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e200}}, r"obs_noise.*sigma_r_m must be in \[1e-09, 1e\+06\] m"),
         ("SemSlam-v1", {"obs_noise": {"sigma_b_rad": 1e200}}, r"obs_noise.*sigma_b_rad in \[1e-09, 2 pi\]"),
         # an outside audit's: both at 1e-100 passed and gave NaN landmarks (det(R) underflowed)
@@ -484,13 +484,13 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
         ("SemSlam-v1", {"landmark_sensor": {"class_depth_m": (2e6, 0.25, 0.2, 0.3)}}, r"class_depth_m"),
         ("SemSlam-v1", {"reward_weights": {"time": -1e308}}, r"reward weight time"),
         # an outside audit's: each passed gym.make and overflowed at the reset or the first step or audit
-        ("SemReloc-v21", {"relocalizer": {"global_particles_per_m2": 1e307}}, r"global_particles_per_m2 must be in"),
-        ("SemReloc-v21", {"relocalizer": {"audit_candidates_per_m2": 1e307}}, r"audit_candidates_per_m2 must be in"),
-        ("SemReloc-v21", {"relocalizer": {"negative_evidence": {"sigma_m": 1e155}}}, r"negative_evidence.*sigma_m"),
-        ("SemReloc-v21", {"relocalizer": {"lidar_field": {"max_beams": 10**20}}}, r"lidar_field.*max_beams"),
-        ("SemReloc-v21", {"relocalizer": {"semantic_field": {"beam_stride": 10**20}}}, r"semantic_field.*beam_stride"),
+        ("SemReloc-v22", {"relocalizer": {"global_particles_per_m2": 1e307}}, r"global_particles_per_m2 must be in"),
+        ("SemReloc-v22", {"relocalizer": {"audit_candidates_per_m2": 1e307}}, r"audit_candidates_per_m2 must be in"),
+        ("SemReloc-v22", {"relocalizer": {"negative_evidence": {"sigma_m": 1e155}}}, r"negative_evidence.*sigma_m"),
+        ("SemReloc-v22", {"relocalizer": {"lidar_field": {"max_beams": 10**20}}}, r"lidar_field.*max_beams"),
+        ("SemReloc-v22", {"relocalizer": {"semantic_field": {"beam_stride": 10**20}}}, r"semantic_field.*beam_stride"),
         (
-            "SemReloc-v21",
+            "SemReloc-v22",
             {"relocalizer": {"negative_evidence": {"max_beams": 10**20}}},
             r"negative_evidence.*max_beams",
         ),
@@ -503,7 +503,7 @@ def test_huge_finite_settings_are_refused_at_make(env_id, kw, match):
         gym.make(env_id, **kw)
 
 
-@pytest.mark.parametrize("env_id, kw", [("SemReloc-v21", FAST), ("SemSlam-v1", SLAM_FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v1", SLAM_FAST)])
 def test_observations_are_writable_copies_that_change_nothing(env_id, kw):
     # semantic_class was a read-only view of the scan's labels, unlike every other entry
     env, twin = gym.make(env_id, **kw), gym.make(env_id, **kw)
@@ -526,7 +526,7 @@ def test_a_yaml_layout_that_is_not_utf8_is_a_layout_error_however_it_is_named(tm
     with pytest.raises(LayoutError, match=r"latin1.yaml: not UTF-8"):
         get_layout(str(bad))
     with pytest.raises(LayoutError, match=r"latin1.yaml: not UTF-8"):
-        gym.make("SemReloc-v21", layout=str(bad), **FAST)
+        gym.make("SemReloc-v22", layout=str(bad), **FAST)
 
 
 def test_a_room_without_objects_needs_its_floor_too():
@@ -540,7 +540,7 @@ def test_a_label_without_a_class_is_refused_whether_or_not_the_motion_gate_lets_
     # it was refused only by updates past the motion gate: a standing robot's bad scans passed unnoticed
     from filters.robot_data.scans import SemanticScan
 
-    env = gym.make("SemReloc-v21", **FAST)
+    env = gym.make("SemReloc-v22", **FAST)
     env.reset(seed=0)
     mcl = env.unwrapped.mcl
     lidar, sem = env.unwrapped._last["lidar"], env.unwrapped._last["semantic"]
@@ -592,7 +592,7 @@ def test_slam_filters_check_their_config_and_noise_types_when_made():
 def _lab_filter(**cfg):
     from filters.localization.mcl import MonteCarloLocalizer
 
-    env = gym.make("SemReloc-v21", **FAST)
+    env = gym.make("SemReloc-v22", **FAST)
     env.reset(seed=0)
     return MonteCarloLocalizer(env.unwrapped.grid, MCLConfig(**cfg), np.random.default_rng(0))
 
@@ -660,7 +660,7 @@ def test_reset_options_wrapper_says_what_the_env_says_of_options_that_are_not_a_
     # a list gave "TypeError: 'list' object is not a mapping"; [] and "" were taken as no options
     from semreloc_env.wrappers import ResetOptions
 
-    env = ResetOptions(gym.make("SemReloc-v21", **FAST), {"tracking": True})
+    env = ResetOptions(gym.make("SemReloc-v22", **FAST), {"tracking": True})
     for bad in ([("tracking", False)], [], ""):
         with pytest.raises(ValueError, match=r"reset options must be a dict or None"):
             env.reset(seed=0, options=bad)
@@ -674,8 +674,8 @@ CRAMPED_POSE = {"pose": (0.275, 0.275, 0.0)}
 
 
 def test_a_reset_that_fails_inside_the_env_leaves_the_wrappers_as_they_were():
-    env = gym.make("SemReloc-v21", max_episode_steps=5, relocalizer={"n_particles": 50}, **CRAMPED)
-    twin = gym.make("SemReloc-v21", max_episode_steps=5, relocalizer={"n_particles": 50}, **CRAMPED)
+    env = gym.make("SemReloc-v22", max_episode_steps=5, relocalizer={"n_particles": 50}, **CRAMPED)
+    twin = gym.make("SemReloc-v22", max_episode_steps=5, relocalizer={"n_particles": 50}, **CRAMPED)
     for e in (env, twin):
         e.reset(seed=0, options=CRAMPED_POSE)
         for _ in range(3):
@@ -684,7 +684,7 @@ def test_a_reset_that_fails_inside_the_env_leaves_the_wrappers_as_they_were():
         env.reset(seed=1)
     assert_identical([env.step(3) for _ in range(2)], [twin.step(3) for _ in range(2)])  # truncated at step 5 too
     # the first reset failing: Gymnasium's checker must not count it (the next step crashed inside Gymnasium)
-    fresh = gym.make("SemReloc-v21", relocalizer={"n_particles": 50}, **CRAMPED)
+    fresh = gym.make("SemReloc-v22", relocalizer={"n_particles": 50}, **CRAMPED)
     with pytest.raises(ValueError, match="no free space"):
         fresh.reset(seed=0)
     fresh.reset(seed=0, options=CRAMPED_POSE)
@@ -693,7 +693,7 @@ def test_a_reset_that_fails_inside_the_env_leaves_the_wrappers_as_they_were():
 
 @pytest.mark.parametrize("kidnap_pose, error", [(None, "a random kidnap"), ("lookalike", "kidnap_pose='lookalike'")])
 def test_a_kidnap_with_nowhere_to_go_says_so_and_changes_nothing(kidnap_pose, error):
-    env = gym.make("SemReloc-v21", relocalizer={"n_particles": 50}, **CRAMPED)
+    env = gym.make("SemReloc-v22", relocalizer={"n_particles": 50}, **CRAMPED)
     opts = {**CRAMPED_POSE, "tracking": True, "kidnap_at_step": 2}
     if kidnap_pose is not None:
         opts["kidnap_pose"] = kidnap_pose
@@ -713,7 +713,7 @@ def test_a_failed_random_kidnap_leaves_its_draws_as_they_were():
     # step could succeed, its target depending on how many tries had failed before
     w = 0.6012  # an L of 60 m arms barely wider than the robot: the 10,000 tries of a random place mostly miss
     corridor = {"outer": [[0, 0], [60, 0], [60, w], [w, w], [w, 60], [0, 60]]}
-    env = gym.make("SemReloc-v21", layout=corridor, map_source="perfect", relocalizer={"n_particles": 50})
+    env = gym.make("SemReloc-v22", layout=corridor, map_source="perfect", relocalizer={"n_particles": 50})
     env.reset(seed=0, options={"pose": (5.0, w / 2, 0.0), "tracking": True, "kidnap_at_step": 2})
     env.step(3)
     for _ in range(4):  # the second of these succeeded before
@@ -742,15 +742,15 @@ def test_integers_too_large_for_a_float_are_layout_errors_naming_the_entry(tmp_p
 def test_the_changed_scenario_in_a_narrow_layout_names_its_obstacles():
     corridor = {"outer": [[0, 0], [30, 0], [30, 0.8], [0, 0.8]]}
     with pytest.raises(ValueError, match=r'scenario "changed": .* no place for its unmapped obstacles'):
-        gym.make("SemReloc-v21", layout=corridor, map_source="perfect", scenario="changed")
-    gym.make("SemReloc-v21", layout=corridor, map_source="perfect").reset(seed=0)  # nominal: fine
+        gym.make("SemReloc-v22", layout=corridor, map_source="perfect", scenario="changed")
+    gym.make("SemReloc-v22", layout=corridor, map_source="perfect").reset(seed=0)  # nominal: fine
 
 
 @pytest.mark.parametrize("kw", [{"odometry": {"alpha3": 1e60}}, {"relocalizer": {"motion": {"alpha1": 101.0}}}])
 def test_odometry_noise_beyond_its_limit_is_refused_at_make(kw):
     # 1e60 passed gym.make and failed at the first step, half done, naming the pose rasters
     with pytest.raises(ValueError, match=r"alpha[13] must be at most MAX_ALPHA = 100"):
-        gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect", **kw)
+        gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect", **kw)
 
 
 @pytest.mark.parametrize("suffix", [".json", ".yaml"])

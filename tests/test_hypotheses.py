@@ -403,7 +403,7 @@ def test_the_env_runs_with_routine_proposals_weighed_by_the_prior():
     out = {}
     for lam in (0.0, 0.5):
         env = gym.make(
-            "SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 300, "proposal_prior_weight": lam}
+            "SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 300, "proposal_prior_weight": lam}
         )
         obs, info = env.reset(seed=3)
         injected = 0

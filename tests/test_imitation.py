@@ -17,7 +17,7 @@ from agents.viewpoint import ViewpointPlanner
 
 def _env(**kw):
     kw = {"layout": "twin_rooms", "relocalizer": {"n_particles": 300}, "max_episode_steps": 40, **kw}
-    return gym.make("SemReloc-v21", **kw)
+    return gym.make("SemReloc-v22", **kw)
 
 
 def _tiny_train(**kw) -> ActiveTrainConfig:

@@ -50,7 +50,7 @@ def test_sampler_rejects_bad_input():
         with pytest.raises(ValueError, match="seeds"):
             LayoutSampler(kinds=("procedural",), seeds=seeds)
     with pytest.raises(ValueError, match="seed"):
-        RandomLayout(gym.make("SemReloc-v21", map_source="perfect"), seed=-1)
+        RandomLayout(gym.make("SemReloc-v22", map_source="perfect"), seed=-1)
 
 
 def test_sampler_draws_layout_files(tmp_path):
@@ -72,7 +72,7 @@ def _rollout(env, seeds):
 
 def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
     def make():
-        return RandomLayout(gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200}))
+        return RandomLayout(gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 200}))
 
     a, b = _rollout(make(), range(6)), _rollout(make(), range(6))
     for (la, oa, ma), (lb, ob, mb) in zip(a, b):
@@ -95,7 +95,7 @@ def test_random_layout_wrapper_is_deterministic_and_changes_layouts():
     ],
 )
 def test_random_layout_spec_round_trips_through_json(sampler):
-    base = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200})
+    base = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 200})
     env = RandomLayout(base, sampler, seed=4)
     spec = gym.envs.registration.EnvSpec.from_json(env.spec.to_json())
     again = gym.make(spec)
@@ -127,7 +127,7 @@ def test_sampler_config_names_a_search_path_layout_by_its_file(tmp_path, monkeyp
     monkeypatch.chdir(tmp_path)
     config = LayoutSampler(kinds=(), files=["hall"]).config()
     assert config["files"] == [str((tmp_path / "lib" / "hall.json").resolve())]
-    base = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200})
+    base = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 200})
     env = RandomLayout(base, LayoutSampler(kinds=(), files=["hall"]), seed=4)
     again = gym.make(gym.envs.registration.EnvSpec.from_json(env.spec.to_json()))
     (oa, ia), (ob, ib) = env.reset(seed=1), again.reset(seed=1)
@@ -143,7 +143,7 @@ def test_sampler_config_rejects_bad_input():
         LayoutSampler.from_config({"seeds": {"start": 0}})
     with pytest.raises(ValueError, match="must be a dict"):
         LayoutSampler.from_config([("kinds", ["lab"])])
-    env = gym.make("SemReloc-v21", map_source="perfect")
+    env = gym.make("SemReloc-v22", map_source="perfect")
     with pytest.raises(TypeError, match="LayoutSampler or its config"):
         RandomLayout(env, sampler="lab")
     with pytest.raises(ValueError, match="cache_size"):
@@ -153,9 +153,9 @@ def test_sampler_config_rejects_bad_input():
 
 
 def test_random_layout_needs_a_layout_free_map(tmp_path):
-    env = gym.make("SemReloc-v21", map_source="perfect")
+    env = gym.make("SemReloc-v22", map_source="perfect")
     grid = env.unwrapped.grid
-    fixed = gym.make("SemReloc-v21", map_source=grid)
+    fixed = gym.make("SemReloc-v22", map_source=grid)
     with pytest.raises(ValueError, match="map_source"):
         RandomLayout(fixed)
     with pytest.raises(ValueError, match="fixed"):
@@ -274,7 +274,7 @@ def test_lookalike_layout_gives_up_with_a_clear_error():
 
 
 def test_set_layout_changes_the_next_episode_only():
-    env = gym.make("SemReloc-v21", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v22", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
     env.reset(seed=0)
     pose = env.unwrapped.world.pose.copy()
     env.unwrapped.set_layout("twin_rooms")
@@ -290,7 +290,7 @@ def test_a_rejected_random_layout_reset_changes_nothing():
     # so the running episode reported (and observed) another layout's map (found in an audit).
     def make():
         return RandomLayout(
-            gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 200}),
+            gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 200}),
             LayoutSampler(kinds=("lab", "twin_rooms", "procedural"), seeds=range(20)),
         )
 
@@ -317,9 +317,9 @@ def test_a_rejected_random_layout_reset_changes_nothing():
 
 
 def test_set_layout_rejects_a_map_of_another_place():
-    env = gym.make("SemReloc-v21", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v22", layout="lab", map_source="perfect", relocalizer={"n_particles": 100})
     lab_grid = env.unwrapped.grid
-    twin_grid = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect").unwrapped.grid
+    twin_grid = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect").unwrapped.grid
     with pytest.raises(ValueError):
         env.unwrapped.set_layout("twin_rooms", grid=lab_grid)
     assert env.unwrapped.layout.name == "lab" and env.unwrapped.grid is lab_grid

@@ -224,21 +224,21 @@ def test_a_ros_map_path_may_start_with_a_tilde(tmp_path, monkeypatch):
     from filters.mapping.ros_map import save_map
 
     monkeypatch.setenv("HOME", str(tmp_path))
-    env = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect").unwrapped
+    env = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect").unwrapped
     save_map(env.grid, tmp_path / "tw.yaml")
-    assert gym.make("SemReloc-v21", layout="~/tw.yaml").unwrapped.layout.name == "tw"
-    gym.make("SemReloc-v21", layout="twin_rooms", map_source="~/tw.yaml").reset(seed=0)
+    assert gym.make("SemReloc-v22", layout="~/tw.yaml").unwrapped.layout.name == "tw"
+    gym.make("SemReloc-v22", layout="twin_rooms", map_source="~/tw.yaml").reset(seed=0)
     import yaml
 
     (tmp_path / "tw_layout.yaml").write_text(yaml.safe_dump({**get_layout("twin_rooms").to_dict(), "name": "twl"}))
-    gym.make("SemReloc-v21", layout="twin_rooms", map_source="~/tw_layout.yaml").reset(seed=0)  # a layout as the map
+    gym.make("SemReloc-v22", layout="twin_rooms", map_source="~/tw_layout.yaml").reset(seed=0)  # a layout as the map
 
 
 def test_a_layout_too_small_for_the_robot_is_a_layout_error(tmp_path):
     path = tmp_path / "tiny.json"
     path.write_text('{"outer": [[0, 0], [0.5, 0], [0.5, 0.5], [0, 0.5]]}')
     with pytest.raises(LayoutError, match="no free space"):
-        gym.make("SemReloc-v21", layout=str(path))
+        gym.make("SemReloc-v22", layout=str(path))
 
 
 def test_a_key_given_twice_in_a_layout_file_is_an_error_not_a_lost_entry(tmp_path):

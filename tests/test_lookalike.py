@@ -25,7 +25,7 @@ TWO_SAME_ROOMS = {
 
 
 def _world(layout):
-    env = gym.make("SemReloc-v21", layout=layout, map_source="perfect").unwrapped
+    env = gym.make("SemReloc-v22", layout=layout, map_source="perfect").unwrapped
     env.reset(seed=0)
     return env.world
 

@@ -161,7 +161,7 @@ def test_alpha_is_averaged_in_for_trinary_maps_as_map_server_does(tmp_path):
 
 
 def test_the_registered_envs_read_alpha_maps_as_before(tmp_path):
-    # a review: averaging alpha in changed SemReloc-v21's world and episodes on an RGBA map (opaque grey-60 walls
+    # a review: averaging alpha in changed SemReloc-v22's world and episodes on an RGBA map (opaque grey-60 walls
     # became unknown); the envs keep the old reading, load_map's default follows map_server
     import gymnasium as gym
 
@@ -175,5 +175,5 @@ def test_the_registered_envs_read_alpha_maps_as_before(tmp_path):
     path = _yaml(tmp_path, "room.png")
     assert load_map(path, alpha_in_trinary=False).occupied_mask().sum() > 1000
     assert load_map(path).occupied_mask().sum() == 0  # (3 * 60 + 255) / 4: p = 0.574, unknown to map_server
-    env = gym.make("SemReloc-v21", map_source=str(path), semantic=False, relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v22", map_source=str(path), semantic=False, relocalizer={"n_particles": 100})
     assert env.unwrapped.grid.occupied_mask().sum() == load_map(path, alpha_in_trinary=False).occupied_mask().sum()

@@ -102,7 +102,7 @@ def _plain(grid):
 
 def test_env_runs_in_the_world_a_ros_map_shows(tmp_path):
     path = save_map(_plain(_map_with_diagonal()), tmp_path / "room.yaml")
-    env = gym.make("SemReloc-v21", map_source=str(path), semantic=False, relocalizer={"n_particles": 300})
+    env = gym.make("SemReloc-v22", map_source=str(path), semantic=False, relocalizer={"n_particles": 300})
     env.reset(seed=0)
     base = env.unwrapped
     assert isinstance(base.layout, MapLayout) and base.layout.name == "room"
@@ -111,9 +111,9 @@ def test_env_runs_in_the_world_a_ros_map_shows(tmp_path):
     assert np.isfinite(info["pose_error"]["position"])
     env.close()
     with pytest.raises(ValueError, match="no semantic classes"):
-        gym.make("SemReloc-v21", map_source=str(path))
+        gym.make("SemReloc-v22", map_source=str(path))
     # the same map as a GridMap
-    env = gym.make("SemReloc-v21", map_source=_plain(_map_with_diagonal()), semantic=False,
+    env = gym.make("SemReloc-v22", map_source=_plain(_map_with_diagonal()), semantic=False,
                    relocalizer={"n_particles": 100})  # fmt: skip
     env.reset(seed=1)
     assert isinstance(env.unwrapped.layout, MapLayout)
@@ -121,7 +121,7 @@ def test_env_runs_in_the_world_a_ros_map_shows(tmp_path):
 
 def test_env_with_a_semantic_map_world(tmp_path):
     path = save_map(rasterize(get_layout("twin_rooms")), tmp_path / "twin.yaml")
-    env = gym.make("SemReloc-v21", map_source=str(path), relocalizer={"n_particles": 300})
+    env = gym.make("SemReloc-v22", map_source=str(path), relocalizer={"n_particles": 300})
     obs, info = env.reset(seed=0)
     assert len(env.unwrapped.layout.objects) == len(get_layout("twin_rooms").objects)
     for _ in range(3):
@@ -132,15 +132,15 @@ def test_env_with_a_semantic_map_world(tmp_path):
 def test_mismatched_map_and_world_are_errors(tmp_path):
     twin = rasterize(get_layout("twin_rooms"))
     with pytest.raises(ValueError, match="does not fit the world 'lab'"):
-        gym.make("SemReloc-v21", layout="lab", map_source=twin)
+        gym.make("SemReloc-v22", layout="lab", map_source=twin)
     path = save_map(twin, tmp_path / "twin.yaml")
     with pytest.raises(ValueError, match="does not fit the world 'lab'"):
-        gym.make("SemReloc-v21", layout="lab", map_source=str(path))
+        gym.make("SemReloc-v22", layout="lab", map_source=str(path))
     shifted = dataclasses.replace(twin, origin_xy_m=(twin.origin_xy_m[0] + 0.3, twin.origin_xy_m[1] - 0.3))
     with pytest.raises(ValueError, match="disagree in frame"):
         check_map_matches_world(shifted, get_layout("twin_rooms"))
     with pytest.raises(ValueError, match="does not fit"):
-        gym.make("SemReloc-v21", layout="lab", map_source="twin_rooms")
+        gym.make("SemReloc-v22", layout="lab", map_source="twin_rooms")
     check_map_matches_world(twin, get_layout("twin_rooms"))  # its own world fits
 
 
@@ -151,10 +151,10 @@ def test_map_of_one_layout_world_of_another():
         if o["class"] != "door":  # furniture moves 0.3 m towards the middle of the building
             o["center"] = [o["center"][0] + (0.3 if o["center"][0] < 7.5 else -0.3), o["center"][1]]
     moved["name"] = "lab_moved"
-    env = gym.make("SemReloc-v21", layout=moved, map_source="lab", relocalizer={"n_particles": 200})
+    env = gym.make("SemReloc-v22", layout=moved, map_source="lab", relocalizer={"n_particles": 200})
     env.reset(seed=0)
     base = env.unwrapped
-    np.testing.assert_array_equal(base.grid.occupancy, gym.make("SemReloc-v21").unwrapped.grid.occupancy)
+    np.testing.assert_array_equal(base.grid.occupancy, gym.make("SemReloc-v22").unwrapped.grid.occupancy)
     assert base.layout.name == "lab_moved"
     env.step(0)
     env.close()
@@ -173,7 +173,7 @@ def test_layouts_by_name_on_the_search_path(tmp_path, monkeypatch):
     monkeypatch.setenv("SEMRELOC_LAYOUT_PATH", str(tmp_path))
     assert find_layout_file("lab_moved") == tmp_path / "lab_moved.json"
     assert get_layout("lab_moved").name == "lab_moved"
-    env = gym.make("SemReloc-v21", layout="lab", map_source="lab_moved", relocalizer={"n_particles": 100})
+    env = gym.make("SemReloc-v22", layout="lab", map_source="lab_moved", relocalizer={"n_particles": 100})
     assert env.unwrapped.layout.name == "lab"
     # a seventeenth tester's: "lab_moved.json" said only "not found", although the name is on the path
     with pytest.raises(
@@ -213,7 +213,7 @@ def test_a_search_path_file_named_like_a_built_in_warns_that_the_built_in_is_use
 
 def test_missing_map_file_is_still_file_not_found(tmp_path):
     with pytest.raises(FileNotFoundError, match="map YAML not found"):
-        gym.make("SemReloc-v21", layout="lab", map_source=str(tmp_path / "nope.yaml"))
+        gym.make("SemReloc-v22", layout="lab", map_source=str(tmp_path / "nope.yaml"))
 
 
 def test_a_class_region_on_free_cells_warns_that_the_world_makes_it_solid():
@@ -247,7 +247,7 @@ def test_the_packages_own_maps_build_worlds_without_the_warning(name):
 
     from semreloc_env.map_world import MapWorldWarning, layout_from_map
 
-    grid = gym.make("SemReloc-v21", layout=name).unwrapped.grid
+    grid = gym.make("SemReloc-v22", layout=name).unwrapped.grid
     assert any((grid.class_mask(k) & grid.free_mask()).any() for k in range(len(grid.class_names)))
     with warnings.catch_warnings():
         warnings.simplefilter("error", MapWorldWarning)
@@ -285,9 +285,9 @@ def test_a_ros_map_found_by_name_on_the_search_path_is_read_as_a_map(tmp_path, m
     by_name = maps_for(twin, "my_floor", LidarParams(), CameraParams())
     by_path = maps_for(twin, str(tmp_path / "my_floor.yaml"), LidarParams(), CameraParams())
     np.testing.assert_array_equal(by_name.free_mask(), by_path.free_mask())
-    by_name = gym.make("SemReloc-v21", layout="twin_rooms", map_source="my_floor", relocalizer={"n_particles": 100})
+    by_name = gym.make("SemReloc-v22", layout="twin_rooms", map_source="my_floor", relocalizer={"n_particles": 100})
     by_path = gym.make(
-        "SemReloc-v21",
+        "SemReloc-v22",
         layout="twin_rooms",
         map_source=str(tmp_path / "my_floor.yaml"),
         relocalizer={"n_particles": 100},

@@ -907,7 +907,7 @@ def test_an_increment_is_checked_in_one_place_and_composed_alike_in_floats():
         assert back.tobytes() == relative(pose, compose(pose, d)).tobytes()
 
 
-# --------------------------------------------------------------------------- SemReloc-v21's work savers
+# --------------------------------------------------------------------------- SemReloc-v22's work savers
 @pytest.mark.parametrize("still", [True, False])
 def test_a_still_predict_moves_nothing_and_draws_only_when_asked_to(still):
     grid = symmetric_room()

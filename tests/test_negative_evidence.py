@@ -167,7 +167,7 @@ def test_the_true_pose_rarely_pays_while_tracking_beside_objects():
     from agents.baselines import WallFollowExplorer
     from filters.localization.likelihood_reference import negative_evidence_reference
 
-    env = gym.make("SemReloc-v21", layout="lab", relocalizer={"n_particles": 100}, max_episode_steps=1000)
+    env = gym.make("SemReloc-v22", layout="lab", relocalizer={"n_particles": 100}, max_episode_steps=1000)
     u = env.unwrapped
     obs, _ = env.reset(seed=0, options={"tracking": True})
     model, policy, losses = u.mcl.measurement_model, WallFollowExplorer(), []

@@ -36,7 +36,7 @@ class _Recorder(gym.Wrapper):
 
 
 def _env(layout, n, **kw):
-    inner = gym.make("SemReloc-v21", layout=layout, map_source="perfect", relocalizer={"n_particles": n})
+    inner = gym.make("SemReloc-v22", layout=layout, map_source="perfect", relocalizer={"n_particles": n})
     return ActiveObservation(_Recorder(inner), **kw)
 
 
@@ -119,7 +119,7 @@ def test_last_action_and_scans_are_encoded():
     np.testing.assert_array_equal(obs["semantic_class"], raw["semantic_class"])
     cont = ActiveObservation(
         gym.make(
-            "SemReloc-v21",
+            "SemReloc-v22",
             layout="twin_rooms",
             map_source="perfect",
             action_type="continuous",
@@ -166,7 +166,7 @@ def test_hypotheses_of_prefers_the_filters_list():
 
 
 def test_egocentric_raster_frame():
-    grid = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect").unwrapped.grid
+    grid = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect").unwrapped.grid
     r = MapRasters(grid, 0.25, 32)
     anchor = np.array([3.0, 3.0, math.pi / 2])  # facing +y
     # one particle 1 m ahead of the anchor (4 cells along the columns), one 1 m to its left (rows)
@@ -187,7 +187,7 @@ def test_what_reads_scans_in_metres_refuses_an_env_wrapped_by_active_observation
     once = _env("lab", 200)  # ActiveObservation over the raw env
     with pytest.raises(ValueError, match="ActiveObservation needs the env's own observations.*already"):
         ActiveObservation(once)
-    flat = FlatObservation(gym.make("SemReloc-v21", layout="lab", map_source="perfect"))
+    flat = FlatObservation(gym.make("SemReloc-v22", layout="lab", map_source="perfect"))
     with pytest.raises(ValueError, match=r"\(Box, from FlatObservation\) lacks the entries \['lidar'"):
         ActiveObservation(flat)
     for name in ("wall_follow", "spin", "viewpoint"):
@@ -195,14 +195,14 @@ def test_what_reads_scans_in_metres_refuses_an_env_wrapped_by_active_observation
             POLICIES[name](0).wrap(once)
     with pytest.raises(ValueError, match="own observations"):
         agents.load_policy(agents.SHIPPED_POLICY).wrap(once)
-    raw = gym.make("SemReloc-v21", layout="lab", map_source="perfect", relocalizer={"n_particles": 200})
+    raw = gym.make("SemReloc-v22", layout="lab", map_source="perfect", relocalizer={"n_particles": 200})
     timed = gym.wrappers.TimeLimit(raw, 5)  # a wrapper that keeps the observations is fine
     assert isinstance(ActiveObservation(timed).observation_space, gym.spaces.Dict)
     assert POLICIES["spin"](0).wrap(timed) is timed
     from semreloc_env.wrappers import BeliefObservation
 
     believed = BeliefObservation(
-        gym.make("SemReloc-v21", layout="lab", map_source="perfect", relocalizer={"n_particles": 200})
+        gym.make("SemReloc-v22", layout="lab", map_source="perfect", relocalizer={"n_particles": 200})
     )
     assert POLICIES["wall_follow"](0).wrap(believed) is believed  # an added entry keeps the scans in metres
     assert "ego" in ActiveObservation(believed).observation_space.spaces
@@ -230,7 +230,7 @@ def test_active_observation_keys_may_be_any_iterable():
     # a review: an iterator of keys was read by the check and then gave an empty observation
     from semreloc_env.observations.active import OBSERVATION_KEYS
 
-    env = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 200})
+    env = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect", relocalizer={"n_particles": 200})
     wrapped = ActiveObservation(env, keys=iter(OBSERVATION_KEYS[:3]))
     assert wrapped.keys == tuple(OBSERVATION_KEYS[:3])
     assert set(wrapped.observation_space.spaces) == set(OBSERVATION_KEYS[:3])
@@ -240,7 +240,7 @@ def test_active_observation_keys_may_be_any_iterable():
 
 def test_a_belief_without_hypotheses_is_observed_around_its_estimate():
     # an outside fuzzer's: with no cluster reaching cluster_min_weight the list is empty and hyps[0] crashed
-    env = ActiveObservation(gym.make("SemReloc-v21", relocalizer={"belief": {"cluster_min_weight": 1.0}}))
+    env = ActiveObservation(gym.make("SemReloc-v22", relocalizer={"belief": {"cluster_min_weight": 1.0}}))
     obs, info = env.reset(seed=0)
     assert info["belief"]["hypotheses"] == []
     assert env.observation_space.contains(obs)

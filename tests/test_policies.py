@@ -12,7 +12,7 @@ KW = {"layout": "twin_rooms", "map_source": "perfect", "relocalizer": {"n_partic
 
 def _episode(name, seed=1, **kw):
     pol = POLICIES[name](seed)
-    env = pol.wrap(gym.make("SemReloc-v21", **{**KW, **kw}))
+    env = pol.wrap(gym.make("SemReloc-v22", **{**KW, **kw}))
     pol.reset()
     obs, _ = env.reset(seed=seed)
     actions = []
@@ -66,7 +66,7 @@ def test_baselines_drive_continuous_envs(name):
 
 def test_spin_then_back_up_spins_a_full_turn_then_reverses():
     pol = SpinThenBackUp()
-    env = pol.wrap(gym.make("SemReloc-v21", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
+    env = pol.wrap(gym.make("SemReloc-v22", **{**KW, "action_type": "continuous", "max_episode_steps": 100}))
     pol.reset()
     obs, _ = env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0)})  # room to back up
     acts = [pol.act(obs) for _ in range(73)]
@@ -81,7 +81,7 @@ class _NoTruth:
 
 def test_info_gain_planner_reads_the_belief_not_the_truth():
     pol = InfoGainPlanner(seed=0, n_particles=16)
-    env = pol.wrap(gym.make("SemReloc-v21", **KW))
+    env = pol.wrap(gym.make("SemReloc-v22", **KW))
     pol.reset()
     env.reset(seed=2)
     base = env.unwrapped
@@ -100,7 +100,7 @@ def test_info_gain_planner_expects_nothing_from_a_tight_belief():
     # a belief on one pose (tracking start) is one hypothesis: no primitive can gain
     pol = InfoGainPlanner(seed=0, n_particles=24)
     no_injection = {**KW.get("relocalizer", {}), "proposal_frac": 0.0, "augmented": False}
-    env = pol.wrap(gym.make("SemReloc-v21", **{**KW, "relocalizer": no_injection}))
+    env = pol.wrap(gym.make("SemReloc-v22", **{**KW, "relocalizer": no_injection}))
     pol.reset()
     env.reset(seed=0, options={"pose": (3.0, 3.0, 0.0), "tracking": True})
     tight = pol.plan()
@@ -115,7 +115,7 @@ def test_baselines_reject_bad_seeds_other_envs_and_act_before_wrap(name):
         with pytest.raises(ValueError, match="seed"):
             POLICIES[name](seed)
     pol = POLICIES[name](0)
-    obs, _ = gym.make("SemReloc-v21", **KW).reset(seed=0)
+    obs, _ = gym.make("SemReloc-v22", **KW).reset(seed=0)
     with pytest.raises(RuntimeError, match="wrap"):
         pol.act(obs)
     with pytest.raises(TypeError, match="action space"):
@@ -129,15 +129,15 @@ def test_baselines_refuse_repeated_or_rescaled_actions_and_say_what_act_lacks(na
     from semreloc_env.wrappers import ActionRepeat
 
     with pytest.raises(ValueError, match=r"decides every env step.*ActionRepeat\(repeat=4\)"):
-        POLICIES[name](0).wrap(ActionRepeat(gym.make("SemReloc-v21", **KW), 4))
+        POLICIES[name](0).wrap(ActionRepeat(gym.make("SemReloc-v22", **KW), 4))
     rescaled = gym.wrappers.RescaleAction(
-        gym.make("SemReloc-v21", action_type="continuous", **KW), np.zeros(2, np.float32), np.ones(2, np.float32)
+        gym.make("SemReloc-v22", action_type="continuous", **KW), np.zeros(2, np.float32), np.ones(2, np.float32)
     )
     with pytest.raises(TypeError, match=r"Box\(-1, 1, \(2,\)\)"):
         POLICIES[name](0).wrap(rescaled)
     pol = POLICIES[name](0)
-    env = pol.wrap(gym.make("SemReloc-v21", **KW))
-    obs, _ = gym.make("SemReloc-v21", **KW).reset(seed=0)
+    env = pol.wrap(gym.make("SemReloc-v22", **KW))
+    obs, _ = gym.make("SemReloc-v22", **KW).reset(seed=0)
     if name not in ("random", "spin"):  # the two that read nothing
         with pytest.raises(RuntimeError, match="reset the env before act"):
             pol.act(obs)
@@ -157,8 +157,8 @@ def test_policies_refuse_vector_envs_by_name():
 
     import agents
 
-    vec = gym.make_vec("SemRelocVec-v21", num_envs=2, vectorization_mode="vector_entry_point", layout="twin_rooms")
-    sb3 = DummyVecEnv([lambda: gym.make("SemReloc-v21", layout="twin_rooms")])
+    vec = gym.make_vec("SemRelocVec-v22", num_envs=2, vectorization_mode="vector_entry_point", layout="twin_rooms")
+    sb3 = DummyVecEnv([lambda: gym.make("SemReloc-v22", layout="twin_rooms")])
     for policy in (POLICIES["wall_follow"](), POLICIES["viewpoint"](), agents.load_policy(agents.SHIPPED_POLICY)):
         for env in (vec, sb3):
             with pytest.raises(TypeError, match="one env at a time"):
@@ -171,7 +171,7 @@ def test_policies_read_the_env_lidar_beams_and_refuse_one_blind_where_they_look(
     They now read the env's beam angles, and `wrap` refuses a lidar with no beam where they look."""
     from agents.options import MotionOptions
 
-    blind = gym.make("SemReloc-v21", map_source="perfect", lidar={"n_beams": 1}, relocalizer={"n_particles": 50})
+    blind = gym.make("SemReloc-v22", map_source="perfect", lidar={"n_beams": 1}, relocalizer={"n_particles": 50})
     for name in ("wall_follow", "spin_backup", "viewpoint", "info_gain"):
         with pytest.raises(ValueError, match=r"needs a lidar beam within 0.5 rad of 0 rad .* n_beams=1\) has none"):
             POLICIES[name](0).wrap(blind)
@@ -183,7 +183,7 @@ def test_policies_read_the_env_lidar_beams_and_refuse_one_blind_where_they_look(
         obs, _ = wrapped.reset(seed=0)
         wrapped.step(policy.act(obs))
 
-    ahead = gym.make("SemReloc-v21", map_source="perfect", lidar={"fov_rad": 1.5708, "n_beams": 30},
+    ahead = gym.make("SemReloc-v22", map_source="perfect", lidar={"fov_rad": 1.5708, "n_beams": 30},
                      relocalizer={"n_particles": 50})  # fmt: skip
     with pytest.raises(ValueError, match=r"SpinThenBackUp needs a lidar beam within 0.5 rad of 3.14 rad"):
         POLICIES["spin_backup"](0).wrap(ahead)  # it backs up: it must see behind
@@ -194,7 +194,7 @@ def test_policies_read_the_env_lidar_beams_and_refuse_one_blind_where_they_look(
     for _ in range(30):
         obs, *_ = env.step(policy.act(obs))
     assert MotionOptions(ahead, ("explore",)).explorer.beam_angles is not None
-    default = gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 50})
+    default = gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 50})
     policy = POLICIES["wall_follow"](0)
     policy.wrap(default)  # the default lidar's angles are the all-round ones, bit for bit: episodes unchanged
     np.testing.assert_array_equal(policy.explorer.beam_angles, all_round_angles(60))

@@ -20,7 +20,7 @@ def test_compiled_functions_are_the_numba_kernels():
 
 def test_batched_split_accounts_for_every_robot_step_and_restores_the_filter():
     before = (MonteCarloLocalizer._audit, audit.best_alternative)
-    s = profile_step.batched_split(3, 12, seed=4, env_id="SemReloc-v21", max_episode_steps=5)
+    s = profile_step.batched_split(3, 12, seed=4, env_id="SemReloc-v22", max_episode_steps=5)
     assert (MonteCarloLocalizer._audit, audit.best_alternative) == before
     assert s.robot_steps == 36
     assert s.update_steps + s.plain_steps + s.resets == s.robot_steps
@@ -50,7 +50,7 @@ def test_a_timed_robot_sorts_its_steps_by_the_filter_s_updates():
 
     keys = ("update_s", "update_steps", "plain_s", "plain_steps", "reset_s", "resets", "audit_s", "audits")
     tally = dict.fromkeys(keys, 0.0)
-    timed, bare = profile_step._TimedRobot(gym.make("SemReloc-v21"), tally), gym.make("SemReloc-v21")
+    timed, bare = profile_step._TimedRobot(gym.make("SemReloc-v22"), tally), gym.make("SemReloc-v22")
     timed.reset(seed=3)
     bare.reset(seed=3)
     rng = np.random.default_rng(3)
@@ -146,10 +146,10 @@ def test_batched_split_counts_the_particles_the_updates_weigh():
     import gymnasium as gym
     import numpy as np
 
-    one = profile_step.batched_split(1, 30, seed=2, env_id="SemReloc-v21")
+    one = profile_step.batched_split(1, 30, seed=2, env_id="SemReloc-v22")
     assert one.resets == 0 and one.update_steps > 0
     assert one.weighed == one.weighed_stacked > 0
-    env = gym.make("SemReloc-v21")
+    env = gym.make("SemReloc-v22")
     env.reset(seed=2)
     rng = np.random.default_rng(2)
     for _ in range(5):
@@ -160,7 +160,7 @@ def test_batched_split_counts_the_particles_the_updates_weigh():
         env.step(int(rng.integers(0, 4, 1)[0]))
         weighed += n if mcl.last_diagnostics.updated else 0
     assert weighed == one.weighed
-    four = profile_step.batched_split(4, 12, seed=4, env_id="SemReloc-v21")  # robots of unequal sets update together
+    four = profile_step.batched_split(4, 12, seed=4, env_id="SemReloc-v22")  # robots of unequal sets update together
     assert four.weighed_stacked > four.weighed > 0 and four.kernel_calls > four.robot_steps
 
 

@@ -11,11 +11,11 @@ FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
 
 
 def test_render_fps_follows_the_control_rate_per_instance():
-    fast = gym.make("SemReloc-v21", physics={"control_hz": 20.0}, **FAST)
+    fast = gym.make("SemReloc-v22", physics={"control_hz": 20.0}, **FAST)
     slow = gym.make("SemSlam-v1", physics={"control_hz": 5.0})
     assert fast.metadata["render_fps"] == 20.0 and fast.unwrapped.metadata["render_fps"] == 20.0
     assert slow.metadata["render_fps"] == 5.0
-    assert gym.make("SemReloc-v21", **FAST).metadata["render_fps"] == 10.0
+    assert gym.make("SemReloc-v22", **FAST).metadata["render_fps"] == 10.0
     assert type(fast.unwrapped).metadata["render_fps"] == 10  # the class default is untouched
 
 
@@ -30,7 +30,7 @@ def _frames(env, seed: int, actions) -> list[np.ndarray]:
 
 def test_static_layout_drawn_once_and_frames_carry_nothing_over():
     actions = [0, 0, 1, 0, 2, 0]
-    env = gym.make("SemReloc-v21", render_mode="rgb_array", **FAST)
+    env = gym.make("SemReloc-v22", render_mode="rgb_array", **FAST)
     many = _frames(env, 3, actions)
     renderer = env.unwrapped._renderer
     assert renderer.background_draws == 1
@@ -50,7 +50,7 @@ def test_record_video_writes_a_playable_mp4(tmp_path):
     pytest.importorskip("moviepy", reason="RecordVideo needs the 'video' extra (moviepy)")
     from moviepy import VideoFileClip
 
-    env = gym.make("SemReloc-v21", render_mode="rgb_array", max_episode_steps=12, physics={"control_hz": 5.0}, **FAST)
+    env = gym.make("SemReloc-v22", render_mode="rgb_array", max_episode_steps=12, physics={"control_hz": 5.0}, **FAST)
     folder = tmp_path / "videos"
     env = gym.wrappers.RecordVideo(env, str(folder), episode_trigger=lambda ep: ep == 0, disable_logger=True)
     env.reset(seed=0)
@@ -84,7 +84,7 @@ def test_human_mode_is_paced_to_render_fps_where_a_window_shows(monkeypatch):
     monkeypatch.setattr(render.time, "monotonic", lambda: clock["t"])
     monkeypatch.setattr(render.time, "sleep", lambda s: sleeps.append(s))
     try:
-        env = gym.make("SemReloc-v21", render_mode="human", physics={"control_hz": 4.0}, **FAST)
+        env = gym.make("SemReloc-v22", render_mode="human", physics={"control_hz": 4.0}, **FAST)
         env.reset(seed=0)  # first frame: nothing to wait for
         clock["t"] = 0.05
         _, _, _, _, info = env.step(0)
@@ -108,7 +108,7 @@ def test_human_mode_without_a_window_warns_and_does_not_wait(monkeypatch):
     try:
         assert not render.backend_shows_windows()
         with pytest.warns(UserWarning, match="shows no window"):
-            env = gym.make("SemReloc-v21", render_mode="human", physics={"control_hz": 4.0}, **FAST)
+            env = gym.make("SemReloc-v22", render_mode="human", physics={"control_hz": 4.0}, **FAST)
             env.reset(seed=0)
         for _ in range(3):
             env.step(0)
@@ -126,7 +126,7 @@ def test_frames_have_even_sizes_for_video_encoders():
     shapes = set()
     for kind in ("procedural", "procedural_lookalike", "procedural_ring", "procedural_corridor"):
         for seed in range(4):
-            env = gym.make("SemReloc-v21", layout=kind, layout_seed=seed, map_source="perfect", render_mode="rgb_array")
+            env = gym.make("SemReloc-v22", layout=kind, layout_seed=seed, map_source="perfect", render_mode="rgb_array")
             env.reset(seed=0)
             shapes.add(env.render().shape[:2])
             env.close()
@@ -138,7 +138,7 @@ def test_frames_have_even_sizes_for_video_encoders():
 
 
 def test_renderer_rejects_bad_fps():
-    env = gym.make("SemReloc-v21", **FAST)
+    env = gym.make("SemReloc-v22", **FAST)
     with pytest.raises(ValueError, match="fps"):
         render.Renderer(env.unwrapped.layout, fps=0)
 
@@ -148,7 +148,7 @@ def test_an_env_that_has_rendered_pickles_and_deep_copies():
     import copy
     import pickle
 
-    env = gym.make("SemReloc-v21", render_mode="rgb_array", **FAST)
+    env = gym.make("SemReloc-v22", render_mode="rgb_array", **FAST)
     env.reset(seed=1)
     first = env.render()
     for twin in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
@@ -162,7 +162,7 @@ def test_an_env_that_has_rendered_pickles_and_deep_copies():
 def test_title_calls_a_spread_belief_spread_not_a_hypothesis():
     """A global start's uniform cloud is one connected cluster; its title says the belief is spread, not that a
     hypothesis holds 100 %; a tracked belief's title names its heaviest hypothesis and its weight."""
-    env = gym.make("SemReloc-v21")
+    env = gym.make("SemReloc-v22")
     env.reset(seed=0)
     title = env.unwrapped._render_state()["title"]
     assert "belief spread (std" in title and "hypothesis" not in title
@@ -180,7 +180,7 @@ def test_what_a_frame_draws_follows_the_running_episode():
 
     from filters.robot_data.scans import SemanticScan
 
-    env = gym.make("SemReloc-v21", layout="lab", robot={"radius_m": 0.45}, render_mode="rgb_array", **FAST)
+    env = gym.make("SemReloc-v22", layout="lab", robot={"radius_m": 0.45}, render_mode="rgb_array", **FAST)
     env.reset(seed=0)
     env.render()
     r = env.unwrapped._renderer
@@ -202,7 +202,7 @@ def test_what_a_frame_draws_follows_the_running_episode():
     assert len(beams.get_segments()) == 3  # the cabinet at 4.5 m too
 
     tall = {"name": "tall", "outer": [[0, 0], [5, 0], [5, 14], [0, 14]]}
-    frame = gym.make("SemReloc-v21", layout=tall, render_mode="rgb_array", **FAST)
+    frame = gym.make("SemReloc-v22", layout=tall, render_mode="rgb_array", **FAST)
     frame.reset(seed=0)
     assert frame.render().shape[1] >= render.MIN_WIDTH_IN * 80
 
@@ -215,7 +215,7 @@ def test_human_mode_leaves_pyplot_as_it_found_it():
     plt.switch_backend("Agg")
     plt.ioff()
     try:
-        env = gym.make("SemReloc-v21", render_mode="human", **FAST)
+        env = gym.make("SemReloc-v22", render_mode="human", **FAST)
         env.reset(seed=0)
         assert matplotlib.is_interactive()
         env.close()

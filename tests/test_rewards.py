@@ -23,7 +23,7 @@ def test_belief_mass_near_counts_weight_within_the_radius():
 @pytest.mark.parametrize("mode", ["level", "gain"])
 def test_belief_mass_reward_adds_a_named_term(mode):
     kw = {"layout": "twin_rooms", "map_source": "perfect", "relocalizer": {"n_particles": 300}}
-    plain, wrapped = gym.make("SemReloc-v21", **kw), BeliefMassReward(gym.make("SemReloc-v21", **kw), 2.0, mode=mode)
+    plain, wrapped = gym.make("SemReloc-v22", **kw), BeliefMassReward(gym.make("SemReloc-v22", **kw), 2.0, mode=mode)
     plain.reset(seed=1)
     wrapped.reset(seed=1)
     prev = wrapped.mass()

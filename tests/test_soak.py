@@ -10,7 +10,7 @@ import semreloc_env
 from semreloc_env.tools import soak
 
 
-@pytest.mark.parametrize("env_id", ["SemReloc-v21", "SemReloc-v1", "SemSlam-v1", "SemSlam-v0"])
+@pytest.mark.parametrize("env_id", ["SemReloc-v22", "SemReloc-v1", "SemSlam-v1", "SemSlam-v0"])
 def test_random_settings_are_accepted_by_their_env(env_id):
     rng = np.random.default_rng(3)
     for _ in range(4):
@@ -26,9 +26,9 @@ def test_random_settings_are_accepted_by_their_env(env_id):
 
 def test_random_settings_draw_every_listed_id_and_vary_the_relocalizer():
     rng = np.random.default_rng(0)
-    draws = [soak.random_settings(rng, ("SemReloc-v21", "SemSlam-v1")) for _ in range(60)]
-    assert {i for i, _ in draws} == {"SemReloc-v21", "SemSlam-v1"}
-    reloc = [kw for i, kw in draws if i == "SemReloc-v21"]
+    draws = [soak.random_settings(rng, ("SemReloc-v22", "SemSlam-v1")) for _ in range(60)]
+    assert {i for i, _ in draws} == {"SemReloc-v22", "SemSlam-v1"}
+    reloc = [kw for i, kw in draws if i == "SemReloc-v22"]
     assert {kw["map_source"] for kw in reloc} == {"mapping", "perfect"}
     assert {kw["relocalizer"]["backend"] for kw in reloc} == {"numba", "numpy"}
 
@@ -64,7 +64,7 @@ def test_soak_without_resident_size_says_the_check_was_skipped(monkeypatch):
     "argv, needle",
     [
         (["--env-ids", "SemReloc-v99"], "SemReloc-v99"),
-        (["--env-ids", "SemRelocVec-v21"], "SemRelocVec-v21"),
+        (["--env-ids", "SemRelocVec-v22"], "SemRelocVec-v22"),
         (["--env-ids", "SemSlam-v1", "SemSlam-v1"], "twice"),
         (["--memory-growth-mb", "0"], "memory_growth_mb"),
         (["--memory-growth-mb", "nan"], "memory_growth_mb"),
@@ -88,14 +88,14 @@ def test_a_short_soak_of_the_newest_ids_passes_and_leaves_the_cache_untouched(tm
 
 
 def test_the_default_ids_are_the_newest():
-    assert soak.Args().env_ids == ("SemReloc-v21", "SemSlam-v1")
+    assert soak.Args().env_ids == ("SemReloc-v22", "SemSlam-v1")
     assert all(i in semreloc_env.ENV_IDS for i in soak.Args().env_ids)
     assert math.isfinite(soak.Args().memory_growth_mb)
 
 
 def test_reset_options_draw_global_tracking_and_kidnapped_starts_within_the_limit():
     rng = np.random.default_rng(4)
-    draws = [soak.reset_options(rng, "SemReloc-v21", 7) for _ in range(90)]
+    draws = [soak.reset_options(rng, "SemReloc-v22", 7) for _ in range(90)]
     assert {d["kind"] for d in draws} == {"global", "tracking", "kidnap"}
     for d in draws:
         assert d.get("tracking", False) == (d["kind"] != "global")
@@ -104,7 +104,7 @@ def test_reset_options_draw_global_tracking_and_kidnapped_starts_within_the_limi
 
 
 def test_a_soak_of_the_relocalizer_alone_starts_every_way_and_passes(capsys):
-    assert soak.main(["--steps", "400", "--seed", "6", "--episode-steps", "40", "--env-ids", "SemReloc-v21"]) == 0
+    assert soak.main(["--steps", "400", "--seed", "6", "--episode-steps", "40", "--env-ids", "SemReloc-v22"]) == 0
     out = capsys.readouterr().out
     counts = {k: int(v) for k, v in (line.split()[:2] for line in out.splitlines() if line.startswith("starts_"))}
     assert set(counts) == {"starts_global", "starts_tracking", "starts_kidnap"}, out

@@ -17,7 +17,7 @@ SEED = 3  # a lookalike layout seed of the training range
 def _env(pol, **kw):
     kw = {"layout": "procedural_lookalike", "layout_seed": SEED, "map_source": "perfect", **kw}
     kw.setdefault("relocalizer", {"n_particles": 300})
-    env = pol.wrap(gym.make("SemReloc-v21", max_episode_steps=60, **kw))
+    env = pol.wrap(gym.make("SemReloc-v22", max_episode_steps=60, **kw))
     pol.reset()
     return env
 
@@ -251,7 +251,7 @@ def test_forward_is_blocked_by_what_the_disc_would_touch():
 
 def test_turning_on_the_spot_earns_no_lidar_gain_without_lidar_on_rotation():
     """With the camera off and the relocalizer leaving the lidar out of rotation-only updates
-    (SemReloc-v21's default), turning where the robot stands cannot tell hypotheses apart: the
+    (SemReloc-v22's default), turning where the robot stands cannot tell hypotheses apart: the
     planner predicts no gain for it, though driving to the same places would."""
     pol = ViewpointPlanner(seed=0)
     env = _env(pol, relocalizer={"n_particles": 300, "use_semantic": False})
@@ -567,7 +567,7 @@ def test_negative_evidence_values_a_place_where_only_one_twin_would_see_an_objec
 
 
 def test_clear_segment_matches_sampling_the_segment_with_numpy():
-    env = gym.make("SemReloc-v21", layout="twin_rooms", map_source="perfect")
+    env = gym.make("SemReloc-v22", layout="twin_rooms", map_source="perfect")
     from agents.viewpoint import _PlanMap
 
     pm = _PlanMap(env.unwrapped.grid, 0.2, 0.1, 0.15)
@@ -600,9 +600,9 @@ def test_a_planner_wrapped_on_another_env_plans_as_a_fresh_one():
     # a review: envs of one layout share a grid, and the planner kept the first env's plan graph (its robot's
     # radius) and likelihood tables (its filter's model) when wrapped on a second
     kw = dict(layout="twin_rooms", map_source="perfect")
-    a = gym.make("SemReloc-v21", **kw, relocalizer={"n_particles": 300})
+    a = gym.make("SemReloc-v22", **kw, relocalizer={"n_particles": 300})
     b = gym.make(
-        "SemReloc-v21", **kw, robot={"radius_m": 0.3},
+        "SemReloc-v22", **kw, robot={"radius_m": 0.3},
         relocalizer={"n_particles": 300, "lidar_field": {"sigma_hit_m": 0.6, "z_hit": 0.5}},
     )  # fmt: skip
     a.reset(seed=0)

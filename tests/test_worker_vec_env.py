@@ -59,11 +59,11 @@ class TwoArgs(Exception):
 
 
 def _slow_block(n: int, first: int):
-    return batched_block("SemReloc-v21", Slow, **KW)(n, first)
+    return batched_block("SemReloc-v22", Slow, **KW)(n, first)
 
 
 def _block_where_robot_3_fails_at_step_3(n: int, first: int):
-    block = batched_block("SemReloc-v21", **{**KW, "max_episode_steps": 50})(n, first)
+    block = batched_block("SemReloc-v22", **{**KW, "max_episode_steps": 50})(n, first)
     if first <= 3 < first + n:
         block.envs[3 - first] = RaisesAtStep(block.envs[3 - first], 3)  # the adapter's list is the batched env's
     return block
@@ -72,7 +72,7 @@ def _block_where_robot_3_fails_at_step_3(n: int, first: int):
 def _pair(num_envs=5, workers=2, **kw):
     kw = {**KW, **kw}
     ref = SB3VecEnvAdapter(SemRelocLoopVectorEnv(num_envs, wrapper=BeliefObservation, **kw))
-    return WorkersVecEnv(batched_block("SemReloc-v21", BeliefObservation, **kw), num_envs, workers), ref
+    return WorkersVecEnv(batched_block("SemReloc-v22", BeliefObservation, **kw), num_envs, workers), ref
 
 
 @pytest.fixture(scope="module")
@@ -161,13 +161,13 @@ def test_a_robot_raising_mid_step_stops_every_worker_until_a_reset():
 
 def test_bad_arguments_and_a_block_that_fails_to_build_are_clear_errors():
     with pytest.raises(ValueError, match="workers must be an int from 1 to num_envs"):
-        WorkersVecEnv(batched_block("SemReloc-v21"), num_envs=2, workers=3)
+        WorkersVecEnv(batched_block("SemReloc-v22"), num_envs=2, workers=3)
     with pytest.raises(ValueError, match="num_envs must be an int >= 1"):
-        WorkersVecEnv(batched_block("SemReloc-v21"), num_envs=0)
+        WorkersVecEnv(batched_block("SemReloc-v22"), num_envs=0)
     with pytest.raises(TypeError, match="make_block must be a callable"):
-        WorkersVecEnv("SemReloc-v21", num_envs=2)
+        WorkersVecEnv("SemReloc-v22", num_envs=2)
     with pytest.raises(TypeError, match="no_such_argument"):
-        WorkersVecEnv(batched_block("SemReloc-v21", no_such_argument=1), num_envs=2, workers=2)
+        WorkersVecEnv(batched_block("SemReloc-v22", no_such_argument=1), num_envs=2, workers=2)
     with pytest.raises(ValueError, match="workers > 1 needs vec_env 'batched'"):
         TrainConfig(vec_env="dummy", workers=2)
     with pytest.raises(ValueError, match=r"workers must be at most n_envs \(4\)"):
@@ -282,7 +282,7 @@ def test_answers_and_arguments_that_do_not_unpickle_and_a_signal_handlers_error_
 
 def test_continuous_actions_of_the_wrong_shape_and_a_closed_adapter_are_refused_as_in_one_process():
     kw = {**KW, "action_type": "continuous"}
-    workers = WorkersVecEnv(batched_block("SemReloc-v21", **kw), num_envs=3, workers=2)
+    workers = WorkersVecEnv(batched_block("SemReloc-v22", **kw), num_envs=3, workers=2)
     one = SB3VecEnvAdapter(SemRelocLoopVectorEnv(3, **kw))
     try:
         for v in (workers, one):
@@ -318,7 +318,7 @@ def test_a_training_run_that_fails_stops_its_workers():
 
 
 def _block_where_robots_1_and_3_fail_at_step_2(n: int, first: int):
-    block = batched_block("SemReloc-v21", **{**KW, "max_episode_steps": 50})(n, first)
+    block = batched_block("SemReloc-v22", **{**KW, "max_episode_steps": 50})(n, first)
     for robot in (1, 3):
         if first <= robot < first + n:
             block.envs[robot - first] = RaisesAtStep(block.envs[robot - first], 2)
@@ -351,7 +351,7 @@ def test_a_failing_robot_is_named_at_once_and_every_worker_that_failed_is_named_
 
 def test_step_wait_without_step_async_is_refused_and_leaves_the_robots_usable():
     # an outside audit's: a TypeError from inside the robot loop, which put the robots out of step
-    workers = WorkersVecEnv(batched_block("SemReloc-v21", **KW), num_envs=2, workers=2)
+    workers = WorkersVecEnv(batched_block("SemReloc-v22", **KW), num_envs=2, workers=2)
     one = SB3VecEnvAdapter(SemRelocLoopVectorEnv(2, **KW))
     try:
         for v in (workers, one):
@@ -370,7 +370,7 @@ def test_step_wait_without_step_async_is_refused_and_leaves_the_robots_usable():
 
 def test_a_ctrl_c_in_close_ends_the_workers_at_once(monkeypatch):
     # an outside audit's: close() waited out its 10 s deadline after a Ctrl-C before it terminated the workers
-    workers = WorkersVecEnv(batched_block("SemReloc-v21", **KW), num_envs=2, workers=2)
+    workers = WorkersVecEnv(batched_block("SemReloc-v22", **KW), num_envs=2, workers=2)
     workers.reset()
     joins = []
     for proc in workers.processes:
@@ -397,7 +397,7 @@ def test_a_ctrl_c_in_close_ends_the_workers_at_once(monkeypatch):
 
 def test_a_ctrl_c_while_close_waits_for_the_workers_still_ends_them_and_closes(monkeypatch):
     # a review's: a Ctrl-C in close()'s joins left it half closed, workers alive and pipes open
-    workers = WorkersVecEnv(batched_block("SemReloc-v21", **KW), num_envs=2, workers=2)
+    workers = WorkersVecEnv(batched_block("SemReloc-v22", **KW), num_envs=2, workers=2)
     workers.reset()
     first = workers.processes[0]
     join = first.join

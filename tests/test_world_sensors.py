@@ -154,7 +154,7 @@ def test_odometry_noise_statistics_match_the_model():
 
 def test_wheel_odometry_reads_no_slide_along_a_wall():
     """An outside reviewer's case: a 1.7 cm slide across the heading (a push along a wall) read as a quarter turn, a
-    step and a quarter turn back, with about 1 m of translation noise; the wheels' reading (SemReloc-v21) sees only
+    step and a quarter turn back, with about 1 m of translation noise; the wheels' reading (SemReloc-v22) sees only
     the slide's part along the heading, and an arc without slip reads as the true odometry does."""
     from semreloc_env.envs.base import default_odometry_noise
 
@@ -186,7 +186,7 @@ def test_wheel_odometry_reads_the_simulators_free_arcs_as_they_are():
     from semreloc_env.sensors import wheel_increment
 
     for substeps in (5, 2, 1):
-        env = gym.make("SemReloc-v21", layout="open_hall", map_source="perfect", physics={"substeps": substeps})
+        env = gym.make("SemReloc-v22", layout="open_hall", map_source="perfect", physics={"substeps": substeps})
         env.reset(seed=0, options={"pose": [3.5, 7.5, 0.3]})  # 3 m from anything
         world = env.unwrapped.world
         assert env.unwrapped.odometry.substeps == substeps

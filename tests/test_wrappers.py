@@ -42,7 +42,7 @@ def _rollout(env, seed=3, n=40):
 
 
 def test_belief_observation_space_and_features_equal_info():
-    env = BeliefObservation(gym.make("SemReloc-v21", **FAST))
+    env = BeliefObservation(gym.make("SemReloc-v22", **FAST))
     space = env.observation_space
     assert set(space.spaces) == {"lidar", "semantic_range", "semantic_class", "odometry", "belief"}
     assert space["belief"].shape == (len(BELIEF_FEATURES),)
@@ -66,8 +66,8 @@ def test_belief_observation_space_and_features_equal_info():
 
 
 def test_belief_observation_does_not_change_the_rest_of_the_step():
-    plain = gym.make("SemReloc-v21", **FAST)
-    wrapped = BeliefObservation(gym.make("SemReloc-v21", **FAST))
+    plain = gym.make("SemReloc-v22", **FAST)
+    wrapped = BeliefObservation(gym.make("SemReloc-v22", **FAST))
     for (o1, i1), (o2, i2) in zip(_rollout(plain, n=15), _rollout(wrapped, n=15)):
         for k in o1:
             np.testing.assert_array_equal(o1[k], o2[k])
@@ -78,7 +78,7 @@ def test_belief_observation_does_not_change_the_rest_of_the_step():
 
 
 def test_belief_observation_clips_to_bounds():
-    env = BeliefObservation(gym.make("SemReloc-v21", **FAST), pos_std_max_m=1.0, max_clusters=2)
+    env = BeliefObservation(gym.make("SemReloc-v22", **FAST), pos_std_max_m=1.0, max_clusters=2)
     obs, info = env.reset(seed=0)
     assert info["belief"]["pos_std_m"] > 1.0  # global start: spread over the lab
     assert obs["belief"][0] == np.float32(1.0)
@@ -89,7 +89,7 @@ def test_belief_observation_clips_to_bounds():
 
 def test_belief_observation_rejects_bad_envs_and_bounds():
     with pytest.raises(ValueError):
-        BeliefObservation(BeliefObservation(gym.make("SemReloc-v21", **FAST)))
+        BeliefObservation(BeliefObservation(gym.make("SemReloc-v22", **FAST)))
     with pytest.raises(TypeError):
         BeliefObservation(gym.make("CartPole-v1"))
     with pytest.raises(TypeError, match="SemSlamEnv has no belief"):  # used to fail at reset with KeyError: 'belief'
@@ -101,10 +101,10 @@ def test_belief_observation_rejects_bad_envs_and_bounds():
             return obs, {k: v for k, v in info.items() if k != "belief"}
 
     with pytest.raises(KeyError, match="needs info\\['belief'\\].*'pose_error'"):
-        BeliefObservation(NoBelief(gym.make("SemReloc-v21", **FAST))).reset(seed=0)
+        BeliefObservation(NoBelief(gym.make("SemReloc-v22", **FAST))).reset(seed=0)
     for bad in (0.0, True, "a"):
         with pytest.raises(ValueError, match="pos_std_max_m"):
-            BeliefObservation(gym.make("SemReloc-v21", **FAST), pos_std_max_m=bad)
+            BeliefObservation(gym.make("SemReloc-v22", **FAST), pos_std_max_m=bad)
 
 
 def _check(env):
@@ -125,7 +125,7 @@ def test_check_env_passes_on_wrapped_envs_with_warnings_as_errors():
 @pytest.mark.parametrize(
     "env_id, keys",
     [
-        ("SemReloc-v21", ("belief", "lidar", "odometry", "semantic_class", "semantic_range")),
+        ("SemReloc-v22", ("belief", "lidar", "odometry", "semantic_class", "semantic_range")),
         ("SemReloc-v1", ("belief", "lidar", "odometry", "semantic")),
     ],
 )
@@ -164,18 +164,18 @@ def test_flat_observation_concatenates_in_key_order(env_id, keys):
 
 
 def test_flat_observation_key_subset_and_errors():
-    flat = FlatObservation(gym.make("SemReloc-v21", **FAST), keys=["odometry", "lidar"])
+    flat = FlatObservation(gym.make("SemReloc-v22", **FAST), keys=["odometry", "lidar"])
     obs, _ = flat.reset(seed=0)
     assert obs.shape == (3 + 60,)
     assert flat.slices["odometry"] == slice(0, 3)
     with pytest.raises(KeyError):
-        FlatObservation(gym.make("SemReloc-v21", **FAST), keys=["belief"])
+        FlatObservation(gym.make("SemReloc-v22", **FAST), keys=["belief"])
     with pytest.raises(ValueError, match="at least one"):
-        FlatObservation(gym.make("SemReloc-v21", **FAST), keys=())
+        FlatObservation(gym.make("SemReloc-v22", **FAST), keys=())
     with pytest.raises(
         ValueError, match=r"keys must be a list of observation keys, got 'lidar' \(one key: \['lidar'\]\)"
     ):
-        FlatObservation(gym.make("SemReloc-v21", **FAST), keys="lidar")  # said keys ['l', 'i', 'd', 'a', 'r']
+        FlatObservation(gym.make("SemReloc-v22", **FAST), keys="lidar")  # said keys ['l', 'i', 'd', 'a', 'r']
     with pytest.raises(TypeError):
         FlatObservation(gym.make("CartPole-v1"))
 
@@ -194,7 +194,7 @@ def test_every_wrapper_records_its_arguments_so_check_env_and_specs_work():
     from semreloc_env.wrappers import ActionRepeat, BeliefObservation, FlatObservation
 
     def raw():
-        return gym.make("SemReloc-v21", map_source="perfect", relocalizer={"n_particles": 100})
+        return gym.make("SemReloc-v22", map_source="perfect", relocalizer={"n_particles": 100})
 
     stacks = [
         (ActiveObservation(raw(), ego_size=16), {"ego_size": 16}),
