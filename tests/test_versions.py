@@ -785,7 +785,8 @@ def test_v22_is_v21_whose_small_steps_move_their_own_way_and_whose_kld_draws_one
     """v22's relocalizer is v21's with ``exact_small_moves`` in its motion model and ``kld_one_sequence``; its simulated
     odometry's model moves a step under 1 cm in its own direction too; worlds, maps and spaces are v21's; its Vec id
     runs it, and it is the batched env's default. Backing slowly (30 steps of 5 mm) from a known pose, v21's odometry
-    reads the steps forwards and its belief ends about 0.3 m off; v22's reads them backwards and stays on the truth."""
+    reads the steps forwards and its belief ends about 0.3 m off; v22's reads them backwards and stays on the truth.
+    Discrete actions give the same observations in both (their only steps under 1 cm are turns on the spot)."""
     from semreloc_env.envs.batched import SINGLE_ENV_ID
 
     assert SINGLE_ENV_ID == "SemReloc-v22"
@@ -817,6 +818,12 @@ def test_v22_is_v21_whose_small_steps_move_their_own_way_and_whose_kld_draws_one
     assert x_new == x_old == pytest.approx(START["pose"][0] - 0.15, abs=1e-3)  # the same world: 15 cm back
     assert read_new == pytest.approx(-0.15, abs=0.01) and read_old == pytest.approx(0.15, abs=0.01)
     assert err_new < 0.05 and err_old > 0.2
+    actions = ACTIONS + [1] * 20 + [0] * 10 + [2, 0] * 10  # discrete: no step under 1 cm but the turns on the spot
+    a = rollout(make("SemReloc-v22", **FAST), options={**START, "tracking": True}, actions=actions)
+    b = rollout(make("SemReloc-v21", **FAST), options={**START, "tracking": True}, actions=actions)
+    assert len(a) == len(b) == len(actions) + 1
+    for (obs, *_), (obs2, *_) in zip(a, b):
+        np.testing.assert_equal(obs, obs2)  # the same world, sensors and odometry readings
 
 
 def test_wheel_odometry_reads_an_arc_as_it_is_and_no_sideways_slide():
