@@ -298,10 +298,17 @@ class LearnedPolicy:
         return self._action
 
 
+def _squashed_actor(policy):
+    """SAC's actor (a tanh-squashed diagonal Gaussian, ``get_action_dist_params``), or None."""
+    actor = getattr(policy, "actor", None)
+    return actor if hasattr(actor, "get_action_dist_params") else None
+
+
 def check_samplable(model) -> None:
     """ValueError unless `sample_action` can draw ``model``'s actions: a policy with an action distribution
-    (DQN's has none) and no state-dependent exploration (``use_sde``, whose noise `sample_action` does not draw)."""
-    if not hasattr(model.policy, "get_distribution"):
+    (PPO's and A2C's, SAC's squashed Gaussian; DQN's and TD3's have none) and no state-dependent exploration
+    (``use_sde``, whose noise `sample_action` does not draw)."""
+    if not (hasattr(model.policy, "get_distribution") or _squashed_actor(model.policy) is not None):
         raise ValueError(
             f"sampling draws from the model's action distribution; a {type(model).__name__} policy has none: "
             "use deterministic=True"
@@ -317,8 +324,8 @@ def sample_action(model, obs, rng: np.random.Generator):
     """One action drawn from ``model``'s action distribution at ``obs`` with ``rng`` (not torch's global
     generator, which SB3's ``predict`` samples with): a categorical's by its probabilities (one draw per
     dimension of a ``MultiDiscrete``), a diagonal Gaussian's as ``mean + std * normal``, clipped to the
-    action space's bounds as ``predict`` clips. ValueError for another distribution (use
-    ``deterministic=True``)."""
+    action space's bounds as ``predict`` clips, SAC's squashed Gaussian as ``tanh(mean + std * normal)`` scaled to the
+    bounds as ``predict`` scales it. ValueError for another distribution (use ``deterministic=True``)."""
     import torch
     from stable_baselines3.common.distributions import (
         CategoricalDistribution,
@@ -329,6 +336,14 @@ def sample_action(model, obs, rng: np.random.Generator):
     policy = model.policy
     policy.set_training_mode(False)  # as predict does
     obs_t, _ = policy.obs_to_tensor(obs)
+    actor = None if hasattr(policy, "get_distribution") else _squashed_actor(policy)
+    if actor is not None:
+        with torch.no_grad():
+            mean, log_std, _ = actor.get_action_dist_params(obs_t)
+        mean = mean[0].cpu().numpy().astype(np.float64)
+        std = np.exp(log_std[0].cpu().numpy().astype(np.float64))
+        squashed = np.tanh(mean + std * rng.standard_normal(mean.shape))
+        return policy.unscale_action(squashed).astype(model.action_space.dtype)
     with torch.no_grad():
         dist = policy.get_distribution(obs_t)
     if isinstance(dist, (CategoricalDistribution, MultiCategoricalDistribution)):

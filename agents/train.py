@@ -491,6 +491,7 @@ def evaluate(
     env = env_for(model_or_policy, env_kwargs, env_id)
     act, reset_policy = _as_action_fn(model_or_policy, deterministic, seed)
     discrete = isinstance(env.action_space, gym.spaces.Discrete)
+    from_model = isinstance(model_or_policy, BaseAlgorithm)  # predict's arrays; a callable's actions go as given
     results = []
     tracker = EpisodeTracker()
     try:
@@ -502,8 +503,17 @@ def evaluate(
             done = False
             while not done:
                 action = act(obs)
-                action = int(action) if discrete else np.asarray(action, dtype=np.float32)
-                obs, reward, terminated, truncated, info = env.step(action)
+                if from_model and discrete:
+                    action = int(action)
+                try:
+                    obs, reward, terminated, truncated, info = env.step(action)
+                except ValueError as e:  # the env refused the action and changed nothing
+                    if not discrete and np.ndim(action) == 0:
+                        raise ValueError(
+                            f"{e}; the policy returned one number, a discrete action, and this env's actions are "
+                            "(v, omega) pairs (action_type='continuous'): evaluate a policy for continuous actions"
+                        ) from None
+                    raise
                 tracker.observe(info, reward)
                 done = terminated or truncated
             results.append(tracker.finish())

@@ -78,9 +78,9 @@ class SB3VecEnvAdapter(VecEnv):
             raise TypeError(f"venv must be a SemRelocLoopVectorEnv, got {type(venv).__name__}")
         self.venv = venv
         self.envs = venv.envs
+        self.closed = False  # before SB3's __init__, whose get_attr("render_mode") checks it
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self._actions: np.ndarray | None = None
-        self.closed = False
         space = venv.single_observation_space
         self._keys = tuple(space.spaces) if isinstance(space, gym.spaces.Dict) else None  # None: one array
 

@@ -52,6 +52,7 @@ ENV_IDS = (
     "SemReloc-v2",
     "SemReloc-v1",
     "SemReloc-v0",
+    "SemSlam-v2",
     "SemSlam-v1",
     "SemSlam-v0",
 )
@@ -136,7 +137,8 @@ _SINGLE = {
     "SemReloc-v2": "semreloc_env.envs.semreloc:SemRelocEnvV2",
     "SemReloc-v1": "semreloc_env.envs.semreloc:SemRelocEnvV1",
     "SemReloc-v0": "semreloc_env.envs.semreloc:SemRelocEnvV0",
-    "SemSlam-v1": "semreloc_env.envs.semslam:SemSlamEnv",
+    "SemSlam-v2": "semreloc_env.envs.semslam:SemSlamEnv",
+    "SemSlam-v1": "semreloc_env.envs.semslam:SemSlamEnvV1",
     "SemSlam-v0": "semreloc_env.envs.semslam:SemSlamEnvV0",
 }
 for _id, _entry in _SINGLE.items():

@@ -92,7 +92,7 @@ def test_config_rejects_bad_values():
         ({"kinds": ("nosuch",), "kind_weights": (1.0,)}, "kinds"),
         ({"kinds": (), "files": ("/no/such/layout.json",), "kind_weights": None}, "layout"),
         ({"env_id": "SemReloc-v1"}, "env_id"),  # the flat observation: ActiveObservation needs v2 or newer
-        ({"env_id": "SemSlam-v1"}, "env_id"),
+        ({"env_id": "SemSlam-v2"}, "env_id"),
         ({"n_steps": 1, "n_envs": 1, "batch_size": 1}, r"n_steps \* n_envs"),  # SB3's AssertionError before
         # an audit's: these failed in every env worker, or in the extractor, after the run folder was made
         ({"belief_mass_weight": float("nan")}, "belief_mass_weight"),

@@ -347,7 +347,7 @@ def test_train_config_rejects_bad_values():
     with pytest.raises(ValueError):
         TrainConfig(n_envs=0)
     # an outside tester's trial: an unknown id failed after the run folder was made, a SemSlam id deep in its init
-    for bad in ("SemReloc-v99", "SemSlam-v1"):
+    for bad in ("SemReloc-v99", "SemSlam-v2"):
         with pytest.raises(ValueError, match="env_id must be one of"):
             TrainConfig(env_id=bad)
     # an outside audit's: these passed, then failed in SB3 or torch as a bare AssertionError or RuntimeError
@@ -660,3 +660,78 @@ def test_training_runs_without_the_rl_extra(tmp_path, monkeypatch, capsys):
     out = capsys.readouterr().out
     assert "tensorboard is not installed" in out and "without SB3's progress bar" in out
     assert (tmp_path / "run" / "progress.csv").exists() and not list((tmp_path / "run").glob("events.out.tfevents.*"))
+
+
+CONTINUOUS = {**FAST, "action_type": "continuous", "max_episode_steps": 12}
+
+
+def test_evaluate_steps_a_callable_s_continuous_actions_as_given():
+    """An outside tester's cases: `evaluate` cast a callable's continuous actions to float32 (a float64 policy's
+    episode differed from the same policy in the user's own loop, and ``[True, False]`` got past the env's strict
+    check), and a discrete baseline on a continuous env failed without saying why."""
+    pairs = np.random.default_rng(0).uniform(-1, 1, (40, 2))  # float64, not float32-representable
+
+    class Pairs:
+        def __init__(self):
+            self.i = 0
+
+        def reset(self):
+            self.i = 0
+
+        def __call__(self, obs):
+            self.i += 1
+            return pairs[self.i - 1]
+
+    got = evaluate(Pairs(), CONTINUOUS, n_episodes=1, seed=2, return_episodes=True)["per_episode"][0]
+    env = make_env(CONTINUOUS)
+    obs, info = env.reset(seed=2)
+    tracker = EpisodeTracker()
+    tracker.observe(info, is_step=False)
+    for a in pairs:
+        obs, reward, terminated, truncated, info = env.step(a)
+        tracker.observe(info, reward)
+        if terminated or truncated:
+            break
+    assert got == tracker.finish().as_dict()
+    with pytest.raises(ValueError, match="two real numbers"):
+        evaluate(lambda obs: [True, False], CONTINUOUS, n_episodes=1)
+    with pytest.raises(ValueError, match=r"one number, a discrete action.*\(v, omega\) pairs"):
+        evaluate(WallFollowExplorer(), CONTINUOUS, n_episodes=1)
+
+
+def test_a_sac_model_samples_its_squashed_gaussian_from_the_given_generator():
+    """SAC has an action distribution (a tanh-squashed Gaussian): `evaluate(deterministic=False)` samples it with its
+    own seeded generator (the same episodes for the same seed) and with SB3's distribution (mean and spread of many
+    draws as ``predict(deterministic=False)``'s); TD3, which has none, is refused."""
+    from stable_baselines3 import SAC, TD3
+
+    from agents.learned import sample_action
+    from semreloc_env.wrappers import BeliefObservation
+
+    env = BeliefObservation(gym.make("SemReloc-v22", **CONTINUOUS))
+    model = SAC("MultiInputPolicy", env, learning_starts=5, buffer_size=200, seed=0)
+    model.learn(20)
+    runs = [evaluate(model, CONTINUOUS, n_episodes=2, deterministic=False, seed=3) for _ in range(2)]
+    assert runs[0] == runs[1]
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    ours = np.array([sample_action(model, obs, rng) for _ in range(3000)])
+    torch.manual_seed(0)
+    sb3 = np.array([model.predict(obs, deterministic=False)[0] for _ in range(3000)])
+    assert ours.dtype == np.float32 and np.all(np.abs(ours) <= 1.0)
+    np.testing.assert_allclose(ours.mean(axis=0), sb3.mean(axis=0), atol=0.06)
+    np.testing.assert_allclose(ours.std(axis=0), sb3.std(axis=0), rtol=0.1)
+    with pytest.raises(ValueError, match="TD3 policy has none"):
+        evaluate(TD3("MultiInputPolicy", env, seed=0), CONTINUOUS, n_episodes=1, deterministic=False)
+
+
+def test_the_sb3_adapter_warns_nothing_when_built(recwarn):
+    """An outside tester's case: SB3's VecEnv init read ``render_mode`` before the adapter had set ``closed``, and
+    every adapter (each worker's too) printed SB3's warning that the attribute is not defined."""
+    from agents.vec_env import SB3VecEnvAdapter
+    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+    adapter = SB3VecEnvAdapter(SemRelocLoopVectorEnv(2, **FAST))
+    assert adapter.render_mode is None and not adapter.closed
+    assert not [w for w in recwarn.list if "render_mode" in str(w.message)]
+    adapter.close()

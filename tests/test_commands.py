@@ -149,8 +149,8 @@ def test_the_bench_runs_the_version_it_is_told():
     args = parse(bench.Args, ["--env-id", "SemReloc-v18", "--only", "env"])
     assert type(bench._env(args)).__name__ == "SemRelocEnvV18"
     assert type(bench._env(parse(bench.Args, []))).__name__ == "SemRelocEnv"
-    with pytest.raises(ValueError, match="env_id: 'SemSlam-v1' is not one of"):
-        bench.Args(env_id="SemSlam-v1")
+    with pytest.raises(ValueError, match="env_id: 'SemSlam-v2' is not one of"):
+        bench.Args(env_id="SemSlam-v2")
 
 
 def test_quick_reproductions_write_under_build_not_docs():

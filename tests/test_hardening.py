@@ -114,7 +114,7 @@ def test_layout_files_with_a_byte_order_mark_load_as_without(tmp_path):
 
 
 def test_3_clear_errors_for_odd_env_input():
-    env = gym.make("SemSlam-v1", **SLAM_FAST)
+    env = gym.make("SemSlam-v2", **SLAM_FAST)
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"unknown reset options \['foo', 7\]"):
         env.reset(options={"foo": 1, 7: 2})
@@ -129,9 +129,9 @@ def test_3_clear_errors_for_odd_env_input():
             env.reset(seed=seed)
     for layout_seed in (None, "abc", -1, 1.5, True):
         with pytest.raises(ValueError, match=r"layout_seed must be an integer >= 0"):
-            gym.make("SemSlam-v1", layout="procedural", layout_seed=layout_seed)
+            gym.make("SemSlam-v2", layout="procedural", layout_seed=layout_seed)
     with pytest.raises(ValueError, match=r"robot: unknown keys \['foo', 7\]"):
-        gym.make("SemSlam-v1", robot={"foo": 1, 7: 2})
+        gym.make("SemSlam-v2", robot={"foo": 1, 7: 2})
     # an outside tester's lidar of 1 cm: v10's mapping run marks nothing free; said at gym.make, naming the range
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
@@ -145,7 +145,7 @@ def test_4_bad_reward_weight_is_rejected_at_construction(value):
     with pytest.raises(ValueError, match=r"reward_weights.time"):
         gym.make("SemReloc-v22", reward_weights={"time": value}, **FAST)
     with pytest.raises(ValueError, match=r"reward_weights.time"):
-        gym.make("SemSlam-v1", reward_weights={"time": value}, **SLAM_FAST)
+        gym.make("SemSlam-v2", reward_weights={"time": value}, **SLAM_FAST)
 
 
 def test_4_reward_weights_and_sensor_ranges_far_beyond_any_robot_are_rejected():
@@ -161,14 +161,14 @@ def test_4_reward_weights_and_sensor_ranges_far_beyond_any_robot_are_rejected():
 @pytest.mark.parametrize("value", [math.nan, math.inf, -0.1])
 def test_5_nan_or_infinite_sensor_noise_is_rejected(sensor, value):
     with pytest.raises(ValueError, match=r"noise_std_m"):
-        gym.make("SemSlam-v1", **{sensor: {"noise_std_m": value}})
+        gym.make("SemSlam-v2", **{sensor: {"noise_std_m": value}})
 
 
 # ---------------------------------------------------------------- 6. slam particles
 @pytest.mark.parametrize("value", [2.0, True, "10"])
 def test_6_slam_particle_count_must_be_an_int(value):
     with pytest.raises(ValueError, match=r"slam.n_particles must be an integer"):
-        gym.make("SemSlam-v1", slam={"n_particles": value})
+        gym.make("SemSlam-v2", slam={"n_particles": value})
 
 
 # ---------------------------------------------------------------- 7. continuous actions
@@ -188,7 +188,7 @@ def test_6_slam_particle_count_must_be_an_int(value):
     ],
 )
 def test_7_actions_outside_the_box_change_nothing(action):
-    env = gym.make("SemSlam-v1", action_type="continuous", **SLAM_FAST)
+    env = gym.make("SemSlam-v2", action_type="continuous", **SLAM_FAST)
     env.reset(seed=0)
     twin = copy.deepcopy(env)
     with pytest.raises(ValueError, match="invalid action"):
@@ -212,7 +212,7 @@ def test_7_bounds_missed_by_a_rescaling_wrapper_are_clipped_to_them():
     assert not twin.action_space.contains(np.array([1 + 2e-5, 0.0], np.float32))
 
 
-@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v1", SLAM_FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v2", SLAM_FAST)])
 def test_7_the_slack_is_1e_5_on_both_sides_and_clips_to_the_bound(env_id, kw):
     from semreloc_env.envs.spaces import ACTION_BOUND_SLACK
 
@@ -228,7 +228,7 @@ def test_7_the_slack_is_1e_5_on_both_sides_and_clips_to_the_bound(env_id, kw):
     assert_identical(env.step([0.3, 0.1]), twin.step([0.3, 0.1]))
 
 
-@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v1", SLAM_FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v2", SLAM_FAST)])
 def test_continuous_actions_are_checked_by_value_not_dtype(env_id, kw):
     # the env docstrings say so: ints and float64 within the bounds are the same actions as float32 ones,
     # though Gymnasium's Box.contains refuses them
@@ -252,13 +252,13 @@ def test_reward_weights_take_numpy_numbers_as_floats():
     w = SlamRewardWeights(time=np.float32(-0.01), pose_error=np.int64(-1))
     assert type(w.time) is float and w.pose_error == -1.0
     assert type(RewardWeights(success=np.float64(2.0)).success) is float
-    env = gym.make("SemSlam-v1", reward_weights=w, **SLAM_FAST)
+    env = gym.make("SemSlam-v2", reward_weights=w, **SLAM_FAST)
     env.reset(seed=0)
     assert type(env.step(0)[1]) is float
 
 
 # ---------------------------------------------------------------- 8. time limit
-@pytest.mark.parametrize("env_id, kw", [("SemSlam-v1", SLAM_FAST), ("SemReloc-v22", FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemSlam-v2", SLAM_FAST), ("SemReloc-v22", FAST)])
 def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
     env = gym.make(env_id, max_episode_steps=6, **kw)
     env.reset(seed=0)
@@ -271,7 +271,7 @@ def test_8_a_rejected_reset_does_not_restart_the_time_limit(env_id, kw):
 
 
 def test_8_check_reset_changes_nothing():
-    a, b = gym.make("SemSlam-v1", **SLAM_FAST), gym.make("SemSlam-v1", **SLAM_FAST)
+    a, b = gym.make("SemSlam-v2", **SLAM_FAST), gym.make("SemSlam-v2", **SLAM_FAST)
     a.reset(seed=1)
     b.reset(seed=1)
     a.unwrapped.check_reset(seed=5, options={"pose": [1.0, 1.0, 0.0]})
@@ -280,7 +280,7 @@ def test_8_check_reset_changes_nothing():
 
 # ---------------------------------------------------------------- 9. copies in contact
 def test_9_copies_taken_in_contact_do_not_diverge():
-    env = gym.make("SemSlam-v1", **SLAM_FAST)
+    env = gym.make("SemSlam-v2", **SLAM_FAST)
     env.reset(seed=0, options={"pose": [0.3, 3.2, math.pi]})  # facing the west wall, 0.1 m away
     in_contact = 0
     for k in range(12):
@@ -300,7 +300,7 @@ def test_10_robot_never_inside_an_obstacle_in_a_narrow_gap():
         "outer": [[0, 0], [4, 0], [4, 4], [0, 4]],
         "objects": [{"class": "cabinet", "polygon": [[0.34, 0], [1.3, 0], [1.3, 0.6], [0.34, 0.6]]}],
     }
-    env = gym.make("SemSlam-v1", layout=lay, **SLAM_FAST)
+    env = gym.make("SemSlam-v2", layout=lay, **SLAM_FAST)
     env.reset(seed=0, options={"pose": [0.21, 1.5, -np.pi / 2]})
     world = env.unwrapped.world
     r = world.robot_params.radius_m
@@ -477,12 +477,12 @@ def test_a_timedelta_is_refused_in_configs_and_estimators():
     [
         ("SemReloc-v22", {"relocalizer": {"lidar_field": {"sigma_hit_m": 1e300}}}, r"lidar_field.*sigma_hit_m"),
         ("SemReloc-v22", {"relocalizer": {"semantic_field": {"max_dist_m": 1e200}}}, r"semantic_field.*max_dist_m"),
-        ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e200}}, r"obs_noise.*sigma_r_m must be in \[1e-09, 1e\+06\] m"),
-        ("SemSlam-v1", {"obs_noise": {"sigma_b_rad": 1e200}}, r"obs_noise.*sigma_b_rad in \[1e-09, 2 pi\]"),
+        ("SemSlam-v2", {"obs_noise": {"sigma_r_m": 1e200}}, r"obs_noise.*sigma_r_m must be in \[1e-09, 1e\+06\] m"),
+        ("SemSlam-v2", {"obs_noise": {"sigma_b_rad": 1e200}}, r"obs_noise.*sigma_b_rad in \[1e-09, 2 pi\]"),
         # an outside audit's: both at 1e-100 passed and gave NaN landmarks (det(R) underflowed)
-        ("SemSlam-v1", {"obs_noise": {"sigma_r_m": 1e-100, "sigma_b_rad": 1e-100}}, r"obs_noise.*\[1e-09"),
-        ("SemSlam-v1", {"landmark_sensor": {"class_depth_m": (2e6, 0.25, 0.2, 0.3)}}, r"class_depth_m"),
-        ("SemSlam-v1", {"reward_weights": {"time": -1e308}}, r"reward weight time"),
+        ("SemSlam-v2", {"obs_noise": {"sigma_r_m": 1e-100, "sigma_b_rad": 1e-100}}, r"obs_noise.*\[1e-09"),
+        ("SemSlam-v2", {"landmark_sensor": {"class_depth_m": (2e6, 0.25, 0.2, 0.3)}}, r"class_depth_m"),
+        ("SemSlam-v2", {"reward_weights": {"time": -1e308}}, r"reward weight time"),
         # an outside audit's: each passed gym.make and overflowed at the reset or the first step or audit
         ("SemReloc-v22", {"relocalizer": {"global_particles_per_m2": 1e307}}, r"global_particles_per_m2 must be in"),
         ("SemReloc-v22", {"relocalizer": {"audit_candidates_per_m2": 1e307}}, r"audit_candidates_per_m2 must be in"),
@@ -503,7 +503,7 @@ def test_huge_finite_settings_are_refused_at_make(env_id, kw, match):
         gym.make(env_id, **kw)
 
 
-@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v1", SLAM_FAST)])
+@pytest.mark.parametrize("env_id, kw", [("SemReloc-v22", FAST), ("SemSlam-v2", SLAM_FAST)])
 def test_observations_are_writable_copies_that_change_nothing(env_id, kw):
     # semantic_class was a read-only view of the scan's labels, unlike every other entry
     env, twin = gym.make(env_id, **kw), gym.make(env_id, **kw)
@@ -763,7 +763,7 @@ def test_a_layout_file_nested_too_deeply_says_so(tmp_path, suffix):
 
 def test_a_1d_array_is_taken_where_a_config_takes_a_tuple():
     # an outside audit's: class_depth_m=np.zeros(4) said "must be a tuple, got ndarray" though a list was taken
-    env = gym.make("SemSlam-v1", landmark_sensor={"class_depth_m": np.array([1.0, 0.25, 0.2, 0.3])}, **SLAM_FAST)
+    env = gym.make("SemSlam-v2", landmark_sensor={"class_depth_m": np.array([1.0, 0.25, 0.2, 0.3])}, **SLAM_FAST)
     assert env.unwrapped.landmark_sensor.params.class_depth_m == (1.0, 0.25, 0.2, 0.3)
     with pytest.raises(ValueError, match="class_depth_m must be a tuple or list, got float"):
-        gym.make("SemSlam-v1", landmark_sensor={"class_depth_m": 3.0}, **SLAM_FAST)
+        gym.make("SemSlam-v2", landmark_sensor={"class_depth_m": 3.0}, **SLAM_FAST)

@@ -293,4 +293,4 @@ def test_a_ros_map_found_by_name_on_the_search_path_is_read_as_a_map(tmp_path, m
         relocalizer={"n_particles": 100},
     )
     np.testing.assert_equal(by_name.reset(seed=0), by_path.reset(seed=0))
-    assert gym.make("SemSlam-v1", layout="my_floor").unwrapped.layout.name == "my_floor"
+    assert gym.make("SemSlam-v2", layout="my_floor").unwrapped.layout.name == "my_floor"

@@ -150,7 +150,7 @@ def test_keys_select_entries_and_bad_arguments_raise():
     assert len(BELIEF_SUMMARY) == 7
     _env("twin_rooms", 100, ego_cell_m=np.float32(0.25))  # a NumPy float is a number too
     with pytest.raises(TypeError, match="mcl"):  # a SLAM env has no relocalizer to read
-        ActiveObservation(gym.make("SemSlam-v1"))
+        ActiveObservation(gym.make("SemSlam-v2"))
 
 
 def test_hypotheses_of_prefers_the_filters_list():

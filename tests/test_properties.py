@@ -24,7 +24,7 @@ CELL = 2.0
 # derandomize: the suite stays deterministic; scripts/soak.py explores further
 SETTINGS = settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 ENVS = {
-    "SemSlam-v1": {"slam": {"n_particles": 10}},
+    "SemSlam-v2": {"slam": {"n_particles": 10}},
     "SemReloc-v22": {"map_source": "perfect", "relocalizer": {"n_particles": 100}},
 }
 

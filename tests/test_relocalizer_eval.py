@@ -429,7 +429,7 @@ def test_a_variant_with_an_env_id_runs_that_version_and_its_relocalizer():
     old = run_episode(EpisodeSpec(**short, env_id="SemReloc-v18"))
     new = run_episode(EpisodeSpec(**short))
     assert old["mean_particles"] > new["mean_particles"]  # v18's KLD bound keeps about three times the particles
-    for bad in ("SemReloc-v99", "SemSlam-v1"):
+    for bad in ("SemReloc-v99", "SemSlam-v2"):
         with pytest.raises(ValueError, match=f"variant 'x': no SemReloc relocalizer for env id '{bad}'"):
             er.Args(variants=("x",), extra=f'{{"x": {{"env_id": "{bad}"}}}}')
     with pytest.raises(ValueError, match="variant .x.: .*lost_hold_window"):  # checked against v15's relocalizer

@@ -12,7 +12,7 @@ FAST = {"map_source": "perfect", "relocalizer": {"n_particles": 300}}
 
 def test_render_fps_follows_the_control_rate_per_instance():
     fast = gym.make("SemReloc-v22", physics={"control_hz": 20.0}, **FAST)
-    slow = gym.make("SemSlam-v1", physics={"control_hz": 5.0})
+    slow = gym.make("SemSlam-v2", physics={"control_hz": 5.0})
     assert fast.metadata["render_fps"] == 20.0 and fast.unwrapped.metadata["render_fps"] == 20.0
     assert slow.metadata["render_fps"] == 5.0
     assert gym.make("SemReloc-v22", **FAST).metadata["render_fps"] == 10.0

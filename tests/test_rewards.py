@@ -51,4 +51,4 @@ def test_belief_mass_reward_adds_a_named_term(mode):
     with pytest.raises(ValueError, match="has a BeliefMassReward already"):
         BeliefMassReward(BeliefMassReward(plain, weight=0.05), weight=0.5, mode="gain")
     with pytest.raises(TypeError, match="needs a SemReloc env"):
-        BeliefMassReward(gym.make("SemSlam-v1"))
+        BeliefMassReward(gym.make("SemSlam-v2"))

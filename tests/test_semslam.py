@@ -1,4 +1,5 @@
-"""SemSlam-v1 (and v0): env checks, determinism, landmark sensor, odometry motion model, zero-noise SLAM, bad input."""
+"""SemSlam-v2 (and v1, v0): env checks, determinism, landmark sensor, odometry motion model, zero-noise SLAM, bad
+input."""
 
 import math
 import warnings
@@ -32,7 +33,7 @@ DISC_R = 0.25
 
 
 def make(**kw):
-    return gym.make("SemSlam-v1", **{**FAST, **kw})
+    return gym.make("SemSlam-v2", **{**FAST, **kw})
 
 
 def _disc(cls, cx, cy, r=DISC_R, n=24):
@@ -222,7 +223,7 @@ def test_class_voting_fastslam_keeps_the_majority_class():
 # ---------------------------------------------------------------- SLAM accuracy
 def _drive_disc_room(depth_m, steps=150):
     env = gym.make(
-        "SemSlam-v1",
+        "SemSlam-v2",
         layout=DISC_ROOM,
         odometry=NO_ODOM_NOISE,
         camera=PERFECT_CAMERA,
@@ -294,7 +295,7 @@ def test_bad_reset_options_raise_and_keep_the_episode():
 
 def test_unknown_or_bad_constructor_arguments_are_errors():
     with pytest.raises(TypeError):
-        gym.make("SemSlam-v1", map_source="perfect")
+        gym.make("SemSlam-v2", map_source="perfect")
     for kw, match in [
         ({"slam": {"particles": 10}}, "unknown keys"),
         ({"slam": {"woc_k": 0.5}}, "woc_k"),

@@ -10,7 +10,7 @@ import semreloc_env
 from semreloc_env.tools import soak
 
 
-@pytest.mark.parametrize("env_id", ["SemReloc-v22", "SemReloc-v1", "SemSlam-v1", "SemSlam-v0"])
+@pytest.mark.parametrize("env_id", ["SemReloc-v22", "SemReloc-v1", "SemSlam-v2", "SemSlam-v0"])
 def test_random_settings_are_accepted_by_their_env(env_id):
     rng = np.random.default_rng(3)
     for _ in range(4):
@@ -26,8 +26,8 @@ def test_random_settings_are_accepted_by_their_env(env_id):
 
 def test_random_settings_draw_every_listed_id_and_vary_the_relocalizer():
     rng = np.random.default_rng(0)
-    draws = [soak.random_settings(rng, ("SemReloc-v22", "SemSlam-v1")) for _ in range(60)]
-    assert {i for i, _ in draws} == {"SemReloc-v22", "SemSlam-v1"}
+    draws = [soak.random_settings(rng, ("SemReloc-v22", "SemSlam-v2")) for _ in range(60)]
+    assert {i for i, _ in draws} == {"SemReloc-v22", "SemSlam-v2"}
     reloc = [kw for i, kw in draws if i == "SemReloc-v22"]
     assert {kw["map_source"] for kw in reloc} == {"mapping", "perfect"}
     assert {kw["relocalizer"]["backend"] for kw in reloc} == {"numba", "numpy"}
@@ -46,17 +46,17 @@ def test_memory_growth_compares_late_with_early_after_warm_up():
 def test_soak_fails_on_resident_growth(monkeypatch):
     grown = iter(range(10**6))
     monkeypatch.setattr(soak, "resident_mb", lambda: 100.0 + 50.0 * next(grown))
-    c = soak.soak(60, seed=1, episode_steps=5, twin_every=1000, env_ids=("SemSlam-v1",), growth_limit_mb=10.0)
+    c = soak.soak(60, seed=1, episode_steps=5, twin_every=1000, env_ids=("SemSlam-v2",), growth_limit_mb=10.0)
     assert c["steps"] >= 60 and c["FAIL_crash"] == 0
     assert c["resident_growth_mb"] > 10 and c["FAIL_memory_growth"] == 1
     monkeypatch.setattr(soak, "resident_mb", lambda: 100.0)
-    c = soak.soak(60, seed=1, episode_steps=5, twin_every=1000, env_ids=("SemSlam-v1",), growth_limit_mb=10.0)
+    c = soak.soak(60, seed=1, episode_steps=5, twin_every=1000, env_ids=("SemSlam-v2",), growth_limit_mb=10.0)
     assert c["resident_growth_mb"] == 0 and c["FAIL_memory_growth"] == 0
 
 
 def test_soak_without_resident_size_says_the_check_was_skipped(monkeypatch):
     monkeypatch.setattr(soak, "resident_mb", lambda: None)
-    c = soak.soak(20, seed=2, episode_steps=5, twin_every=1000, env_ids=("SemSlam-v1",), growth_limit_mb=1.0)
+    c = soak.soak(20, seed=2, episode_steps=5, twin_every=1000, env_ids=("SemSlam-v2",), growth_limit_mb=1.0)
     assert c["memory_check_skipped"] == 1 and c["FAIL_memory_growth"] == 0
 
 
@@ -65,7 +65,7 @@ def test_soak_without_resident_size_says_the_check_was_skipped(monkeypatch):
     [
         (["--env-ids", "SemReloc-v99"], "SemReloc-v99"),
         (["--env-ids", "SemRelocVec-v22"], "SemRelocVec-v22"),
-        (["--env-ids", "SemSlam-v1", "SemSlam-v1"], "twice"),
+        (["--env-ids", "SemSlam-v2", "SemSlam-v2"], "twice"),
         (["--memory-growth-mb", "0"], "memory_growth_mb"),
         (["--memory-growth-mb", "nan"], "memory_growth_mb"),
     ],
@@ -88,7 +88,7 @@ def test_a_short_soak_of_the_newest_ids_passes_and_leaves_the_cache_untouched(tm
 
 
 def test_the_default_ids_are_the_newest():
-    assert soak.Args().env_ids == ("SemReloc-v22", "SemSlam-v1")
+    assert soak.Args().env_ids == ("SemReloc-v22", "SemSlam-v2")
     assert all(i in semreloc_env.ENV_IDS for i in soak.Args().env_ids)
     assert math.isfinite(soak.Args().memory_growth_mb)
 
@@ -100,7 +100,7 @@ def test_reset_options_draw_global_tracking_and_kidnapped_starts_within_the_limi
     for d in draws:
         assert d.get("tracking", False) == (d["kind"] != "global")
         assert ("kidnap_at_step" in d) == (d["kind"] == "kidnap") and 1 <= d.get("kidnap_at_step", 1) <= 7
-    assert soak.reset_options(rng, "SemSlam-v1", 7) == {}
+    assert soak.reset_options(rng, "SemSlam-v2", 7) == {}
 
 
 def test_a_soak_of_the_relocalizer_alone_starts_every_way_and_passes(capsys):

@@ -103,6 +103,7 @@ def test_registered_ids_and_versions():
         "SemReloc-v2",
         "SemReloc-v1",
         "SemReloc-v0",
+        "SemSlam-v2",
         "SemSlam-v1",
         "SemSlam-v0",
     )
@@ -134,6 +135,7 @@ def test_registered_ids_and_versions():
         ("SemReloc-v2", typed),
         ("SemReloc-v1", flat),
         ("SemReloc-v0", flat),
+        ("SemSlam-v2", typed),
         ("SemSlam-v1", typed),
         ("SemSlam-v0", flat),
     ]:
@@ -824,6 +826,37 @@ def test_v22_is_v21_whose_small_steps_move_their_own_way_and_whose_kld_draws_one
     assert len(a) == len(b) == len(actions) + 1
     for (obs, *_), (obs2, *_) in zip(a, b):
         np.testing.assert_equal(obs, obs2)  # the same world, sensors and odometry readings
+
+
+def test_semslam_v2_is_v1_with_v22_s_odometry_and_association_within_the_gate():
+    """SemSlam-v2 is v1 with SemReloc-v22's odometry (wheels: no slide along a wall; a step under 1 cm in its own
+    direction, in the simulator and, through its noise config, the SLAM motion model) and ML association among the
+    gated landmarks; the same world and spaces. Backing slowly, v1's SLAM estimate goes forwards, v2's back."""
+    from filters.slam.association import AssociationConfig
+
+    a, b = make("SemSlam-v2", **SLAM_FAST).unwrapped, make("SemSlam-v1", **SLAM_FAST).unwrapped
+    assert not a.odometry.reads_slides and b.odometry.reads_slides
+    assert a.odometry.params == dataclasses.replace(b.odometry.params, exact_small_moves=True)
+    assert a.motion_model.config.exact_small_moves and not b.motion_model.config.exact_small_moves
+    assert a.slam_params == dataclasses.replace(b.slam_params, gate_first=True)
+    assert a.fastslam_config.association == dataclasses.replace(b.fastslam_config.association, gate_first=True)
+    assert isinstance(a.fastslam_config.association, AssociationConfig)
+    assert a.observation_space == b.observation_space
+    assert make("SemSlam-v2", slam={"n_particles": 20, "gate_first": False}).unwrapped.slam_params == b.slam_params
+    v0 = make("SemSlam-v0", **SLAM_FAST).unwrapped
+    assert v0.slam_params == b.slam_params and v0.odometry.params == b.odometry.params and v0.odometry.reads_slides
+    back = np.array([-0.1, 0.0], np.float32)  # 5 mm per step
+    moved = {}
+    for env_id in ("SemSlam-v2", "SemSlam-v1"):
+        env = make(env_id, **SLAM_FAST, action_type="continuous")
+        env.reset(seed=4, options=SLAM_START)
+        for _ in range(30):
+            _, _, _, _, info = env.step(back)
+        u = env.unwrapped
+        moved[env_id] = (u.world.pose[1] - SLAM_START["pose"][1], u.slam.estimate().pose[1] - SLAM_START["pose"][1])
+    (true_new, est_new), (true_old, est_old) = moved["SemSlam-v2"], moved["SemSlam-v1"]
+    assert true_new == true_old == pytest.approx(-0.15, abs=1e-3)  # heading pi/2: backing moves along -y
+    assert est_new == pytest.approx(-0.15, abs=0.03) and est_old == pytest.approx(0.15, abs=0.03)
 
 
 def test_wheel_odometry_reads_an_arc_as_it_is_and_no_sideways_slide():

@@ -93,7 +93,7 @@ def test_belief_observation_rejects_bad_envs_and_bounds():
     with pytest.raises(TypeError):
         BeliefObservation(gym.make("CartPole-v1"))
     with pytest.raises(TypeError, match="SemSlamEnv has no belief"):  # used to fail at reset with KeyError: 'belief'
-        BeliefObservation(gym.make("SemSlam-v1", layout="twin_rooms"))
+        BeliefObservation(gym.make("SemSlam-v2", layout="twin_rooms"))
 
     class NoBelief(gym.Wrapper):  # another Dict env whose info lacks the belief: the keys it has are named
         def reset(self, **kw):

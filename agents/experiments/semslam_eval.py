@@ -37,9 +37,11 @@ from semreloc_env.layouts import check_layout_option
 class Args:
     layout: str = "lab"
     """layout name or file"""
-    env_id: Literal["SemSlam-v1", "SemSlam-v0"] = "SemSlam-v1"
-    """env id (the two differ only in their observation's layout and info's missing landmark error, so
-    they give the same table)"""
+    env_id: Literal["SemSlam-v2", "SemSlam-v1", "SemSlam-v0"] = "SemSlam-v2"
+    """env id: SemSlam-v2 (the newest), or v1 and v0 to repeat the tables made with them (v1 and v0 differ only in
+    their observation's layout and info's missing landmark error, so they give the same table; v2 differs from v1
+    in its odometry, which reads no slide along a wall and moves a step under 1 cm in its own direction, and in its
+    association, which chooses among the landmarks inside the gate)"""
     seeds: int = 10
     """episodes (seeds 0..seeds-1)"""
     steps: int = 300

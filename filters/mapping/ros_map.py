@@ -543,7 +543,7 @@ def load_map(
             (absent -> a map without classes; given explicitly but absent -> error).
         alpha_in_trinary: average an RGBA or grey-and-alpha image's alpha into a ``trinary`` map's grey
             levels, as map_server and nav2 do (`read_map_image`); False leaves it out, as this package did
-            before, and as the registered envs (``SemReloc-v22`` and older, ``SemSlam-v1`` and older) read
+            before, and as the registered envs (``SemReloc-v22`` and older, ``SemSlam-v2`` and older) read
             their maps, so that their episodes stay what they were.
 
     Returns:

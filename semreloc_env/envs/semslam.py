@@ -1,4 +1,4 @@
-"""``SemSlam-v1`` (and ``-v0``): landmark SLAM (FastSLAM + WOC, paper 000) on the semantic camera's object detections."""
+"""``SemSlam-v2`` (and ``-v1``, ``-v0``): landmark SLAM (FastSLAM + WOC, paper 000) on the semantic camera's object detections."""
 
 from __future__ import annotations
 
@@ -44,7 +44,8 @@ class SlamParams:
             likelihood association with the NIS gates below.
         gate_associate, gate_new: NIS gates of `filters.slam.association.AssociationConfig`.
         gate_first: choose the ML match among the landmarks inside the gate (`AssociationConfig.gate_first`;
-            False, the default, keeps the episodes of this env's release).
+            the dataclass's default False is ``SemSlam-v1``'s and ``-v0``'s, `SemSlamEnv.default_slam` True is
+            ``SemSlam-v2``'s).
         resampler: resampling scheme name (`filters.smc.resampling.get_resampler`).
         resample_ess_fraction: resample when the ESS of the WOC weights falls below this fraction of N
             (1.0: after every update with observations, as the paper does).
@@ -109,8 +110,9 @@ class SemSlamEnv(SemRelocBase):
     """Landmark SLAM of a differential-drive robot from semantic object detections.
 
     ## Description
-    The world, robot and sensors of ``SemReloc-v18`` (a pymunk world built from a *layout*, a 360 deg
-    lidar, a forward semantic camera, wheel odometry that reads the true increment, a slide along a wall included). Inside the env runs **WOCPF SLAM** (paper 000):
+    The world, robot and sensors of ``SemReloc-v22`` (a pymunk world built from a *layout*, a 360 deg
+    lidar, a forward semantic camera, wheel odometry that reads what the wheels see, no slide along a wall, and moves
+    a step under 1 cm in its own direction). Inside the env runs **WOCPF SLAM** (paper 000):
     FastSLAM (`filters.slam.fastslam.FastSLAM`, version 2 by default) whose importance weights go
     through the WOC step ``psi = (K-1)/K w + mean(w)/K`` before resampling. Its controls are the noisy
     odometry increments (`filters.motion.odometry_slam.OdometryIncrementModel`); its observations
@@ -187,6 +189,12 @@ class SemSlamEnv(SemRelocBase):
     (checked outside the time limit, see `semreloc_env.wrappers.CheckedReset`).
 
     ## Version History
+    * v2: the odometry of ``SemReloc-v22``: it reads what a differential drive's wheels see, no slide along a wall
+      (``SemReloc-v19``'s), and moves a step under 1 cm in its own direction, in the simulated odometry and in the
+      SLAM motion model (``SemReloc-v22``'s); and maximum-likelihood association chooses among the landmarks inside
+      the gate (``slam.gate_first``, `default_slam`). v1 read a 2.8 cm slide along a wall as a sideways step with
+      18 deg of heading noise, took a 5 mm reverse (and a turn's small noisy translation) as a step forwards, and let
+      a tight landmark outside the gate beat the ones inside it (docs/semslam.md, "SemSlam-v2").
     * v1: typed observations as in ``SemReloc-v2`` (``semantic_class`` MultiDiscrete and ``semantic_range``
       Box instead of the float32 ``semantic`` Box); ``info["slam_error"]`` leaves ``landmark`` out while no
       object has been observed (v0: None). Dynamics, filter and rewards unchanged (`SemSlamEnvV0` is v0).
@@ -194,6 +202,14 @@ class SemSlamEnv(SemRelocBase):
     """
 
     _reset_option_keys = frozenset({"pose"})
+    odometry_reads_slides = False
+    """The simulated odometry reads what the wheels see, not a slide along a wall (`semreloc_env.sensors.Odometry`;
+    True in v1 and v0)."""
+    odometry_exact_small_moves = True
+    """A step under 1 cm moves in its own direction, in the simulated odometry and (through its noise config) the SLAM
+    motion model (False in v1 and v0)."""
+    default_slam: ClassVar[SlamParams] = SlamParams(gate_first=True)
+    """What ``slam=None`` stands for and a dict of overrides applies to (``gate_first`` False in v1 and v0)."""
     procedural_version = 1
     """Lookalike layouts by name as ``SemReloc-v2`` draws them (the SLAM episode starts from a known pose,
     so their half-turn symmetry does not matter here; pass a Layout from
@@ -217,7 +233,7 @@ class SemSlamEnv(SemRelocBase):
     ):
         check_seed_use(layout, layout_seed, "nominal")
         super().__init__(layout, layout_seed, action_type, robot, physics, lidar, camera, odometry, render_mode)
-        self.slam_params = coerce_config(SlamParams, slam, "slam")
+        self.slam_params = coerce_config(SlamParams, slam, "slam", self.default_slam)
         self.fastslam_config = self.slam_params.fastslam_config()
         motion = self.slam_params.motion_noise
         if not isinstance(motion, OdometryMotionConfig):
@@ -322,10 +338,22 @@ class SemSlamEnv(SemRelocBase):
         return state
 
 
-class SemSlamEnvV0(SemSlamEnv):
-    """``SemSlam-v0``: `SemSlamEnv` with the flat observation (one float32 ``semantic`` Box) and
+class SemSlamEnvV1(SemSlamEnv):
+    """``SemSlam-v1``: `SemSlamEnv` with the odometry of ``SemReloc-v18`` (it reads the true increment, a slide along a
+    wall included, and takes a step under 1 cm along the heading, in the simulator and the SLAM motion model) and
+    maximum-likelihood association that picks the best landmark before gating (``slam.gate_first`` False). Otherwise
+    identical to ``SemSlam-v2``. Kept so that results made with v1 can be reproduced; new work should use
+    ``SemSlam-v2``."""
+
+    odometry_reads_slides = True
+    odometry_exact_small_moves = False
+    default_slam = SlamParams()
+
+
+class SemSlamEnvV0(SemSlamEnvV1):
+    """``SemSlam-v0``: `SemSlamEnvV1` with the flat observation (one float32 ``semantic`` Box) and
     ``info["slam_error"]["landmark"] = None`` before the first object is seen. Otherwise identical to
-    ``SemSlam-v1`` (same seed, same episode); new work should use ``SemSlam-v1``."""
+    ``SemSlam-v1`` (same seed, same episode); new work should use ``SemSlam-v2``."""
 
     observation_layout = "flat"
     info_missing = "none"

@@ -71,7 +71,7 @@ def decode_action(action, action_type: str, space: spaces.Space, robot: RobotPar
 
 
 OBSERVATION_LAYOUTS = ("typed", "flat")
-"""``"typed"`` (``SemReloc-v2``, ``SemSlam-v1``): ``semantic_range`` Box + ``semantic_class`` MultiDiscrete;
+"""``"typed"`` (``SemReloc-v2`` and later, ``SemSlam-v1`` and later): ``semantic_range`` Box + ``semantic_class`` MultiDiscrete;
 ``"flat"`` (``SemReloc-v1``/``-v0``, ``SemSlam-v0``): one float32 ``semantic`` Box, ranges then labels."""
 
 

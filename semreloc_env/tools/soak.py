@@ -2,7 +2,7 @@
 
 Usage (``semreloc-soak`` is the same command)::
 
-    python scripts/soak.py                 # 10^6 steps of SemReloc-v22 and SemSlam-v1
+    python scripts/soak.py                 # 10^6 steps of SemReloc-v22 and SemSlam-v2
     python scripts/soak.py --steps 20000   # a short run
     python scripts/soak.py --env-ids SemReloc-v1 SemSlam-v0   # older ids (the soak's only ones before)
     python scripts/soak.py --layouts 10000 # layouts only: validate, mutate, build
@@ -49,7 +49,7 @@ from filters.experiments.cli import command, parse
 from semreloc_env.layouts import CLASS_NAMES, LayoutError, layout_from_dict
 
 CELL = 2.0
-SOAK_ENV_IDS = ("SemReloc-v22", "SemSlam-v1")
+SOAK_ENV_IDS = ("SemReloc-v22", "SemSlam-v2")
 """The ids a soak runs unless told otherwise: the newest."""
 
 
