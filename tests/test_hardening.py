@@ -244,6 +244,22 @@ def test_continuous_actions_are_checked_by_value_not_dtype(env_id, kw):
     assert_identical(env.step([0.3, 0.1]), twin.step([0.3, 0.1]))
 
 
+def test_a_torch_tensor_that_requires_grad_is_a_value_error_and_changes_nothing():
+    """An outside tester's case: NumPy cannot read a tensor that requires grad (RuntimeError); the env says
+    ValueError, as for any invalid action, in either action type, and the episode goes on as its twin's."""
+    torch = pytest.importorskip("torch")
+    for action_type, grad, plain in (
+        ("continuous", torch.tensor([0.3, 0.1], requires_grad=True), [0.3, 0.1]),
+        ("discrete", torch.tensor(1.0, requires_grad=True), 1),
+    ):
+        env, twin = (gym.make("SemReloc-v22", action_type=action_type, **FAST) for _ in range(2))
+        env.reset(seed=0)
+        twin.reset(seed=0)
+        with pytest.raises(ValueError, match="invalid action"):
+            env.step(grad)
+        assert_identical(env.step(plain), twin.step(plain))
+
+
 def test_reward_weights_take_numpy_numbers_as_floats():
     # the new bound refused NumPy scalars SemSlam had taken, saying "must be a finite number"
     from semreloc_env.envs.semreloc import RewardWeights
