@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import math
+import numbers
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -453,6 +454,16 @@ def env_for(model_or_policy: Any, env_kwargs: dict[str, Any] | None = None, env_
     return env
 
 
+def _one_number(action) -> bool:
+    """Whether ``action`` is one real number (a Python or NumPy number or a 0-d numeric array, not a bool): what a
+    discrete policy returns."""
+    if isinstance(action, (bool, np.bool_)):
+        return False
+    if isinstance(action, numbers.Real):
+        return True
+    return isinstance(action, np.ndarray) and action.ndim == 0 and action.dtype.kind in "iuf"
+
+
 def evaluate(
     model_or_policy: Any,
     env_kwargs: dict[str, Any] | None = None,
@@ -508,7 +519,7 @@ def evaluate(
                 try:
                     obs, reward, terminated, truncated, info = env.step(action)
                 except ValueError as e:  # the env refused the action and changed nothing
-                    if not discrete and np.ndim(action) == 0:
+                    if not discrete and _one_number(action):
                         raise ValueError(
                             f"{e}; the policy returned one number, a discrete action, and this env's actions are "
                             "(v, omega) pairs (action_type='continuous'): evaluate a policy for continuous actions"

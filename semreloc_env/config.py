@@ -348,10 +348,10 @@ class CameraParams:
 
 def default_odometry_noise(exact_small_moves: bool = True):
     """The simulator's odometry noise: the filters' model with small alphas (a good wheel encoder), a step under
-    ``min_trans_m`` moved in its own direction if ``exact_small_moves`` (the newest env's default, ``SemReloc-v22``;
-    False gives the noise of ``SemReloc-v21`` and older and of ``SemSlam``). To change a few fields of the newest
-    env's noise, pass them as a dict (``odometry={"alpha1": 0.05}``): an `OdometryMotionConfig` instance replaces it
-    whole, ``exact_small_moves`` included."""
+    ``min_trans_m`` moved in its own direction if ``exact_small_moves`` (the newest envs' default, ``SemReloc-v22``'s
+    and ``SemSlam-v2``'s; False gives the noise of ``SemReloc-v21`` and older and of ``SemSlam-v1`` and ``-v0``). To
+    change a few fields of the newest env's noise, pass them as a dict (``odometry={"alpha1": 0.05}``): an
+    `OdometryMotionConfig` instance replaces it whole, ``exact_small_moves`` included."""
     from filters.motion.odometry import OdometryMotionConfig
 
     return OdometryMotionConfig(alpha1=0.02, alpha2=0.02, alpha3=0.02, alpha4=0.01, exact_small_moves=exact_small_moves)

@@ -319,12 +319,12 @@ class Odometry:
     (`filters.motion.odometry.OdometryMotionModel`), applied to one pose at the origin,
     so simulator and filter cannot disagree on its form, only on its alphas.
 
-    ``reads_slides``: whether the reading includes a sideways slide (a push along a wall). A differential
-    drive's wheels cannot roll sideways, so their encoders never see one: with ``reads_slides=False``
-    (`SemReloc-v19` and later) the increment is the true one projected on the direction a step without slip moves along
-    (`wheel_increment`), the turn as it is: a step without slip reads as it is, a slide across that direction reads
-    as nothing. (Wheels that spin against a wall and read motion the robot did not make are not modelled.) With
-    ``True`` (`SemReloc-v18` and older, and `SemSlam`) the reading is the true increment, slides included; the
+    ``reads_slides``: whether the reading includes a sideways slide (a push along a wall). A differential drive's wheels
+    cannot roll sideways, so their encoders never see one: with ``reads_slides=False`` (`SemReloc-v19` and later,
+    `SemSlam-v2`) the increment is the true one projected on the direction a step without slip moves along
+    (`wheel_increment`), the turn as it is: a step without slip reads as it is, a slide across that direction reads as
+    nothing. (Wheels that spin against a wall and read motion the robot did not make are not modelled.) With ``True``
+    (`SemReloc-v18` and older, `SemSlam-v1` and `-v0`) the reading is the true increment, slides included; the
     rot1-trans-rot2 model then reads a 1.7 cm slide across the heading as a quarter turn, a step and a quarter turn
     back, with about 1 m of translation noise (docs/relocalizer.md, "SemReloc-v19").
 

@@ -697,6 +697,10 @@ def test_evaluate_steps_a_callable_s_continuous_actions_as_given():
         evaluate(lambda obs: [True, False], CONTINUOUS, n_episodes=1)
     with pytest.raises(ValueError, match=r"one number, a discrete action.*\(v, omega\) pairs"):
         evaluate(WallFollowExplorer(), CONTINUOUS, n_episodes=1)
+    for bad in ([[0.1, 0.2], [0.3]], "forward", None):  # the env's own message, no hint about one number
+        with pytest.raises(ValueError, match="two real numbers") as info:
+            evaluate(lambda obs, bad=bad: bad, CONTINUOUS, n_episodes=1)
+        assert "one number" not in str(info.value)
 
 
 def test_a_sac_model_samples_its_squashed_gaussian_from_the_given_generator():
@@ -723,6 +727,14 @@ def test_a_sac_model_samples_its_squashed_gaussian_from_the_given_generator():
     np.testing.assert_allclose(ours.std(axis=0), sb3.std(axis=0), rtol=0.1)
     with pytest.raises(ValueError, match="TD3 policy has none"):
         evaluate(TD3("MultiInputPolicy", env, seed=0), CONTINUOUS, n_episodes=1, deterministic=False)
+    # bounds other than [-1, 1] (a reviewer's case): the squashed draw is scaled to them as predict scales it
+    pendulum = SAC("MlpPolicy", gym.make("Pendulum-v1"), seed=0)
+    obs = np.array([1.0, 0.0, 0.3], np.float32)
+    ours = np.array([sample_action(pendulum, obs, rng) for _ in range(3000)])
+    sb3 = np.array([pendulum.predict(obs, deterministic=False)[0] for _ in range(3000)])
+    assert ours.dtype == np.float32 and np.abs(ours).max() <= 2.0 and np.abs(ours).max() > 1.2
+    np.testing.assert_allclose(ours.mean(axis=0), sb3.mean(axis=0), atol=0.1)
+    np.testing.assert_allclose(ours.std(axis=0), sb3.std(axis=0), rtol=0.1)
 
 
 def test_the_sb3_adapter_warns_nothing_when_built(recwarn):

@@ -258,6 +258,13 @@ def test_a_torch_tensor_that_requires_grad_is_a_value_error_and_changes_nothing(
         with pytest.raises(ValueError, match="invalid action"):
             env.step(grad)
         assert_identical(env.step(plain), twin.step(plain))
+    from semreloc_env.envs.batched import SemRelocLoopVectorEnv
+
+    venv = SemRelocLoopVectorEnv(2, action_type="continuous", **FAST)  # a list of such tensors, one per robot
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="robot 0: invalid action"):
+        venv.step([torch.tensor([0.3, 0.1], requires_grad=True)] * 2)
+    venv.step([[0.3, 0.1]] * 2)
 
 
 def test_reward_weights_take_numpy_numbers_as_floats():

@@ -58,11 +58,12 @@ class OdometryMotionConfig:
         min_trans_m: below this translation, ``rot1`` is taken as 0 (the heading of
             a tiny displacement is meaningless) and the whole heading change goes
             into ``rot2``.
-        exact_small_moves: False (as AMCL, and every env up to ``SemReloc-v21``): that ``rot1 = 0`` moves the
-            particle too, so a step shorter than ``min_trans_m`` goes along the particle's heading whatever its
-            direction: a 5 mm step backwards or sideways is taken 5 mm forwards (an outside audit: 200 such steps
-            backwards end 1 m ahead). True: the step moves in its own direction (``rot1 = atan2(dy, dx)``), and only
-            the noise takes it as a turn on the spot (its stds those of ``rot1 = 0``). Opt in with
+        exact_small_moves: False (as AMCL, every env up to ``SemReloc-v21``, ``SemSlam-v1`` and ``-v0``): that ``rot1 =
+            0`` moves the particle too, so a step shorter than ``min_trans_m`` goes along the particle's heading
+            whatever its direction: a 5 mm step backwards or sideways is taken 5 mm forwards (an outside audit: 200 such
+            steps backwards end 1 m ahead). True: the step moves in its own direction (``rot1 = atan2(dy, dx)``), and
+            only the noise takes it as a turn on the spot (its stds those of ``rot1 = 0``): ``SemReloc-v22`` and
+            ``SemSlam-v2``, in their simulated odometry and their filters. An older env opts in with
             ``odometry={"exact_small_moves": True}`` (the simulated odometry) and ``relocalizer={"motion":
             {"exact_small_moves": True}}`` (the filter's model).
     """

@@ -60,7 +60,7 @@ def action_list(
     (the robots' own checks would refuse every such float). Checks of the whole batch, before each robot's own."""
     try:
         scalar = isinstance(actions, (str, bytes)) or np.ndim(actions) == 0
-    except ValueError:  # a ragged nested sequence: each robot's action is checked on its own
+    except (ValueError, RuntimeError):  # ragged, or a torch tensor that requires grad: each robot's own check says
         scalar = False
     if scalar:
         raise ValueError(f"actions must be a sequence of {num_envs} actions, got {actions!r:.80}")
