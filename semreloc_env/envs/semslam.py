@@ -179,7 +179,8 @@ class SemSlamEnv(SemRelocBase):
       ``exact_small_moves`` True; an ``OdometryMotionConfig`` instance replaces the noise whole).
     * ``slam``: dict of overrides of `default_slam` (``n_particles`` 100, ``version`` 2, ``woc_k`` 2.0,
       ``known_association`` False, ``gate_first`` True, gates, resampler, ``motion_noise``); a `SlamParams` instance
-      replaces it whole (its own ``gate_first``, False unless given).
+      replaces it whole (its own ``gate_first``, False unless given: ``dataclasses.replace(SemSlamEnv.default_slam,
+      ...)`` keeps v2's).
     * ``obs_noise``: dict of overrides of the filter's `filters.slam.landmarks.RangeBearingNoise`
       (``sigma_r_m`` 0.15, ``sigma_b_rad`` 0.05).
     * ``landmark_sensor``: dict of overrides of `semreloc_env.landmark_sensor.LandmarkSensorParams`.
