@@ -23,7 +23,6 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import math
-import numbers
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -457,11 +456,7 @@ def env_for(model_or_policy: Any, env_kwargs: dict[str, Any] | None = None, env_
 def _one_number(action) -> bool:
     """Whether ``action`` is one real number (a Python or NumPy number or a 0-d numeric array, not a bool): what a
     discrete policy returns."""
-    if isinstance(action, (bool, np.bool_)):
-        return False
-    if isinstance(action, numbers.Real):
-        return True
-    return isinstance(action, np.ndarray) and action.ndim == 0 and action.dtype.kind in "iuf"
+    return is_real(action) or (isinstance(action, np.ndarray) and action.ndim == 0 and action.dtype.kind in "iuf")
 
 
 def evaluate(

@@ -48,18 +48,14 @@ def decode_action(action, action_type: str, space: spaces.Space, robot: RobotPar
         return _discrete_command(int(action), robot)  # a plain integer in range: what the checks below accept, sooner
     if np.ma.is_masked(action):  # np.asarray would take the values under the mask
         raise ValueError(f"invalid action {action!r:.80}: masked values")
-    if action_type == "discrete":
-        try:
-            a = np.asarray(action)
-        except (TypeError, ValueError, RuntimeError):  # RuntimeError: a torch tensor that requires grad
-            a = np.asarray(None, dtype=object)
-        if a.shape != () or not is_int_dtype(a.dtype) or not space.contains(int(a)):
-            raise ValueError(f"invalid action {action!r}: expected an integer in [0, {space.n}) {DISCRETE_ACTIONS}")
-        return _discrete_command(int(a), robot)
     try:
         a = np.asarray(action)
     except (TypeError, ValueError, RuntimeError):  # RuntimeError: a torch tensor that requires grad
         a = None
+    if action_type == "discrete":
+        if a is None or a.shape != () or not is_int_dtype(a.dtype) or not space.contains(int(a)):
+            raise ValueError(f"invalid action {action!r}: expected an integer in [0, {space.n}) {DISCRETE_ACTIONS}")
+        return _discrete_command(int(a), robot)
     if isinstance(action, (list, tuple)) and any(
         isinstance(v, (bool, np.bool_)) or (isinstance(v, np.ndarray) and v.dtype.kind == "b") for v in action
     ):
