@@ -60,7 +60,7 @@ def test_every_entry_point_has_its_script_and_each_script_calls_it():
         assert "sys.path" not in text
 
 
-@pytest.mark.parametrize("name", ["stages", "belief"])  # batched and batched_split: the tests below
+@pytest.mark.parametrize("name", ["stages", "belief", "robots_fused"])  # batched and batched_split: below
 def test_cheap_benchmarks_run_and_print_finite_figures(name):
     """The benchmarks import what they need and measure something (tiny sizes; no timing asserted)."""
     import math

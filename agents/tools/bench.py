@@ -637,6 +637,30 @@ def bench_batched_split(args: Args) -> list[Row]:
     ]
 
 
+def bench_robots_fused(args: Args) -> list[Row]:
+    """A filter batched over robots, prototyped on the motion predict and the likelihood weighing
+    (`agents.tools.robots_fused`): the kernel calls of R = 64 batched robots (``--env-id`` or the newest, random
+    actions) recorded, then timed as the env makes them (one call per robot) against one call per batched step for
+    all its robots, on inputs already laid out flat and with the laying out; CPU us per recorded robot-step."""
+    from agents.tools.robots_fused import compare, record_calls
+
+    with _older_ids_quiet():
+        recorded = record_calls(64, max(1, args.steps // 15), args.seed, args.env_id or ENV_ID)
+    rows = []
+    for name, t in compare(recorded, max(3, args.repeats // 2)).items():
+        bits = "the same bits" if t.same_bits else "RESULTS DIFFER"
+        rows += [
+            Row(f"{name} kernel, one call per robot", t.per_robot_us, float("nan"), "us CPU per robot-step",
+                f"{t.calls} calls in {recorded.robot_steps} robot-steps"),
+            Row("  one call for all robots, arrays flat", t.fused_us, float("nan"), "us CPU per robot-step",
+                f"{t.groups} calls; {bits}"),
+            Row("  the same, laying the arrays out", t.fused_laid_out_us, float("nan"), "us CPU per robot-step",
+                "what the batched env would pay"),
+            Row("  per robot / fused, arrays flat", t.per_robot_us / t.fused_us, float("nan"), "x", ""),
+        ]  # fmt: skip
+    return rows
+
+
 def _kernels_alone_rows(s, env_id: str, what: str) -> list[Row]:
     """A batched split's robot-step, the robot-steps per CPU-second its compiled kernels alone would allow, and its
     three heaviest kernels (``s``: a `agents.tools.profile_step.BatchedSplit`)."""
@@ -1058,6 +1082,7 @@ BENCHMARKS: list[Callable[[Args], list[Row]]] = [
     bench_belief,
     bench_batched,
     bench_batched_split,
+    bench_robots_fused,
     bench_stages,
     bench_scaling,
     bench_reset,
