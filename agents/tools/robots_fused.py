@@ -21,7 +21,6 @@ fused kernels.
 
 from __future__ import annotations
 
-import math
 import statistics
 import time
 from dataclasses import dataclass
@@ -30,6 +29,7 @@ import numba
 import numpy as np
 
 from filters.localization.likelihood_field import _beam_cells, _gather_sum
+from filters.motion.odometry import move_particle
 
 LIKELIHOOD, MOTION = "likelihood", "motion"
 
@@ -92,19 +92,13 @@ def record_calls(num_envs: int = 64, steps: int = 40, seed: int = 0, env_id: str
 def motion_fused(p, starts, params, noise, out):  # pragma: no cover - compiled
     """`filters.motion.odometry._sample_kernel` for several robots in one call: robot ``r``'s particles are
     ``p[starts[r]:starts[r + 1]]``, its ``(rot1, trans, rot2, std rot1, std trans, std rot2)`` ``params[r]`` and its
-    draws ``noise[:, starts[r]:starts[r + 1]]``. Not cached, like `likelihood_fused`: a measurement, compiled
-    in a second or two."""
-    two_pi = 2.0 * math.pi
+    draws ``noise[:, starts[r]:starts[r + 1]]``. Not cached: numba's cache would not see a change to the other
+    file's `move_particle` it inlines."""
     for r in range(starts.shape[0] - 1):
         rot1, trans, rot2 = params[r, 0], params[r, 1], params[r, 2]
         s_r1, s_t, s_r2 = params[r, 3], params[r, 4], params[r, 5]
         for i in range(starts[r], starts[r + 1]):
-            heading = p[i, 2] + (rot1 - s_r1 * noise[0, i])
-            t = trans - s_t * noise[1, i]
-            out[i, 0] = p[i, 0] + t * math.cos(heading)
-            out[i, 1] = p[i, 1] + t * math.sin(heading)
-            y = heading + (rot2 - s_r2 * noise[2, i]) + math.pi
-            out[i, 2] = y - math.pi if 0.0 < y < two_pi else y % two_pi - math.pi
+            move_particle(p, i, rot1, trans, rot2, s_r1, s_t, s_r2, noise, out)
 
 
 @numba.njit(nogil=True)

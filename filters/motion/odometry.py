@@ -102,18 +102,23 @@ def _fold(rot: float) -> float:
     return min(a, abs(np.pi - a))
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def move_particle(p, i, rot1, trans, rot2, s_r1, s_t, s_r2, noise, out):  # pragma: no cover - compiled
+    """``out[i]`` = ``p[i]`` moved by ``(rot1, trans, rot2)`` perturbed by ``noise[:, i]`` (see ``sample``)."""
+    heading = p[i, 2] + (rot1 - s_r1 * noise[0, i])
+    t = trans - s_t * noise[1, i]
+    out[i, 0] = p[i, 0] + t * math.cos(heading)
+    out[i, 1] = p[i, 1] + t * math.sin(heading)
+    y = heading + (rot2 - s_r2 * noise[2, i]) + math.pi
+    # wrap_angle's (y % 2pi) - pi, with the modulo skipped where it is y itself (same bits; +-0 - pi is -pi)
+    out[i, 2] = y - math.pi if 0.0 < y < 2.0 * math.pi else y % (2.0 * math.pi) - math.pi
+
+
 @numba.njit(cache=True, nogil=True)
 def _sample_kernel(p, rot1, trans, rot2, s_r1, s_t, s_r2, noise, out):  # pragma: no cover - compiled
-    """``out[i]`` = ``p[i]`` moved by ``(rot1, trans, rot2)`` perturbed by ``noise[:, i]`` (see ``sample``)."""
-    two_pi = 2.0 * math.pi
+    """`move_particle` of every particle ``i`` of ``p``."""
     for i in range(p.shape[0]):
-        heading = p[i, 2] + (rot1 - s_r1 * noise[0, i])
-        t = trans - s_t * noise[1, i]
-        out[i, 0] = p[i, 0] + t * math.cos(heading)
-        out[i, 1] = p[i, 1] + t * math.sin(heading)
-        y = heading + (rot2 - s_r2 * noise[2, i]) + math.pi
-        # wrap_angle's (y % 2pi) - pi, with the modulo skipped where it is y itself (same bits; +-0 - pi is -pi)
-        out[i, 2] = y - math.pi if 0.0 < y < two_pi else y % two_pi - math.pi
+        move_particle(p, i, rot1, trans, rot2, s_r1, s_t, s_r2, noise, out)
 
 
 class OdometryMotionModel:
