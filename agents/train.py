@@ -227,9 +227,18 @@ class TrainConfig:
             raise ValueError(f"env_id must be one of {list(trainable)}, got {self.env_id!r}")
         positive = ("n_envs", "workers", "total_timesteps", "n_steps", "batch_size", "n_epochs", "torch_threads")
         positive += ("eval_episodes", "metrics_window")
-        for name in positive:
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        for name in positive:  # ints, not floats: SB3 and torch fail late on a float count, without naming it
+            v = getattr(self, name)
+            if not is_int(v) or v < 1:
+                raise ValueError(f"{name} must be an int >= 1, got {v!r}")
+            object.__setattr__(self, name, int(v))
+        for name in ("seed", "eval_seed", "verbose"):
+            v = getattr(self, name)
+            if not is_int(v) or v < 0:
+                raise ValueError(f"{name} must be an int >= 0, got {v!r}")
+            object.__setattr__(self, name, int(v))
+        if not isinstance(self.progress_bar, (bool, np.bool_)):
+            raise ValueError(f"progress_bar must be a bool, got {self.progress_bar!r}")
         for name in ("checkpoint_every", "eval_every"):
             every = getattr(self, name)
             if every is None:
@@ -492,8 +501,10 @@ def evaluate(
         errors (m, rad), mean length and return. Equal inputs (and a policy in the same state) give
         an equal dict.
     """
-    if n_episodes < 1:
-        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    if not is_int(n_episodes) or n_episodes < 1:
+        raise ValueError(f"n_episodes must be an int >= 1, got {n_episodes!r}")
+    if not is_int(seed) or seed < 0:
+        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
     env = env_for(model_or_policy, env_kwargs, env_id)
     act, reset_policy = _as_action_fn(model_or_policy, deterministic, seed)
     discrete = isinstance(env.action_space, gym.spaces.Discrete)

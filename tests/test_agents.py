@@ -356,13 +356,56 @@ def test_train_config_rejects_bad_values():
     for cls, kw, match in (
         (TrainConfig, {"features_dim": 0}, "features_dim must be an int >= 1"),
         (TrainConfig, {"net_arch": (64, 0)}, "net_arch must be ints >= 1"),
-        (TrainConfig, {"metrics_window": 0}, "metrics_window must be >= 1"),
+        (TrainConfig, {"metrics_window": 0}, "metrics_window must be an int >= 1"),
         (ActiveTrainConfig, {"features_dim": -5}, "features_dim must be an int >= 1"),
         (ActiveTrainConfig, {"cnn_channels": (0, 32, 32)}, "cnn_channels must be ints >= 1"),
     ):
         with pytest.raises(ValueError, match=match):
             cls(**kw)
     assert gym.spaces.Discrete(4).contains(int(WallFollowExplorer()({"lidar": np.full(60, 8.0)})))
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"batch_size": 64.0},  # an outside audit's: SB3 failed after the first rollout, naming no field
+        {"n_epochs": 1.5},
+        {"n_steps": 32.0},  # failed in PPO's constructor, after the vec env was built
+        {"n_envs": "2"},
+        {"n_envs": True},  # trained one env
+        {"total_timesteps": 1e5},
+        {"seed": 1.5},
+        {"seed": -1},
+        {"eval_seed": None},
+        {"verbose": None},
+        {"progress_bar": 1},
+    ],
+)
+def test_train_config_refuses_counts_and_seeds_that_are_not_ints(kw):
+    (name,) = kw
+    with pytest.raises(ValueError, match=name):
+        TrainConfig(**kw)
+
+
+def test_train_config_takes_numpy_ints_as_python_ints():
+    cfg = TrainConfig(n_envs=np.int64(2), batch_size=np.int32(64), seed=np.uint8(3))
+    assert (cfg.n_envs, cfg.batch_size, cfg.seed) == (2, 64, 3)
+    assert all(type(v) is int for v in (cfg.n_envs, cfg.batch_size, cfg.seed))
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"seed": 1.5}, "seed must be an int"),  # an outside audit's: seeded episodes 1, 2, ... silently
+        ({"seed": None}, "seed must be an int"),
+        ({"n_episodes": True}, "n_episodes must be an int"),  # ran one episode
+        ({"n_episodes": 1.5}, "n_episodes must be an int"),
+        ({"n_episodes": "2"}, "n_episodes must be an int"),
+    ],
+)
+def test_evaluate_refuses_a_count_or_seed_that_is_not_an_int(kw, match):
+    with pytest.raises(ValueError, match=match):
+        evaluate(WallFollowExplorer(), {"layout": "twin_rooms"}, **kw)
 
 
 def test_train_ppo_cli_takes_the_train_config_and_formats_missing_values():

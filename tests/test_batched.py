@@ -544,3 +544,95 @@ def test_batch_infos_equals_gymnasium_style_batching_robot_by_robot(infos):
     for i, info in enumerate(infos):
         one_by_one = Batcher()._add_info(one_by_one, info, i)
     assert strictly_equal(batch_infos(infos), one_by_one)
+
+
+def _sync(r: int):
+    return gym.vector.SyncVectorEnv([lambda: gym.make("SemReloc-v1", **KW) for _ in range(r)])
+
+
+def _same_as_sync(ours, theirs) -> bool:
+    """`_same`, except that the batched env's lossless info arrays keep a None where the sync env's float array has
+    NaN (robot_info gives each robot its own env's values)."""
+    if isinstance(ours, (tuple, dict)):
+        keys = range(len(ours)) if isinstance(ours, tuple) else ours.keys()
+        return (
+            type(ours) is type(theirs)
+            and len(ours) == len(theirs)
+            and all(_same_as_sync(ours[k], theirs[k]) for k in keys)
+        )
+    if isinstance(ours, np.ndarray) and ours.dtype == object and theirs.dtype != object:
+        ours = np.array([np.nan if v is None else v for v in ours], dtype=theirs.dtype)
+        return np.array_equal(ours, theirs, equal_nan=True)
+    return _same(ours, theirs)
+
+
+def test_a_reset_mask_resets_the_robots_it_marks_as_gymnasium_s_sync_vector_env_does():
+    """An outside audit's: ``options={"reset_mask": ...}``, which Gymnasium's vector envs take, was refused as an
+    unknown reset option. Now the same observations, rewards, ends and infos as the sync vector env, step by step."""
+    r = 3
+    venv, sync = SemRelocLoopVectorEnv(num_envs=r, **VKW), _sync(r)
+    rng = np.random.default_rng(1)
+    a, b = venv.reset(seed=4), sync.reset(seed=4)
+    assert _same(a, b)
+    for t in range(40):
+        if t in (5, 17, 30):
+            mask = np.array([t % 2 == 0, True, False]) if t != 30 else np.array([False, False, True])
+            options = {"reset_mask": mask}
+            a = venv.reset(seed=100 + t, options=options)
+            assert "reset_mask" in options and options["reset_mask"] is mask  # the caller's dict left as given
+            b = sync.reset(seed=100 + t, options={"reset_mask": mask.copy()})
+            assert _same_as_sync(a, b)
+            for key in ("pose", "belief"):  # the infos of the reset robots only
+                assert a[1][f"_{key}"].tolist() == mask.tolist()
+        actions = rng.integers(0, 4, r)
+        assert _same_as_sync(venv.step(actions), sync.step(actions))
+    venv.close()
+    sync.close()
+
+
+def test_a_bad_reset_mask_is_refused_and_resets_no_robot():
+    venv = SemRelocLoopVectorEnv(num_envs=2, **VKW)
+    with pytest.raises(RuntimeError, match="reset every robot once first"):
+        venv.reset(seed=0, options={"reset_mask": np.array([True, False])})
+    venv.reset(seed=0)
+    venv.step([0, 0])
+    steps = [e.unwrapped._steps for e in venv.envs]
+    for bad in ([True, False], np.array([1, 0]), np.array([True]), np.array([False, False]), None):
+        with pytest.raises(ValueError, match="reset_mask"):
+            venv.reset(seed=0, options={"reset_mask": bad})
+    with pytest.raises(ValueError, match="robot 0"):  # the other options are the robots' own, checked first
+        venv.reset(seed=0, options={"reset_mask": np.array([True, False]), "tracking": "yes"})
+    assert [e.unwrapped._steps for e in venv.envs] == steps
+    venv.close()
+
+
+def test_a_reset_mask_that_leaves_a_robot_out_does_not_bring_the_robots_back_in_step():
+    venv = SemRelocLoopVectorEnv(num_envs=2, **VKW, wrapper=lambda env: env)
+    venv.envs[1] = FailsOnce(venv.envs[1])
+    venv.reset(seed=0)
+    FailsOnce.armed = True
+    with pytest.raises(KeyError):
+        venv.step([0, 0])
+    with pytest.raises(RuntimeError, match="robot 1 raised KeyError"):
+        venv.reset(seed=0, options={"reset_mask": np.array([True, False])})
+    venv.reset(seed=0, options={"reset_mask": np.array([True, True])})
+    venv.step([0, 0])
+    venv.close()
+
+
+def test_call_get_attr_and_set_attr_reach_each_robot_s_env_as_in_the_sync_vector_env():
+    """An outside audit's: the batched env lacked the sync vector env's ``call``, ``get_attr`` and ``set_attr``."""
+    venv, sync = SemRelocLoopVectorEnv(num_envs=2, **VKW), _sync(2)
+    venv.reset(seed=5)
+    sync.reset(seed=5)
+    assert venv.get_attr("np_random_seed") == sync.get_attr("np_random_seed") == (5, 6)
+    assert venv.call("get_wrapper_attr", "np_random_seed") == (5, 6)
+    venv.set_attr("note", ["a", "b"])
+    assert venv.get_attr("note") == ("a", "b")
+    venv.set_attr("note", "c")
+    assert venv.get_attr("note") == ("c", "c")
+    with pytest.raises(ValueError, match="3 values for 2 robots"):
+        venv.set_attr("note", [1, 2, 3])
+    assert venv.get_attr("note") == ("c", "c")
+    venv.close()
+    sync.close()

@@ -157,6 +157,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
         self._done = np.zeros(self.num_envs, dtype=np.bool_)
         self._out_of_step: str | None = None  # why `step` must wait for a reset (a robot raised mid-loop)
+        self._robot_obs: list | None = None  # each robot's last observation (None: not all reset yet)
 
     @property
     def spec(self):
@@ -242,18 +243,49 @@ class SemRelocLoopVectorEnv(VectorEnv):
         """Reset every robot: ``seed`` int gives robot ``i`` the seed ``seed + i``; a list gives each its own.
         ``options``: one dict for every robot, or a list of one dict (or None) per robot.
 
+        As Gymnasium's sync vector env, a dict ``options`` may carry ``"reset_mask"``: a bool array of shape ``(R,)``
+        with at least one True; then only the robots it marks are reset (each with its seed from ``seed`` and the
+        other options), the others keep their episodes and observations, and ``infos`` holds the reset robots'
+        entries only (their ``_key`` masks). Such a reset needs every robot reset once before, and brings the
+        robots back in step (after a robot raised) only if it resets them all.
+
         Seeds and options are checked for every robot before any is reset (ValueError)."""
+        mask, options = self._reset_mask(options)
         seeds = self.check_seeds(seed, options)
         per_robot = self._per_robot(options)
+        if mask is not None and not mask.all():
+            if self._robot_obs is None:
+                raise RuntimeError("reset_mask resets some robots only: reset every robot once first")
+            if self._out_of_step is not None:
+                raise RuntimeError(f"{self._out_of_step} (a reset_mask that leaves robots out does not)")
         super().reset(seed=seeds[0])
-        obs_list, info_list = [], []
+        obs_list = list(self._robot_obs) if mask is not None and not mask.all() else [None] * self.num_envs
+        info_list: list[dict | None] = [None] * self.num_envs
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
+            if mask is not None and not mask[i]:
+                continue
             with self.naming_who_raised(i, "reset"):
-                obs, info = env.reset(seed=s, options=o)
-            obs_list.append(obs)
-            info_list.append(info)
-        self.all_reset()
+                obs_list[i], info_list[i] = env.reset(seed=s, options=o)
+        if mask is None or mask.all():
+            self.all_reset()
+        else:
+            self._done[mask] = False
+        self._robot_obs = obs_list
         return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), batch_infos(info_list)
+
+    def _reset_mask(self, options) -> tuple[np.ndarray | None, Any]:
+        """``(reset_mask or None, options without it)`` of `reset`'s ``options`` (the caller's dict left as it is);
+        ValueError for a mask that is not a bool array of shape ``(R,)`` with a True."""
+        if not (isinstance(options, dict) and "reset_mask" in options):
+            return None, options
+        mask = options["reset_mask"]
+        if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (self.num_envs,)):
+            raise ValueError(
+                f"options['reset_mask'] must be a numpy bool array of shape ({self.num_envs},), got {mask!r:.80}"
+            )
+        if not mask.any():
+            raise ValueError("options['reset_mask'] must mark at least one robot to reset (it is all False)")
+        return mask.copy(), {k: v for k, v in options.items() if k != "reset_mask"}
 
     def step(self, actions):
         """Step every robot with its action (a robot that ended last step is reset instead).
@@ -276,8 +308,32 @@ class SemRelocLoopVectorEnv(VectorEnv):
             obs_list.append(obs)
             info_list.append(info)
         self._done = terms | truncs
+        self._robot_obs = obs_list
         obs = deepcopy(concatenate(self.single_observation_space, obs_list, self._obs))
         return obs, rewards, terms, truncs, batch_infos(info_list)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """As Gymnasium's sync vector env: each robot's env's ``name`` (found through its wrappers) called with
+        ``args`` and ``kwargs``, or its value if not callable, robot by robot."""
+        out = []
+        for env in self.envs:
+            got = env.get_wrapper_attr(name)
+            out.append(got(*args, **kwargs) if callable(got) else got)
+        return tuple(out)
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """Each robot's env's attribute ``name`` (through its wrappers; a method is called, as `call`)."""
+        return self.call(name)
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Set each robot's env's attribute ``name`` (``set_wrapper_attr``): to ``values[i]`` for robot ``i`` if
+        ``values`` is a list or tuple (ValueError unless one per robot), else to ``values`` for every robot."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(f"set_attr: got {len(values)} values for {self.num_envs} robots (one, or one per robot)")
+        for env, value in zip(self.envs, values):
+            env.set_wrapper_attr(name, value)
 
     def close_extras(self, **kwargs) -> None:
         for env in self.envs:
@@ -376,8 +432,8 @@ def shortened_message(e: BaseException, limit: int = 300) -> str:
     return text[:limit].rsplit(" ", 1)[0] + " ..."
 
 
-def batch_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
-    """The robots' ``infos`` (robot ``i``'s dict at ``i``) batched as `SemRelocLoopVectorEnv._add_info` batches them
+def batch_infos(infos: list[dict[str, Any] | None]) -> dict[str, Any]:
+    """The robots' ``infos`` (robot ``i``'s dict at ``i``, None for a robot without one) batched as `SemRelocLoopVectorEnv._add_info` batches them
     one robot after the other, the same keys in the same order, arrays and masks: key by key, each array built once
     from all the robots' values. TypeError if a key holds a dict for one robot and something else for another."""
     return _batched(list(infos), len(infos))
