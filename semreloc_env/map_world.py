@@ -148,13 +148,19 @@ def _ring_area(ring: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None = None) -> MapLayout:
+def layout_from_map(
+    grid: GridMap, name: str = "map", simplify_m: float | None = None, untraced_as_walls: bool = True
+) -> MapLayout:
     """The world a map shows (see the module docstring).
 
     Args:
         grid: the map.
         name: the layout's name.
         simplify_m: Douglas-Peucker tolerance in metres (default half a cell; 0 = exact cell edges).
+        untraced_as_walls: a class region whose outline is no simple polygon even unsimplified (it touches itself at
+            a corner, a diagonal pinch) keeps its occupied cells as walls, without a class (True, the default), or
+            is left out of the world (False: as the registered envs, ``SemReloc-v22`` and older, have always built
+            worlds from maps, so that their episodes stay what they were). Either way a `MapWorldWarning` names it.
 
     Raises:
         ValueError: the map has no free cell, or a semantic class that is not the env's
@@ -188,12 +194,13 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
             MapWorldWarning,
             stacklevel=2,
         )
+    untraced = []
     for k, cls in enumerate(grid.class_names):
         mask = grid.class_mask(k)
-        class_cells |= mask
         labels, n = ndimage.label(mask)
         for comp in range(1, n + 1):
-            rings = [_to_world(r, grid) for r in trace_boundaries(labels == comp)]
+            cells = labels == comp
+            rings = [_to_world(r, grid) for r in trace_boundaries(cells)]
             outer = max(rings, key=_ring_area)  # the one counter-clockwise ring around the component
             poly = None
             for t in (tol, 0.0):
@@ -206,6 +213,24 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
                 break
             if poly is not None:
                 objects.append(SemanticObject(cls, tuple(map(tuple, poly.tolist())), f"{cls}_{len(objects)}"))
+            elif untraced_as_walls:
+                untraced.append(f"{cls} at {_region_at(cells, grid)}")
+                continue  # not a class cell: its occupied cells stay walls
+            else:
+                untraced.append(f"{cls} at {_region_at(cells, grid)}")
+            class_cells |= cells
+    if untraced:
+        kept = (
+            "its occupied cells are walls without a class"
+            if untraced_as_walls
+            else "it is left out of the world, wall and all (as the registered envs build worlds from maps)"
+        )
+        warnings.warn(
+            f"map {name!r}: class regions whose outline touches itself (no simple polygon): {', '.join(untraced)}; "
+            f"{kept}",
+            MapWorldWarning,
+            stacklevel=2,
+        )
     walls = tuple(
         tuple(map(tuple, _simplify(_to_world(r, grid), tol).tolist()))
         for r in trace_boundaries(grid.occupied_mask() & ~class_cells)
@@ -213,6 +238,13 @@ def layout_from_map(grid: GridMap, name: str = "map", simplify_m: float | None =
     x0, x1, y0, y1 = grid.extent_m
     outer = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
     return MapLayout(name, outer, walls, tuple(objects), grid=grid)
+
+
+def _region_at(cells: np.ndarray, grid: GridMap) -> str:
+    """Where the cells ``cells`` (a bool raster of ``grid``) lie, for messages: the centre of their bounding box."""
+    rows, cols = np.nonzero(cells)
+    x, y = grid.cell_centers(np.array([(rows.min() + rows.max()) // 2]), np.array([(cols.min() + cols.max()) // 2]))[0]
+    return f"({x:.2f}, {y:.2f}) m"
 
 
 def check_map_matches_world(

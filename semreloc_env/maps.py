@@ -332,7 +332,7 @@ def maps_for(
         grid = mapped(get_layout(source), lidar, camera, mapping_version)
     else:  # a ROS map: its path, or its name on the search path
         path = searched_ros_map(source) or Path(source)
-        grid = load_map(path, alpha_in_trinary=False)  # as the registered envs have always read maps
+        grid = load_map(path, alpha_in_trinary=False, unknown_at_half=True)  # as the registered envs always read maps
     grid = env_classes(grid, source, semantic)  # the env's classes, in its order (empty layers if lidar-only)
     if not derived and not (isinstance(layout, MapLayout) and _same_map(layout.grid, grid)):
         check_map_matches_world(grid, layout)

@@ -3,12 +3,22 @@ negate, modes trinary / scale / raw, .yml, rotated origins."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from PIL import Image
 
 from filters.mapping.grid import GridMap
-from filters.mapping.ros_map import MapFormatError, load_map, read_map_image, read_pgm, save_map
+from filters.mapping.ros_map import (
+    MapFormatError,
+    MapFormatWarning,
+    load_map,
+    read_map_image,
+    read_pgm,
+    save_map,
+    unknown_occupancy,
+)
 
 TOP_FIRST = np.array([[0, 254, 205, 255], [254, 254, 0, 100], [0, 0, 0, 254]], dtype=np.uint8)
 TRINARY_BOTTOM_FIRST = np.array([[1.0, 1.0, 1.0, 0.0], [0.0, 0.0, 1.0, 0.5], [1.0, 0.0, 0.5, 0.0]])
@@ -177,3 +187,53 @@ def test_the_registered_envs_read_alpha_maps_as_before(tmp_path):
     assert load_map(path).occupied_mask().sum() == 0  # (3 * 60 + 255) / 4: p = 0.574, unknown to map_server
     env = gym.make("SemReloc-v22", map_source=str(path), semantic=False, relocalizer={"n_particles": 100})
     assert env.unwrapped.grid.occupied_mask().sum() == load_map(path, alpha_in_trinary=False).occupied_mask().sum()
+
+
+@pytest.mark.parametrize("free, occ", [(0.1, 0.4), (0.6, 0.9), (0.196, 0.65), (0.3, 0.3)])
+def test_unknown_cells_read_as_unknown_whatever_the_thresholds(tmp_path, free, occ):
+    """An outside audit's: unknown cells were stored as 0.5, which thresholds 0.1 / 0.4 read as occupied (and a world
+    built from the map made them walls), 0.6 / 0.9 as free. map_server: occupied only above occupied_thresh, free
+    only below free_thresh, else unknown."""
+    (tmp_path / "u.pgm").write_bytes(b"P2\n3 1\n255\n0 170 255\n")  # p = 1, 1/3, 0
+    for mode in ("trinary", "raw"):
+        path = _yaml(tmp_path, "u.pgm").with_name(f"{mode}.yaml")
+        text = (tmp_path / "m.yaml").read_text().replace("0.65", str(occ)).replace("0.196", str(free))
+        path.write_text(text + f"mode: {mode}\nnegate: 1\n" if mode == "raw" else text)
+        grid = load_map(path)
+        unknown = ~grid.occupied_mask() & ~grid.free_mask()
+        if mode == "trinary":  # p = 1/3: free under 0.6 / 0.9, occupied under 0.3 / 0.3, else unknown
+            assert grid.occupied_mask()[0].tolist() == [True, 1 / 3 > occ, False]
+            assert unknown[0, 1] == (free <= 1 / 3 <= occ)
+        else:  # negated: 255, 85, 0 percent -> unknown, 0.85, 0.0
+            assert unknown[0, 0] and grid.occupancy[0, 0] == unknown_occupancy(free, occ)
+    assert unknown_occupancy(free, occ) == (0.5 if free <= 0.5 <= occ else 0.5 * (free + occ))
+
+
+def test_the_envs_reading_keeps_unknown_at_half_and_says_what_it_reads(tmp_path):
+    (tmp_path / "u.pgm").write_bytes(b"P2\n3 1\n255\n0 205 254\n")
+    path = _yaml(tmp_path, "u.pgm")
+    path.write_text(path.read_text().replace("0.65", "0.4").replace("0.196", "0.1"))
+    assert load_map(path).occupied_mask()[0].tolist() == [True, False, False]
+    with pytest.warns(MapFormatWarning, match="do not straddle 0.5, so the unknown cells.*read as occupied"):
+        assert load_map(path, unknown_at_half=True).occupied_mask()[0].tolist() == [True, True, False]
+    path.write_text(path.read_text().replace("0.4", "0.65").replace("0.1", "0.196"))  # the defaults: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.array_equal(load_map(path, unknown_at_half=True).occupancy, load_map(path).occupancy)
+
+
+@pytest.mark.parametrize("origin, res", [("1e300", "0.05"), ("0.0", "1e300"), ("-2e12", "0.05"), ("0.0", "1e12")])
+def test_a_map_beyond_a_trillion_metres_is_a_format_error_naming_the_file(tmp_path, origin, res):
+    """An outside audit's: resolution 1e300 loaded, then the env's reset raised a bare OverflowError; origin 1e300 said
+    the map had no free space."""
+    (tmp_path / "m.pgm").write_bytes(b"P2\n3 2\n255\n0 254 254\n254 254 0\n")
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        f"image: m.pgm\nresolution: {res}\norigin: [{origin}, 0.0, 0.0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    with pytest.raises(MapFormatError, match=r"m\.yaml: origin .* beyond the 1e\+12 m maps may reach"):
+        load_map(path)
+    path.write_text(
+        path.read_text().replace(f"[{origin},", "[-9.9e11,").replace(f"resolution: {res}", "resolution: 0.05")
+    )
+    assert load_map(path).origin_xy_m[0] == -9.9e11

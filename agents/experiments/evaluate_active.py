@@ -837,7 +837,7 @@ def file_digest(path: str) -> str:
     if is_ros_map_file(path):
         from filters.mapping.ros_map import load_map
 
-        grid = load_map(path, alpha_in_trinary=False)  # as the env reads it
+        grid = load_map(path, alpha_in_trinary=False, unknown_at_half=True)  # as the env reads it
         h = hashlib.sha256(np.ascontiguousarray(grid.occupancy).tobytes())
         h.update(b"" if grid.semantic is None else np.ascontiguousarray(grid.semantic).tobytes())
         h.update(repr((grid.resolution_m, tuple(grid.origin_xy_m), tuple(grid.class_names))).encode())

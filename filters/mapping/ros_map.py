@@ -21,10 +21,10 @@ Pixel to probability, as map_server does (``v`` = grey level scaled to 0..255; c
 mean of the colour channels, with alpha for a ``trinary`` map (`read_map_image`); ``negate: 1`` first
 replaces ``v`` by ``255 - v``):
 ``p = (255 - v) / 255``. ``trinary``: ``p > occupied_thresh`` -> occupied (1.0),
-``p < free_thresh`` -> free (0.0), otherwise unknown (0.5). ``scale``: the cell keeps ``p``
-itself (its class under the same thresholds is what map_server reports); a fully transparent
-pixel between the thresholds is unknown. ``raw``: ``round(v)`` is the occupancy in percent,
-``p = round(v) / 100``; values above 100 are unknown (0.5), as in nav2.
+``p < free_thresh`` -> free (0.0), otherwise unknown (`unknown_occupancy`: 0.5, or the thresholds' midpoint
+where 0.5 is not between them). ``scale``: the cell keeps ``p`` itself (its class under the same thresholds is
+what map_server reports); a fully transparent pixel between the thresholds is unknown. ``raw``: ``round(v)`` is
+the occupancy in percent, ``p = round(v) / 100``; values above 100 are unknown, as in nav2.
 
 The image's first row is the *top* of the map (largest y); `GridMap` row 0
 is the bottom, so rows are flipped on read and write.
@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,8 @@ from filters.numbers import is_exponent_form, yaml_number_hint
 from filters.unique_keys import FileTextError, load_yaml
 
 __all__ = [
+    "MapFormatWarning",
+    "unknown_occupancy",
     "MapFormatError",
     "save_map",
     "load_map",
@@ -59,6 +62,10 @@ __all__ = [
     "write_pgm",
     "semantic_yaml_path",
 ]
+
+MAX_MAP_COORDINATE_M = 1e12
+"""How far from the origin a map's corners may lie (m): beyond any robot's map (float64 still resolves 0.1 mm there),
+and short of where the world's and the filter's arithmetic overflow."""
 
 SEMANTIC_FORMAT = "semreloc-semantic/1"
 """Value of the ``format`` key of a semantic YAML written by this version."""
@@ -75,6 +82,10 @@ class MapFormatError(ValueError):
         self.path = str(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
+
+
+class MapFormatWarning(UserWarning):
+    """A map file is read as asked, but not as its values mean (`load_map`'s ``unknown_at_half``)."""
 
 
 # ---------------------------------------------------------------------------------------------- PGM
@@ -420,8 +431,9 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
         from PIL import Image
 
         image_name = stem + ".png"
-        # unknown (p = 0.5 between the thresholds): transparent, as nav2's map_saver writes it
-        alpha = np.where(unknown & (occ == 0.5), 0, 255).astype(np.uint8)
+        # unknown (`unknown_occupancy`, between the thresholds): transparent, as nav2's map_saver writes it
+        alpha = np.where(unknown & (occ == unknown_occupancy(grid.free_thresh, grid.occupied_thresh)), 0, 255)
+        alpha = alpha.astype(np.uint8)
         Image.fromarray(np.flipud(np.stack([img, alpha], axis=-1)), "LA").save(folder / image_name)
     doc = {
         "image": image_name,
@@ -465,22 +477,39 @@ def save_map(grid: GridMap, path_yaml: str | os.PathLike, mode: str = "trinary")
 
 
 # --------------------------------------------------------------------------------------------- load
+def unknown_occupancy(free_thresh: float, occupied_thresh: float) -> float:
+    """The occupancy an unknown cell is stored with, which a `GridMap` with these thresholds reads as neither
+    occupied (``> occupied_thresh``) nor free (``< free_thresh``): 0.5 where it lies between them (the map_server
+    defaults, 0.196 and 0.65), else their midpoint (an outside audit: thresholds 0.1 and 0.4 read a stored 0.5 as
+    occupied, and unknown cells became walls in a world built from the map)."""
+    return 0.5 if free_thresh <= 0.5 <= occupied_thresh else 0.5 * (free_thresh + occupied_thresh)
+
+
 def _occupancy_from_pixels(
-    img: np.ndarray, negate: bool, mode: str, occ_t: float, free_t: float, transparent: np.ndarray | None = None
+    img: np.ndarray,
+    negate: bool,
+    mode: str,
+    occ_t: float,
+    free_t: float,
+    transparent: np.ndarray | None = None,
+    unknown: float | None = None,
 ) -> np.ndarray:
+    """The occupancy of the pixels ``img`` (module docstring); unknown cells hold ``unknown`` (None:
+    `unknown_occupancy`)."""
     v = img.astype(np.float64)
+    unknown = unknown_occupancy(free_t, occ_t) if unknown is None else unknown
     if negate:
         v = 255.0 - v
     if mode == "raw":  # the pixel is the occupancy in percent; anything above 100 is unknown (nav2)
         v = np.round(v)
-        return np.where(v <= 100.0, v / 100.0, 0.5)
+        return np.where(v <= 100.0, v / 100.0, unknown)
     p = (255.0 - v) / 255.0
     if mode == "scale":
         out = p.copy()
         if transparent is not None:  # map_server: a transparent pixel between the thresholds is unknown
-            out[transparent & (p <= occ_t) & (p >= free_t)] = 0.5
+            out[transparent & (p <= occ_t) & (p >= free_t)] = unknown
         return out
-    out = np.full(p.shape, 0.5)
+    out = np.full(p.shape, unknown)
     out[p > occ_t] = 1.0
     out[p < free_t] = 0.0
     return out
@@ -533,7 +562,10 @@ def _load_semantic(sem_path: Path, shape: tuple[int, int], res: float, origin: t
 
 
 def load_map(
-    path_yaml: str | os.PathLike, semantic_yaml: str | os.PathLike | None = None, alpha_in_trinary: bool = True
+    path_yaml: str | os.PathLike,
+    semantic_yaml: str | os.PathLike | None = None,
+    alpha_in_trinary: bool = True,
+    unknown_at_half: bool = False,
 ) -> GridMap:
     """Load a map_server map (and its semantic sidecar, if any) as a `GridMap`.
 
@@ -545,6 +577,10 @@ def load_map(
             levels, as map_server and nav2 do (`read_map_image`); False leaves it out, as this package did
             before, and as the registered envs (``SemReloc-v22`` and older, ``SemSlam-v2`` and older) read
             their maps, so that their episodes stay what they were.
+        unknown_at_half: store unknown cells as 0.5 whatever the thresholds, as this package did before and as the
+            registered envs read their maps (their episodes stay what they were); then a map whose thresholds do not
+            straddle 0.5 reads its unknown cells as occupied (above both) or free (below both), and a
+            `MapFormatWarning` says so. False (default): `unknown_occupancy`, which the grid reads as unknown.
 
     Returns:
         A ``GridMap`` with ``occupancy`` in ``{0, 0.5, 1}`` (``trinary``), the pixel
@@ -574,7 +610,26 @@ def load_map(
     if mode not in ("trinary", "scale", "raw"):
         raise MapFormatError(path_yaml, f"mode {mode!r} is not supported (use 'trinary', 'scale' or 'raw')")
     img, transparent = read_map_image(img_path, trinary=alpha_in_trinary and mode == "trinary")
-    occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t, transparent))
+    far = max(abs(origin[0]), abs(origin[1]), abs(origin[0] + img.shape[1] * res), abs(origin[1] + img.shape[0] * res))
+    if not far <= MAX_MAP_COORDINATE_M:  # an outside audit's: 1e300 gave an OverflowError at the env's reset
+        raise MapFormatError(
+            path_yaml,
+            f"origin {list(origin)} and resolution {res} put the map's corners {far:.12g} m from the origin, "
+            f"beyond the {MAX_MAP_COORDINATE_M:g} m maps may reach (not metres?)",
+        )
+    unknown = 0.5 if unknown_at_half else unknown_occupancy(free_t, occ_t)
+    occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t, transparent, unknown))
+    misread = unknown != unknown_occupancy(free_t, occ_t)
+    if misread and not np.array_equal(occ, np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t,
+                                                                            transparent))):  # fmt: skip
+        reads = "occupied" if unknown > occ_t else "free"
+        warnings.warn(
+            f"{path_yaml}: free_thresh {free_t} and occupied_thresh {occ_t} do not straddle 0.5, so the unknown cells, "
+            f"stored as 0.5 as the registered envs read maps, read as {reads} (load_map's default stores them between "
+            "the thresholds: docs/maps.md)",
+            MapFormatWarning,
+            stacklevel=2,
+        )
 
     names: tuple[str, ...] = ()
     sem = np.zeros((0,) + img.shape, np.float32)

@@ -151,11 +151,13 @@ def get_layout(
         from ..map_world import layout_from_map  # lazy: map_world imports this package
 
         if isinstance(spec, GridMap):
-            return layout_from_map(spec)
+            return layout_from_map(spec, untraced_as_walls=False)
         from filters.mapping.ros_map import load_map
 
-        # alpha left out of trinary maps, as the registered envs have always read them (load_map)
-        return layout_from_map(load_map(spec, alpha_in_trinary=False), name=Path(spec).stem)
+        # as the registered envs have always read maps: alpha left out of trinary maps, unknown cells at 0.5, and
+        # a class region with no simple outline left out of the world (load_map, layout_from_map)
+        grid = load_map(spec, alpha_in_trinary=False, unknown_at_half=True)
+        return layout_from_map(grid, name=Path(spec).stem, untraced_as_walls=False)
     if isinstance(spec, Mapping):
         return layout_from_dict(spec)
     if isinstance(spec, str) and spec in LAYOUT_NAMES:
