@@ -636,3 +636,16 @@ def test_call_get_attr_and_set_attr_reach_each_robot_s_env_as_in_the_sync_vector
     assert venv.get_attr("note") == ("c", "c")
     venv.close()
     sync.close()
+
+
+def test_a_reset_mask_after_the_sb3_adapter_drove_the_robots_is_refused_not_stale():
+    from agents.vec_env import SB3VecEnvAdapter
+
+    venv = SemRelocLoopVectorEnv(num_envs=2, **VKW)
+    venv.reset(seed=0)
+    adapter = SB3VecEnvAdapter(venv)
+    adapter.reset()
+    adapter.step(np.array([0, 0]))
+    with pytest.raises(RuntimeError, match="reset every robot once first"):
+        venv.reset(seed=0, options={"reset_mask": np.array([True, False])})
+    adapter.close()

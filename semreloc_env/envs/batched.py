@@ -255,7 +255,10 @@ class SemRelocLoopVectorEnv(VectorEnv):
         per_robot = self._per_robot(options)
         if mask is not None and not mask.all():
             if self._robot_obs is None:
-                raise RuntimeError("reset_mask resets some robots only: reset every robot once first")
+                raise RuntimeError(
+                    "reset_mask resets some robots only: reset every robot once first with this env's reset() (not "
+                    "through an SB3 adapter, which keeps the observations itself)"
+                )
             if self._out_of_step is not None:
                 raise RuntimeError(f"{self._out_of_step} (a reset_mask that leaves robots out does not)")
         super().reset(seed=seeds[0])
@@ -352,9 +355,12 @@ class SemRelocLoopVectorEnv(VectorEnv):
             raise RuntimeError(self._out_of_step)
 
     def all_reset(self) -> None:
-        """Every robot has just been reset: `step` may run again."""
+        """Every robot has just been reset: `step` may run again. The robots' last observations are forgotten until
+        `reset` or `step` returns them (the SB3 adapter resets and steps the robots itself), so that a reset with a
+        ``reset_mask`` never returns another driver's stale ones."""
         self._done[:] = False
         self._out_of_step = None
+        self._robot_obs = None
 
     @contextlib.contextmanager
     def naming_who_raised(self, i: int, call: str, detail: str = ""):
