@@ -590,6 +590,42 @@ def test_a_reset_mask_resets_the_robots_it_marks_as_gymnasium_s_sync_vector_env_
     sync.close()
 
 
+def test_a_reset_mask_on_robots_that_just_ended_matches_the_sync_vector_env():
+    """A review's: with 3-step episodes, masked resets land on robots whose episode has just ended, in and out of the
+    mask (the autoreset pending for a robot the mask resets is cancelled, as the sync env cancels it)."""
+    short = dict(KW, max_episode_steps=3)
+    venv = SemRelocLoopVectorEnv(num_envs=3, **dict(short, env_id="SemReloc-v1"))
+    sync = gym.vector.SyncVectorEnv([lambda: gym.make("SemReloc-v1", **short) for _ in range(3)])
+    rng = np.random.default_rng(2)
+    assert _same_as_sync(venv.reset(seed=1), sync.reset(seed=1))
+    ended_then_masked = 0
+    for t in range(24):
+        actions = rng.integers(0, 4, 3)
+        a, b = venv.step(actions), sync.step(actions)
+        assert _same_as_sync(a, b)
+        ended = a[2] | a[3]
+        if ended.any() and t % 3:  # some robot just ended: a mask that resets one of them, and maybe others
+            mask = rng.random(3) < 0.5
+            mask[np.flatnonzero(ended)[0]] = True
+            ended_then_masked += 1
+            assert _same_as_sync(
+                venv.reset(seed=50 + t, options={"reset_mask": mask}),
+                sync.reset(seed=50 + t, options={"reset_mask": mask.copy()}),
+            )
+    assert ended_then_masked >= 3
+    venv.close()
+    sync.close()
+
+
+def test_a_reset_mask_after_robots_were_moved_through_call_is_refused():
+    venv = SemRelocLoopVectorEnv(num_envs=2, **VKW)
+    venv.reset(seed=0)
+    venv.call("reset", seed=3)
+    with pytest.raises(RuntimeError, match="reset every robot once first"):
+        venv.reset(seed=0, options={"reset_mask": np.array([True, False])})
+    venv.close()
+
+
 def test_a_bad_reset_mask_is_refused_and_resets_no_robot():
     venv = SemRelocLoopVectorEnv(num_envs=2, **VKW)
     with pytest.raises(RuntimeError, match="reset every robot once first"):

@@ -157,3 +157,40 @@ def test_a_ros_map_yaml_without_its_image_key_gets_the_map_loaders_error(tmp_pat
     (tmp_path / "broken.yaml").write_text("resolution: 0.05\norigin: [-1.0, 2.0\n")
     with pytest.raises(MapFormatError, match="broken.yaml"):
         gym.make("SemReloc-v22", layout="twin_rooms", map_source=str(tmp_path / "broken.yaml"), semantic=False)
+
+
+def test_the_envs_read_a_map_file_as_they_always_have_and_warn_where_load_map_reads_it_otherwise(tmp_path):
+    """A review's: nothing held the envs to their old reading of map files, on which "no episode changes" rests.
+    Unknown cells under thresholds 0.1 / 0.4 stay occupied (walls of the world), and a class region whose outline
+    touches itself stays out of the world; `load_map` and `layout_from_map` on their own read both otherwise."""
+    import warnings
+
+    from filters.mapping.grid import GridMap
+    from filters.mapping.ros_map import MapFormatWarning, load_map
+    from semreloc_env.map_world import MapWorldWarning, layout_from_map
+
+    occ = np.zeros((60, 60), np.float32)
+    occ[[0, -1], :] = occ[:, [0, -1]] = 1.0
+    occ[10:14, 40:50] = 0.25  # an unknown block (between the thresholds below)
+    cab = np.zeros((60, 60), bool)
+    cab[30:36, 20:26] = True
+    cab[31:35, 21:25] = False
+    cab[30, 20] = False  # the pinch
+    occ[cab] = 1.0
+    sem = np.zeros((4, 60, 60), np.float32)
+    sem[3][cab] = 1.0
+    names = ("door", "chair", "trash_bin", "cabinet")
+    path = save_map(
+        GridMap(occ, 0.05, (0.0, 0.0), sem, names, occupied_thresh=0.4, free_thresh=0.1), tmp_path / "m.yaml"
+    )
+    assert load_map(path).occupied_mask()[10:14, 40:50].sum() == 0  # unknown, read on its own
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MapWorldWarning)
+        assert len(layout_from_map(load_map(path)).walls) > 2  # the room's two rings, and the cabinet as walls
+    with pytest.warns(MapFormatWarning, match="read as occupied"), pytest.warns(MapWorldWarning, match="left out"):
+        env = gym.make("SemReloc-v22", map_source=str(path), semantic=True, relocalizer={"n_particles": 100})
+    base = env.unwrapped
+    assert base.grid.occupied_mask()[10:14, 40:50].all()  # as the envs have always read it
+    assert not base.layout.objects
+    assert len(base.layout.walls) == 3  # the room's two rings and the unknown block: no cabinet
+    env.close()

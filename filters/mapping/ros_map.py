@@ -64,7 +64,7 @@ __all__ = [
 ]
 
 MAX_MAP_COORDINATE_M = 1e12
-"""How far from the origin a map's corners may lie (m): beyond any robot's map (float64 still resolves 0.1 mm there),
+"""How far from the origin a map's corners may lie (m): beyond any robot's map (float64 still resolves 0.12 mm there),
 and short of where the world's and the filter's arithmetic overflow."""
 
 SEMANTIC_FORMAT = "semreloc-semantic/1"

@@ -321,7 +321,11 @@ class SemRelocLoopVectorEnv(VectorEnv):
         out = []
         for env in self.envs:
             got = env.get_wrapper_attr(name)
-            out.append(got(*args, **kwargs) if callable(got) else got)
+            if callable(got):
+                self._robot_obs = None  # the call may move the robots (``call("reset")``): see `all_reset`
+                out.append(got(*args, **kwargs))
+            else:
+                out.append(got)
         return tuple(out)
 
     def get_attr(self, name: str) -> tuple[Any, ...]:
