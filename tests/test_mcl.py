@@ -1,4 +1,5 @@
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -987,3 +988,46 @@ def test_new_fields_take_numpy_numbers_as_plain_python_ones():
     assert type(c.proposal_candidates_per_particle) is float and c.proposal_candidates_per_particle == 12.5
     assert not c.predict_when_still
     assert MCLConfig(proposal_candidates_per_particle=np.int64(7)).proposal_candidates_per_particle == 7
+
+
+def test_a_map_with_no_free_cell_is_refused_when_the_filter_is_built():
+    """An outside audit's: a map storing free space at 0.3 (above free_thresh 0.196) was taken, and with injection
+    every update raised after it had reweighed the particles and counted an update."""
+    occ = np.full((40, 40), 0.3, np.float32)
+    occ[0, :] = occ[:, 0] = 1.0
+    with pytest.raises(ValueError, match=r"no free cell \(occupancy < free_thresh 0.196\).*thresholds"):
+        MonteCarloLocalizer(GridMap(occ, 0.1), MCLConfig(n_particles=200, proposal_frac=0.05), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("shape", [(200, 1), (1,), (199,), (200, 200)])
+def test_a_measurement_model_of_the_wrong_shape_is_refused_before_the_update_changes_anything(shape):
+    """An outside audit's: a plug-in model returning (N, 1) log-likelihoods made (N, N) log-weights, an ESS above N,
+    and an error only at the next belief()."""
+    from types import SimpleNamespace
+
+    class Model:
+        def log_likelihood_terms(self, poses, lidar, semantic):
+            return np.zeros(shape), 0.0, SimpleNamespace(n_lidar=4, n_semantic=0, n_detections=0)
+
+    grid = GridMap(np.zeros((40, 40), np.float32), 0.1)
+    m = MonteCarloLocalizer(grid, MCLConfig(n_particles=200), np.random.default_rng(0), measurement_model=Model())
+    m.init_around([2.0, 2.0, 0.0], 0.3)
+    before = (m.log_weights.copy(), m.n_updates, m.rng.bit_generator.state)
+    with pytest.raises(
+        ValueError, match=r"lidar log-likelihoods must have shape \(200,\) .*got shape " + re.escape(str(shape))
+    ):
+        m.update(LaserScan(np.ones(4), np.zeros(4), 5.0))
+    assert np.array_equal(m.log_weights, before[0]) and m.n_updates == before[1]
+    assert m.rng.bit_generator.state == before[2]
+
+
+@pytest.mark.parametrize(
+    "kw", [{"kld_bin_xy_m": 1e-300}, {"kld_bin_xy_m": 1e-4}, {"kld_bin_theta_rad": 1e-300}, {"kld_bin_xy_m": math.inf}]
+)
+def test_kld_bins_too_narrow_to_index_are_refused(kw):
+    """An outside audit's: 1e-300 bins overflowed the int64 bin indices and put every particle in one bin, so narrower
+    bins gave fewer particles (100 against 5000)."""
+    (name,) = kw
+    with pytest.raises(ValueError, match=f"MCLConfig.{name} must be a finite number >="):
+        MCLConfig(**kw)
+    assert MCLConfig(kld_bin_xy_m=1e-3, kld_bin_theta_rad=2 * math.pi / 3600).kld_bin_xy_m == 1e-3

@@ -112,6 +112,7 @@ from scipy.special import logsumexp
 from filters import _blas
 from filters.localization import audit, belief_kernels, kld_kernels
 from filters.localization.belief import (
+    MIN_BIN_THETA_RAD,
     Belief,
     BeliefConfig,
     Hypothesis,
@@ -175,6 +176,9 @@ _SUBCONFIGS = {
 BELIEF_BETWEEN_UPDATES = ("exact", "odometry")
 """The values of `MCLConfig.belief_between_updates`."""
 
+MIN_KLD_BIN_XY_M = 1e-3
+"""Narrowest position bin of KLD sampling (m): far below any useful bin, and wide enough that the bin indices of poses
+as far as maps reach fit an int64."""
 MAX_PARTICLES = 10_000_000
 """Upper bound of every particle count (a filter of 10 million particles holds ~320 MB of poses
 and weights before any per-beam work): larger counts are refused, not left to a MemoryError."""
@@ -536,8 +540,14 @@ class MCLConfig:
             "update_min_a_rad": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
             **{
                 n: (lambda v: math.isfinite(v) and v > 0, "a finite number > 0")
-                for n in ("likelihood_scale", "kld_bin_xy_m", "kld_bin_theta_rad", "kld_epsilon", "kld_z")
+                for n in ("likelihood_scale", "kld_epsilon", "kld_z")
             },
+            # an outside audit's: 1e-300 m or rad bins overflowed the bin indices, and all particles shared one bin
+            "kld_bin_xy_m": (lambda v: MIN_KLD_BIN_XY_M <= v < math.inf, f"a finite number >= {MIN_KLD_BIN_XY_M:g} m"),
+            "kld_bin_theta_rad": (
+                lambda v: MIN_BIN_THETA_RAD <= v < math.inf,
+                "a finite number >= MIN_BIN_THETA_RAD = 2 pi / 3600 (0.1 deg)",
+            ),
             "resample_ess_frac": (lambda v: 0.0 <= v <= 1.0, "in [0, 1]"),
             "alpha_slow": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
             "alpha_fast": (lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
@@ -794,6 +804,12 @@ class MonteCarloLocalizer:
             raise TypeError(f"config must be an MCLConfig or a dict, got {type(config).__name__}")
         if not isinstance(rng, np.random.Generator):
             raise TypeError("rng must be a numpy.random.Generator (no hidden global randomness)")
+        if grid.free_cells().size == 0:  # an outside audit's: update failed later, after changing the filter
+            raise ValueError(
+                f"the map has no free cell (occupancy < free_thresh {grid.free_thresh:g}): the filter draws particles "
+                "over free space (a global start, injections, recovery, the audit); check the map's thresholds and "
+                "how it stores free space"
+            )
         self.grid = grid
         self.rng = rng
         c = self.config
@@ -1063,6 +1079,12 @@ class MonteCarloLocalizer:
         ll_l, ll_s, beams = self.measurement_model.log_likelihood_terms(self._poses, lid, sem)
         ll_l = np.asarray(ll_l, dtype=np.float64)
         ll_s = np.asarray(ll_s, dtype=np.float64)
+        for what, a in (("lidar", ll_l), ("semantic", ll_s)):  # broadcasting would make (N, N) log-weights
+            if a.shape not in ((n,), ()):
+                raise ValueError(
+                    f"the measurement model's {what} log-likelihoods must have shape ({n},) or be one number, got "
+                    f"shape {a.shape}"
+                )
         ll = ll_l + ll_s
         ll = np.where(np.isfinite(ll), ll, -np.inf)
         n_beams = beams.n_lidar + beams.n_semantic
