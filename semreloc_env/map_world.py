@@ -211,13 +211,12 @@ def layout_from_map(
                     continue
                 poly = cand
                 break
-            if poly is not None:
-                objects.append(SemanticObject(cls, tuple(map(tuple, poly.tolist())), f"{cls}_{len(objects)}"))
-            elif untraced_as_walls:
+            if poly is None:
                 untraced.append(f"{cls} at {_region_at(cells, grid)}")
-                continue  # not a class cell: its occupied cells stay walls
+                if untraced_as_walls:
+                    continue  # not a class cell: its occupied cells stay walls
             else:
-                untraced.append(f"{cls} at {_region_at(cells, grid)}")
+                objects.append(SemanticObject(cls, tuple(map(tuple, poly.tolist())), f"{cls}_{len(objects)}"))
             class_cells |= cells
     if untraced:
         kept = (

@@ -236,6 +236,14 @@ _ROS_MAP_KEYS = {"image", "resolution", "origin", "occupied_thresh", "free_thres
 """Keys of a ROS map YAML (map_server's); a layout has none of them."""
 
 
+def load_env_map(path) -> GridMap:
+    """The ROS map at ``path`` as the registered envs (``SemReloc-v22`` and older, ``SemSlam-v2`` and older) have
+    always read maps, so that their episodes stay what they were: `filters.mapping.ros_map.load_map` with alpha left
+    out of trinary maps and unknown cells at 0.5 whatever the thresholds (it warns where that reads them otherwise;
+    docs/real_robot.md, section 6)."""
+    return load_map(path, alpha_in_trinary=False, unknown_at_half=True)
+
+
 def is_ros_map_file(path) -> bool:
     """True for a ``.yaml`` / ``.yml`` file that is a ROS map (one of map_server's keys, ``image``, ``resolution``,
     ``origin``, ..., and no ``outer``), not a layout."""
@@ -332,7 +340,7 @@ def maps_for(
         grid = mapped(get_layout(source), lidar, camera, mapping_version)
     else:  # a ROS map: its path, or its name on the search path
         path = searched_ros_map(source) or Path(source)
-        grid = load_map(path, alpha_in_trinary=False, unknown_at_half=True)  # as the registered envs always read maps
+        grid = load_env_map(path)
     grid = env_classes(grid, source, semantic)  # the env's classes, in its order (empty layers if lidar-only)
     if not derived and not (isinstance(layout, MapLayout) and _same_map(layout.grid, grid)):
         check_map_matches_world(grid, layout)

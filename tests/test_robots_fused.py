@@ -1,6 +1,8 @@
 """`agents.tools.robots_fused`: the motion and likelihood kernels fused over a batched step's robots give the
 per-robot calls' results bit for bit, and the comparison notices when they do not."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -46,13 +48,15 @@ def test_compare_times_the_three_ways_and_reports_the_same_bits(recorded):
 
 
 def test_compare_reports_a_fused_kernel_that_differs(recorded, monkeypatch):
-    kernel = robots_fused.likelihood_fused
+    table = robots_fused._KERNELS[robots_fused.LIKELIHOOD]
 
     def off_by_one_robot(*args):
-        kernel(*args)
+        table.fused(*args)
         args[-1][args[4][-2] :] += 1e-12  # the last robot's semantic log-likelihoods
 
-    monkeypatch.setattr(robots_fused, "likelihood_fused", off_by_one_robot)
+    monkeypatch.setitem(
+        robots_fused._KERNELS, robots_fused.LIKELIHOOD, dataclasses.replace(table, fused=off_by_one_robot)
+    )
     got = robots_fused.compare(recorded, repeats=1)
     assert not got[robots_fused.LIKELIHOOD].same_bits
     assert got[robots_fused.MOTION].same_bits

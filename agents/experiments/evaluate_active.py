@@ -832,12 +832,10 @@ def file_digest(path: str) -> str:
     a ROS map as read (its occupancy and class grids, resolution, origin and class names: the image
     and sidecar files count, not only the .yaml's bytes)."""
     from semreloc_env.layouts import find_layout_file
-    from semreloc_env.maps import is_ros_map_file
+    from semreloc_env.maps import is_ros_map_file, load_env_map
 
     if is_ros_map_file(path):
-        from filters.mapping.ros_map import load_map
-
-        grid = load_map(path, alpha_in_trinary=False, unknown_at_half=True)  # as the env reads it
+        grid = load_env_map(path)  # as the env reads it
         h = hashlib.sha256(np.ascontiguousarray(grid.occupancy).tobytes())
         h.update(b"" if grid.semantic is None else np.ascontiguousarray(grid.semantic).tobytes())
         h.update(repr((grid.resolution_m, tuple(grid.origin_xy_m), tuple(grid.class_names))).encode())

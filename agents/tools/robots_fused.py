@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from filters.localization.likelihood_field import _beam_cells, _gather_sum
-from filters.motion.odometry import move_particle
+from filters.localization.likelihood_field import _beam_cells, _gather_sum, log_likelihood_kernel
+from filters.motion.odometry import _sample_kernel, move_particle
 
 LIKELIHOOD, MOTION = "likelihood", "motion"
 
@@ -147,32 +148,43 @@ def likelihood_inputs(group: list[tuple]) -> tuple:
     )  # fmt: skip
 
 
+@dataclass(frozen=True)
+class _Kernel:
+    """How one kernel is called alone and fused: ``per_robot(*call)`` with a recorded ``call`` (its first ``n_in``
+    arguments inputs, the rest outputs); ``fused(*inputs(group))``, whose arguments ``starts`` and ``outputs`` are the
+    robots' particle offsets and the outputs."""
+
+    per_robot: Callable
+    n_in: int
+    fused: Callable
+    inputs: Callable[[list[tuple]], tuple]
+    starts: int
+    outputs: tuple[int, ...]
+
+
+_KERNELS = {
+    MOTION: _Kernel(_sample_kernel, 8, motion_fused, motion_inputs, 1, (4,)),
+    LIKELIHOOD: _Kernel(log_likelihood_kernel, 15, likelihood_fused, likelihood_inputs, 4, (-2, -1)),
+}
+
+
 def _fused_outputs(name: str, group: list[tuple]) -> tuple[tuple, list[tuple[np.ndarray, ...]]]:
     """The fused call's arguments for ``group`` and, after running it, each robot's slice of its outputs."""
-    if name == MOTION:
-        args = motion_inputs(group)
-        motion_fused(*args)
-        s, out = args[1], args[4]
-        return args, [(out[s[r] : s[r + 1]],) for r in range(len(group))]
-    args = likelihood_inputs(group)
-    likelihood_fused(*args)
-    s, out_l, out_s = args[4], args[-2], args[-1]
-    return args, [(out_l[s[r] : s[r + 1]], out_s[s[r] : s[r + 1]]) for r in range(len(group))]
+    k = _KERNELS[name]
+    args = k.inputs(group)
+    k.fused(*args)
+    s = args[k.starts]
+    return args, [tuple(args[j][s[r] : s[r + 1]] for j in k.outputs) for r in range(len(group))]
 
 
 def _per_robot_outputs(name: str, group: list[tuple]) -> list[tuple[np.ndarray, ...]]:
-    """Run each of ``group``'s calls with its own kernel into fresh outputs; returns them."""
-    from filters.localization.likelihood_field import log_likelihood_kernel
-    from filters.motion.odometry import _sample_kernel
-
+    """Run each of ``group``'s calls with its own kernel into copies of its outputs (which the kernels overwrite
+    whole); returns them."""
+    k = _KERNELS[name]
     outs = []
     for a in group:
-        if name == MOTION:
-            out = (np.empty_like(a[0]),)
-            _sample_kernel(*a[:8], *out)
-        else:
-            out = (np.zeros(a[0].shape[0]), np.zeros(a[0].shape[0]))
-            log_likelihood_kernel(*a[:15], *out)
+        out = tuple(o.copy() for o in a[k.n_in :])
+        k.per_robot(*a[: k.n_in], *out)
         outs.append(out)
     return outs
 
@@ -210,9 +222,6 @@ def compare(recorded: Recorded, repeats: int = 15) -> dict[str, FusedTimes]:
 
 def _compared(name: str, groups: list[list[tuple]], robot_steps: int, repeats: int) -> FusedTimes:
     """`compare` of one kernel's call ``groups``."""
-    from filters.localization.likelihood_field import log_likelihood_kernel
-    from filters.motion.odometry import _sample_kernel
-
     same = True
     laid_out = []
     for g in groups:
@@ -221,23 +230,19 @@ def _compared(name: str, groups: list[list[tuple]], robot_steps: int, repeats: i
         for mine, theirs in zip(fused, _per_robot_outputs(name, g), strict=True):
             same &= all(np.array_equal(a, b) for a, b in zip(mine, theirs, strict=True))
     calls = [a for g in groups for a in g]
-    if name == MOTION:
-        kernel, fused_kernel, inputs, n_in = _sample_kernel, motion_fused, motion_inputs, 8
-    else:
-        kernel, fused_kernel, inputs, n_in = log_likelihood_kernel, likelihood_fused, likelihood_inputs, 15
-    outs = [a[n_in:] for a in calls]  # the recorded calls' own outputs, written over
+    k = _KERNELS[name]
 
-    def per_robot():
-        for a, o in zip(calls, outs):
-            kernel(*a[:n_in], *o)
+    def per_robot():  # into the recorded calls' own outputs
+        for a in calls:
+            k.per_robot(*a)
 
     def fused():
         for args in laid_out:
-            fused_kernel(*args)
+            k.fused(*args)
 
     def fused_laid_out():
         for g in groups:
-            fused_kernel(*inputs(g))
+            k.fused(*k.inputs(g))
 
     ways = (per_robot, fused, fused_laid_out)
     times: list[list[float]] = [[] for _ in ways]

@@ -617,19 +617,19 @@ def load_map(
             f"origin {list(origin)} and resolution {res} put the map's corners {far:.12g} m from the origin, "
             f"beyond the {MAX_MAP_COORDINATE_M:g} m maps may reach (not metres?)",
         )
-    unknown = 0.5 if unknown_at_half else unknown_occupancy(free_t, occ_t)
-    occ = np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t, transparent, unknown))
-    misread = unknown != unknown_occupancy(free_t, occ_t)
-    if misread and not np.array_equal(occ, np.flipud(_occupancy_from_pixels(img, bool(negate), mode, occ_t, free_t,
-                                                                            transparent))):  # fmt: skip
-        reads = "occupied" if unknown > occ_t else "free"
+    right = unknown_occupancy(free_t, occ_t)
+    unknown = 0.5 if unknown_at_half else right
+    pixels = (img, bool(negate), mode, occ_t, free_t, transparent)
+    occ = _occupancy_from_pixels(*pixels, unknown)
+    if unknown != right and not np.array_equal(occ, _occupancy_from_pixels(*pixels, right)):
         warnings.warn(
             f"{path_yaml}: free_thresh {free_t} and occupied_thresh {occ_t} do not straddle 0.5, so the unknown cells, "
-            f"stored as 0.5 as the registered envs read maps, read as {reads} (load_map's default stores them between "
-            "the thresholds: docs/maps.md)",
+            f"stored as 0.5 as the registered envs read maps, read as {'occupied' if unknown > occ_t else 'free'} "
+            "(load_map's default stores them between the thresholds: docs/maps.md)",
             MapFormatWarning,
             stacklevel=2,
         )
+    occ = np.flipud(occ)
 
     names: tuple[str, ...] = ()
     sem = np.zeros((0,) + img.shape, np.float32)

@@ -253,7 +253,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
         mask, options = self._reset_mask(options)
         seeds = self.check_seeds(seed, options)
         per_robot = self._per_robot(options)
-        if mask is not None and not mask.all():
+        if mask is not None:
             if self._robot_obs is None:
                 raise RuntimeError(
                     "reset_mask resets some robots only: reset every robot once first with this env's reset() (not "
@@ -262,14 +262,14 @@ class SemRelocLoopVectorEnv(VectorEnv):
             if self._out_of_step is not None:
                 raise RuntimeError(f"{self._out_of_step} (a reset_mask that leaves robots out does not)")
         super().reset(seed=seeds[0])
-        obs_list = list(self._robot_obs) if mask is not None and not mask.all() else [None] * self.num_envs
+        obs_list = [None] * self.num_envs if mask is None else list(self._robot_obs)
         info_list: list[dict | None] = [None] * self.num_envs
         for i, (env, s, o) in enumerate(zip(self.envs, seeds, per_robot)):
             if mask is not None and not mask[i]:
                 continue
             with self.naming_who_raised(i, "reset"):
                 obs_list[i], info_list[i] = env.reset(seed=s, options=o)
-        if mask is None or mask.all():
+        if mask is None:
             self.all_reset()
         else:
             self._done[mask] = False
@@ -277,8 +277,9 @@ class SemRelocLoopVectorEnv(VectorEnv):
         return deepcopy(concatenate(self.single_observation_space, obs_list, self._obs)), batch_infos(info_list)
 
     def _reset_mask(self, options) -> tuple[np.ndarray | None, Any]:
-        """``(reset_mask or None, options without it)`` of `reset`'s ``options`` (the caller's dict left as it is);
-        ValueError for a mask that is not a bool array of shape ``(R,)`` with a True."""
+        """``(reset_mask, options without it)`` of `reset`'s ``options`` (the caller's dict left as it is), the mask
+        None where there is none or it marks every robot (a full reset); ValueError for a mask that is not a bool
+        array of shape ``(R,)`` with a True."""
         if not (isinstance(options, dict) and "reset_mask" in options):
             return None, options
         mask = options["reset_mask"]
@@ -288,7 +289,7 @@ class SemRelocLoopVectorEnv(VectorEnv):
             )
         if not mask.any():
             raise ValueError("options['reset_mask'] must mark at least one robot to reset (it is all False)")
-        return mask.copy(), {k: v for k, v in options.items() if k != "reset_mask"}
+        return None if mask.all() else mask.copy(), {k: v for k, v in options.items() if k != "reset_mask"}
 
     def step(self, actions):
         """Step every robot with its action (a robot that ended last step is reset instead).

@@ -148,16 +148,13 @@ def get_layout(
     from filters.mapping.grid import GridMap
 
     if isinstance(spec, GridMap) or _is_ros_map(spec):
-        from ..map_world import layout_from_map  # lazy: map_world imports this package
+        from ..map_world import layout_from_map  # lazy: map_world and maps import this package
+        from ..maps import load_env_map
 
+        # a class region with no simple outline left out of the world, as the registered envs have always built it
         if isinstance(spec, GridMap):
             return layout_from_map(spec, untraced_as_walls=False)
-        from filters.mapping.ros_map import load_map
-
-        # as the registered envs have always read maps: alpha left out of trinary maps, unknown cells at 0.5, and
-        # a class region with no simple outline left out of the world (load_map, layout_from_map)
-        grid = load_map(spec, alpha_in_trinary=False, unknown_at_half=True)
-        return layout_from_map(grid, name=Path(spec).stem, untraced_as_walls=False)
+        return layout_from_map(load_env_map(spec), name=Path(spec).stem, untraced_as_walls=False)
     if isinstance(spec, Mapping):
         return layout_from_dict(spec)
     if isinstance(spec, str) and spec in LAYOUT_NAMES:
